@@ -1,0 +1,68 @@
+//! `coevo --bench`: throughput figures on this machine, printed, never asserted in tests.
+//!
+//! Environment steps per second through the real ECS schedule, one thread, random actions, on the
+//! periodic arena: 3+10 and 3+50 on the paper's 2 m arena, 3+1 000 and 3+10 000 on an arena scaled so the
+//! density stays that of 3+10.
+
+use crate::scene::{Policy, Scene};
+use crate::Simulation;
+use std::time::{Duration, Instant};
+
+/// One measured configuration.
+pub struct Figure {
+    pub label: String,
+    pub per_second: f64,
+    pub unit: &'static str,
+}
+
+/// The scene used for environment benchmarks: random policies, `predators` + `prey` agents, the arena
+/// edge scaled to keep the 3+10 density when `keep_density`.
+pub fn bench_scene(predators: usize, prey: usize, keep_density: bool) -> Scene {
+    let mut scene = Scene::preset("paper").expect("paper preset exists");
+    scene.species[0].count = predators;
+    scene.species[1].count = prey;
+    for s in &mut scene.species {
+        s.policy = Policy::Random;
+    }
+    if keep_density {
+        scene.world.arena_edge = 2.0 * ((predators + prey) as f64 / 13.0).sqrt();
+    }
+    scene.episode_steps = usize::MAX;
+    scene
+}
+
+/// Runs `step` repeatedly for about `budget` (at least `min_iters` times) and returns calls per second.
+pub fn per_second(budget: Duration, min_iters: usize, mut step: impl FnMut()) -> f64 {
+    let start = Instant::now();
+    let mut iters = 0usize;
+    while iters < min_iters || start.elapsed() < budget {
+        step();
+        iters += 1;
+    }
+    iters as f64 / start.elapsed().as_secs_f64()
+}
+
+/// Environment steps per second for the four populations.
+pub fn environment(budget: Duration) -> Vec<Figure> {
+    [(3, 10, false), (3, 50, false), (3, 1_000, true), (3, 10_000, true)]
+        .into_iter()
+        .map(|(p, e, scaled)| {
+            let mut sim = Simulation::new(bench_scene(p, e, scaled));
+            for _ in 0..10 {
+                sim.step(); // warm the grids and batches
+            }
+            let edge = sim.world().resource::<crate::ActiveScene>().0.world.arena_edge;
+            Figure {
+                label: format!("environment step, {p}+{e} agents, arena {edge:.1} m, random actions"),
+                per_second: per_second(budget, 20, || sim.step()),
+                unit: "steps/s",
+            }
+        })
+        .collect()
+}
+
+pub fn print(figures: &[Figure]) {
+    for f in figures {
+        println!("{:<72} {:>12.0} {}", f.label, f.per_second, f.unit);
+    }
+}

@@ -1,0 +1,126 @@
+//! Episodes: spawn the population (Algorithm 1: "randomly spawn n_0 predators and n_1 prey"), count steps,
+//! and at the end of an episode log its summary and respawn.
+//!
+//! Spawning: positions uniform over the arena (inset by the body radius with walls, so no body starts
+//! inside a wall), headings uniform in (−π, π], velocities zero. Overlaps at spawn are allowed; the
+//! contact springs separate them. The paper is silent on this; it is what the authors' code does.
+
+use crate::components::*;
+use crate::metrics::{EpisodeLog, SwarmMetrics};
+use crate::perception::Perceive;
+use crate::physics::{PhysicsSet, FULL_ENERGY};
+use crate::scene::Boundary;
+use crate::space::Arena;
+use crate::species::SpeciesRegistry;
+use crate::{ActiveScene, SimSet};
+use bevy::math::DVec2;
+use bevy::prelude::*;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use std::f64::consts::PI;
+
+/// The environment's random stream (spawning, random policies), seeded from the scene.
+#[derive(Resource, Clone, Debug)]
+pub struct SimRng(pub ChaCha8Rng);
+
+impl SimRng {
+    /// Independent streams per purpose, so that e.g. exploration noise never shifts the spawn positions.
+    pub fn stream(seed: u64, stream: u64) -> ChaCha8Rng {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        rng.set_stream(stream);
+        rng
+    }
+}
+
+/// Where the run is: episode index (from 0) and steps done in it.
+#[derive(Resource, Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Episode {
+    pub index: usize,
+    pub step: usize,
+    pub length: usize,
+    /// Respawn when an episode ends (off while recording one continuous trajectory).
+    pub auto_reset: bool,
+}
+
+impl Episode {
+    /// True during the step that completes the episode (from Measure on).
+    pub fn is_done(&self) -> bool {
+        self.step == self.length
+    }
+}
+
+pub struct EpisodePlugin;
+
+impl Plugin for EpisodePlugin {
+    fn build(&self, app: &mut App) {
+        // The clock advances with the physics: after the move, the step has happened.
+        app.add_systems(
+            FixedUpdate,
+            (advance_clock.in_set(SimSet::Physics).after(PhysicsSet::Boundary), end_episode.in_set(SimSet::Episode)),
+        );
+    }
+}
+
+fn advance_clock(mut episode: ResMut<Episode>) {
+    episode.step += 1;
+}
+
+/// Logs a finished episode and, with auto-reset, respawns.
+fn end_episode(world: &mut World) {
+    let episode = *world.resource::<Episode>();
+    if !episode.is_done() {
+        return;
+    }
+    let summary = world.resource_mut::<SwarmMetrics>().finish_episode(episode.index);
+    world.resource_mut::<EpisodeLog>().episodes.push(summary);
+    if episode.auto_reset {
+        let mut e = world.resource_mut::<Episode>();
+        e.index += 1;
+        e.step = 0;
+        spawn_population(world);
+    }
+}
+
+/// Despawns every agent, spawns the scene's population anew and perceives the new state.
+pub fn spawn_population(world: &mut World) {
+    let agents: Vec<Entity> = world.query_filtered::<Entity, With<AgentId>>().iter(world).collect();
+    for e in agents {
+        world.despawn(e);
+    }
+    let registry = world.resource::<SpeciesRegistry>().clone();
+    let arena = *world.resource::<Arena>();
+    let energy_budget = world.resource::<ActiveScene>().0.world.energy_budget;
+    let mut bundles = Vec::new();
+    {
+        let mut rng = world.resource_mut::<SimRng>();
+        for (s, def) in registry.defs.iter().enumerate() {
+            let margin = if arena.boundary == Boundary::Walls { def.radius } else { 0.0 };
+            let reach = arena.half() - margin;
+            for _ in 0..def.count {
+                let x = DVec2::new(rng.0.gen_range(-reach..reach), rng.0.gen_range(-reach..reach));
+                let theta = crate::physics::wrap_angle(rng.0.gen_range(-PI..PI));
+                bundles.push(AgentBundle {
+                    id: AgentId(bundles.len() as u32),
+                    species: SpeciesId(s),
+                    position: Position(x),
+                    velocity: Velocity::default(),
+                    heading: Heading(theta),
+                    body: Body { mass: def.mass, radius: def.radius },
+                    action: Action::default(),
+                    reward: Reward::default(),
+                    contact_force: ContactForce::default(),
+                    contacts: Contacts::default(),
+                    slot: Slot::default(),
+                });
+            }
+        }
+    }
+    for b in bundles {
+        let mut e = world.spawn(b);
+        if energy_budget {
+            e.insert(Energy(FULL_ENERGY));
+        }
+    }
+    world.insert_resource(SwarmMetrics::default());
+    world.run_schedule(Perceive);
+}

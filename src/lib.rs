@@ -1,0 +1,126 @@
+//! coevo: predators and prey that learn together (Li, Li & Zhao, New J. Phys. 2023) as a Bevy ECS app.
+//!
+//! One fixed step, top to bottom (the sets of [`SimSet`], chained in `FixedUpdate`):
+//!
+//! | set        | what happens                                                      | file              |
+//! |------------|-------------------------------------------------------------------|-------------------|
+//! | `Decide`   | each species' policy fills its batch of normalized actions        | `policy.rs`, `learning/` |
+//! | `Act`      | actions rescaled to thrust a_F (N) and turn rate a_R (rad/s)      | `policy.rs`       |
+//! | `Physics`  | Eq. (1): heading, velocity, speed clip, position, periodic wrap   | `physics.rs`      |
+//! | `Perceive` | the new state: cell grids, Hooke contacts, observation vectors    | `perception.rs`   |
+//! | `Reward`   | survival ±1 per contact, energy cost, wall penalty                | `reward.rs`       |
+//! | `Measure`  | DoS, DoA, catches                                                  | `metrics.rs`      |
+//! | `Learn`    | Algorithm 1: replay buffers and DDPG updates                       | `learning/`       |
+//! | `Episode`  | end of episode: summary, respawn                                  | `episode.rs`      |
+
+pub mod bench;
+pub mod components;
+pub mod episode;
+pub mod io;
+pub mod metrics;
+pub mod perception;
+pub mod physics;
+pub mod policy;
+pub mod record;
+pub mod reward;
+pub mod scene;
+pub mod space;
+pub mod species;
+
+use bevy::prelude::*;
+use episode::{Episode, EpisodePlugin, SimRng};
+use metrics::MetricsPlugin;
+use perception::PerceptionPlugin;
+use physics::PhysicsPlugin;
+use policy::PolicyPlugin;
+use reward::RewardPlugin;
+pub use scene::Scene;
+
+/// The scene the world runs, as resolved from its file and preset.
+#[derive(Resource, Clone, Debug)]
+pub struct ActiveScene(pub Scene);
+
+/// The stages of one fixed step, in order.
+#[derive(SystemSet, Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum SimSet {
+    Decide,
+    Act,
+    Physics,
+    Perceive,
+    Reward,
+    Measure,
+    Learn,
+    Episode,
+}
+
+/// The simulation: every stage's plugin, the scene's resources and the step's order.
+pub struct SimulationPlugin {
+    pub scene: Scene,
+}
+
+impl Plugin for SimulationPlugin {
+    fn build(&self, app: &mut App) {
+        let scene = &self.scene;
+        app.insert_resource(ActiveScene(scene.clone()))
+            .insert_resource(Episode { index: 0, step: 0, length: scene.episode_steps, auto_reset: true })
+            .insert_resource(SimRng(SimRng::stream(scene.seed, 0)));
+        perception::insert_scene_resources(app.world_mut(), scene);
+        app.configure_sets(
+            FixedUpdate,
+            (
+                SimSet::Decide,
+                SimSet::Act,
+                SimSet::Physics,
+                SimSet::Perceive,
+                SimSet::Reward,
+                SimSet::Measure,
+                SimSet::Learn,
+                SimSet::Episode,
+            )
+                .chain(),
+        );
+        app.add_plugins((PerceptionPlugin, PolicyPlugin, PhysicsPlugin, RewardPlugin, MetricsPlugin, EpisodePlugin));
+        app.add_systems(FixedUpdate, perception::run_perceive.in_set(SimSet::Perceive));
+    }
+}
+
+/// A headless simulation: the app, its schedule driven directly one fixed step at a time, as fast as it
+/// goes (not paced by wall-clock time).
+pub struct Simulation {
+    pub app: App,
+}
+
+impl Simulation {
+    /// The simulation of a scene with the core plugins only.
+    pub fn new(scene: Scene) -> Self {
+        Self::with_plugins(scene, |_| {})
+    }
+
+    /// The simulation of a scene, with more plugins (learning, a species of your own) added by `extra`.
+    pub fn with_plugins(scene: Scene, extra: impl FnOnce(&mut App)) -> Self {
+        let mut app = App::new();
+        app.add_plugins(SimulationPlugin { scene });
+        extra(&mut app);
+        app.finish();
+        app.cleanup();
+        episode::spawn_population(app.world_mut());
+        Simulation { app }
+    }
+
+    /// One environment step t → t+1.
+    pub fn step(&mut self) {
+        self.app.world_mut().run_schedule(FixedUpdate);
+    }
+
+    pub fn world(&self) -> &World {
+        self.app.world()
+    }
+
+    pub fn world_mut(&mut self) -> &mut World {
+        self.app.world_mut()
+    }
+
+    pub fn episode(&self) -> Episode {
+        *self.world().resource::<Episode>()
+    }
+}

@@ -1,0 +1,192 @@
+//! Degree of sparsity and degree of alignment (Section "Results", Eqs. for DoS and DoA):
+//!
+//! ```text
+//!   DoS = 1/(T·N·D) Σ_t Σ_j ‖x_j(t) − x_k(t)‖        k = the positionally nearest other agent of j's species
+//!   DoA = 1/(2·T·N) Σ_t Σ_j ‖h_j(t) + h_k(t)‖         same k
+//! ```
+//!
+//! D is the largest possible distance (√2 on the periodic 2 m arena, 2√2 with walls); distances are
+//! minimum-image on the torus. Both are computed for every species with at least two agents; the paper
+//! reports them for prey. Per step ([`SwarmMetrics::now`]) and per episode ([`EpisodeLog`]), with catches
+//! (predator–prey pairs in contact) and each species' mean return per agent.
+
+use crate::components::*;
+use crate::perception::Population;
+use crate::space::{Arena, CellGrid};
+use crate::species::SpeciesRegistry;
+use crate::SimSet;
+use bevy::math::DVec2;
+use bevy::prelude::*;
+
+/// DoS and DoA of one group at one instant.
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+pub struct Swarming {
+    pub dos: f64,
+    pub doa: f64,
+}
+
+/// DoS and DoA of the agents `members` of a population at one instant, using `grid` (built over
+/// `members`) for the nearest-neighbour search. None with fewer than two agents.
+pub fn swarming(arena: &Arena, positions: &[DVec2], headings: &[DVec2], grid: &CellGrid, members: std::ops::Range<usize>) -> Option<Swarming> {
+    let n = members.len();
+    if n < 2 {
+        return None;
+    }
+    let mut nearest = Vec::with_capacity(1);
+    let (mut distance, mut alignment) = (0.0, 0.0);
+    for j in members {
+        grid.k_nearest(arena, positions, positions[j], 1, f64::INFINITY, j as u32, &mut nearest);
+        let k = nearest[0].1 as usize;
+        distance += nearest[0].0.sqrt();
+        alignment += (headings[j] + headings[k]).length();
+    }
+    Some(Swarming { dos: distance / (n as f64 * arena.max_distance()), doa: alignment / (2.0 * n as f64) })
+}
+
+/// Convenience for callers without a grid: DoS and DoA of a whole set of positions and unit headings.
+pub fn swarming_of(arena: &Arena, positions: &[DVec2], headings: &[DVec2]) -> Option<Swarming> {
+    let mut grid = CellGrid::default();
+    grid.rebuild(arena, positions, 0..positions.len());
+    swarming(arena, positions, headings, &grid, 0..positions.len())
+}
+
+/// Per-step metrics of the current state and the running sums of the current episode.
+#[derive(Resource, Default, Debug, Clone)]
+pub struct SwarmMetrics {
+    /// Per species; None with fewer than two agents.
+    pub now: Vec<Option<Swarming>>,
+    /// Predator–prey pairs in contact at the current state.
+    pub catches_now: u32,
+    episode: EpisodeSums,
+}
+
+#[derive(Default, Debug, Clone)]
+struct EpisodeSums {
+    steps: usize,
+    swarming: Vec<Swarming>,
+    catches: u64,
+    rewards: Vec<f64>,
+    agents: Vec<usize>,
+}
+
+/// One episode's summary: the time averages of the paper's figures.
+#[derive(Clone, Debug, PartialEq)]
+pub struct EpisodeSummary {
+    pub episode: usize,
+    pub steps: usize,
+    /// Per species, time-averaged; None where the species had fewer than two agents.
+    pub swarming: Vec<Option<Swarming>>,
+    /// Catches summed over the episode's steps.
+    pub catches: u64,
+    /// Per species: summed reward over the episode divided by the number of agents (mean return).
+    pub mean_return: Vec<f64>,
+}
+
+/// Every finished episode, in order.
+#[derive(Resource, Default, Debug, Clone)]
+pub struct EpisodeLog {
+    pub episodes: Vec<EpisodeSummary>,
+}
+
+impl SwarmMetrics {
+    /// Closes the running episode into a summary and starts a new one.
+    pub fn finish_episode(&mut self, episode: usize) -> EpisodeSummary {
+        let sums = std::mem::take(&mut self.episode);
+        let t = sums.steps.max(1) as f64;
+        EpisodeSummary {
+            episode,
+            steps: sums.steps,
+            swarming: sums
+                .swarming
+                .iter()
+                .zip(&sums.agents)
+                .map(|(s, &n)| (n >= 2).then(|| Swarming { dos: s.dos / t, doa: s.doa / t }))
+                .collect(),
+            catches: sums.catches,
+            mean_return: sums.rewards.iter().zip(&sums.agents).map(|(r, &n)| if n > 0 { r / n as f64 } else { 0.0 }).collect(),
+        }
+    }
+}
+
+pub struct MetricsPlugin;
+
+impl Plugin for MetricsPlugin {
+    fn build(&self, app: &mut App) {
+        app.init_resource::<SwarmMetrics>().init_resource::<EpisodeLog>();
+        app.add_systems(FixedUpdate, measure.in_set(SimSet::Measure));
+    }
+}
+
+fn measure(
+    pop: Res<Population>,
+    arena: Res<Arena>,
+    registry: Res<SpeciesRegistry>,
+    mut metrics: ResMut<SwarmMetrics>,
+    agents: Query<(&SpeciesId, &Contacts, &Reward)>,
+) {
+    let n_species = registry.len();
+    let m = &mut *metrics;
+    m.now = (0..n_species)
+        .map(|s| swarming(&arena, &pop.position, &pop.heading, &pop.grids[s], pop.ranges[s].clone()))
+        .collect();
+    let e = &mut m.episode;
+    e.swarming.resize(n_species, Swarming::default());
+    e.rewards.resize(n_species, 0.0);
+    e.agents = (0..n_species).map(|s| pop.count(s)).collect();
+    for (sum, now) in e.swarming.iter_mut().zip(&m.now) {
+        if let Some(now) = now {
+            sum.dos += now.dos;
+            sum.doa += now.doa;
+        }
+    }
+    m.catches_now = 0;
+    for (species, contacts, reward) in &agents {
+        m.catches_now += contacts.now.catching;
+        e.rewards[species.0] += reward.0;
+    }
+    e.catches += m.catches_now as u64;
+    e.steps += 1;
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::Boundary;
+    use rand::{Rng, SeedableRng};
+
+    #[test]
+    fn random_headings_give_two_over_pi() {
+        let arena = Arena { edge: 2.0, boundary: Boundary::Periodic };
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
+        let (mut total, samples) = (0.0, 400);
+        for _ in 0..samples {
+            let pos: Vec<DVec2> = (0..50).map(|_| DVec2::new(rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0))).collect();
+            let head: Vec<DVec2> = (0..50).map(|_| DVec2::from_angle(rng.gen_range(-std::f64::consts::PI..std::f64::consts::PI))).collect();
+            total += swarming_of(&arena, &pos, &head).unwrap().doa;
+        }
+        let doa = total / samples as f64;
+        assert!((doa - 2.0 / std::f64::consts::PI).abs() < 0.02, "DoA of random headings {doa}");
+    }
+
+    #[test]
+    fn aligned_agents_have_doa_one() {
+        let arena = Arena { edge: 2.0, boundary: Boundary::Walls };
+        let pos = [DVec2::new(0.0, 0.0), DVec2::new(0.3, 0.1), DVec2::new(-0.5, 0.7)];
+        let head = [DVec2::from_angle(0.7); 3];
+        assert!((swarming_of(&arena, &pos, &head).unwrap().doa - 1.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn dos_of_a_known_configuration() {
+        // Torus of edge 2: agents at x = ±0.95 are 0.1 apart across the seam; the third is 0.5 from the
+        // nearest. Nearest distances 0.1, 0.1, 0.5 → DoS = 0.7 / (3·√2).
+        let arena = Arena { edge: 2.0, boundary: Boundary::Periodic };
+        let pos = [DVec2::new(0.95, 0.0), DVec2::new(-0.95, 0.0), DVec2::new(-0.45, 0.0)];
+        let head = [DVec2::X, DVec2::Y, -DVec2::X];
+        let s = swarming_of(&arena, &pos, &head).unwrap();
+        assert!((s.dos - 0.7 / (3.0 * 2f64.sqrt())).abs() < 1e-12, "{}", s.dos);
+        // Pairs: (X,Y) → √2, (Y,X) → √2, (−X, Y) → √2: DoA = 3·√2 / 6.
+        assert!((s.doa - 2f64.sqrt() / 2.0).abs() < 1e-12, "{}", s.doa);
+        assert!(swarming_of(&arena, &pos[..1], &head[..1]).is_none());
+    }
+}

@@ -1,0 +1,273 @@
+//! Perceiving a state, once per state: index the agents on cell grids, detect contacts (the Hooke
+//! forces f_a of Eq. 1 and the catches that rewards count), and write every agent's observation vector
+//! into its species' batch.
+//!
+//! This runs as its own schedule, [`Perceive`], at the end of every step (on the state the step produced)
+//! and after every spawn, so each state is perceived exactly once and the next step's Decide and Physics
+//! read the forces and observations of the state they start from.
+//!
+//! Observation of an agent of species s (Appendix B; `parameters.md`, "Observation"):
+//! `[x, y, v_x, v_y, h_x, h_y]`, then for every species t in registry order `topological_limit(s)` slots of
+//! `[Δx, Δy, h_jx − h_ix, h_jy − h_iy]`: the agents of t within the perception radius R of s, nearest first,
+//! Δ the minimum-image displacement, never itself; empty slots are zeros. For the paper's predators and
+//! prey with limit 6 that is 6 + 4·(6 + 6) = 54 numbers.
+
+use crate::components::*;
+use crate::scene::Scene;
+use crate::space::{Arena, CellGrid};
+use crate::species::{SpeciesRegistry, ACTION_DIM, NEIGHBOUR_DIM, OWN_STATE_DIM};
+use crate::ActiveScene;
+use bevy::ecs::schedule::ScheduleLabel;
+use bevy::math::DVec2;
+use bevy::prelude::*;
+use std::ops::Range;
+
+/// The schedule that perceives the current state.
+#[derive(ScheduleLabel, Clone, Debug, PartialEq, Eq, Hash)]
+pub struct Perceive;
+
+/// The stages of perceiving, in order.
+#[derive(SystemSet, Clone, Debug, PartialEq, Eq, Hash)]
+pub enum PerceiveSet {
+    /// Gather agents into [`Population`], sorted by species then id, and rebuild the grids.
+    Index,
+    /// Hooke contact forces and contact counts.
+    Contacts,
+    /// Observation vectors into [`Batches`].
+    Observe,
+}
+
+/// The perceived state: every agent's data in flat arrays, sorted by (species, id). `Slot::index`
+/// points here; species s occupies `ranges[s]`.
+#[derive(Resource, Default, Debug)]
+pub struct Population {
+    pub entity: Vec<Entity>,
+    pub id: Vec<AgentId>,
+    pub species: Vec<usize>,
+    pub position: Vec<DVec2>,
+    pub velocity: Vec<DVec2>,
+    /// Unit heading vectors h.
+    pub heading: Vec<DVec2>,
+    pub radius: Vec<f64>,
+    pub ranges: Vec<Range<usize>>,
+    /// One grid per species over its slots.
+    pub grids: Vec<CellGrid>,
+    /// Largest body radius per species (bounds the contact search).
+    pub max_radius: Vec<f64>,
+}
+
+impl Population {
+    pub fn len(&self) -> usize {
+        self.entity.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.entity.is_empty()
+    }
+
+    /// Number of agents of species s.
+    pub fn count(&self, s: usize) -> usize {
+        self.ranges.get(s).map_or(0, |r| r.len())
+    }
+}
+
+/// Per-species batches, row r = the r-th agent of the species in (id) order: what a network consumes.
+#[derive(Resource, Default, Debug)]
+pub struct Batches {
+    pub species: Vec<SpeciesBatch>,
+}
+
+/// One species' contiguous `[n × d_o]` observations, `[n × 2]` normalized actions and `[n]` rewards.
+#[derive(Default, Debug, Clone)]
+pub struct SpeciesBatch {
+    pub n: usize,
+    pub obs_dim: usize,
+    pub observations: Vec<f32>,
+    /// Actions in [−1, 1]²: thrust maps to [0, max_thrust], turn rate to [−max, max].
+    pub actions: Vec<f32>,
+    pub rewards: Vec<f32>,
+}
+
+impl SpeciesBatch {
+    pub fn observation(&self, row: usize) -> &[f32] {
+        &self.observations[row * self.obs_dim..(row + 1) * self.obs_dim]
+    }
+
+    pub fn action(&self, row: usize) -> [f32; ACTION_DIM] {
+        [self.actions[row * ACTION_DIM], self.actions[row * ACTION_DIM + 1]]
+    }
+
+    fn resize(&mut self, n: usize, obs_dim: usize) {
+        self.n = n;
+        self.obs_dim = obs_dim;
+        self.observations.resize(n * obs_dim, 0.0);
+        self.actions.resize(n * ACTION_DIM, 0.0);
+        self.rewards.resize(n, 0.0);
+    }
+}
+
+pub struct PerceptionPlugin;
+
+impl Plugin for PerceptionPlugin {
+    fn build(&self, app: &mut App) {
+        app.init_resource::<Population>().init_resource::<Batches>();
+        app.init_schedule(Perceive);
+        app.configure_sets(Perceive, (PerceiveSet::Index, PerceiveSet::Contacts, PerceiveSet::Observe).chain());
+        app.add_systems(
+            Perceive,
+            (
+                index_population.in_set(PerceiveSet::Index),
+                detect_contacts.in_set(PerceiveSet::Contacts),
+                observe.in_set(PerceiveSet::Observe),
+            ),
+        );
+    }
+}
+
+/// Runs [`Perceive`] from inside another schedule (the step's `SimSet::Perceive`).
+pub fn run_perceive(world: &mut World) {
+    world.run_schedule(Perceive);
+}
+
+type IndexQuery<'w, 's> =
+    Query<'w, 's, (Entity, &'static AgentId, &'static SpeciesId, &'static Position, &'static Velocity, &'static Heading, &'static Body)>;
+
+fn index_population(
+    mut pop: ResMut<Population>,
+    mut batches: ResMut<Batches>,
+    registry: Res<SpeciesRegistry>,
+    arena: Res<Arena>,
+    agents: IndexQuery,
+    mut slots: Query<&mut Slot>,
+) {
+    let mut order: Vec<(usize, AgentId, Entity)> = agents.iter().map(|(e, id, s, ..)| (s.0, *id, e)).collect();
+    order.sort_unstable();
+    let p = &mut *pop;
+    for v in [&mut p.position, &mut p.velocity, &mut p.heading] {
+        v.clear();
+    }
+    p.entity.clear();
+    p.id.clear();
+    p.species.clear();
+    p.radius.clear();
+    let n_species = registry.len();
+    p.ranges = vec![0..0; n_species];
+    p.max_radius = vec![0.0; n_species];
+    for &(s, id, e) in &order {
+        let (_, _, _, x, v, h, body) = agents.get(e).expect("indexed agent exists");
+        let slot = p.entity.len();
+        if p.ranges[s].is_empty() {
+            p.ranges[s] = slot..slot;
+        }
+        p.ranges[s].end = slot + 1;
+        p.entity.push(e);
+        p.id.push(id);
+        p.species.push(s);
+        p.position.push(x.0);
+        p.velocity.push(v.0);
+        p.heading.push(h.unit());
+        p.radius.push(body.radius);
+        p.max_radius[s] = p.max_radius[s].max(body.radius);
+        let mut out = slots.get_mut(e).expect("agents have a Slot");
+        *out = Slot { index: slot as u32, row: (slot - p.ranges[s].start) as u32 };
+    }
+    p.grids.resize_with(n_species, CellGrid::default);
+    for s in 0..n_species {
+        let range = p.ranges[s].clone();
+        p.grids[s].rebuild(&arena, &p.position, range);
+    }
+    batches.species.resize_with(n_species, SpeciesBatch::default);
+    for s in 0..n_species {
+        batches.species[s].resize(p.count(s), registry.observation_dim(s));
+    }
+}
+
+/// Hooke contacts between every overlapping pair (f = k·overlap along the line of centres, pushing
+/// apart), counted as catches where one species catches the other; walls touched. Each agent sums its
+/// own forces, so a pair's forces are equal and opposite by construction.
+fn detect_contacts(
+    pop: Res<Population>,
+    registry: Res<SpeciesRegistry>,
+    arena: Res<Arena>,
+    scene: Res<ActiveScene>,
+    mut agents: Query<(&Slot, &mut ContactForce, &mut Contacts)>,
+) {
+    let k = scene.0.world.contact_stiffness;
+    for (slot, mut force, mut contacts) in &mut agents {
+        let i = slot.index as usize;
+        let (xi, ri, si) = (pop.position[i], pop.radius[i], pop.species[i]);
+        let mut f = DVec2::ZERO;
+        let mut counts = ContactCounts::default();
+        for (t, grid) in pop.grids.iter().enumerate() {
+            grid.for_each_near(xi, ri + pop.max_radius[t], |j| {
+                let j = j as usize;
+                if j == i {
+                    return;
+                }
+                let d = arena.delta(xi, pop.position[j]);
+                let dist = d.length();
+                let overlap = ri + pop.radius[j] - dist;
+                if overlap <= 0.0 {
+                    return;
+                }
+                // Coincident centres have no line of centres: separate them along x, by slot order.
+                let away = if dist > 0.0 { -d / dist } else { DVec2::X * if i < j { -1.0 } else { 1.0 } };
+                f += k * overlap * away;
+                counts.catching += registry.catches[si][t] as u32;
+                counts.caught += registry.catches[t][si] as u32;
+            });
+        }
+        counts.walls = arena.wall_contact(xi, DVec2::ZERO, ri, 0.0, 0.0).1;
+        force.0 = f;
+        contacts.before = contacts.now;
+        contacts.now = counts;
+    }
+}
+
+fn observe(
+    pop: Res<Population>,
+    registry: Res<SpeciesRegistry>,
+    arena: Res<Arena>,
+    mut batches: ResMut<Batches>,
+) {
+    let mut nearest = Vec::new();
+    for s in 0..registry.len() {
+        let limit = registry.defs[s].topological_limit;
+        let radius = registry.perception_radius[s];
+        let batch = &mut batches.species[s];
+        let dim = batch.obs_dim;
+        for (row, i) in pop.ranges[s].clone().enumerate() {
+            let obs = &mut batch.observations[row * dim..(row + 1) * dim];
+            obs.fill(0.0);
+            let (x, v, h) = (pop.position[i], pop.velocity[i], pop.heading[i]);
+            obs[..OWN_STATE_DIM].copy_from_slice(&[x.x, x.y, v.x, v.y, h.x, h.y].map(|c| c as f32));
+            for (t, grid) in pop.grids.iter().enumerate() {
+                grid.k_nearest(&arena, &pop.position, x, limit, radius, i as u32, &mut nearest);
+                let block = registry.block_offset(s, t);
+                for (n, &(_, j)) in nearest.iter().enumerate() {
+                    let j = j as usize;
+                    let d = arena.delta(x, pop.position[j]);
+                    let dh = pop.heading[j] - h;
+                    let at = block + n * NEIGHBOUR_DIM;
+                    obs[at..at + NEIGHBOUR_DIM].copy_from_slice(&[d.x, d.y, dh.x, dh.y].map(|c| c as f32));
+                }
+            }
+        }
+    }
+}
+
+/// Slot `n` of the `species` block in an observation of an `observer`; None when masked (empty).
+pub fn neighbour_slot(obs: &[f32], registry: &SpeciesRegistry, observer: usize, species: usize, n: usize) -> Option<[f32; 4]> {
+    if n >= registry.defs[observer].topological_limit {
+        return None;
+    }
+    let at = registry.block_offset(observer, species) + n * NEIGHBOUR_DIM;
+    let slot: [f32; 4] = obs[at..at + NEIGHBOUR_DIM].try_into().ok()?;
+    (slot != [0.0; 4]).then_some(slot)
+}
+
+/// Inserts the resources perception needs for a scene.
+pub(crate) fn insert_scene_resources(world: &mut World, scene: &Scene) {
+    world.insert_resource(Arena { edge: scene.world.arena_edge, boundary: scene.world.boundary });
+    world.insert_resource(SpeciesRegistry::from_scene(scene));
+}

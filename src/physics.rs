@@ -1,0 +1,118 @@
+//! Agent dynamics, Eq. (1) of the paper, discretised as in Appendix B:
+//!
+//! ```text
+//!   θ(t+1) = θ(t) + a_R·Δt                      wrapped to (−π, π]
+//!   h      = (cos θ(t+1), sin θ(t+1))
+//!   v(t+1) = v(t) + (a_F·h + f_d + f_a + f_b)·Δt / m_i,   f_d = −drag·v(t)
+//!   v(t+1) ← clip(v(t+1), max speed)           norm (paper) or per component (authors' code)
+//!   x(t+1) = x(t) + v(t+1)·Δt                   semi-implicit Euler, then periodic wrap
+//! ```
+//!
+//! f_a (agent contacts) comes from [`crate::perception`], computed on the positions at t when state t
+//! was perceived; f_b (walls) is computed here from x(t), v(t). Appendix B writes v(t) in the position
+//! update; the authors' code uses the updated velocity, which is also the stable choice with stiff
+//! springs (parameters.md, "Integration order").
+
+use crate::components::*;
+use crate::scene::SpeedClip;
+use crate::space::Arena;
+use crate::species::SpeciesRegistry;
+use crate::{ActiveScene, SimSet};
+use bevy::math::DVec2;
+use bevy::prelude::*;
+use std::f64::consts::PI;
+
+/// The stages of one physics step, in order.
+#[derive(SystemSet, Clone, Debug, PartialEq, Eq, Hash)]
+pub enum PhysicsSet {
+    /// Forces, heading, velocity and position updates.
+    Integrate,
+    /// Periodic wrap.
+    Boundary,
+}
+
+pub struct PhysicsPlugin;
+
+impl Plugin for PhysicsPlugin {
+    fn build(&self, app: &mut App) {
+        app.configure_sets(FixedUpdate, (PhysicsSet::Integrate, PhysicsSet::Boundary).chain().in_set(SimSet::Physics));
+        app.add_systems(
+            FixedUpdate,
+            (integrate.in_set(PhysicsSet::Integrate), apply_boundary.in_set(PhysicsSet::Boundary)),
+        );
+    }
+}
+
+/// Wraps an angle to (−π, π].
+pub fn wrap_angle(theta: f64) -> f64 {
+    let t = (theta + PI).rem_euclid(2.0 * PI) - PI;
+    if t <= -PI {
+        t + 2.0 * PI
+    } else {
+        t
+    }
+}
+
+/// Enforces the speed limit.
+pub fn clip_speed(v: DVec2, max_speed: f64, how: SpeedClip) -> DVec2 {
+    match how {
+        SpeedClip::Norm => {
+            let speed = v.length();
+            if speed > max_speed {
+                v * (max_speed / speed)
+            } else {
+                v
+            }
+        }
+        SpeedClip::PerComponent => v.clamp(DVec2::splat(-max_speed), DVec2::splat(max_speed)),
+    }
+}
+
+/// Energy below which an exhausted agent stops (the authors' energy budget).
+const EXHAUSTED: f64 = 0.5;
+/// Full energy, and the starting value.
+pub const FULL_ENERGY: f64 = 1000.0;
+
+type IntegrateQuery<'w, 's> = Query<
+    'w,
+    's,
+    (
+        &'static mut Position,
+        &'static mut Velocity,
+        &'static mut Heading,
+        &'static Body,
+        &'static Action,
+        &'static ContactForce,
+        &'static SpeciesId,
+        Option<&'static mut Energy>,
+    ),
+>;
+
+fn integrate(scene: Res<ActiveScene>, arena: Res<Arena>, registry: Res<SpeciesRegistry>, mut agents: IntegrateQuery) {
+    let w = &scene.0.world;
+    let dt = w.dt;
+    for (mut x, mut v, mut theta, body, action, contact, species, energy) in &mut agents {
+        let (wall_force, _) = arena.wall_contact(x.0, v.0, body.radius, w.wall_stiffness, w.wall_damping);
+        let drag = -w.drag * v.0;
+        theta.0 = wrap_angle(theta.0 + action.turn_rate * dt);
+        let h = theta.unit();
+        let force = action.thrust * h + drag + contact.0 + wall_force;
+        let mut new_v = clip_speed(v.0 + force * dt / body.mass, registry.defs[species.0].max_speed, w.speed_clip);
+        if let Some(mut energy) = energy {
+            // The authors' budget: an exhausted agent stops; moving costs |v| per step, resting restores.
+            if energy.0 < EXHAUSTED {
+                new_v = DVec2::ZERO;
+            }
+            let speed = new_v.length();
+            energy.0 = (energy.0 - speed + if speed < 0.01 { 0.1 } else { 0.0 }).min(FULL_ENERGY);
+        }
+        v.0 = new_v;
+        x.0 += new_v * dt;
+    }
+}
+
+fn apply_boundary(arena: Res<Arena>, mut agents: Query<&mut Position>) {
+    for mut x in &mut agents {
+        x.0 = arena.wrap(x.0);
+    }
+}

@@ -1,0 +1,108 @@
+//! Decide and Act: a policy per species fills its batch of normalized actions in [−1, 1]², then Act
+//! rescales every agent's row to physical units (Appendix B): a_F ∈ [0, max thrust], a_R ∈ [−max, max].
+//!
+//! Rule-based policies live here and read the same observation batch a network would, so they perceive
+//! exactly what a learned agent perceives. `Learned` and `Frozen` species are decided by the learning
+//! plugin, `Plugin(name)` species by whatever plugin registered that name.
+
+use crate::components::*;
+use crate::episode::SimRng;
+use crate::perception::{neighbour_slot, Batches};
+use crate::scene::Policy;
+use crate::species::{SpeciesRegistry, ACTION_DIM};
+use crate::{ActiveScene, SimSet};
+use bevy::prelude::*;
+use rand::Rng;
+
+pub struct PolicyPlugin;
+
+impl Plugin for PolicyPlugin {
+    fn build(&self, app: &mut App) {
+        app.add_systems(FixedUpdate, (decide_rule_based.in_set(SimSet::Decide), act.in_set(SimSet::Act)));
+    }
+}
+
+/// Maps a normalized action to physical units: thrust from [−1, 1] to [0, max], turn rate to [−max, max].
+pub fn rescale(action: [f32; ACTION_DIM], max_thrust: f64, max_turn_rate: f64) -> Action {
+    let [u_f, u_r] = action.map(|u| (u as f64).clamp(-1.0, 1.0));
+    Action { thrust: (u_f + 1.0) / 2.0 * max_thrust, turn_rate: u_r * max_turn_rate }
+}
+
+/// Normalized turn command that rotates heading `h` toward direction `d` as fast as allowed, without
+/// overshooting within one step.
+fn turn_toward(h: [f32; 2], d: [f32; 2], max_turn_rate: f64, dt: f64) -> f32 {
+    let cross = (h[0] * d[1] - h[1] * d[0]) as f64;
+    let dot = (h[0] * d[0] + h[1] * d[1]) as f64;
+    let error = cross.atan2(dot);
+    if max_turn_rate == 0.0 {
+        return 0.0;
+    }
+    (error / dt / max_turn_rate).clamp(-1.0, 1.0) as f32
+}
+
+/// The nearest observed agent among `species`, as its displacement [Δx, Δy].
+fn nearest_observed(obs: &[f32], registry: &SpeciesRegistry, observer: usize, species: impl Iterator<Item = usize>) -> Option<[f32; 2]> {
+    species
+        .filter_map(|t| neighbour_slot(obs, registry, observer, t, 0))
+        .map(|slot| [slot[0], slot[1]])
+        .min_by(|a, b| (a[0].hypot(a[1])).total_cmp(&b[0].hypot(b[1])))
+}
+
+fn decide_rule_based(registry: Res<SpeciesRegistry>, scene: Res<ActiveScene>, mut batches: ResMut<Batches>, mut rng: ResMut<SimRng>) {
+    let dt = scene.0.world.dt;
+    for s in 0..registry.len() {
+        let max_turn = registry.defs[s].max_turn_rate;
+        let batch = &mut batches.species[s];
+        for row in 0..batch.n {
+            let obs = batch.observation(row);
+            let heading = [obs[4], obs[5]];
+            let action = match registry.policy(s) {
+                Policy::Random => [rng.0.gen_range(-1.0..=1.0), rng.0.gen_range(-1.0..=1.0)],
+                Policy::Still => [-1.0, 0.0],
+                // The paper's rule (Section "Emergent Swirling Behavior"): turn to the nearest prey, full thrust.
+                Policy::ChaseNearest => match nearest_observed(obs, &registry, s, registry.prey_of(s)) {
+                    Some(d) => [1.0, turn_toward(heading, d, max_turn, dt)],
+                    None => [1.0, 0.0],
+                },
+                Policy::FleeNearest => match nearest_observed(obs, &registry, s, registry.predators_of(s)) {
+                    Some(d) => [1.0, turn_toward(heading, [-d[0], -d[1]], max_turn, dt)],
+                    None => [1.0, 0.0],
+                },
+                Policy::Learned | Policy::Frozen(_) | Policy::Plugin(_) => break,
+            };
+            batch.actions[row * ACTION_DIM..(row + 1) * ACTION_DIM].copy_from_slice(&action);
+        }
+    }
+}
+
+fn act(registry: Res<SpeciesRegistry>, batches: Res<Batches>, mut agents: Query<(&Slot, &SpeciesId, &mut Action)>) {
+    for (slot, species, mut action) in &mut agents {
+        let def = &registry.defs[species.0];
+        *action = rescale(batches.species[species.0].action(slot.row as usize), def.max_thrust, def.max_turn_rate);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rescale_maps_the_unit_box_to_physical_ranges() {
+        let a = rescale([-1.0, -1.0], 1.0, 0.5);
+        assert_eq!((a.thrust, a.turn_rate), (0.0, -0.5));
+        let a = rescale([1.0, 1.0], 2.0, 5.0);
+        assert_eq!((a.thrust, a.turn_rate), (2.0, 5.0));
+        let a = rescale([0.0, 3.0], 1.0, 0.5);
+        assert_eq!((a.thrust, a.turn_rate), (0.5, 0.5), "out-of-range actions are clamped");
+    }
+
+    #[test]
+    fn turn_toward_saturates_and_does_not_overshoot() {
+        // Target 90° to the left: turn left at the maximum rate.
+        assert_eq!(turn_toward([1.0, 0.0], [0.0, 1.0], 0.5, 0.1), 1.0);
+        assert_eq!(turn_toward([1.0, 0.0], [0.0, -1.0], 0.5, 0.1), -1.0);
+        // 0.01 rad off with a 0.05 rad/step budget: exactly the error, not the maximum.
+        let u = turn_toward([1.0, 0.0], [0.01f32.cos(), 0.01f32.sin()], 0.5, 0.1);
+        assert!((u - 0.2).abs() < 1e-4, "{u}");
+    }
+}

@@ -1,0 +1,50 @@
+//! The reward of the transition t → t+1 (Section "Rewards"): survival only, plus the "laziness" energy
+//! cost and, in walled scenes that enable it, a wall penalty.
+//!
+//! ```text
+//!   r = contact·(agents caught − catchers touching) − thrust_cost·|a_F| − turn_cost·|a_R| − wall_penalty·walls
+//! ```
+//!
+//! In the paper's two-species world that is +1 per prey touched for a predator and −1 per predator
+//! touching a prey. Contacts are judged on the state after the move (`paper`) or before it (`gym-pps`).
+
+use crate::components::*;
+use crate::perception::Batches;
+use crate::scene::{ContactJudging, RewardParams, WallPenaltyMode};
+use crate::{ActiveScene, SimSet};
+use bevy::prelude::*;
+
+pub struct RewardPlugin;
+
+impl Plugin for RewardPlugin {
+    fn build(&self, app: &mut App) {
+        app.add_systems(FixedUpdate, assign_rewards.in_set(SimSet::Reward));
+    }
+}
+
+/// The reward of one agent for one transition.
+pub fn reward(params: &RewardParams, action: &Action, contacts: &Contacts) -> f64 {
+    let c = match params.contacts_judged {
+        ContactJudging::AfterMove => contacts.now,
+        ContactJudging::BeforeMove => contacts.before,
+    };
+    let walls = match params.wall_penalty_mode {
+        WallPenaltyMode::AnyWall => (c.walls > 0) as u32,
+        WallPenaltyMode::PerWall => c.walls,
+    };
+    params.contact * (c.catching as f64 - c.caught as f64)
+        - params.thrust_cost * action.thrust.abs()
+        - params.turn_cost * action.turn_rate.abs()
+        - params.wall_penalty * walls as f64
+}
+
+fn assign_rewards(
+    scene: Res<ActiveScene>,
+    mut batches: ResMut<Batches>,
+    mut agents: Query<(&Slot, &SpeciesId, &Action, &Contacts, &mut Reward)>,
+) {
+    for (slot, species, action, contacts, mut r) in &mut agents {
+        r.0 = reward(&scene.0.rewards, action, contacts);
+        batches.species[species.0].rewards[slot.row as usize] = r.0 as f32;
+    }
+}

@@ -1,0 +1,644 @@
+//! Scenes: the whole configuration of a run, as RON files under `scenes/`.
+//!
+//! A scene names a **preset** (`paper` or `gym-pps`, see `../shared/reference/parameters.md` and the
+//! README) and overrides any field of it. Every struct here exists twice: the resolved value the simulation
+//! reads ([`Scene`], [`WorldParams`], [`RewardParams`], [`SpeciesDef`], [`LearningParams`]) and a patch with every field
+//! optional, which is what a scene file holds. Species are patched by `name`; a name the preset does not
+//! know adds a new species and must then give every field.
+//!
+//! Every error is one line naming the file, the line when it is known, and the field.
+
+use serde::{Deserialize, Serialize};
+use std::fmt;
+use std::path::Path;
+
+/// Declares a resolved config struct and its patch (every field optional) with `apply` between them,
+/// so a field is written once.
+macro_rules! patchable {
+    ($(#[$meta:meta])* pub struct $name:ident / $patch:ident {
+        $( $(#[doc = $doc:literal])* pub $field:ident : $ty:ty, )*
+    }) => {
+        $(#[$meta])*
+        #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+        #[serde(deny_unknown_fields)]
+        pub struct $name { $( $(#[doc = $doc])* pub $field: $ty, )* }
+
+        #[doc = concat!("A partial [`", stringify!($name), "`], as written in a scene file.")]
+        #[derive(Clone, Debug, Default, Deserialize)]
+        #[serde(deny_unknown_fields)]
+        pub struct $patch { $( #[serde(default)] pub $field: Option<$ty>, )* }
+
+        impl $patch {
+            /// Overwrites the fields this patch sets.
+            pub fn apply(self, to: &mut $name) { $( if let Some(v) = self.$field { to.$field = v; } )* }
+        }
+    };
+}
+
+/// The two boundary conditions of the paper (Section "Modeling").
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Boundary {
+    /// A torus: leaving one edge re-enters at the opposite one by the overshoot (Appendix B).
+    Periodic,
+    /// A square box whose walls push back with Hooke's law.
+    Walls,
+}
+
+/// How the speed limit is enforced after the velocity update.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum SpeedClip {
+    /// Rescale v so that ‖v‖ ≤ max speed (the paper).
+    Norm,
+    /// Clamp v_x and v_y each to [−max, max] (the authors' code).
+    PerComponent,
+}
+
+/// When contacts are judged for the reward of the transition t → t+1.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum ContactJudging {
+    /// On the state after the move, so an action is answered by its own consequence (the `paper` preset).
+    AfterMove,
+    /// On the positions before the move (the authors' code).
+    BeforeMove,
+}
+
+/// How the wall penalty counts walls.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum WallPenaltyMode {
+    /// One penalty while touching any wall (the paper: "−0.1 when contact ... happens").
+    AnyWall,
+    /// One penalty per wall touched, two in a corner (the authors' code).
+    PerWall,
+}
+
+/// The perception radius R of a species (Section "Agent Observation").
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub enum Perception {
+    /// R = D, the largest possible distance in the arena (the paper's default).
+    Full,
+    /// R as a fraction of D, as the paper's perception experiments state it (2/3·D, 1/3·D).
+    FractionOfD(f64),
+    /// R in metres.
+    Radius(f64),
+}
+
+/// What chooses a species' actions each step (the Decide set).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub enum Policy {
+    /// Uniformly random normalized actions.
+    Random,
+    /// No thrust, no turning.
+    Still,
+    /// The paper's rule-based predator: turn toward the nearest observed agent of a species it catches at
+    /// the maximum turn rate, full thrust.
+    ChaseNearest,
+    /// Turn away from the nearest observed agent of a species that catches it, full thrust.
+    FleeNearest,
+    /// Trained by the learning plugin (Algorithm 1).
+    Learned,
+    /// A trained actor loaded from a checkpoint folder, no updates.
+    Frozen(String),
+    /// Decided by a plugin registered under this name (see `species::PolicyPlugins`).
+    Plugin(String),
+}
+
+patchable! {
+    /// The physical world: Eq. (1), Appendix B and the environment table.
+    pub struct WorldParams / WorldParamsPatch {
+        /// Edge length of the square arena in metres; the arena is centred on the origin.
+        pub arena_edge: f64,
+        pub boundary: Boundary,
+        /// Δt in seconds.
+        pub dt: f64,
+        /// Drag coefficient in N·s/m: f_d = −drag·v.
+        pub drag: f64,
+        /// Agent–agent contact stiffness in N/m (Hooke on the overlap).
+        pub contact_stiffness: f64,
+        /// Wall contact stiffness in N/m.
+        pub wall_stiffness: f64,
+        /// Wall damping in N·s/m on the velocity component normal to a penetrated wall.
+        pub wall_damping: f64,
+        pub speed_clip: SpeedClip,
+        /// The authors' energy budget (1000 units, −|v| per step, +0.1 when resting): `gym-pps` only.
+        pub energy_budget: bool,
+    }
+}
+
+patchable! {
+    /// Per-agent rewards of the transition t → t+1 (Section "Rewards").
+    pub struct RewardParams / RewardParamsPatch {
+        /// +this per caught agent touched (predator), −this per catcher touching (prey).
+        pub contact: f64,
+        /// Energy cost per newton of thrust: −thrust_cost·|a_F|.
+        pub thrust_cost: f64,
+        /// Energy cost per rad/s of turn rate: −turn_cost·|a_R|.
+        pub turn_cost: f64,
+        /// Penalty for touching a wall (0 disables it).
+        pub wall_penalty: f64,
+        pub wall_penalty_mode: WallPenaltyMode,
+        pub contacts_judged: ContactJudging,
+    }
+}
+
+patchable! {
+    /// One species: its body, its limits, what it perceives and what it catches.
+    pub struct SpeciesDef / SpeciesPatch {
+        pub name: String,
+        /// Number of agents spawned each episode.
+        pub count: usize,
+        /// Mass in kg.
+        pub mass: f64,
+        /// Body radius in metres.
+        pub radius: f64,
+        /// Speed limit in m/s.
+        pub max_speed: f64,
+        /// a_F ∈ [0, max_thrust] in newtons.
+        pub max_thrust: f64,
+        /// a_R ∈ [−max_turn_rate, max_turn_rate] in rad/s.
+        pub max_turn_rate: f64,
+        pub perception: Perception,
+        /// At most this many agents of each species are observed (the paper: 6).
+        pub topological_limit: usize,
+        /// Linear RGB in [0, 1], for the viewer.
+        pub colour: [f32; 3],
+        /// Names of the species this one catches on contact.
+        pub catches: Vec<String>,
+        pub policy: Policy,
+    }
+}
+
+patchable! {
+    /// Algorithm 1's hyper-parameters (Appendix B; the values of the authors' code where the paper is silent).
+    pub struct LearningParams / LearningParamsPatch {
+        /// Hidden layer width of actor and critic (three hidden layers).
+        pub hidden: usize,
+        pub actor_lr: f64,
+        pub critic_lr: f64,
+        /// Discount factor γ.
+        pub gamma: f64,
+        /// Soft target update rate τ.
+        pub tau: f64,
+        /// Mini-batch size S.
+        pub batch_size: usize,
+        /// Replay buffer capacity per species, in transitions.
+        pub buffer_capacity: usize,
+        /// Gradient steps per species after each episode (the authors' schedule); 0 disables.
+        pub updates_per_episode: usize,
+        /// Gradient steps per species after each environment step (Algorithm 1 as printed); 0 disables.
+        pub updates_per_step: usize,
+        /// No update before a buffer holds this many transitions.
+        pub warmup_transitions: usize,
+        /// Initial std of the Gaussian action noise, on the tanh output.
+        pub noise_std: f64,
+        /// Initial probability that a species acts uniformly at random for a step.
+        pub epsilon: f64,
+        /// σ and ε fall by this much per episode ...
+        pub exploration_decay: f64,
+        /// ... down to this floor.
+        pub exploration_floor: f64,
+        /// Save a checkpoint every this many episodes (and at the end).
+        pub checkpoint_every: usize,
+    }
+}
+
+/// A fully resolved scene: what the simulation runs.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Scene {
+    pub preset: String,
+    pub seed: u64,
+    /// Steps per episode (T).
+    pub episode_steps: usize,
+    /// Episodes of a training run (M).
+    pub episodes: usize,
+    pub world: WorldParams,
+    pub rewards: RewardParams,
+    pub species: Vec<SpeciesDef>,
+    pub learning: LearningParams,
+}
+
+/// A scene file: a preset and what it overrides.
+#[derive(Clone, Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ScenePatch {
+    #[serde(default)]
+    pub preset: Option<String>,
+    #[serde(default)]
+    pub seed: Option<u64>,
+    #[serde(default)]
+    pub episode_steps: Option<usize>,
+    #[serde(default)]
+    pub episodes: Option<usize>,
+    #[serde(default)]
+    pub world: Option<WorldParamsPatch>,
+    #[serde(default)]
+    pub rewards: Option<RewardParamsPatch>,
+    #[serde(default)]
+    pub species: Option<Vec<SpeciesPatch>>,
+    #[serde(default)]
+    pub learning: Option<LearningParamsPatch>,
+}
+
+/// The names `preset:` accepts.
+pub const PRESETS: [&str; 2] = ["paper", "gym-pps"];
+
+/// One clear error line: `file:line: field: message`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SceneError {
+    pub file: String,
+    pub line: Option<usize>,
+    pub field: String,
+    pub message: String,
+}
+
+impl fmt::Display for SceneError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}", self.file)?;
+        if let Some(line) = self.line {
+            write!(f, ":{line}")?;
+        }
+        if !self.field.is_empty() {
+            write!(f, ": {}", self.field)?;
+        }
+        write!(f, ": {}", self.message)
+    }
+}
+
+impl std::error::Error for SceneError {}
+
+impl Scene {
+    /// A preset by name (`paper` or `gym-pps`).
+    pub fn preset(name: &str) -> Option<Scene> {
+        match name {
+            "paper" => Some(paper_preset()),
+            "gym-pps" => Some(gym_pps_preset()),
+            _ => None,
+        }
+    }
+
+    /// Loads, resolves and validates a scene file.
+    pub fn load(path: &Path) -> Result<Scene, SceneError> {
+        let file = path.display().to_string();
+        let text = std::fs::read_to_string(path).map_err(|e| SceneError {
+            file: file.clone(),
+            line: None,
+            field: String::new(),
+            message: format!("cannot read scene: {e}"),
+        })?;
+        Scene::parse(&text, &file)
+    }
+
+    /// Parses, resolves and validates scene text; `file` names it in errors.
+    pub fn parse(text: &str, file: &str) -> Result<Scene, SceneError> {
+        let patch: ScenePatch = ron::Options::default()
+            .with_default_extension(ron::extensions::Extensions::IMPLICIT_SOME)
+            .from_str(text)
+            .map_err(|e| SceneError {
+                file: file.to_string(),
+                line: Some(e.span.start.line),
+                field: match &e.code {
+                    ron::Error::NoSuchStructField { found, .. } => found.clone(),
+                    _ => field_before(text, e.span.start.line, e.span.start.col),
+                },
+                message: readable(&e.code.to_string()),
+            })?;
+        let located = |field: String, message: String| SceneError {
+            file: file.to_string(),
+            line: locate(text, &field),
+            field,
+            message,
+        };
+        let preset_name = patch.preset.clone().unwrap_or_else(|| "paper".to_string());
+        let mut scene = Scene::preset(&preset_name).ok_or_else(|| {
+            located("preset".into(), format!("unknown preset {preset_name:?} (known: {})", PRESETS.join(", ")))
+        })?;
+        scene.apply(patch).map_err(|(field, message)| located(field, message))?;
+        scene.validate().map_err(|(field, message)| located(field, message))?;
+        Ok(scene)
+    }
+
+    /// Applies a patch; a new species must give every field.
+    fn apply(&mut self, patch: ScenePatch) -> Result<(), (String, String)> {
+        if let Some(v) = patch.seed {
+            self.seed = v;
+        }
+        if let Some(v) = patch.episode_steps {
+            self.episode_steps = v;
+        }
+        if let Some(v) = patch.episodes {
+            self.episodes = v;
+        }
+        if let Some(p) = patch.world {
+            p.apply(&mut self.world);
+        }
+        if let Some(p) = patch.rewards {
+            p.apply(&mut self.rewards);
+        }
+        if let Some(p) = patch.learning {
+            p.apply(&mut self.learning);
+        }
+        for (i, sp) in patch.species.unwrap_or_default().into_iter().enumerate() {
+            let Some(name) = sp.name.clone() else {
+                return Err((format!("species[{i}].name"), "every species entry needs a name".into()));
+            };
+            if let Some(existing) = self.species.iter_mut().find(|s| s.name == name) {
+                sp.apply(existing);
+            } else {
+                let mut def = SpeciesDef::template(&name);
+                let missing = sp.missing_fields();
+                if !missing.is_empty() {
+                    return Err((
+                        format!("species[{name}]"),
+                        format!("new species (not in the preset) must set: {}", missing.join(", ")),
+                    ));
+                }
+                sp.apply(&mut def);
+                self.species.push(def);
+            }
+        }
+        Ok(())
+    }
+
+    /// Checks every value the physics or learning would choke on. Err is (field path, message).
+    pub fn validate(&self) -> Result<(), (String, String)> {
+        fn check(ok: bool, field: &str, message: impl FnOnce() -> String) -> Result<(), (String, String)> {
+            if ok {
+                Ok(())
+            } else {
+                Err((field.to_string(), message()))
+            }
+        }
+        fn positive(v: f64, field: &str) -> Result<(), (String, String)> {
+            check(v.is_finite() && v > 0.0, field, || format!("must be a finite number > 0 (got {v})"))
+        }
+        fn non_negative(v: f64, field: &str) -> Result<(), (String, String)> {
+            check(v.is_finite() && v >= 0.0, field, || format!("must be a finite number ≥ 0 (got {v})"))
+        }
+        let w = &self.world;
+        positive(w.arena_edge, "world.arena_edge")?;
+        positive(w.dt, "world.dt")?;
+        non_negative(w.drag, "world.drag")?;
+        non_negative(w.contact_stiffness, "world.contact_stiffness")?;
+        non_negative(w.wall_stiffness, "world.wall_stiffness")?;
+        non_negative(w.wall_damping, "world.wall_damping")?;
+        let r = &self.rewards;
+        for (v, f) in [
+            (r.contact, "rewards.contact"),
+            (r.thrust_cost, "rewards.thrust_cost"),
+            (r.turn_cost, "rewards.turn_cost"),
+            (r.wall_penalty, "rewards.wall_penalty"),
+        ] {
+            check(v.is_finite(), f, || format!("must be a finite number (got {v})"))?;
+        }
+        check(self.episode_steps > 0, "episode_steps", || "must be ≥ 1".into())?;
+        check(!self.species.is_empty(), "species", || "a scene needs at least one species".into())?;
+        check(self.species.iter().any(|s| s.count > 0), "species", || {
+            "every species has count 0: there would be no agent to simulate".into()
+        })?;
+        for (i, s) in self.species.iter().enumerate() {
+            let f = |name: &str| format!("species[{}].{name}", s.name);
+            check(!s.name.is_empty(), &format!("species[{i}].name"), || "must not be empty".into())?;
+            check(self.species.iter().filter(|o| o.name == s.name).count() == 1, &f("name"), || {
+                format!("species name {:?} appears twice", s.name)
+            })?;
+            positive(s.mass, &f("mass"))?;
+            positive(s.radius, &f("radius"))?;
+            check(2.0 * s.radius < w.arena_edge, &f("radius"), || {
+                format!("body diameter {} m does not fit in the arena of edge {} m", 2.0 * s.radius, w.arena_edge)
+            })?;
+            positive(s.max_speed, &f("max_speed"))?;
+            non_negative(s.max_thrust, &f("max_thrust"))?;
+            non_negative(s.max_turn_rate, &f("max_turn_rate"))?;
+            match s.perception {
+                Perception::Full => {}
+                Perception::FractionOfD(x) => positive(x, &f("perception"))?,
+                Perception::Radius(x) => positive(x, &f("perception"))?,
+            }
+            for c in &s.colour {
+                check((0.0..=1.0).contains(c), &f("colour"), || format!("components must be in [0, 1] (got {c})"))?;
+            }
+            for target in &s.catches {
+                check(self.species.iter().any(|o| &o.name == target), &f("catches"), || {
+                    format!("no species named {target:?} in this scene")
+                })?;
+            }
+        }
+        let l = &self.learning;
+        positive(l.actor_lr, "learning.actor_lr")?;
+        positive(l.critic_lr, "learning.critic_lr")?;
+        check((0.0..=1.0).contains(&l.gamma), "learning.gamma", || format!("must be in [0, 1] (got {})", l.gamma))?;
+        check(l.tau > 0.0 && l.tau <= 1.0, "learning.tau", || format!("must be in (0, 1] (got {})", l.tau))?;
+        check(l.hidden > 0, "learning.hidden", || "must be ≥ 1".into())?;
+        check(l.batch_size > 0, "learning.batch_size", || "must be ≥ 1".into())?;
+        check(l.buffer_capacity >= l.batch_size, "learning.buffer_capacity", || {
+            format!("must hold at least one batch ({} transitions)", l.batch_size)
+        })?;
+        for (v, f) in [
+            (l.noise_std, "learning.noise_std"),
+            (l.epsilon, "learning.epsilon"),
+            (l.exploration_decay, "learning.exploration_decay"),
+            (l.exploration_floor, "learning.exploration_floor"),
+        ] {
+            non_negative(v, f)?;
+        }
+        check(l.epsilon <= 1.0, "learning.epsilon", || format!("is a probability (got {})", l.epsilon))?;
+        Ok(())
+    }
+
+    /// D: the largest possible distance between two agents (√2·edge/2 on the torus, √2·edge with walls).
+    pub fn max_distance(&self) -> f64 {
+        max_distance(self.world.boundary, self.world.arena_edge)
+    }
+
+    /// The species with this name.
+    pub fn species_named(&self, name: &str) -> Option<&SpeciesDef> {
+        self.species.iter().find(|s| s.name == name)
+    }
+
+    /// Sets the count of a named species (for `--prey 50`-style overrides).
+    pub fn set_count(&mut self, name: &str, count: usize) -> Result<(), String> {
+        let s = self.species.iter_mut().find(|s| s.name == name).ok_or_else(|| format!("no species named {name:?}"))?;
+        s.count = count;
+        Ok(())
+    }
+
+    /// The resolved scene as RON, loadable again as a scene file.
+    pub fn to_ron(&self) -> String {
+        let pretty = ron::ser::PrettyConfig::new().depth_limit(4).struct_names(false);
+        ron::Options::default().to_string_pretty(self, pretty).expect("a Scene always serializes")
+    }
+}
+
+/// D for a boundary kind and arena edge (Section "Results", definition of DoS).
+pub fn max_distance(boundary: Boundary, edge: f64) -> f64 {
+    match boundary {
+        Boundary::Periodic => edge * std::f64::consts::SQRT_2 / 2.0,
+        Boundary::Walls => edge * std::f64::consts::SQRT_2,
+    }
+}
+
+impl SpeciesDef {
+    /// Placeholder values for a species a scene adds; `missing_fields` makes sure all are overwritten.
+    fn template(name: &str) -> SpeciesDef {
+        SpeciesDef {
+            name: name.to_string(),
+            count: 0,
+            mass: 0.0,
+            radius: 0.0,
+            max_speed: 0.0,
+            max_thrust: 0.0,
+            max_turn_rate: 0.0,
+            perception: Perception::Full,
+            topological_limit: 0,
+            colour: [0.0; 3],
+            catches: vec![],
+            policy: Policy::Still,
+        }
+    }
+}
+
+impl SpeciesPatch {
+    fn missing_fields(&self) -> Vec<&'static str> {
+        let mut m = vec![];
+        macro_rules! need { ($($f:ident),*) => { $( if self.$f.is_none() { m.push(stringify!($f)); } )* } }
+        need!(count, mass, radius, max_speed, max_thrust, max_turn_rate, perception, topological_limit, colour, catches, policy);
+        m
+    }
+}
+
+/// The `paper` preset: the paper's values, the authors' code's where the paper is silent.
+fn paper_preset() -> Scene {
+    let species = |name: &str, count, radius, colour, catches: &[&str], policy| SpeciesDef {
+        name: name.into(),
+        count,
+        mass: 1.0,
+        radius,
+        max_speed: 0.5,
+        max_thrust: 1.0,
+        max_turn_rate: 0.5,
+        perception: Perception::Full,
+        topological_limit: 6,
+        colour,
+        catches: catches.iter().map(|s| s.to_string()).collect(),
+        policy,
+    };
+    Scene {
+        preset: "paper".into(),
+        seed: 0,
+        episode_steps: 500,
+        episodes: 2000,
+        world: WorldParams {
+            arena_edge: 2.0,
+            boundary: Boundary::Periodic,
+            dt: 0.1,
+            drag: 2.0,
+            contact_stiffness: 50.0,
+            wall_stiffness: 50.0,
+            wall_damping: 0.0,
+            speed_clip: SpeedClip::Norm,
+            energy_budget: false,
+        },
+        rewards: RewardParams {
+            contact: 1.0,
+            thrust_cost: 0.01,
+            turn_cost: 0.1,
+            wall_penalty: 0.0,
+            wall_penalty_mode: WallPenaltyMode::AnyWall,
+            contacts_judged: ContactJudging::AfterMove,
+        },
+        species: vec![
+            species("predator", 3, 0.06, [0.96, 0.55, 0.15], &["prey"], Policy::Learned),
+            species("prey", 10, 0.035, [0.2, 0.45, 0.9], &[], Policy::Learned),
+        ],
+        learning: LearningParams {
+            hidden: 64,
+            actor_lr: 1e-4,
+            critic_lr: 1e-3,
+            gamma: 0.95,
+            tau: 0.01,
+            batch_size: 256,
+            buffer_capacity: 500_000,
+            updates_per_episode: 30,
+            updates_per_step: 0,
+            warmup_transitions: 256,
+            noise_std: 0.1,
+            epsilon: 0.1,
+            exploration_decay: 5e-5,
+            exploration_floor: 0.05,
+            checkpoint_every: 100,
+        },
+    }
+}
+
+/// The `gym-pps` preset: the authors' code as it runs (parameters.md, "gym-pps preset").
+fn gym_pps_preset() -> Scene {
+    let mut s = paper_preset();
+    s.preset = "gym-pps".into();
+    s.world.wall_stiffness = 100.0;
+    s.world.wall_damping = 5.0;
+    s.world.speed_clip = SpeedClip::PerComponent;
+    s.world.energy_budget = true;
+    s.rewards = RewardParams {
+        contact: 5.0,
+        thrust_cost: 0.0,
+        // −|Δθ| with Δθ = a_R·Δt in rad per step is −0.1·|a_R| with a_R in rad/s.
+        turn_cost: 0.1,
+        wall_penalty: 0.0,
+        wall_penalty_mode: WallPenaltyMode::PerWall,
+        contacts_judged: ContactJudging::BeforeMove,
+    };
+    for sp in &mut s.species {
+        // 0.5 rad per step at Δt = 0.1 s.
+        sp.max_turn_rate = 5.0;
+    }
+    s.species[0].mass = 3.0;
+    s
+}
+
+/// Finds the line of a field path such as `species[prey].mass` or `world.drag` in scene text, so an
+/// error can point at it; None when the value came from the preset.
+fn locate(text: &str, field: &str) -> Option<usize> {
+    let lines: Vec<&str> = text.lines().collect();
+    let has_key = |line: &str, key: &str| {
+        let code = line.split("//").next().unwrap_or("");
+        code.match_indices(key).any(|(i, _)| {
+            let before_ok = code[..i].chars().last().is_none_or(|c| !(c.is_alphanumeric() || c == '_'));
+            let rest = code[i + key.len()..].trim_start();
+            before_ok && rest.starts_with(':')
+        })
+    };
+    let (mut from, mut key) = (0usize, field);
+    if let Some(rest) = field.strip_prefix("species[") {
+        let (name, tail) = rest.split_once(']')?;
+        let quoted = format!("\"{name}\"");
+        from = lines.iter().position(|l| has_key(l, "name") && l.contains(&quoted))
+            .or_else(|| name.parse::<usize>().ok().and_then(|_| lines.iter().position(|l| has_key(l, "species"))))?;
+        key = tail.trim_start_matches('.');
+        if key.is_empty() {
+            return Some(from + 1);
+        }
+    } else if let Some((section, last)) = field.rsplit_once('.') {
+        from = lines.iter().position(|l| has_key(l, section))?;
+        key = last;
+    }
+    lines.iter().enumerate().skip(from).find(|(_, l)| has_key(l, key)).map(|(i, _)| i + 1)
+}
+
+/// The key whose value a parse error points into: the last `name:` before (line, col), 1-based.
+fn field_before(text: &str, line: usize, col: usize) -> String {
+    let mut before: Vec<&str> = text.lines().take(line).collect();
+    if let Some(last) = before.last_mut() {
+        *last = &last[..last.char_indices().nth(col.saturating_sub(1)).map_or(last.len(), |(i, _)| i)];
+    }
+    let joined = before.join("\n");
+    let Some(colon) = joined.rfind(':') else { return String::new() };
+    let key: String = joined[..colon].trim_end().chars().rev().take_while(|c| c.is_alphanumeric() || *c == '_').collect();
+    key.chars().rev().collect()
+}
+
+/// ron's messages name our patch types; say what a scene author wrote instead.
+fn readable(message: &str) -> String {
+    [("`ScenePatch`", "the scene"), ("`WorldParamsPatch`", "world"), ("`RewardParamsPatch`", "rewards"), ("`SpeciesPatch`", "a species"), ("`LearningParamsPatch`", "learning")]
+        .iter()
+        .fold(message.to_string(), |m, (from, to)| m.replace(from, to))
+}
