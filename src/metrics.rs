@@ -26,8 +26,16 @@ pub struct Swarming {
 }
 
 /// DoS and DoA of the agents `members` of a population at one instant, using `grid` (built over
-/// `members`) for the nearest-neighbour search. None with fewer than two agents.
-pub fn swarming(arena: &Arena, positions: &[DVec2], headings: &[DVec2], grid: &CellGrid, members: std::ops::Range<usize>) -> Option<Swarming> {
+/// `members`) for the nearest-neighbour search, or `known_nearest[j]` where perception already found
+/// j's nearest kin. None with fewer than two agents.
+pub fn swarming(
+    arena: &Arena,
+    positions: &[DVec2],
+    headings: &[DVec2],
+    grid: &CellGrid,
+    members: std::ops::Range<usize>,
+    known_nearest: &[Option<u32>],
+) -> Option<Swarming> {
     let n = members.len();
     if n < 2 {
         return None;
@@ -35,9 +43,14 @@ pub fn swarming(arena: &Arena, positions: &[DVec2], headings: &[DVec2], grid: &C
     let mut nearest = Vec::with_capacity(1);
     let (mut distance, mut alignment) = (0.0, 0.0);
     for j in members {
-        grid.k_nearest(arena, positions, positions[j], 1, f64::INFINITY, j as u32, &mut nearest);
-        let k = nearest[0].1 as usize;
-        distance += nearest[0].0.sqrt();
+        let k = match known_nearest.get(j).copied().flatten() {
+            Some(k) => k as usize,
+            None => {
+                grid.k_nearest(arena, positions[j], 1, f64::INFINITY, j as u32, &mut nearest);
+                nearest[0].1 as usize
+            }
+        };
+        distance += arena.delta(positions[j], positions[k]).length();
         alignment += (headings[j] + headings[k]).length();
     }
     Some(Swarming { dos: distance / (n as f64 * arena.max_distance()), doa: alignment / (2.0 * n as f64) })
@@ -47,7 +60,7 @@ pub fn swarming(arena: &Arena, positions: &[DVec2], headings: &[DVec2], grid: &C
 pub fn swarming_of(arena: &Arena, positions: &[DVec2], headings: &[DVec2]) -> Option<Swarming> {
     let mut grid = CellGrid::default();
     grid.rebuild(arena, positions, 0..positions.len());
-    swarming(arena, positions, headings, &grid, 0..positions.len())
+    swarming(arena, positions, headings, &grid, 0..positions.len(), &[])
 }
 
 /// Per-step metrics of the current state and the running sums of the current episode.
@@ -127,7 +140,7 @@ fn measure(
     let n_species = registry.len();
     let m = &mut *metrics;
     m.now = (0..n_species)
-        .map(|s| swarming(&arena, &pop.position, &pop.heading, &pop.grids[s], pop.ranges[s].clone()))
+        .map(|s| swarming(&arena, &pop.position, &pop.heading, &pop.grids[s], pop.ranges[s].clone(), &pop.nearest_kin))
         .collect();
     let e = &mut m.episode;
     e.swarming.resize(n_species, Swarming::default());

@@ -54,6 +54,9 @@ pub struct Population {
     pub grids: Vec<CellGrid>,
     /// Largest body radius per species (bounds the contact search).
     pub max_radius: Vec<f64>,
+    /// The nearest other agent of the same species, when observation found one within the perception
+    /// radius (it is then the positionally nearest kin, which DoS/DoA need: metrics reuse it).
+    pub nearest_kin: Vec<Option<u32>>,
 }
 
 impl Population {
@@ -140,8 +143,8 @@ fn index_population(
     agents: IndexQuery,
     mut slots: Query<&mut Slot>,
 ) {
-    let mut order: Vec<(usize, AgentId, Entity)> = agents.iter().map(|(e, id, s, ..)| (s.0, *id, e)).collect();
-    order.sort_unstable();
+    let mut order: Vec<_> = agents.iter().map(|(e, id, s, x, v, h, body)| ((s.0, *id), e, x.0, v.0, h.unit(), body.radius)).collect();
+    order.sort_unstable_by_key(|a| a.0);
     let p = &mut *pop;
     for v in [&mut p.position, &mut p.velocity, &mut p.heading] {
         v.clear();
@@ -150,11 +153,12 @@ fn index_population(
     p.id.clear();
     p.species.clear();
     p.radius.clear();
+    p.nearest_kin.clear();
+    p.nearest_kin.resize(order.len(), None);
     let n_species = registry.len();
     p.ranges = vec![0..0; n_species];
     p.max_radius = vec![0.0; n_species];
-    for &(s, id, e) in &order {
-        let (_, _, _, x, v, h, body) = agents.get(e).expect("indexed agent exists");
+    for ((s, id), e, x, v, h, radius) in order {
         let slot = p.entity.len();
         if p.ranges[s].is_empty() {
             p.ranges[s] = slot..slot;
@@ -163,11 +167,11 @@ fn index_population(
         p.entity.push(e);
         p.id.push(id);
         p.species.push(s);
-        p.position.push(x.0);
-        p.velocity.push(v.0);
-        p.heading.push(h.unit());
-        p.radius.push(body.radius);
-        p.max_radius[s] = p.max_radius[s].max(body.radius);
+        p.position.push(x);
+        p.velocity.push(v);
+        p.heading.push(h);
+        p.radius.push(radius);
+        p.max_radius[s] = p.max_radius[s].max(radius);
         let mut out = slots.get_mut(e).expect("agents have a Slot");
         *out = Slot { index: slot as u32, row: (slot - p.ranges[s].start) as u32 };
     }
@@ -199,17 +203,18 @@ fn detect_contacts(
         let mut f = DVec2::ZERO;
         let mut counts = ContactCounts::default();
         for (t, grid) in pop.grids.iter().enumerate() {
-            grid.for_each_near(xi, ri + pop.max_radius[t], |j| {
+            grid.for_each_near(xi, ri + pop.max_radius[t], |j, xj| {
                 let j = j as usize;
                 if j == i {
                     return;
                 }
-                let d = arena.delta(xi, pop.position[j]);
-                let dist = d.length();
-                let overlap = ri + pop.radius[j] - dist;
-                if overlap <= 0.0 {
+                let d = arena.delta(xi, xj);
+                let reach = ri + pop.radius[j];
+                if d.length_squared() >= reach * reach {
                     return;
                 }
+                let dist = d.length();
+                let overlap = reach - dist;
                 // Coincident centres have no line of centres: separate them along x, by slot order.
                 let away = if dist > 0.0 { -d / dist } else { DVec2::X * if i < j { -1.0 } else { 1.0 } };
                 f += k * overlap * away;
@@ -225,12 +230,13 @@ fn detect_contacts(
 }
 
 fn observe(
-    pop: Res<Population>,
+    mut pop: ResMut<Population>,
     registry: Res<SpeciesRegistry>,
     arena: Res<Arena>,
     mut batches: ResMut<Batches>,
 ) {
     let mut nearest = Vec::new();
+    let pop = &mut *pop;
     for s in 0..registry.len() {
         let limit = registry.defs[s].topological_limit;
         let radius = registry.perception_radius[s];
@@ -242,7 +248,10 @@ fn observe(
             let (x, v, h) = (pop.position[i], pop.velocity[i], pop.heading[i]);
             obs[..OWN_STATE_DIM].copy_from_slice(&[x.x, x.y, v.x, v.y, h.x, h.y].map(|c| c as f32));
             for (t, grid) in pop.grids.iter().enumerate() {
-                grid.k_nearest(&arena, &pop.position, x, limit, radius, i as u32, &mut nearest);
+                grid.k_nearest(&arena, x, limit, radius, i as u32, &mut nearest);
+                if t == s {
+                    pop.nearest_kin[i] = nearest.first().map(|&(_, j)| j);
+                }
                 let block = registry.block_offset(s, t);
                 for (n, &(_, j)) in nearest.iter().enumerate() {
                     let j = j as usize;

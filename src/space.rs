@@ -97,10 +97,14 @@ pub struct CellGrid {
     /// `start[c]..start[c + 1]` indexes `items` for cell c.
     start: Vec<u32>,
     items: Vec<u32>,
+    /// `positions[items[i]]`, so a cell's candidates are read from contiguous memory.
+    item_positions: Vec<DVec2>,
 }
 
 /// Grids with at most this many cells per side are scanned whole (a ring search would revisit cells).
 const SCAN_ALL_BELOW: usize = 4;
+/// Ring cells sorted by distance before visiting (rings 1–3 fit).
+const SORTED_RING_CELLS: usize = 24;
 
 impl CellGrid {
     /// Rebuilds the grid over `members`, which index `positions`.
@@ -123,107 +127,96 @@ impl CellGrid {
         }
         self.items.clear();
         self.items.resize(n, 0);
+        self.item_positions.clear();
+        self.item_positions.resize(n, DVec2::ZERO);
         let mut fill = self.start.clone();
         for i in members {
             let c = self.cell_index(positions[i]);
             self.items[fill[c] as usize] = i as u32;
+            self.item_positions[fill[c] as usize] = positions[i];
             fill[c] += 1;
         }
     }
 
     fn cell_coord(&self, x: f64) -> usize {
-        (((x + self.half) / self.cell).floor().max(0.0) as usize).min(self.cells_per_side - 1)
+        // Truncation is floor for the non-negative values that matter; negatives clamp to 0 either way.
+        (((x + self.half) / self.cell).max(0.0) as usize).min(self.cells_per_side - 1)
     }
 
     fn cell_index(&self, p: DVec2) -> usize {
         self.cell_coord(p.y) * self.cells_per_side + self.cell_coord(p.x)
     }
 
-    fn cell_items(&self, cx: usize, cy: usize) -> &[u32] {
+    fn cell_range(&self, cx: usize, cy: usize) -> std::ops::Range<usize> {
         let c = cy * self.cells_per_side + cx;
-        &self.items[self.start[c] as usize..self.start[c + 1] as usize]
+        self.start[c] as usize..self.start[c + 1] as usize
     }
 
     /// Maps a cell offset to a cell on this grid: wrapped on the torus, None outside the walls.
     fn offset(&self, c: usize, d: isize) -> Option<usize> {
+        // Offsets stay within one grid width, so one add or subtract wraps (no integer division).
         let n = self.cells_per_side as isize;
         let x = c as isize + d;
-        if self.periodic {
-            Some(x.rem_euclid(n) as usize)
-        } else if (0..n).contains(&x) {
+        if (0..n).contains(&x) {
             Some(x as usize)
-        } else {
+        } else if !self.periodic {
             None
+        } else if x < 0 {
+            Some((x + n) as usize)
+        } else {
+            Some((x - n) as usize)
         }
     }
 
-    /// Calls `f` with every member that may lie within `radius` of `p` (a superset: callers check the
-    /// distance). Each member at most once.
-    pub fn for_each_near(&self, p: DVec2, radius: f64, mut f: impl FnMut(u32)) {
+    /// Calls `f` with every member (index, position) that may lie within `radius` of `p` (a superset:
+    /// callers check the distance). Each member at most once.
+    pub fn for_each_near(&self, p: DVec2, radius: f64, mut f: impl FnMut(u32, DVec2)) {
         let n = self.cells_per_side;
-        let reach = (radius / self.cell).ceil() as usize;
-        if n < SCAN_ALL_BELOW || 2 * reach + 1 >= n {
-            self.items.iter().for_each(|&i| f(i));
+        let floor = |v: f64| {
+            let t = v as isize;
+            t - ((t as f64) > v) as isize
+        };
+        let span = |x: f64| (floor((x - radius + self.half) / self.cell), floor((x + radius + self.half) / self.cell));
+        let ((x_lo, x_hi), (y_lo, y_hi)) = (span(p.x), span(p.y));
+        if n < SCAN_ALL_BELOW || (x_hi - x_lo + 1) as usize >= n || (y_hi - y_lo + 1) as usize >= n {
+            self.items.iter().zip(&self.item_positions).for_each(|(&i, &x)| f(i, x));
             return;
         }
-        let (cx, cy) = (self.cell_coord(p.x), self.cell_coord(p.y));
-        let r = reach as isize;
-        for dy in -r..=r {
-            let Some(y) = self.offset(cy, dy) else { continue };
-            for dx in -r..=r {
-                let Some(x) = self.offset(cx, dx) else { continue };
-                self.cell_items(x, y).iter().for_each(|&i| f(i));
+        // Only the cells the disk's bounding box touches (usually one: bodies are small next to cells).
+        for y in y_lo..=y_hi {
+            let Some(y) = self.offset(0, y) else { continue };
+            for x in x_lo..=x_hi {
+                let Some(x) = self.offset(0, x) else { continue };
+                let range = self.cell_range(x, y);
+                self.items[range.clone()].iter().zip(&self.item_positions[range]).for_each(|(&i, &x)| f(i, x));
             }
         }
     }
 
     /// The `k` members nearest to `p` within `radius` (distance as `arena.delta`), nearest first, ties
     /// broken by index, skipping `exclude`. `out` holds (squared distance, index).
-    #[allow(clippy::too_many_arguments)]
-    pub fn k_nearest(
-        &self,
-        arena: &Arena,
-        positions: &[DVec2],
-        p: DVec2,
-        k: usize,
-        radius: f64,
-        exclude: u32,
-        out: &mut Vec<(f64, u32)>,
-    ) {
+    pub fn k_nearest(&self, arena: &Arena, p: DVec2, k: usize, radius: f64, exclude: u32, out: &mut Vec<(f64, u32)>) {
         out.clear();
         if k == 0 || self.items.is_empty() {
             return;
         }
-        let r2 = radius * radius;
-        let consider = |i: u32, out: &mut Vec<(f64, u32)>| {
-            if i == exclude {
-                return;
-            }
-            let d2 = arena.delta(p, positions[i as usize]).length_squared();
-            if d2 > r2 {
-                return;
-            }
-            let cand = (d2, i);
-            if out.len() == k {
-                if cand >= *out.last().unwrap() {
-                    return;
-                }
-                out.pop();
-            }
-            let at = out.partition_point(|e| *e < cand);
-            out.insert(at, cand);
-        };
+        let q = Knn { arena, p, k, r2: radius * radius, exclude };
         let n = self.cells_per_side;
         if n < SCAN_ALL_BELOW {
-            self.items.iter().for_each(|&i| consider(i, out));
+            q.scan(self, 0..self.items.len(), out);
             return;
         }
-        // Expanding square rings of cells around p's cell. Everything in ring ≥ 1 is at least
-        // (ring − 1)·cell + (distance from p to its own cell's nearest edge) away, which bounds the search.
+        // Expanding square rings of cells around p's cell. A cell at offset (dx, dy) is at least
+        // gap(dx)² + gap(dy)² away, with gap the distance from p to that column/row of cells; a cell, and
+        // then a whole ring, is skipped once that exceeds the current k-th distance.
         let (cx, cy) = (self.cell_coord(p.x), self.cell_coord(p.y));
         let fx = p.x + self.half - cx as f64 * self.cell;
         let fy = p.y + self.half - cy as f64 * self.cell;
-        let edge = fx.min(self.cell - fx).min(fy).min(self.cell - fy).max(0.0);
+        let gap = |d: isize, f: f64| match d {
+            0 => 0.0,
+            d if d > 0 => (d - 1) as f64 * self.cell + (self.cell - f),
+            d => (-d - 1) as f64 * self.cell + f,
+        };
         let mut ring = 0usize;
         loop {
             if self.periodic && 2 * ring + 1 > n {
@@ -232,21 +225,39 @@ impl CellGrid {
             if !self.periodic && ring > cx.max(n - 1 - cx).max(cy).max(n - 1 - cy) {
                 return; // every cell visited
             }
+            let r = ring as isize;
             if ring >= 1 {
-                let bound = (ring - 1) as f64 * self.cell + edge;
-                let bound2 = bound * bound;
-                if bound2 > r2 || (out.len() == k && bound2 > out.last().unwrap().0) {
+                let nearest_side = gap(r, fx).min(gap(-r, fx)).min(gap(r, fy)).min(gap(-r, fy));
+                if nearest_side * nearest_side > q.worst(out) {
                     return;
                 }
             }
-            let r = ring as isize;
+            // The ring's cells nearest first, so the best candidates arrive early and prune the rest
+            // (sorted on the stack; a ring too large for the buffer is visited in row order).
+            let mut cells = [(0.0f64, 0usize, 0usize); SORTED_RING_CELLS];
+            let mut count = 0;
             for dy in -r..=r {
                 let Some(y) = self.offset(cy, dy) else { continue };
+                let gy2 = gap(dy, fy).powi(2);
                 let step = if dy.abs() == r { 1 } else { (2 * r).max(1) as usize };
                 for dx in (-r..=r).step_by(step) {
                     let Some(x) = self.offset(cx, dx) else { continue };
-                    self.cell_items(x, y).iter().for_each(|&i| consider(i, out));
+                    let gap2 = gy2 + gap(dx, fx).powi(2);
+                    if count < SORTED_RING_CELLS {
+                        cells[count] = (gap2, x, y);
+                        count += 1;
+                    } else if gap2 <= q.worst(out) {
+                        q.scan(self, self.cell_range(x, y), out);
+                    }
                 }
+            }
+            let cells = &mut cells[..count];
+            cells.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
+            for &(gap2, x, y) in cells.iter() {
+                if gap2 > q.worst(out) {
+                    break;
+                }
+                q.scan(self, self.cell_range(x, y), out);
             }
             ring += 1;
         }
@@ -258,9 +269,58 @@ impl CellGrid {
         for y in 0..n {
             for x in 0..n {
                 if wrapped(x, cx).max(wrapped(y, cy)) >= ring {
-                    self.cell_items(x, y).iter().for_each(|&i| consider(i, out));
+                    q.scan(self, self.cell_range(x, y), out);
                 }
             }
+        }
+    }
+}
+
+/// One k-nearest query: keeps the best `k` candidates in a short sorted list.
+struct Knn<'a> {
+    arena: &'a Arena,
+    p: DVec2,
+    k: usize,
+    r2: f64,
+    exclude: u32,
+}
+
+impl Knn<'_> {
+    /// The squared distance beyond which nothing can enter `out`.
+    #[inline(always)]
+    fn worst(&self, out: &[(f64, u32)]) -> f64 {
+        if out.len() == self.k {
+            out[self.k - 1].0.min(self.r2)
+        } else {
+            self.r2
+        }
+    }
+
+    /// Considers the grid items in `range` (a cell, or everything).
+    #[inline(always)]
+    fn scan(&self, grid: &CellGrid, range: std::ops::Range<usize>, out: &mut Vec<(f64, u32)>) {
+        for (&i, &x) in grid.items[range.clone()].iter().zip(&grid.item_positions[range]) {
+            let d2 = self.arena.delta(self.p, x).length_squared();
+            if d2 > self.r2 || i == self.exclude {
+                continue;
+            }
+            // Ordered by distance, then index (ties are exact only on lattices, but must be deterministic).
+            let before = |a: (f64, u32), b: (f64, u32)| a.0 < b.0 || (a.0 == b.0 && a.1 < b.1);
+            let cand = (d2, i);
+            if out.len() == self.k {
+                if !before(cand, out[self.k - 1]) {
+                    continue;
+                }
+                out.pop();
+            }
+            // Insertion into a short sorted list, shifting in place.
+            out.push(cand);
+            let mut at = out.len() - 1;
+            while at > 0 && before(cand, out[at - 1]) {
+                out[at] = out[at - 1];
+                at -= 1;
+            }
+            out[at] = cand;
         }
     }
 }
@@ -306,7 +366,7 @@ mod tests {
                     let p = DVec2::new(rng.gen_range(-2.0..2.0), rng.gen_range(-2.0..2.0));
                     let (k, radius) = ([1, 6, 10][q % 3], [0.3, 1.0, 10.0][q % 3]);
                     let exclude = (q % n.max(1)) as u32;
-                    grid.k_nearest(&arena, &pos, p, k, radius, exclude, &mut out);
+                    grid.k_nearest(&arena, p, k, radius, exclude, &mut out);
                     let mut brute: Vec<(f64, u32)> = (0..n as u32)
                         .filter(|&i| i != exclude)
                         .map(|i| (arena.delta(p, pos[i as usize]).length_squared(), i))

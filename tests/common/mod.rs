@@ -1,0 +1,42 @@
+//! Helpers shared by the integration tests: scenes with known populations and agents placed by hand.
+#![allow(dead_code)]
+
+use bevy::math::DVec2;
+use coevo::components::*;
+use coevo::perception::Perceive;
+use coevo::scene::{Boundary, Policy, Scene};
+use coevo::Simulation;
+
+/// The `paper` preset with the given counts and policies, on the given boundary.
+pub fn scene(predators: usize, prey: usize, policy: Policy, boundary: Boundary) -> Scene {
+    let mut s = Scene::preset("paper").unwrap();
+    s.world.boundary = boundary;
+    s.species[0].count = predators;
+    s.species[1].count = prey;
+    for sp in &mut s.species {
+        sp.policy = policy.clone();
+    }
+    s
+}
+
+/// Puts agent `id` at `x` with velocity `v` and heading `theta`, then re-perceives the state so contact
+/// forces and observations match.
+pub fn place(sim: &mut Simulation, id: u32, x: DVec2, v: DVec2, theta: f64) {
+    let world = sim.world_mut();
+    let mut q = world.query::<(&AgentId, &mut Position, &mut Velocity, &mut Heading)>();
+    for (aid, mut p, mut vel, mut h) in q.iter_mut(world) {
+        if aid.0 == id {
+            p.0 = x;
+            vel.0 = v;
+            h.0 = theta;
+        }
+    }
+    world.run_schedule(Perceive);
+}
+
+/// A component of agent `id`.
+pub fn get<C: bevy::prelude::Component + Copy>(sim: &mut Simulation, id: u32) -> C {
+    let world = sim.world_mut();
+    let mut q = world.query::<(&AgentId, &C)>();
+    *q.iter(world).find(|(a, _)| a.0 == id).expect("agent exists").1
+}

@@ -1,0 +1,162 @@
+//! Eq. (1) and Appendix B, one force at a time.
+
+mod common;
+use bevy::math::DVec2;
+use coevo::components::*;
+use coevo::physics::{clip_speed, wrap_angle};
+use coevo::scene::{Boundary, Policy, SpeedClip};
+use coevo::Simulation;
+use common::{get, place, scene};
+
+#[test]
+fn drag_gives_terminal_speed_thrust_over_drag() {
+    // One prey, no predators: flee-nearest has nothing to flee and thrusts straight at 1 N.
+    let mut s = scene(0, 1, Policy::FleeNearest, Boundary::Periodic);
+    s.species[1].max_speed = 10.0; // let drag, not the clip, set the speed
+    let mut sim = Simulation::new(s);
+    place(&mut sim, 0, DVec2::ZERO, DVec2::ZERO, 0.3);
+    for _ in 0..400 {
+        sim.step();
+    }
+    let v = get::<Velocity>(&mut sim, 0).0;
+    assert!((v.length() - 1.0 / 2.0).abs() < 1e-9, "terminal speed {}", v.length());
+    assert!((v.normalize() - DVec2::from_angle(0.3)).length() < 1e-9, "moves along its heading");
+}
+
+#[test]
+fn overlapping_bodies_feel_equal_and_opposite_hooke_forces() {
+    let mut sim = Simulation::new(scene(0, 2, Policy::Still, Boundary::Periodic));
+    place(&mut sim, 0, DVec2::new(0.1, 0.2), DVec2::ZERO, 0.0);
+    // Centres 0.05 apart along (3, 4)/5; radii 0.035 + 0.035: overlap 0.02, force 50 N/m · 0.02 m = 1 N.
+    place(&mut sim, 1, DVec2::new(0.1 + 0.03, 0.2 + 0.04), DVec2::ZERO, 0.0);
+    let f0 = get::<ContactForce>(&mut sim, 0).0;
+    let f1 = get::<ContactForce>(&mut sim, 1).0;
+    assert!((f0 - DVec2::new(-0.6, -0.8)).length() < 1e-12, "{f0}");
+    assert!((f0 + f1).length() < 1e-12, "equal and opposite: {f0} {f1}");
+    // Prey do not catch prey.
+    assert_eq!(get::<Contacts>(&mut sim, 0).now.caught, 0);
+}
+
+#[test]
+fn contact_across_the_periodic_seam() {
+    let mut sim = Simulation::new(scene(0, 2, Policy::Still, Boundary::Periodic));
+    place(&mut sim, 0, DVec2::new(0.98, 0.0), DVec2::ZERO, 0.0);
+    place(&mut sim, 1, DVec2::new(-0.99, 0.0), DVec2::ZERO, 0.0);
+    // 0.03 apart through the seam: overlap 0.04, 2 N, pushing agent 0 back toward −x.
+    let f0 = get::<ContactForce>(&mut sim, 0).0;
+    assert!((f0 - DVec2::new(-2.0, 0.0)).length() < 1e-9, "{f0}");
+    assert!((get::<ContactForce>(&mut sim, 1).0 - DVec2::new(2.0, 0.0)).length() < 1e-9);
+}
+
+#[test]
+fn a_wall_pushes_back_with_hooke_and_its_damping() {
+    let mut sim = Simulation::new(scene(0, 1, Policy::Still, Boundary::Walls));
+    // Radius 0.035 at x = 0.99: 0.025 into the right wall.
+    place(&mut sim, 0, DVec2::new(0.99, 0.0), DVec2::ZERO, 0.0);
+    assert_eq!(get::<Contacts>(&mut sim, 0).now.walls, 1);
+    sim.step();
+    let v = get::<Velocity>(&mut sim, 0).0;
+    // v = (−50 · 0.025 N) · Δt / m.
+    assert!((v - DVec2::new(-0.125, 0.0)).length() < 1e-12, "{v}");
+    assert!((get::<Position>(&mut sim, 0).0.x - (0.99 - 0.0125)).abs() < 1e-12);
+
+    // gym-pps walls: 100 N/m and −5 N·s/m on the normal velocity. Moving into the wall at 0.2 m/s:
+    // F = −100·0.025 − 5·0.2 − drag 2·0.2 = −3.9 N; m = 1 → v = 0.2 − 0.39 = −0.19.
+    let mut s = scene(0, 1, Policy::Still, Boundary::Walls);
+    s.world.wall_stiffness = 100.0;
+    s.world.wall_damping = 5.0;
+    let mut sim = Simulation::new(s);
+    place(&mut sim, 0, DVec2::new(0.99, 0.0), DVec2::new(0.2, 0.0), 0.0);
+    sim.step();
+    assert!((get::<Velocity>(&mut sim, 0).0.x + 0.19).abs() < 1e-12);
+}
+
+#[test]
+fn periodic_wrap_re_enters_by_the_overshoot() {
+    let mut sim = Simulation::new(scene(0, 1, Policy::Still, Boundary::Periodic));
+    place(&mut sim, 0, DVec2::new(0.99, -0.5), DVec2::new(0.5, 0.0), 0.0);
+    sim.step();
+    // v = 0.5 − 2·0.5·0.1 = 0.4; x = 0.99 + 0.04 = 1.03 → −1 + 0.03.
+    let x = get::<Position>(&mut sim, 0).0;
+    assert!((x - DVec2::new(-0.97, -0.5)).length() < 1e-12, "{x}");
+    assert_eq!(get::<Velocity>(&mut sim, 0).0, DVec2::new(0.4, 0.0), "same velocity through the seam");
+}
+
+#[test]
+fn semi_implicit_euler_in_the_stated_order() {
+    // Full thrust, turning at the max rate: θ first, thrust along the new heading, x with the new v.
+    // A `Plugin` policy nobody registered leaves the action batch as the test writes it.
+    let mut s = scene(0, 1, Policy::Plugin("test".into()), Boundary::Periodic);
+    s.species[1].max_speed = 10.0;
+    let mut sim = Simulation::new(s);
+    place(&mut sim, 0, DVec2::ZERO, DVec2::new(0.1, 0.0), 0.0);
+    sim.world_mut().resource_mut::<coevo::perception::Batches>().species[1].actions.copy_from_slice(&[1.0, 1.0]);
+    sim.step();
+    let theta = 0.5 * 0.1;
+    let v = DVec2::new(0.1, 0.0) + (1.0 * DVec2::from_angle(theta) - 2.0 * DVec2::new(0.1, 0.0)) * 0.1;
+    assert!((get::<Heading>(&mut sim, 0).0 - theta).abs() < 1e-15);
+    assert!((get::<Velocity>(&mut sim, 0).0 - v).length() < 1e-15);
+    assert!((get::<Position>(&mut sim, 0).0 - v * 0.1).length() < 1e-15);
+    let a = get::<Action>(&mut sim, 0);
+    assert_eq!((a.thrust, a.turn_rate), (1.0, 0.5));
+}
+
+#[test]
+fn speed_clip_by_norm_or_per_component() {
+    let v = DVec2::new(0.4, 0.4);
+    assert!((clip_speed(v, 0.5, SpeedClip::Norm).length() - 0.5).abs() < 1e-12);
+    assert_eq!(clip_speed(v, 0.5, SpeedClip::PerComponent), v);
+    assert_eq!(clip_speed(DVec2::new(0.7, -0.9), 0.5, SpeedClip::PerComponent), DVec2::new(0.5, -0.5));
+}
+
+#[test]
+fn headings_wrap_to_minus_pi_exclusive_pi_inclusive() {
+    use std::f64::consts::PI;
+    assert!((wrap_angle(PI + 0.1) - (-PI + 0.1)).abs() < 1e-12);
+    assert_eq!(wrap_angle(PI), PI);
+    assert_eq!(wrap_angle(-PI), PI);
+    assert!((wrap_angle(-PI - 0.2) - (PI - 0.2)).abs() < 1e-12);
+}
+
+#[test]
+fn predator_touching_prey_is_a_catch_rewarded_plus_and_minus_one() {
+    let mut sim = Simulation::new(scene(1, 2, Policy::Still, Boundary::Periodic));
+    // Predator 0 (r 0.06) overlapping prey 1 (r 0.035), closing at 0.3 m/s each, so they still overlap
+    // after the springs' push (with k·Δt²/m = 0.5 a pair at rest separates to exactly touching in one
+    // step). Prey 2 is far away.
+    place(&mut sim, 0, DVec2::new(0.0, 0.0), DVec2::new(0.3, 0.0), 0.0);
+    place(&mut sim, 1, DVec2::new(0.05, 0.0), DVec2::new(-0.3, 0.0), 0.0);
+    place(&mut sim, 2, DVec2::new(0.6, 0.6), DVec2::ZERO, 0.0);
+    sim.step();
+    // Still: thrust 0, no turn, so no energy cost.
+    assert_eq!(get::<Reward>(&mut sim, 0).0, 1.0);
+    assert_eq!(get::<Reward>(&mut sim, 1).0, -1.0);
+    assert_eq!(get::<Reward>(&mut sim, 2).0, 0.0);
+    assert_eq!(sim.world().resource::<coevo::metrics::SwarmMetrics>().catches_now, 1);
+}
+
+#[test]
+fn energy_cost_of_the_paper() {
+    let mut s = scene(0, 1, Policy::Plugin("test".into()), Boundary::Periodic);
+    s.species[1].max_speed = 10.0;
+    let mut sim = Simulation::new(s);
+    sim.world_mut().resource_mut::<coevo::perception::Batches>().species[1].actions.copy_from_slice(&[0.0, -0.5]);
+    sim.step();
+    // a_F = 0.5 N, a_R = −0.25 rad/s: r = −0.01·0.5 − 0.1·0.25.
+    assert!((get::<Reward>(&mut sim, 0).0 - (-0.005 - 0.025)).abs() < 1e-15);
+}
+
+#[test]
+fn chase_nearest_predators_close_in_on_prey() {
+    let mut s = scene(1, 1, Policy::Still, Boundary::Periodic);
+    s.species[0].policy = Policy::ChaseNearest;
+    let mut sim = Simulation::new(s);
+    // 0.8 m away, heading 0.5 rad off the line of sight: the rule turns toward the prey and catches it.
+    place(&mut sim, 0, DVec2::new(-0.5, 0.0), DVec2::ZERO, 0.5);
+    place(&mut sim, 1, DVec2::new(0.3, 0.0), DVec2::ZERO, 0.0);
+    let caught_at = (1..=60).find(|_| {
+        sim.step();
+        get::<Contacts>(&mut sim, 0).now.catching > 0
+    });
+    assert!(caught_at.is_some(), "the chase-nearest predator never reached a standing prey in 60 steps");
+}

@@ -1,0 +1,83 @@
+//! Trajectory records: format, determinism, and the command line's handling of bad input.
+
+use std::process::Command;
+
+fn coevo(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_coevo")).args(args).output().expect("coevo runs")
+}
+
+fn record(dir: &std::path::Path, name: &str, scene: &str, seed: &str, steps: &str) -> String {
+    let out = dir.join(name);
+    let o = coevo(&["--record", out.to_str().unwrap(), "--scene", scene, "--steps", steps, "--seed", seed]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    std::fs::read_to_string(out).unwrap()
+}
+
+#[test]
+fn same_scene_and_seed_give_byte_identical_records() {
+    let dir = tempfile::tempdir().unwrap();
+    for scene in ["scenes/confined.ron", "scenes/gym-pps.ron"] {
+        let a = record(dir.path(), "a.csv", scene, "7", "60");
+        let b = record(dir.path(), "b.csv", scene, "7", "60");
+        let c = record(dir.path(), "c.csv", scene, "8", "60");
+        assert_eq!(a, b, "{scene}");
+        assert_ne!(a, c, "{scene}: another seed, another trajectory");
+    }
+}
+
+#[test]
+fn record_rows_hold_state_action_and_reward_in_physical_units() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = record(dir.path(), "r.csv", "scenes/confined.ron", "3", "20");
+    let mut lines = text.lines();
+    assert_eq!(lines.next(), Some("step,id,species,x,y,vx,vy,theta,thrust,turn_rate,reward"));
+    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    assert_eq!(rows.len(), 21 * 13, "steps 0..=20 for 13 agents");
+    for row in &rows {
+        assert_eq!(row.len(), 11);
+        let step: usize = row[0].parse().unwrap();
+        let (x, y): (f64, f64) = (row[3].parse().unwrap(), row[4].parse().unwrap());
+        assert!(x.abs() <= 1.0 && y.abs() <= 1.0, "inside the walls");
+        if step == 0 {
+            assert_eq!((row[5], row[6]), ("0", "0"), "spawned at rest");
+        }
+        if step == 20 {
+            assert_eq!(&row[8..], ["", "", ""], "no transition after the last state");
+        } else {
+            let thrust: f64 = row[8].parse().unwrap();
+            let turn: f64 = row[9].parse().unwrap();
+            assert!((0.0..=1.0).contains(&thrust) && turn.abs() <= 0.5, "within the paper's limits");
+            let reward: f64 = row[10].parse().unwrap();
+            if row[2] == "predator" {
+                // Chase-nearest: full thrust; reward = catches − 0.01·1 − 0.1·|turn|.
+                assert_eq!(thrust, 1.0);
+                let catches = reward + 0.01 + 0.1 * turn.abs();
+                assert!((catches - catches.round()).abs() < 1e-9 && catches >= -1e-9, "{reward}");
+            }
+        }
+    }
+    // The position update uses the new velocity: x(t+1) = x(t) + v(t+1)·Δt for an agent away from walls.
+    let at = |step: usize, id: &str| rows.iter().find(|r| r[0] == step.to_string() && r[1] == id).unwrap().clone();
+    let (r0, r1) = (at(5, "4"), at(6, "4"));
+    let f = |r: &Vec<&str>, i: usize| r[i].parse::<f64>().unwrap();
+    assert!((f(&r1, 3) - (f(&r0, 3) + 0.1 * f(&r1, 5))).abs() < 1e-12);
+}
+
+#[test]
+fn bad_input_is_one_line_and_a_failure_with_no_output() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("bad.ron");
+    std::fs::write(&scene, "(\n  species: [(name: \"prey\", mass: -2.0)],\n)\n").unwrap();
+    let out = dir.path().join("never.csv");
+    let o = coevo(&["--record", out.to_str().unwrap(), "--scene", scene.to_str().unwrap()]);
+    assert!(!o.status.success());
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(stderr.lines().count(), 1, "{stderr}");
+    assert!(stderr.contains("bad.ron:2: species[prey].mass: must be a finite number > 0"), "{stderr}");
+    assert!(!out.exists(), "no output file for a refused scene");
+    assert!(std::fs::read_dir(dir.path()).unwrap().count() == 1, "no temporary left behind");
+
+    let o = coevo(&["--record", out.to_str().unwrap(), "--scene", "scenes/missing.ron"]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("scenes/missing.ron: cannot read scene"));
+}
