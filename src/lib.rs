@@ -17,6 +17,7 @@ pub mod bench;
 pub mod components;
 pub mod episode;
 pub mod io;
+pub mod learning;
 pub mod metrics;
 pub mod perception;
 pub mod physics;
@@ -26,6 +27,7 @@ pub mod reward;
 pub mod scene;
 pub mod space;
 pub mod species;
+pub mod train;
 
 use bevy::prelude::*;
 use episode::{Episode, EpisodePlugin, SimRng};

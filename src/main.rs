@@ -24,6 +24,34 @@ struct Cli {
     #[arg(long, value_name = "N")]
     steps: Option<usize>,
 
+    /// Train the scene's learning species headless (Algorithm 1) into --out.
+    #[arg(long)]
+    train: bool,
+    /// Episodes of the training run (default: the scene's `episodes`) or of the evaluation (default 1).
+    #[arg(long, value_name = "N")]
+    episodes: Option<usize>,
+    /// Run folder for --train (default runs/<scene>-seed<seed>).
+    #[arg(long, value_name = "DIR")]
+    out: Option<PathBuf>,
+    /// Continue a killed or finished run from its last checkpoint (to --episodes in total).
+    #[arg(long, value_name = "DIR")]
+    resume: Option<PathBuf>,
+    /// Evaluate a run's policies without noise; writes DIR/eval.csv (per-step DoS/DoA).
+    #[arg(long, value_name = "DIR")]
+    eval: Option<PathBuf>,
+    /// Number of prey for --eval (the paper evaluates on 50).
+    #[arg(long, value_name = "N")]
+    prey: Option<usize>,
+    /// Number of predators for --eval (0 removes them, as in the paper's Fig. 5a).
+    #[arg(long, value_name = "N")]
+    predators: Option<usize>,
+    /// Any species' count for --eval, as NAME=N (repeatable).
+    #[arg(long, value_name = "NAME=N")]
+    count: Vec<String>,
+    /// No progress bar.
+    #[arg(long)]
+    quiet: bool,
+
     /// Record a trajectory CSV: step,id,species,x,y,vx,vy,theta,thrust,turn_rate,reward.
     #[arg(long, value_name = "OUT.csv")]
     record: Option<PathBuf>,
@@ -58,6 +86,32 @@ fn run(cli: Cli) -> Result<(), String> {
     if cli.bench {
         let budget = Duration::from_secs_f64(cli.bench_seconds.max(0.01));
         coevo::bench::print(&coevo::bench::environment(budget));
+        return Ok(());
+    }
+    if let Some(run) = &cli.eval {
+        let mut counts: Vec<(String, usize)> = cli.prey.map(|n| ("prey".to_string(), n)).into_iter().collect();
+        counts.extend(cli.predators.map(|n| ("predator".to_string(), n)));
+        for c in &cli.count {
+            let (name, n) = c.split_once('=').ok_or_else(|| format!("--count {c}: expected NAME=N"))?;
+            counts.push((name.to_string(), n.parse().map_err(|_| format!("--count {c}: {n} is not a count"))?));
+        }
+        let opts = coevo::train::EvalOptions { run: run.clone(), counts, episodes: cli.episodes.unwrap_or(1), steps: cli.steps, seed: cli.seed };
+        println!("{}", coevo::train::evaluate(&opts)?);
+        return Ok(());
+    }
+    if cli.train || cli.resume.is_some() {
+        let (scene, run) = match &cli.resume {
+            Some(run) => (Scene::preset("paper").expect("preset"), run.clone()),
+            None => {
+                let scene = load_scene(&cli)?;
+                let stem = cli.scene.file_stem().map_or("run".into(), |s| s.to_string_lossy().into_owned());
+                let run = cli.out.clone().unwrap_or_else(|| PathBuf::from(format!("runs/{stem}-seed{}", scene.seed)));
+                (scene, run)
+            }
+        };
+        let opts = coevo::train::TrainOptions { run: run.clone(), resume: cli.resume.is_some(), episodes: cli.episodes, progress: !cli.quiet };
+        let summaries = coevo::train::train(scene, &opts)?;
+        eprintln!("coevo: trained {} episodes into {}", summaries.len(), run.display());
         return Ok(());
     }
     if let Some(out) = &cli.record {

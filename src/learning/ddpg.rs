@@ -1,0 +1,168 @@
+//! Algorithm 1 for one species, on one screen: a shared actor μ(o) and a **decentralized** critic
+//! Q(o, a) on the agent's own observation and action, their target copies, and one DDPG update.
+//!
+//! ```text
+//!   y      = r + γ · Q'(o', μ'(o'))                       TD target (no gradient)
+//!   L(θ^Q) = 1/S Σ (y − Q(o, a))²                          critic loss, Adam on θ^Q
+//!   J(θ^μ) = −1/S Σ Q(o, μ(o))                             actor loss through the critic, Adam on θ^μ
+//!   θ'     ← τ·θ + (1 − τ)·θ'                             soft update of both targets
+//! ```
+//!
+//! Episodes end by a time limit, not by a terminal state, so the target always bootstraps.
+
+use super::nets::{matrix, Adam, Dev, Mlp, Output};
+use super::replay::Batch;
+use crate::scene::LearningParams;
+use crate::species::ACTION_DIM;
+use dfdx::losses::mse_loss;
+use dfdx::prelude::*;
+use rand_chacha::ChaCha8Rng;
+
+/// Actor, critic, targets and optimizers of one species.
+#[derive(Clone, Debug)]
+pub struct Ddpg {
+    pub actor: Mlp,
+    pub critic: Mlp,
+    pub target_actor: Mlp,
+    pub target_critic: Mlp,
+    pub actor_opt: Adam,
+    pub critic_opt: Adam,
+    /// Discount factor γ.
+    pub gamma: f32,
+    /// Soft update rate τ.
+    pub tau: f32,
+}
+
+/// Losses of one update.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Losses {
+    pub critic: f32,
+    pub actor: f32,
+}
+
+impl Ddpg {
+    /// Fresh networks for observations of width `obs_dim`: 3 hidden layers of `hidden` (Appendix B).
+    pub fn new(dev: &Dev, obs_dim: usize, p: &LearningParams, rng: &mut ChaCha8Rng) -> Ddpg {
+        let h = p.hidden;
+        let actor = Mlp::new(dev, &[obs_dim, h, h, h, ACTION_DIM], Output::Tanh, rng);
+        let critic = Mlp::new(dev, &[obs_dim + ACTION_DIM, h, h, h, 1], Output::Linear, rng);
+        Ddpg {
+            actor_opt: Adam::new(p.actor_lr as f32, &actor),
+            critic_opt: Adam::new(p.critic_lr as f32, &critic),
+            target_actor: actor.clone(),
+            target_critic: critic.clone(),
+            actor,
+            critic,
+            gamma: p.gamma as f32,
+            tau: p.tau as f32,
+        }
+    }
+
+    pub fn obs_dim(&self) -> usize {
+        self.actor.input_width()
+    }
+
+    /// μ(o) for a batch of `n` observations in one forward pass: `[n × 2]` actions in [−1, 1].
+    pub fn act(&self, dev: &Dev, observations: &[f32], n: usize) -> Vec<f32> {
+        self.actor.forward(matrix(dev, observations.to_vec(), n, self.obs_dim())).as_vec()
+    }
+
+    /// One DDPG update on a mini-batch (the body of Algorithm 1's inner loop after sampling).
+    pub fn update(&mut self, dev: &Dev, b: &Batch) -> Losses {
+        let d = self.obs_dim();
+        let obs = matrix(dev, b.obs.clone(), b.n, d);
+        let actions = matrix(dev, b.actions.clone(), b.n, ACTION_DIM);
+        let rewards = matrix(dev, b.rewards.clone(), b.n, 1);
+        let next_obs = matrix(dev, b.next_obs.clone(), b.n, d);
+
+        // TD target y = r + γ·Q'(o', μ'(o')).
+        let next_actions = self.target_actor.forward(next_obs.clone());
+        let next_q = self.target_critic.forward((next_obs, next_actions).concat_along(Axis::<1>));
+        let y = rewards + next_q * self.gamma;
+
+        // Critic: minimise (y − Q(o, a))².
+        let q = self.critic.forward((obs.leaky_trace(), actions).concat_along(Axis::<1>));
+        let critic_loss = mse_loss(q, y);
+        let critic_loss_value = critic_loss.array();
+        let grads = critic_loss.backward();
+        let critic_grads = self.critic.gradients(&grads);
+        self.critic_opt.update(&mut self.critic, &critic_grads);
+
+        // Actor: maximise Q(o, μ(o)), the gradient flowing through the (just updated) critic.
+        let mu = self.actor.forward(obs.leaky_trace());
+        let q = self.critic.forward((obs.retaped::<OwnedTape<f32, Dev>>(), mu).concat_along(Axis::<1>));
+        let actor_loss = -q.mean();
+        let actor_loss_value = actor_loss.array();
+        let grads = actor_loss.backward();
+        let actor_grads = self.actor.gradients(&grads);
+        self.actor_opt.update(&mut self.actor, &actor_grads);
+
+        // Targets follow slowly.
+        self.target_actor.soft_update_towards(&self.actor, self.tau);
+        self.target_critic.soft_update_towards(&self.critic, self.tau);
+        Losses { critic: critic_loss_value, actor: actor_loss_value }
+    }
+
+    /// Whether every parameter of every network is finite.
+    pub fn is_finite(&self) -> bool {
+        [&self.actor, &self.critic, &self.target_actor, &self.target_critic].iter().all(|n| n.is_finite())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::Scene;
+    use rand::{Rng, SeedableRng};
+
+    fn fixed_batch(n: usize, d: usize, rng: &mut ChaCha8Rng) -> Batch {
+        let mut draw = |k: usize| (0..k).map(|_| rng.gen_range(-1.0f32..1.0)).collect::<Vec<f32>>();
+        Batch { n, obs: draw(n * d), actions: draw(n * ACTION_DIM), rewards: draw(n), next_obs: draw(n * d) }
+    }
+
+    #[test]
+    fn shapes_and_actor_range() {
+        let dev = Dev::default();
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        let ddpg = Ddpg::new(&dev, 54, &Scene::preset("paper").unwrap().learning, &mut rng);
+        assert_eq!((ddpg.actor.input_width(), ddpg.actor.output_width()), (54, 2));
+        assert_eq!((ddpg.critic.input_width(), ddpg.critic.output_width()), (56, 1));
+        assert_eq!(ddpg.actor.layers.len(), 4, "three hidden layers and the output");
+        let obs: Vec<f32> = (0..13 * 54).map(|i| ((i * 37) % 200) as f32 / 10.0 - 10.0).collect();
+        let a = ddpg.act(&dev, &obs, 13);
+        assert_eq!(a.len(), 26);
+        assert!(a.iter().all(|x| x.abs() <= 1.0));
+    }
+
+    #[test]
+    fn updates_reduce_the_critic_loss_on_a_fixed_batch() {
+        let dev = Dev::default();
+        let mut rng = ChaCha8Rng::seed_from_u64(5);
+        let mut ddpg = Ddpg::new(&dev, 10, &Scene::preset("paper").unwrap().learning, &mut rng);
+        let batch = fixed_batch(256, 10, &mut rng);
+        let first = ddpg.update(&dev, &batch).critic;
+        let mut last = first;
+        for _ in 0..200 {
+            last = ddpg.update(&dev, &batch).critic;
+        }
+        assert!(last < 0.5 * first, "critic loss {first} -> {last}");
+        assert!(ddpg.is_finite());
+    }
+
+    #[test]
+    fn actor_update_climbs_the_critic() {
+        // With a frozen critic the actor's objective Q(o, μ(o)) must rise.
+        let dev = Dev::default();
+        let mut rng = ChaCha8Rng::seed_from_u64(9);
+        let mut ddpg = Ddpg::new(&dev, 6, &Scene::preset("paper").unwrap().learning, &mut rng);
+        ddpg.actor_opt.lr = 1e-3;
+        ddpg.critic_opt.lr = 0.0;
+        let batch = fixed_batch(128, 6, &mut rng);
+        let before = ddpg.update(&dev, &batch).actor;
+        let mut after = before;
+        for _ in 0..100 {
+            after = ddpg.update(&dev, &batch).actor;
+        }
+        assert!(after < before, "actor loss −Q should fall: {before} -> {after}");
+    }
+}

@@ -1,0 +1,213 @@
+//! The learning plugin: predator–prey coevolution by multi-agent DDPG (Section "Framework of
+//! Coevolution", Algorithm 1; the update itself is in `ddpg.rs`).
+//!
+//! Per learned species: one actor and one decentralized critic shared by all its individuals (parameter
+//! sharing), one replay buffer filled with every individual's transitions, and exploration noise drawn
+//! independently per individual. In `Decide` the species' observations go through the actor in one batched
+//! forward pass; in `Learn` the step's transitions are stored and the scene's update schedule runs:
+//! `updates_per_step` after every environment step (Algorithm 1 as printed) and/or `updates_per_episode`
+//! after each episode (the authors' code: 30).
+//!
+//! Exploration (parameters.md): Gaussian noise of std σ on the tanh output, clamped to [−1, 1]; with
+//! probability ε a species acts uniformly at random for that step; σ and ε fall by `exploration_decay` per
+//! episode to `exploration_floor`.
+
+pub mod checkpoint;
+pub mod ddpg;
+pub mod nets;
+pub mod replay;
+
+use crate::episode::{Episode, SimRng};
+use crate::perception::Batches;
+use crate::scene::{LearningParams, Policy};
+use crate::species::{SpeciesRegistry, ACTION_DIM};
+use crate::{ActiveScene, SimSet};
+use bevy::prelude::*;
+use ddpg::{Ddpg, Losses};
+use nets::Dev;
+use rand::Rng;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, Normal};
+use replay::ReplayBuffer;
+
+/// Train (explore, store, update) or only act (evaluation: no noise, no updates).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Mode {
+    Train,
+    Evaluate,
+}
+
+pub struct LearningPlugin {
+    pub mode: Mode,
+}
+
+/// One species' learner.
+#[derive(Clone, Debug)]
+pub struct SpeciesLearner {
+    pub ddpg: Ddpg,
+    pub buffer: ReplayBuffer,
+    /// Loaded from a checkpoint and never updated.
+    pub frozen: bool,
+    /// Current exploration noise std σ and random-action probability ε.
+    pub noise_std: f64,
+    pub epsilon: f64,
+    /// The observations the current actions were chosen on (o_t), to pair with o_{t+1}.
+    pending_obs: Vec<f32>,
+    /// Sum and count of losses since the last episode summary.
+    pub loss_sum: Losses,
+    pub updates: usize,
+}
+
+/// Every learned species' learner (None for rule-based species), the device and the learning RNG.
+#[derive(Resource)]
+pub struct Learners {
+    pub species: Vec<Option<SpeciesLearner>>,
+    pub dev: Dev,
+    pub rng: ChaCha8Rng,
+    pub mode: Mode,
+    pub params: LearningParams,
+    /// Set when a loss or parameter stops being finite; training stops with this message.
+    pub failure: Option<String>,
+    /// The learners as they were before the last episode's updates, for saving after a failure.
+    pub last_good: Option<Vec<Option<SpeciesLearner>>>,
+    /// Species names, registry order.
+    pub names: Vec<String>,
+}
+
+impl Learners {
+    /// Mean losses since the last call, per species, and resets the sums.
+    pub fn take_losses(&mut self) -> Vec<Option<Losses>> {
+        self.species
+            .iter_mut()
+            .map(|l| {
+                let l = l.as_mut()?;
+                let n = l.updates.max(1) as f32;
+                let mean = Losses { critic: l.loss_sum.critic / n, actor: l.loss_sum.actor / n };
+                let had = l.updates > 0;
+                l.loss_sum = Losses::default();
+                l.updates = 0;
+                had.then_some(mean)
+            })
+            .collect()
+    }
+}
+
+impl Plugin for LearningPlugin {
+    fn build(&self, app: &mut App) {
+        let scene = app.world().resource::<ActiveScene>().0.clone();
+        let registry = app.world().resource::<SpeciesRegistry>().clone();
+        let dev = Dev::default();
+        let mut init_rng = SimRng::stream(scene.seed, 1);
+        let p = scene.learning.clone();
+        let species = (0..registry.len())
+            .map(|s| {
+                let frozen = match registry.policy(s) {
+                    Policy::Learned => self.mode == Mode::Evaluate,
+                    Policy::Frozen(_) => true,
+                    _ => return None,
+                };
+                let d = registry.observation_dim(s);
+                Some(SpeciesLearner {
+                    ddpg: Ddpg::new(&dev, d, &p, &mut init_rng),
+                    buffer: ReplayBuffer::new(p.buffer_capacity, d, ACTION_DIM),
+                    frozen,
+                    noise_std: p.noise_std,
+                    epsilon: p.epsilon,
+                    pending_obs: vec![],
+                    loss_sum: Losses::default(),
+                    updates: 0,
+                })
+            })
+            .collect();
+        app.insert_resource(Learners {
+            species,
+            dev,
+            rng: SimRng::stream(scene.seed, 2),
+            mode: self.mode,
+            params: p,
+            failure: None,
+            last_good: None,
+            names: registry.defs.iter().map(|d| d.name.clone()).collect(),
+        });
+        app.add_systems(FixedUpdate, (decide_learned.in_set(SimSet::Decide), learn.in_set(SimSet::Learn)));
+    }
+}
+
+/// Batched actor inference for every learned species, plus exploration while training.
+fn decide_learned(mut learners: ResMut<Learners>, mut batches: ResMut<Batches>) {
+    let l = &mut *learners;
+    let explore = l.mode == Mode::Train;
+    for (s, learner) in l.species.iter_mut().enumerate() {
+        let Some(learner) = learner else { continue };
+        let batch = &mut batches.species[s];
+        if batch.n == 0 {
+            continue;
+        }
+        let mut actions = learner.ddpg.act(&l.dev, &batch.observations, batch.n);
+        if explore && !learner.frozen {
+            if l.rng.gen_bool(learner.epsilon.clamp(0.0, 1.0)) {
+                actions.iter_mut().for_each(|a| *a = l.rng.gen_range(-1.0..=1.0));
+            } else if learner.noise_std > 0.0 {
+                let noise = Normal::new(0.0, learner.noise_std as f32).expect("σ is finite and ≥ 0");
+                // Independent noise for every individual and action component.
+                actions.iter_mut().for_each(|a| *a = (*a + noise.sample(&mut l.rng)).clamp(-1.0, 1.0));
+            }
+        }
+        batch.actions.copy_from_slice(&actions);
+        learner.pending_obs.clone_from(&batch.observations);
+    }
+}
+
+/// Stores the step's transitions and runs the update schedule.
+fn learn(mut learners: ResMut<Learners>, batches: Res<Batches>, episode: Res<Episode>) {
+    let l = &mut *learners;
+    if l.mode != Mode::Train || l.failure.is_some() {
+        return;
+    }
+    let p = l.params.clone();
+    let episode_done = episode.is_done();
+    if episode_done {
+        l.last_good = Some(l.species.clone());
+    }
+    for (s, learner) in l.species.iter_mut().enumerate() {
+        let Some(learner) = learner else { continue };
+        if learner.frozen {
+            continue;
+        }
+        let b = &batches.species[s];
+        let d = b.obs_dim;
+        // Rows pair up only if the population did not change during the step.
+        if learner.pending_obs.len() == b.observations.len() {
+            for row in 0..b.n {
+                learner.buffer.push(
+                    &learner.pending_obs[row * d..(row + 1) * d],
+                    &b.actions[row * ACTION_DIM..(row + 1) * ACTION_DIM],
+                    b.rewards[row],
+                    b.observation(row),
+                );
+            }
+        }
+        let updates = p.updates_per_step + if episode_done { p.updates_per_episode } else { 0 };
+        if learner.buffer.len < p.warmup_transitions.max(1) {
+            continue;
+        }
+        for _ in 0..updates {
+            let batch = learner.buffer.sample(p.batch_size, &mut l.rng);
+            let losses = learner.ddpg.update(&l.dev, &batch);
+            learner.loss_sum.critic += losses.critic;
+            learner.loss_sum.actor += losses.actor;
+            learner.updates += 1;
+            if !losses.critic.is_finite() || !losses.actor.is_finite() || !learner.ddpg.is_finite() {
+                l.failure = Some(format!(
+                    "species {}: loss or parameters became non-finite (critic loss {}, actor loss {}) in episode {} at step {}",
+                    l.names[s], losses.critic, losses.actor, episode.index, episode.step
+                ));
+                return;
+            }
+        }
+        if episode_done {
+            learner.noise_std = (learner.noise_std - p.exploration_decay).max(p.exploration_floor.min(p.noise_std));
+            learner.epsilon = (learner.epsilon - p.exploration_decay).max(p.exploration_floor.min(p.epsilon));
+        }
+    }
+}

@@ -1,0 +1,162 @@
+//! Feed-forward networks with widths chosen at run time (d_o depends on the scene), on dfdx's CPU tensors,
+//! and the Adam optimizer over their parameters.
+//!
+//! Weights are stored in PyTorch's `nn.Linear` layout, (out, in), so a saved actor loads into
+//! `torch.nn.Linear` layers by name (see `checkpoint.rs`).
+
+use dfdx::prelude::*;
+use rand::Rng;
+use rand_chacha::ChaCha8Rng;
+
+pub type Dev = Cpu;
+pub type Matrix<T = NoneTape> = Tensor<(usize, usize), f32, Dev, T>;
+pub type Vector = Tensor<(usize,), f32, Dev>;
+
+/// One fully connected layer: y = x·Wᵀ + b.
+#[derive(Clone, Debug)]
+pub struct Dense {
+    /// (out, in).
+    pub weight: Matrix,
+    /// (out,).
+    pub bias: Vector,
+}
+
+/// What follows the last layer.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Output {
+    /// The actor: tanh into [−1, 1].
+    Tanh,
+    /// The critic: a plain value.
+    Linear,
+}
+
+/// Dense layers with ReLU between them (Appendix B: three hidden layers of 64).
+#[derive(Clone, Debug)]
+pub struct Mlp {
+    pub layers: Vec<Dense>,
+    pub output: Output,
+}
+
+impl Mlp {
+    /// Layers of the given widths, initialised as PyTorch's `nn.Linear`: U(−1/√in, 1/√in).
+    pub fn new(dev: &Dev, widths: &[usize], output: Output, rng: &mut ChaCha8Rng) -> Mlp {
+        let layers = widths
+            .windows(2)
+            .map(|w| {
+                let (fan_in, fan_out) = (w[0], w[1]);
+                let bound = 1.0 / (fan_in as f32).sqrt();
+                let mut draw = |n: usize| (0..n).map(|_| rng.gen_range(-bound..bound)).collect::<Vec<f32>>();
+                Dense {
+                    weight: dev.tensor_from_vec(draw(fan_out * fan_in), (fan_out, fan_in)),
+                    bias: dev.tensor_from_vec(draw(fan_out), (fan_out,)),
+                }
+            })
+            .collect();
+        Mlp { layers, output }
+    }
+
+    pub fn input_width(&self) -> usize {
+        self.layers[0].weight.shape().1
+    }
+
+    pub fn output_width(&self) -> usize {
+        self.layers.last().unwrap().weight.shape().0
+    }
+
+    /// Forward pass of a batch `[n × in]`; the tape of `x` (if any) records every operation.
+    pub fn forward<T: Tape<f32, Dev> + Merge<T>>(&self, x: Matrix<T>) -> Matrix<T> {
+        let last = self.layers.len() - 1;
+        let mut h = x;
+        for (i, layer) in self.layers.iter().enumerate() {
+            let w = layer.weight.retaped::<T>().permute::<(usize, usize), Axes2<1, 0>>();
+            let z = h.matmul(w);
+            let shape = *z.shape();
+            let b = layer.bias.retaped::<T>().broadcast_like::<(usize, usize), Axis<0>>(&shape);
+            let z = z + b;
+            h = if i < last {
+                z.relu()
+            } else {
+                match self.output {
+                    Output::Tanh => z.tanh(),
+                    Output::Linear => z,
+                }
+            };
+        }
+        h
+    }
+
+    /// Every parameter as a flat vector, in layer order (weight, bias).
+    pub fn parameters(&self) -> Vec<Vec<f32>> {
+        self.layers.iter().flat_map(|l| [l.weight.as_vec(), l.bias.as_vec()]).collect()
+    }
+
+    /// Overwrites every parameter from flat vectors in `parameters()` order.
+    pub fn set_parameters(&mut self, values: &[Vec<f32>]) {
+        for (l, pair) in self.layers.iter_mut().zip(values.chunks(2)) {
+            l.weight.copy_from(&pair[0]);
+            l.bias.copy_from(&pair[1]);
+        }
+    }
+
+    /// Gradients of every parameter, in `parameters()` order.
+    pub fn gradients(&self, grads: &Gradients<f32, Dev>) -> Vec<Vec<f32>> {
+        self.layers.iter().flat_map(|l| [grads.get(&l.weight).as_vec(), grads.get(&l.bias).as_vec()]).collect()
+    }
+
+    /// Soft target update θ' ← τ·θ + (1 − τ)·θ' (Algorithm 1, last line).
+    pub fn soft_update_towards(&mut self, online: &Mlp, tau: f32) {
+        let target: Vec<Vec<f32>> = self
+            .parameters()
+            .into_iter()
+            .zip(online.parameters())
+            .map(|(t, o)| t.iter().zip(&o).map(|(t, o)| tau * o + (1.0 - tau) * t).collect())
+            .collect();
+        self.set_parameters(&target);
+    }
+
+    /// Whether every parameter is finite.
+    pub fn is_finite(&self) -> bool {
+        self.parameters().iter().flatten().all(|x| x.is_finite())
+    }
+}
+
+/// Adam (Kingma & Ba), with PyTorch's defaults β = (0.9, 0.999), ε = 1e-8.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Adam {
+    pub lr: f32,
+    pub step: u64,
+    pub m: Vec<Vec<f32>>,
+    pub v: Vec<Vec<f32>>,
+}
+
+const BETA1: f32 = 0.9;
+const BETA2: f32 = 0.999;
+const EPSILON: f32 = 1e-8;
+
+impl Adam {
+    pub fn new(lr: f32, net: &Mlp) -> Adam {
+        let zeros: Vec<Vec<f32>> = net.parameters().iter().map(|p| vec![0.0; p.len()]).collect();
+        Adam { lr, step: 0, m: zeros.clone(), v: zeros }
+    }
+
+    /// One descent step of `net` along `gradients` (of a loss to minimise).
+    pub fn update(&mut self, net: &mut Mlp, gradients: &[Vec<f32>]) {
+        self.step += 1;
+        let correct1 = 1.0 - BETA1.powi(self.step as i32);
+        let correct2 = 1.0 - BETA2.powi(self.step as i32);
+        let mut params = net.parameters();
+        for (((p, g), m), v) in params.iter_mut().zip(gradients).zip(&mut self.m).zip(&mut self.v) {
+            for i in 0..p.len() {
+                m[i] = BETA1 * m[i] + (1.0 - BETA1) * g[i];
+                v[i] = BETA2 * v[i] + (1.0 - BETA2) * g[i] * g[i];
+                p[i] -= self.lr * (m[i] / correct1) / ((v[i] / correct2).sqrt() + EPSILON);
+            }
+        }
+        net.set_parameters(&params);
+    }
+}
+
+/// A `[rows × cols]` matrix from row-major data.
+pub fn matrix(dev: &Dev, data: Vec<f32>, rows: usize, cols: usize) -> Matrix {
+    dev.tensor_from_vec(data, (rows, cols))
+}
