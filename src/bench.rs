@@ -66,3 +66,44 @@ pub fn print(figures: &[Figure]) {
         println!("{:<72} {:>12.0} {}", f.label, f.per_second, f.unit);
     }
 }
+
+/// Learning figures: one DDPG update per species at batch 256, batched actor inference, and a policy
+/// (evaluation mode: one batched forward pass per species per step) driving 3 + 10 000 agents.
+pub fn learning(budget: Duration) -> Vec<Figure> {
+    use crate::learning::{ddpg::Ddpg, nets::Dev, replay::Batch, Mode};
+    use rand::{Rng, SeedableRng};
+    let dev = Dev::default();
+    let params = Scene::preset("paper").expect("paper preset exists").learning;
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(0);
+    let mut ddpg = Ddpg::new(&dev, 54, &params, &mut rng);
+    let mut draw = |k: usize| (0..k).map(|_| rng.gen_range(-1.0f32..1.0)).collect::<Vec<f32>>();
+    let batch = Batch { n: 256, obs: draw(256 * 54), actions: draw(512), rewards: draw(256), next_obs: draw(256 * 54) };
+    let mut figures = vec![Figure {
+        label: "DDPG update (critic + actor + soft update), batch 256, d_o 54".into(),
+        per_second: per_second(budget, 20, || {
+            ddpg.update(&dev, &batch);
+        }),
+        unit: "updates/s",
+    }];
+    for n in [13, 50, 1_000, 10_000] {
+        let obs = draw(n * 54);
+        figures.push(Figure {
+            label: format!("batched actor inference, {n} agents"),
+            per_second: per_second(budget, 20, || {
+                ddpg.act(&dev, &obs, n);
+            }),
+            unit: "passes/s",
+        });
+    }
+    let mut scene = bench_scene(3, 10_000, true);
+    for s in &mut scene.species {
+        s.policy = Policy::Learned;
+    }
+    let mut sim = crate::train::learning_simulation(scene, Mode::Evaluate, None).expect("no checkpoint needed");
+    figures.push(Figure {
+        label: "policy-driven step, 3+10000 agents (untrained weights)".into(),
+        per_second: per_second(budget, 5, || sim.step()),
+        unit: "steps/s",
+    });
+    figures
+}

@@ -86,6 +86,7 @@ fn run(cli: Cli) -> Result<(), String> {
     if cli.bench {
         let budget = Duration::from_secs_f64(cli.bench_seconds.max(0.01));
         coevo::bench::print(&coevo::bench::environment(budget));
+        coevo::bench::print(&coevo::bench::learning(budget));
         return Ok(());
     }
     if let Some(run) = &cli.eval {

@@ -1,0 +1,168 @@
+//! The learning plugin end to end, on tiny runs: training, checkpoints, resume, evaluation, bad input.
+
+use coevo::learning::{checkpoint, Learners, Mode};
+use coevo::perception::Batches;
+use coevo::scene::{Policy, Scene};
+use coevo::train::{evaluate, learning_simulation, train, EvalOptions, TrainOptions};
+use std::path::Path;
+
+/// The standard scene shrunk to seconds: short episodes, small networks and batches.
+fn tiny(episodes: usize) -> Scene {
+    let mut s = Scene::load(Path::new("scenes/standard.ron")).unwrap();
+    s.episode_steps = 20;
+    s.episodes = episodes;
+    s.learning.hidden = 16;
+    s.learning.batch_size = 32;
+    s.learning.warmup_transitions = 32;
+    s.learning.buffer_capacity = 2_000;
+    s.learning.updates_per_episode = 3;
+    s.learning.checkpoint_every = 2;
+    s
+}
+
+fn opts(run: &Path, resume: bool, episodes: Option<usize>) -> TrainOptions {
+    TrainOptions { run: run.to_path_buf(), resume, episodes, progress: false }
+}
+
+/// metrics.csv without the wall-clock column, which is the one thing allowed to differ.
+fn metrics_without_wall_clock(run: &Path) -> Vec<String> {
+    std::fs::read_to_string(run.join("metrics.csv"))
+        .unwrap()
+        .lines()
+        .map(|l| l.rsplit_once(',').unwrap().0.to_string())
+        .collect()
+}
+
+#[test]
+fn a_tiny_training_run_writes_scene_metrics_and_checkpoints() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = dir.path().join("run");
+    let summaries = train(tiny(5), &opts(&run, false, None)).unwrap();
+    assert_eq!(summaries.len(), 5);
+    let lines = metrics_without_wall_clock(&run);
+    assert_eq!(lines.len(), 6, "header and one row per episode");
+    assert!(lines[0].starts_with("episode,steps,dos_predator,doa_predator,dos_prey,doa_prey,catches"));
+    assert!(lines[0].contains("critic_loss_prey,actor_loss_prey,noise_std_prey,epsilon_prey"));
+    // Losses appear once the buffer has warmed up (13 agents × 20 steps per episode ≫ 32).
+    let last: Vec<&str> = lines[5].split(',').collect();
+    assert!(last[9].parse::<f64>().unwrap().is_finite(), "critic loss recorded: {}", lines[5]);
+    // σ fell by the decay once per episode.
+    assert!((last[11].parse::<f64>().unwrap() - (0.1 - 5.0 * 5e-5)).abs() < 1e-12);
+    Scene::load(&run.join("scene.ron")).expect("the resolved scene loads back");
+    for f in ["prey-actor.safetensors", "prey-training.safetensors", "predator-actor.safetensors", "state.ron"] {
+        assert!(run.join("checkpoint").join(f).exists(), "{f}");
+    }
+    assert!(!run.join("checkpoint.tmp").exists());
+}
+
+#[test]
+fn same_scene_and_seed_give_identical_metrics() {
+    let dir = tempfile::tempdir().unwrap();
+    let (a, b, c) = (dir.path().join("a"), dir.path().join("b"), dir.path().join("c"));
+    train(tiny(3), &opts(&a, false, None)).unwrap();
+    train(tiny(3), &opts(&b, false, None)).unwrap();
+    let mut other = tiny(3);
+    other.seed = 99;
+    train(other, &opts(&c, false, None)).unwrap();
+    assert_eq!(metrics_without_wall_clock(&a), metrics_without_wall_clock(&b));
+    assert_ne!(metrics_without_wall_clock(&a), metrics_without_wall_clock(&c));
+}
+
+#[test]
+fn a_saved_actor_acts_identically_after_loading() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = dir.path().join("run");
+    train(tiny(2), &opts(&run, false, None)).unwrap();
+    // Evaluate mode loads the run's actors; compare with a fresh training sim restored from the checkpoint.
+    let scene = Scene::load(&run.join("scene.ron")).unwrap();
+    let eval = learning_simulation(scene.clone(), Mode::Evaluate, Some(&run)).unwrap();
+    let mut restored = learning_simulation(scene, Mode::Train, None).unwrap();
+    {
+        let mut learners = restored.world_mut().resource_mut::<Learners>();
+        checkpoint::load(&run, &mut learners.species, &["predator".into(), "prey".into()]).unwrap();
+    }
+    let obs = eval.world().resource::<Batches>().species[1].observations.clone();
+    let act = |sim: &coevo::Simulation| {
+        let l = sim.world().resource::<Learners>();
+        l.species[1].as_ref().unwrap().ddpg.act(&l.dev, &obs, 10)
+    };
+    assert_eq!(act(&eval), act(&restored));
+}
+
+#[test]
+fn resume_after_a_kill_continues_the_count_and_the_metrics() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = dir.path().join("run");
+    train(tiny(4), &opts(&run, false, None)).unwrap();
+    // A kill after episode 4's checkpoint but before more rows: simulate rows written after it and a
+    // half-written checkpoint folder, both of which resume must discard.
+    let before = metrics_without_wall_clock(&run);
+    std::fs::write(run.join("metrics.csv"), std::fs::read_to_string(run.join("metrics.csv")).unwrap() + "4,20,garbage\n").unwrap();
+    std::fs::create_dir_all(run.join("checkpoint.tmp")).unwrap();
+    std::fs::write(run.join("checkpoint.tmp/prey-actor.safetensors"), b"half").unwrap();
+    let more = train(tiny(4), &opts(&run, true, Some(7))).unwrap();
+    assert_eq!(more.iter().map(|s| s.episode).collect::<Vec<_>>(), vec![4, 5, 6]);
+    let after = metrics_without_wall_clock(&run);
+    assert_eq!(after.len(), 8);
+    assert_eq!(after[..5], before[..], "rows up to the checkpoint are kept as they were");
+    assert!(after[5].starts_with("4,20,"));
+    let state = std::fs::read_to_string(run.join("checkpoint/state.ron")).unwrap();
+    assert!(state.contains("episodes_done: 7"), "{}", &state[..200.min(state.len())]);
+}
+
+#[test]
+fn corrupt_missing_or_mismatched_checkpoints_are_refused_clearly() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = dir.path().join("run");
+    let missing = train(tiny(1), &opts(&run, true, None)).unwrap_err();
+    assert!(missing.contains("run/scene.ron: cannot read scene"), "{missing}");
+
+    train(tiny(1), &opts(&run, false, None)).unwrap();
+    std::fs::write(run.join("checkpoint/prey-actor.safetensors"), b"not a tensor file").unwrap();
+    let eval = |counts: Vec<(String, usize)>| evaluate(&EvalOptions { run: run.clone(), counts, episodes: 1, steps: Some(5), seed: None });
+    let corrupt = eval(vec![]).unwrap_err();
+    assert!(corrupt.contains("prey-actor.safetensors: not a valid safetensors file"), "{corrupt}");
+
+    // A checkpoint of another observation size: prey that see only 2 neighbours per species.
+    let other = dir.path().join("other");
+    let mut s = tiny(1);
+    s.species[1].topological_limit = 2;
+    train(s, &opts(&other, false, None)).unwrap();
+    std::fs::copy(other.join("checkpoint/prey-actor.safetensors"), run.join("checkpoint/prey-actor.safetensors")).unwrap();
+    let mismatch = eval(vec![]).unwrap_err();
+    assert!(mismatch.contains("tensor 0.weight is F32 [16, 22], this scene needs F32 [16, 54]"), "{mismatch}");
+}
+
+#[test]
+fn evaluation_deploys_on_fifty_prey_and_without_predators() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = dir.path().join("run");
+    train(tiny(2), &opts(&run, false, None)).unwrap();
+    let line = evaluate(&EvalOptions { run: run.clone(), counts: vec![("prey".into(), 50), ("predator".into(), 0)], episodes: 2, steps: Some(30), seed: None }).unwrap();
+    assert!(line.contains("0 predator + 50 prey"), "{line}");
+    let csv = std::fs::read_to_string(run.join("eval.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 1 + 2 * 30);
+    assert!(csv.lines().skip(1).all(|l| l.ends_with(",0")), "no predators, no catches");
+}
+
+#[test]
+fn algorithm_1_schedule_and_rule_based_predators_and_no_predators_train() {
+    let dir = tempfile::tempdir().unwrap();
+    // One update per environment step (Algorithm 1 as printed), none per episode.
+    let mut s = tiny(2);
+    s.learning.updates_per_step = 1;
+    s.learning.updates_per_episode = 0;
+    train(s, &opts(&dir.path().join("alg1"), false, None)).unwrap();
+    // Confined: chase-nearest predators, learned prey; only prey have learner columns.
+    let mut s = Scene::load(Path::new("scenes/confined-penalty.ron")).unwrap();
+    s.episode_steps = 20;
+    s.learning = tiny(1).learning;
+    train(s, &opts(&dir.path().join("confined"), false, Some(2))).unwrap();
+    let header = metrics_without_wall_clock(&dir.path().join("confined"))[0].clone();
+    assert!(header.contains("critic_loss_prey") && !header.contains("critic_loss_predator"), "{header}");
+    // n₀ = 0: training without predators.
+    let mut s = tiny(2);
+    s.species[0].count = 0;
+    train(s, &opts(&dir.path().join("n0"), false, None)).unwrap();
+    assert_eq!(Scene::preset("paper").unwrap().species[1].policy, Policy::Learned);
+}
