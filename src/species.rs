@@ -1,5 +1,6 @@
-//! Species are data: a registry of definitions loaded from the scene. A plugin adds a species by adding
-//! a [`SpeciesDef`] (see `tests/third_species.rs`); nothing in the core names "predator" or "prey".
+//! Species are data: a registry of definitions loaded from the scene. A scene adds a third species with one
+//! more entry (see `tests/scenes.rs`), and its policy can be a `Plugin(name)` decided by your own system in
+//! `SimSet::Decide`; nothing in the core names "predator" or "prey".
 
 use crate::scene::{Perception, Policy, Scene, SpeciesDef};
 use bevy::prelude::*;
