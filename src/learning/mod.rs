@@ -74,6 +74,22 @@ pub struct Learners {
     pub names: Vec<String>,
 }
 
+impl SpeciesLearner {
+    /// A copy of the networks and exploration state with an empty replay buffer: what a checkpoint holds.
+    pub fn without_buffer(&self) -> SpeciesLearner {
+        SpeciesLearner {
+            ddpg: self.ddpg.clone(),
+            buffer: ReplayBuffer::new(self.buffer.capacity, self.buffer.obs_dim, self.buffer.act_dim),
+            frozen: self.frozen,
+            noise_std: self.noise_std,
+            epsilon: self.epsilon,
+            pending_obs: vec![],
+            loss_sum: self.loss_sum,
+            updates: self.updates,
+        }
+    }
+}
+
 impl Learners {
     /// Mean losses since the last call, per species, and resets the sums.
     pub fn take_losses(&mut self) -> Vec<Option<Losses>> {
@@ -167,7 +183,7 @@ fn learn(mut learners: ResMut<Learners>, batches: Res<Batches>, episode: Res<Epi
     let p = l.params.clone();
     let episode_done = episode.is_done();
     if episode_done {
-        l.last_good = Some(l.species.clone());
+        l.last_good = Some(l.species.iter().map(|x| x.as_ref().map(SpeciesLearner::without_buffer)).collect());
     }
     for (s, learner) in l.species.iter_mut().enumerate() {
         let Some(learner) = learner else { continue };
