@@ -29,6 +29,7 @@ pub mod space;
 pub mod species;
 pub mod train;
 
+use bevy::ecs::schedule::{ScheduleLabel, SingleThreadedExecutor};
 use bevy::prelude::*;
 use episode::{Episode, EpisodePlugin, SimRng};
 use metrics::MetricsPlugin;
@@ -62,11 +63,14 @@ pub struct SimulationPlugin {
 
 impl Plugin for SimulationPlugin {
     fn build(&self, app: &mut App) {
-        let scene = &self.scene;
-        app.insert_resource(ActiveScene(scene.clone()))
-            .insert_resource(Episode { index: 0, step: 0, length: scene.episode_steps, auto_reset: true })
-            .insert_resource(SimRng(SimRng::stream(scene.seed, 0)));
-        perception::insert_scene_resources(app.world_mut(), scene);
+        insert_scene(app.world_mut(), &self.scene);
+        // One thread, in declaration order: the same seed gives the same run whether or not Bevy's
+        // multi-threaded executor is compiled in (the viewer's window features turn it on).
+        for schedule in [FixedUpdate.intern(), perception::Perceive.intern()] {
+            app.edit_schedule(schedule, |s| {
+                s.set_executor(SingleThreadedExecutor::new());
+            });
+        }
         app.configure_sets(
             FixedUpdate,
             (
@@ -84,6 +88,29 @@ impl Plugin for SimulationPlugin {
         app.add_plugins((PerceptionPlugin, PolicyPlugin, PhysicsPlugin, RewardPlugin, MetricsPlugin, EpisodePlugin));
         app.add_systems(FixedUpdate, perception::run_perceive.in_set(SimSet::Perceive));
     }
+}
+
+/// Puts a scene into a world, replacing the scene before: the scene itself, the episode clock, the
+/// environment's random stream, arena, species and cleared metrics. Agents are spawned separately
+/// ([`episode::spawn_population`]), and learners by the learning plugin ([`learning::Learners::new`]).
+pub fn insert_scene(world: &mut World, scene: &Scene) {
+    world.insert_resource(ActiveScene(scene.clone()));
+    world.insert_resource(Episode { index: 0, step: 0, length: scene.episode_steps, auto_reset: true });
+    world.insert_resource(SimRng(SimRng::stream(scene.seed, 0)));
+    world.insert_resource(metrics::EpisodeLog::default());
+    world.insert_resource(metrics::SwarmMetrics::default());
+    perception::insert_scene_resources(world, scene);
+}
+
+/// Starts a scene afresh in a running world, as a new [`Simulation`] of it would start: its resources,
+/// the learners (for an app with the learning plugin) and a new population. The viewer's reset and scene
+/// picker use this, so a restarted world steps exactly like a headless one of the same scene and seed.
+pub fn restart(world: &mut World, scene: &Scene, learners: Option<learning::Learners>) {
+    insert_scene(world, scene);
+    if let Some(learners) = learners {
+        world.insert_resource(learners);
+    }
+    episode::spawn_population(world);
 }
 
 /// A headless simulation: the app, its schedule driven directly one fixed step at a time, as fast as it

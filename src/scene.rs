@@ -159,7 +159,7 @@ patchable! {
         pub perception: Perception,
         /// At most this many agents of each species are observed (the paper: 6).
         pub topological_limit: usize,
-        /// Linear RGB in [0, 1], for the viewer.
+        /// sRGB in [0, 1]: the colour the viewer draws the species in.
         pub colour: [f32; 3],
         /// Names of the species this one catches on contact.
         pub catches: Vec<String>,

@@ -7,7 +7,7 @@ use crate::episode::{Episode, SimRng};
 use crate::learning::checkpoint::{self, SpeciesState, TrainingState};
 use crate::learning::{LearningPlugin, Learners, Mode};
 use crate::metrics::{EpisodeLog, EpisodeSummary, SwarmMetrics};
-use crate::scene::{Policy, Scene};
+use crate::scene::Scene;
 use crate::species::SpeciesRegistry;
 use crate::Simulation;
 use indicatif::{ProgressBar, ProgressStyle};
@@ -35,20 +35,12 @@ pub fn headline_species(registry: &SpeciesRegistry) -> usize {
 /// A simulation with the learning plugin, frozen actors loaded (`Frozen(path)` species, and with `eval_run`
 /// every `Learned` species from that run).
 pub fn learning_simulation(scene: Scene, mode: Mode, eval_run: Option<&Path>) -> Result<Simulation, String> {
+    let mut learners = Learners::new(&scene, mode);
+    learners.load_actors(&scene, eval_run)?;
     let mut sim = Simulation::with_plugins(scene, |app| {
         app.add_plugins(LearningPlugin { mode });
     });
-    let registry = sim.world().resource::<SpeciesRegistry>().clone();
-    let mut learners = sim.world_mut().resource_mut::<Learners>();
-    for (s, def) in registry.defs.iter().enumerate() {
-        let source = match (&def.policy, eval_run) {
-            (Policy::Frozen(path), _) => PathBuf::from(path),
-            (Policy::Learned, Some(run)) => run.to_path_buf(),
-            _ => continue,
-        };
-        let l = learners.species[s].as_mut().expect("learned and frozen species have learners");
-        l.ddpg.actor = checkpoint::load_actor(&source, &def.name, &l.ddpg.actor)?;
-    }
+    sim.world_mut().insert_resource(learners);
     Ok(sim)
 }
 

@@ -94,16 +94,15 @@ fn read_file(path: &Path) -> Result<Vec<u8>, String> {
     std::fs::read(path).map_err(|e| format!("{}: cannot read checkpoint: {e}", path.display()))
 }
 
-fn parse(path: &Path, bytes: &[u8]) -> Result<SafeTensors<'static>, String> {
-    // The bytes are leaked for the 'static borrow: checkpoints are loaded once per process.
-    let bytes: &'static [u8] = Box::leak(bytes.to_vec().into_boxed_slice());
+fn parse<'a>(path: &Path, bytes: &'a [u8]) -> Result<SafeTensors<'a>, String> {
     SafeTensors::deserialize(bytes).map_err(|e| format!("{}: not a valid safetensors file ({e:?})", path.display()))
 }
 
 /// Loads a species' actor from a run folder into `like` (which fixes the expected shapes).
 pub fn load_actor(run: &Path, species: &str, like: &Mlp) -> Result<Mlp, String> {
     let path = checkpoint_dir(run).join(format!("{species}-actor.safetensors"));
-    let st = parse(&path, &read_file(&path)?)?;
+    let bytes = read_file(&path)?;
+    let st = parse(&path, &bytes)?;
     let mut net = like.clone();
     net.set_parameters(&read_into(&path, &st, "", like)?);
     Ok(net)
@@ -161,10 +160,12 @@ pub fn load(run: &Path, learners: &mut [Option<SpeciesLearner>], names: &[String
         let Some(l) = learner else { continue };
         let s = state.species.iter().flatten().find(|s| &s.name == name).ok_or_else(|| format!("{}: no species {name:?} in the checkpoint", state_path.display()))?;
         let actor_path = dir.join(format!("{name}-actor.safetensors"));
-        let st = parse(&actor_path, &read_file(&actor_path)?)?;
+        let bytes = read_file(&actor_path)?;
+        let st = parse(&actor_path, &bytes)?;
         let actor = read_into(&actor_path, &st, "", &l.ddpg.actor)?;
         let path = dir.join(format!("{name}-training.safetensors"));
-        let st = parse(&path, &read_file(&path)?)?;
+        let bytes = read_file(&path)?;
+        let st = parse(&path, &bytes)?;
         let d: &mut Ddpg = &mut l.ddpg;
         let critic = read_into(&path, &st, "critic.", &d.critic)?;
         let target_actor = read_into(&path, &st, "target_actor.", &d.actor)?;

@@ -19,7 +19,7 @@ pub mod replay;
 
 use crate::episode::{Episode, SimRng};
 use crate::perception::Batches;
-use crate::scene::{LearningParams, Policy};
+use crate::scene::{LearningParams, Policy, Scene};
 use crate::species::{SpeciesRegistry, ACTION_DIM};
 use crate::{ActiveScene, SimSet};
 use bevy::prelude::*;
@@ -29,6 +29,7 @@ use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 use replay::ReplayBuffer;
+use std::path::{Path, PathBuf};
 
 /// Train (explore, store, update) or only act (evaluation: no noise, no updates).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -108,17 +109,18 @@ impl Learners {
     }
 }
 
-impl Plugin for LearningPlugin {
-    fn build(&self, app: &mut App) {
-        let scene = app.world().resource::<ActiveScene>().0.clone();
-        let registry = app.world().resource::<SpeciesRegistry>().clone();
+impl Learners {
+    /// Fresh learners for a scene: random networks for every `Learned` and `Frozen` species (frozen ones
+    /// and, when evaluating, learned ones never update), none for rule-based species.
+    pub fn new(scene: &Scene, mode: Mode) -> Learners {
+        let registry = SpeciesRegistry::from_scene(scene);
         let dev = Dev::default();
         let mut init_rng = SimRng::stream(scene.seed, 1);
         let p = scene.learning.clone();
         let species = (0..registry.len())
             .map(|s| {
                 let frozen = match registry.policy(s) {
-                    Policy::Learned => self.mode == Mode::Evaluate,
+                    Policy::Learned => mode == Mode::Evaluate,
                     Policy::Frozen(_) => true,
                     _ => return None,
                 };
@@ -135,16 +137,43 @@ impl Plugin for LearningPlugin {
                 })
             })
             .collect();
-        app.insert_resource(Learners {
+        Learners {
             species,
             dev,
             rng: SimRng::stream(scene.seed, 2),
-            mode: self.mode,
+            mode,
             params: p,
             failure: None,
             last_good: None,
             names: registry.defs.iter().map(|d| d.name.clone()).collect(),
-        });
+        }
+    }
+
+    /// Loads trained actors: every `Frozen(path)` species from its folder and, with `run`, every `Learned`
+    /// species from that run. Fails, changing nothing, when a checkpoint is missing or does not fit the
+    /// scene (observation size, hidden width, species name).
+    pub fn load_actors(&mut self, scene: &Scene, run: Option<&Path>) -> Result<(), String> {
+        let mut loaded = Vec::new();
+        for (s, def) in scene.species.iter().enumerate() {
+            let source = match (&def.policy, run) {
+                (Policy::Frozen(path), _) => PathBuf::from(path),
+                (Policy::Learned, Some(run)) => run.to_path_buf(),
+                _ => continue,
+            };
+            let l = self.species[s].as_ref().expect("learned and frozen species have learners");
+            loaded.push((s, checkpoint::load_actor(&source, &def.name, &l.ddpg.actor)?));
+        }
+        for (s, actor) in loaded {
+            self.species[s].as_mut().expect("checked above").ddpg.actor = actor;
+        }
+        Ok(())
+    }
+}
+
+impl Plugin for LearningPlugin {
+    fn build(&self, app: &mut App) {
+        let scene = app.world().resource::<ActiveScene>().0.clone();
+        app.insert_resource(Learners::new(&scene, self.mode));
         app.add_systems(FixedUpdate, (decide_learned.in_set(SimSet::Decide), learn.in_set(SimSet::Learn)));
     }
 }
