@@ -28,6 +28,8 @@ pub mod scene;
 pub mod space;
 pub mod species;
 pub mod train;
+#[cfg(feature = "viewer")]
+pub mod viewer;
 
 use bevy::ecs::schedule::{ScheduleLabel, SingleThreadedExecutor};
 use bevy::prelude::*;

@@ -9,7 +9,8 @@ use std::time::Duration;
 
 /// Predators and prey that learn together: a simulator of Li, Li & Zhao (New J. Phys. 2023).
 ///
-/// Every mode runs headless, driving the fixed-step schedule as fast as it goes.
+/// Every mode but the viewer runs headless, driving the fixed-step schedule as fast as it goes.
+/// Built with `--features viewer` and given no headless mode, it opens the window instead.
 /// Scenes are RON files under scenes/ (see README, "Scenes").
 #[derive(Parser, Debug)]
 #[command(name = "coevo", version, about, long_about = None)]
@@ -61,6 +62,31 @@ struct Cli {
     /// Seconds per benchmark figure.
     #[arg(long, default_value_t = 2.0, value_name = "SECONDS")]
     bench_seconds: f64,
+
+    /// Viewer: watch a run's trained actors (its scene.ron, with --prey/--predators/--count applied).
+    #[arg(long, value_name = "DIR")]
+    watch: Option<PathBuf>,
+    /// Viewer: replace learned species by the paper's rule-based chase and flee.
+    #[arg(long)]
+    rules: bool,
+    /// Viewer: render --frames frames, save a PNG here and exit.
+    #[arg(long, value_name = "PATH.png")]
+    screenshot: Option<PathBuf>,
+    /// Viewer: frames to render before --screenshot.
+    #[arg(long, default_value_t = 60, value_name = "N")]
+    frames: usize,
+    /// Viewer: window size in pixels.
+    #[arg(long, default_value = "1280x720", value_name = "WxH")]
+    window: String,
+    /// Viewer: fixed steps per rendered frame.
+    #[arg(long, default_value_t = 1, value_name = "N")]
+    steps_per_frame: usize,
+    /// Viewer: start paused.
+    #[arg(long)]
+    paused: bool,
+    /// Viewer: draw fading trajectory tails from the start.
+    #[arg(long)]
+    trails: bool,
 }
 
 fn main() -> ExitCode {
@@ -90,12 +116,7 @@ fn run(cli: Cli) -> Result<(), String> {
         return Ok(());
     }
     if let Some(run) = &cli.eval {
-        let mut counts: Vec<(String, usize)> = cli.prey.map(|n| ("prey".to_string(), n)).into_iter().collect();
-        counts.extend(cli.predators.map(|n| ("predator".to_string(), n)));
-        for c in &cli.count {
-            let (name, n) = c.split_once('=').ok_or_else(|| format!("--count {c}: expected NAME=N"))?;
-            counts.push((name.to_string(), n.parse().map_err(|_| format!("--count {c}: {n} is not a count"))?));
-        }
+        let counts = counts(&cli)?;
         let opts = coevo::train::EvalOptions { run: run.clone(), counts, episodes: cli.episodes.unwrap_or(1), steps: cli.steps, seed: cli.seed };
         println!("{}", coevo::train::evaluate(&opts)?);
         return Ok(());
@@ -124,5 +145,58 @@ fn run(cli: Cli) -> Result<(), String> {
         eprintln!("coevo: wrote {} steps to {}", steps, out.display());
         return Ok(());
     }
-    Err("choose a mode: --train, --eval RUN, --record OUT.csv or --bench (see --help)".into())
+    viewer(&cli)
+}
+
+/// --prey, --predators and --count NAME=N, in that order.
+fn counts(cli: &Cli) -> Result<Vec<(String, usize)>, String> {
+    let mut counts: Vec<(String, usize)> = cli.prey.map(|n| ("prey".to_string(), n)).into_iter().collect();
+    counts.extend(cli.predators.map(|n| ("predator".to_string(), n)));
+    for c in &cli.count {
+        let (name, n) = c.split_once('=').ok_or_else(|| format!("--count {c}: expected NAME=N"))?;
+        counts.push((name.to_string(), n.parse().map_err(|_| format!("--count {c}: {n} is not a count"))?));
+    }
+    Ok(counts)
+}
+
+#[cfg(not(feature = "viewer"))]
+fn viewer(_: &Cli) -> Result<(), String> {
+    Err("choose a mode: --train, --eval RUN, --record OUT.csv or --bench (see --help); the window needs `--features viewer`".into())
+}
+
+#[cfg(feature = "viewer")]
+fn viewer(cli: &Cli) -> Result<(), String> {
+    use coevo::viewer::{RunMode, ScreenshotRequest, Setup, ViewerOptions};
+    let (mut scene, source, mode) = match &cli.watch {
+        Some(run) => {
+            let path = run.join("scene.ron");
+            (Scene::load(&path).map_err(|e| e.to_string())?, path, RunMode::Watch(run.clone()))
+        }
+        None => (Scene::load(&cli.scene).map_err(|e| e.to_string())?, cli.scene.clone(), if cli.rules { RunMode::RuleBased } else { RunMode::LiveTraining }),
+    };
+    if let Some(seed) = cli.seed {
+        scene.seed = seed;
+    }
+    for (name, n) in counts(cli)? {
+        scene.set_count(&name, n).map_err(|e| format!("{}: {e}", source.display()))?;
+    }
+    let window = cli
+        .window
+        .split_once('x')
+        .and_then(|(w, h)| Some(bevy::math::UVec2::new(w.parse().ok()?, h.parse().ok()?)))
+        .filter(|s| s.x >= 320 && s.y >= 240)
+        .ok_or_else(|| format!("--window {}: expected WxH of at least 320x240, e.g. 1280x720", cli.window))?;
+    if let Some(path) = &cli.screenshot {
+        if path.extension().is_none_or(|e| e != "png") {
+            return Err(format!("--screenshot {}: the file must end in .png", path.display()));
+        }
+    }
+    coevo::viewer::run(ViewerOptions {
+        setup: Setup { scene, source, mode },
+        window,
+        steps_per_frame: cli.steps_per_frame,
+        paused: cli.paused,
+        trails: cli.trails,
+        screenshot: cli.screenshot.clone().map(|path| ScreenshotRequest { path, frames: cli.frames.max(1) }),
+    })
 }

@@ -1,0 +1,306 @@
+//! The viewer (`cargo run --release --features viewer`): the headless simulation's own world and
+//! fixed-step schedule, drawn with Bevy's 2-D renderer and steered from an egui panel. Nothing here
+//! simulates; it only decides when `FixedUpdate` runs and shows what it did.
+//!
+//! A frame, top to bottom (the [`ViewerSet`]s, chained in `Update`):
+//!
+//! | set       | what happens                                                                | file         |
+//! |-----------|-----------------------------------------------------------------------------|--------------|
+//! | `Control` | what the panel asked for last frame: load a scene or run, reset, respawn    | `mod.rs`     |
+//! | `Step`    | `FixedUpdate` steps-per-frame times (or for a time budget); plots and trails | `mod.rs`     |
+//! | `Draw`    | new agents get bodies; bodies follow the agents; periodic ghosts; overlays  | `draw.rs`    |
+//!
+//! then, in `EguiPrimaryContextPass`, the control panel, the inspector and the plots (`panel.rs`,
+//! `plots.rs`), and last the screenshot keys (`capture.rs`).
+//!
+//! Bevy's own fixed-step loop is told not to run `FixedUpdate`: the viewer steps it itself, so the pace is
+//! steps per frame, not wall-clock time, and every step is exactly a headless step (same seed, same run).
+
+mod capture;
+mod draw;
+mod panel;
+mod plots;
+
+use crate::learning::{LearningPlugin, Learners, Mode};
+use crate::scene::{Policy, Scene};
+use crate::species::SpeciesRegistry;
+use crate::{ActiveScene, SimulationPlugin};
+use bevy::app::FixedMainScheduleOrder;
+use bevy::ecs::schedule::ScheduleLabel;
+use bevy::log::LogPlugin;
+use bevy::prelude::*;
+use bevy::window::WindowResolution;
+use bevy_egui::EguiPlugin;
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+pub use capture::ScreenshotRequest;
+
+/// How the world's species are driven.
+#[derive(Clone, Debug, PartialEq)]
+pub enum RunMode {
+    /// The scene as written: its learned species train while you watch (as `--train` would, step for
+    /// step).
+    LiveTraining,
+    /// The actors of a run folder (`runs/<name>/checkpoint/`), deployed without noise or updates.
+    Watch(PathBuf),
+    /// Learned species replaced by the paper's rule-based behaviours: a species that catches chases, a
+    /// species that is caught flees, any other moves at random.
+    RuleBased,
+}
+
+impl RunMode {
+    pub fn label(&self) -> String {
+        match self {
+            RunMode::LiveTraining => "live training".into(),
+            RunMode::Watch(run) => format!("watching {}", run.display()),
+            RunMode::RuleBased => "rule-based".into(),
+        }
+    }
+}
+
+/// What the viewer runs: a scene (named by the file it came from) in a mode.
+#[derive(Clone, Debug)]
+pub struct Setup {
+    pub scene: Scene,
+    pub source: PathBuf,
+    pub mode: RunMode,
+}
+
+impl Setup {
+    /// The scene as this mode runs it and the learners it needs. An error (a checkpoint that is missing or
+    /// does not fit the scene) changes nothing.
+    pub fn prepare(&self) -> Result<(Scene, Learners), String> {
+        let mut scene = self.scene.clone();
+        if self.mode == RunMode::RuleBased {
+            let registry = SpeciesRegistry::from_scene(&scene);
+            for (s, def) in scene.species.iter_mut().enumerate() {
+                if matches!(def.policy, Policy::Learned | Policy::Frozen(_)) {
+                    def.policy = if registry.prey_of(s).next().is_some() {
+                        Policy::ChaseNearest
+                    } else if registry.predators_of(s).next().is_some() {
+                        Policy::FleeNearest
+                    } else {
+                        Policy::Random
+                    };
+                }
+            }
+        }
+        scene.validate().map_err(|(field, message)| format!("{}: {field}: {message}", self.source.display()))?;
+        let (mode, run) = match &self.mode {
+            RunMode::Watch(run) => (Mode::Evaluate, Some(run.as_path())),
+            _ => (Mode::Train, None),
+        };
+        let mut learners = Learners::new(&scene, mode);
+        learners.load_actors(&scene, run).map_err(|e| format!("checkpoint refused: {e}"))?;
+        Ok((scene, learners))
+    }
+}
+
+/// Command-line options of the viewer.
+#[derive(Clone, Debug)]
+pub struct ViewerOptions {
+    pub setup: Setup,
+    pub window: UVec2,
+    pub steps_per_frame: usize,
+    pub paused: bool,
+    pub trails: bool,
+    /// Render this many frames, save a PNG and exit.
+    pub screenshot: Option<ScreenshotRequest>,
+}
+
+/// The stages of a viewer frame, in order.
+#[derive(SystemSet, Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum ViewerSet {
+    Control,
+    Step,
+    Draw,
+}
+
+/// Play, pause and pace.
+#[derive(Resource, Clone, Debug)]
+pub struct Playback {
+    pub playing: bool,
+    /// Fixed steps per rendered frame.
+    pub steps_per_frame: usize,
+    /// Step for `FAST_FRAME_BUDGET` per frame instead (live training at full speed, still drawn).
+    pub as_fast_as_possible: bool,
+    /// One step on the next frame, even when paused.
+    pub step_once: bool,
+    /// Steps per second of wall-clock time, measured over the last frames.
+    pub steps_per_second: f64,
+    pub total_steps: u64,
+}
+
+/// Wall-clock time spent stepping per frame in "as fast as possible": the rest of the frame draws.
+const FAST_FRAME_BUDGET: Duration = Duration::from_millis(40);
+
+/// What runs now and what the panel asked for.
+#[derive(Resource, Clone, Debug)]
+pub struct Control {
+    pub current: Setup,
+    /// Applied at the start of the next frame (a restart with new learners).
+    pub restart: Option<Setup>,
+    /// New counts per species: respawn now, keep the learners (the networks do not depend on counts).
+    pub respawn: Option<Vec<usize>>,
+    /// The last thing that could not be done, shown in the panel until the next success.
+    pub error: Option<String>,
+}
+
+pub struct ViewerPlugin {
+    pub options: ViewerOptions,
+}
+
+impl Plugin for ViewerPlugin {
+    fn build(&self, app: &mut App) {
+        let o = &self.options;
+        // The viewer paces FixedUpdate itself (`step`), so Bevy's wall-clock fixed loop must not run it.
+        app.world_mut().resource_mut::<FixedMainScheduleOrder>().labels.retain(|l| *l != FixedUpdate.intern());
+        app.insert_resource(Playback {
+            playing: !o.paused,
+            steps_per_frame: o.steps_per_frame.max(1),
+            as_fast_as_possible: false,
+            step_once: false,
+            steps_per_second: 0.0,
+            total_steps: 0,
+        })
+        .insert_resource(Control { current: o.setup.clone(), restart: None, respawn: None, error: None })
+        .insert_resource(ClearColor(draw::OUTSIDE));
+        app.configure_sets(Update, (ViewerSet::Control, ViewerSet::Step, ViewerSet::Draw).chain());
+        app.add_systems(Update, (apply_control.in_set(ViewerSet::Control), step.in_set(ViewerSet::Step)));
+        app.add_plugins((draw::DrawPlugin { trails: o.trails }, plots::PlotsPlugin, panel::PanelPlugin));
+        app.add_plugins(capture::CapturePlugin { request: o.screenshot.clone() });
+    }
+}
+
+/// Opens the window and runs until it is closed (or the screenshot is saved).
+pub fn run(options: ViewerOptions) -> Result<(), String> {
+    // Refuse a bad scene or checkpoint before a window opens.
+    let (scene, learners) = options.setup.prepare()?;
+    let mut window = Window {
+        title: format!("coevo: {} ({})", options.setup.source.display(), options.setup.mode.label()),
+        resolution: WindowResolution::new(options.window.x, options.window.y),
+        ..default()
+    };
+    if options.screenshot.is_some() {
+        // Screenshots have the size asked for, whatever the display's scale factor.
+        window.resolution = window.resolution.with_scale_factor_override(1.0);
+    }
+    let mut app = App::new();
+    app.add_plugins(
+        DefaultPlugins
+            .set(WindowPlugin { primary_window: Some(window), ..default() })
+            .set(LogPlugin { filter: "warn,coevo=info,wgpu=error,naga=error".into(), ..default() }),
+    );
+    app.add_plugins(EguiPlugin::default());
+    app.add_plugins(SimulationPlugin { scene: scene.clone() });
+    app.add_plugins(LearningPlugin { mode: Mode::Train });
+    app.add_plugins(ViewerPlugin { options });
+    app.world_mut().insert_resource(learners);
+    app.add_systems(Startup, |world: &mut World| crate::episode::spawn_population(world));
+    match app.run() {
+        AppExit::Success => Ok(()),
+        AppExit::Error(code) => Err(format!("viewer exited with code {code}")),
+    }
+}
+
+/// Applies what the panel asked for, before this frame's steps.
+fn apply_control(world: &mut World) {
+    let (restart, respawn) = {
+        let mut c = world.resource_mut::<Control>();
+        (c.restart.take(), c.respawn.take())
+    };
+    if let Some(setup) = restart {
+        match setup.prepare() {
+            Ok((scene, learners)) => {
+                crate::restart(world, &scene, Some(learners));
+                world.resource_mut::<plots::History>().clear();
+                let mut c = world.resource_mut::<Control>();
+                c.current = setup;
+                c.error = None;
+            }
+            Err(e) => world.resource_mut::<Control>().error = Some(e),
+        }
+    }
+    if let Some(counts) = respawn {
+        respawn_with_counts(world, &counts);
+    }
+}
+
+/// Changes the population and respawns it, keeping the learners and the episode count: the episode starts
+/// over with the new numbers.
+fn respawn_with_counts(world: &mut World, counts: &[usize]) {
+    let mut scene = world.resource::<ActiveScene>().0.clone();
+    for (def, &n) in scene.species.iter_mut().zip(counts) {
+        def.count = n;
+    }
+    let source = world.resource::<Control>().current.source.clone();
+    if let Err((field, message)) = scene.validate() {
+        world.resource_mut::<Control>().error = Some(format!("{}: {field}: {message}", source.display()));
+        return;
+    }
+    for (def, &n) in world.resource_mut::<SpeciesRegistry>().defs.iter_mut().zip(counts) {
+        def.count = n;
+    }
+    world.resource_mut::<Control>().current.scene.species.iter_mut().zip(counts).for_each(|(d, &n)| d.count = n);
+    world.resource_mut::<ActiveScene>().0 = scene;
+    world.resource_mut::<crate::episode::Episode>().step = 0;
+    crate::episode::spawn_population(world);
+    world.resource_mut::<plots::History>().start_episode();
+    world.resource_mut::<Control>().error = None;
+}
+
+/// Runs this frame's fixed steps and records what the plots and trails need after each.
+fn step(world: &mut World) {
+    let started = Instant::now();
+    let p = world.resource::<Playback>().clone();
+    let budget: Box<dyn Fn(usize) -> bool> = if p.step_once {
+        Box::new(|done| done < 1)
+    } else if !p.playing {
+        Box::new(|_| false)
+    } else if p.as_fast_as_possible {
+        Box::new(move |_| started.elapsed() < FAST_FRAME_BUDGET)
+    } else {
+        Box::new(move |done| done < p.steps_per_frame)
+    };
+    let mut done = 0;
+    while budget(done) && world.resource::<Learners>().failure.is_none() {
+        world.run_schedule(FixedUpdate);
+        plots::record_step(world);
+        draw::record_trails(world);
+        done += 1;
+    }
+    if let Some(failure) = world.resource::<Learners>().failure.clone() {
+        let mut c = world.resource_mut::<Control>();
+        if c.error.is_none() {
+            c.error = Some(format!("training stopped: {failure}"));
+        }
+    }
+    let mut p = world.resource_mut::<Playback>();
+    p.step_once = false;
+    p.total_steps += done as u64;
+    let seconds = started.elapsed().as_secs_f64();
+    if done > 0 && seconds > 0.0 {
+        // A running mean over roughly the last second of frames.
+        let now = done as f64 / seconds;
+        p.steps_per_second = if p.steps_per_second == 0.0 { now } else { 0.95 * p.steps_per_second + 0.05 * now };
+    }
+}
+
+/// The scene files a picker offers: `scenes/*.ron`, sorted.
+pub fn scene_files() -> Vec<PathBuf> {
+    list_dir("scenes", |p| p.extension().is_some_and(|e| e == "ron"))
+}
+
+/// The run folders a picker offers: `runs/*/` holding a `checkpoint/`, sorted.
+pub fn run_folders() -> Vec<PathBuf> {
+    list_dir("runs", |p| p.join("checkpoint").is_dir() && p.join("scene.ron").is_file())
+}
+
+fn list_dir(dir: &str, keep: impl Fn(&std::path::Path) -> bool) -> Vec<PathBuf> {
+    let mut out: Vec<PathBuf> = std::fs::read_dir(dir)
+        .map(|rd| rd.filter_map(|e| e.ok().map(|e| e.path())).filter(|p| keep(p)).collect())
+        .unwrap_or_default();
+    out.sort();
+    out
+}

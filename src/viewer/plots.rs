@@ -1,0 +1,124 @@
+//! Live plots (egui_plot): DoS and DoA per episode with their 100-episode running means, DoS and DoA step
+//! by step within the current episode, and catches per episode, for the headline species (the prey).
+
+use crate::episode::Episode;
+use crate::metrics::{EpisodeLog, SwarmMetrics};
+use crate::species::SpeciesRegistry;
+use crate::train::headline_species;
+use bevy::prelude::*;
+use bevy_egui::egui;
+use egui_plot::{Legend, Line, Plot, PlotPoints};
+
+/// The paper's smoothing window for learning curves (Fig. 3: running mean over 100 episodes).
+const RUNNING_MEAN: usize = 100;
+
+/// What the plots show, collected after every step.
+#[derive(Resource, Default, Debug)]
+pub struct History {
+    /// Per finished episode: [episode, DoS], [episode, DoA], [episode, catches].
+    pub dos: Vec<[f64; 2]>,
+    pub doa: Vec<[f64; 2]>,
+    pub catches: Vec<[f64; 2]>,
+    /// Within the current episode: [step, value].
+    pub step_dos: Vec<[f64; 2]>,
+    pub step_doa: Vec<[f64; 2]>,
+}
+
+impl History {
+    pub fn clear(&mut self) {
+        *self = History::default();
+    }
+
+    pub fn start_episode(&mut self) {
+        self.step_dos.clear();
+        self.step_doa.clear();
+    }
+}
+
+pub struct PlotsPlugin;
+
+impl Plugin for PlotsPlugin {
+    fn build(&self, app: &mut App) {
+        app.init_resource::<History>();
+    }
+}
+
+/// After a step: the step's DoS/DoA, and any episode that just ended.
+pub fn record_step(world: &mut World) {
+    let prey = headline_species(world.resource::<SpeciesRegistry>());
+    let ended = std::mem::take(&mut world.resource_mut::<EpisodeLog>().episodes);
+    let step = world.resource::<Episode>().step as f64;
+    let now = world.resource::<SwarmMetrics>().now.get(prey).copied().flatten();
+    let mut h = world.resource_mut::<History>();
+    for e in &ended {
+        let x = e.episode as f64;
+        if let Some(s) = e.swarming.get(prey).copied().flatten() {
+            h.dos.push([x, s.dos]);
+            h.doa.push([x, s.doa]);
+        }
+        h.catches.push([x, e.catches as f64]);
+    }
+    if !ended.is_empty() {
+        h.start_episode();
+    }
+    if let Some(s) = now {
+        h.step_dos.push([step, s.dos]);
+        h.step_doa.push([step, s.doa]);
+    }
+}
+
+/// Running mean over the last `window` points (fewer at the start).
+pub fn running_mean(points: &[[f64; 2]], window: usize) -> Vec<[f64; 2]> {
+    let mut sum = 0.0;
+    points
+        .iter()
+        .enumerate()
+        .map(|(i, p)| {
+            sum += p[1];
+            if i >= window {
+                sum -= points[i - window][1];
+            }
+            [p[0], sum / (i + 1).min(window) as f64]
+        })
+        .collect()
+}
+
+const DOS: egui::Color32 = egui::Color32::from_rgb(70, 130, 220);
+const DOA: egui::Color32 = egui::Color32::from_rgb(235, 140, 40);
+
+fn line(name: &str, points: &[[f64; 2]], colour: egui::Color32, width: f32) -> Line<'static> {
+    Line::new(name, PlotPoints::from(points.to_vec())).color(colour).width(width)
+}
+
+/// The three plots, stacked.
+pub fn show(ui: &mut egui::Ui, h: &History, species: &str) {
+    let height = ((ui.available_height() - 60.0) / 3.0).clamp(90.0, 220.0);
+    ui.label(format!("{species}: per episode (thin) and {RUNNING_MEAN}-episode running mean"));
+    Plot::new("per_episode").height(height).legend(Legend::default()).include_y(0.0).include_y(1.0).show(ui, |p| {
+        p.line(line("DoS", &h.dos, DOS.gamma_multiply(0.45), 1.0));
+        p.line(line("DoA", &h.doa, DOA.gamma_multiply(0.45), 1.0));
+        p.line(line("DoS mean", &running_mean(&h.dos, RUNNING_MEAN), DOS, 2.0));
+        p.line(line("DoA mean", &running_mean(&h.doa, RUNNING_MEAN), DOA, 2.0));
+    });
+    ui.label("this episode, step by step");
+    Plot::new("per_step").height(height).legend(Legend::default()).include_y(0.0).include_y(1.0).show(ui, |p| {
+        p.line(line("DoS", &h.step_dos, DOS, 1.5));
+        p.line(line("DoA", &h.step_doa, DOA, 1.5));
+    });
+    ui.label("catches per episode");
+    Plot::new("catches").height(height).include_y(0.0).show(ui, |p| {
+        p.line(line("catches", &h.catches, egui::Color32::from_rgb(200, 40, 40), 1.5));
+    });
+}
+
+#[cfg(test)]
+mod tests {
+    use super::running_mean;
+
+    #[test]
+    fn running_mean_averages_the_last_window() {
+        let pts: Vec<[f64; 2]> = (0..5).map(|i| [i as f64, i as f64]).collect();
+        let m = running_mean(&pts, 2);
+        assert_eq!(m.iter().map(|p| p[1]).collect::<Vec<_>>(), vec![0.0, 0.5, 1.5, 2.5, 3.5]);
+    }
+}
