@@ -81,12 +81,18 @@ struct Cli {
     /// Viewer: fixed steps per rendered frame.
     #[arg(long, default_value_t = 1, value_name = "N")]
     steps_per_frame: usize,
+    /// Viewer: step as fast as possible (for live training), still drawing every frame.
+    #[arg(long)]
+    fast: bool,
     /// Viewer: start paused.
     #[arg(long)]
     paused: bool,
     /// Viewer: draw fading trajectory tails from the start.
     #[arg(long)]
     trails: bool,
+    /// Viewer: select the agent with this id (its perception radius, neighbours and observation).
+    #[arg(long, value_name = "ID")]
+    select: Option<u32>,
 }
 
 fn main() -> ExitCode {
@@ -196,7 +202,9 @@ fn viewer(cli: &Cli) -> Result<(), String> {
         window,
         steps_per_frame: cli.steps_per_frame,
         paused: cli.paused,
+        fast: cli.fast,
         trails: cli.trails,
+        select: cli.select,
         screenshot: cli.screenshot.clone().map(|path| ScreenshotRequest { path, frames: cli.frames.max(1) }),
     })
 }

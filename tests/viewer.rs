@@ -41,33 +41,25 @@ fn close(a: [u8; 3], b: [u8; 3], tolerance: u8) -> bool {
     a.iter().zip(b).all(|(x, y)| x.abs_diff(y) <= tolerance)
 }
 
-#[test]
-fn a_screenshot_of_the_standard_scene_shows_the_arena_and_both_species() {
+/// Runs the viewer with `args` plus `--screenshot`, and returns the PNG's size and pixels.
+fn screenshot(args: &[&str]) -> (u32, u32, Vec<[u8; 3]>) {
     let dir = tempfile::tempdir().unwrap();
-    let shot = dir.path().join("standard.png");
-    let out = under_xvfb(&[
-        "--scene",
-        "scenes/standard.ron",
-        "--rules",
-        "--seed",
-        "3",
-        "--window",
-        &format!("{WIDTH}x{HEIGHT}"),
-        "--frames",
-        "30",
-        "--screenshot",
-        shot.to_str().unwrap(),
-    ]);
+    let shot = dir.path().join("shot.png");
+    let size = format!("{WIDTH}x{HEIGHT}");
+    let mut all = args.to_vec();
+    all.extend(["--window", &size, "--frames", "30", "--screenshot", shot.to_str().unwrap()]);
+    let out = under_xvfb(&all);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "viewer failed: {}\n{stderr}", out.status);
     assert!(String::from_utf8_lossy(&out.stdout).contains("fps over frames"), "the frame rate is reported");
-    assert!(!dir.path().join("standard.png.tmp").exists(), "no temporary file is left");
+    assert!(!dir.path().join("shot.png.tmp").exists(), "no temporary file is left");
+    read_png(&shot)
+}
 
-    let (w, h, pixels) = read_png(&shot);
-    assert_eq!((w, h), (WIDTH, HEIGHT));
+/// Pixels of each species' colour in the arena, and how many its bodies should cover: the arena floor's
+/// extent on screen gives the scale, and each body is a disc of its radius.
+fn colour_coverage(w: u32, h: u32, pixels: &[[u8; 3]], scene: &Scene) -> Vec<(f64, f64)> {
     let at = |x: u32, y: u32| pixels[(y * w + x) as usize];
-
-    // The arena floor, to scale: its extent gives pixels per metre.
     let floor = srgb8([0.98, 0.98, 0.97]);
     let (mut x0, mut x1, mut y0, mut y1) = (w, 0, h, 0);
     for y in 0..h {
@@ -80,23 +72,32 @@ fn a_screenshot_of_the_standard_scene_shows_the_arena_and_both_species() {
     assert!(x1 > x0 + 300 && y1 > y0 + 300, "the arena floor fills a good part of the window ({x0}..{x1} × {y0}..{y1})");
     let (aw, ah) = ((x1 - x0 + 1) as f64, (y1 - y0 + 1) as f64);
     assert!((aw / ah - 1.0).abs() < 0.03, "the arena is square on screen: {aw} × {ah}");
-
-    let scene = Scene::load(Path::new("scenes/standard.ron")).unwrap();
     let per_metre = aw / scene.world.arena_edge;
-    let mut covered = Vec::new();
-    for s in &scene.species {
-        let colour = srgb8(s.colour);
-        let counted = pixels.iter().filter(|p| close(**p, colour, 6)).count() as f64;
-        // Bodies are discs of the body radius; their anti-aliased rims, the heading lines and overlaps
-        // take some pixels away, none are added.
-        let expected = s.count as f64 * std::f64::consts::PI * (s.radius * per_metre).powi(2);
+    scene
+        .species
+        .iter()
+        .map(|s| {
+            let colour = srgb8(s.colour);
+            // Inside the arena only: the panel writes species names in their colours.
+            let inside = (y0..=y1).flat_map(|y| (x0..=x1).map(move |x| (x, y)));
+            let counted = inside.filter(|&(x, y)| close(at(x, y), colour, 6)).count() as f64;
+            let expected = s.count as f64 * std::f64::consts::PI * (s.radius * per_metre).powi(2);
+            eprintln!("{}: {counted} pixels, {expected:.0} expected", s.name);
+            (counted, expected)
+        })
+        .collect()
+}
+
+#[test]
+fn a_screenshot_of_the_standard_scene_shows_the_arena_and_both_species() {
+    let (w, h, pixels) = screenshot(&["--scene", "scenes/standard.ron", "--rules", "--seed", "3"]);
+    assert_eq!((w, h), (WIDTH, HEIGHT));
+    let scene = Scene::load(Path::new("scenes/standard.ron")).unwrap();
+    for ((counted, expected), s) in colour_coverage(w, h, &pixels, &scene).into_iter().zip(&scene.species) {
+        // Heading lines and overlaps take some pixels of a disc away; nothing else has these colours.
         let ratio = counted / expected;
-        eprintln!("{}: {counted} pixels, {expected:.0} expected ({ratio:.2})", s.name);
         assert!((0.55..=1.1).contains(&ratio), "{}: {counted} pixels of its colour, {expected:.0} expected from its bodies", s.name);
-        covered.push(counted);
     }
-    // Nothing else on screen has those colours.
-    assert!(covered.iter().all(|&c| c > 200.0));
 }
 
 #[test]
@@ -151,6 +152,20 @@ fn watching_a_run_loads_its_actors_and_refuses_a_scene_they_do_not_fit() {
     renamed.species[0].catches = vec!["fish".into()];
     let err = watch(renamed).err().expect("an unknown species is refused");
     assert!(err.contains("fish-actor.safetensors"), "{err}");
+}
+
+#[test]
+fn watching_a_run_in_the_window_deploys_it_on_fifty_prey_without_predators() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = tiny_run(dir.path());
+    let (w, h, pixels) = screenshot(&["--watch", run.to_str().unwrap(), "--prey", "50", "--predators", "0"]);
+    let mut scene = Scene::load(&run.join("scene.ron")).unwrap();
+    scene.set_count("prey", 50).unwrap();
+    scene.set_count("predator", 0).unwrap();
+    let coverage = colour_coverage(w, h, &pixels, &scene);
+    let (predator, (prey, expected)) = (coverage[0].0, coverage[1]);
+    assert_eq!(predator, 0.0, "no predator is drawn");
+    assert!((0.55..=1.1).contains(&(prey / expected)), "50 prey: {prey} pixels, {expected:.0} expected");
 }
 
 #[test]

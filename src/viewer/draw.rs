@@ -17,6 +17,7 @@ use bevy::camera::ScalingMode;
 use bevy::core_pipeline::tonemapping::Tonemapping;
 use bevy::math::DVec2;
 use bevy::prelude::*;
+use bevy::render::renderer::RenderAdapterInfo;
 use bevy::window::PrimaryWindow;
 use bevy_egui::input::EguiWantsInput;
 use std::collections::VecDeque;
@@ -80,15 +81,17 @@ struct Looks {
 
 pub struct DrawPlugin {
     pub trails: bool,
+    pub select: Option<u32>,
 }
 
 impl Plugin for DrawPlugin {
     fn build(&self, app: &mut App) {
         app.insert_resource(Overlays { trails: self.trails, trail_length: 60, catches: true, perception: true })
-            .init_resource::<Selection>()
+            .insert_resource(Selection(self.select.map(AgentId)))
             .init_resource::<PanelSpace>()
             .init_resource::<Looks>()
             .add_systems(Startup, spawn_camera)
+            .add_systems(PostStartup, no_msaa_on_software_rendering)
             .add_systems(
                 Update,
                 (
@@ -109,6 +112,22 @@ impl Plugin for DrawPlugin {
 fn spawn_camera(mut commands: Commands) {
     // No tonemapping: the screen shows the species' colours exactly.
     commands.spawn((Camera2d, Tonemapping::None));
+}
+
+/// Multisampling costs a software rasterizer (llvmpipe under Xvfb) more than half its frame rate, so it
+/// is turned off there; a GPU keeps Bevy's default 4×.
+fn no_msaa_on_software_rendering(
+    adapter: Option<Res<RenderAdapterInfo>>,
+    mut camera: Single<&mut Msaa, With<Camera2d>>,
+    mut checked: Local<bool>,
+) {
+    let Some(adapter) = adapter.filter(|_| !*checked) else { return };
+    *checked = true;
+    // wgpu's DeviceType::Cpu (the enum is not re-exported by Bevy).
+    if format!("{:?}", adapter.device_type) == "Cpu" {
+        **camera = Msaa::Off;
+        info!("software rendering ({}): multisampling off", adapter.name);
+    }
 }
 
 /// Floor, mask, walls and the species' looks for the current scene.
@@ -150,12 +169,17 @@ fn dress_scene(
     // From the centre forward, in body radii (the parent's scale).
     looks.line = meshes.add(Rectangle::new(HEADING_LENGTH, 0.22));
     looks.body = scene.0.species.iter().map(|s| materials.add(species_colour(s.colour))).collect();
-    looks.heading = scene.0.species.iter().map(|s| materials.add(species_colour(s.colour).darker(0.45))).collect();
+    looks.heading = scene.0.species.iter().map(|s| materials.add(shade(s.colour, 0.6))).collect();
 }
 
 /// A species' colour as its scene gives it (sRGB).
 pub fn species_colour(c: [f32; 3]) -> Color {
     Color::srgb(c[0], c[1], c[2])
+}
+
+/// A species' colour mixed toward black by `f` (its heading lines, its neighbour lines).
+fn shade(c: [f32; 3], f: f32) -> Color {
+    species_colour(c.map(|x| x * (1.0 - f)))
 }
 
 /// A body: the circle with the heading line as a child.
@@ -376,12 +400,12 @@ fn draw_overlays(
     if arena.boundary == Boundary::Periodic {
         gizmos.rect_2d(Isometry2d::IDENTITY, Vec2::splat(arena.edge as f32), SEAM);
     }
-    let colour = |s: usize| species_colour(registry.defs.get(s).map_or([0.5; 3], |d| d.colour));
+    let rgb = |s: usize| registry.defs.get(s).map_or([0.5; 3], |d| d.colour);
     for (id, x, body, s, contacts, slot, trail) in &agents {
         if overlays.trails {
             if let Some(trail) = trail {
                 let n = trail.0.len();
-                let c = colour(s.0);
+                let c = species_colour(rgb(s.0));
                 for (k, (a, b)) in trail.0.iter().zip(trail.0.iter().skip(1)).enumerate() {
                     // Fading with age; the segment is a minimum-image step, so the seam shows no streak.
                     let alpha = |k: usize| 0.55 * k as f32 / n as f32;
@@ -412,7 +436,7 @@ fn draw_overlays(
                 for n in 0..registry.defs[s.0].topological_limit {
                     if let Some([dx, dy, _, _]) = neighbour_slot(obs, &registry, s.0, t, n) {
                         let to = x.0 + DVec2::new(dx as f64, dy as f64);
-                        let c = colour(t).darker(0.2);
+                        let c = shade(rgb(t), 0.25);
                         wrapped_line(&mut gizmos, &arena, x.0, to, (c, c));
                     }
                 }

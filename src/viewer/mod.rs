@@ -104,7 +104,11 @@ pub struct ViewerOptions {
     pub window: UVec2,
     pub steps_per_frame: usize,
     pub paused: bool,
+    /// Start in "as fast as possible".
+    pub fast: bool,
     pub trails: bool,
+    /// The agent selected at start, by id.
+    pub select: Option<u32>,
     /// Render this many frames, save a PNG and exit.
     pub screenshot: Option<ScreenshotRequest>,
 }
@@ -159,7 +163,7 @@ impl Plugin for ViewerPlugin {
         app.insert_resource(Playback {
             playing: !o.paused,
             steps_per_frame: o.steps_per_frame.max(1),
-            as_fast_as_possible: false,
+            as_fast_as_possible: o.fast,
             step_once: false,
             steps_per_second: 0.0,
             total_steps: 0,
@@ -168,7 +172,7 @@ impl Plugin for ViewerPlugin {
         .insert_resource(ClearColor(draw::OUTSIDE));
         app.configure_sets(Update, (ViewerSet::Control, ViewerSet::Step, ViewerSet::Draw).chain());
         app.add_systems(Update, (apply_control.in_set(ViewerSet::Control), step.in_set(ViewerSet::Step)));
-        app.add_plugins((draw::DrawPlugin { trails: o.trails }, plots::PlotsPlugin, panel::PanelPlugin));
+        app.add_plugins((draw::DrawPlugin { trails: o.trails, select: o.select }, plots::PlotsPlugin, panel::PanelPlugin));
         app.add_plugins(capture::CapturePlugin { request: o.screenshot.clone() });
     }
 }

@@ -276,6 +276,9 @@ fn parameters(ui: &mut egui::Ui, c: &mut Control, draft: &mut Scene) {
     });
 }
 
+/// The inspector keeps one width, so the arena does not move as its contents change.
+const INSPECTOR_WIDTH: f32 = 370.0;
+
 type Inspected<'w, 's> = Query<
     'w,
     's,
@@ -294,8 +297,8 @@ fn inspector(
     let ctx = contexts.ctx_mut()?;
     let mut root = root_ui(ctx, "inspector_root");
     let width = egui::Panel::right("inspector")
-        .resizable(true)
-        .default_size(360.0)
+        .resizable(false)
+        .exact_size(INSPECTOR_WIDTH)
         .show(&mut root, |ui| {
             ui.heading("Selected agent");
             let found = selection.0.and_then(|id| agents.iter().find(|a| *a.0 == id));
@@ -332,25 +335,24 @@ fn agent_details(ui: &mut egui::Ui, a: AgentRow, registry: &SpeciesRegistry, bat
     ui.label(format!("perception radius R = {r:.3} m, at most {} per species", def.topological_limit));
     let Some(batch) = batches.species.get(s.0).filter(|b| (slot.row as usize) < b.n) else { return };
     let obs = batch.observation(slot.row as usize);
-    ui.label(format!("observation ({} numbers)", obs.len()));
-    egui::ScrollArea::vertical().id_salt("observation").max_height(220.0).show(ui, |ui| {
-        egui::Grid::new("obs").striped(true).show(ui, |ui| {
-            ui.label("own");
-            for (label, value) in ["x", "y", "v_x", "v_y", "h_x", "h_y"].iter().zip(&obs[..OWN_STATE_DIM]) {
-                ui.label(format!("{label} {value:+.3}"));
+    let own = |i: usize| format!("({:+.3}, {:+.3})", obs[i], obs[i + 1]);
+    ui.label(format!("observation, {} numbers; own state: x {}, v {}, h {}", obs.len(), own(0), own(2), own(4)));
+    debug_assert_eq!(OWN_STATE_DIM, 6);
+    egui::ScrollArea::vertical().id_salt("observation").max_height(200.0).show(ui, |ui| {
+        egui::Grid::new("obs").striped(true).num_columns(5).show(ui, |ui| {
+            for header in ["neighbour", "Δx", "Δy", "Δh_x", "Δh_y"] {
+                ui.strong(header);
             }
             ui.end_row();
             for t in 0..registry.len() {
                 for n in 0..def.topological_limit {
                     ui.label(format!("{} {}", registry.defs[t].name, n + 1));
                     match neighbour_slot(obs, registry, s.0, t, n) {
-                        Some(slot) => {
-                            for (label, value) in ["Δx", "Δy", "Δh_x", "Δh_y"].iter().zip(slot) {
-                                ui.label(format!("{label} {value:+.3}"));
-                            }
-                        }
+                        Some(slot) => slot.iter().for_each(|v| {
+                            ui.monospace(format!("{v:+.3}"));
+                        }),
                         None => {
-                            ui.label("—");
+                            ui.label("empty");
                         }
                     }
                     ui.end_row();
