@@ -14,8 +14,13 @@ const BIN: &str = env!("CARGO_BIN_EXE_coevo");
 const WIDTH: u32 = 1280;
 const HEIGHT: u32 = 720;
 
+/// One window at a time: `xvfb-run -a` picks a free display number, and two started at once can pick
+/// the same one.
+static DISPLAY: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
 /// Runs the viewer under a virtual X server (`xvfb-run`, Debian's xvfb); fails if there is none.
 fn under_xvfb(args: &[&str]) -> std::process::Output {
+    let _one_at_a_time = DISPLAY.lock().unwrap_or_else(|e| e.into_inner());
     let runtime = tempfile::tempdir().unwrap();
     let mut cmd = Command::new("xvfb-run");
     cmd.args(["-a", "-s", &format!("-screen 0 {WIDTH}x{HEIGHT}x24"), BIN]).args(args);
