@@ -48,6 +48,11 @@ fn close(a: [u8; 3], b: [u8; 3], tolerance: u8) -> bool {
 
 /// Runs the viewer with `args` plus `--screenshot`, and returns the PNG's size and pixels.
 fn screenshot(args: &[&str]) -> (u32, u32, Vec<[u8; 3]>) {
+    screenshot_and_output(args).0
+}
+
+/// As [`screenshot`], with what the viewer printed.
+fn screenshot_and_output(args: &[&str]) -> ((u32, u32, Vec<[u8; 3]>), String) {
     let dir = tempfile::tempdir().unwrap();
     let shot = dir.path().join("shot.png");
     let size = format!("{WIDTH}x{HEIGHT}");
@@ -56,9 +61,10 @@ fn screenshot(args: &[&str]) -> (u32, u32, Vec<[u8; 3]>) {
     let out = under_xvfb(&all);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "viewer failed: {}\n{stderr}", out.status);
-    assert!(String::from_utf8_lossy(&out.stdout).contains("fps over frames"), "the frame rate is reported");
+    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
+    assert!(stdout.contains("fps over frames"), "the frame rate is reported");
     assert!(!dir.path().join("shot.png.tmp").exists(), "no temporary file is left");
-    read_png(&shot)
+    (read_png(&shot), stdout)
 }
 
 /// Pixels of each species' colour in the arena, and how many its bodies should cover: the arena floor's
@@ -103,6 +109,35 @@ fn a_screenshot_of_the_standard_scene_shows_the_arena_and_both_species() {
         let ratio = counted / expected;
         assert!((0.55..=1.1).contains(&ratio), "{}: {counted} pixels of its colour, {expected:.0} expected from its bodies", s.name);
     }
+}
+
+#[test]
+fn live_training_in_the_window_is_the_headless_training_run() {
+    // The same scene and seed, trained headless for two episodes and live in the window at 25 steps per
+    // frame: the episodes' DoS, DoA and catches must be the same numbers, to the last digit.
+    let dir = tempfile::tempdir().unwrap();
+    let mut scene = Scene::load(Path::new("scenes/standard.ron")).unwrap();
+    scene.episode_steps = 200;
+    let file = dir.path().join("short.ron");
+    std::fs::write(&file, scene.to_ron()).unwrap();
+    let run = dir.path().join("run");
+    train(scene, &TrainOptions { run: run.clone(), resume: false, episodes: Some(2), progress: false }).unwrap();
+    let metrics = std::fs::read_to_string(run.join("metrics.csv")).unwrap();
+    let header: Vec<&str> = metrics.lines().next().unwrap().split(',').collect();
+    let col = |name: &str| header.iter().position(|h| *h == name).unwrap();
+    let headless: Vec<String> = metrics
+        .lines()
+        .skip(1)
+        .map(|row| {
+            let c: Vec<&str> = row.split(',').collect();
+            format!("coevo: episode {} dos {} doa {} catches {}", c[0], c[col("dos_prey")], c[col("doa_prey")], c[col("catches")])
+        })
+        .collect();
+
+    let (_, stdout) = screenshot_and_output(&["--scene", file.to_str().unwrap(), "--steps-per-frame", "25"]);
+    let live: Vec<&str> = stdout.lines().filter(|l| l.starts_with("coevo: episode")).collect();
+    assert!(live.len() >= 2, "two episodes ran in the window (30 frames × 25 steps): {stdout}");
+    assert_eq!(&live[..2], &headless[..]);
 }
 
 #[test]

@@ -84,7 +84,12 @@ fn save_png(image: &Image, path: &Path) -> Result<(), String> {
 }
 
 /// Counts frames, asks for the screenshot at frame N and exits once it is saved.
-fn one_shot(shot: Option<ResMut<OneShot>>, mut queue: ResMut<ScreenshotQueue>, mut exit: MessageWriter<AppExit>) {
+fn one_shot(
+    shot: Option<ResMut<OneShot>>,
+    mut queue: ResMut<ScreenshotQueue>,
+    mut exit: MessageWriter<AppExit>,
+    history: Res<super::plots::History>,
+) {
     let Some(mut shot) = shot else { return };
     shot.frames += 1;
     let frames = shot.frames;
@@ -104,6 +109,10 @@ fn one_shot(shot: Option<ResMut<OneShot>>, mut queue: ResMut<ScreenshotQueue>, m
     }
     match &shot.outcome {
         Some(Ok(())) => {
+            // The episodes finished while the window ran, as `--train` writes them to metrics.csv.
+            for ((dos, doa), catches) in history.dos.iter().zip(&history.doa).zip(&history.catches) {
+                println!("coevo: episode {} dos {} doa {} catches {}", dos[0], dos[1], doa[1], catches[1]);
+            }
             println!("coevo: wrote {}", shot.request.path.display());
             exit.write(AppExit::Success);
         }
