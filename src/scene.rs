@@ -98,7 +98,8 @@ pub enum Policy {
     Learned,
     /// A trained actor loaded from a checkpoint folder, no updates.
     Frozen(String),
-    /// Decided by a plugin registered under this name (see `species::PolicyPlugins`).
+    /// Decided by your own plugin: a system in `SimSet::Decide` that writes this species' rows of the action
+    /// batch (see `tests/species_plugin.rs`).
     Plugin(String),
 }
 
