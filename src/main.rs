@@ -107,7 +107,12 @@ fn main() -> ExitCode {
 }
 
 fn load_scene(cli: &Cli) -> Result<Scene, String> {
-    let mut scene = Scene::load(&cli.scene).map_err(|e| e.to_string())?;
+    load_scene_from(cli, &cli.scene)
+}
+
+/// A scene file with --seed applied.
+fn load_scene_from(cli: &Cli, path: &std::path::Path) -> Result<Scene, String> {
+    let mut scene = Scene::load(path).map_err(|e| e.to_string())?;
     if let Some(seed) = cli.seed {
         scene.seed = seed;
     }
@@ -173,16 +178,11 @@ fn viewer(_: &Cli) -> Result<(), String> {
 #[cfg(feature = "viewer")]
 fn viewer(cli: &Cli) -> Result<(), String> {
     use coevo::viewer::{RunMode, ScreenshotRequest, Setup, ViewerOptions};
-    let (mut scene, source, mode) = match &cli.watch {
-        Some(run) => {
-            let path = run.join("scene.ron");
-            (Scene::load(&path).map_err(|e| e.to_string())?, path, RunMode::Watch(run.clone()))
-        }
-        None => (Scene::load(&cli.scene).map_err(|e| e.to_string())?, cli.scene.clone(), if cli.rules { RunMode::RuleBased } else { RunMode::LiveTraining }),
+    let (source, mode) = match &cli.watch {
+        Some(run) => (run.join("scene.ron"), RunMode::Watch(run.clone())),
+        None => (cli.scene.clone(), if cli.rules { RunMode::RuleBased } else { RunMode::LiveTraining }),
     };
-    if let Some(seed) = cli.seed {
-        scene.seed = seed;
-    }
+    let mut scene = load_scene_from(cli, &source)?;
     for (name, n) in counts(cli)? {
         scene.set_count(&name, n).map_err(|e| format!("{}: {e}", source.display()))?;
     }

@@ -37,11 +37,10 @@ pub fn headline_species(registry: &SpeciesRegistry) -> usize {
 pub fn learning_simulation(scene: Scene, mode: Mode, eval_run: Option<&Path>) -> Result<Simulation, String> {
     let mut learners = Learners::new(&scene, mode);
     learners.load_actors(&scene, eval_run)?;
-    let mut sim = Simulation::with_plugins(scene, |app| {
+    Ok(Simulation::with_plugins(scene, |app| {
+        app.insert_resource(learners);
         app.add_plugins(LearningPlugin { mode });
-    });
-    sim.world_mut().insert_resource(learners);
-    Ok(sim)
+    }))
 }
 
 fn metrics_header(registry: &SpeciesRegistry, learners: &Learners) -> String {

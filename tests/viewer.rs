@@ -63,7 +63,8 @@ fn screenshot_and_output(args: &[&str]) -> ((u32, u32, Vec<[u8; 3]>), String) {
     assert!(out.status.success(), "viewer failed: {}\n{stderr}", out.status);
     let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
     assert!(stdout.contains("fps over frames"), "the frame rate is reported");
-    assert!(!dir.path().join("shot.png.tmp").exists(), "no temporary file is left");
+    let files: Vec<_> = std::fs::read_dir(dir.path()).unwrap().map(|e| e.unwrap().file_name()).collect();
+    assert_eq!(files, vec![std::ffi::OsString::from("shot.png")], "the PNG and no temporary file");
     (read_png(&shot), stdout)
 }
 

@@ -172,8 +172,12 @@ impl Learners {
 
 impl Plugin for LearningPlugin {
     fn build(&self, app: &mut App) {
-        let scene = app.world().resource::<ActiveScene>().0.clone();
-        app.insert_resource(Learners::new(&scene, self.mode));
+        // Learners inserted beforehand (with trained actors loaded, see `train::learning_simulation`) are
+        // kept; otherwise fresh ones.
+        if !app.world().contains_resource::<Learners>() {
+            let scene = app.world().resource::<ActiveScene>().0.clone();
+            app.insert_resource(Learners::new(&scene, self.mode));
+        }
         app.add_systems(FixedUpdate, (decide_learned.in_set(SimSet::Decide), learn.in_set(SimSet::Learn)));
     }
 }

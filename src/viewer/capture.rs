@@ -1,6 +1,6 @@
 //! Screenshots: F12 (or the panel's button) saves the window as a PNG under `screenshots/`, and
 //! `--screenshot PATH --frames N` renders N frames, saves PATH, prints the frame rate and exits.
-//! A PNG is written to a temporary name and renamed, so no half-written file is ever left at PATH.
+//! A PNG is written atomically (`io::write_atomically`), so no half-written file is ever left at PATH.
 
 use bevy::prelude::*;
 use bevy::render::view::screenshot::{Screenshot, ScreenshotCaptured};
@@ -78,9 +78,10 @@ fn save_png(image: &Image, path: &Path) -> Result<(), String> {
     if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
     }
-    let tmp = path.with_extension("png.tmp");
-    rgb.save_with_format(&tmp, image::ImageFormat::Png).map_err(|e| format!("{}: cannot write PNG: {e}", path.display()))?;
-    std::fs::rename(&tmp, path).map_err(|e| format!("{}: {e}", path.display()))
+    crate::io::write_atomically(path, |w| {
+        rgb.write_with_encoder(image::codecs::png::PngEncoder::new(w)).map_err(std::io::Error::other)
+    })
+    .map_err(|e| format!("{}: cannot write PNG: {e}", path.display()))
 }
 
 /// Counts frames, asks for the screenshot at frame N and exits once it is saved.

@@ -197,10 +197,10 @@ pub fn run(options: ViewerOptions) -> Result<(), String> {
             .set(LogPlugin { filter: "warn,coevo=info,wgpu=error,naga=error".into(), ..default() }),
     );
     app.add_plugins(EguiPlugin::default());
-    app.add_plugins(SimulationPlugin { scene: scene.clone() });
+    app.add_plugins(SimulationPlugin { scene });
+    app.insert_resource(learners);
     app.add_plugins(LearningPlugin { mode: Mode::Train });
     app.add_plugins(ViewerPlugin { options });
-    app.world_mut().insert_resource(learners);
     app.add_systems(Startup, |world: &mut World| crate::episode::spawn_population(world));
     match app.run() {
         AppExit::Success => Ok(()),
@@ -243,9 +243,7 @@ fn respawn_with_counts(world: &mut World, counts: &[usize]) {
         world.resource_mut::<Control>().error = Some(format!("{}: {field}: {message}", source.display()));
         return;
     }
-    for (def, &n) in world.resource_mut::<SpeciesRegistry>().defs.iter_mut().zip(counts) {
-        def.count = n;
-    }
+    world.insert_resource(SpeciesRegistry::from_scene(&scene));
     world.resource_mut::<Control>().current.scene.species.iter_mut().zip(counts).for_each(|(d, &n)| d.count = n);
     world.resource_mut::<ActiveScene>().0 = scene;
     world.resource_mut::<crate::episode::Episode>().step = 0;

@@ -43,8 +43,9 @@ fn root_ui(ctx: &egui::Context, id: &'static str) -> egui::Ui {
     )
 }
 
+/// What the status lines show.
 #[derive(SystemParam)]
-struct World<'w> {
+struct Status<'w> {
     episode: Res<'w, Episode>,
     registry: Res<'w, SpeciesRegistry>,
     learners: Res<'w, Learners>,
@@ -59,7 +60,7 @@ fn controls(
     mut space: ResMut<PanelSpace>,
     mut draft: ResMut<Draft>,
     mut shots: ResMut<ScreenshotQueue>,
-    world: World,
+    world: Status,
 ) -> Result {
     let ctx = contexts.ctx_mut()?;
     let mut root = root_ui(ctx, "controls_root");
@@ -101,7 +102,7 @@ fn controls(
     Ok(())
 }
 
-fn status(ui: &mut egui::Ui, c: &Control, playback: &Playback, w: &World) {
+fn status(ui: &mut egui::Ui, c: &Control, playback: &Playback, w: &Status) {
     ui.label(format!("{}  ·  {}", c.current.source.display(), c.current.mode.label()));
     ui.label(format!(
         "episode {}  ·  step {} / {}  ·  {} agents",
