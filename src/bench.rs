@@ -81,17 +81,15 @@ pub fn learning(budget: Duration) -> Vec<Figure> {
     let mut figures = vec![Figure {
         label: "DDPG update (critic + actor + soft update), batch 256, d_o 54".into(),
         per_second: per_second(budget, 20, || {
-            ddpg.update(&dev, &batch);
+            ddpg.update(&dev, batch.clone());
         }),
         unit: "updates/s",
     }];
     for n in [13, 50, 1_000, 10_000] {
-        let obs = draw(n * 54);
+        let (obs, mut actions) = (draw(n * 54), vec![0.0; n * 2]);
         figures.push(Figure {
             label: format!("batched actor inference, {n} agents"),
-            per_second: per_second(budget, 20, || {
-                ddpg.act(&dev, &obs, n);
-            }),
+            per_second: per_second(budget, 20, || ddpg.act_into(&dev, &obs, &mut actions)),
             unit: "passes/s",
         });
     }

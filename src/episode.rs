@@ -74,11 +74,17 @@ fn end_episode(world: &mut World) {
     let summary = world.resource_mut::<SwarmMetrics>().finish_episode(episode.index);
     world.resource_mut::<EpisodeLog>().episodes.push(summary);
     if episode.auto_reset {
-        let mut e = world.resource_mut::<Episode>();
-        e.index += 1;
-        e.step = 0;
-        spawn_population(world);
+        next_episode(world);
     }
+}
+
+/// Starts the next episode: the clock at its step 0 and a fresh population (what auto-reset does at the
+/// end of an episode; runs that read the last step's state first call it themselves).
+pub fn next_episode(world: &mut World) {
+    let mut e = world.resource_mut::<Episode>();
+    e.index += 1;
+    e.step = 0;
+    spawn_population(world);
 }
 
 /// Despawns every agent, spawns the scene's population anew and perceives the new state.

@@ -19,6 +19,7 @@ pub mod episode;
 pub mod io;
 pub mod learning;
 pub mod metrics;
+pub mod parallel;
 pub mod perception;
 pub mod physics;
 pub mod policy;
@@ -101,6 +102,7 @@ pub fn insert_scene(world: &mut World, scene: &Scene) {
     world.insert_resource(SimRng(SimRng::stream(scene.seed, 0)));
     world.insert_resource(metrics::EpisodeLog::default());
     world.insert_resource(metrics::SwarmMetrics::default());
+    world.insert_resource(physics::StateFault::default());
     perception::insert_scene_resources(world, scene);
 }
 
@@ -122,20 +124,29 @@ pub struct Simulation {
 }
 
 impl Simulation {
-    /// The simulation of a scene with the core plugins only.
+    /// The simulation of a scene with the core plugins only. Panics on a scene with a `Plugin(name)`
+    /// policy (nothing here decides it); programs use [`Simulation::try_with_plugins`].
     pub fn new(scene: Scene) -> Self {
         Self::with_plugins(scene, |_| {})
     }
 
-    /// The simulation of a scene, with more plugins (learning, a species of your own) added by `extra`.
+    /// [`Simulation::try_with_plugins`] for scenes known to be complete (tests, benchmarks): panics where
+    /// that returns an error.
     pub fn with_plugins(scene: Scene, extra: impl FnOnce(&mut App)) -> Self {
+        Self::try_with_plugins(scene, extra).unwrap_or_else(|e| panic!("{e}"))
+    }
+
+    /// The simulation of a scene, with more plugins (learning, a species of your own) added by `extra`.
+    /// Err when a species' `Plugin(name)` policy is decided by none of them.
+    pub fn try_with_plugins(scene: Scene, extra: impl FnOnce(&mut App)) -> Result<Self, String> {
         let mut app = App::new();
-        app.add_plugins(SimulationPlugin { scene });
+        app.add_plugins(SimulationPlugin { scene: scene.clone() });
         extra(&mut app);
+        app.world().resource::<policy::PolicyPlugins>().check(&scene)?;
         app.finish();
         app.cleanup();
         episode::spawn_population(app.world_mut());
-        Simulation { app }
+        Ok(Simulation { app })
     }
 
     /// One environment step t → t+1.
@@ -154,4 +165,23 @@ impl Simulation {
     pub fn episode(&self) -> Episode {
         *self.world().resource::<Episode>()
     }
+
+    /// One line when the last step left the physically possible ([`physics::StateFault`]): every run mode
+    /// checks after every step and stops, so no NaN or escaped body ever reaches a result file.
+    pub fn check(&self) -> Result<(), String> {
+        check_state(self.world())
+    }
+}
+
+/// [`Simulation::check`] for any world running the simulation (the viewer's too).
+pub fn check_state(world: &World) -> Result<(), String> {
+    let Some(f) = &world.resource::<physics::StateFault>().0 else {
+        return Ok(());
+    };
+    let name = &world.resource::<species::SpeciesRegistry>().defs[f.species].name;
+    Err(format!(
+        "episode {}, step {}: agent {} ({name}): {}; the integrator is unstable for this scene \
+             (check world.dt, world.contact_stiffness, world.wall_stiffness and species[{name}].mass)",
+        f.episode, f.step, f.agent, f.what
+    ))
 }

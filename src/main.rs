@@ -1,23 +1,27 @@
 //! The `coevo` command: headless training, evaluation, recording and benchmarks.
 
-use clap::Parser;
-use coevo::scene::Scene;
-use coevo::Simulation;
-use std::path::PathBuf;
+use clap::parser::ValueSource;
+use clap::{error::ErrorKind, ArgGroup, CommandFactory, FromArgMatches, Parser};
+use coevo::io::Existing;
+use coevo::learning::Mode;
+use coevo::scene::{Policy, Scene};
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Duration;
 
 /// Predators and prey that learn together: a simulator of Li, Li & Zhao (New J. Phys. 2023).
 ///
-/// Every mode but the viewer runs headless, driving the fixed-step schedule as fast as it goes.
-/// Built with `--features viewer` and given no headless mode, it opens the window instead.
-/// Scenes are RON files under scenes/ (see README, "Scenes").
+/// One mode per call: --train, --resume RUN, --eval RUN, --record OUT.csv or --bench run headless,
+/// driving the fixed-step schedule as fast as it goes. Built with `--features viewer` and given no
+/// headless mode, it opens the window. Scenes are RON files under scenes/ (see README, "Scenes").
+/// A flag the chosen mode does not use is refused, never ignored.
 #[derive(Parser, Debug)]
 #[command(name = "coevo", version, about, long_about = None)]
+#[command(group(ArgGroup::new("mode").args(["train", "resume", "eval", "record", "bench"]).multiple(false)))]
 struct Cli {
-    /// Scene file to run.
-    #[arg(long, default_value = "scenes/standard.ron", value_name = "PATH")]
-    scene: PathBuf,
+    /// Scene file to run [default: scenes/standard.ron].
+    #[arg(long, value_name = "PATH")]
+    scene: Option<PathBuf>,
     /// Override the scene's random seed.
     #[arg(long, value_name = "S")]
     seed: Option<u64>,
@@ -31,37 +35,48 @@ struct Cli {
     /// Episodes of the training run (default: the scene's `episodes`) or of the evaluation (default 1).
     #[arg(long, value_name = "N")]
     episodes: Option<usize>,
-    /// Run folder for --train (default runs/<scene>-seed<seed>).
+    /// Run folder for --train (default runs/<scene>-seed<seed>); must be new or empty.
     #[arg(long, value_name = "DIR")]
     out: Option<PathBuf>,
+    /// --train into a folder that holds a run, or --record/--screenshot over an existing file: replace it
+    /// (coevo's own files only).
+    #[arg(long)]
+    overwrite: bool,
     /// Continue a killed or finished run from its last checkpoint (to --episodes in total).
     #[arg(long, value_name = "DIR")]
     resume: Option<PathBuf>,
     /// Evaluate a run's policies without noise; writes DIR/eval.csv (per-step DoS/DoA).
     #[arg(long, value_name = "DIR")]
     eval: Option<PathBuf>,
-    /// Number of prey for --eval (the paper evaluates on 50).
+    /// Number of prey (--eval, --record, viewer; the paper evaluates on 50).
     #[arg(long, value_name = "N")]
     prey: Option<usize>,
-    /// Number of predators for --eval (0 removes them, as in the paper's Fig. 5a).
+    /// Number of predators (--eval, --record, viewer; 0 removes them, as in the paper's Fig. 5a).
     #[arg(long, value_name = "N")]
     predators: Option<usize>,
-    /// Any species' count for --eval, as NAME=N (repeatable).
+    /// Any species' count, as NAME=N (repeatable; --eval, --record, viewer).
     #[arg(long, value_name = "NAME=N")]
     count: Vec<String>,
-    /// No progress bar.
+    /// No progress bar (--train, --resume).
     #[arg(long)]
     quiet: bool,
+    /// Worker threads (default: COEVO_THREADS, else all cores). Results never depend on it.
+    #[arg(long, value_name = "N")]
+    threads: Option<usize>,
 
     /// Record a trajectory CSV: step,id,species,x,y,vx,vy,theta,thrust,turn_rate,reward.
     #[arg(long, value_name = "OUT.csv")]
     record: Option<PathBuf>,
+    /// --record: the run whose trained actors drive the scene's learned species (default: the seed's
+    /// freshly initialized actors); its scene.ron is the scene unless --scene is given.
+    #[arg(long, value_name = "DIR")]
+    run: Option<PathBuf>,
     /// Print throughput figures for this machine.
     #[arg(long)]
     bench: bool,
-    /// Seconds per benchmark figure.
-    #[arg(long, default_value_t = 2.0, value_name = "SECONDS")]
-    bench_seconds: f64,
+    /// Seconds per benchmark figure (--bench), in (0, 3600].
+    #[arg(long, value_name = "SECONDS")]
+    bench_seconds: Option<f64>,
 
     /// Viewer: watch a run's trained actors (its scene.ron, with --prey/--predators/--count applied).
     #[arg(long, value_name = "DIR")]
@@ -72,15 +87,15 @@ struct Cli {
     /// Viewer: render --frames frames, save a PNG here and exit.
     #[arg(long, value_name = "PATH.png")]
     screenshot: Option<PathBuf>,
-    /// Viewer: frames to render before --screenshot.
-    #[arg(long, default_value_t = 60, value_name = "N")]
-    frames: usize,
-    /// Viewer: window size in pixels.
-    #[arg(long, default_value = "1280x720", value_name = "WxH")]
-    window: String,
-    /// Viewer: fixed steps per rendered frame.
-    #[arg(long, default_value_t = 1, value_name = "N")]
-    steps_per_frame: usize,
+    /// Viewer: frames to render before --screenshot [default: 60].
+    #[arg(long, value_name = "N")]
+    frames: Option<usize>,
+    /// Viewer: window size in pixels [default: 1280x720].
+    #[arg(long, value_name = "WxH")]
+    window: Option<String>,
+    /// Viewer: fixed steps per rendered frame [default: 1].
+    #[arg(long, value_name = "N")]
+    steps_per_frame: Option<usize>,
     /// Viewer: step as fast as possible (for live training), still drawing every frame.
     #[arg(long)]
     fast: bool,
@@ -95,68 +110,214 @@ struct Cli {
     select: Option<u32>,
 }
 
-fn main() -> ExitCode {
-    let cli = Cli::parse();
-    match run(cli) {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(message) => {
-            eprintln!("coevo: error: {message}");
-            ExitCode::FAILURE
+/// The mode of a call and the flags it uses (besides the mode's own flag and --threads).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum RunMode {
+    Train,
+    Resume,
+    Eval,
+    Record,
+    Bench,
+    Viewer,
+}
+
+impl RunMode {
+    fn of(cli: &Cli) -> RunMode {
+        match () {
+            _ if cli.train => RunMode::Train,
+            _ if cli.resume.is_some() => RunMode::Resume,
+            _ if cli.eval.is_some() => RunMode::Eval,
+            _ if cli.record.is_some() => RunMode::Record,
+            _ if cli.bench => RunMode::Bench,
+            _ => RunMode::Viewer,
         }
+    }
+
+    fn flag(self) -> &'static str {
+        match self {
+            RunMode::Train => "--train",
+            RunMode::Resume => "--resume",
+            RunMode::Eval => "--eval",
+            RunMode::Record => "--record",
+            RunMode::Bench => "--bench",
+            RunMode::Viewer => "the viewer",
+        }
+    }
+
+    fn uses(self, arg: &str) -> bool {
+        let own: &[&str] = match self {
+            RunMode::Train => &["train", "scene", "seed", "episodes", "out", "overwrite", "quiet"],
+            RunMode::Resume => &["resume", "episodes", "quiet"],
+            RunMode::Eval => &["eval", "episodes", "steps", "seed", "prey", "predators", "count"],
+            RunMode::Record => &["record", "run", "scene", "seed", "steps", "prey", "predators", "count", "overwrite"],
+            RunMode::Bench => &["bench", "bench_seconds"],
+            RunMode::Viewer => &[
+                "scene",
+                "seed",
+                "prey",
+                "predators",
+                "count",
+                "watch",
+                "rules",
+                "screenshot",
+                "frames",
+                "window",
+                "steps_per_frame",
+                "fast",
+                "paused",
+                "trails",
+                "select",
+                "overwrite",
+            ],
+        };
+        arg == "threads" || own.contains(&arg)
     }
 }
 
-fn load_scene(cli: &Cli) -> Result<Scene, String> {
-    load_scene_from(cli, &cli.scene)
+fn main() -> ExitCode {
+    let matches = match Cli::command().try_get_matches() {
+        Ok(m) => m,
+        Err(e) if matches!(e.kind(), ErrorKind::DisplayHelp | ErrorKind::DisplayVersion) => e.exit(),
+        // clap's message, on one line: what is wrong and with which flag.
+        Err(e) => return fail(e.to_string().lines().next().unwrap_or("").trim_start_matches("error: ")),
+    };
+    let cli = match Cli::from_arg_matches(&matches) {
+        Ok(cli) => cli,
+        Err(e) => return fail(e.to_string().lines().next().unwrap_or("").trim_start_matches("error: ")),
+    };
+    let mode = RunMode::of(&cli);
+    let command = Cli::command();
+    let is_arg = |id: &str| command.get_arguments().any(|a| a.get_id().as_str() == id);
+    let given = matches
+        .ids()
+        .map(|id| id.as_str())
+        .filter(|id| is_arg(id) && matches.value_source(id) == Some(ValueSource::CommandLine));
+    for arg in given {
+        if !mode.uses(arg) {
+            return fail(&format!("--{}: not used by {} (see --help)", arg.replace('_', "-"), mode.flag()));
+        }
+    }
+    match run(cli, mode) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(message) => fail(&message),
+    }
 }
 
-/// A scene file with --seed applied.
-fn load_scene_from(cli: &Cli, path: &std::path::Path) -> Result<Scene, String> {
-    let mut scene = Scene::load(path).map_err(|e| e.to_string())?;
+fn fail(message: &str) -> ExitCode {
+    eprintln!("coevo: error: {message}");
+    ExitCode::FAILURE
+}
+
+/// A count-like flag that must be ≥ 1.
+fn at_least_one(flag: &str, value: Option<usize>) -> Result<(), String> {
+    match value {
+        Some(0) => Err(format!("{flag}: must be ≥ 1 (got 0)")),
+        _ => Ok(()),
+    }
+}
+
+/// The scene file of the call (--scene, else `default`), with --seed applied.
+fn load_scene(cli: &Cli, default: &Path) -> Result<(Scene, PathBuf), String> {
+    let path = cli.scene.clone().unwrap_or_else(|| default.to_path_buf());
+    let mut scene = Scene::load(&path).map_err(|e| e.to_string())?;
     if let Some(seed) = cli.seed {
         scene.seed = seed;
     }
+    Ok((scene, path))
+}
+
+/// A scene with --prey, --predators and --count applied, validated again.
+fn with_counts(cli: &Cli, mut scene: Scene, source: &Path) -> Result<Scene, String> {
+    for (name, n) in counts(cli)? {
+        scene.set_count(&name, n).map_err(|e| format!("{}: {e}", source.display()))?;
+    }
+    scene.validate().map_err(|(f, m)| format!("{}: {f}: {m}", source.display()))?;
     Ok(scene)
 }
 
-fn run(cli: Cli) -> Result<(), String> {
-    if cli.bench {
-        let budget = Duration::from_secs_f64(cli.bench_seconds.max(0.01));
-        coevo::bench::print(&coevo::bench::environment(budget));
-        coevo::bench::print(&coevo::bench::learning(budget));
-        return Ok(());
+fn run(cli: Cli, mode: RunMode) -> Result<(), String> {
+    at_least_one("--threads", cli.threads)?;
+    if let Some(n) = cli.threads {
+        coevo::parallel::set_threads(n);
     }
-    if let Some(run) = &cli.eval {
-        let counts = counts(&cli)?;
-        let opts = coevo::train::EvalOptions { run: run.clone(), counts, episodes: cli.episodes.unwrap_or(1), steps: cli.steps, seed: cli.seed };
-        println!("{}", coevo::train::evaluate(&opts)?);
-        return Ok(());
-    }
-    if cli.train || cli.resume.is_some() {
-        let (scene, run) = match &cli.resume {
-            Some(run) => (Scene::preset("paper").expect("preset"), run.clone()),
-            None => {
-                let scene = load_scene(&cli)?;
-                let stem = cli.scene.file_stem().map_or("run".into(), |s| s.to_string_lossy().into_owned());
-                let run = cli.out.clone().unwrap_or_else(|| PathBuf::from(format!("runs/{stem}-seed{}", scene.seed)));
-                (scene, run)
+    at_least_one("--episodes", cli.episodes)?;
+    at_least_one("--steps", cli.steps)?;
+    let standard = Path::new("scenes/standard.ron");
+    match mode {
+        RunMode::Bench => {
+            let seconds = cli.bench_seconds.unwrap_or(2.0);
+            if !(seconds > 0.0 && seconds <= 3600.0) {
+                return Err(format!("--bench-seconds: must be a number of seconds in (0, 3600] (got {seconds})"));
             }
-        };
-        let opts = coevo::train::TrainOptions { run: run.clone(), resume: cli.resume.is_some(), episodes: cli.episodes, progress: !cli.quiet };
-        let summaries = coevo::train::train(scene, &opts)?;
-        eprintln!("coevo: trained {} episodes into {}", summaries.len(), run.display());
-        return Ok(());
+            let budget = Duration::from_secs_f64(seconds);
+            coevo::bench::print(&coevo::bench::environment(budget));
+            coevo::bench::print(&coevo::bench::learning(budget));
+            Ok(())
+        }
+        RunMode::Eval => {
+            let run = cli.eval.clone().expect("eval mode");
+            let opts = coevo::train::EvalOptions {
+                run,
+                counts: counts(&cli)?,
+                episodes: cli.episodes.unwrap_or(1),
+                steps: cli.steps,
+                seed: cli.seed,
+            };
+            println!("{}", coevo::train::evaluate(&opts)?);
+            Ok(())
+        }
+        RunMode::Train | RunMode::Resume => {
+            let (scene, run) = match &cli.resume {
+                // The run's own scene is loaded by `train`.
+                Some(run) => (Scene::preset("paper").expect("preset"), run.clone()),
+                None => {
+                    let (scene, path) = load_scene(&cli, standard)?;
+                    let stem = path.file_stem().map_or("run".into(), |s| s.to_string_lossy().into_owned());
+                    let run =
+                        cli.out.clone().unwrap_or_else(|| PathBuf::from(format!("runs/{stem}-seed{}", scene.seed)));
+                    (scene, run)
+                }
+            };
+            let opts = coevo::train::TrainOptions {
+                run: run.clone(),
+                resume: mode == RunMode::Resume,
+                overwrite: cli.overwrite,
+                episodes: cli.episodes,
+                progress: !cli.quiet,
+            };
+            let summaries = coevo::train::train(scene, &opts)?;
+            eprintln!("coevo: trained {} episodes into {}", summaries.len(), run.display());
+            Ok(())
+        }
+        RunMode::Record => {
+            let out = cli.record.clone().expect("record mode");
+            let default = cli.run.as_ref().map_or(standard.to_path_buf(), |r| r.join("scene.ron"));
+            let (scene, source) = load_scene(&cli, &default)?;
+            let mut scene = with_counts(&cli, scene, &source)?;
+            let steps = cli.steps.unwrap_or(scene.episode_steps);
+            scene.episode_steps = steps;
+            // Every species acts exactly as in --eval: trained actors without noise.
+            let mut sim = coevo::train::learning_simulation(scene.clone(), Mode::Evaluate, cli.run.as_deref())?;
+            let existing = if cli.overwrite { Existing::Replace } else { Existing::Refuse };
+            coevo::record::record(&mut sim, steps, &out, existing)?;
+            let actors: Vec<String> = scene
+                .species
+                .iter()
+                .filter_map(|def| match (&def.policy, &cli.run) {
+                    (Policy::Learned, Some(run)) => Some(format!("{}: trained actor of {}", def.name, run.display())),
+                    (Policy::Learned, None) => {
+                        Some(format!("{}: freshly initialized actor of seed {} (untrained: no --run given)", def.name, scene.seed))
+                    }
+                    (Policy::Frozen(path), _) => Some(format!("{}: trained actor of {path}", def.name)),
+                    _ => None,
+                })
+                .collect();
+            let actors = if actors.is_empty() { String::new() } else { format!(" ({})", actors.join("; ")) };
+            eprintln!("coevo: wrote {steps} steps to {}{actors}", out.display());
+            Ok(())
+        }
+        RunMode::Viewer => viewer(&cli),
     }
-    if let Some(out) = &cli.record {
-        let mut scene = load_scene(&cli)?;
-        let steps = cli.steps.unwrap_or(scene.episode_steps);
-        scene.episode_steps = steps.max(1);
-        let mut sim = Simulation::new(scene);
-        coevo::record::record(&mut sim, steps, out).map_err(|e| format!("{}: {e}", out.display()))?;
-        eprintln!("coevo: wrote {} steps to {}", steps, out.display());
-        return Ok(());
-    }
-    viewer(&cli)
 }
 
 /// --prey, --predators and --count NAME=N, in that order.
@@ -177,34 +338,41 @@ fn viewer(_: &Cli) -> Result<(), String> {
 
 #[cfg(feature = "viewer")]
 fn viewer(cli: &Cli) -> Result<(), String> {
-    use coevo::viewer::{RunMode, ScreenshotRequest, Setup, ViewerOptions};
-    let (source, mode) = match &cli.watch {
-        Some(run) => (run.join("scene.ron"), RunMode::Watch(run.clone())),
-        None => (cli.scene.clone(), if cli.rules { RunMode::RuleBased } else { RunMode::LiveTraining }),
-    };
-    let mut scene = load_scene_from(cli, &source)?;
-    for (name, n) in counts(cli)? {
-        scene.set_count(&name, n).map_err(|e| format!("{}: {e}", source.display()))?;
+    use coevo::viewer::{RunMode as ViewMode, ScreenshotRequest, Setup, ViewerOptions};
+    if cli.watch.is_some() && (cli.scene.is_some() || cli.rules) {
+        return Err("--watch: shows a run in its own scene; it does not combine with --scene or --rules".into());
     }
-    let window = cli
-        .window
+    let (default, mode) = match &cli.watch {
+        Some(run) => (run.join("scene.ron"), ViewMode::Watch(run.clone())),
+        None => {
+            (PathBuf::from("scenes/standard.ron"), if cli.rules { ViewMode::RuleBased } else { ViewMode::LiveTraining })
+        }
+    };
+    let (scene, source) = load_scene(cli, &default)?;
+    let scene = with_counts(cli, scene, &source)?;
+    at_least_one("--frames", cli.frames)?;
+    at_least_one("--steps-per-frame", cli.steps_per_frame)?;
+    let size = cli.window.clone().unwrap_or_else(|| "1280x720".into());
+    let window = size
         .split_once('x')
         .and_then(|(w, h)| Some(bevy::math::UVec2::new(w.parse().ok()?, h.parse().ok()?)))
         .filter(|s| s.x >= 320 && s.y >= 240)
-        .ok_or_else(|| format!("--window {}: expected WxH of at least 320x240, e.g. 1280x720", cli.window))?;
+        .ok_or_else(|| format!("--window {size}: expected WxH of at least 320x240, e.g. 1280x720"))?;
     if let Some(path) = &cli.screenshot {
         if path.extension().is_none_or(|e| e != "png") {
             return Err(format!("--screenshot {}: the file must end in .png", path.display()));
         }
+        let existing = if cli.overwrite { Existing::Replace } else { Existing::Refuse };
+        coevo::io::check_target(path, existing).map_err(|e| format!("--screenshot {}: {e}", path.display()))?;
     }
     coevo::viewer::run(ViewerOptions {
         setup: Setup { scene, source, mode },
         window,
-        steps_per_frame: cli.steps_per_frame,
+        steps_per_frame: cli.steps_per_frame.unwrap_or(1),
         paused: cli.paused,
         fast: cli.fast,
         trails: cli.trails,
         select: cli.select,
-        screenshot: cli.screenshot.clone().map(|path| ScreenshotRequest { path, frames: cli.frames.max(1) }),
+        screenshot: cli.screenshot.clone().map(|path| ScreenshotRequest { path, frames: cli.frames.unwrap_or(60) }),
     })
 }

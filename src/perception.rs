@@ -132,8 +132,19 @@ pub fn run_perceive(world: &mut World) {
     world.run_schedule(Perceive);
 }
 
-type IndexQuery<'w, 's> =
-    Query<'w, 's, (Entity, &'static AgentId, &'static SpeciesId, &'static Position, &'static Velocity, &'static Heading, &'static Body)>;
+type IndexQuery<'w, 's> = Query<
+    'w,
+    's,
+    (
+        Entity,
+        &'static AgentId,
+        &'static SpeciesId,
+        &'static Position,
+        &'static Velocity,
+        &'static Heading,
+        &'static Body,
+    ),
+>;
 
 fn index_population(
     mut pop: ResMut<Population>,
@@ -143,7 +154,8 @@ fn index_population(
     agents: IndexQuery,
     mut slots: Query<&mut Slot>,
 ) {
-    let mut order: Vec<_> = agents.iter().map(|(e, id, s, x, v, h, body)| ((s.0, *id), e, x.0, v.0, h.unit(), body.radius)).collect();
+    let mut order: Vec<_> =
+        agents.iter().map(|(e, id, s, x, v, h, body)| ((s.0, *id), e, x.0, v.0, h.unit(), body.radius)).collect();
     order.sort_unstable_by_key(|a| a.0);
     let p = &mut *pop;
     for v in [&mut p.position, &mut p.velocity, &mut p.heading] {
@@ -229,44 +241,88 @@ fn detect_contacts(
     }
 }
 
+/// Agents observed per parallel task: populations up to this size are observed on the calling thread;
+/// larger ones in chunks of this many rows on all worker threads (each row is computed alone, so the
+/// result does not depend on the chunking or the thread count).
+const OBSERVE_CHUNK: usize = 512;
+
 fn observe(
     mut pop: ResMut<Population>,
     registry: Res<SpeciesRegistry>,
     arena: Res<Arena>,
     mut batches: ResMut<Batches>,
 ) {
-    let mut nearest = Vec::new();
-    let pop = &mut *pop;
-    for s in 0..registry.len() {
-        let limit = registry.defs[s].topological_limit;
-        let radius = registry.perception_radius[s];
-        let batch = &mut batches.species[s];
+    // Taken out while the rows that fill it borrow the rest of the population.
+    let mut nearest_kin = std::mem::take(&mut pop.nearest_kin);
+    let mut kin_rest: &mut [Option<u32>] = &mut nearest_kin;
+    let mut tasks = Vec::new();
+    for (s, batch) in batches.species.iter_mut().enumerate() {
         let dim = batch.obs_dim;
-        for (row, i) in pop.ranges[s].clone().enumerate() {
-            let obs = &mut batch.observations[row * dim..(row + 1) * dim];
-            obs.fill(0.0);
-            let (x, v, h) = (pop.position[i], pop.velocity[i], pop.heading[i]);
-            obs[..OWN_STATE_DIM].copy_from_slice(&[x.x, x.y, v.x, v.y, h.x, h.y].map(|c| c as f32));
-            for (t, grid) in pop.grids.iter().enumerate() {
-                grid.k_nearest(&arena, x, limit, radius, i as u32, &mut nearest);
-                if t == s {
-                    pop.nearest_kin[i] = nearest.first().map(|&(_, j)| j);
-                }
-                let block = registry.block_offset(s, t);
-                for (n, &(_, j)) in nearest.iter().enumerate() {
-                    let j = j as usize;
-                    let d = arena.delta(x, pop.position[j]);
-                    let dh = pop.heading[j] - h;
-                    let at = block + n * NEIGHBOUR_DIM;
-                    obs[at..at + NEIGHBOUR_DIM].copy_from_slice(&[d.x, d.y, dh.x, dh.y].map(|c| c as f32));
-                }
+        let (kin, rest) = std::mem::take(&mut kin_rest).split_at_mut(pop.ranges[s].len());
+        kin_rest = rest;
+        let rows = batch.observations.chunks_mut(OBSERVE_CHUNK * dim.max(1)).zip(kin.chunks_mut(OBSERVE_CHUNK));
+        for (c, (obs, kin)) in rows.enumerate() {
+            tasks.push((s, pop.ranges[s].start + c * OBSERVE_CHUNK, obs, kin));
+        }
+    }
+    let (registry, arena, population) = (&*registry, &*arena, &*pop);
+    let observe = |(s, first, obs, kin): &mut (usize, usize, &mut [f32], &mut [Option<u32>])| {
+        observe_rows(population, registry, arena, *s, *first, obs, kin);
+    };
+    if population.len() > OBSERVE_CHUNK {
+        crate::parallel::for_each_mut(&mut tasks, observe);
+    } else {
+        tasks.iter_mut().for_each(observe); // a thread would cost more than the whole step
+    }
+    drop(tasks);
+    pop.nearest_kin = nearest_kin;
+}
+
+/// Observations of the consecutive agents of species `s` from slot `first` on, one row of `observations`
+/// each, and each one's nearest kin.
+fn observe_rows(
+    pop: &Population,
+    registry: &SpeciesRegistry,
+    arena: &Arena,
+    s: usize,
+    first: usize,
+    observations: &mut [f32],
+    nearest_kin: &mut [Option<u32>],
+) {
+    let limit = registry.defs[s].topological_limit;
+    let radius = registry.perception_radius[s];
+    let dim = registry.observation_dim(s);
+    let mut nearest = Vec::with_capacity(limit);
+    for (row, (obs, kin)) in observations.chunks_exact_mut(dim).zip(nearest_kin.iter_mut()).enumerate() {
+        let i = first + row;
+        obs.fill(0.0);
+        let (x, v, h) = (pop.position[i], pop.velocity[i], pop.heading[i]);
+        obs[..OWN_STATE_DIM].copy_from_slice(&[x.x, x.y, v.x, v.y, h.x, h.y].map(|c| c as f32));
+        for (t, grid) in pop.grids.iter().enumerate() {
+            grid.k_nearest(arena, x, limit, radius, i as u32, &mut nearest);
+            if t == s {
+                *kin = nearest.first().map(|&(_, j)| j);
+            }
+            let block = registry.block_offset(s, t);
+            for (n, &(_, j)) in nearest.iter().enumerate() {
+                let j = j as usize;
+                let d = arena.delta(x, pop.position[j]);
+                let dh = pop.heading[j] - h;
+                let at = block + n * NEIGHBOUR_DIM;
+                obs[at..at + NEIGHBOUR_DIM].copy_from_slice(&[d.x, d.y, dh.x, dh.y].map(|c| c as f32));
             }
         }
     }
 }
 
 /// Slot `n` of the `species` block in an observation of an `observer`; None when masked (empty).
-pub fn neighbour_slot(obs: &[f32], registry: &SpeciesRegistry, observer: usize, species: usize, n: usize) -> Option<[f32; 4]> {
+pub fn neighbour_slot(
+    obs: &[f32],
+    registry: &SpeciesRegistry,
+    observer: usize,
+    species: usize,
+    n: usize,
+) -> Option<[f32; 4]> {
     if n >= registry.defs[observer].topological_limit {
         return None;
     }

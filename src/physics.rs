@@ -33,8 +33,27 @@ pub enum PhysicsSet {
 
 pub struct PhysicsPlugin;
 
+/// The first agent whose state stopped being physical during a step (a non-finite velocity or position,
+/// or a body that left a walled arena). Validated scenes keep the integrator stable
+/// ([`crate::scene::Scene::validate`]); this guard catches whatever still goes wrong, so a run stops with one
+/// line naming the agent instead of writing NaN as results. Checked by [`crate::Simulation::check`].
+#[derive(Resource, Clone, Debug, Default, PartialEq)]
+pub struct StateFault(pub Option<Fault>);
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct Fault {
+    /// Episode index and the step (1-based) during which it happened.
+    pub episode: usize,
+    pub step: usize,
+    pub agent: u32,
+    pub species: usize,
+    /// What went wrong, e.g. "velocity is not finite".
+    pub what: String,
+}
+
 impl Plugin for PhysicsPlugin {
     fn build(&self, app: &mut App) {
+        app.init_resource::<StateFault>();
         app.configure_sets(FixedUpdate, (PhysicsSet::Integrate, PhysicsSet::Boundary).chain().in_set(SimSet::Physics));
         app.add_systems(
             FixedUpdate,
@@ -77,6 +96,7 @@ type IntegrateQuery<'w, 's> = Query<
     'w,
     's,
     (
+        &'static AgentId,
         &'static mut Position,
         &'static mut Velocity,
         &'static mut Heading,
@@ -88,10 +108,17 @@ type IntegrateQuery<'w, 's> = Query<
     ),
 >;
 
-fn integrate(scene: Res<ActiveScene>, arena: Res<Arena>, registry: Res<SpeciesRegistry>, mut agents: IntegrateQuery) {
+fn integrate(
+    scene: Res<ActiveScene>,
+    arena: Res<Arena>,
+    registry: Res<SpeciesRegistry>,
+    episode: Res<crate::episode::Episode>,
+    mut fault: ResMut<StateFault>,
+    mut agents: IntegrateQuery,
+) {
     let w = &scene.0.world;
     let dt = w.dt;
-    for (mut x, mut v, mut theta, body, action, contact, species, energy) in &mut agents {
+    for (id, mut x, mut v, mut theta, body, action, contact, species, energy) in &mut agents {
         let (wall_force, _) = arena.wall_contact(x.0, v.0, body.radius, w.wall_stiffness, w.wall_damping);
         let drag = -w.drag * v.0;
         theta.0 = wrap_angle(theta.0 + action.turn_rate * dt);
@@ -108,11 +135,38 @@ fn integrate(scene: Res<ActiveScene>, arena: Res<Arena>, registry: Res<SpeciesRe
         }
         v.0 = new_v;
         x.0 += new_v * dt;
+        if !(new_v.is_finite() && x.0.is_finite() && theta.0.is_finite()) && fault.0.is_none() {
+            let what = if !new_v.is_finite() {
+                "velocity"
+            } else if !x.0.is_finite() {
+                "position"
+            } else {
+                "heading"
+            };
+            let what = format!("{what} is not finite");
+            fault.0 =
+                Some(Fault { episode: episode.index, step: episode.step + 1, agent: id.0, species: species.0, what });
+        }
     }
 }
 
-fn apply_boundary(arena: Res<Arena>, mut agents: Query<&mut Position>) {
-    for mut x in &mut agents {
+fn apply_boundary(
+    arena: Res<Arena>,
+    scene: Res<ActiveScene>,
+    registry: Res<SpeciesRegistry>,
+    episode: Res<crate::episode::Episode>,
+    mut fault: ResMut<StateFault>,
+    mut agents: Query<(&AgentId, &SpeciesId, &Body, &mut Position)>,
+) {
+    for (id, species, body, mut x) in &mut agents {
         x.0 = arena.wrap(x.0);
+        // With walls, a body can sink into a wall by at most one step's travel before the spring turns it
+        // back; a centre beyond that has escaped the arena.
+        let reach = arena.half() + body.radius + registry.defs[species.0].max_speed * scene.0.world.dt * 2.0;
+        if x.0.abs().max_element() > reach && fault.0.is_none() {
+            let what = format!("left the arena (centre at {:.3}, {:.3})", x.0.x, x.0.y);
+            fault.0 =
+                Some(Fault { episode: episode.index, step: episode.step + 1, agent: id.0, species: species.0, what });
+        }
     }
 }

@@ -16,8 +16,42 @@ use rand::Rng;
 
 pub struct PolicyPlugin;
 
+/// The names of the `Plugin(name)` policies that some plugin of this app decides. A plugin that writes a
+/// species' actions registers its name ([`PolicyPlugins::register`]); a scene that names a policy nobody
+/// registered is refused at start-up ([`PolicyPlugins::check`]) instead of moving at half thrust forever.
+#[derive(Resource, Clone, Debug, Default)]
+pub struct PolicyPlugins(pub std::collections::BTreeSet<String>);
+
+impl PolicyPlugins {
+    /// Declares that a system of this app decides the species whose policy is `Plugin(name)`.
+    pub fn register(app: &mut App, name: &str) {
+        app.world_mut().get_resource_or_insert_with(PolicyPlugins::default).0.insert(name.to_string());
+    }
+
+    /// Err naming the first species whose `Plugin(name)` policy nothing registered.
+    pub fn check(&self, scene: &crate::Scene) -> Result<(), String> {
+        for def in &scene.species {
+            if let Policy::Plugin(name) = &def.policy {
+                if !self.0.contains(name) {
+                    let known = if self.0.is_empty() {
+                        "none".to_string()
+                    } else {
+                        self.0.iter().cloned().collect::<Vec<_>>().join(", ")
+                    };
+                    return Err(format!(
+                        "species[{}].policy: no plugin decides Plugin({name:?}) in this program (registered: {known})",
+                        def.name
+                    ));
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
 impl Plugin for PolicyPlugin {
     fn build(&self, app: &mut App) {
+        app.init_resource::<PolicyPlugins>();
         app.add_systems(FixedUpdate, (decide_rule_based.in_set(SimSet::Decide), act.in_set(SimSet::Act)));
     }
 }
@@ -41,14 +75,24 @@ fn turn_toward(h: [f32; 2], d: [f32; 2], max_turn_rate: f64, dt: f64) -> f32 {
 }
 
 /// The nearest observed agent among `species`, as its displacement [Δx, Δy].
-fn nearest_observed(obs: &[f32], registry: &SpeciesRegistry, observer: usize, species: impl Iterator<Item = usize>) -> Option<[f32; 2]> {
+fn nearest_observed(
+    obs: &[f32],
+    registry: &SpeciesRegistry,
+    observer: usize,
+    species: impl Iterator<Item = usize>,
+) -> Option<[f32; 2]> {
     species
         .filter_map(|t| neighbour_slot(obs, registry, observer, t, 0))
         .map(|slot| [slot[0], slot[1]])
         .min_by(|a, b| (a[0].hypot(a[1])).total_cmp(&b[0].hypot(b[1])))
 }
 
-fn decide_rule_based(registry: Res<SpeciesRegistry>, scene: Res<ActiveScene>, mut batches: ResMut<Batches>, mut rng: ResMut<SimRng>) {
+fn decide_rule_based(
+    registry: Res<SpeciesRegistry>,
+    scene: Res<ActiveScene>,
+    mut batches: ResMut<Batches>,
+    mut rng: ResMut<SimRng>,
+) {
     let dt = scene.0.world.dt;
     for s in 0..registry.len() {
         let max_turn = registry.defs[s].max_turn_rate;

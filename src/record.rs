@@ -9,6 +9,7 @@
 
 use crate::components::*;
 use crate::episode::Episode;
+use crate::io::{AtomicFile, Existing};
 use crate::species::SpeciesRegistry;
 use crate::Simulation;
 use std::io::{self, Write};
@@ -16,28 +17,34 @@ use std::path::Path;
 
 pub const HEADER: &str = "step,id,species,x,y,vx,vy,theta,thrust,turn_rate,reward";
 
-/// Runs `steps` steps of `sim` and writes the trajectory to `path` atomically.
-pub fn record(sim: &mut Simulation, steps: usize, path: &Path) -> io::Result<()> {
+/// Runs `steps` steps of `sim` and streams the trajectory to `path`, which appears only when complete
+/// (see [`crate::io::AtomicFile`]). Stops with an error, writing nothing, if the state stops being
+/// physical ([`Simulation::check`]).
+pub fn record(sim: &mut Simulation, steps: usize, path: &Path, existing: Existing) -> Result<(), String> {
+    let io_err = |e: io::Error| format!("{}: {e}", path.display());
     sim.world_mut().resource_mut::<Episode>().auto_reset = false;
-    let mut text = Vec::new();
-    writeln!(text, "{HEADER}")?;
+    let mut file = AtomicFile::create(path, existing).map_err(io_err)?;
+    writeln!(file.writer(), "{HEADER}").map_err(io_err)?;
     for t in 0..=steps {
         let states = snapshot(sim);
         let transitions = if t < steps {
             sim.step();
+            sim.check()?;
             Some(snapshot_transitions(sim))
         } else {
             None
         };
+        let out = file.writer();
         for (i, s) in states.iter().enumerate() {
-            write!(text, "{t},{},{},{},{},{},{},{}", s.id, s.species, s.x, s.y, s.vx, s.vy, s.theta)?;
+            write!(out, "{t},{},{},{},{},{},{},{}", s.id, s.species, s.x, s.y, s.vx, s.vy, s.theta).map_err(io_err)?;
             match &transitions {
-                Some(tr) => writeln!(text, ",{},{},{}", tr[i].0, tr[i].1, tr[i].2)?,
-                None => writeln!(text, ",,,")?,
+                Some(tr) => writeln!(out, ",{},{},{}", tr[i].0, tr[i].1, tr[i].2),
+                None => writeln!(out, ",,,"),
             }
+            .map_err(io_err)?;
         }
     }
-    crate::io::write_atomically(path, |out| out.write_all(&text))
+    file.commit().map_err(io_err)
 }
 
 struct Row {

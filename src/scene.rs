@@ -240,6 +240,9 @@ pub struct ScenePatch {
     pub learning: Option<LearningParamsPatch>,
 }
 
+/// The largest scene file read (a real one is a few hundred bytes).
+pub const MAX_SCENE_BYTES: u64 = 1 << 20;
+
 /// The names `preset:` accepts.
 pub const PRESETS: [&str; 2] = ["paper", "gym-pps"];
 
@@ -280,11 +283,11 @@ impl Scene {
     /// Loads, resolves and validates a scene file.
     pub fn load(path: &Path) -> Result<Scene, SceneError> {
         let file = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|e| SceneError {
+        let text = crate::io::read_text(path, MAX_SCENE_BYTES).map_err(|e| SceneError {
             file: file.clone(),
             line: None,
             field: String::new(),
-            message: format!("cannot read scene: {e}"),
+            message: e.replace("cannot read:", "cannot read scene:"),
         })?;
         Scene::parse(&text, &file)
     }
@@ -301,7 +304,7 @@ impl Scene {
                     ron::Error::NoSuchStructField { found, .. } => found.clone(),
                     _ => field_before(text, e.span.start.line, e.span.start.col),
                 },
-                message: readable(&e.code.to_string()),
+                message: readable(text, &e),
             })?;
         let located = |field: String, message: String| SceneError {
             file: file.to_string(),
@@ -338,10 +341,17 @@ impl Scene {
         if let Some(p) = patch.learning {
             p.apply(&mut self.learning);
         }
+        let mut seen = std::collections::BTreeSet::new();
         for (i, sp) in patch.species.unwrap_or_default().into_iter().enumerate() {
             let Some(name) = sp.name.clone() else {
                 return Err((format!("species[{i}].name"), "every species entry needs a name".into()));
             };
+            if !seen.insert(name.clone()) {
+                return Err((
+                    format!("species[{name}]"),
+                    "appears twice in this scene; give each species one entry".into(),
+                ));
+            }
             if let Some(existing) = self.species.iter_mut().find(|s| s.name == name) {
                 sp.apply(existing);
             } else {
@@ -392,6 +402,7 @@ impl Scene {
             check(v.is_finite(), f, || format!("must be a finite number (got {v})"))?;
         }
         check(self.episode_steps > 0, "episode_steps", || "must be ≥ 1".into())?;
+        check(self.episodes > 0, "episodes", || "must be ≥ 1".into())?;
         check(!self.species.is_empty(), "species", || "a scene needs at least one species".into())?;
         check(self.species.iter().any(|s| s.count > 0), "species", || {
             "every species has count 0: there would be no agent to simulate".into()
@@ -422,6 +433,7 @@ impl Scene {
                 check(self.species.iter().any(|o| &o.name == target), &f("catches"), || {
                     format!("no species named {target:?} in this scene")
                 })?;
+                check(target != &s.name, &f("catches"), || "a species cannot catch itself".into())?;
             }
         }
         let l = &self.learning;
@@ -443,6 +455,121 @@ impl Scene {
             non_negative(v, f)?;
         }
         check(l.epsilon <= 1.0, "learning.epsilon", || format!("is a probability (got {})", l.epsilon))?;
+        // The noise is added to actions in [−1, 1] and clamped back: beyond a few units it is all saturation.
+        check(l.noise_std <= 10.0, "learning.noise_std", || {
+            format!("must be ≤ 10 on actions in [−1, 1] (got {})", l.noise_std)
+        })?;
+        self.check_stability()?;
+        self.check_memory(crate::io::memory_bytes())
+    }
+
+    /// Refuses parameters for which the semi-implicit Euler step of Appendix B is unstable or unphysical.
+    /// With m the mass of a body and Δt the step:
+    ///
+    /// - drag: `(drag + wall damping)·Δt/m ≤ 1`, else one step reverses the velocity it damps;
+    /// - contacts: `k·Δt²·(1/m_a + 1/m_b) < 4` for the two lightest bodies, the stability bound ωΔt < 2 of
+    ///   the symplectic Euler step for a spring between them (the `paper` preset: 1);
+    /// - walls: `k_wall·Δt²/m < 4` for the lightest body (a spring to a fixed wall);
+    /// - travel: one step moves a body at most `max_speed·Δt` (×√2 when clipped per component), which must
+    ///   stay under half the arena edge, as the torus wrap and minimum-image distances assume.
+    fn check_stability(&self) -> Result<(), (String, String)> {
+        let w = &self.world;
+        let walls = w.boundary == Boundary::Walls;
+        let damping = w.drag + if walls { w.wall_damping } else { 0.0 };
+        let mut masses: Vec<(f64, &str)> = self.species.iter().map(|s| (s.mass, s.name.as_str())).collect();
+        masses.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let (lightest, name) = masses[0];
+        let field = |f: &str| format!("species[{name}].{f}");
+        let ratio = damping * w.dt / lightest;
+        if ratio > 1.0 {
+            let what = if walls { "(drag + wall_damping)·dt/mass" } else { "drag·dt/mass" };
+            return Err((field("mass"), format!("{what} = {ratio} exceeds 1: a step would reverse velocities (lower world.drag or world.dt, or raise the mass)")));
+        }
+        // The two lightest bodies that can meet: the lightest twice if its species has two agents.
+        let lightest_species = self.species.iter().filter(|s| s.mass == lightest).map(|s| s.count).sum::<usize>();
+        let second = if lightest_species >= 2 || masses.len() < 2 { lightest } else { masses[1].0 };
+        let spring = w.contact_stiffness * w.dt * w.dt * (1.0 / lightest + 1.0 / second);
+        if spring >= 4.0 {
+            return Err((
+                "world.contact_stiffness".into(),
+                format!("k·dt²·(1/m_a + 1/m_b) = {spring} for the lightest bodies ({name}) is ≥ 4: contacts would blow up (lower k or dt, or raise masses)"),
+            ));
+        }
+        let wall = w.wall_stiffness * w.dt * w.dt / lightest;
+        if walls && wall >= 4.0 {
+            return Err((
+                "world.wall_stiffness".into(),
+                format!("k_wall·dt²/m = {wall} for {name} is ≥ 4: wall contacts would blow up (lower it or dt)"),
+            ));
+        }
+        let per_component = if w.speed_clip == SpeedClip::PerComponent { std::f64::consts::SQRT_2 } else { 1.0 };
+        for s in &self.species {
+            let travel = s.max_speed * w.dt * per_component;
+            if travel >= w.arena_edge / 2.0 {
+                let message = format!(
+                    "a body would move {travel} m in one step, not less than half the arena edge ({} m)",
+                    w.arena_edge / 2.0
+                );
+                return Err((format!("species[{}].max_speed", s.name), message));
+            }
+        }
+        Ok(())
+    }
+
+    /// Refuses a scene whose populations, observations or networks would need more than `limit` bytes,
+    /// before anything is allocated. The estimate counts what grows with the scene: per agent its
+    /// components and observation rows, per learned species its networks (online, target, Adam moments and
+    /// the copies kept for saving) and its replay buffer (at most what a full run can fill).
+    pub fn check_memory(&self, limit: f64) -> Result<(), (String, String)> {
+        let registry = crate::species::SpeciesRegistry::from_scene(self);
+        let gb = |b: f64| format!("{:.1} GB", b / 1e9);
+        let refuse = |field: String, what: String, bytes: f64| {
+            Err((field, format!("{what} would need {}, more than this machine's {} of memory", gb(bytes), gb(limit))))
+        };
+        let mut total = 0.0;
+        for (s, def) in self.species.iter().enumerate() {
+            let n = def.count as f64;
+            let d = registry.observation_dim(s) as f64;
+            // Observations, the copy paired with the next step's, and an inference chunk's; ~512 B of
+            // components and perception arrays per agent.
+            let agents = n * (3.0 * d * 4.0 + 512.0);
+            if agents > limit {
+                let what = format!("{} agents with observations of {d} numbers (count, topological_limit)", def.count);
+                return refuse(format!("species[{}]", def.name), what, agents);
+            }
+            total += agents;
+            if matches!(def.policy, Policy::Learned | Policy::Frozen(_)) {
+                let (h, l) = (self.learning.hidden as f64, &self.learning);
+                let params = (d + 1.0) * h
+                    + 2.0 * (h + 1.0) * h
+                    + (h + 1.0) * 2.0
+                    + (d + 3.0) * h
+                    + 2.0 * (h + 1.0) * h
+                    + h
+                    + 1.0;
+                let activations = l.batch_size as f64 * (2.0 * d + 8.0 * h) * 4.0 * 8.0;
+                let nets = params * 4.0 * 10.0 + activations;
+                if nets > limit {
+                    let (field, what) = if activations > params * 40.0 {
+                        ("learning.batch_size", format!("mini-batches of {} observations of {d} numbers", l.batch_size))
+                    } else {
+                        ("learning.hidden", format!("networks of width {} on {d} inputs", l.hidden))
+                    };
+                    return refuse(field.into(), what, nets);
+                }
+                let transitions = (l.buffer_capacity as f64).min(n * self.episode_steps as f64 * self.episodes as f64);
+                let buffer = transitions * (2.0 * d + 3.0) * 4.0;
+                if buffer > limit {
+                    let what =
+                        format!("a replay buffer of {transitions:.0} transitions of {d} numbers for {}", def.name);
+                    return refuse("learning.buffer_capacity".into(), what, buffer);
+                }
+                total += nets + buffer;
+            }
+        }
+        if total > limit {
+            return refuse("species".into(), "this scene's agents, networks and replay buffers".into(), total);
+        }
         Ok(())
     }
 
@@ -502,7 +629,19 @@ impl SpeciesPatch {
     fn missing_fields(&self) -> Vec<&'static str> {
         let mut m = vec![];
         macro_rules! need { ($($f:ident),*) => { $( if self.$f.is_none() { m.push(stringify!($f)); } )* } }
-        need!(count, mass, radius, max_speed, max_thrust, max_turn_rate, perception, topological_limit, colour, catches, policy);
+        need!(
+            count,
+            mass,
+            radius,
+            max_speed,
+            max_thrust,
+            max_turn_rate,
+            perception,
+            topological_limit,
+            colour,
+            catches,
+            policy
+        );
         m
     }
 }
@@ -612,7 +751,9 @@ fn locate(text: &str, field: &str) -> Option<usize> {
     if let Some(rest) = field.strip_prefix("species[") {
         let (name, tail) = rest.split_once(']')?;
         let quoted = format!("\"{name}\"");
-        from = lines.iter().position(|l| has_key(l, "name") && l.contains(&quoted))
+        from = lines
+            .iter()
+            .position(|l| has_key(l, "name") && l.contains(&quoted))
             .or_else(|| name.parse::<usize>().ok().and_then(|_| lines.iter().position(|l| has_key(l, "species"))))?;
         key = tail.trim_start_matches('.');
         if key.is_empty() {
@@ -632,14 +773,70 @@ fn field_before(text: &str, line: usize, col: usize) -> String {
         *last = &last[..last.char_indices().nth(col.saturating_sub(1)).map_or(last.len(), |(i, _)| i)];
     }
     let joined = before.join("\n");
-    let Some(colon) = joined.rfind(':') else { return String::new() };
-    let key: String = joined[..colon].trim_end().chars().rev().take_while(|c| c.is_alphanumeric() || *c == '_').collect();
+    let Some(colon) = joined.rfind(':') else {
+        return String::new();
+    };
+    let key: String =
+        joined[..colon].trim_end().chars().rev().take_while(|c| c.is_alphanumeric() || *c == '_').collect();
     key.chars().rev().collect()
 }
 
-/// ron's messages name our patch types; say what a scene author wrote instead.
-fn readable(message: &str) -> String {
-    [("`ScenePatch`", "the scene"), ("`WorldParamsPatch`", "world"), ("`RewardParamsPatch`", "rewards"), ("`SpeciesPatch`", "a species"), ("`LearningParamsPatch`", "learning")]
-        .iter()
-        .fold(message.to_string(), |m, (from, to)| m.replace(from, to))
+/// Whether brackets opened in `text` (outside strings and `//` comments) are left unclosed: a file cut
+/// short, or a missing `)`.
+fn unclosed(text: &str) -> bool {
+    let mut depth = 0i64;
+    for line in text.lines() {
+        let mut in_string = false;
+        let mut chars = line.chars().peekable();
+        while let Some(c) = chars.next() {
+            match c {
+                '"' => in_string = !in_string,
+                '\\' if in_string => {
+                    chars.next();
+                }
+                '/' if !in_string && chars.peek() == Some(&'/') => break,
+                '(' | '[' | '{' if !in_string => depth += 1,
+                ')' | ']' | '}' if !in_string => depth -= 1,
+                _ => {}
+            }
+        }
+    }
+    depth > 0
+}
+
+/// ron's message in a scene author's words: our patch types named as the sections they are, and the
+/// common slips (a fraction where a whole number goes, a file cut short) said plainly.
+fn readable(text: &str, e: &ron::error::SpannedError) -> String {
+    let (line, col) = (e.span.start.line, e.span.start.col);
+    let rest: String =
+        text.lines().nth(line.saturating_sub(1)).unwrap_or("").chars().skip(col.saturating_sub(1)).collect();
+    let before: String =
+        text.lines().nth(line.saturating_sub(1)).unwrap_or("").chars().take(col.saturating_sub(1)).collect();
+    let number_before = before.trim_end().chars().last().is_some_and(|c| c.is_ascii_digit());
+    if number_before && (rest.starts_with('.') || rest.starts_with('e') || rest.starts_with('E')) {
+        let whole: String = before
+            .chars()
+            .rev()
+            .take_while(|c| c.is_ascii_digit() || *c == '-')
+            .collect::<Vec<_>>()
+            .into_iter()
+            .rev()
+            .collect();
+        let frac: String =
+            rest.chars().take_while(|c| c.is_ascii_digit() || matches!(c, '.' | 'e' | 'E' | '-' | '+')).collect();
+        return format!("must be a whole number (got {whole}{frac})");
+    }
+    if matches!(e.code, ron::Error::Eof) || unclosed(text) {
+        return "the file ends before the scene does: a closing `)` or `]` is missing, or the file was cut short"
+            .into();
+    }
+    [
+        ("`ScenePatch`", "the scene"),
+        ("`WorldParamsPatch`", "world"),
+        ("`RewardParamsPatch`", "rewards"),
+        ("`SpeciesPatch`", "a species"),
+        ("`LearningParamsPatch`", "learning"),
+    ]
+    .iter()
+    .fold(e.code.to_string(), |m, (from, to)| m.replace(from, to))
 }

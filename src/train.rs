@@ -4,12 +4,14 @@
 //! `checkpoint/` (see `learning::checkpoint`). `--eval` adds `eval.csv` (one row per time step).
 
 use crate::episode::{Episode, SimRng};
+use crate::io::{AtomicFile, Existing};
 use crate::learning::checkpoint::{self, SpeciesState, TrainingState};
-use crate::learning::{LearningPlugin, Learners, Mode};
+use crate::learning::{Learners, LearningPlugin, Mode};
 use crate::metrics::{EpisodeLog, EpisodeSummary, SwarmMetrics};
 use crate::scene::Scene;
 use crate::species::SpeciesRegistry;
 use crate::Simulation;
+use bevy::prelude::App;
 use indicatif::{ProgressBar, ProgressStyle};
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -18,6 +20,8 @@ use std::time::Instant;
 pub struct TrainOptions {
     pub run: PathBuf,
     pub resume: bool,
+    /// Replace the run already in `run` (its own files only) instead of refusing.
+    pub overwrite: bool,
     /// Total episodes of the run (the scene's `episodes` when None).
     pub episodes: Option<usize>,
     pub progress: bool,
@@ -35,12 +39,23 @@ pub fn headline_species(registry: &SpeciesRegistry) -> usize {
 /// A simulation with the learning plugin, frozen actors loaded (`Frozen(path)` species, and with `eval_run`
 /// every `Learned` species from that run).
 pub fn learning_simulation(scene: Scene, mode: Mode, eval_run: Option<&Path>) -> Result<Simulation, String> {
+    learning_simulation_with(scene, mode, eval_run, |_| {})
+}
+
+/// [`learning_simulation`] with more plugins (a species of your own) added by `extra`.
+pub fn learning_simulation_with(
+    scene: Scene,
+    mode: Mode,
+    eval_run: Option<&Path>,
+    extra: impl FnOnce(&mut App),
+) -> Result<Simulation, String> {
     let mut learners = Learners::new(&scene, mode);
     learners.load_actors(&scene, eval_run)?;
-    Ok(Simulation::with_plugins(scene, |app| {
+    Simulation::try_with_plugins(scene, |app| {
         app.insert_resource(learners);
         app.add_plugins(LearningPlugin { mode });
-    }))
+        extra(app);
+    })
 }
 
 fn metrics_header(registry: &SpeciesRegistry, learners: &Learners) -> String {
@@ -56,7 +71,12 @@ fn metrics_header(registry: &SpeciesRegistry, learners: &Learners) -> String {
     for (s, l) in learners.species.iter().enumerate() {
         if l.as_ref().is_some_and(|l| !l.frozen) {
             let n = &registry.defs[s].name;
-            cols.extend([format!("critic_loss_{n}"), format!("actor_loss_{n}"), format!("noise_std_{n}"), format!("epsilon_{n}")]);
+            cols.extend([
+                format!("critic_loss_{n}"),
+                format!("actor_loss_{n}"),
+                format!("noise_std_{n}"),
+                format!("epsilon_{n}"),
+            ]);
         }
     }
     cols.push("wall_seconds".into());
@@ -89,19 +109,80 @@ fn io_err(path: &Path) -> impl Fn(std::io::Error) -> String + '_ {
     move |e| format!("{}: {e}", path.display())
 }
 
-/// Trains a scene (or resumes a run) and returns the episode summaries of this invocation.
+/// The files and folders coevo writes in a run folder; nothing else in it is ever touched.
+const RUN_FILES: [&str; 3] = ["scene.ron", "metrics.csv", "eval.csv"];
+const CHECKPOINT_DIRS: [&str; 3] = ["checkpoint", "checkpoint.tmp", "checkpoint.old"];
+
+/// Whether a folder holds a run (any of coevo's run files).
+pub fn is_run(dir: &Path) -> bool {
+    RUN_FILES.iter().chain(&CHECKPOINT_DIRS).any(|f| dir.join(f).exists())
+}
+
+/// Makes `run` ready for a new run. A new or empty folder is used as it is. A folder that holds a run is
+/// refused unless `overwrite`, and then only coevo's own files are removed (after checking that its
+/// checkpoint folders hold nothing else). Any other non-empty folder is refused: coevo never writes into it.
+fn prepare_new_run(run: &Path, overwrite: bool) -> Result<(), String> {
+    let shown = run.display();
+    match std::fs::symlink_metadata(run) {
+        Err(_) => return Ok(()),
+        Ok(m) if !m.is_dir() => return Err(format!("{shown}: exists and is not a folder")),
+        Ok(_) => {}
+    }
+    let empty = std::fs::read_dir(run).map_err(io_err(run))?.next().is_none();
+    if empty {
+        return Ok(());
+    }
+    if !is_run(run) {
+        return Err(format!(
+            "{shown}: is not empty and holds no coevo run; coevo writes runs only into new or empty folders"
+        ));
+    }
+    if !overwrite {
+        return Err(format!(
+            "{shown}: already holds a run; continue it with --resume {shown}, or replace it with --overwrite"
+        ));
+    }
+    for dir in CHECKPOINT_DIRS.iter().map(|d| run.join(d)).filter(|d| d.exists()) {
+        for entry in std::fs::read_dir(&dir).map_err(io_err(&dir))? {
+            let entry = entry.map_err(io_err(&dir))?;
+            let name = entry.file_name().to_string_lossy().into_owned();
+            let ours = entry.file_type().is_ok_and(|t| t.is_file())
+                && (name.ends_with(".safetensors")
+                    || name == "state.ron"
+                    || (name.starts_with('.') && name.ends_with(".tmp")));
+            if !ours {
+                return Err(format!(
+                    "{}: not a file coevo wrote; --overwrite removes only coevo's files, so move it first",
+                    entry.path().display()
+                ));
+            }
+        }
+    }
+    for dir in CHECKPOINT_DIRS.iter().map(|d| run.join(d)).filter(|d| d.exists()) {
+        std::fs::remove_dir_all(&dir).map_err(io_err(&dir))?;
+    }
+    for file in RUN_FILES.iter().map(|f| run.join(f)).filter(|f| f.exists()) {
+        std::fs::remove_file(&file).map_err(io_err(&file))?;
+    }
+    Ok(())
+}
+
+/// Trains a scene (or resumes a run) and returns the episode summaries of this invocation. Everything is
+/// validated and loaded before the run folder is created or touched.
 pub fn train(scene: Scene, opts: &TrainOptions) -> Result<Vec<EpisodeSummary>, String> {
     let run = &opts.run;
     let scene = if opts.resume {
+        if !is_run(run) {
+            return Err(format!("{}: holds no coevo run to resume", run.display()));
+        }
         Scene::load(&run.join("scene.ron")).map_err(|e| e.to_string())?
     } else {
         scene
     };
+    scene.validate().map_err(|(f, m)| format!("{}: {f}: {m}", run.display()))?;
     let total = opts.episodes.unwrap_or(scene.episodes);
-    std::fs::create_dir_all(run).map_err(io_err(run))?;
-    let scene_path = run.join("scene.ron");
-    if !opts.resume {
-        crate::io::write_atomically(&scene_path, |w| w.write_all(scene.to_ron().as_bytes())).map_err(io_err(&scene_path))?;
+    if total == 0 {
+        return Err("--episodes: must be ≥ 1".into());
     }
     let mut sim = learning_simulation(scene.clone(), Mode::Train, None)?;
     let registry = sim.world().resource::<SpeciesRegistry>().clone();
@@ -112,19 +193,23 @@ pub fn train(scene: Scene, opts: &TrainOptions) -> Result<Vec<EpisodeSummary>, S
         let world = sim.world_mut();
         let state = {
             let mut learners = world.resource_mut::<Learners>();
-            let state = checkpoint::load(run, &mut learners.species, &names)?;
-            learners.rng = state.learn_rng.clone();
-            state
+            checkpoint::load(run, &mut learners.species, &names)?
         };
         world.resource_mut::<SimRng>().0 = state.sim_rng.clone();
         world.resource_mut::<Episode>().index = state.episodes_done;
         crate::episode::spawn_population(world);
         metrics_text = state.metrics_csv;
     } else {
+        prepare_new_run(run, opts.overwrite)?;
+        std::fs::create_dir_all(run).map_err(io_err(run))?;
+        let scene_path = run.join("scene.ron");
+        crate::io::write_atomically(&scene_path, Existing::Replace, |w| w.write_all(scene.to_ron().as_bytes()))
+            .map_err(io_err(&scene_path))?;
         let header = metrics_header(&registry, sim.world().resource::<Learners>());
         metrics_text = format!("{header}\n");
     }
-    crate::io::write_atomically(&metrics_path, |w| w.write_all(metrics_text.as_bytes())).map_err(io_err(&metrics_path))?;
+    crate::io::write_atomically(&metrics_path, Existing::Replace, |w| w.write_all(metrics_text.as_bytes()))
+        .map_err(io_err(&metrics_path))?;
     let mut csv = std::fs::OpenOptions::new().append(true).open(&metrics_path).map_err(io_err(&metrics_path))?;
 
     let start_episode = sim.episode().index;
@@ -137,7 +222,9 @@ pub fn train(scene: Scene, opts: &TrainOptions) -> Result<Vec<EpisodeSummary>, S
     bar.set_position(start_episode as u64);
     let started = Instant::now();
     let (mut steps, mut summaries) = (0usize, Vec::new());
-    let save = |sim: &Simulation, learners_override: Option<&Vec<Option<crate::learning::SpeciesLearner>>>, metrics_text: &str| {
+    let save = |sim: &Simulation,
+                learners_override: Option<&Vec<Option<crate::learning::SpeciesLearner>>>,
+                metrics_text: &str| {
         let world = sim.world();
         let learners = world.resource::<Learners>();
         let species = learners_override.unwrap_or(&learners.species);
@@ -145,7 +232,6 @@ pub fn train(scene: Scene, opts: &TrainOptions) -> Result<Vec<EpisodeSummary>, S
             scene: scene.clone(),
             episodes_done: world.resource::<Episode>().index,
             sim_rng: world.resource::<SimRng>().0.clone(),
-            learn_rng: learners.rng.clone(),
             species: species
                 .iter()
                 .zip(&names)
@@ -156,22 +242,30 @@ pub fn train(scene: Scene, opts: &TrainOptions) -> Result<Vec<EpisodeSummary>, S
                         epsilon: l.epsilon,
                         actor_adam_step: l.ddpg.actor_opt.step,
                         critic_adam_step: l.ddpg.critic_opt.step,
+                        rng: Some(l.rng.clone()),
                     })
                 })
                 .collect(),
             metrics_csv: metrics_text.to_string(),
         };
-        checkpoint::save(run, species, &names, &state).map_err(|e| format!("{}: cannot save checkpoint: {e}", run.display()))
+        checkpoint::save(run, species, &names, &state)
+            .map_err(|e| format!("{}: cannot save checkpoint: {e}", run.display()))
     };
     while sim.episode().index < total {
         sim.step();
+        sim.check()?;
         steps += 1;
         if let Some(failure) = sim.world().resource::<Learners>().failure.clone() {
             let last_good = sim.world().resource::<Learners>().last_good.clone();
             save(&sim, last_good.as_ref(), &metrics_text)?;
-            return Err(format!("training stopped: {failure}; the last good networks are saved in {}", checkpoint::checkpoint_dir(run).display()));
+            return Err(format!(
+                "training stopped: {failure}; the last good networks are saved in {}",
+                checkpoint::checkpoint_dir(run).display()
+            ));
         }
-        let Some(summary) = sim.world_mut().resource_mut::<EpisodeLog>().episodes.pop() else { continue };
+        let Some(summary) = sim.world_mut().resource_mut::<EpisodeLog>().episodes.pop() else {
+            continue;
+        };
         let wall = started.elapsed().as_secs_f64();
         let row = metrics_row(&summary, &mut sim.world_mut().resource_mut::<Learners>(), wall);
         writeln!(csv, "{row}").map_err(io_err(&metrics_path))?;
@@ -199,33 +293,53 @@ pub struct EvalOptions {
     pub seed: Option<u64>,
 }
 
-/// Deploys a run's policies without noise and writes per-step DoS/DoA to `RUN/eval.csv`; returns the
-/// summary line.
+/// Deploys a run's policies without noise and streams per-step DoS/DoA to `RUN/eval.csv` (replaced
+/// whole, when complete); returns the summary line.
 pub fn evaluate(opts: &EvalOptions) -> Result<String, String> {
-    let mut scene = Scene::load(&opts.run.join("scene.ron")).map_err(|e| e.to_string())?;
+    let scene_path = opts.run.join("scene.ron");
+    let mut scene = Scene::load(&scene_path).map_err(|e| e.to_string())?;
     for (name, n) in &opts.counts {
-        scene.set_count(name, *n).map_err(|e| format!("{}: {e}", opts.run.join("scene.ron").display()))?;
+        scene.set_count(name, *n).map_err(|e| format!("{}: {e}", scene_path.display()))?;
     }
     if let Some(steps) = opts.steps {
-        scene.episode_steps = steps.max(1);
+        scene.episode_steps = steps;
     }
     if let Some(seed) = opts.seed {
         scene.seed = seed;
     }
+    if opts.episodes == 0 {
+        return Err("--episodes: must be ≥ 1".into());
+    }
     scene.validate().map_err(|(f, m)| format!("{}: {f}: {m}", opts.run.display()))?;
     let mut sim = learning_simulation(scene.clone(), Mode::Evaluate, Some(&opts.run))?;
+    // Each episode's last step is read before the next population is spawned.
+    sim.world_mut().resource_mut::<Episode>().auto_reset = false;
     let registry = sim.world().resource::<SpeciesRegistry>().clone();
     let prey = headline_species(&registry);
     let name = &registry.defs[prey].name;
-    let mut text = format!("episode,step,dos_{name},doa_{name},catches\n");
+    let path = opts.run.join("eval.csv");
+    let write_err = |e: std::io::Error| format!("{}: {e}", path.display());
+    let mut file = AtomicFile::create(&path, Existing::Replace).map_err(write_err)?;
+    writeln!(file.writer(), "episode,step,dos_{name},doa_{name},catches").map_err(write_err)?;
     let (mut sum_dos, mut sum_doa, mut n) = (0.0, 0.0, 0usize);
     for episode in 0..opts.episodes {
+        if episode > 0 {
+            crate::episode::next_episode(sim.world_mut());
+        }
         for step in 1..=scene.episode_steps {
             sim.step();
+            sim.check()?;
             let m = sim.world().resource::<SwarmMetrics>();
             let sw = m.now.get(prey).copied().flatten();
             let blank = |x: Option<f64>| x.map_or(String::new(), |v| v.to_string());
-            text.push_str(&format!("{episode},{step},{},{},{}\n", blank(sw.map(|s| s.dos)), blank(sw.map(|s| s.doa)), m.catches_now));
+            writeln!(
+                file.writer(),
+                "{episode},{step},{},{},{}",
+                blank(sw.map(|s| s.dos)),
+                blank(sw.map(|s| s.doa)),
+                m.catches_now
+            )
+            .map_err(write_err)?;
             if let Some(sw) = sw {
                 sum_dos += sw.dos;
                 sum_doa += sw.doa;
@@ -233,17 +347,19 @@ pub fn evaluate(opts: &EvalOptions) -> Result<String, String> {
             }
         }
     }
-    let path = opts.run.join("eval.csv");
-    crate::io::write_atomically(&path, |w| w.write_all(text.as_bytes())).map_err(io_err(&path))?;
+    file.commit().map_err(write_err)?;
     let counts: Vec<String> = registry.defs.iter().map(|d| format!("{} {}", d.count, d.name)).collect();
+    let means = if n > 0 {
+        format!("mean DoS {:.4}, mean DoA {:.4} ({name})", sum_dos / n as f64, sum_doa / n as f64)
+    } else {
+        format!("no DoS/DoA: fewer than two {name}")
+    };
     Ok(format!(
-        "eval {}: {} episodes × {} steps, {}: mean DoS {:.4}, mean DoA {:.4} ({name}); per step in {}",
+        "eval {}: {} episodes × {} steps, {}: {means}; per step in {}",
         opts.run.display(),
         opts.episodes,
         scene.episode_steps,
         counts.join(" + "),
-        sum_dos / n.max(1) as f64,
-        sum_doa / n.max(1) as f64,
         path.display()
     ))
 }

@@ -21,7 +21,7 @@ fn tiny(episodes: usize) -> Scene {
 }
 
 fn opts(run: &Path, resume: bool, episodes: Option<usize>) -> TrainOptions {
-    TrainOptions { run: run.to_path_buf(), resume, episodes, progress: false }
+    TrainOptions { run: run.to_path_buf(), resume, overwrite: false, episodes, progress: false }
 }
 
 /// metrics.csv without the wall-clock column, which is the one thing allowed to differ.
@@ -83,8 +83,8 @@ fn a_saved_actor_acts_identically_after_loading() {
     }
     let obs = eval.world().resource::<Batches>().species[1].observations.clone();
     let act = |sim: &coevo::Simulation| {
-        let l = sim.world().resource::<Learners>();
-        l.species[1].as_ref().unwrap().ddpg.act(&l.dev, &obs, 10)
+        let l = sim.world().resource::<Learners>().species[1].as_ref().unwrap();
+        l.ddpg.act(&l.dev, &obs, 10)
     };
     assert_eq!(act(&eval), act(&restored));
 }
@@ -97,7 +97,11 @@ fn resume_after_a_kill_continues_the_count_and_the_metrics() {
     // A kill after episode 4's checkpoint but before more rows: simulate rows written after it and a
     // half-written checkpoint folder, both of which resume must discard.
     let before = metrics_without_wall_clock(&run);
-    std::fs::write(run.join("metrics.csv"), std::fs::read_to_string(run.join("metrics.csv")).unwrap() + "4,20,garbage\n").unwrap();
+    std::fs::write(
+        run.join("metrics.csv"),
+        std::fs::read_to_string(run.join("metrics.csv")).unwrap() + "4,20,garbage\n",
+    )
+    .unwrap();
     std::fs::create_dir_all(run.join("checkpoint.tmp")).unwrap();
     std::fs::write(run.join("checkpoint.tmp/prey-actor.safetensors"), b"half").unwrap();
     let more = train(tiny(4), &opts(&run, true, Some(7))).unwrap();
@@ -115,11 +119,13 @@ fn corrupt_missing_or_mismatched_checkpoints_are_refused_clearly() {
     let dir = tempfile::tempdir().unwrap();
     let run = dir.path().join("run");
     let missing = train(tiny(1), &opts(&run, true, None)).unwrap_err();
-    assert!(missing.contains("run/scene.ron: cannot read scene"), "{missing}");
+    assert!(missing.contains("run: holds no coevo run to resume"), "{missing}");
 
     train(tiny(1), &opts(&run, false, None)).unwrap();
     std::fs::write(run.join("checkpoint/prey-actor.safetensors"), b"not a tensor file").unwrap();
-    let eval = |counts: Vec<(String, usize)>| evaluate(&EvalOptions { run: run.clone(), counts, episodes: 1, steps: Some(5), seed: None });
+    let eval = |counts: Vec<(String, usize)>| {
+        evaluate(&EvalOptions { run: run.clone(), counts, episodes: 1, steps: Some(5), seed: None })
+    };
     let corrupt = eval(vec![]).unwrap_err();
     assert!(corrupt.contains("prey-actor.safetensors: not a valid safetensors file"), "{corrupt}");
 
@@ -128,7 +134,8 @@ fn corrupt_missing_or_mismatched_checkpoints_are_refused_clearly() {
     let mut s = tiny(1);
     s.species[1].topological_limit = 2;
     train(s, &opts(&other, false, None)).unwrap();
-    std::fs::copy(other.join("checkpoint/prey-actor.safetensors"), run.join("checkpoint/prey-actor.safetensors")).unwrap();
+    std::fs::copy(other.join("checkpoint/prey-actor.safetensors"), run.join("checkpoint/prey-actor.safetensors"))
+        .unwrap();
     let mismatch = eval(vec![]).unwrap_err();
     assert!(mismatch.contains("tensor 0.weight is F32 [16, 22], this scene needs F32 [16, 54]"), "{mismatch}");
 }
@@ -138,11 +145,34 @@ fn evaluation_deploys_on_fifty_prey_and_without_predators() {
     let dir = tempfile::tempdir().unwrap();
     let run = dir.path().join("run");
     train(tiny(2), &opts(&run, false, None)).unwrap();
-    let line = evaluate(&EvalOptions { run: run.clone(), counts: vec![("prey".into(), 50), ("predator".into(), 0)], episodes: 2, steps: Some(30), seed: None }).unwrap();
+    let line = evaluate(&EvalOptions {
+        run: run.clone(),
+        counts: vec![("prey".into(), 50), ("predator".into(), 0)],
+        episodes: 2,
+        steps: Some(30),
+        seed: None,
+    })
+    .unwrap();
     assert!(line.contains("0 predator + 50 prey"), "{line}");
     let csv = std::fs::read_to_string(run.join("eval.csv")).unwrap();
     assert_eq!(csv.lines().count(), 1 + 2 * 30);
     assert!(csv.lines().skip(1).all(|l| l.ends_with(",0")), "no predators, no catches");
+    // Every step is measured, the last of each episode too (it used to be read after the respawn).
+    for line in csv.lines().skip(1) {
+        let cols: Vec<&str> = line.split(',').collect();
+        assert!(cols[2].parse::<f64>().is_ok_and(|d| d > 0.0 && d < 1.0) && cols[3].parse::<f64>().is_ok(), "{line}");
+    }
+
+    // One step per episode: measured, not zeros; with one prey there is nothing to measure, and it says so.
+    let one = |counts: Vec<(String, usize)>| {
+        evaluate(&EvalOptions { run: run.clone(), counts, episodes: 1, steps: Some(1), seed: None }).unwrap()
+    };
+    let line = one(vec![]);
+    assert!(!line.contains("mean DoS 0.0000"), "{line}");
+    let csv = std::fs::read_to_string(run.join("eval.csv")).unwrap();
+    assert!(csv.lines().nth(1).unwrap().split(',').nth(2).unwrap().parse::<f64>().unwrap() > 0.0);
+    let line = one(vec![("prey".into(), 1), ("predator".into(), 1)]);
+    assert!(line.contains("no DoS/DoA: fewer than two"), "{line}");
 }
 
 #[test]

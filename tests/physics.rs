@@ -6,7 +6,7 @@ use coevo::components::*;
 use coevo::physics::{clip_speed, wrap_angle};
 use coevo::scene::{Boundary, Policy, SpeedClip};
 use coevo::Simulation;
-use common::{get, place, scene};
+use common::{get, manual, place, scene};
 
 #[test]
 fn drag_gives_terminal_speed_thrust_over_drag() {
@@ -85,10 +85,10 @@ fn periodic_wrap_re_enters_by_the_overshoot() {
 #[test]
 fn semi_implicit_euler_in_the_stated_order() {
     // Full thrust, turning at the max rate: θ first, thrust along the new heading, x with the new v.
-    // A `Plugin` policy nobody registered leaves the action batch as the test writes it.
+    // A `Plugin` policy with no system behind it leaves the action batch as the test writes it.
     let mut s = scene(0, 1, Policy::Plugin("test".into()), Boundary::Periodic);
     s.species[1].max_speed = 10.0;
-    let mut sim = Simulation::new(s);
+    let mut sim = manual(s);
     place(&mut sim, 0, DVec2::ZERO, DVec2::new(0.1, 0.0), 0.0);
     sim.world_mut().resource_mut::<coevo::perception::Batches>().species[1].actions.copy_from_slice(&[1.0, 1.0]);
     sim.step();
@@ -139,7 +139,7 @@ fn predator_touching_prey_is_a_catch_rewarded_plus_and_minus_one() {
 fn energy_cost_of_the_paper() {
     let mut s = scene(0, 1, Policy::Plugin("test".into()), Boundary::Periodic);
     s.species[1].max_speed = 10.0;
-    let mut sim = Simulation::new(s);
+    let mut sim = manual(s);
     sim.world_mut().resource_mut::<coevo::perception::Batches>().species[1].actions.copy_from_slice(&[0.0, -0.5]);
     sim.step();
     // a_F = 0.5 N, a_R = −0.25 rad/s: r = −0.01·0.5 − 0.1·0.25.
@@ -159,4 +159,35 @@ fn chase_nearest_predators_close_in_on_prey() {
         get::<Contacts>(&mut sim, 0).now.catching > 0
     });
     assert!(caught_at.is_some(), "the chase-nearest predator never reached a standing prey in 60 steps");
+}
+
+#[test]
+fn an_unphysical_state_stops_the_run_with_one_line_naming_agent_and_step() {
+    // Validation refuses both scenes; built by hand, the state guard must still stop the first step that
+    // leaves the physically possible: a subnormal mass makes the velocity NaN, a huge step leaves the torus.
+    let first_fault = |sim: &mut Simulation| {
+        (0..50).find_map(|_| {
+            sim.step();
+            sim.check().err()
+        })
+    };
+    let mut s = scene(0, 2, Policy::Still, Boundary::Periodic);
+    s.species[1].mass = 1e-310;
+    assert_eq!(s.validate().unwrap_err().0, "species[prey].mass");
+    let mut sim = Simulation::new(s);
+    place(&mut sim, 0, DVec2::ZERO, DVec2::new(0.1, 0.0), 0.0);
+    let error = first_fault(&mut sim).expect("the NaN is caught");
+    assert!(error.starts_with("episode 0, step 1: agent "), "{error}");
+    assert!(error.contains("(prey): velocity is not finite; the integrator is unstable for this scene"), "{error}");
+    assert_eq!(error.lines().count(), 1);
+
+    let mut s = scene(0, 2, Policy::Random, Boundary::Periodic);
+    s.world.dt = 20.0;
+    s.world.drag = 0.0;
+    s.world.contact_stiffness = 0.0;
+    assert_eq!(s.validate().unwrap_err().0, "species[predator].max_speed");
+    let mut sim = Simulation::new(s);
+    place(&mut sim, 0, DVec2::ZERO, DVec2::new(0.5, 0.0), 0.0);
+    let error = first_fault(&mut sim).expect("the escape is caught");
+    assert!(error.contains("(prey): left the arena"), "{error}");
 }

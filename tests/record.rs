@@ -16,10 +16,10 @@ fn record(dir: &std::path::Path, name: &str, scene: &str, seed: &str, steps: &st
 #[test]
 fn same_scene_and_seed_give_byte_identical_records() {
     let dir = tempfile::tempdir().unwrap();
-    for scene in ["scenes/confined.ron", "scenes/gym-pps.ron"] {
-        let a = record(dir.path(), "a.csv", scene, "7", "60");
-        let b = record(dir.path(), "b.csv", scene, "7", "60");
-        let c = record(dir.path(), "c.csv", scene, "8", "60");
+    for (i, scene) in ["scenes/confined.ron", "scenes/gym-pps.ron"].into_iter().enumerate() {
+        let a = record(dir.path(), &format!("a{i}.csv"), scene, "7", "60");
+        let b = record(dir.path(), &format!("b{i}.csv"), scene, "7", "60");
+        let c = record(dir.path(), &format!("c{i}.csv"), scene, "8", "60");
         assert_eq!(a, b, "{scene}");
         assert_ne!(a, c, "{scene}: another seed, another trajectory");
     }
@@ -80,4 +80,62 @@ fn bad_input_is_one_line_and_a_failure_with_no_output() {
     let o = coevo(&["--record", out.to_str().unwrap(), "--scene", "scenes/missing.ron"]);
     assert!(!o.status.success());
     assert!(String::from_utf8_lossy(&o.stderr).contains("scenes/missing.ron: cannot read scene"));
+}
+
+#[test]
+fn a_record_drives_learned_species_with_the_runs_actors() {
+    use bevy::math::DVec2;
+    use coevo::components::{AgentId, Heading, Position, Velocity};
+    use coevo::learning::{Learners, Mode};
+    use coevo::perception::{Batches, Perceive};
+    use coevo::scene::Scene;
+    let dir = tempfile::tempdir().unwrap();
+    let run = dir.path().join("run");
+    let mut scene = Scene::load(std::path::Path::new("scenes/standard.ron")).unwrap();
+    scene.episode_steps = 20;
+    scene.learning.hidden = 16;
+    scene.learning.batch_size = 32;
+    scene.learning.warmup_transitions = 32;
+    scene.learning.updates_per_episode = 5;
+    let opts = coevo::train::TrainOptions { run: run.clone(), resume: false, overwrite: false, episodes: Some(2), progress: false };
+    coevo::train::train(scene, &opts).unwrap();
+
+    let out = dir.path().join("r.csv");
+    let o = coevo(&["--record", out.to_str().unwrap(), "--run", run.to_str().unwrap(), "--steps", "6"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("prey: trained actor of"), "says which actor drives each species");
+    let text = std::fs::read_to_string(&out).unwrap();
+    let rows: Vec<Vec<String>> = text.lines().skip(1).map(|l| l.split(',').map(str::to_string).collect()).collect();
+
+    // Rebuild the state of step 4 from the record, perceive it and ask the trained actors.
+    let mut sim = coevo::train::learning_simulation(Scene::load(&run.join("scene.ron")).unwrap(), Mode::Evaluate, Some(&run)).unwrap();
+    let step: Vec<&Vec<String>> = rows.iter().filter(|r| r[0] == "4").collect();
+    let num = |r: &Vec<String>, i: usize| r[i].parse::<f64>().unwrap();
+    {
+        let world = sim.world_mut();
+        let mut q = world.query::<(&AgentId, &mut Position, &mut Velocity, &mut Heading)>();
+        for (id, mut x, mut v, mut h) in q.iter_mut(world) {
+            let r = step.iter().find(|r| r[1] == id.0.to_string()).unwrap();
+            x.0 = DVec2::new(num(r, 3), num(r, 4));
+            v.0 = DVec2::new(num(r, 5), num(r, 6));
+            h.0 = num(r, 7);
+        }
+        world.run_schedule(Perceive);
+    }
+    let world = sim.world();
+    let learners = world.resource::<Learners>();
+    let registry = world.resource::<coevo::species::SpeciesRegistry>();
+    for (s, def) in registry.defs.iter().enumerate() {
+        let batch = &world.resource::<Batches>().species[s];
+        let l = learners.species[s].as_ref().unwrap();
+        let actions = l.ddpg.act(&l.dev, &batch.observations, batch.n);
+        let recorded: Vec<&&Vec<String>> = step.iter().filter(|r| r[2] == def.name).collect();
+        assert_eq!(recorded.len(), batch.n);
+        for (row, r) in recorded.iter().enumerate() {
+            let a = coevo::policy::rescale([actions[2 * row], actions[2 * row + 1]], def.max_thrust, def.max_turn_rate);
+            assert_eq!((num(r, 8), num(r, 9)), (a.thrust, a.turn_rate), "{} {}: recorded action is the actor's", def.name, r[1]);
+        }
+    }
+    // Not the old default of half thrust and no turning.
+    assert!(rows.iter().filter(|r| !r[8].is_empty()).any(|r| num(r, 9) != 0.0));
 }

@@ -4,8 +4,9 @@
 
 use bevy::prelude::*;
 use coevo::components::{Action, AgentId, Heading, SpeciesId};
-use coevo::physics::wrap_angle;
 use coevo::perception::Batches;
+use coevo::physics::wrap_angle;
+use coevo::policy::PolicyPlugins;
 use coevo::scene::{Policy, Scene};
 use coevo::species::SpeciesRegistry;
 use coevo::{SimSet, Simulation};
@@ -16,6 +17,7 @@ struct CirclerPlugin;
 impl Plugin for CirclerPlugin {
     fn build(&self, app: &mut App) {
         app.add_systems(FixedUpdate, circle.in_set(SimSet::Decide));
+        PolicyPlugins::register(app, "circler");
     }
 }
 
@@ -60,8 +62,12 @@ fn a_plugin_decides_a_third_species_that_everyone_observes() {
 
     let headings = |sim: &mut Simulation| -> Vec<f64> {
         let world = sim.world_mut();
-        let mut h: Vec<(u32, f64)> =
-            world.query::<(&AgentId, &SpeciesId, &Heading)>().iter(world).filter(|(_, s, _)| s.0 == circler).map(|(id, _, h)| (id.0, h.0)).collect();
+        let mut h: Vec<(u32, f64)> = world
+            .query::<(&AgentId, &SpeciesId, &Heading)>()
+            .iter(world)
+            .filter(|(_, s, _)| s.0 == circler)
+            .map(|(id, _, h)| (id.0, h.0))
+            .collect();
         h.sort_by_key(|x| x.0);
         h.into_iter().map(|x| x.1).collect()
     };
@@ -78,4 +84,13 @@ fn a_plugin_decides_a_third_species_that_everyone_observes() {
     for (b, a) in before.iter().zip(headings(&mut sim)) {
         assert!(wrap_angle(a - b - 0.2).abs() < 1e-12, "turned {} rad", a - b);
     }
+}
+
+#[test]
+fn a_plugin_policy_that_no_plugin_decides_is_refused() {
+    let err = Simulation::try_with_plugins(scene(), |_| {}).err().expect("refused");
+    assert_eq!(
+        err,
+        "species[circler].policy: no plugin decides Plugin(\"circler\") in this program (registered: none)"
+    );
 }

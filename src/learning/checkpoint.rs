@@ -6,7 +6,7 @@
 //!   `6.bias` (2). `model.load_state_dict(safetensors.torch.load_file(path))` loads it.
 //! - `<species>-training.safetensors`: `critic.*`, `target_actor.*`, `target_critic.*` (same naming) and the
 //!   Adam moments `actor_adam.m.*`, `actor_adam.v.*`, `critic_adam.m.*`, `critic_adam.v.*`.
-//! - `state.ron`: the scene, episodes done, RNG states, exploration σ/ε, Adam step counts, metrics so far.
+//! - `state.ron`: the scene, episodes done, RNG states (environment, each species), exploration σ/ε, Adam step counts, metrics so far.
 //!
 //! The folder is written whole as `checkpoint.tmp/` and then swapped in, so a run killed at any moment
 //! leaves either the previous checkpoint or the new one, never a mix. Replay buffers are not saved (up to
@@ -15,8 +15,9 @@
 use super::ddpg::Ddpg;
 use super::nets::Mlp;
 use super::SpeciesLearner;
-use dfdx::shapes::HasShape;
+use crate::io::Existing;
 use crate::scene::Scene;
+use dfdx::shapes::HasShape;
 use rand_chacha::ChaCha8Rng;
 use safetensors::tensor::{Dtype, SafeTensors, TensorView};
 use serde::{Deserialize, Serialize};
@@ -28,7 +29,6 @@ pub struct TrainingState {
     pub scene: Scene,
     pub episodes_done: usize,
     pub sim_rng: ChaCha8Rng,
-    pub learn_rng: ChaCha8Rng,
     pub species: Vec<Option<SpeciesState>>,
     /// metrics.csv as it stood at this checkpoint.
     pub metrics_csv: String,
@@ -41,6 +41,10 @@ pub struct SpeciesState {
     pub epsilon: f64,
     pub actor_adam_step: u64,
     pub critic_adam_step: u64,
+    /// The species' exploration and sampling stream (absent in checkpoints of coevo before per-species
+    /// streams: a resumed run then continues on a fresh stream of the seed).
+    #[serde(default)]
+    pub rng: Option<ChaCha8Rng>,
 }
 
 pub fn checkpoint_dir(run: &Path) -> PathBuf {
@@ -62,11 +66,14 @@ fn named(prefix: &str, values: Vec<Vec<f32>>, net: &Mlp) -> Vec<(String, Vec<usi
 }
 
 fn serialize(tensors: &[(String, Vec<usize>, Vec<f32>)]) -> Vec<u8> {
-    let bytes: Vec<Vec<u8>> = tensors.iter().map(|(_, _, v)| v.iter().flat_map(|x| x.to_le_bytes()).collect()).collect();
+    let bytes: Vec<Vec<u8>> =
+        tensors.iter().map(|(_, _, v)| v.iter().flat_map(|x| x.to_le_bytes()).collect()).collect();
     let views: Vec<(String, TensorView)> = tensors
         .iter()
         .zip(&bytes)
-        .map(|((name, shape, _), b)| (name.clone(), TensorView::new(Dtype::F32, shape.clone(), b).expect("shape matches data")))
+        .map(|((name, shape, _), b)| {
+            (name.clone(), TensorView::new(Dtype::F32, shape.clone(), b).expect("shape matches data"))
+        })
         .collect();
     safetensors::serialize(views, &None).expect("f32 tensors serialize")
 }
@@ -85,13 +92,21 @@ fn read_into(file: &Path, st: &SafeTensors, prefix: &str, like: &Mlp) -> Result<
                     t.shape()
                 ));
             }
-            Ok(t.data().chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect())
+            let values: Vec<f32> = t.data().chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect();
+            match values.iter().position(|v| !v.is_finite()) {
+                Some(i) => Err(format!("{}: tensor {name} holds a non-finite value ({} at index {i}); refusing a broken network", file.display(), values[i])),
+                None => Ok(values),
+            }
         })
         .collect()
 }
 
 fn read_file(path: &Path) -> Result<Vec<u8>, String> {
-    std::fs::read(path).map_err(|e| format!("{}: cannot read checkpoint: {e}", path.display()))
+    match std::fs::metadata(path) {
+        Ok(m) if !m.is_file() => Err(format!("{}: not a regular file, not a checkpoint", path.display())),
+        Ok(_) => std::fs::read(path).map_err(|e| format!("{}: cannot read checkpoint: {e}", path.display())),
+        Err(e) => Err(format!("{}: cannot read checkpoint: {e}", path.display())),
+    }
 }
 
 fn parse<'a>(path: &Path, bytes: &'a [u8]) -> Result<SafeTensors<'a>, String> {
@@ -109,7 +124,12 @@ pub fn load_actor(run: &Path, species: &str, like: &Mlp) -> Result<Mlp, String> 
 }
 
 /// Saves learners and state into `run/checkpoint/`, atomically as a folder.
-pub fn save(run: &Path, learners: &[Option<SpeciesLearner>], names: &[String], state: &TrainingState) -> std::io::Result<()> {
+pub fn save(
+    run: &Path,
+    learners: &[Option<SpeciesLearner>],
+    names: &[String],
+    state: &TrainingState,
+) -> std::io::Result<()> {
     let dir = checkpoint_dir(run);
     let tmp = run.join("checkpoint.tmp");
     let old = run.join("checkpoint.old");
@@ -119,7 +139,7 @@ pub fn save(run: &Path, learners: &[Option<SpeciesLearner>], names: &[String], s
         let Some(l) = learner else { continue };
         let d = &l.ddpg;
         let actor = named("", d.actor.parameters(), &d.actor);
-        crate::io::write_atomically(&tmp.join(format!("{name}-actor.safetensors")), |w| {
+        crate::io::write_atomically(&tmp.join(format!("{name}-actor.safetensors")), Existing::Replace, |w| {
             std::io::Write::write_all(w, &serialize(&actor))
         })?;
         let mut training = named("critic.", d.critic.parameters(), &d.critic);
@@ -129,13 +149,15 @@ pub fn save(run: &Path, learners: &[Option<SpeciesLearner>], names: &[String], s
         training.extend(named("actor_adam.v.", d.actor_opt.v.clone(), &d.actor));
         training.extend(named("critic_adam.m.", d.critic_opt.m.clone(), &d.critic));
         training.extend(named("critic_adam.v.", d.critic_opt.v.clone(), &d.critic));
-        crate::io::write_atomically(&tmp.join(format!("{name}-training.safetensors")), |w| {
+        crate::io::write_atomically(&tmp.join(format!("{name}-training.safetensors")), Existing::Replace, |w| {
             std::io::Write::write_all(w, &serialize(&training))
         })?;
     }
     let ron = ron::ser::to_string_pretty(state, ron::ser::PrettyConfig::new().struct_names(false))
         .map_err(|e| std::io::Error::other(e.to_string()))?;
-    crate::io::write_atomically(&tmp.join("state.ron"), |w| std::io::Write::write_all(w, ron.as_bytes()))?;
+    crate::io::write_atomically(&tmp.join("state.ron"), Existing::Replace, |w| {
+        std::io::Write::write_all(w, ron.as_bytes())
+    })?;
     // Swap: the old checkpoint stays until the new one is in place; `load` falls back to `.old`.
     let _ = std::fs::remove_dir_all(&old);
     if dir.exists() {
@@ -153,12 +175,21 @@ pub fn load(run: &Path, learners: &mut [Option<SpeciesLearner>], names: &[String
         dir = run.join("checkpoint.old");
     }
     let state_path = dir.join("state.ron");
-    let text = std::fs::read_to_string(&state_path)
-        .map_err(|e| format!("{}: no checkpoint to resume ({e})", state_path.display()))?;
-    let state: TrainingState = ron::from_str(&text).map_err(|e| format!("{}: corrupt checkpoint state ({e})", state_path.display()))?;
+    if !state_path.exists() {
+        return Err(format!("{}: no checkpoint to resume", state_path.display()));
+    }
+    let text = crate::io::read_text(&state_path, crate::io::MAX_TEXT_BYTES)
+        .map_err(|e| format!("{}: {e}", state_path.display()))?;
+    let state: TrainingState =
+        ron::from_str(&text).map_err(|e| format!("{}: corrupt checkpoint state ({e})", state_path.display()))?;
     for (learner, name) in learners.iter_mut().zip(names) {
         let Some(l) = learner else { continue };
-        let s = state.species.iter().flatten().find(|s| &s.name == name).ok_or_else(|| format!("{}: no species {name:?} in the checkpoint", state_path.display()))?;
+        let s = state
+            .species
+            .iter()
+            .flatten()
+            .find(|s| &s.name == name)
+            .ok_or_else(|| format!("{}: no species {name:?} in the checkpoint", state_path.display()))?;
         let actor_path = dir.join(format!("{name}-actor.safetensors"));
         let bytes = read_file(&actor_path)?;
         let st = parse(&actor_path, &bytes)?;
@@ -182,6 +213,9 @@ pub fn load(run: &Path, learners: &mut [Option<SpeciesLearner>], names: &[String
         d.critic_opt.step = s.critic_adam_step;
         l.noise_std = s.noise_std;
         l.epsilon = s.epsilon;
+        if let Some(rng) = &s.rng {
+            l.rng = rng.clone();
+        }
     }
     Ok(state)
 }

@@ -18,6 +18,10 @@ use dfdx::losses::mse_loss;
 use dfdx::prelude::*;
 use rand_chacha::ChaCha8Rng;
 
+/// Rows per actor forward pass in [`Ddpg::act_into`]: large populations are split into chunks of this
+/// many agents, processed in parallel.
+pub const ACT_CHUNK: usize = 1024;
+
 /// Actor, critic, targets and optimizers of one species.
 #[derive(Clone, Debug)]
 pub struct Ddpg {
@@ -43,6 +47,7 @@ pub struct Losses {
 impl Ddpg {
     /// Fresh networks for observations of width `obs_dim`: 3 hidden layers of `hidden` (Appendix B).
     pub fn new(dev: &Dev, obs_dim: usize, p: &LearningParams, rng: &mut ChaCha8Rng) -> Ddpg {
+        crate::parallel::single_threaded_kernels();
         let h = p.hidden;
         let actor = Mlp::new(dev, &[obs_dim, h, h, h, ACTION_DIM], Output::Tanh, rng);
         let critic = Mlp::new(dev, &[obs_dim + ACTION_DIM, h, h, h, 1], Output::Linear, rng);
@@ -67,13 +72,24 @@ impl Ddpg {
         self.actor.forward(matrix(dev, observations.to_vec(), n, self.obs_dim())).as_vec()
     }
 
-    /// One DDPG update on a mini-batch (the body of Algorithm 1's inner loop after sampling).
-    pub fn update(&mut self, dev: &Dev, b: &Batch) -> Losses {
+    /// μ(o) into `actions` (`[n × 2]`): one forward pass per [`ACT_CHUNK`] rows, the chunks on all
+    /// worker threads. The chunking depends only on n, so the result never depends on the thread count.
+    pub fn act_into(&self, dev: &Dev, observations: &[f32], actions: &mut [f32]) {
         let d = self.obs_dim();
-        let obs = matrix(dev, b.obs.clone(), b.n, d);
-        let actions = matrix(dev, b.actions.clone(), b.n, ACTION_DIM);
-        let rewards = matrix(dev, b.rewards.clone(), b.n, 1);
-        let next_obs = matrix(dev, b.next_obs.clone(), b.n, d);
+        crate::parallel::for_each_chunk(actions, ACT_CHUNK * ACTION_DIM, |i, out| {
+            let rows = out.len() / ACTION_DIM;
+            let obs = &observations[i * ACT_CHUNK * d..(i * ACT_CHUNK + rows) * d];
+            self.actor.forward(matrix(dev, obs.to_vec(), rows, d)).copy_into(out);
+        });
+    }
+
+    /// One DDPG update on a mini-batch (the body of Algorithm 1's inner loop after sampling).
+    pub fn update(&mut self, dev: &Dev, b: Batch) -> Losses {
+        let d = self.obs_dim();
+        let obs = matrix(dev, b.obs, b.n, d);
+        let actions = matrix(dev, b.actions, b.n, ACTION_DIM);
+        let rewards = matrix(dev, b.rewards, b.n, 1);
+        let next_obs = matrix(dev, b.next_obs, b.n, d);
 
         // TD target y = r + γ·Q'(o', μ'(o')).
         let next_actions = self.target_actor.forward(next_obs.clone());
@@ -140,10 +156,10 @@ mod tests {
         let mut rng = ChaCha8Rng::seed_from_u64(5);
         let mut ddpg = Ddpg::new(&dev, 10, &Scene::preset("paper").unwrap().learning, &mut rng);
         let batch = fixed_batch(256, 10, &mut rng);
-        let first = ddpg.update(&dev, &batch).critic;
+        let first = ddpg.update(&dev, batch.clone()).critic;
         let mut last = first;
         for _ in 0..200 {
-            last = ddpg.update(&dev, &batch).critic;
+            last = ddpg.update(&dev, batch.clone()).critic;
         }
         assert!(last < 0.5 * first, "critic loss {first} -> {last}");
         assert!(ddpg.is_finite());
@@ -158,10 +174,10 @@ mod tests {
         ddpg.actor_opt.lr = 1e-3;
         ddpg.critic_opt.lr = 0.0;
         let batch = fixed_batch(128, 6, &mut rng);
-        let before = ddpg.update(&dev, &batch).actor;
+        let before = ddpg.update(&dev, batch.clone()).actor;
         let mut after = before;
         for _ in 0..100 {
-            after = ddpg.update(&dev, &batch).actor;
+            after = ddpg.update(&dev, batch.clone()).actor;
         }
         assert!(after < before, "actor loss −Q should fall: {before} -> {after}");
     }

@@ -18,7 +18,7 @@ pub mod nets;
 pub mod replay;
 
 use crate::episode::{Episode, SimRng};
-use crate::perception::Batches;
+use crate::perception::{Batches, SpeciesBatch};
 use crate::scene::{LearningParams, Policy, Scene};
 use crate::species::{SpeciesRegistry, ACTION_DIM};
 use crate::{ActiveScene, SimSet};
@@ -46,12 +46,18 @@ pub struct LearningPlugin {
 #[derive(Clone, Debug)]
 pub struct SpeciesLearner {
     pub ddpg: Ddpg,
+    /// The species' own dfdx device: every tensor holds a handle to its device, so species that share one
+    /// would contend for its reference counts when they update concurrently.
+    pub dev: Dev,
     pub buffer: ReplayBuffer,
     /// Loaded from a checkpoint and never updated.
     pub frozen: bool,
     /// Current exploration noise std σ and random-action probability ε.
     pub noise_std: f64,
     pub epsilon: f64,
+    /// The species' own random stream: exploration noise and mini-batch sampling. One stream per species
+    /// lets species update concurrently without changing which random numbers go where.
+    pub rng: ChaCha8Rng,
     /// The observations the current actions were chosen on (o_t), to pair with o_{t+1}.
     pending_obs: Vec<f32>,
     /// Sum and count of losses since the last episode summary.
@@ -59,12 +65,10 @@ pub struct SpeciesLearner {
     pub updates: usize,
 }
 
-/// Every learned species' learner (None for rule-based species), the device and the learning RNG.
+/// Every learned species' learner (None for rule-based species).
 #[derive(Resource)]
 pub struct Learners {
     pub species: Vec<Option<SpeciesLearner>>,
-    pub dev: Dev,
-    pub rng: ChaCha8Rng,
     pub mode: Mode,
     pub params: LearningParams,
     /// Set when a loss or parameter stops being finite; training stops with this message.
@@ -80,10 +84,12 @@ impl SpeciesLearner {
     pub fn without_buffer(&self) -> SpeciesLearner {
         SpeciesLearner {
             ddpg: self.ddpg.clone(),
+            dev: self.dev.clone(),
             buffer: ReplayBuffer::new(self.buffer.capacity, self.buffer.obs_dim, self.buffer.act_dim),
             frozen: self.frozen,
             noise_std: self.noise_std,
             epsilon: self.epsilon,
+            rng: self.rng.clone(),
             pending_obs: vec![],
             loss_sum: self.loss_sum,
             updates: self.updates,
@@ -114,7 +120,6 @@ impl Learners {
     /// and, when evaluating, learned ones never update), none for rule-based species.
     pub fn new(scene: &Scene, mode: Mode) -> Learners {
         let registry = SpeciesRegistry::from_scene(scene);
-        let dev = Dev::default();
         let mut init_rng = SimRng::stream(scene.seed, 1);
         let p = scene.learning.clone();
         let species = (0..registry.len())
@@ -125,12 +130,15 @@ impl Learners {
                     _ => return None,
                 };
                 let d = registry.observation_dim(s);
+                let dev = Dev::default();
                 Some(SpeciesLearner {
                     ddpg: Ddpg::new(&dev, d, &p, &mut init_rng),
+                    dev,
                     buffer: ReplayBuffer::new(p.buffer_capacity, d, ACTION_DIM),
                     frozen,
                     noise_std: p.noise_std,
                     epsilon: p.epsilon,
+                    rng: species_stream(scene.seed, s),
                     pending_obs: vec![],
                     loss_sum: Losses::default(),
                     updates: 0,
@@ -139,8 +147,6 @@ impl Learners {
             .collect();
         Learners {
             species,
-            dev,
-            rng: SimRng::stream(scene.seed, 2),
             mode,
             params: p,
             failure: None,
@@ -182,6 +188,12 @@ impl Plugin for LearningPlugin {
     }
 }
 
+/// The random stream of learned species `s`: stream 16 + s of the seed (0 is the environment's, 1 the
+/// networks' initialisation).
+pub fn species_stream(seed: u64, s: usize) -> ChaCha8Rng {
+    SimRng::stream(seed, 16 + s as u64)
+}
+
 /// Batched actor inference for every learned species, plus exploration while training.
 fn decide_learned(mut learners: ResMut<Learners>, mut batches: ResMut<Batches>) {
     let l = &mut *learners;
@@ -192,67 +204,92 @@ fn decide_learned(mut learners: ResMut<Learners>, mut batches: ResMut<Batches>) 
         if batch.n == 0 {
             continue;
         }
-        let mut actions = learner.ddpg.act(&l.dev, &batch.observations, batch.n);
+        learner.ddpg.act_into(&learner.dev, &batch.observations, &mut batch.actions);
         if explore && !learner.frozen {
-            if l.rng.gen_bool(learner.epsilon.clamp(0.0, 1.0)) {
-                actions.iter_mut().for_each(|a| *a = l.rng.gen_range(-1.0..=1.0));
+            let rng = &mut learner.rng;
+            if rng.gen_bool(learner.epsilon.clamp(0.0, 1.0)) {
+                batch.actions.iter_mut().for_each(|a| *a = rng.gen_range(-1.0..=1.0));
             } else if learner.noise_std > 0.0 {
                 let noise = Normal::new(0.0, learner.noise_std as f32).expect("σ is finite and ≥ 0");
                 // Independent noise for every individual and action component.
-                actions.iter_mut().for_each(|a| *a = (*a + noise.sample(&mut l.rng)).clamp(-1.0, 1.0));
+                batch.actions.iter_mut().for_each(|a| *a = (*a + noise.sample(rng)).clamp(-1.0, 1.0));
             }
         }
-        batch.actions.copy_from_slice(&actions);
         learner.pending_obs.clone_from(&batch.observations);
     }
 }
 
-/// Stores the step's transitions and runs the update schedule.
+impl SpeciesLearner {
+    /// Stores the step's transitions (o_t, a_t, r_t, o_{t+1}) of every individual in the species' buffer.
+    fn store(&mut self, b: &SpeciesBatch) {
+        let d = b.obs_dim;
+        // Rows pair up only if the population did not change during the step.
+        if self.pending_obs.len() != b.observations.len() {
+            return;
+        }
+        for row in 0..b.n {
+            self.buffer.push(
+                &self.pending_obs[row * d..(row + 1) * d],
+                &b.actions[row * ACTION_DIM..(row + 1) * ACTION_DIM],
+                b.rewards[row],
+                b.observation(row),
+            );
+        }
+    }
+
+    /// `n` DDPG updates, each on a mini-batch of `batch_size` sampled from the species' buffer with its own
+    /// stream. Err (the losses) when a loss or, at the end, a parameter is not finite.
+    fn update(&mut self, n: usize, batch_size: usize) -> Result<(), Losses> {
+        for _ in 0..n {
+            let losses = self.ddpg.update(&self.dev, self.buffer.sample(batch_size, &mut self.rng));
+            self.loss_sum.critic += losses.critic;
+            self.loss_sum.actor += losses.actor;
+            self.updates += 1;
+            if !losses.critic.is_finite() || !losses.actor.is_finite() {
+                return Err(losses);
+            }
+        }
+        match n > 0 && !self.ddpg.is_finite() {
+            true => Err(self.loss_sum),
+            false => Ok(()),
+        }
+    }
+}
+
+/// Stores the step's transitions and runs the update schedule, the species concurrently (one per worker
+/// thread; each has its own buffer, networks and random stream, so the result is the sequential one).
 fn learn(mut learners: ResMut<Learners>, batches: Res<Batches>, episode: Res<Episode>) {
     let l = &mut *learners;
     if l.mode != Mode::Train || l.failure.is_some() {
         return;
     }
-    let p = l.params.clone();
+    let p = &l.params;
     let episode_done = episode.is_done();
     if episode_done {
         l.last_good = Some(l.species.iter().map(|x| x.as_ref().map(SpeciesLearner::without_buffer)).collect());
     }
-    for (s, learner) in l.species.iter_mut().enumerate() {
-        let Some(learner) = learner else { continue };
-        if learner.frozen {
-            continue;
-        }
-        let b = &batches.species[s];
-        let d = b.obs_dim;
-        // Rows pair up only if the population did not change during the step.
-        if learner.pending_obs.len() == b.observations.len() {
-            for row in 0..b.n {
-                learner.buffer.push(
-                    &learner.pending_obs[row * d..(row + 1) * d],
-                    &b.actions[row * ACTION_DIM..(row + 1) * ACTION_DIM],
-                    b.rewards[row],
-                    b.observation(row),
-                );
-            }
-        }
-        let updates = p.updates_per_step + if episode_done { p.updates_per_episode } else { 0 };
-        if learner.buffer.len < p.warmup_transitions.max(1) {
-            continue;
-        }
-        for _ in 0..updates {
-            let batch = learner.buffer.sample(p.batch_size, &mut l.rng);
-            let losses = learner.ddpg.update(&l.dev, &batch);
-            learner.loss_sum.critic += losses.critic;
-            learner.loss_sum.actor += losses.actor;
-            learner.updates += 1;
-            if !losses.critic.is_finite() || !losses.actor.is_finite() || !learner.ddpg.is_finite() {
-                l.failure = Some(format!(
-                    "species {}: loss or parameters became non-finite (critic loss {}, actor loss {}) in episode {} at step {}",
-                    l.names[s], losses.critic, losses.actor, episode.index, episode.step
-                ));
-                return;
-            }
+    let updates = p.updates_per_step + if episode_done { p.updates_per_episode } else { 0 };
+    let mut work: Vec<(usize, &mut SpeciesLearner, Result<(), Losses>)> = l
+        .species
+        .iter_mut()
+        .enumerate()
+        .filter_map(|(s, x)| x.as_mut().filter(|x| !x.frozen).map(|x| (s, x, Ok(()))))
+        .collect();
+    for (s, learner, _) in &mut work {
+        learner.store(&batches.species[*s]);
+    }
+    let (warmup, batch_size) = (p.warmup_transitions.max(1), p.batch_size);
+    work.retain(|(_, learner, _)| learner.buffer.len >= warmup);
+    if updates > 0 {
+        crate::parallel::for_each_mut(&mut work, |(_, learner, result)| *result = learner.update(updates, batch_size));
+    }
+    for (s, learner, result) in work {
+        if let Err(losses) = result {
+            l.failure = Some(format!(
+                "species {}: loss or parameters became non-finite (critic loss {}, actor loss {}) in episode {} at step {}",
+                l.names[s], losses.critic, losses.actor, episode.index, episode.step
+            ));
+            return;
         }
         if episode_done {
             learner.noise_std = (learner.noise_std - p.exploration_decay).max(p.exploration_floor.min(p.noise_std));

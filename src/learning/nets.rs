@@ -147,12 +147,25 @@ impl Adam {
         let mut params = net.parameters();
         for (((p, g), m), v) in params.iter_mut().zip(gradients).zip(&mut self.m).zip(&mut self.v) {
             for i in 0..p.len() {
-                m[i] = BETA1 * m[i] + (1.0 - BETA1) * g[i];
-                v[i] = BETA2 * v[i] + (1.0 - BETA2) * g[i] * g[i];
+                m[i] = flush_subnormal(BETA1 * m[i] + (1.0 - BETA1) * g[i]);
+                v[i] = flush_subnormal(BETA2 * v[i] + (1.0 - BETA2) * g[i] * g[i]);
                 p[i] -= self.lr * (m[i] / correct1) / ((v[i] / correct2).sqrt() + EPSILON);
             }
         }
         net.set_parameters(&params);
+    }
+}
+
+/// Zero for magnitudes below f32's normal range. The moments of a parameter whose gradient stays zero (a
+/// dead ReLU unit) decay geometrically into subnormal numbers, whose arithmetic is ~100× slower on x86:
+/// in a long run Adam then took 10 % of the time. Such a moment moves its parameter by less than 1e-30
+/// of the learning rate (ε = 1e-8 dominates the denominator), so flushing it changes nothing measurable.
+#[inline]
+fn flush_subnormal(x: f32) -> f32 {
+    if x.abs() < f32::MIN_POSITIVE {
+        0.0
+    } else {
+        x
     }
 }
 

@@ -78,7 +78,7 @@ fn save_png(image: &Image, path: &Path) -> Result<(), String> {
     if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
     }
-    crate::io::write_atomically(path, |w| {
+    crate::io::write_atomically(path, crate::io::Existing::Replace, |w| {
         rgb.write_with_encoder(image::codecs::png::PngEncoder::new(w)).map_err(std::io::Error::other)
     })
     .map_err(|e| format!("{}: cannot write PNG: {e}", path.display()))

@@ -21,7 +21,7 @@ mod draw;
 mod panel;
 mod plots;
 
-use crate::learning::{LearningPlugin, Learners, Mode};
+use crate::learning::{Learners, LearningPlugin, Mode};
 use crate::scene::{Policy, Scene};
 use crate::species::SpeciesRegistry;
 use crate::{ActiveScene, SimulationPlugin};
@@ -87,6 +87,8 @@ impl Setup {
             }
         }
         scene.validate().map_err(|(field, message)| format!("{}: {field}: {message}", self.source.display()))?;
+        // The viewer registers no plugin policies of its own.
+        crate::policy::PolicyPlugins::default().check(&scene).map_err(|e| format!("{}: {e}", self.source.display()))?;
         let (mode, run) = match &self.mode {
             RunMode::Watch(run) => (Mode::Evaluate, Some(run.as_path())),
             _ => (Mode::Train, None),
@@ -172,7 +174,11 @@ impl Plugin for ViewerPlugin {
         .insert_resource(ClearColor(draw::OUTSIDE));
         app.configure_sets(Update, (ViewerSet::Control, ViewerSet::Step, ViewerSet::Draw).chain());
         app.add_systems(Update, (apply_control.in_set(ViewerSet::Control), step.in_set(ViewerSet::Step)));
-        app.add_plugins((draw::DrawPlugin { trails: o.trails, select: o.select }, plots::PlotsPlugin, panel::PanelPlugin));
+        app.add_plugins((
+            draw::DrawPlugin { trails: o.trails, select: o.select },
+            plots::PlotsPlugin,
+            panel::PanelPlugin,
+        ));
         app.add_plugins(capture::CapturePlugin { request: o.screenshot.clone() });
     }
 }
@@ -266,16 +272,19 @@ fn step(world: &mut World) {
         Box::new(move |done| done < p.steps_per_frame)
     };
     let mut done = 0;
-    while budget(done) && world.resource::<Learners>().failure.is_none() {
+    while budget(done) && world.resource::<Learners>().failure.is_none() && crate::check_state(world).is_ok() {
         world.run_schedule(FixedUpdate);
         plots::record_step(world);
         draw::record_trails(world);
         done += 1;
     }
-    if let Some(failure) = world.resource::<Learners>().failure.clone() {
+    let failure = world.resource::<Learners>().failure.clone().map(|f| format!("training stopped: {f}"));
+    // The same guard as headless runs: an unphysical state stops the world with its one-line reason.
+    let fault = crate::check_state(world).err();
+    if let Some(message) = failure.or(fault) {
         let mut c = world.resource_mut::<Control>();
         if c.error.is_none() {
-            c.error = Some(format!("training stopped: {failure}"));
+            c.error = Some(message);
         }
     }
     let mut p = world.resource_mut::<Playback>();

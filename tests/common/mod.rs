@@ -40,3 +40,8 @@ pub fn get<C: bevy::prelude::Component + Copy>(sim: &mut Simulation, id: u32) ->
     let mut q = world.query::<(&AgentId, &C)>();
     *q.iter(world).find(|(a, _)| a.0 == id).expect("agent exists").1
 }
+
+/// A simulation whose `Plugin("test")` species are decided by the test itself, writing the action batch.
+pub fn manual(scene: Scene) -> Simulation {
+    Simulation::with_plugins(scene, |app| coevo::policy::PolicyPlugins::register(app, "test"))
+}

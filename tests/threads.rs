@@ -1,0 +1,53 @@
+//! The number of worker threads decides how long a run takes, never what it computes: the species update
+//! concurrently and large populations are perceived and decided in chunks, all of it reproducible.
+//! Each run is a separate `coevo` process, so the thread count is really that process's.
+
+use std::path::Path;
+use std::process::Command;
+
+/// A short training scene: both update schedules (after every step and after the episode), and 1 200
+/// prey, more than one chunk of observation (512) and of inference (1 024) rows.
+const SCENE: &str = r#"(
+    preset: "paper",
+    seed: 5,
+    episode_steps: 6,
+    episodes: 3,
+    species: [(name: "prey", count: 1200)],
+    learning: (hidden: 16, batch_size: 32, warmup_transitions: 32, buffer_capacity: 20000,
+               updates_per_episode: 3, updates_per_step: 1, checkpoint_every: 2),
+)"#;
+
+fn train(dir: &Path, name: &str, threads: &str) -> (Vec<String>, Vec<Vec<u8>>) {
+    let run = dir.join(name);
+    let out = Command::new(env!("CARGO_BIN_EXE_coevo"))
+        .args(["--train", "--quiet", "--scene"])
+        .arg(dir.join("scene.ron"))
+        .arg("--out")
+        .arg(&run)
+        .args(["--threads", threads])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let metrics = std::fs::read_to_string(run.join("metrics.csv")).unwrap();
+    // Every column but the wall-clock one.
+    let rows = metrics.lines().map(|l| l.rsplit_once(',').unwrap().0.to_string()).collect();
+    let networks = ["predator-actor", "prey-actor", "predator-training", "prey-training"]
+        .iter()
+        .map(|f| std::fs::read(run.join(format!("checkpoint/{f}.safetensors"))).unwrap())
+        .collect();
+    (rows, networks)
+}
+
+#[test]
+fn one_two_and_three_threads_train_identical_networks_and_metrics() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("scene.ron"), SCENE).unwrap();
+    let (metrics, networks) = train(dir.path(), "one", "1");
+    assert_eq!(metrics.len(), 4, "header and three episodes");
+    assert!(metrics[3].split(',').nth(9).unwrap().parse::<f64>().unwrap().is_finite(), "updates ran: {}", metrics[3]);
+    for threads in ["2", "3"] {
+        let (m, n) = train(dir.path(), threads, threads);
+        assert_eq!(m, metrics, "metrics with {threads} threads");
+        assert!(n == networks, "networks with {threads} threads differ from one thread's");
+    }
+}
