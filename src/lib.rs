@@ -16,6 +16,7 @@
 pub mod bench;
 pub mod components;
 pub mod episode;
+pub mod experiment;
 pub mod io;
 pub mod learning;
 pub mod metrics;

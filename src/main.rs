@@ -17,7 +17,7 @@ use std::time::Duration;
 /// A flag the chosen mode does not use is refused, never ignored.
 #[derive(Parser, Debug)]
 #[command(name = "coevo", version, about, long_about = None)]
-#[command(group(ArgGroup::new("mode").args(["train", "resume", "eval", "record", "bench"]).multiple(false)))]
+#[command(group(ArgGroup::new("mode").args(["train", "resume", "eval", "record", "bench", "experiment", "plot"]).multiple(false)))]
 struct Cli {
     /// Scene file to run [default: scenes/standard.ron].
     #[arg(long, value_name = "PATH")]
@@ -63,6 +63,29 @@ struct Cli {
     /// Worker threads (default: COEVO_THREADS, else all cores). Results never depend on it.
     #[arg(long, value_name = "N")]
     threads: Option<usize>,
+
+    /// --eval: the file name of the per-step CSV inside the run folder [default: eval.csv].
+    #[arg(long, value_name = "NAME.csv")]
+    eval_out: Option<String>,
+
+    /// Run an experiment file (experiments/*.ron), or `all` of them: every preset × variant × seed as a
+    /// run under results/, resuming killed runs and skipping finished ones, then evaluations, summaries,
+    /// figures and REPRODUCTION.md.
+    #[arg(long, value_name = "FILE|all")]
+    experiment: Option<String>,
+    /// --experiment: runs at a time (each on one thread) [default: 2].
+    #[arg(long, value_name = "J")]
+    jobs: Option<usize>,
+    /// --experiment: only run index N of the experiment (what a Slurm array task runs).
+    #[arg(long, value_name = "N")]
+    task: Option<usize>,
+    /// --experiment: write a Slurm job array and a dependent aggregate job instead of running.
+    #[arg(long)]
+    emit_slurm: bool,
+    /// Regenerate summaries and figures from CSV files alone: an experiment's results folder
+    /// (results/NAME, with experiments/NAME.ron) or one run folder.
+    #[arg(long, value_name = "DIR")]
+    plot: Option<PathBuf>,
 
     /// Record a trajectory CSV: step,id,species,x,y,vx,vy,theta,thrust,turn_rate,reward.
     #[arg(long, value_name = "OUT.csv")]
@@ -118,6 +141,8 @@ enum RunMode {
     Eval,
     Record,
     Bench,
+    Experiment,
+    Plot,
     Viewer,
 }
 
@@ -129,6 +154,8 @@ impl RunMode {
             _ if cli.eval.is_some() => RunMode::Eval,
             _ if cli.record.is_some() => RunMode::Record,
             _ if cli.bench => RunMode::Bench,
+            _ if cli.experiment.is_some() => RunMode::Experiment,
+            _ if cli.plot.is_some() => RunMode::Plot,
             _ => RunMode::Viewer,
         }
     }
@@ -140,6 +167,8 @@ impl RunMode {
             RunMode::Eval => "--eval",
             RunMode::Record => "--record",
             RunMode::Bench => "--bench",
+            RunMode::Experiment => "--experiment",
+            RunMode::Plot => "--plot",
             RunMode::Viewer => "the viewer",
         }
     }
@@ -148,9 +177,11 @@ impl RunMode {
         let own: &[&str] = match self {
             RunMode::Train => &["train", "scene", "seed", "episodes", "out", "overwrite", "quiet"],
             RunMode::Resume => &["resume", "episodes", "quiet"],
-            RunMode::Eval => &["eval", "episodes", "steps", "seed", "prey", "predators", "count"],
+            RunMode::Eval => &["eval", "episodes", "steps", "seed", "prey", "predators", "count", "eval_out"],
             RunMode::Record => &["record", "run", "scene", "seed", "steps", "prey", "predators", "count", "overwrite"],
             RunMode::Bench => &["bench", "bench_seconds"],
+            RunMode::Experiment => &["experiment", "jobs", "task", "emit_slurm", "quiet"],
+            RunMode::Plot => &["plot"],
             RunMode::Viewer => &[
                 "scene",
                 "seed",
@@ -258,6 +289,7 @@ fn run(cli: Cli, mode: RunMode) -> Result<(), String> {
             let run = cli.eval.clone().expect("eval mode");
             let opts = coevo::train::EvalOptions {
                 run,
+                out: cli.eval_out.clone(),
                 counts: counts(&cli)?,
                 episodes: cli.episodes.unwrap_or(1),
                 steps: cli.steps,
@@ -316,8 +348,109 @@ fn run(cli: Cli, mode: RunMode) -> Result<(), String> {
             eprintln!("coevo: wrote {steps} steps to {}{actors}", out.display());
             Ok(())
         }
+        RunMode::Experiment => experiment(&cli),
+        RunMode::Plot => plot(cli.plot.as_deref().expect("plot mode")),
         RunMode::Viewer => viewer(&cli),
     }
+}
+
+/// Where experiments are read and their runs written.
+const EXPERIMENTS: &str = "experiments";
+const RESULTS: &str = "results";
+
+/// `--experiment FILE|all`: run, evaluate and aggregate; then REPRODUCTION.md from every experiment's
+/// results so far.
+fn experiment(cli: &Cli) -> Result<(), String> {
+    use coevo::experiment::{runner, Experiment};
+    let which = cli.experiment.as_deref().expect("experiment mode");
+    let files = match which {
+        "all" => Experiment::files(Path::new(EXPERIMENTS))?,
+        file => vec![PathBuf::from(file)],
+    };
+    let experiments = files.iter().map(|f| Experiment::load(f, Path::new(RESULTS))).collect::<Result<Vec<_>, _>>()?;
+    at_least_one("--jobs", cli.jobs)?;
+    if cli.task.is_some() && experiments.len() != 1 {
+        return Err("--task: names a run of one experiment file, not of `all`".into());
+    }
+    if cli.emit_slurm {
+        let exe = std::env::current_exe().map_err(|e| format!("cannot find the coevo binary: {e}"))?;
+        for exp in &experiments {
+            let dir = runner::emit_slurm(exp, &exe.to_string_lossy())?;
+            println!("{}: {} runs; submit with: bash {}/submit.sh", exp.name, exp.runs.len(), dir.display());
+        }
+        return Ok(());
+    }
+    let opts = runner::RunnerOptions {
+        exe: std::env::current_exe().map_err(|e| format!("cannot find the coevo binary: {e}"))?,
+        jobs: cli.jobs.unwrap_or(2),
+        progress: !cli.quiet,
+    };
+    let mut failed = None;
+    for exp in &experiments {
+        if let Err(e) = runner::run(exp, &opts, cli.task) {
+            eprintln!("coevo: {e}");
+            failed.get_or_insert(e);
+        }
+    }
+    if cli.task.is_none() {
+        write_reproduction()?;
+    }
+    failed.map_or(Ok(()), Err)
+}
+
+/// Summaries and figures of every experiment with finished runs, and REPRODUCTION.md over all of them.
+fn write_reproduction() -> Result<(), String> {
+    use coevo::experiment::{aggregate, Experiment};
+    let mut all = Vec::new();
+    for file in Experiment::files(Path::new(EXPERIMENTS))? {
+        let exp = Experiment::load(&file, Path::new(RESULTS))?;
+        let data = aggregate::load(&exp)?;
+        let seconds: f64 = data.values().map(|d| d.wall_seconds).sum();
+        let results = if data.is_empty() {
+            let presets = exp.spec.presets.clone();
+            presets
+                .iter()
+                .flat_map(|p| exp.spec.claims.iter().map(move |c| (p.clone(), c.clone())))
+                .map(|(preset, claim)| aggregate::ClaimResult {
+                    experiment: exp.name.clone(),
+                    verdict: aggregate::verdict(&claim, None),
+                    preset,
+                    claim,
+                    estimate: None,
+                })
+                .collect()
+        } else {
+            aggregate::aggregate(&exp)?
+        };
+        let finished = data.len();
+        all.push((exp, results, seconds, finished));
+    }
+    let text = aggregate::reproduction(&all);
+    let path = Path::new("REPRODUCTION.md");
+    coevo::io::write_atomically(path, Existing::Replace, |w| std::io::Write::write_all(w, text.as_bytes()))
+        .map_err(|e| format!("{}: {e}", path.display()))?;
+    eprintln!("coevo: wrote {}", path.display());
+    Ok(())
+}
+
+/// `--plot DIR`: an experiment's summaries and figures, or one run's learning curves, from CSVs alone.
+fn plot(dir: &Path) -> Result<(), String> {
+    use coevo::experiment::{aggregate, Experiment};
+    if coevo::train::is_run(dir) {
+        let path = coevo::experiment::aggregate::plot_run(dir)?;
+        eprintln!("coevo: wrote {}", path.display());
+        return Ok(());
+    }
+    let name = dir.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    let file = Path::new(EXPERIMENTS).join(format!("{name}.ron"));
+    if !file.exists() {
+        return Err(format!("--plot {}: neither a run folder nor the results of an experiment file {}", dir.display(), file.display()));
+    }
+    let results = dir.parent().unwrap_or(Path::new("."));
+    let exp = Experiment::load(&file, results)?;
+    let claims = aggregate::aggregate(&exp)?;
+    eprintln!("coevo: wrote {}/summary.csv, summary-mean.csv and figures/ ({} claims checked)", exp.root.display(), claims.len());
+    Ok(())
 }
 
 /// --prey, --predators and --count NAME=N, in that order.

@@ -240,6 +240,22 @@ pub struct ScenePatch {
     pub learning: Option<LearningParamsPatch>,
 }
 
+/// Reads RON text of a coevo file (a scene, an experiment) into `T`, with `Some` implied for optional
+/// fields, and errors in a user's words: `file:line: field: message`.
+pub fn parse_ron<T: serde::de::DeserializeOwned>(text: &str, file: &str) -> Result<T, SceneError> {
+    ron::Options::default().with_default_extension(ron::extensions::Extensions::IMPLICIT_SOME).from_str(text).map_err(|e| {
+        SceneError {
+            file: file.to_string(),
+            line: Some(e.span.start.line),
+            field: match &e.code {
+                ron::Error::NoSuchStructField { found, .. } => found.clone(),
+                _ => field_before(text, e.span.start.line, e.span.start.col),
+            },
+            message: readable(text, &e),
+        }
+    })
+}
+
 /// The largest scene file read (a real one is a few hundred bytes).
 pub const MAX_SCENE_BYTES: u64 = 1 << 20;
 
@@ -294,30 +310,28 @@ impl Scene {
 
     /// Parses, resolves and validates scene text; `file` names it in errors.
     pub fn parse(text: &str, file: &str) -> Result<Scene, SceneError> {
-        let patch: ScenePatch = ron::Options::default()
-            .with_default_extension(ron::extensions::Extensions::IMPLICIT_SOME)
-            .from_str(text)
-            .map_err(|e| SceneError {
-                file: file.to_string(),
-                line: Some(e.span.start.line),
-                field: match &e.code {
-                    ron::Error::NoSuchStructField { found, .. } => found.clone(),
-                    _ => field_before(text, e.span.start.line, e.span.start.col),
-                },
-                message: readable(text, &e),
-            })?;
-        let located = |field: String, message: String| SceneError {
-            file: file.to_string(),
-            line: locate(text, &field),
-            field,
-            message,
-        };
-        let preset_name = patch.preset.clone().unwrap_or_else(|| "paper".to_string());
+        Scene::parse_with_preset(text, file, None)
+    }
+
+    /// [`Scene::parse`], on `preset` instead of the one the text names (experiments switch a sweep's base
+    /// between the `paper` and `gym-pps` presets).
+    pub fn parse_with_preset(text: &str, file: &str, preset: Option<&str>) -> Result<Scene, SceneError> {
+        let patch: ScenePatch = parse_ron(text, file)?;
+        let located = |field: String, message: String| SceneError { file: file.to_string(), line: locate(text, &field), field, message };
+        let preset_name = preset.map(str::to_string).or_else(|| patch.preset.clone()).unwrap_or_else(|| "paper".to_string());
         let mut scene = Scene::preset(&preset_name).ok_or_else(|| {
             located("preset".into(), format!("unknown preset {preset_name:?} (known: {})", PRESETS.join(", ")))
         })?;
         scene.apply(patch).map_err(|(field, message)| located(field, message))?;
         scene.validate().map_err(|(field, message)| located(field, message))?;
+        Ok(scene)
+    }
+
+    /// Applies a scene patch (an experiment's variant) and validates the result. Err is (field, message).
+    pub fn patched(&self, patch: ScenePatch) -> Result<Scene, (String, String)> {
+        let mut scene = self.clone();
+        scene.apply(patch)?;
+        scene.validate()?;
         Ok(scene)
     }
 
@@ -827,7 +841,7 @@ fn readable(text: &str, e: &ron::error::SpannedError) -> String {
         return format!("must be a whole number (got {whole}{frac})");
     }
     if matches!(e.code, ron::Error::Eof) || unclosed(text) {
-        return "the file ends before the scene does: a closing `)` or `]` is missing, or the file was cut short"
+        return "the file ends too early: a closing `)` or `]` is missing, or the file was cut short"
             .into();
     }
     [

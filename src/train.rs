@@ -287,6 +287,8 @@ pub fn train(scene: Scene, opts: &TrainOptions) -> Result<Vec<EpisodeSummary>, S
 
 pub struct EvalOptions {
     pub run: PathBuf,
+    /// File name of the per-step CSV inside the run folder (default `eval.csv`).
+    pub out: Option<String>,
     pub counts: Vec<(String, usize)>,
     pub episodes: usize,
     pub steps: Option<usize>,
@@ -311,13 +313,17 @@ pub fn evaluate(opts: &EvalOptions) -> Result<String, String> {
         return Err("--episodes: must be ≥ 1".into());
     }
     scene.validate().map_err(|(f, m)| format!("{}: {f}: {m}", opts.run.display()))?;
+    let file_name = opts.out.as_deref().unwrap_or("eval.csv");
+    if file_name.is_empty() || file_name.contains(['/', '\\']) || file_name.starts_with('.') || !file_name.ends_with(".csv") {
+        return Err(format!("--eval-out {file_name}: must be a plain file name ending in .csv (written inside the run folder)"));
+    }
     let mut sim = learning_simulation(scene.clone(), Mode::Evaluate, Some(&opts.run))?;
     // Each episode's last step is read before the next population is spawned.
     sim.world_mut().resource_mut::<Episode>().auto_reset = false;
     let registry = sim.world().resource::<SpeciesRegistry>().clone();
     let prey = headline_species(&registry);
     let name = &registry.defs[prey].name;
-    let path = opts.run.join("eval.csv");
+    let path = opts.run.join(file_name);
     let write_err = |e: std::io::Error| format!("{}: {e}", path.display());
     let mut file = AtomicFile::create(&path, Existing::Replace).map_err(write_err)?;
     writeln!(file.writer(), "episode,step,dos_{name},doa_{name},catches").map_err(write_err)?;

@@ -143,7 +143,7 @@ fn cases() -> Vec<(Vec<&'static str>, &'static str)> {
         (vec!["--train", "--bogus"], "unexpected argument '--bogus'"),
         // Messages in a user's words.
         (vec!["--train", "--scene", "fraction.ron"], "fraction.ron:1: count: must be a whole number (got 2.5)"),
-        (vec!["--train", "--scene", "truncated.ron"], "the file ends before the scene does"),
+        (vec!["--train", "--scene", "truncated.ron"], "the file ends too early"),
         (vec!["--train", "--scene", "unknown-field.ron"], "gravity"),
         (vec!["--train", "--scene", "binary.ron"], "binary.ron: is not UTF-8 text"),
     ]

@@ -1,0 +1,325 @@
+//! From the runs' CSV files alone (never retraining): per-run summaries, means with 95 % confidence
+//! intervals over seeds, the figures, and the paper's claims checked against them.
+
+use super::plot::{self, Curve, Panel};
+use super::runner::{eval_file, stage, Stage};
+use super::stats::{estimate, mean, running_mean, Estimate};
+use super::{slug, Claim, Experiment, Quantity};
+use crate::species::SpeciesRegistry;
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+use std::path::Path;
+
+/// The paper's running-mean window, in episodes.
+pub const WINDOW: usize = 100;
+/// Steps at the end of an evaluation episode averaged as its settled state.
+pub const SETTLED_STEPS: usize = 50;
+
+/// A run's episodes (prey, or the headline species) and its evaluations.
+#[derive(Clone, Debug, Default)]
+pub struct RunData {
+    pub dos: Vec<f64>,
+    pub doa: Vec<f64>,
+    pub catches: Vec<f64>,
+    pub returns: Vec<f64>,
+    pub wall_seconds: f64,
+    /// Per evaluation: DoS and DoA per step, averaged over its episodes.
+    pub evals: BTreeMap<String, (Vec<f64>, Vec<f64>)>,
+}
+
+/// Reads a CSV file into its header and rows of numbers (blank or unreadable cells are NaN).
+fn read_csv(path: &Path) -> Result<(Vec<String>, Vec<Vec<f64>>), String> {
+    let text = crate::io::read_text(path, crate::io::MAX_TEXT_BYTES).map_err(|e| format!("{}: {e}", path.display()))?;
+    let mut lines = text.lines();
+    let header: Vec<String> = lines.next().unwrap_or("").split(',').map(str::to_string).collect();
+    let rows = lines
+        .filter(|l| !l.is_empty())
+        .map(|l| l.split(',').map(|c| c.parse::<f64>().unwrap_or(f64::NAN)).collect::<Vec<f64>>())
+        .filter(|r| r.len() == header.len())
+        .collect();
+    Ok((header, rows))
+}
+
+fn column(header: &[String], rows: &[Vec<f64>], name: &str, path: &Path) -> Result<Vec<f64>, String> {
+    let i = header.iter().position(|h| h == name).ok_or_else(|| format!("{}: no column {name}", path.display()))?;
+    Ok(rows.iter().map(|r| r[i]).collect())
+}
+
+/// The species whose DoS/DoA an experiment reports (prey in the paper's scenes).
+fn headline(exp: &Experiment) -> String {
+    let scene = &exp.runs[0].scene;
+    scene.species[crate::train::headline_species(&SpeciesRegistry::from_scene(scene))].name.clone()
+}
+
+/// The data of every finished run, by run index.
+pub fn load(exp: &Experiment) -> Result<BTreeMap<usize, RunData>, String> {
+    let prey = headline(exp);
+    let mut data = BTreeMap::new();
+    for (i, run) in exp.runs.iter().enumerate() {
+        if stage(run)? != Stage::Trained {
+            continue;
+        }
+        let path = run.dir.join("metrics.csv");
+        let (header, rows) = read_csv(&path)?;
+        let mut d = RunData {
+            dos: column(&header, &rows, &format!("dos_{prey}"), &path)?,
+            doa: column(&header, &rows, &format!("doa_{prey}"), &path)?,
+            catches: column(&header, &rows, "catches", &path)?,
+            returns: column(&header, &rows, &format!("return_{prey}"), &path)?,
+            wall_seconds: column(&header, &rows, "wall_seconds", &path)?.last().copied().unwrap_or(0.0),
+            evals: BTreeMap::new(),
+        };
+        for e in &exp.spec.evaluations {
+            let path = eval_file(&run.dir, &e.name);
+            if !path.exists() {
+                continue;
+            }
+            let (header, rows) = read_csv(&path)?;
+            let (step, dos, doa) =
+                (column(&header, &rows, "step", &path)?, column(&header, &rows, &format!("dos_{prey}"), &path)?, column(&header, &rows, &format!("doa_{prey}"), &path)?);
+            let steps = step.iter().fold(0.0f64, |a, &b| a.max(b)) as usize;
+            let per_step = |values: &[f64]| -> Vec<f64> {
+                (1..=steps)
+                    .map(|s| mean(&step.iter().zip(values).filter(|(t, v)| **t as usize == s && v.is_finite()).map(|(_, v)| *v).collect::<Vec<_>>()).unwrap_or(f64::NAN))
+                    .collect()
+            };
+            d.evals.insert(e.name.clone(), (per_step(&dos), per_step(&doa)));
+        }
+        data.insert(i, d);
+    }
+    Ok(data)
+}
+
+fn window_mean(values: &[f64], first: bool) -> f64 {
+    let n = values.len().min(WINDOW);
+    let part = if first { &values[..n] } else { &values[values.len() - n..] };
+    mean(&part.iter().copied().filter(|v| v.is_finite()).collect::<Vec<_>>()).unwrap_or(f64::NAN)
+}
+
+/// A run's value of a quantity.
+pub fn quantity(d: &RunData, q: &Quantity) -> f64 {
+    let settled = |v: &[f64]| mean(&v[v.len().saturating_sub(SETTLED_STEPS)..].iter().copied().filter(|x| x.is_finite()).collect::<Vec<_>>()).unwrap_or(f64::NAN);
+    match q {
+        Quantity::DosFirst => window_mean(&d.dos, true),
+        Quantity::DosLast => window_mean(&d.dos, false),
+        Quantity::DoaFirst => window_mean(&d.doa, true),
+        Quantity::DoaLast => window_mean(&d.doa, false),
+        Quantity::DosChange => window_mean(&d.dos, false) - window_mean(&d.dos, true),
+        Quantity::DoaChange => window_mean(&d.doa, false) - window_mean(&d.doa, true),
+        Quantity::EvalDos(e) => d.evals.get(e).map_or(f64::NAN, |(dos, _)| settled(dos)),
+        Quantity::EvalDoa(e) => d.evals.get(e).map_or(f64::NAN, |(_, doa)| settled(doa)),
+    }
+}
+
+/// A claim checked on one preset.
+#[derive(Clone, Debug)]
+pub struct ClaimResult {
+    pub experiment: String,
+    pub preset: String,
+    pub claim: Claim,
+    pub estimate: Option<Estimate>,
+    pub verdict: String,
+}
+
+/// Whether a measured estimate bears out the paper's number.
+pub fn verdict(claim: &Claim, e: Option<Estimate>) -> String {
+    let Some(e) = e else { return "not run yet".into() };
+    let Some(paper) = claim.paper else { return "measured (the paper gives no number)".into() };
+    let Some(ci) = e.ci else { return "one seed: no interval".into() };
+    let change = matches!(claim.quantity, Quantity::DosChange | Quantity::DoaChange);
+    if (e.mean - paper).abs() <= ci {
+        "holds: the paper's value is inside the 95 % CI".into()
+    } else if change && e.mean.abs() <= ci {
+        "does not hold: no significant change".into()
+    } else if change && e.mean.signum() == paper.signum() {
+        "same direction, different size".into()
+    } else if change {
+        "does not hold: opposite direction".into()
+    } else {
+        "does not hold: outside the 95 % CI".into()
+    }
+}
+
+/// Writes the summaries and figures of an experiment and returns its claims checked.
+pub fn aggregate(exp: &Experiment) -> Result<Vec<ClaimResult>, String> {
+    let data = load(exp)?;
+    let prey = headline(exp);
+    fn io(path: &Path) -> impl Fn(std::io::Error) -> String + '_ {
+        move |e| format!("{}: {e}", path.display())
+    }
+    std::fs::create_dir_all(exp.root.join("figures")).map_err(io(&exp.root))?;
+    let evals: Vec<String> = exp.spec.evaluations.iter().map(|e| e.name.clone()).collect();
+    let mut quantities: Vec<(String, Quantity)> = vec![
+        ("dos_first100".into(), Quantity::DosFirst),
+        ("dos_last100".into(), Quantity::DosLast),
+        ("doa_first100".into(), Quantity::DoaFirst),
+        ("doa_last100".into(), Quantity::DoaLast),
+    ];
+    for e in &evals {
+        quantities.push((format!("eval_{}_dos_settled", slug(e)), Quantity::EvalDos(e.clone())));
+        quantities.push((format!("eval_{}_doa_settled", slug(e)), Quantity::EvalDoa(e.clone())));
+    }
+    let mut summary = String::from("preset,variant,seed,episodes");
+    for (name, _) in &quantities {
+        write!(summary, ",{name}").unwrap();
+    }
+    summary.push_str(",catches_first100,catches_last100,return_first100,return_last100,wall_seconds\n");
+    for (i, d) in &data {
+        let r = &exp.runs[*i];
+        write!(summary, "{},{},{},{}", r.preset, r.variant, r.seed, d.dos.len()).unwrap();
+        for (_, q) in &quantities {
+            write!(summary, ",{}", quantity(d, q)).unwrap();
+        }
+        let (c0, c1, r0, r1) = (window_mean(&d.catches, true), window_mean(&d.catches, false), window_mean(&d.returns, true), window_mean(&d.returns, false));
+        writeln!(summary, ",{c0},{c1},{r0},{r1},{}", d.wall_seconds).unwrap();
+    }
+    let path = exp.root.join("summary.csv");
+    crate::io::write_atomically(&path, crate::io::Existing::Replace, |w| std::io::Write::write_all(w, summary.as_bytes())).map_err(io(&path))?;
+
+    let mut means = String::from("preset,variant,quantity,seeds,mean,ci95\n");
+    let mut results = Vec::new();
+    for preset in &exp.spec.presets {
+        let of_variant = |variant: &str| -> Vec<&RunData> {
+            data.iter().filter(|(i, _)| exp.runs[**i].preset == *preset && exp.runs[**i].variant == variant).map(|(_, d)| d).collect()
+        };
+        for v in &exp.spec.variants {
+            let runs = of_variant(&v.name);
+            for (name, q) in &quantities {
+                if let Some(e) = estimate(&runs.iter().map(|d| quantity(d, q)).filter(|x| x.is_finite()).collect::<Vec<_>>()) {
+                    let ci = e.ci.map_or(String::new(), |c| c.to_string());
+                    writeln!(means, "{preset},{},{name},{},{},{ci}", v.name, e.n, e.mean).unwrap();
+                }
+            }
+        }
+        for claim in &exp.spec.claims {
+            let samples: Vec<f64> = of_variant(&claim.variant).iter().map(|d| quantity(d, &claim.quantity)).filter(|x| x.is_finite()).collect();
+            let e = estimate(&samples);
+            results.push(ClaimResult { experiment: exp.name.clone(), preset: preset.clone(), claim: claim.clone(), estimate: e, verdict: verdict(claim, e) });
+        }
+        figures(exp, preset, &prey, &of_variant)?;
+    }
+    let path = exp.root.join("summary-mean.csv");
+    crate::io::write_atomically(&path, crate::io::Existing::Replace, |w| std::io::Write::write_all(w, means.as_bytes())).map_err(io(&path))?;
+    Ok(results)
+}
+
+/// Mean and 95 % band over seeds, point by point, of equally long series (cut to the shortest).
+fn band(series: &[Vec<f64>], label: &str, x0: f64) -> Option<Curve> {
+    let len = series.iter().map(Vec::len).min()?;
+    let (mut m, mut lo, mut hi) = (vec![], vec![], vec![]);
+    for t in 0..len {
+        let e = estimate(&series.iter().map(|s| s[t]).filter(|x| x.is_finite()).collect::<Vec<_>>());
+        let (mean, ci) = e.map_or((f64::NAN, 0.0), |e| (e.mean, e.ci.unwrap_or(0.0)));
+        m.push(mean);
+        lo.push(mean - ci);
+        hi.push(mean + ci);
+    }
+    let seeds = series.len();
+    let label = format!("{label} ({seeds} seed{})", if seeds == 1 { "" } else { "s" });
+    Some(Curve { label, x: (0..len).map(|t| x0 + t as f64).collect(), mean: m, band: (seeds > 1).then_some((lo, hi)) })
+}
+
+fn figures<'a>(exp: &Experiment, preset: &str, prey: &str, of_variant: &dyn Fn(&str) -> Vec<&'a RunData>) -> Result<(), String> {
+    let dir = exp.root.join("figures");
+    let curves = |pick: &dyn Fn(&RunData) -> Vec<f64>, x0: f64| -> Vec<Curve> {
+        exp.spec.variants.iter().filter_map(|v| band(&of_variant(&v.name).iter().map(|d| pick(d)).filter(|s| !s.is_empty()).collect::<Vec<_>>(), &v.name, x0)).collect()
+    };
+    let title = |what: &str| format!("{}, {preset}: {what}", exp.name);
+    let training = [
+        Panel { title: title(&format!("DoS of {prey}")), x_label: "episode".into(), y_label: format!("DoS ({WINDOW}-episode mean)"), curves: curves(&|d| running_mean(&d.dos, WINDOW), 1.0) },
+        Panel { title: title(&format!("DoA of {prey}")), x_label: "episode".into(), y_label: format!("DoA ({WINDOW}-episode mean)"), curves: curves(&|d| running_mean(&d.doa, WINDOW), 1.0) },
+    ];
+    if training.iter().all(|p| p.curves.is_empty()) {
+        return Ok(());
+    }
+    plot::save(&dir.join(format!("{preset}-training")), &training)?;
+    let catches = [Panel {
+        title: title("catches per episode"),
+        x_label: "episode".into(),
+        y_label: format!("catches ({WINDOW}-episode mean)"),
+        curves: curves(&|d| running_mean(&d.catches, WINDOW), 1.0),
+    }];
+    plot::save(&dir.join(format!("{preset}-catches")), &catches)?;
+    for e in &exp.spec.evaluations {
+        let panels = [
+            Panel { title: title(&format!("{}: DoS per step", e.name)), x_label: "time step".into(), y_label: "DoS".into(), curves: curves(&|d| d.evals.get(&e.name).map_or(vec![], |x| x.0.clone()), 1.0) },
+            Panel { title: title(&format!("{}: DoA per step", e.name)), x_label: "time step".into(), y_label: "DoA".into(), curves: curves(&|d| d.evals.get(&e.name).map_or(vec![], |x| x.1.clone()), 1.0) },
+        ];
+        if panels.iter().any(|p| !p.curves.is_empty()) {
+            plot::save(&dir.join(format!("{preset}-eval-{}", slug(&e.name))), &panels)?;
+        }
+    }
+    Ok(())
+}
+
+/// REPRODUCTION.md: every claim of the experiments, the paper's number, ours with its interval, the
+/// command that produced it and the verdict.
+pub fn reproduction(experiments: &[(Experiment, Vec<ClaimResult>, f64, usize)]) -> String {
+    let mut md = String::from(
+        "# Reproduction of Li, Li & Zhao (NJP 2023)\n\n\
+         Generated by `coevo --experiment all` (or `coevo --plot results/<experiment>` for one) from the runs' CSV files under \
+         `results/`; do not edit by hand. Each number is the mean over seeds of the prey's 100-episode means (first or last 100 \
+         episodes of training) or of an evaluation's last 50 steps, ± the half-width of its 95 % confidence interval (Student t \
+         over seeds). A claim *holds* when the paper's value lies inside that interval. Nothing in the metrics, rewards or \
+         physics was tuned toward a claim; see the README's \"Does it learn?\" for what the numbers mean.\n\n",
+    );
+    md.push_str("| experiment | preset | claim (the paper) | quantity | paper | coevo (mean ± 95 % CI, seeds) | verdict |\n|---|---|---|---|---|---|---|\n");
+    for (exp, results, _, _) in experiments {
+        for r in results {
+            let ours = match r.estimate {
+                Some(e) => format!("{:.3}{} ({})", e.mean, e.ci.map_or(String::new(), |c| format!(" ± {c:.3}")), e.n),
+                None => "–".into(),
+            };
+            let paper = r.claim.paper.map_or("–".into(), |p| format!("{p:.3}"));
+            writeln!(md, "| {} | {} | {} | {} of `{}` | {paper} | {ours} | {} |", exp.name, r.preset, r.claim.text, quantity_name(&r.claim.quantity), r.claim.variant, r.verdict).unwrap();
+        }
+    }
+    md.push_str("\n## How each was produced\n\n| experiment | command | runs finished | training time (sum over runs) | figures |\n|---|---|---|---|---|\n");
+    for (exp, _, seconds, finished) in experiments {
+        writeln!(
+            md,
+            "| {} | `coevo --experiment {} --jobs 2` | {finished} of {} | {:.1} h | `{}/figures/` |",
+            exp.name,
+            exp.file.display(),
+            exp.runs.len(),
+            seconds / 3600.0,
+            exp.root.display()
+        )
+        .unwrap();
+    }
+    md
+}
+
+fn quantity_name(q: &Quantity) -> String {
+    match q {
+        Quantity::DosFirst => "DoS, first 100 episodes".into(),
+        Quantity::DosLast => "DoS, last 100 episodes".into(),
+        Quantity::DoaFirst => "DoA, first 100 episodes".into(),
+        Quantity::DoaLast => "DoA, last 100 episodes".into(),
+        Quantity::DosChange => "DoS change, last − first 100".into(),
+        Quantity::DoaChange => "DoA change, last − first 100".into(),
+        Quantity::EvalDos(e) => format!("DoS settled in evaluation \"{e}\""),
+        Quantity::EvalDoa(e) => format!("DoA settled in evaluation \"{e}\""),
+    }
+}
+
+/// One run's learning curves (DoS and DoA of the headline species, 100-episode running means) into
+/// `RUN/figures/training.png`, from its `metrics.csv`.
+pub fn plot_run(dir: &Path) -> Result<std::path::PathBuf, String> {
+    let scene = crate::Scene::load(&dir.join("scene.ron")).map_err(|e| e.to_string())?;
+    let prey = scene.species[crate::train::headline_species(&SpeciesRegistry::from_scene(&scene))].name.clone();
+    let path = dir.join("metrics.csv");
+    let (header, rows) = read_csv(&path)?;
+    let curve = |name: &str| -> Result<Vec<Curve>, String> {
+        let values = running_mean(&column(&header, &rows, name, &path)?, WINDOW);
+        Ok(vec![Curve { label: dir.display().to_string(), x: (1..=values.len()).map(|x| x as f64).collect(), mean: values, band: None }])
+    };
+    let panels = [
+        Panel { title: format!("DoS of {prey}"), x_label: "episode".into(), y_label: format!("DoS ({WINDOW}-episode mean)"), curves: curve(&format!("dos_{prey}"))? },
+        Panel { title: format!("DoA of {prey}"), x_label: "episode".into(), y_label: format!("DoA ({WINDOW}-episode mean)"), curves: curve(&format!("doa_{prey}"))? },
+    ];
+    let figures = dir.join("figures");
+    std::fs::create_dir_all(&figures).map_err(|e| format!("{}: {e}", figures.display()))?;
+    plot::save(&figures.join("training"), &panels)?;
+    Ok(figures.join("training.png"))
+}

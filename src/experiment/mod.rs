@@ -1,0 +1,225 @@
+//! Experiments: the paper's sweeps as files (`experiments/*.ron`), run as independent training runs, then
+//! evaluated, aggregated over seeds (mean and Student-t 95 % confidence interval) and plotted.
+//!
+//! ```ron
+//! (
+//!     description: "Effect of the speed limit ratio predator:prey (the paper's Fig. 10)",
+//!     base: "scenes/standard.ron",          // the scene every variant starts from
+//!     presets: ["paper", "gym-pps"],        // the base is run on each preset (default ["paper"])
+//!     seeds: [1, 2, 3],
+//!     episodes: 2000,                       // optional: overrides the base scene's
+//!     variants: [
+//!         (name: "1:1"),                                                    // the base as it is
+//!         (name: "5:3", patch: (species: [(name: "prey", max_speed: 0.3)])), // a scene patch
+//!     ],
+//!     evaluations: [(name: "50 prey", counts: [("prey", 50)], episodes: 3, steps: 500)],
+//!     claims: [ /* the paper's numbers this experiment tests, see `Claim` */ ],
+//! )
+//! ```
+//!
+//! Every preset × variant × seed is one run folder, `results/<experiment>/<preset>/<variant>/seed<k>/`,
+//! trained by `coevo --train` in a child process with one thread (so results never depend on how many run
+//! at once), resumed from its checkpoint when it was killed, skipped when finished ([`runner`]). Then the
+//! evaluations write `eval-<name>.csv` beside it, and [`aggregate`] reads only CSV files to write
+//! `summary.csv`, `summary-mean.csv` and the figures ([`plot`]).
+
+pub mod aggregate;
+pub mod plot;
+pub mod runner;
+pub mod stats;
+
+use crate::scene::{parse_ron, Scene, ScenePatch, PRESETS};
+use serde::Deserialize;
+use std::path::{Path, PathBuf};
+
+/// An experiment file as written.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ExperimentFile {
+    #[serde(default)]
+    pub description: String,
+    /// The scene file every variant starts from.
+    pub base: String,
+    #[serde(default = "default_presets")]
+    pub presets: Vec<String>,
+    pub seeds: Vec<u64>,
+    #[serde(default)]
+    pub episodes: Option<usize>,
+    pub variants: Vec<VariantFile>,
+    #[serde(default)]
+    pub evaluations: Vec<Evaluation>,
+    #[serde(default)]
+    pub claims: Vec<Claim>,
+}
+
+fn default_presets() -> Vec<String> {
+    vec!["paper".into()]
+}
+
+/// A named change of the base scene.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct VariantFile {
+    pub name: String,
+    #[serde(default)]
+    pub patch: ScenePatch,
+}
+
+/// How the trained policies of every run are deployed (`coevo --eval`): species counts, episodes and
+/// steps; its per-step DoS/DoA land in `eval-<name>.csv`.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Evaluation {
+    pub name: String,
+    /// Species counts for the evaluation, e.g. `[("prey", 50), ("predator", 0)]`.
+    #[serde(default)]
+    pub counts: Vec<(String, usize)>,
+    #[serde(default = "three")]
+    pub episodes: usize,
+    /// Steps per episode (default: the scene's).
+    #[serde(default)]
+    pub steps: Option<usize>,
+}
+
+fn three() -> usize {
+    3
+}
+
+/// One quantitative statement of the paper this experiment tests, for REPRODUCTION.md.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Claim {
+    /// The paper's words.
+    pub text: String,
+    pub variant: String,
+    pub quantity: Quantity,
+    /// The paper's number, when it gives one.
+    #[serde(default)]
+    pub paper: Option<f64>,
+}
+
+/// A number the aggregate computes per run (prey, or the experiment's headline species).
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+pub enum Quantity {
+    /// Mean of the first / last 100 episodes of training.
+    DosFirst,
+    DosLast,
+    DoaFirst,
+    DoaLast,
+    /// Last 100 minus first 100 (the paper's "falls from … to …").
+    DosChange,
+    DoaChange,
+    /// The evaluation's mean over its last 50 steps (the trained policies' settled state).
+    EvalDos(String),
+    EvalDoa(String),
+}
+
+/// One run of an experiment.
+#[derive(Clone, Debug)]
+pub struct Run {
+    pub preset: String,
+    pub variant: String,
+    pub seed: u64,
+    /// The variant's resolved scene, seed applied.
+    pub scene: Scene,
+    pub dir: PathBuf,
+}
+
+/// A loaded and validated experiment.
+#[derive(Clone, Debug)]
+pub struct Experiment {
+    pub name: String,
+    pub file: PathBuf,
+    pub spec: ExperimentFile,
+    /// `results/<name>`.
+    pub root: PathBuf,
+    /// Every preset × variant × seed, in that order.
+    pub runs: Vec<Run>,
+}
+
+/// A folder-safe version of a variant name ("5:3" → "5-3").
+pub fn slug(name: &str) -> String {
+    name.chars().map(|c| if c.is_ascii_alphanumeric() || c == '.' || c == '_' { c } else { '-' }).collect()
+}
+
+impl Experiment {
+    /// Loads an experiment file and resolves every run's scene; errors are one line naming the file and
+    /// the field, as for scenes.
+    pub fn load(file: &Path, results: &Path) -> Result<Experiment, String> {
+        let shown = file.display().to_string();
+        let text = crate::io::read_text(file, crate::scene::MAX_SCENE_BYTES).map_err(|e| format!("{shown}: {e}"))?;
+        let spec: ExperimentFile = parse_ron(&text, &shown).map_err(|e| e.to_string())?;
+        let name = file.file_stem().map_or("experiment".into(), |s| s.to_string_lossy().into_owned());
+        let err = |field: &str, message: String| format!("{shown}: {field}: {message}");
+        if spec.seeds.is_empty() {
+            return Err(err("seeds", "an experiment needs at least one seed".into()));
+        }
+        if spec.variants.is_empty() {
+            return Err(err("variants", "an experiment needs at least one variant".into()));
+        }
+        for (i, v) in spec.variants.iter().enumerate() {
+            if v.name.is_empty() || spec.variants[..i].iter().any(|o| slug(&o.name) == slug(&v.name)) {
+                return Err(err(&format!("variants[{}]", v.name), "variant names must be non-empty and distinct".into()));
+            }
+        }
+        for (i, e) in spec.evaluations.iter().enumerate() {
+            if e.name.is_empty() || spec.evaluations[..i].iter().any(|o| slug(&o.name) == slug(&e.name)) {
+                return Err(err("evaluations", "evaluation names must be non-empty and distinct".into()));
+            }
+            if e.episodes == 0 || e.steps == Some(0) {
+                return Err(err(&format!("evaluations[{}]", e.name), "episodes and steps must be ≥ 1".into()));
+            }
+        }
+        for c in &spec.claims {
+            if !spec.variants.iter().any(|v| v.name == c.variant) {
+                return Err(err("claims", format!("no variant named {:?}", c.variant)));
+            }
+            if let Quantity::EvalDos(e) | Quantity::EvalDoa(e) = &c.quantity {
+                if !spec.evaluations.iter().any(|x| &x.name == e) {
+                    return Err(err("claims", format!("no evaluation named {e:?}")));
+                }
+            }
+        }
+        let base_text = crate::io::read_text(Path::new(&spec.base), crate::scene::MAX_SCENE_BYTES)
+            .map_err(|e| err("base", format!("{}: {e}", spec.base)))?;
+        let root = results.join(&name);
+        let mut runs = Vec::new();
+        for preset in &spec.presets {
+            if !PRESETS.contains(&preset.as_str()) {
+                return Err(err("presets", format!("unknown preset {preset:?} (known: {})", PRESETS.join(", "))));
+            }
+            let base = Scene::parse_with_preset(&base_text, &spec.base, Some(preset)).map_err(|e| err("base", e.to_string()))?;
+            for v in &spec.variants {
+                let mut scene = base.patched(v.patch.clone()).map_err(|(f, m)| err(&format!("variants[{}]", v.name), format!("{f}: {m}")))?;
+                if let Some(episodes) = spec.episodes {
+                    scene.episodes = episodes;
+                }
+                for e in &spec.evaluations {
+                    let mut deployed = scene.clone();
+                    for (species, n) in &e.counts {
+                        deployed.set_count(species, *n).map_err(|m| err(&format!("evaluations[{}]", e.name), m))?;
+                    }
+                    deployed.validate().map_err(|(f, m)| err(&format!("evaluations[{}]", e.name), format!("{f}: {m}")))?;
+                }
+                for &seed in &spec.seeds {
+                    let mut scene = scene.clone();
+                    scene.seed = seed;
+                    let dir = root.join(preset).join(slug(&v.name)).join(format!("seed{seed}"));
+                    runs.push(Run { preset: preset.clone(), variant: v.name.clone(), seed, scene, dir });
+                }
+            }
+        }
+        Ok(Experiment { name, file: file.to_path_buf(), spec, root, runs })
+    }
+
+    /// Every experiment file under `dir`, sorted.
+    pub fn files(dir: &Path) -> Result<Vec<PathBuf>, String> {
+        let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
+            .map_err(|e| format!("{}: {e}", dir.display()))?
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .filter(|p| p.extension().is_some_and(|e| e == "ron"))
+            .collect();
+        files.sort();
+        Ok(files)
+    }
+}

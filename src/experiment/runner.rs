@@ -1,0 +1,206 @@
+//! Runs an experiment's runs, `jobs` at a time, each as a `coevo` child process on one thread: train (or
+//! resume a killed run from its checkpoint, or skip a finished one), then its evaluations. Everything a
+//! child writes is atomic or checkpointed, so the experiment can be killed at any moment and run again
+//! to continue; no finished run is redone.
+
+use super::{slug, Experiment, Run};
+use crate::learning::checkpoint::TrainingState;
+use indicatif::{ProgressBar, ProgressStyle};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::Mutex;
+
+pub struct RunnerOptions {
+    /// The `coevo` binary the runs are started with.
+    pub exe: PathBuf,
+    /// Runs at a time.
+    pub jobs: usize,
+    pub progress: bool,
+}
+
+/// Where a run folder stands.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Stage {
+    /// Nothing yet.
+    Fresh,
+    /// Started, killed before its first checkpoint: started again.
+    Unsaved,
+    /// Checkpointed part of the way: resumed.
+    Partial(usize),
+    /// All episodes trained.
+    Trained,
+}
+
+/// The variant's resolved scene file, which fresh runs are trained from.
+fn variant_scene(run: &Run) -> PathBuf {
+    run.dir.parent().expect("runs live in a variant folder").join("scene.ron")
+}
+
+/// The stage of a run, and a refusal when its folder holds a run of another scene (the experiment file
+/// changed under it: coevo never mixes the two).
+pub fn stage(run: &Run) -> Result<Stage, String> {
+    if !crate::train::is_run(&run.dir) {
+        return Ok(Stage::Fresh);
+    }
+    let shown = run.dir.display();
+    let state = run.dir.join("checkpoint/state.ron");
+    if !state.exists() {
+        return Ok(Stage::Unsaved);
+    }
+    let text = crate::io::read_text(&state, crate::io::MAX_TEXT_BYTES).map_err(|e| format!("{}: {e}", state.display()))?;
+    let state: TrainingState = ron::from_str(&text).map_err(|e| format!("{shown}: corrupt checkpoint state ({e})"))?;
+    let mut theirs = state.scene.clone();
+    theirs.episodes = run.scene.episodes;
+    if theirs != run.scene {
+        return Err(format!("{shown}: holds a run of another scene than the experiment's; move it away to rerun it"));
+    }
+    Ok(if state.episodes_done >= run.scene.episodes { Stage::Trained } else { Stage::Partial(state.episodes_done) })
+}
+
+/// The file an evaluation of a run writes.
+pub fn eval_file(dir: &Path, evaluation: &str) -> PathBuf {
+    dir.join(format!("eval-{}.csv", slug(evaluation)))
+}
+
+/// Runs one child process; Err is its one-line error.
+fn child(exe: &Path, args: &[String]) -> Result<(), String> {
+    let out = Command::new(exe).args(args).output().map_err(|e| format!("{}: cannot start: {e}", exe.display()))?;
+    if out.status.success() {
+        Ok(())
+    } else {
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        Err(stderr.lines().rev().find(|l| !l.trim().is_empty()).unwrap_or("failed without a message").to_string())
+    }
+}
+
+/// Trains (or resumes) one run and runs its missing evaluations.
+pub fn complete_run(exp: &Experiment, run: &Run, exe: &Path) -> Result<(), String> {
+    let dir = run.dir.to_string_lossy().into_owned();
+    let common = ["--quiet".to_string(), "--threads".into(), "1".into()];
+    let train: Option<Vec<String>> = match stage(run)? {
+        Stage::Trained => None,
+        Stage::Partial(_) => Some(vec!["--resume".into(), dir.clone(), "--episodes".into(), run.scene.episodes.to_string()]),
+        s @ (Stage::Fresh | Stage::Unsaved) => {
+            let mut args = vec!["--train".into(), "--scene".into(), variant_scene(run).to_string_lossy().into_owned()];
+            args.extend(["--seed".into(), run.seed.to_string(), "--out".into(), dir.clone()]);
+            if s == Stage::Unsaved {
+                args.push("--overwrite".into());
+            }
+            Some(args)
+        }
+    };
+    if let Some(mut args) = train {
+        args.extend(common.iter().cloned());
+        child(exe, &args).map_err(|e| format!("{dir}: {e}"))?;
+    }
+    for e in &exp.spec.evaluations {
+        let out = eval_file(&run.dir, &e.name);
+        if out.exists() {
+            continue;
+        }
+        let mut args = vec!["--eval".into(), dir.clone(), "--episodes".into(), e.episodes.to_string()];
+        if let Some(steps) = e.steps {
+            args.extend(["--steps".into(), steps.to_string()]);
+        }
+        for (species, n) in &e.counts {
+            args.extend(["--count".into(), format!("{species}={n}")]);
+        }
+        args.extend(["--eval-out".into(), out.file_name().expect("a file").to_string_lossy().into_owned(), "--threads".into(), "1".into()]);
+        child(exe, &args).map_err(|err| format!("{dir}: evaluation {}: {err}", e.name))?;
+    }
+    Ok(())
+}
+
+/// Writes every variant's resolved scene (the seed is set per run), refusing runs of other scenes first.
+fn prepare(exp: &Experiment) -> Result<(), String> {
+    for run in &exp.runs {
+        stage(run)?;
+    }
+    for run in exp.runs.iter().filter(|r| r.seed == exp.spec.seeds[0]) {
+        let path = variant_scene(run);
+        std::fs::create_dir_all(path.parent().expect("in a folder")).map_err(|e| format!("{}: {e}", path.display()))?;
+        crate::io::write_atomically(&path, crate::io::Existing::Replace, |w| std::io::Write::write_all(w, run.scene.to_ron().as_bytes()))
+            .map_err(|e| format!("{}: {e}", path.display()))?;
+    }
+    Ok(())
+}
+
+/// Runs the experiment's runs (all, or only `only`, an index into `exp.runs` as a Slurm array task
+/// does), `jobs` at a time. Every run is attempted; Err lists the ones that failed.
+pub fn run(exp: &Experiment, opts: &RunnerOptions, only: Option<usize>) -> Result<(), String> {
+    prepare(exp)?;
+    let runs: Vec<&Run> = match only {
+        Some(i) => vec![exp.runs.get(i).ok_or_else(|| format!("--task {i}: the experiment has runs 0 to {}", exp.runs.len() - 1))?],
+        None => exp.runs.iter().collect(),
+    };
+    let bar = if opts.progress { ProgressBar::new(runs.len() as u64) } else { ProgressBar::hidden() };
+    bar.set_style(ProgressStyle::with_template("{bar:30} {pos}/{len} runs  {elapsed} elapsed, ETA {eta}  {msg}").expect("valid template"));
+    bar.set_message(exp.name.clone());
+    let already = runs.iter().filter(|r| stage(r) == Ok(Stage::Trained) && exp.spec.evaluations.iter().all(|e| eval_file(&r.dir, &e.name).exists())).count();
+    bar.set_position(already as u64);
+    bar.reset_eta();
+    let next = AtomicUsize::new(0);
+    let failures = Mutex::new(Vec::new());
+    std::thread::scope(|scope| {
+        for _ in 0..opts.jobs.clamp(1, runs.len().max(1)) {
+            scope.spawn(|| loop {
+                let i = next.fetch_add(1, Ordering::SeqCst);
+                let Some(run) = runs.get(i) else { break };
+                let finished = stage(run) == Ok(Stage::Trained) && exp.spec.evaluations.iter().all(|e| eval_file(&run.dir, &e.name).exists());
+                if finished {
+                    continue;
+                }
+                match complete_run(exp, run, &opts.exe) {
+                    Ok(()) => bar.inc(1),
+                    Err(e) => {
+                        bar.println(format!("coevo: {e}"));
+                        failures.lock().expect("no panics while holding it").push(e);
+                    }
+                }
+            });
+        }
+    });
+    bar.finish();
+    let failures = failures.into_inner().expect("threads joined");
+    match failures.len() {
+        0 => Ok(()),
+        n => Err(format!("{n} of {} runs of {} failed; first: {}", runs.len(), exp.name, failures[0])),
+    }
+}
+
+/// A Slurm job array (one task per run) and a dependent aggregate job, for the same experiment file on a
+/// cluster. Written to `results/<experiment>/slurm/`; `submit.sh` submits both.
+pub fn emit_slurm(exp: &Experiment, exe: &str) -> Result<PathBuf, String> {
+    let dir = exp.root.join("slurm");
+    std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    let file = exp.file.display();
+    let last = exp.runs.len() - 1;
+    let array = format!(
+        "#!/bin/bash\n#SBATCH --job-name={name}\n#SBATCH --array=0-{last}\n#SBATCH --cpus-per-task=1\n#SBATCH --mem=2G\n\
+         #SBATCH --time=02:00:00\n#SBATCH --output={root}/slurm/%A_%a.log\n\
+         # One run of the experiment (train, resume or skip, then its evaluations) per array task.\n\
+         {exe} --experiment {file} --task $SLURM_ARRAY_TASK_ID --quiet\n",
+        name = exp.name,
+        root = exp.root.display(),
+    );
+    let aggregate = format!(
+        "#!/bin/bash\n#SBATCH --job-name={name}-aggregate\n#SBATCH --cpus-per-task=1\n#SBATCH --mem=4G\n#SBATCH --time=00:30:00\n\
+         #SBATCH --output={root}/slurm/aggregate.log\n# Summaries and figures from the runs' CSV files.\n{exe} --plot {root}\n",
+        name = exp.name,
+        root = exp.root.display(),
+    );
+    let submit = format!(
+        "#!/bin/bash\n# Submits the runs as a job array, then the aggregation once every run has succeeded.\nset -euo pipefail\n\
+         cd \"$(dirname \"$0\")/{up}\"\njid=$(sbatch --parsable {root}/slurm/array.sh)\n\
+         sbatch --dependency=afterok:$jid {root}/slurm/aggregate.sh\n",
+        up = "../".repeat(exp.root.components().count() + 1),
+        root = exp.root.display(),
+    );
+    for (name, text) in [("array.sh", array), ("aggregate.sh", aggregate), ("submit.sh", submit)] {
+        let path = dir.join(name);
+        crate::io::write_atomically(&path, crate::io::Existing::Replace, |w| std::io::Write::write_all(w, text.as_bytes()))
+            .map_err(|e| format!("{}: {e}", path.display()))?;
+    }
+    Ok(dir)
+}

@@ -1,0 +1,144 @@
+//! The experiment layer end to end on a tiny experiment (2 variants × 2 seeds × 3 short episodes): files
+//! and their errors, runs at one and two at a time, a kill and a rerun, summaries, figures, Slurm.
+
+use coevo::experiment::{Experiment, Quantity};
+use std::path::Path;
+use std::process::Command;
+
+const TINY: &str = r#"(
+    description: "a tiny sweep",
+    base: "scenes/standard.ron",
+    seeds: [1, 2],
+    episodes: 3,
+    variants: [
+        (name: "1:1", patch: (episode_steps: 30, learning: (hidden: 16, batch_size: 32, warmup_transitions: 32, updates_per_episode: 3, checkpoint_every: 1))),
+        (name: "5:3", patch: (episode_steps: 30, species: [(name: "prey", max_speed: 0.1)], learning: (hidden: 16, batch_size: 32, warmup_transitions: 32, updates_per_episode: 3, checkpoint_every: 1))),
+    ],
+    evaluations: [(name: "50 prey", counts: [("prey", 50)], episodes: 2, steps: 20)],
+    claims: [(text: "DoS falls", variant: "5:3", quantity: DosChange, paper: -0.03)],
+)"#;
+
+/// A working folder with the project's scenes and the tiny experiment.
+fn workspace() -> tempfile::TempDir {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::create_dir_all(dir.path().join("scenes")).unwrap();
+    std::fs::create_dir_all(dir.path().join("experiments")).unwrap();
+    std::fs::copy("scenes/standard.ron", dir.path().join("scenes/standard.ron")).unwrap();
+    std::fs::write(dir.path().join("experiments/tiny.ron"), TINY).unwrap();
+    dir
+}
+
+fn coevo(dir: &Path, args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_coevo")).args(args).current_dir(dir).output().unwrap()
+}
+
+#[test]
+fn experiment_files_expand_to_runs_and_bad_ones_are_one_line() {
+    let dir = workspace();
+    // Paths inside experiment files are relative to the working folder (here the repository's).
+    let exp = Experiment::load(&dir.path().join("experiments/tiny.ron"), Path::new("results")).unwrap();
+    assert_eq!(exp.runs.len(), 4, "1 preset × 2 variants × 2 seeds");
+    assert_eq!(exp.runs[2].dir, Path::new("results/tiny/paper/5-3/seed1"));
+    assert_eq!((exp.runs[2].scene.species[1].max_speed, exp.runs[2].scene.episodes, exp.runs[3].scene.seed), (0.1, 3, 2));
+    assert_eq!(exp.spec.claims[0].quantity, Quantity::DosChange);
+
+    // Every shipped experiment file loads.
+    for file in Experiment::files(Path::new("experiments")).unwrap() {
+        Experiment::load(&file, Path::new("results")).unwrap_or_else(|e| panic!("{e}"));
+    }
+
+    for (text, expected) in [
+        (TINY.replace("seeds: [1, 2]", "seeds: []"), "bad.ron: seeds: an experiment needs at least one seed"),
+        (TINY.replace("max_speed: 0.1", "max_speed: -1.0"), "bad.ron: variants[5:3]: species[prey].max_speed: must be a finite number > 0"),
+        (TINY.replace("description", "descripton"), "bad.ron:2: descripton:"),
+        (TINY.replace("variant: \"5:3\"", "variant: \"7:3\""), "bad.ron: claims: no variant named \"7:3\""),
+        (TINY.replace("(\"prey\", 50)", "(\"hawk\", 50)"), "evaluations[50 prey]: no species named \"hawk\""),
+        (TINY.replace("scenes/standard.ron", "scenes/none.ron"), "bad.ron: base: scenes/none.ron: cannot read"),
+    ] {
+        std::fs::write(dir.path().join("experiments/bad.ron"), text).unwrap();
+        let out = coevo(dir.path(), &["--experiment", "experiments/bad.ron"]);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success() && stderr.lines().count() == 1 && stderr.contains(expected), "{expected}: {stderr}");
+        assert!(!dir.path().join("results").exists(), "nothing written for a bad file");
+    }
+}
+
+/// The summary without its wall-clock column.
+fn summary(dir: &Path) -> Vec<String> {
+    let text = std::fs::read_to_string(dir.join("results/tiny/summary.csv")).unwrap();
+    text.lines().map(|l| l.rsplit_once(',').unwrap().0.to_string()).collect()
+}
+
+#[test]
+fn a_tiny_experiment_runs_resumes_and_gives_the_same_summary_at_one_or_two_jobs() {
+    let two = workspace();
+    let out = coevo(two.path(), &["--experiment", "experiments/tiny.ron", "--jobs", "2"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let rows = summary(two.path());
+    assert_eq!(rows.len(), 5, "header and four runs: {rows:?}");
+    assert!(rows[0].starts_with("preset,variant,seed,episodes,dos_first100,dos_last100,doa_first100,doa_last100,eval_50-prey_dos_settled"));
+    for row in &rows[1..] {
+        assert!(row.split(',').skip(3).all(|c| c.parse::<f64>().is_ok_and(f64::is_finite)), "{row}");
+    }
+    let means = std::fs::read_to_string(two.path().join("results/tiny/summary-mean.csv")).unwrap();
+    assert!(means.lines().any(|l| l.starts_with("paper,5:3,dos_last100,2,")), "{means}");
+    let md = std::fs::read_to_string(two.path().join("REPRODUCTION.md")).unwrap();
+    assert!(md.contains("| tiny | paper | DoS falls | DoS change, last − first 100 of `5:3` | -0.030 |"), "{md}");
+    for figure in ["paper-training.png", "paper-catches.png", "paper-eval-50-prey.png"] {
+        let bytes = std::fs::read(two.path().join("results/tiny/figures").join(figure)).unwrap();
+        let png = resvg::tiny_skia::Pixmap::decode_png(&bytes).unwrap();
+        assert!(png.width() >= 600 && png.height() >= 400, "{figure}");
+        let distinct: std::collections::BTreeSet<[u8; 4]> = png.pixels().iter().map(|p| [p.red(), p.green(), p.blue(), p.alpha()]).collect();
+        assert!(distinct.len() > 20, "{figure} is not blank");
+    }
+
+    // One job at a time: the same summary.
+    let one = workspace();
+    assert!(coevo(one.path(), &["--experiment", "experiments/tiny.ron", "--jobs", "1"]).status.success());
+    assert_eq!(summary(one.path()), rows);
+
+    // A kill: one run stopped at its checkpoint after 2 of 3 episodes, another before its first
+    // checkpoint, and an evaluation not yet written. The rerun resumes, restarts and evaluates only those.
+    let seed1 = one.path().join("results/tiny/paper/1-1/seed1");
+    let finished = one.path().join("results/tiny/paper/5-3/seed2");
+    let untouched = std::fs::metadata(finished.join("metrics.csv")).unwrap().modified().unwrap();
+    std::fs::remove_dir_all(&seed1).unwrap();
+    let partial = coevo(one.path(), &["--train", "--scene", "results/tiny/paper/1-1/scene.ron", "--seed", "1", "--out", seed1.to_str().unwrap(), "--episodes", "2", "--quiet"]);
+    assert!(partial.status.success(), "{}", String::from_utf8_lossy(&partial.stderr));
+    std::fs::remove_dir_all(one.path().join("results/tiny/paper/1-1/seed2/checkpoint")).unwrap();
+    std::fs::remove_file(one.path().join("results/tiny/paper/5-3/seed1/eval-50-prey.csv")).unwrap();
+    assert!(coevo(one.path(), &["--experiment", "experiments/tiny.ron", "--jobs", "2"]).status.success());
+    assert_eq!(std::fs::metadata(finished.join("metrics.csv")).unwrap().modified().unwrap(), untouched, "a finished run is not redone");
+    assert!(one.path().join("results/tiny/paper/5-3/seed1/eval-50-prey.csv").exists());
+    let again = summary(one.path());
+    assert_eq!(again.len(), 5);
+    assert!(again[1].starts_with("paper,1:1,1,3,"), "the resumed run has all its episodes: {}", again[1]);
+    assert_eq!(again[2..], rows[2..], "restarted from scratch and untouched runs give the same rows");
+    // --plot regenerates from the CSVs alone.
+    std::fs::remove_dir_all(one.path().join("results/tiny/figures")).unwrap();
+    assert!(coevo(one.path(), &["--plot", "results/tiny"]).status.success());
+    assert!(one.path().join("results/tiny/figures/paper-training.png").exists());
+    assert!(coevo(one.path(), &["--plot", seed1.to_str().unwrap()]).status.success());
+    assert!(seed1.join("figures/training.png").exists());
+}
+
+#[test]
+fn slurm_scripts_have_the_array_range_and_the_aggregate_dependency() {
+    let dir = workspace();
+    let out = coevo(dir.path(), &["--experiment", "experiments/tiny.ron", "--emit-slurm"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let slurm = dir.path().join("results/tiny/slurm");
+    let array = std::fs::read_to_string(slurm.join("array.sh")).unwrap();
+    assert!(array.contains("#SBATCH --array=0-3"), "{array}");
+    assert!(array.contains("--experiment experiments/tiny.ron --task $SLURM_ARRAY_TASK_ID"), "{array}");
+    let submit = std::fs::read_to_string(slurm.join("submit.sh")).unwrap();
+    assert!(submit.contains("jid=$(sbatch --parsable results/tiny/slurm/array.sh)"), "{submit}");
+    assert!(submit.contains("sbatch --dependency=afterok:$jid results/tiny/slurm/aggregate.sh"), "{submit}");
+    assert!(std::fs::read_to_string(slurm.join("aggregate.sh")).unwrap().contains("--plot results/tiny"));
+    // An array task runs exactly its run.
+    assert!(coevo(dir.path(), &["--experiment", "experiments/tiny.ron", "--task", "2"]).status.success());
+    assert!(dir.path().join("results/tiny/paper/5-3/seed1/checkpoint/state.ron").exists());
+    assert!(!dir.path().join("results/tiny/paper/1-1/seed1").exists());
+    let bad = coevo(dir.path(), &["--experiment", "experiments/tiny.ron", "--task", "9"]);
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("--task 9: the experiment has runs 0 to 3"));
+}
