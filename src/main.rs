@@ -83,7 +83,8 @@ struct Cli {
     #[arg(long)]
     emit_slurm: bool,
     /// Regenerate summaries and figures from CSV files alone: an experiment's results folder
-    /// (results/NAME, with experiments/NAME.ron) or one run folder.
+    /// (results/NAME, with experiments/NAME.ron), one run folder, or `all` (every experiment, and
+    /// REPRODUCTION.md).
     #[arg(long, value_name = "DIR")]
     plot: Option<PathBuf>,
 
@@ -436,6 +437,9 @@ fn write_reproduction() -> Result<(), String> {
 /// `--plot DIR`: an experiment's summaries and figures, or one run's learning curves, from CSVs alone.
 fn plot(dir: &Path) -> Result<(), String> {
     use coevo::experiment::{aggregate, Experiment};
+    if dir == Path::new("all") {
+        return write_reproduction();
+    }
     if coevo::train::is_run(dir) {
         let path = coevo::experiment::aggregate::plot_run(dir)?;
         eprintln!("coevo: wrote {}", path.display());

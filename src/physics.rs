@@ -51,6 +51,16 @@ pub struct Fault {
     pub what: String,
 }
 
+impl StateFault {
+    /// Keeps the first fault of a run: agent `agent` of species `species` went wrong during the step that
+    /// follows `episode`'s current one.
+    fn report(&mut self, episode: &crate::episode::Episode, agent: u32, species: usize, what: impl FnOnce() -> String) {
+        if self.0.is_none() {
+            self.0 = Some(Fault { episode: episode.index, step: episode.step + 1, agent, species, what: what() });
+        }
+    }
+}
+
 impl Plugin for PhysicsPlugin {
     fn build(&self, app: &mut App) {
         app.init_resource::<StateFault>();
@@ -135,17 +145,9 @@ fn integrate(
         }
         v.0 = new_v;
         x.0 += new_v * dt;
-        if !(new_v.is_finite() && x.0.is_finite() && theta.0.is_finite()) && fault.0.is_none() {
-            let what = if !new_v.is_finite() {
-                "velocity"
-            } else if !x.0.is_finite() {
-                "position"
-            } else {
-                "heading"
-            };
-            let what = format!("{what} is not finite");
-            fault.0 =
-                Some(Fault { episode: episode.index, step: episode.step + 1, agent: id.0, species: species.0, what });
+        if !(new_v.is_finite() && x.0.is_finite() && theta.0.is_finite()) {
+            let quantity = if !new_v.is_finite() { "velocity" } else if !x.0.is_finite() { "position" } else { "heading" };
+            fault.report(&episode, id.0, species.0, || format!("{quantity} is not finite"));
         }
     }
 }
@@ -163,10 +165,8 @@ fn apply_boundary(
         // With walls, a body can sink into a wall by at most one step's travel before the spring turns it
         // back; a centre beyond that has escaped the arena.
         let reach = arena.half() + body.radius + registry.defs[species.0].max_speed * scene.0.world.dt * 2.0;
-        if x.0.abs().max_element() > reach && fault.0.is_none() {
-            let what = format!("left the arena (centre at {:.3}, {:.3})", x.0.x, x.0.y);
-            fault.0 =
-                Some(Fault { episode: episode.index, step: episode.step + 1, agent: id.0, species: species.0, what });
+        if x.0.abs().max_element() > reach {
+            fault.report(&episode, id.0, species.0, || format!("left the arena (centre at {:.3}, {:.3})", x.0.x, x.0.y));
         }
     }
 }
