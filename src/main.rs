@@ -64,6 +64,10 @@ struct Cli {
     #[arg(long, value_name = "N")]
     threads: Option<usize>,
 
+    /// --eval: what the actors see of their neighbours: `blind` zeroes every neighbour slot, `shuffled`
+    /// gives each agent another's (controls for alignment claims) [default: seeing].
+    #[arg(long, value_name = "CONTROL")]
+    control: Option<coevo::learning::ObservationControl>,
     /// --eval: the file name of the per-step CSV inside the run folder [default: eval.csv].
     #[arg(long, value_name = "NAME.csv")]
     eval_out: Option<String>,
@@ -178,7 +182,7 @@ impl RunMode {
         let own: &[&str] = match self {
             RunMode::Train => &["train", "scene", "seed", "episodes", "out", "overwrite", "quiet"],
             RunMode::Resume => &["resume", "episodes", "quiet"],
-            RunMode::Eval => &["eval", "episodes", "steps", "seed", "prey", "predators", "count", "eval_out"],
+            RunMode::Eval => &["eval", "episodes", "steps", "seed", "prey", "predators", "count", "eval_out", "control"],
             RunMode::Record => &["record", "run", "scene", "seed", "steps", "prey", "predators", "count", "overwrite"],
             RunMode::Bench => &["bench", "bench_seconds"],
             RunMode::Experiment => &["experiment", "jobs", "task", "emit_slurm", "quiet"],
@@ -291,6 +295,7 @@ fn run(cli: Cli, mode: RunMode) -> Result<(), String> {
             let opts = coevo::train::EvalOptions {
                 run,
                 out: cli.eval_out.clone(),
+                control: cli.control.unwrap_or_default(),
                 counts: counts(&cli)?,
                 episodes: cli.episodes.unwrap_or(1),
                 steps: cli.steps,

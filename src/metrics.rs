@@ -63,6 +63,23 @@ pub fn swarming_of(arena: &Arena, positions: &[DVec2], headings: &[DVec2]) -> Op
     swarming(arena, positions, headings, &grid, 0..positions.len(), &[])
 }
 
+/// The running mean over the last `window` values (fewer at the start): the paper's 100-episode curves,
+/// the viewer's live plots and the experiment figures.
+pub fn running_mean(values: &[f64], window: usize) -> Vec<f64> {
+    let mut sum = 0.0;
+    values
+        .iter()
+        .enumerate()
+        .map(|(i, v)| {
+            sum += v;
+            if i >= window {
+                sum -= values[i - window];
+            }
+            sum / (i + 1).min(window) as f64
+        })
+        .collect()
+}
+
 /// Per-step metrics of the current state and the running sums of the current episode.
 #[derive(Resource, Default, Debug, Clone)]
 pub struct SwarmMetrics {

@@ -287,6 +287,8 @@ pub fn train(scene: Scene, opts: &TrainOptions) -> Result<Vec<EpisodeSummary>, S
 
 pub struct EvalOptions {
     pub run: PathBuf,
+    /// What the actors see of their neighbours (a control for alignment claims).
+    pub control: crate::learning::ObservationControl,
     /// File name of the per-step CSV inside the run folder (default `eval.csv`).
     pub out: Option<String>,
     pub counts: Vec<(String, usize)>,
@@ -318,6 +320,7 @@ pub fn evaluate(opts: &EvalOptions) -> Result<String, String> {
         return Err(format!("--eval-out {file_name}: must be a plain file name ending in .csv (written inside the run folder)"));
     }
     let mut sim = learning_simulation(scene.clone(), Mode::Evaluate, Some(&opts.run))?;
+    sim.world_mut().insert_resource(opts.control);
     // Each episode's last step is read before the next population is spawned.
     sim.world_mut().resource_mut::<Episode>().auto_reset = false;
     let registry = sim.world().resource::<SpeciesRegistry>().clone();
@@ -361,8 +364,12 @@ pub fn evaluate(opts: &EvalOptions) -> Result<String, String> {
         format!("no DoS/DoA: fewer than two {name}")
     };
     Ok(format!(
-        "eval {}: {} episodes × {} steps, {}: {means}; per step in {}",
+        "eval {}{}: {} episodes × {} steps, {}: {means}; per step in {}",
         opts.run.display(),
+        match opts.control {
+            crate::learning::ObservationControl::Seeing => String::new(),
+            c => format!(" ({c:?} control)"),
+        },
         opts.episodes,
         scene.episode_steps,
         counts.join(" + "),

@@ -124,7 +124,7 @@ fn corrupt_missing_or_mismatched_checkpoints_are_refused_clearly() {
     train(tiny(1), &opts(&run, false, None)).unwrap();
     std::fs::write(run.join("checkpoint/prey-actor.safetensors"), b"not a tensor file").unwrap();
     let eval = |counts: Vec<(String, usize)>| {
-        evaluate(&EvalOptions { run: run.clone(), out: None, counts, episodes: 1, steps: Some(5), seed: None })
+        evaluate(&EvalOptions { run: run.clone(), out: None, control: Default::default(), counts, episodes: 1, steps: Some(5), seed: None })
     };
     let corrupt = eval(vec![]).unwrap_err();
     assert!(corrupt.contains("prey-actor.safetensors: not a valid safetensors file"), "{corrupt}");
@@ -148,6 +148,7 @@ fn evaluation_deploys_on_fifty_prey_and_without_predators() {
     let line = evaluate(&EvalOptions {
         run: run.clone(),
         out: None,
+        control: Default::default(),
         counts: vec![("prey".into(), 50), ("predator".into(), 0)],
         episodes: 2,
         steps: Some(30),
@@ -166,7 +167,7 @@ fn evaluation_deploys_on_fifty_prey_and_without_predators() {
 
     // One step per episode: measured, not zeros; with one prey there is nothing to measure, and it says so.
     let one = |counts: Vec<(String, usize)>| {
-        evaluate(&EvalOptions { run: run.clone(), out: None, counts, episodes: 1, steps: Some(1), seed: None }).unwrap()
+        evaluate(&EvalOptions { run: run.clone(), out: None, control: Default::default(), counts, episodes: 1, steps: Some(1), seed: None }).unwrap()
     };
     let line = one(vec![]);
     assert!(!line.contains("mean DoS 0.0000"), "{line}");

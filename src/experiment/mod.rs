@@ -79,6 +79,9 @@ pub struct Evaluation {
     /// Steps per episode (default: the scene's).
     #[serde(default)]
     pub steps: Option<usize>,
+    /// `Blind` or `Shuffled` neighbours: controls for alignment claims (default `Seeing`).
+    #[serde(default)]
+    pub control: crate::learning::ObservationControl,
 }
 
 fn three() -> usize {

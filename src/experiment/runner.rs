@@ -106,6 +106,9 @@ pub fn complete_run(exp: &Experiment, run: &Run, exe: &Path) -> Result<(), Strin
         for (species, n) in &e.counts {
             args.extend(["--count".into(), format!("{species}={n}")]);
         }
+        if e.control != crate::learning::ObservationControl::Seeing {
+            args.extend(["--control".into(), format!("{:?}", e.control).to_lowercase()]);
+        }
         args.extend(["--eval-out".into(), out.file_name().expect("a file").to_string_lossy().into_owned(), "--threads".into(), "1".into()]);
         child(exe, &args).map_err(|err| format!("{dir}: evaluation {}: {err}", e.name))?;
     }

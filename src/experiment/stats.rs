@@ -1,21 +1,7 @@
 //! The statistics of the paper's figures: 100-episode running means, and the mean over seeds with its
 //! 95 % confidence interval (Student t, n − 1 degrees of freedom).
 
-/// The running mean over the last `window` values (fewer at the start), as the paper's curves.
-pub fn running_mean(values: &[f64], window: usize) -> Vec<f64> {
-    let mut sum = 0.0;
-    values
-        .iter()
-        .enumerate()
-        .map(|(i, v)| {
-            sum += v;
-            if i >= window {
-                sum -= values[i - window];
-            }
-            sum / (i + 1).min(window) as f64
-        })
-        .collect()
-}
+pub use crate::metrics::running_mean;
 
 /// Mean of a slice (None when empty).
 pub fn mean(values: &[f64]) -> Option<f64> {

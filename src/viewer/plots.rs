@@ -69,18 +69,8 @@ pub fn record_step(world: &mut World) {
 
 /// Running mean over the last `window` points (fewer at the start).
 pub fn running_mean(points: &[[f64; 2]], window: usize) -> Vec<[f64; 2]> {
-    let mut sum = 0.0;
-    points
-        .iter()
-        .enumerate()
-        .map(|(i, p)| {
-            sum += p[1];
-            if i >= window {
-                sum -= points[i - window][1];
-            }
-            [p[0], sum / (i + 1).min(window) as f64]
-        })
-        .collect()
+    let values: Vec<f64> = points.iter().map(|p| p[1]).collect();
+    points.iter().zip(crate::metrics::running_mean(&values, window)).map(|(p, m)| [p[0], m]).collect()
 }
 
 const DOS: egui::Color32 = egui::Color32::from_rgb(70, 130, 220);
