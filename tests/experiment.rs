@@ -142,3 +142,46 @@ fn slurm_scripts_have_the_array_range_and_the_aggregate_dependency() {
     let bad = coevo(dir.path(), &["--experiment", "experiments/tiny.ron", "--task", "9"]);
     assert!(String::from_utf8_lossy(&bad.stderr).contains("--task 9: the experiment has runs 0 to 3"));
 }
+
+#[test]
+fn the_preset_ablations_change_exactly_one_difference_per_variant() {
+    // Each variant's scene differs from its file's first variant in the named fields only, and in total
+    // the variants walk every difference between the presets that acts on the periodic arena.
+    for (file, all_differences) in [("experiments/ablation-from-paper.ron", "paper"), ("experiments/ablation-from-gym-pps.ron", "gym-pps")] {
+        let exp = Experiment::load(Path::new(file), Path::new("results")).unwrap();
+        let first_seed: Vec<&coevo::experiment::Run> = exp.runs.iter().filter(|r| r.seed == 1).collect();
+        let lines = |s: &coevo::Scene| s.to_ron().lines().map(str::to_string).collect::<Vec<String>>();
+        let base = lines(&first_seed[0].scene);
+        let mut changed_in_total = std::collections::BTreeSet::new();
+        for run in &first_seed[1..] {
+            let variant = lines(&run.scene);
+            assert_eq!(variant.len(), base.len(), "{file}: {}", run.variant);
+            let changed: Vec<String> = base.iter().zip(&variant).filter(|(a, b)| a != b).map(|(_, b)| b.trim().split(':').next().unwrap().to_string()).collect();
+            let expected: &[&str] = match run.variant.as_str() {
+                v if v.starts_with("turn rate") => &["max_turn_rate", "max_turn_rate"],
+                v if v.starts_with("predator mass") => &["mass"],
+                v if v.starts_with("contact reward") => &["contact"],
+                v if v.starts_with("contacts") => &["contacts_judged"],
+                v if v.starts_with("thrust") => &["thrust_cost"],
+                v if v.starts_with("speed clip") => &["speed_clip"],
+                v if v.contains("energy budget") => &["energy_budget"],
+                v => panic!("{file}: unexpected variant {v}"),
+            };
+            assert_eq!(changed, expected, "{file}: {}", run.variant);
+            changed_in_total.extend(changed);
+        }
+        // The other preset differs from this one in exactly these fields (walls aside, which do nothing here).
+        let other = coevo::Scene::preset(if all_differences == "paper" { "gym-pps" } else { "paper" }).unwrap();
+        let mine = coevo::Scene::preset(all_differences).unwrap();
+        let mut presets_differ: std::collections::BTreeSet<String> = lines(&mine)
+            .iter()
+            .zip(lines(&other))
+            .filter(|(a, b)| *a != b)
+            .map(|(a, _)| a.trim().split(':').next().unwrap().to_string())
+            .collect();
+        for ignored in ["preset", "wall_stiffness", "wall_damping", "wall_penalty_mode"] {
+            presets_differ.remove(ignored);
+        }
+        assert_eq!(changed_in_total, presets_differ, "{file} walks every difference of the presets");
+    }
+}
