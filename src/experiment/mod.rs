@@ -140,9 +140,18 @@ pub struct Experiment {
     pub runs: Vec<Run>,
 }
 
-/// A folder-safe version of a variant name ("5:3" → "5-3").
+/// A folder-safe version of a name: runs of other characters become one `-` ("5:3" → "5-3",
+/// "n0 = 1" → "n0-1", "50 prey, blind" → "50-prey-blind").
 pub fn slug(name: &str) -> String {
-    name.chars().map(|c| if c.is_ascii_alphanumeric() || c == '.' || c == '_' { c } else { '-' }).collect()
+    let mut out = String::new();
+    for c in name.chars() {
+        if c.is_ascii_alphanumeric() || c == '.' || c == '_' {
+            out.push(c);
+        } else if !out.is_empty() && !out.ends_with('-') {
+            out.push('-');
+        }
+    }
+    out.trim_end_matches('-').to_string()
 }
 
 impl Experiment {
@@ -161,13 +170,14 @@ impl Experiment {
             return Err(err("variants", "an experiment needs at least one variant".into()));
         }
         for (i, v) in spec.variants.iter().enumerate() {
-            if v.name.is_empty() || spec.variants[..i].iter().any(|o| slug(&o.name) == slug(&v.name)) {
-                return Err(err(&format!("variants[{}]", v.name), "variant names must be non-empty and distinct".into()));
+            if slug(&v.name).is_empty() || spec.variants[..i].iter().any(|o| slug(&o.name) == slug(&v.name)) {
+                let message = "variant names need a letter or digit and must stay distinct as folder names".into();
+                return Err(err(&format!("variants[{}]", v.name), message));
             }
         }
         for (i, e) in spec.evaluations.iter().enumerate() {
-            if e.name.is_empty() || spec.evaluations[..i].iter().any(|o| slug(&o.name) == slug(&e.name)) {
-                return Err(err("evaluations", "evaluation names must be non-empty and distinct".into()));
+            if slug(&e.name).is_empty() || spec.evaluations[..i].iter().any(|o| slug(&o.name) == slug(&e.name)) {
+                return Err(err("evaluations", "evaluation names need a letter or digit and must stay distinct as file names".into()));
             }
             if e.episodes == 0 || e.steps == Some(0) {
                 return Err(err(&format!("evaluations[{}]", e.name), "episodes and steps must be ≥ 1".into()));
