@@ -18,11 +18,56 @@ use crate::SimSet;
 use bevy::math::DVec2;
 use bevy::prelude::*;
 
-/// DoS and DoA of one group at one instant.
+/// The order of one group at one instant: the paper's DoS and DoA, and two order parameters of collective
+/// motion that tell a flock from a mill (not in the paper):
+///
+/// ```text
+///   polarization P = ‖(1/N) Σ_j h_j‖                        1 = all aligned, ~1/√N for random headings
+///   milling      M = |(1/N) Σ_j (r̂_j × h_j)_z|,  r_j = x_j − c    1 = a perfect mill, ~0 for a flock
+/// ```
+///
+/// c is the group's centre: the mean position with walls, and on the torus the circular mean per axis
+/// (each coordinate mapped to an angle on its periodic axis, the angles averaged as unit vectors, mapped
+/// back), with r_j the minimum image of x_j − c. Swirling shows as M high with P low.
 #[derive(Clone, Copy, Debug, PartialEq, Default)]
 pub struct Swarming {
     pub dos: f64,
     pub doa: f64,
+    pub polarization: f64,
+    pub milling: f64,
+}
+
+/// The group's centre c (see [`Swarming`]).
+pub fn centre(arena: &Arena, positions: &[DVec2]) -> DVec2 {
+    let n = positions.len().max(1) as f64;
+    match arena.boundary {
+        crate::scene::Boundary::Walls => positions.iter().copied().sum::<DVec2>() / n,
+        crate::scene::Boundary::Periodic => {
+            let turn = std::f64::consts::TAU / arena.edge;
+            let axis = |get: fn(&DVec2) -> f64| {
+                let (s, c) = positions.iter().fold((0.0, 0.0), |(s, c), p| (s + (get(p) * turn).sin(), c + (get(p) * turn).cos()));
+                s.atan2(c) / turn
+            };
+            DVec2::new(axis(|p| p.x), axis(|p| p.y))
+        }
+    }
+}
+
+/// Polarization and milling of a group of positions and unit headings (see [`Swarming`]).
+pub fn polarization_and_milling(arena: &Arena, positions: &[DVec2], headings: &[DVec2]) -> (f64, f64) {
+    let n = positions.len().max(1) as f64;
+    let c = centre(arena, positions);
+    let polarization = headings.iter().copied().sum::<DVec2>().length() / n;
+    let rotation: f64 = positions
+        .iter()
+        .zip(headings)
+        .map(|(&x, h)| {
+            let r = arena.delta(c, x);
+            let d = r.length();
+            if d > 0.0 { (r.x * h.y - r.y * h.x) / d } else { 0.0 }
+        })
+        .sum();
+    (polarization, (rotation / n).abs())
 }
 
 /// DoS and DoA of the agents `members` of a population at one instant, using `grid` (built over
@@ -40,6 +85,7 @@ pub fn swarming(
     if n < 2 {
         return None;
     }
+    let members_start = members.start;
     let mut nearest = Vec::with_capacity(1);
     let (mut distance, mut alignment) = (0.0, 0.0);
     for j in members {
@@ -53,7 +99,9 @@ pub fn swarming(
         distance += arena.delta(positions[j], positions[k]).length();
         alignment += (headings[j] + headings[k]).length();
     }
-    Some(Swarming { dos: distance / (n as f64 * arena.max_distance()), doa: alignment / (2.0 * n as f64) })
+    let range = members_start..members_start + n;
+    let (polarization, milling) = polarization_and_milling(arena, &positions[range.clone()], &headings[range]);
+    Some(Swarming { dos: distance / (n as f64 * arena.max_distance()), doa: alignment / (2.0 * n as f64), polarization, milling })
 }
 
 /// Convenience for callers without a grid: DoS and DoA of a whole set of positions and unit headings.
@@ -130,7 +178,14 @@ impl SwarmMetrics {
                 .swarming
                 .iter()
                 .zip(&sums.agents)
-                .map(|(s, &n)| (n >= 2).then(|| Swarming { dos: s.dos / t, doa: s.doa / t }))
+                .map(|(s, &n)| {
+                    (n >= 2).then(|| Swarming {
+                        dos: s.dos / t,
+                        doa: s.doa / t,
+                        polarization: s.polarization / t,
+                        milling: s.milling / t,
+                    })
+                })
                 .collect(),
             catches: sums.catches,
             mean_return: sums.rewards.iter().zip(&sums.agents).map(|(r, &n)| if n > 0 { r / n as f64 } else { 0.0 }).collect(),
@@ -167,6 +222,8 @@ fn measure(
         if let Some(now) = now {
             sum.dos += now.dos;
             sum.doa += now.doa;
+            sum.polarization += now.polarization;
+            sum.milling += now.milling;
         }
     }
     m.catches_now = 0;
@@ -196,6 +253,42 @@ mod tests {
         }
         let doa = total / samples as f64;
         assert!((doa - 2.0 / std::f64::consts::PI).abs() < 0.02, "DoA of random headings {doa}");
+    }
+
+    #[test]
+    fn order_parameters_of_a_mill_a_flock_and_random_headings() {
+        // A perfect mill around a centre that straddles the torus seam (so the circular mean matters):
+        // 24 agents on a circle, each heading along the tangent.
+        let arena = Arena { edge: 2.0, boundary: Boundary::Periodic };
+        let centre = DVec2::new(0.95, -0.97);
+        let pos: Vec<DVec2> = (0..24).map(|i| arena.wrap(centre + 0.3 * DVec2::from_angle(i as f64 * std::f64::consts::TAU / 24.0))).collect();
+        let tangent: Vec<DVec2> = (0..24).map(|i| DVec2::from_angle(i as f64 * std::f64::consts::TAU / 24.0 + std::f64::consts::FRAC_PI_2)).collect();
+        let c = super::centre(&arena, &pos);
+        assert!(arena.delta(c, centre).length() < 1e-9, "centre {c} across the seam");
+        let (p, m) = polarization_and_milling(&arena, &pos, &tangent);
+        assert!(p < 1e-9 && (m - 1.0).abs() < 1e-9, "mill: P {p}, M {m}");
+        // Turning the other way mills just as much.
+        let reverse: Vec<DVec2> = tangent.iter().map(|h| -*h).collect();
+        assert!((polarization_and_milling(&arena, &pos, &reverse).1 - 1.0).abs() < 1e-9);
+        // The same agents all heading one way: a perfectly polarized flock, no rotation.
+        let aligned = vec![DVec2::from_angle(0.4); 24];
+        let (p, m) = polarization_and_milling(&arena, &pos, &aligned);
+        assert!((p - 1.0).abs() < 1e-12 && m < 1e-9, "flock: P {p}, M {m}");
+        // Random headings: P ~ 1/√N on average.
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(4);
+        let n = 400;
+        let (mut total, samples) = (0.0, 200);
+        for _ in 0..samples {
+            let pos: Vec<DVec2> = (0..n).map(|_| DVec2::new(rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0))).collect();
+            let head: Vec<DVec2> = (0..n).map(|_| DVec2::from_angle(rng.gen_range(-3.15..3.15))).collect();
+            total += polarization_and_milling(&Arena { edge: 2.0, boundary: Boundary::Walls }, &pos, &head).0;
+        }
+        // E‖mean of N unit vectors‖ = √(π/(4N)) for large N.
+        let expected = (std::f64::consts::PI / (4.0 * n as f64)).sqrt();
+        assert!((total / samples as f64 - expected).abs() < 0.1 * expected, "{} vs {expected}", total / samples as f64);
+        // The per-instant measure reports both.
+        let s = swarming_of(&arena, &pos, &tangent).unwrap();
+        assert!(s.polarization < 1e-9 && (s.milling - 1.0).abs() < 1e-9);
     }
 
     #[test]

@@ -61,8 +61,7 @@ pub fn learning_simulation_with(
 fn metrics_header(registry: &SpeciesRegistry, learners: &Learners) -> String {
     let mut cols = vec!["episode".to_string(), "steps".into()];
     for d in &registry.defs {
-        cols.push(format!("dos_{}", d.name));
-        cols.push(format!("doa_{}", d.name));
+        cols.extend(["dos", "doa", "polarization", "milling"].map(|q| format!("{q}_{}", d.name)));
     }
     cols.push("catches".into());
     for d in &registry.defs {
@@ -87,8 +86,7 @@ fn metrics_row(e: &EpisodeSummary, learners: &mut Learners, wall_seconds: f64) -
     let blank = |x: Option<f64>| x.map_or(String::new(), |v| v.to_string());
     let mut cols = vec![e.episode.to_string(), e.steps.to_string()];
     for s in &e.swarming {
-        cols.push(blank(s.map(|s| s.dos)));
-        cols.push(blank(s.map(|s| s.doa)));
+        cols.extend([s.map(|s| s.dos), s.map(|s| s.doa), s.map(|s| s.polarization), s.map(|s| s.milling)].map(blank));
     }
     cols.push(e.catches.to_string());
     cols.extend(e.mean_return.iter().map(|r| r.to_string()));
@@ -329,7 +327,7 @@ pub fn evaluate(opts: &EvalOptions) -> Result<String, String> {
     let path = opts.run.join(file_name);
     let write_err = |e: std::io::Error| format!("{}: {e}", path.display());
     let mut file = AtomicFile::create(&path, Existing::Replace).map_err(write_err)?;
-    writeln!(file.writer(), "episode,step,dos_{name},doa_{name},catches").map_err(write_err)?;
+    writeln!(file.writer(), "episode,step,dos_{name},doa_{name},polarization_{name},milling_{name},catches").map_err(write_err)?;
     let (mut sum_dos, mut sum_doa, mut n) = (0.0, 0.0, 0usize);
     for episode in 0..opts.episodes {
         if episode > 0 {
@@ -343,9 +341,11 @@ pub fn evaluate(opts: &EvalOptions) -> Result<String, String> {
             let blank = |x: Option<f64>| x.map_or(String::new(), |v| v.to_string());
             writeln!(
                 file.writer(),
-                "{episode},{step},{},{},{}",
+                "{episode},{step},{},{},{},{},{}",
                 blank(sw.map(|s| s.dos)),
                 blank(sw.map(|s| s.doa)),
+                blank(sw.map(|s| s.polarization)),
+                blank(sw.map(|s| s.milling)),
                 m.catches_now
             )
             .map_err(write_err)?;

@@ -44,7 +44,7 @@ fn one_two_and_three_threads_train_identical_networks_and_metrics() {
     std::fs::write(dir.path().join("scene.ron"), SCENE).unwrap();
     let (metrics, networks) = train(dir.path(), "one", "1");
     assert_eq!(metrics.len(), 4, "header and three episodes");
-    assert!(metrics[3].split(',').nth(9).unwrap().parse::<f64>().unwrap().is_finite(), "updates ran: {}", metrics[3]);
+    assert!(metrics[3].split(',').nth(13).unwrap().parse::<f64>().unwrap().is_finite(), "updates ran: {}", metrics[3]);
     for threads in ["2", "3"] {
         let (m, n) = train(dir.path(), threads, threads);
         assert_eq!(m, metrics, "metrics with {threads} threads");
