@@ -77,7 +77,7 @@ struct Cli {
     /// figures and REPRODUCTION.md.
     #[arg(long, value_name = "FILE|all")]
     experiment: Option<String>,
-    /// --experiment: runs at a time (each on one thread) [default: 2].
+    /// --experiment: runs at a time, sharing the cores (--threads / J each) [default: 2].
     #[arg(long, value_name = "J")]
     jobs: Option<usize>,
     /// --experiment: only run index N of the experiment (what a Slurm array task runs).

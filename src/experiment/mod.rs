@@ -18,8 +18,8 @@
 //! ```
 //!
 //! Every preset × variant × seed is one run folder, `results/<experiment>/<preset>/<variant>/seed<k>/`,
-//! trained by `coevo --train` in a child process with one thread (so results never depend on how many run
-//! at once), resumed from its checkpoint when it was killed, skipped when finished ([`runner`]). Then the
+//! trained by `coevo --train` in a child process on its share of the cores (results never depend on how
+//! many run at once or on how many threads each has), resumed from its checkpoint when it was killed, skipped when finished ([`runner`]). Then the
 //! evaluations write `eval-<name>.csv` beside it, and [`aggregate`] reads only CSV files to write
 //! `summary.csv`, `summary-mean.csv` and the figures ([`plot`]).
 

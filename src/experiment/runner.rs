@@ -1,4 +1,5 @@
-//! Runs an experiment's runs, `jobs` at a time, each as a `coevo` child process on one thread: train (or
+//! Runs an experiment's runs, `jobs` at a time, each as a `coevo` child process on its share of the cores
+//! (cores / jobs threads; the number of threads never changes a result): train (or
 //! resume a killed run from its checkpoint, or skip a finished one), then its evaluations. Everything a
 //! child writes is atomic or checkpointed, so the experiment can be killed at any moment and run again
 //! to continue; no finished run is redone.
@@ -75,9 +76,12 @@ fn child(exe: &Path, args: &[String]) -> Result<(), String> {
 }
 
 /// Trains (or resumes) one run and runs its missing evaluations.
-pub fn complete_run(exp: &Experiment, run: &Run, exe: &Path) -> Result<(), String> {
+/// Trains (or resumes) one run and runs its missing evaluations, on `threads` threads (results do not
+/// depend on it).
+pub fn complete_run(exp: &Experiment, run: &Run, exe: &Path, threads: usize) -> Result<(), String> {
     let dir = run.dir.to_string_lossy().into_owned();
-    let common = ["--quiet".to_string(), "--threads".into(), "1".into()];
+    let threads = threads.max(1).to_string();
+    let common = ["--quiet".to_string(), "--threads".into(), threads.clone()];
     let train: Option<Vec<String>> = match stage(run)? {
         Stage::Trained => None,
         Stage::Partial(_) => Some(vec!["--resume".into(), dir.clone(), "--episodes".into(), run.scene.episodes.to_string()]),
@@ -109,7 +113,7 @@ pub fn complete_run(exp: &Experiment, run: &Run, exe: &Path) -> Result<(), Strin
         if e.control != crate::learning::ObservationControl::Seeing {
             args.extend(["--control".into(), format!("{:?}", e.control).to_lowercase()]);
         }
-        args.extend(["--eval-out".into(), out.file_name().expect("a file").to_string_lossy().into_owned(), "--threads".into(), "1".into()]);
+        args.extend(["--eval-out".into(), out.file_name().expect("a file").to_string_lossy().into_owned(), "--threads".into(), threads.clone()]);
         child(exe, &args).map_err(|err| format!("{dir}: evaluation {}: {err}", e.name))?;
     }
     Ok(())
@@ -154,7 +158,8 @@ pub fn run(exp: &Experiment, opts: &RunnerOptions, only: Option<usize>) -> Resul
                 if finished {
                     continue;
                 }
-                match complete_run(exp, run, &opts.exe) {
+                // The cores are shared among the runs at a time (one run alone updates its species on all).
+                match complete_run(exp, run, &opts.exe, crate::parallel::threads() / opts.jobs.max(1)) {
                     Ok(()) => bar.inc(1),
                     Err(e) => {
                         bar.println(format!("coevo: {e}"));
