@@ -1,5 +1,6 @@
-//! Live plots (egui_plot): DoS and DoA per episode with their 100-episode running means, DoS and DoA step
-//! by step within the current episode, and catches per episode, for the headline species (the prey).
+//! Live plots (egui_plot): DoS and DoA per episode with their 100-episode running means, DoS, DoA,
+//! polarization and milling step by step within the current episode, and catches per episode, for the
+//! headline species (the prey).
 
 use crate::episode::Episode;
 use crate::metrics::{EpisodeLog, SwarmMetrics};
@@ -22,6 +23,8 @@ pub struct History {
     /// Within the current episode: [step, value].
     pub step_dos: Vec<[f64; 2]>,
     pub step_doa: Vec<[f64; 2]>,
+    pub step_polarization: Vec<[f64; 2]>,
+    pub step_milling: Vec<[f64; 2]>,
 }
 
 impl History {
@@ -32,6 +35,8 @@ impl History {
     pub fn start_episode(&mut self) {
         self.step_dos.clear();
         self.step_doa.clear();
+        self.step_polarization.clear();
+        self.step_milling.clear();
     }
 }
 
@@ -64,6 +69,8 @@ pub fn record_step(world: &mut World) {
     if let Some(s) = now {
         h.step_dos.push([step, s.dos]);
         h.step_doa.push([step, s.doa]);
+        h.step_polarization.push([step, s.polarization]);
+        h.step_milling.push([step, s.milling]);
     }
 }
 
@@ -94,6 +101,8 @@ pub fn show(ui: &mut egui::Ui, h: &History, species: &str) {
     Plot::new("per_step").height(height).legend(Legend::default()).include_y(0.0).include_y(1.0).show(ui, |p| {
         p.line(line("DoS", &h.step_dos, DOS, 1.5));
         p.line(line("DoA", &h.step_doa, DOA, 1.5));
+        p.line(line("polarization", &h.step_polarization, egui::Color32::from_rgb(60, 160, 90), 1.0));
+        p.line(line("milling", &h.step_milling, egui::Color32::from_rgb(150, 90, 200), 1.0));
     });
     ui.label("catches per episode");
     Plot::new("catches").height(height).include_y(0.0).show(ui, |p| {
