@@ -13,7 +13,7 @@
 //! prey with limit 6 that is 6 + 4·(6 + 6) = 54 numbers.
 
 use crate::components::*;
-use crate::scene::Scene;
+use crate::scene::{ObservationFrame, Scene};
 use crate::space::{Arena, CellGrid};
 use crate::species::{SpeciesRegistry, ACTION_DIM, NEIGHBOUR_DIM, OWN_STATE_DIM};
 use crate::ActiveScene;
@@ -49,6 +49,8 @@ pub struct Population {
     /// Unit heading vectors h.
     pub heading: Vec<DVec2>,
     pub radius: Vec<f64>,
+    /// The turn command of each agent's last action, normalized to [−1, 1] (its "turn state").
+    pub turn: Vec<f64>,
     pub ranges: Vec<Range<usize>>,
     /// One grid per species over its slots.
     pub grids: Vec<CellGrid>,
@@ -143,6 +145,7 @@ type IndexQuery<'w, 's> = Query<
         &'static Velocity,
         &'static Heading,
         &'static Body,
+        &'static Action,
     ),
 >;
 
@@ -154,8 +157,14 @@ fn index_population(
     agents: IndexQuery,
     mut slots: Query<&mut Slot>,
 ) {
-    let mut order: Vec<_> =
-        agents.iter().map(|(e, id, s, x, v, h, body)| ((s.0, *id), e, x.0, v.0, h.unit(), body.radius)).collect();
+    let turn_of = |s: usize, a: &Action| {
+        let max = registry.defs[s].max_turn_rate;
+        if max > 0.0 { a.turn_rate / max } else { 0.0 }
+    };
+    let mut order: Vec<_> = agents
+        .iter()
+        .map(|(e, id, s, x, v, h, body, a)| ((s.0, *id), e, x.0, v.0, h.unit(), body.radius, turn_of(s.0, a)))
+        .collect();
     order.sort_unstable_by_key(|a| a.0);
     let p = &mut *pop;
     for v in [&mut p.position, &mut p.velocity, &mut p.heading] {
@@ -165,12 +174,13 @@ fn index_population(
     p.id.clear();
     p.species.clear();
     p.radius.clear();
+    p.turn.clear();
     p.nearest_kin.clear();
     p.nearest_kin.resize(order.len(), None);
     let n_species = registry.len();
     p.ranges = vec![0..0; n_species];
     p.max_radius = vec![0.0; n_species];
-    for ((s, id), e, x, v, h, radius) in order {
+    for ((s, id), e, x, v, h, radius, turn) in order {
         let slot = p.entity.len();
         if p.ranges[s].is_empty() {
             p.ranges[s] = slot..slot;
@@ -183,6 +193,7 @@ fn index_population(
         p.velocity.push(v);
         p.heading.push(h);
         p.radius.push(radius);
+        p.turn.push(turn);
         p.max_radius[s] = p.max_radius[s].max(radius);
         let mut out = slots.get_mut(e).expect("agents have a Slot");
         *out = Slot { index: slot as u32, row: (slot - p.ranges[s].start) as u32 };
@@ -250,8 +261,10 @@ fn observe(
     mut pop: ResMut<Population>,
     registry: Res<SpeciesRegistry>,
     arena: Res<Arena>,
+    scene: Res<ActiveScene>,
     mut batches: ResMut<Batches>,
 ) {
+    let frame = scene.0.observation_frame;
     // Taken out while the rows that fill it borrow the rest of the population.
     let mut nearest_kin = std::mem::take(&mut pop.nearest_kin);
     let mut kin_rest: &mut [Option<u32>] = &mut nearest_kin;
@@ -267,7 +280,7 @@ fn observe(
     }
     let (registry, arena, population) = (&*registry, &*arena, &*pop);
     let observe = |(s, first, obs, kin): &mut (usize, usize, &mut [f32], &mut [Option<u32>])| {
-        observe_rows(population, registry, arena, *s, *first, obs, kin);
+        observe_rows(population, registry, arena, frame, *s, *first, obs, kin);
     };
     if population.len() > OBSERVE_CHUNK {
         crate::parallel::for_each_mut(&mut tasks, observe);
@@ -280,10 +293,12 @@ fn observe(
 
 /// Observations of the consecutive agents of species `s` from slot `first` on, one row of `observations`
 /// each, and each one's nearest kin.
+#[allow(clippy::too_many_arguments)]
 fn observe_rows(
     pop: &Population,
     registry: &SpeciesRegistry,
     arena: &Arena,
+    frame: ObservationFrame,
     s: usize,
     first: usize,
     observations: &mut [f32],
@@ -297,7 +312,21 @@ fn observe_rows(
         let i = first + row;
         obs.fill(0.0);
         let (x, v, h) = (pop.position[i], pop.velocity[i], pop.heading[i]);
-        obs[..OWN_STATE_DIM].copy_from_slice(&[x.x, x.y, v.x, v.y, h.x, h.y].map(|c| c as f32));
+        // World frame: vectors as they are. Body frame: components along the heading and to its left.
+        let left = DVec2::new(-h.y, h.x);
+        let seen = |w: DVec2| match frame {
+            ObservationFrame::World => w,
+            ObservationFrame::Body => DVec2::new(w.dot(h), w.dot(left)),
+        };
+        let own = match frame {
+            ObservationFrame::World => [x.x, x.y, v.x, v.y, h.x, h.y],
+            ObservationFrame::Body => {
+                let (v, wall) = (seen(v), seen(nearest_wall(arena, x)));
+                [v.x, v.y, pop.turn[i], wall.x, wall.y, 0.0]
+            }
+        };
+        obs[..OWN_STATE_DIM].copy_from_slice(&own.map(|c| c as f32));
+        let own_heading = seen(h);
         for (t, grid) in pop.grids.iter().enumerate() {
             grid.k_nearest(arena, x, limit, radius, i as u32, &mut nearest);
             if t == s {
@@ -306,13 +335,25 @@ fn observe_rows(
             let block = registry.block_offset(s, t);
             for (n, &(_, j)) in nearest.iter().enumerate() {
                 let j = j as usize;
-                let d = arena.delta(x, pop.position[j]);
-                let dh = pop.heading[j] - h;
+                let d = seen(arena.delta(x, pop.position[j]));
+                let dh = seen(pop.heading[j]) - own_heading;
                 let at = block + n * NEIGHBOUR_DIM;
                 obs[at..at + NEIGHBOUR_DIM].copy_from_slice(&[d.x, d.y, dh.x, dh.y].map(|c| c as f32));
             }
         }
     }
+}
+
+/// The displacement from `x` to the nearest point of the walls; zero on the torus, which has none.
+pub fn nearest_wall(arena: &Arena, x: DVec2) -> DVec2 {
+    if arena.boundary == crate::scene::Boundary::Periodic {
+        return DVec2::ZERO;
+    }
+    let h = arena.half();
+    [DVec2::new(-h - x.x, 0.0), DVec2::new(h - x.x, 0.0), DVec2::new(0.0, -h - x.y), DVec2::new(0.0, h - x.y)]
+        .into_iter()
+        .min_by(|a, b| a.length_squared().total_cmp(&b.length_squared()))
+        .expect("four walls")
 }
 
 /// Slot `n` of the `species` block in an observation of an `observer`; None when masked (empty).

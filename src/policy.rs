@@ -8,7 +8,7 @@
 use crate::components::*;
 use crate::episode::SimRng;
 use crate::perception::{neighbour_slot, Batches};
-use crate::scene::Policy;
+use crate::scene::{ObservationFrame, Policy};
 use crate::species::{SpeciesRegistry, ACTION_DIM};
 use crate::{ActiveScene, SimSet};
 use bevy::prelude::*;
@@ -99,7 +99,11 @@ fn decide_rule_based(
         let batch = &mut batches.species[s];
         for row in 0..batch.n {
             let obs = batch.observation(row);
-            let heading = [obs[4], obs[5]];
+            // In the body frame the observer always faces along its first axis.
+            let heading = match scene.0.observation_frame {
+                ObservationFrame::World => [obs[4], obs[5]],
+                ObservationFrame::Body => [1.0, 0.0],
+            };
             let action = match registry.policy(s) {
                 Policy::Random => [rng.0.gen_range(-1.0..=1.0), rng.0.gen_range(-1.0..=1.0)],
                 Policy::Still => [-1.0, 0.0],

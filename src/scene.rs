@@ -216,6 +216,23 @@ pub struct Scene {
     pub rewards: RewardParams,
     pub species: Vec<SpeciesDef>,
     pub learning: LearningParams,
+    /// The frame observations are written in (`World` in both presets; absent in older scene files).
+    #[serde(default)]
+    pub observation_frame: ObservationFrame,
+}
+
+/// The frame of an agent's observation.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub enum ObservationFrame {
+    /// The paper's: own absolute position, velocity and heading, neighbours' displacements and heading
+    /// differences in world coordinates.
+    #[default]
+    World,
+    /// Everything relative to the observer and rotated into its frame (forward, left): own forward and
+    /// lateral speed, its last turn command, the nearest wall point; neighbours' displacements and
+    /// headings. Nothing absolute, so no actor can steer every agent to one absolute heading: any
+    /// alignment must come from interaction (not in the paper; see README "Observation frames").
+    Body,
 }
 
 /// A scene file: a preset and what it overrides.
@@ -238,6 +255,8 @@ pub struct ScenePatch {
     pub species: Option<Vec<SpeciesPatch>>,
     #[serde(default)]
     pub learning: Option<LearningParamsPatch>,
+    #[serde(default)]
+    pub observation_frame: Option<ObservationFrame>,
 }
 
 /// Reads RON text of a coevo file (a scene, an experiment) into `T`, with `Some` implied for optional
@@ -345,6 +364,9 @@ impl Scene {
         }
         if let Some(v) = patch.episodes {
             self.episodes = v;
+        }
+        if let Some(v) = patch.observation_frame {
+            self.observation_frame = v;
         }
         if let Some(p) = patch.world {
             p.apply(&mut self.world);
@@ -721,6 +743,7 @@ fn paper_preset() -> Scene {
             exploration_floor: 0.05,
             checkpoint_every: 100,
         },
+        observation_frame: ObservationFrame::World,
     }
 }
 

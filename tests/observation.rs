@@ -96,3 +96,64 @@ fn topological_limit_sets_the_width() {
     assert_eq!(b.species[0].obs_dim, 54);
     assert_eq!(b.species[1].observations.len(), 10 * 22, "one contiguous [n × d_o] batch");
 }
+
+/// The same configuration observed in the body frame, its world turned by 90° about the origin (a symmetry
+/// of the square torus): every body-frame observation must be the same, and so must a network's action.
+#[test]
+fn body_frame_observations_are_hand_rotated_and_invariant_under_turning_the_world() {
+    use coevo::scene::ObservationFrame;
+    let build = |turn: bool| {
+        let mut s = scene(2, 4, Policy::Still, Boundary::Periodic);
+        s.observation_frame = ObservationFrame::Body;
+        let mut sim = Simulation::new(s);
+        // Observer prey 2 at (0.5, 0.2) heading 30°, moving; others around it, one across the seam.
+        let agents = [
+            (0u32, DVec2::new(0.6, 0.5), 2.0),
+            (1, DVec2::new(-0.9, 0.2), -1.0),
+            (2, DVec2::new(0.5, 0.2), 0.5236),
+            (3, DVec2::new(0.7, 0.1), 1.2),
+            (4, DVec2::new(0.95, 0.9), -2.5),
+            (5, DVec2::new(-0.95, 0.25), 0.1),
+        ];
+        let rot = |p: DVec2| if turn { DVec2::new(-p.y, p.x) } else { p };
+        for (id, x, theta) in agents {
+            let v = if id == 2 { DVec2::new(0.2, 0.05) } else { DVec2::ZERO };
+            place(&mut sim, id, rot(x), rot(v), theta + if turn { FRAC_PI_2 } else { 0.0 });
+        }
+        sim
+    };
+    let (plain, turned) = (build(false), build(true));
+    let obs = observation_of_prey_observer(&plain);
+    // By hand: forward h = (cos 30°, sin 30°), left = (−sin 30°, cos 30°).
+    let (h, left) = (DVec2::from_angle(0.5236), DVec2::from_angle(0.5236 + FRAC_PI_2));
+    let v = DVec2::new(0.2, 0.05);
+    assert!(close(&obs[..6], &[v.dot(h), v.dot(left), 0.0, 0.0, 0.0, 0.0]), "own {:?}", &obs[..6]);
+    // The nearest prey is prey 3 at Δ = (0.2, −0.1), heading 1.2 rad.
+    let d = DVec2::new(0.2, -0.1);
+    let dh = DVec2::from_angle(1.2 - 0.5236) - DVec2::X;
+    assert!(close(&obs[30..34], &[d.dot(h), d.dot(left), dh.x, dh.y]), "nearest prey {:?}", &obs[30..34]);
+    for s in 0..2 {
+        let a = &plain.world().resource::<Batches>().species[s].observations;
+        let b = &turned.world().resource::<Batches>().species[s].observations;
+        assert!(a.iter().zip(b).all(|(x, y)| (x - y).abs() < 1e-5), "species {s}: {a:?} vs {b:?}");
+    }
+    // A network reading them acts the same in both worlds.
+    let dev = coevo::learning::nets::Dev::default();
+    let mut rng = <rand_chacha::ChaCha8Rng as rand::SeedableRng>::seed_from_u64(3);
+    let ddpg = coevo::learning::ddpg::Ddpg::new(&dev, 54, &coevo::Scene::preset("paper").unwrap().learning, &mut rng);
+    let act = |sim: &Simulation| ddpg.act(&dev, &sim.world().resource::<Batches>().species[1].observations, 4);
+    assert!(act(&plain).iter().zip(act(&turned)).all(|(x, y)| (x - y).abs() < 1e-5));
+}
+
+#[test]
+fn body_frame_walls_are_the_nearest_wall_point_ahead_or_beside() {
+    use coevo::scene::ObservationFrame;
+    let mut s = scene(0, 2, Policy::Still, Boundary::Walls);
+    s.observation_frame = ObservationFrame::Body;
+    let mut sim = Simulation::new(s);
+    // Facing +y, 0.1 m from the right wall (x = 1): the wall is 0.1 m to the observer's right.
+    place(&mut sim, 0, DVec2::new(0.9, 0.0), DVec2::ZERO, FRAC_PI_2);
+    place(&mut sim, 1, DVec2::new(-0.5, -0.5), DVec2::ZERO, 0.0);
+    let obs = observation_of_prey_observer(&sim);
+    assert!(close(&obs[3..5], &[0.0, -0.1]), "wall {:?}", &obs[3..5]);
+}

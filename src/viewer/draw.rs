@@ -385,7 +385,7 @@ pub fn record_trails(world: &mut World) {
     }
 }
 
-type OverlayAgents<'w, 's> = Query<'w, 's, (&'static AgentId, &'static Position, &'static Body, &'static SpeciesId, &'static Contacts, &'static Slot, Option<&'static Trail>)>;
+type OverlayAgents<'w, 's> = Query<'w, 's, (&'static AgentId, &'static Position, &'static Heading, &'static Body, &'static SpeciesId, &'static Contacts, &'static Slot, Option<&'static Trail>)>;
 
 fn draw_overlays(
     mut gizmos: Gizmos,
@@ -394,6 +394,7 @@ fn draw_overlays(
     arena: Res<Arena>,
     registry: Res<SpeciesRegistry>,
     batches: Res<Batches>,
+    scene: Res<crate::ActiveScene>,
     agents: OverlayAgents,
 ) {
     let arena = *arena;
@@ -401,7 +402,7 @@ fn draw_overlays(
         gizmos.rect_2d(Isometry2d::IDENTITY, Vec2::splat(arena.edge as f32), SEAM);
     }
     let rgb = |s: usize| registry.defs.get(s).map_or([0.5; 3], |d| d.colour);
-    for (id, x, body, s, contacts, slot, trail) in &agents {
+    for (id, x, heading, body, s, contacts, slot, trail) in &agents {
         if overlays.trails {
             if let Some(trail) = trail {
                 let n = trail.0.len();
@@ -435,7 +436,13 @@ fn draw_overlays(
             for t in 0..registry.len() {
                 for n in 0..registry.defs[s.0].topological_limit {
                     if let Some([dx, dy, _, _]) = neighbour_slot(obs, &registry, s.0, t, n) {
-                        let to = x.0 + DVec2::new(dx as f64, dy as f64);
+                        // Body-frame displacements are (ahead, left) of the observer: turned back to the world.
+                        let d = DVec2::new(dx as f64, dy as f64);
+                        let d = match scene.0.observation_frame {
+                            crate::scene::ObservationFrame::World => d,
+                            crate::scene::ObservationFrame::Body => d.rotate(heading.unit()),
+                        };
+                        let to = x.0 + d;
                         let c = shade(rgb(t), 0.25);
                         wrapped_line(&mut gizmos, &arena, x.0, to, (c, c));
                     }

@@ -294,6 +294,7 @@ fn inspector(
     registry: Res<SpeciesRegistry>,
     batches: Res<Batches>,
     history: Res<History>,
+    scene: Res<crate::ActiveScene>,
 ) -> Result {
     let ctx = contexts.ctx_mut()?;
     let mut root = root_ui(ctx, "inspector_root");
@@ -307,7 +308,7 @@ fn inspector(
                 None => {
                     ui.label("Click an agent to see its observation, action and reward.");
                 }
-                Some(a) => agent_details(ui, a, &registry, &batches),
+                Some(a) => agent_details(ui, a, &registry, &batches, scene.0.observation_frame),
             }
             ui.separator();
             ui.heading("Swarming");
@@ -323,7 +324,7 @@ fn inspector(
 
 type AgentRow<'a> = (&'a AgentId, &'a SpeciesId, &'a Position, &'a Velocity, &'a Heading, &'a Action, &'a Reward, &'a Contacts, &'a Slot);
 
-fn agent_details(ui: &mut egui::Ui, a: AgentRow, registry: &SpeciesRegistry, batches: &Batches) {
+fn agent_details(ui: &mut egui::Ui, a: AgentRow, registry: &SpeciesRegistry, batches: &Batches, frame: crate::scene::ObservationFrame) {
     let (id, s, x, v, h, action, reward, contacts, slot) = a;
     let def = &registry.defs[s.0];
     ui.label(format!("{} #{}  ·  x ({:.3}, {:.3})  ·  |v| {:.3} m/s  ·  θ {:.2} rad", def.name, id.0, x.0.x, x.0.y, v.0.length(), h.0));
@@ -337,11 +338,23 @@ fn agent_details(ui: &mut egui::Ui, a: AgentRow, registry: &SpeciesRegistry, bat
     let Some(batch) = batches.species.get(s.0).filter(|b| (slot.row as usize) < b.n) else { return };
     let obs = batch.observation(slot.row as usize);
     let own = |i: usize| format!("({:+.3}, {:+.3})", obs[i], obs[i + 1]);
-    ui.label(format!("observation, {} numbers; own state: x {}, v {}, h {}", obs.len(), own(0), own(2), own(4)));
     debug_assert_eq!(OWN_STATE_DIM, 6);
+    let body = frame == crate::scene::ObservationFrame::Body;
+    if body {
+        ui.label(format!(
+            "observation (body frame: ahead, left), {} numbers; own: v {}, turn {:+.3}, nearest wall {}",
+            obs.len(),
+            own(0),
+            obs[2],
+            own(3)
+        ));
+    } else {
+        ui.label(format!("observation, {} numbers; own state: x {}, v {}, h {}", obs.len(), own(0), own(2), own(4)));
+    }
+    let headers = if body { ["neighbour", "Δ ahead", "Δ left", "Δh ahead", "Δh left"] } else { ["neighbour", "Δx", "Δy", "Δh_x", "Δh_y"] };
     egui::ScrollArea::vertical().id_salt("observation").max_height(200.0).show(ui, |ui| {
         egui::Grid::new("obs").striped(true).num_columns(5).show(ui, |ui| {
-            for header in ["neighbour", "Δx", "Δy", "Δh_x", "Δh_y"] {
+            for header in headers {
                 ui.strong(header);
             }
             ui.end_row();
