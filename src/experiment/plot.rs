@@ -59,13 +59,16 @@ fn draw_panel(panel: &Panel, area: &DrawingArea<SVGBackend, plotters::coord::Shi
     let finite = |v: &&f64| v.is_finite();
     let xs = panel.curves.iter().flat_map(|c| c.x.iter()).filter(finite);
     let (x0, x1) = xs.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| (a.min(x), b.max(x)));
-    let ys = panel.curves.iter().flat_map(|c| {
-        c.mean.iter().chain(c.band.iter().flat_map(|(lo, hi)| lo.iter().chain(hi.iter())))
-    });
-    let (y0, y1) = ys.filter(finite).fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &y| (a.min(y), b.max(y)));
+    // The axis fits the mean curves with room around them; bands (wide with few seeds) are clipped to it.
+    let means = panel.curves.iter().flat_map(|c| c.mean.iter());
+    let (m0, m1) = means.filter(finite).fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &y| (a.min(y), b.max(y)));
+    let bands = panel.curves.iter().flat_map(|c| c.band.iter().flat_map(|(lo, hi)| lo.iter().chain(hi.iter())));
+    let (b0, b1) = bands.filter(finite).fold((m0, m1), |(a, b), &y| (a.min(y), b.max(y)));
     let (x0, x1) = if x0.is_finite() && x1 > x0 { (x0, x1) } else { (0.0, 1.0) };
-    let pad = if y1 > y0 { 0.05 * (y1 - y0) } else { 0.05 * y0.abs().max(1.0) };
-    let (y0, y1) = if y0.is_finite() { (y0 - pad, y1 + pad) } else { (0.0, 1.0) };
+    let room = if m1 > m0 { m1 - m0 } else { m0.abs().max(0.1) };
+    let (y0, y1) = if m0.is_finite() { (b0.max(m0 - room), b1.min(m1 + room)) } else { (0.0, 1.0) };
+    let pad = 0.05 * (y1 - y0).max(1e-9);
+    let (y0, y1) = (y0 - pad, y1 + pad);
     let mut chart = ChartBuilder::on(area)
         .caption(&panel.title, ("sans-serif", 18))
         .margin(12)
@@ -87,7 +90,7 @@ fn draw_panel(panel: &Panel, area: &DrawingArea<SVGBackend, plotters::coord::Shi
         if let Some((lo, hi)) = &c.band {
             let upper = c.x.iter().zip(hi).map(|(&x, &y)| (x, y));
             let lower = c.x.iter().zip(lo).rev().map(|(&x, &y)| (x, y));
-            let outline: Vec<(f64, f64)> = upper.chain(lower).filter(|p| p.1.is_finite()).collect();
+            let outline: Vec<(f64, f64)> = upper.chain(lower).filter(|p| p.1.is_finite()).map(|(x, y)| (x, y.clamp(y0, y1))).collect();
             chart.draw_series(std::iter::once(Polygon::new(outline, colour.mix(0.2).filled()))).map_err(draw_err)?;
         }
         let points = c.x.iter().zip(&c.mean).map(|(&x, &y)| (x, y)).filter(|p| p.1.is_finite());
