@@ -411,7 +411,8 @@ fn write_reproduction() -> Result<(), String> {
     for file in Experiment::files(Path::new(EXPERIMENTS))? {
         let exp = Experiment::load(&file, Path::new(RESULTS))?;
         let data = aggregate::load(&exp)?;
-        let seconds: f64 = data.values().map(|d| d.wall_seconds).sum();
+        // + 0.0: an empty f64 sum is −0.0, which would print as "-0.0 h".
+        let seconds: f64 = data.values().map(|d| d.wall_seconds).sum::<f64>() + 0.0;
         let results = if data.is_empty() {
             let presets = exp.spec.presets.clone();
             presets
