@@ -90,6 +90,11 @@ pub fn write_atomically(
     file.commit()
 }
 
+/// [`write_atomically`] of whole bytes, with the error as one line naming the file.
+pub fn write_file(path: &Path, existing: Existing, bytes: &[u8]) -> Result<(), String> {
+    write_atomically(path, existing, |w| w.write_all(bytes)).map_err(|e| format!("{}: {e}", path.display()))
+}
+
 fn temporary_beside(path: &Path) -> PathBuf {
     let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
     path.with_file_name(format!(".{name}.{}.tmp", std::process::id()))

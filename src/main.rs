@@ -413,30 +413,12 @@ fn write_reproduction() -> Result<(), String> {
         let data = aggregate::load(&exp)?;
         // + 0.0: an empty f64 sum is −0.0, which would print as "-0.0 h".
         let seconds: f64 = data.values().map(|d| d.wall_seconds).sum::<f64>() + 0.0;
-        let results = if data.is_empty() {
-            let presets = exp.spec.presets.clone();
-            presets
-                .iter()
-                .flat_map(|p| exp.spec.claims.iter().map(move |c| (p.clone(), c.clone())))
-                .map(|(preset, claim)| aggregate::ClaimResult {
-                    experiment: exp.name.clone(),
-                    verdict: aggregate::verdict(&claim, None),
-                    preset,
-                    claim,
-                    estimate: None,
-                })
-                .collect()
-        } else {
-            aggregate::aggregate(&exp)?
-        };
+        let results = aggregate::aggregate(&exp, &data)?;
         let finished = data.len();
         all.push((exp, results, seconds, finished));
     }
-    let text = aggregate::reproduction(&all);
-    let path = Path::new("REPRODUCTION.md");
-    coevo::io::write_atomically(path, Existing::Replace, |w| std::io::Write::write_all(w, text.as_bytes()))
-        .map_err(|e| format!("{}: {e}", path.display()))?;
-    eprintln!("coevo: wrote {}", path.display());
+    coevo::io::write_file(Path::new("REPRODUCTION.md"), Existing::Replace, aggregate::reproduction(&all).as_bytes())?;
+    eprintln!("coevo: wrote REPRODUCTION.md");
     Ok(())
 }
 
@@ -458,7 +440,7 @@ fn plot(dir: &Path) -> Result<(), String> {
     }
     let results = dir.parent().unwrap_or(Path::new("."));
     let exp = Experiment::load(&file, results)?;
-    let claims = aggregate::aggregate(&exp)?;
+    let claims = aggregate::aggregate(&exp, &aggregate::load(&exp)?)?;
     eprintln!("coevo: wrote {}/summary.csv, summary-mean.csv and figures/ ({} claims checked)", exp.root.display(), claims.len());
     Ok(())
 }

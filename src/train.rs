@@ -200,14 +200,11 @@ pub fn train(scene: Scene, opts: &TrainOptions) -> Result<Vec<EpisodeSummary>, S
     } else {
         prepare_new_run(run, opts.overwrite)?;
         std::fs::create_dir_all(run).map_err(io_err(run))?;
-        let scene_path = run.join("scene.ron");
-        crate::io::write_atomically(&scene_path, Existing::Replace, |w| w.write_all(scene.to_ron().as_bytes()))
-            .map_err(io_err(&scene_path))?;
+        crate::io::write_file(&run.join("scene.ron"), Existing::Replace, scene.to_ron().as_bytes())?;
         let header = metrics_header(&registry, sim.world().resource::<Learners>());
         metrics_text = format!("{header}\n");
     }
-    crate::io::write_atomically(&metrics_path, Existing::Replace, |w| w.write_all(metrics_text.as_bytes()))
-        .map_err(io_err(&metrics_path))?;
+    crate::io::write_file(&metrics_path, Existing::Replace, metrics_text.as_bytes())?;
     let mut csv = std::fs::OpenOptions::new().append(true).open(&metrics_path).map_err(io_err(&metrics_path))?;
 
     let start_episode = sim.episode().index;

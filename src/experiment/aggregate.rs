@@ -140,14 +140,17 @@ pub fn verdict(claim: &Claim, e: Option<Estimate>) -> String {
     }
 }
 
-/// Writes the summaries and figures of an experiment and returns its claims checked.
-pub fn aggregate(exp: &Experiment) -> Result<Vec<ClaimResult>, String> {
-    let data = load(exp)?;
+/// Checks an experiment's claims on the `data` of its finished runs ([`load`]) and, when there are any,
+/// writes its summaries and figures. Claims with no run yet say so.
+pub fn aggregate(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> Result<Vec<ClaimResult>, String> {
+    let written = !data.is_empty();
     let prey = headline(exp);
     fn io(path: &Path) -> impl Fn(std::io::Error) -> String + '_ {
         move |e| format!("{}: {e}", path.display())
     }
-    std::fs::create_dir_all(exp.root.join("figures")).map_err(io(&exp.root))?;
+    if written {
+        std::fs::create_dir_all(exp.root.join("figures")).map_err(io(&exp.root))?;
+    }
     let evals: Vec<String> = exp.spec.evaluations.iter().map(|e| e.name.clone()).collect();
     let mut quantities: Vec<(String, Quantity)> = vec![
         ("dos_first100".into(), Quantity::DosFirst),
@@ -164,7 +167,7 @@ pub fn aggregate(exp: &Experiment) -> Result<Vec<ClaimResult>, String> {
         write!(summary, ",{name}").unwrap();
     }
     summary.push_str(",catches_first100,catches_last100,return_first100,return_last100,wall_seconds\n");
-    for (i, d) in &data {
+    for (i, d) in data {
         let r = &exp.runs[*i];
         write!(summary, "{},{},{},{}", r.preset, r.variant, r.seed, d.dos.len()).unwrap();
         for (_, q) in &quantities {
@@ -173,8 +176,6 @@ pub fn aggregate(exp: &Experiment) -> Result<Vec<ClaimResult>, String> {
         let (c0, c1, r0, r1) = (window_mean(&d.catches, true), window_mean(&d.catches, false), window_mean(&d.returns, true), window_mean(&d.returns, false));
         writeln!(summary, ",{c0},{c1},{r0},{r1},{}", d.wall_seconds).unwrap();
     }
-    let path = exp.root.join("summary.csv");
-    crate::io::write_atomically(&path, crate::io::Existing::Replace, |w| std::io::Write::write_all(w, summary.as_bytes())).map_err(io(&path))?;
 
     let mut means = String::from("preset,variant,quantity,seeds,mean,ci95\n");
     let mut results = Vec::new();
@@ -196,10 +197,14 @@ pub fn aggregate(exp: &Experiment) -> Result<Vec<ClaimResult>, String> {
             let e = estimate(&samples);
             results.push(ClaimResult { experiment: exp.name.clone(), preset: preset.clone(), claim: claim.clone(), estimate: e, verdict: verdict(claim, e) });
         }
-        figures(exp, preset, &prey, &of_variant)?;
+        if written {
+            figures(exp, preset, &prey, &of_variant)?;
+        }
     }
-    let path = exp.root.join("summary-mean.csv");
-    crate::io::write_atomically(&path, crate::io::Existing::Replace, |w| std::io::Write::write_all(w, means.as_bytes())).map_err(io(&path))?;
+    if written {
+        crate::io::write_file(&exp.root.join("summary.csv"), crate::io::Existing::Replace, summary.as_bytes())?;
+        crate::io::write_file(&exp.root.join("summary-mean.csv"), crate::io::Existing::Replace, means.as_bytes())?;
+    }
     Ok(results)
 }
 

@@ -133,9 +133,7 @@ pub fn save(stem: &Path, panels: &[Panel]) -> Result<(), String> {
     let text = svg(panels)?;
     let bytes = png(&text)?;
     for (ext, data) in [("svg", text.as_bytes()), ("png", bytes.as_slice())] {
-        let path = stem.with_extension(ext);
-        crate::io::write_atomically(&path, crate::io::Existing::Replace, |w| std::io::Write::write_all(w, data))
-            .map_err(|e| format!("{}: {e}", path.display()))?;
+        crate::io::write_file(&stem.with_extension(ext), crate::io::Existing::Replace, data)?;
     }
     Ok(())
 }

@@ -75,7 +75,6 @@ fn child(exe: &Path, args: &[String]) -> Result<(), String> {
     }
 }
 
-/// Trains (or resumes) one run and runs its missing evaluations.
 /// Trains (or resumes) one run and runs its missing evaluations, on `threads` threads (results do not
 /// depend on it).
 pub fn complete_run(exp: &Experiment, run: &Run, exe: &Path, threads: usize) -> Result<(), String> {
@@ -111,12 +110,18 @@ pub fn complete_run(exp: &Experiment, run: &Run, exe: &Path, threads: usize) -> 
             args.extend(["--count".into(), format!("{species}={n}")]);
         }
         if e.control != crate::learning::ObservationControl::Seeing {
-            args.extend(["--control".into(), format!("{:?}", e.control).to_lowercase()]);
+            let name = clap::ValueEnum::to_possible_value(&e.control).expect("every control has a name");
+            args.extend(["--control".into(), name.get_name().to_string()]);
         }
         args.extend(["--eval-out".into(), out.file_name().expect("a file").to_string_lossy().into_owned(), "--threads".into(), threads.clone()]);
         child(exe, &args).map_err(|err| format!("{dir}: evaluation {}: {err}", e.name))?;
     }
     Ok(())
+}
+
+/// Whether a run is trained and has every evaluation.
+fn finished(exp: &Experiment, run: &Run) -> bool {
+    stage(run) == Ok(Stage::Trained) && exp.spec.evaluations.iter().all(|e| eval_file(&run.dir, &e.name).exists())
 }
 
 /// Writes every variant's resolved scene (the seed is set per run), refusing runs of other scenes first.
@@ -127,8 +132,7 @@ fn prepare(exp: &Experiment) -> Result<(), String> {
     for run in exp.runs.iter().filter(|r| r.seed == exp.spec.seeds[0]) {
         let path = variant_scene(run);
         std::fs::create_dir_all(path.parent().expect("in a folder")).map_err(|e| format!("{}: {e}", path.display()))?;
-        crate::io::write_atomically(&path, crate::io::Existing::Replace, |w| std::io::Write::write_all(w, run.scene.to_ron().as_bytes()))
-            .map_err(|e| format!("{}: {e}", path.display()))?;
+        crate::io::write_file(&path, crate::io::Existing::Replace, run.scene.to_ron().as_bytes())?;
     }
     Ok(())
 }
@@ -144,7 +148,7 @@ pub fn run(exp: &Experiment, opts: &RunnerOptions, only: Option<usize>) -> Resul
     let bar = if opts.progress { ProgressBar::new(runs.len() as u64) } else { ProgressBar::hidden() };
     bar.set_style(ProgressStyle::with_template("{bar:30} {pos}/{len} runs  {elapsed} elapsed, ETA {eta}  {msg}").expect("valid template"));
     bar.set_message(exp.name.clone());
-    let already = runs.iter().filter(|r| stage(r) == Ok(Stage::Trained) && exp.spec.evaluations.iter().all(|e| eval_file(&r.dir, &e.name).exists())).count();
+    let already = runs.iter().filter(|r| finished(exp, r)).count();
     bar.set_position(already as u64);
     bar.reset_eta();
     let next = AtomicUsize::new(0);
@@ -154,8 +158,7 @@ pub fn run(exp: &Experiment, opts: &RunnerOptions, only: Option<usize>) -> Resul
             scope.spawn(|| loop {
                 let i = next.fetch_add(1, Ordering::SeqCst);
                 let Some(run) = runs.get(i) else { break };
-                let finished = stage(run) == Ok(Stage::Trained) && exp.spec.evaluations.iter().all(|e| eval_file(&run.dir, &e.name).exists());
-                if finished {
+                if finished(exp, run) {
                     continue;
                 }
                 // The cores are shared among the runs at a time (one run alone updates its species on all).
@@ -206,9 +209,7 @@ pub fn emit_slurm(exp: &Experiment, exe: &str) -> Result<PathBuf, String> {
         root = exp.root.display(),
     );
     for (name, text) in [("array.sh", array), ("aggregate.sh", aggregate), ("submit.sh", submit)] {
-        let path = dir.join(name);
-        crate::io::write_atomically(&path, crate::io::Existing::Replace, |w| std::io::Write::write_all(w, text.as_bytes()))
-            .map_err(|e| format!("{}: {e}", path.display()))?;
+        crate::io::write_file(&dir.join(name), crate::io::Existing::Replace, text.as_bytes())?;
     }
     Ok(dir)
 }
