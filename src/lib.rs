@@ -14,6 +14,7 @@
 //! | `Episode`  | end of episode: summary, respawn                                  | `episode.rs`      |
 
 pub mod bench;
+pub mod collective;
 pub mod components;
 pub mod episode;
 pub mod experiment;

@@ -10,7 +10,9 @@
 //! reports them for prey. Per step ([`SwarmMetrics::now`]) and per episode ([`EpisodeLog`]), with catches
 //! (predator–prey pairs in contact) and each species' mean return per agent.
 
+use crate::collective::{self, ConfusionBin, CONFUSION_BINS};
 use crate::components::*;
+use crate::episode::Episode;
 use crate::perception::Population;
 use crate::space::{Arena, CellGrid};
 use crate::species::SpeciesRegistry;
@@ -18,12 +20,13 @@ use crate::SimSet;
 use bevy::math::DVec2;
 use bevy::prelude::*;
 
-/// The order of one group at one instant: the paper's DoS and DoA, and two order parameters of collective
-/// motion that tell a flock from a mill (not in the paper):
+/// The order of one group at one instant: the paper's DoS and DoA, and order parameters of collective
+/// motion that tell a flock from a mill and from agents that merely share a heading (not in the paper):
 ///
 /// ```text
 ///   polarization P = ‖(1/N) Σ_j h_j‖                        1 = all aligned, ~1/√N for random headings
 ///   milling      M = |(1/N) Σ_j (r̂_j × h_j)_z|,  r_j = x_j − c    1 = a perfect mill, ~0 for a flock
+///   clusters, largest_cluster (a fraction of N), nn_correlation C_nn: see crate::collective
 /// ```
 ///
 /// c is the group's centre: the mean position with walls, and on the torus the circular mean per axis
@@ -35,6 +38,26 @@ pub struct Swarming {
     pub doa: f64,
     pub polarization: f64,
     pub milling: f64,
+    /// Number of single-linkage clusters.
+    pub clusters: f64,
+    /// Size of the largest cluster over N.
+    pub largest_cluster: f64,
+    /// Connected correlation of heading fluctuations between nearest neighbours.
+    pub nn_correlation: f64,
+}
+
+impl Swarming {
+    /// Column names, in the order of [`Swarming::values`] (CSV headers append `_<species>`).
+    pub const NAMES: [&'static str; 7] = ["dos", "doa", "polarization", "milling", "clusters", "largest_cluster", "nn_correlation"];
+
+    pub fn values(&self) -> [f64; 7] {
+        [self.dos, self.doa, self.polarization, self.milling, self.clusters, self.largest_cluster, self.nn_correlation]
+    }
+
+    pub fn from_values(v: [f64; 7]) -> Self {
+        let [dos, doa, polarization, milling, clusters, largest_cluster, nn_correlation] = v;
+        Swarming { dos, doa, polarization, milling, clusters, largest_cluster, nn_correlation }
+    }
 }
 
 /// The group's centre c (see [`Swarming`]).
@@ -70,9 +93,10 @@ pub fn polarization_and_milling(arena: &Arena, positions: &[DVec2], headings: &[
     (polarization, (rotation / n).abs())
 }
 
-/// DoS and DoA of the agents `members` of a population at one instant, using `grid` (built over
+/// The order of the agents `members` of a population at one instant, using `grid` (built over
 /// `members`) for the nearest-neighbour search, or `known_nearest[j]` where perception already found
-/// j's nearest kin. None with fewer than two agents.
+/// j's nearest kin, and their cluster `labels` ([`collective::cluster_labels`]); `nn_distances` gets each
+/// member's nearest-neighbour distance in metres. None with fewer than two agents.
 pub fn swarming(
     arena: &Arena,
     positions: &[DVec2],
@@ -80,35 +104,52 @@ pub fn swarming(
     grid: &CellGrid,
     members: std::ops::Range<usize>,
     known_nearest: &[Option<u32>],
+    labels: &[u32],
+    nn_distances: &mut Vec<f64>,
 ) -> Option<Swarming> {
     let n = members.len();
+    nn_distances.clear();
     if n < 2 {
         return None;
     }
-    let members_start = members.start;
-    let mut nearest = Vec::with_capacity(1);
+    let start = members.start;
+    let mut found = Vec::with_capacity(1);
     let (mut distance, mut alignment) = (0.0, 0.0);
-    for j in members {
+    let mut nearest = Vec::with_capacity(n);
+    for j in members.clone() {
         let k = match known_nearest.get(j).copied().flatten() {
             Some(k) => k as usize,
             None => {
-                grid.k_nearest(arena, positions[j], 1, f64::INFINITY, j as u32, &mut nearest);
-                nearest[0].1 as usize
+                grid.k_nearest(arena, positions[j], 1, f64::INFINITY, j as u32, &mut found);
+                found[0].1 as usize
             }
         };
-        distance += arena.delta(positions[j], positions[k]).length();
+        let d = arena.delta(positions[j], positions[k]).length();
+        nn_distances.push(d);
+        distance += d;
         alignment += (headings[j] + headings[k]).length();
+        nearest.push(k - start);
     }
-    let range = members_start..members_start + n;
-    let (polarization, milling) = polarization_and_milling(arena, &positions[range.clone()], &headings[range]);
-    Some(Swarming { dos: distance / (n as f64 * arena.max_distance()), doa: alignment / (2.0 * n as f64), polarization, milling })
+    let (polarization, milling) = polarization_and_milling(arena, &positions[members.clone()], &headings[members.clone()]);
+    let sizes = collective::cluster_sizes(labels);
+    Some(Swarming {
+        dos: distance / (n as f64 * arena.max_distance()),
+        doa: alignment / (2.0 * n as f64),
+        polarization,
+        milling,
+        clusters: sizes.len() as f64,
+        largest_cluster: sizes.iter().copied().max().unwrap_or(0) as f64 / n as f64,
+        nn_correlation: collective::nn_correlation(&headings[members], &nearest),
+    })
 }
 
-/// Convenience for callers without a grid: DoS and DoA of a whole set of positions and unit headings.
-pub fn swarming_of(arena: &Arena, positions: &[DVec2], headings: &[DVec2]) -> Option<Swarming> {
+/// Convenience for callers without a grid: the order of a whole set of positions and unit headings,
+/// clusters linked within `link` metres.
+pub fn swarming_of(arena: &Arena, positions: &[DVec2], headings: &[DVec2], link: f64) -> Option<Swarming> {
     let mut grid = CellGrid::default();
     grid.rebuild(arena, positions, 0..positions.len());
-    swarming(arena, positions, headings, &grid, 0..positions.len(), &[])
+    let labels = collective::cluster_labels(arena, positions, &grid, 0..positions.len(), link);
+    swarming(arena, positions, headings, &grid, 0..positions.len(), &[], &labels, &mut Vec::new())
 }
 
 /// The running mean over the last `window` values (fewer at the start): the paper's 100-episode curves,
@@ -128,23 +169,36 @@ pub fn running_mean(values: &[f64], window: usize) -> Vec<f64> {
         .collect()
 }
 
-/// Per-step metrics of the current state and the running sums of the current episode.
+/// Per-step metrics of the current state, the running sums of the current episode, and the confusion
+/// curve of the whole run.
 #[derive(Resource, Default, Debug, Clone)]
 pub struct SwarmMetrics {
     /// Per species; None with fewer than two agents.
     pub now: Vec<Option<Swarming>>,
     /// Predator–prey pairs in contact at the current state.
     pub catches_now: u32,
+    /// Per species: each agent's nearest-neighbour distance (m) at this state.
+    pub nn_distances_now: Vec<Vec<f64>>,
+    /// Per prey species: the edge ranks of the prey caught at this step (contacts that began with it),
+    /// among groups of three or more ([`collective::edge_rank`]).
+    pub edge_ranks_now: Vec<Vec<f64>>,
+    /// Per species (empty bins for species that catch nothing): the confusion curve since the scene
+    /// started, by [`collective::CONFUSION_BINS`] of prey in view.
+    pub confusion: Vec<[ConfusionBin; CONFUSION_BINS.len()]>,
+    /// Prey in view of each agent at the previous state (index as [`Population`]) and its episode: the
+    /// decision taken there is scored at the next step.
+    in_view: (usize, Vec<u32>),
     episode: EpisodeSums,
 }
 
 #[derive(Default, Debug, Clone)]
 struct EpisodeSums {
     steps: usize,
-    swarming: Vec<Swarming>,
+    swarming: Vec<[f64; 7]>,
     catches: u64,
     rewards: Vec<f64>,
     agents: Vec<usize>,
+    edge_ranks: Vec<(f64, u64)>,
 }
 
 /// One episode's summary: the time averages of the paper's figures.
@@ -158,6 +212,8 @@ pub struct EpisodeSummary {
     pub catches: u64,
     /// Per species: summed reward over the episode divided by the number of agents (mean return).
     pub mean_return: Vec<f64>,
+    /// Per species: the mean edge rank of its prey caught this episode; None without a ranked catch.
+    pub edge_rank: Vec<Option<f64>>,
 }
 
 /// Every finished episode, in order.
@@ -174,21 +230,10 @@ impl SwarmMetrics {
         EpisodeSummary {
             episode,
             steps: sums.steps,
-            swarming: sums
-                .swarming
-                .iter()
-                .zip(&sums.agents)
-                .map(|(s, &n)| {
-                    (n >= 2).then(|| Swarming {
-                        dos: s.dos / t,
-                        doa: s.doa / t,
-                        polarization: s.polarization / t,
-                        milling: s.milling / t,
-                    })
-                })
-                .collect(),
+            swarming: sums.swarming.iter().zip(&sums.agents).map(|(s, &n)| (n >= 2).then(|| Swarming::from_values(s.map(|v| v / t)))).collect(),
             catches: sums.catches,
             mean_return: sums.rewards.iter().zip(&sums.agents).map(|(r, &n)| if n > 0 { r / n as f64 } else { 0.0 }).collect(),
+            edge_rank: sums.edge_ranks.iter().map(|&(sum, n)| (n > 0).then(|| sum / n as f64)).collect(),
         }
     }
 }
@@ -202,34 +247,92 @@ impl Plugin for MetricsPlugin {
     }
 }
 
+/// Body diameters within which two agents of a species belong to one cluster, unless the scene says.
+pub const DEFAULT_CLUSTER_LINK: f64 = 2.0;
+
 fn measure(
     pop: Res<Population>,
     arena: Res<Arena>,
     registry: Res<SpeciesRegistry>,
+    scene: Res<crate::ActiveScene>,
+    episode: Res<Episode>,
     mut metrics: ResMut<SwarmMetrics>,
-    agents: Query<(&SpeciesId, &Contacts, &Reward)>,
+    agents: Query<(&Slot, &Contacts, &Reward)>,
 ) {
     let n_species = registry.len();
     let m = &mut *metrics;
-    m.now = (0..n_species)
-        .map(|s| swarming(&arena, &pop.position, &pop.heading, &pop.grids[s], pop.ranges[s].clone(), &pop.nearest_kin))
+    // Contacts by population index.
+    let mut contacts = vec![ContactCounts::default(); pop.len()];
+    let mut started = vec![false; pop.len()];
+    m.episode.rewards.resize(n_species, 0.0);
+    m.catches_now = 0;
+    for (slot, c, reward) in &agents {
+        let i = slot.index as usize;
+        contacts[i] = c.now;
+        started[i] = c.now.caught > 0 && c.before.caught == 0;
+        m.catches_now += c.now.catching;
+        m.episode.rewards[pop.species[i]] += reward.0;
+    }
+    let labels: Vec<Vec<u32>> = (0..n_species)
+        .map(|s| {
+            let link = scene.0.cluster_link * 2.0 * registry.defs[s].radius;
+            collective::cluster_labels(&arena, &pop.position, &pop.grids[s], pop.ranges[s].clone(), link)
+        })
         .collect();
+    m.nn_distances_now.resize(n_species, Vec::new());
+    m.now = (0..n_species)
+        .map(|s| {
+            let out = &mut m.nn_distances_now[s];
+            swarming(&arena, &pop.position, &pop.heading, &pop.grids[s], pop.ranges[s].clone(), &pop.nearest_kin, &labels[s], out)
+        })
+        .collect();
+    // Marginal predation: where in its group each newly caught prey was.
+    m.edge_ranks_now.resize(n_species, Vec::new());
+    for (s, ranks) in m.edge_ranks_now.iter_mut().enumerate() {
+        ranks.clear();
+        let range = pop.ranges[s].clone();
+        for j in range.clone().filter(|&j| started[j]) {
+            let label = labels[s][j - range.start];
+            let group: Vec<usize> = range.clone().filter(|&i| labels[s][i - range.start] == label).collect();
+            ranks.extend(collective::edge_rank(&arena, &pop.position, &group, j));
+        }
+    }
+    // Confusion: each predator's last decision against the prey it had in view when taking it.
+    m.confusion.resize(n_species, Default::default());
+    let in_view: Vec<u32> = (0..pop.len())
+        .map(|i| {
+            let s = pop.species[i];
+            let radius = registry.perception_radius[s];
+            let mut n = 0;
+            for t in registry.prey_of(s) {
+                pop.grids[t].for_each_near(pop.position[i], radius, |_, x| n += (arena.delta(pop.position[i], x).length() <= radius) as u32);
+            }
+            n
+        })
+        .collect();
+    if m.in_view.0 == episode.index && m.in_view.1.len() == pop.len() {
+        for (i, &n) in m.in_view.1.iter().enumerate() {
+            let s = pop.species[i];
+            if registry.prey_of(s).next().is_some() {
+                let speed = pop.velocity[i].length() / registry.defs[s].max_speed;
+                m.confusion[s][collective::confusion_bin(n)].add(pop.turn[i], speed, contacts[i].catching);
+            }
+        }
+    }
+    m.in_view = (episode.index, in_view);
+    // The episode's running sums.
     let e = &mut m.episode;
-    e.swarming.resize(n_species, Swarming::default());
-    e.rewards.resize(n_species, 0.0);
+    e.swarming.resize(n_species, [0.0; 7]);
+    e.edge_ranks.resize(n_species, (0.0, 0));
     e.agents = (0..n_species).map(|s| pop.count(s)).collect();
     for (sum, now) in e.swarming.iter_mut().zip(&m.now) {
         if let Some(now) = now {
-            sum.dos += now.dos;
-            sum.doa += now.doa;
-            sum.polarization += now.polarization;
-            sum.milling += now.milling;
+            sum.iter_mut().zip(now.values()).for_each(|(a, v)| *a += v);
         }
     }
-    m.catches_now = 0;
-    for (species, contacts, reward) in &agents {
-        m.catches_now += contacts.now.catching;
-        e.rewards[species.0] += reward.0;
+    for (sum, ranks) in e.edge_ranks.iter_mut().zip(&m.edge_ranks_now) {
+        sum.0 += ranks.iter().sum::<f64>();
+        sum.1 += ranks.len() as u64;
     }
     e.catches += m.catches_now as u64;
     e.steps += 1;
@@ -249,7 +352,7 @@ mod tests {
         for _ in 0..samples {
             let pos: Vec<DVec2> = (0..50).map(|_| DVec2::new(rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0))).collect();
             let head: Vec<DVec2> = (0..50).map(|_| DVec2::from_angle(rng.gen_range(-std::f64::consts::PI..std::f64::consts::PI))).collect();
-            total += swarming_of(&arena, &pos, &head).unwrap().doa;
+            total += swarming_of(&arena, &pos, &head, 0.1).unwrap().doa;
         }
         let doa = total / samples as f64;
         assert!((doa - 2.0 / std::f64::consts::PI).abs() < 0.02, "DoA of random headings {doa}");
@@ -287,7 +390,7 @@ mod tests {
         let expected = (std::f64::consts::PI / (4.0 * n as f64)).sqrt();
         assert!((total / samples as f64 - expected).abs() < 0.1 * expected, "{} vs {expected}", total / samples as f64);
         // The per-instant measure reports both.
-        let s = swarming_of(&arena, &pos, &tangent).unwrap();
+        let s = swarming_of(&arena, &pos, &tangent, 0.1).unwrap();
         assert!(s.polarization < 1e-9 && (s.milling - 1.0).abs() < 1e-9);
     }
 
@@ -296,7 +399,7 @@ mod tests {
         let arena = Arena { edge: 2.0, boundary: Boundary::Walls };
         let pos = [DVec2::new(0.0, 0.0), DVec2::new(0.3, 0.1), DVec2::new(-0.5, 0.7)];
         let head = [DVec2::from_angle(0.7); 3];
-        assert!((swarming_of(&arena, &pos, &head).unwrap().doa - 1.0).abs() < 1e-12);
+        assert!((swarming_of(&arena, &pos, &head, 0.1).unwrap().doa - 1.0).abs() < 1e-12);
     }
 
     #[test]
@@ -306,10 +409,10 @@ mod tests {
         let arena = Arena { edge: 2.0, boundary: Boundary::Periodic };
         let pos = [DVec2::new(0.95, 0.0), DVec2::new(-0.95, 0.0), DVec2::new(-0.45, 0.0)];
         let head = [DVec2::X, DVec2::Y, -DVec2::X];
-        let s = swarming_of(&arena, &pos, &head).unwrap();
+        let s = swarming_of(&arena, &pos, &head, 0.1).unwrap();
         assert!((s.dos - 0.7 / (3.0 * 2f64.sqrt())).abs() < 1e-12, "{}", s.dos);
         // Pairs: (X,Y) → √2, (Y,X) → √2, (−X, Y) → √2: DoA = 3·√2 / 6.
         assert!((s.doa - 2f64.sqrt() / 2.0).abs() < 1e-12, "{}", s.doa);
-        assert!(swarming_of(&arena, &pos[..1], &head[..1]).is_none());
+        assert!(swarming_of(&arena, &pos[..1], &head[..1], 0.1).is_none());
     }
 }

@@ -219,6 +219,14 @@ pub struct Scene {
     /// The frame observations are written in (`World` in both presets; absent in older scene files).
     #[serde(default)]
     pub observation_frame: ObservationFrame,
+    /// Agents of one species closer than this many body diameters (centre to centre) belong to one
+    /// cluster, for the group-structure measures (not in the paper; absent in older scene files).
+    #[serde(default = "default_cluster_link")]
+    pub cluster_link: f64,
+}
+
+fn default_cluster_link() -> f64 {
+    crate::metrics::DEFAULT_CLUSTER_LINK
 }
 
 /// The frame of an agent's observation.
@@ -257,6 +265,8 @@ pub struct ScenePatch {
     pub learning: Option<LearningParamsPatch>,
     #[serde(default)]
     pub observation_frame: Option<ObservationFrame>,
+    #[serde(default)]
+    pub cluster_link: Option<f64>,
 }
 
 /// Reads RON text of a coevo file (a scene, an experiment) into `T`, with `Some` implied for optional
@@ -368,6 +378,9 @@ impl Scene {
         if let Some(v) = patch.observation_frame {
             self.observation_frame = v;
         }
+        if let Some(v) = patch.cluster_link {
+            self.cluster_link = v;
+        }
         if let Some(p) = patch.world {
             p.apply(&mut self.world);
         }
@@ -422,6 +435,7 @@ impl Scene {
             check(v.is_finite() && v >= 0.0, field, || format!("must be a finite number ≥ 0 (got {v})"))
         }
         let w = &self.world;
+        positive(self.cluster_link, "cluster_link")?;
         positive(w.arena_edge, "world.arena_edge")?;
         positive(w.dt, "world.dt")?;
         non_negative(w.drag, "world.drag")?;
@@ -744,6 +758,7 @@ fn paper_preset() -> Scene {
             checkpoint_every: 100,
         },
         observation_frame: ObservationFrame::World,
+        cluster_link: default_cluster_link(),
     }
 }
 

@@ -7,7 +7,7 @@ use crate::episode::{Episode, SimRng};
 use crate::io::{AtomicFile, Existing};
 use crate::learning::checkpoint::{self, SpeciesState, TrainingState};
 use crate::learning::{Learners, LearningPlugin, Mode};
-use crate::metrics::{EpisodeLog, EpisodeSummary, SwarmMetrics};
+use crate::metrics::{EpisodeLog, EpisodeSummary, SwarmMetrics, Swarming};
 use crate::scene::Scene;
 use crate::species::SpeciesRegistry;
 use crate::Simulation;
@@ -61,7 +61,7 @@ pub fn learning_simulation_with(
 fn metrics_header(registry: &SpeciesRegistry, learners: &Learners) -> String {
     let mut cols = vec!["episode".to_string(), "steps".into()];
     for d in &registry.defs {
-        cols.extend(["dos", "doa", "polarization", "milling"].map(|q| format!("{q}_{}", d.name)));
+        cols.extend(Swarming::NAMES.iter().chain(&["edge_rank"]).map(|q| format!("{q}_{}", d.name)));
     }
     cols.push("catches".into());
     for d in &registry.defs {
@@ -85,8 +85,9 @@ fn metrics_header(registry: &SpeciesRegistry, learners: &Learners) -> String {
 fn metrics_row(e: &EpisodeSummary, learners: &mut Learners, wall_seconds: f64) -> String {
     let blank = |x: Option<f64>| x.map_or(String::new(), |v| v.to_string());
     let mut cols = vec![e.episode.to_string(), e.steps.to_string()];
-    for s in &e.swarming {
-        cols.extend([s.map(|s| s.dos), s.map(|s| s.doa), s.map(|s| s.polarization), s.map(|s| s.milling)].map(blank));
+    for (s, edge_rank) in e.swarming.iter().zip(&e.edge_rank) {
+        cols.extend(s.map_or([None; 7], |s| s.values().map(Some)).map(blank));
+        cols.push(blank(*edge_rank));
     }
     cols.push(e.catches.to_string());
     cols.extend(e.mean_return.iter().map(|r| r.to_string()));
@@ -101,6 +102,25 @@ fn metrics_row(e: &EpisodeSummary, learners: &mut Learners, wall_seconds: f64) -
     }
     cols.push(format!("{wall_seconds:.3}"));
     cols.join(",")
+}
+
+/// CSV `text` rewritten under `header`: each row's cells moved to the columns of the same name, columns
+/// the old header lacks left blank, columns the new one lacks dropped. Identity when the headers agree.
+fn with_header(text: &str, header: &str) -> String {
+    let mut lines = text.lines();
+    let old: Vec<&str> = lines.next().unwrap_or("").split(',').collect();
+    if old.join(",") == header {
+        return text.to_string();
+    }
+    let map: Vec<Option<usize>> = header.split(',').map(|h| old.iter().position(|o| *o == h)).collect();
+    let mut out = format!("{header}\n");
+    for line in lines.filter(|l| !l.is_empty()) {
+        let cells: Vec<&str> = line.split(',').collect();
+        let row: Vec<&str> = map.iter().map(|i| i.and_then(|i| cells.get(i).copied()).unwrap_or("")).collect();
+        out.push_str(&row.join(","));
+        out.push('\n');
+    }
+    out
 }
 
 fn io_err(path: &Path) -> impl Fn(std::io::Error) -> String + '_ {
@@ -196,7 +216,8 @@ pub fn train(scene: Scene, opts: &TrainOptions) -> Result<Vec<EpisodeSummary>, S
         world.resource_mut::<SimRng>().0 = state.sim_rng.clone();
         world.resource_mut::<Episode>().index = state.episodes_done;
         crate::episode::spawn_population(world);
-        metrics_text = state.metrics_csv;
+        // A run begun by an older coevo keeps its rows, under today's columns (new ones blank).
+        metrics_text = with_header(&state.metrics_csv, &metrics_header(&registry, world.resource::<Learners>()));
     } else {
         prepare_new_run(run, opts.overwrite)?;
         std::fs::create_dir_all(run).map_err(io_err(run))?;
@@ -280,6 +301,11 @@ pub fn train(scene: Scene, opts: &TrainOptions) -> Result<Vec<EpisodeSummary>, S
     Ok(summaries)
 }
 
+/// The nearest-neighbour distance histogram: bins of this many body diameters, NN_BINS of them and one
+/// for everything beyond.
+const NN_BIN_DIAMETERS: f64 = 0.25;
+const NN_BINS: usize = 80;
+
 pub struct EvalOptions {
     pub run: PathBuf,
     /// What the actors see of their neighbours (a control for alignment claims).
@@ -324,8 +350,13 @@ pub fn evaluate(opts: &EvalOptions) -> Result<String, String> {
     let path = opts.run.join(file_name);
     let write_err = |e: std::io::Error| format!("{}: {e}", path.display());
     let mut file = AtomicFile::create(&path, Existing::Replace).map_err(write_err)?;
-    writeln!(file.writer(), "episode,step,dos_{name},doa_{name},polarization_{name},milling_{name},catches").map_err(write_err)?;
-    let (mut sum_dos, mut sum_doa, mut n) = (0.0, 0.0, 0usize);
+    let columns: Vec<String> = Swarming::NAMES.iter().chain(&["edge_rank"]).map(|q| format!("{q}_{name}")).collect();
+    writeln!(file.writer(), "episode,step,{},catches", columns.join(",")).map_err(write_err)?;
+    let blank = |x: Option<f64>| x.map_or(String::new(), |v| v.to_string());
+    let (mut sums, mut n) = ([0.0; 7], 0usize);
+    let mut ranks = Vec::new();
+    let diameter = 2.0 * registry.defs[prey].radius;
+    let mut nn_histogram = vec![0u64; NN_BINS + 1];
     for episode in 0..opts.episodes {
         if episode > 0 {
             crate::episode::next_episode(sim.world_mut());
@@ -335,28 +366,56 @@ pub fn evaluate(opts: &EvalOptions) -> Result<String, String> {
             sim.check()?;
             let m = sim.world().resource::<SwarmMetrics>();
             let sw = m.now.get(prey).copied().flatten();
-            let blank = |x: Option<f64>| x.map_or(String::new(), |v| v.to_string());
-            writeln!(
-                file.writer(),
-                "{episode},{step},{},{},{},{},{}",
-                blank(sw.map(|s| s.dos)),
-                blank(sw.map(|s| s.doa)),
-                blank(sw.map(|s| s.polarization)),
-                blank(sw.map(|s| s.milling)),
-                m.catches_now
-            )
-            .map_err(write_err)?;
+            let step_ranks = &m.edge_ranks_now[prey];
+            let edge_rank = (!step_ranks.is_empty()).then(|| step_ranks.iter().sum::<f64>() / step_ranks.len() as f64);
+            let cells: Vec<String> = sw.map_or([None; 7], |s| s.values().map(Some)).map(blank).into_iter().chain([blank(edge_rank)]).collect();
+            writeln!(file.writer(), "{episode},{step},{},{}", cells.join(","), m.catches_now).map_err(write_err)?;
             if let Some(sw) = sw {
-                sum_dos += sw.dos;
-                sum_doa += sw.doa;
+                sums.iter_mut().zip(sw.values()).for_each(|(a, v)| *a += v);
                 n += 1;
+            }
+            ranks.extend_from_slice(step_ranks);
+            for d in &m.nn_distances_now[prey] {
+                nn_histogram[((d / diameter / NN_BIN_DIAMETERS) as usize).min(NN_BINS)] += 1;
             }
         }
     }
+    // The distributions beside the per-step file: <stem>-nn.csv and <stem>-confusion.csv.
+    let stem = file_name.trim_end_matches(".csv");
+    let total = nn_histogram.iter().sum::<u64>().max(1) as f64;
+    let mut nn = String::from("from_diameters,to_diameters,from_m,to_m,fraction\n");
+    for (b, count) in nn_histogram.iter().enumerate() {
+        let (lo, hi) = (b as f64 * NN_BIN_DIAMETERS, if b == NN_BINS { f64::INFINITY } else { (b + 1) as f64 * NN_BIN_DIAMETERS });
+        nn.push_str(&format!("{lo},{hi},{},{},{}\n", lo * diameter, hi * diameter, *count as f64 / total));
+    }
+    let m = sim.world().resource::<SwarmMetrics>();
+    let mut confusion = String::from("species,prey_in_view,samples,mean_abs_turn,mean_speed_fraction,catches_per_step\n");
+    for (s, bins) in m.confusion.iter().enumerate().filter(|(s, _)| registry.prey_of(*s).next().is_some()) {
+        for (b, bin) in bins.iter().enumerate() {
+            let (turn, speed, catches) = bin.means().map_or([None; 3], |(t, v, c)| [Some(t), Some(v), Some(c)]).into();
+            confusion.push_str(&format!(
+                "{},{},{},{},{},{}\n",
+                registry.defs[s].name,
+                crate::collective::confusion_bin_label(b),
+                bin.samples,
+                blank(turn),
+                blank(speed),
+                blank(catches)
+            ));
+        }
+    }
     file.commit().map_err(write_err)?;
+    crate::io::write_file(&opts.run.join(format!("{stem}-nn.csv")), Existing::Replace, nn.as_bytes())?;
+    crate::io::write_file(&opts.run.join(format!("{stem}-confusion.csv")), Existing::Replace, confusion.as_bytes())?;
     let counts: Vec<String> = registry.defs.iter().map(|d| format!("{} {}", d.count, d.name)).collect();
     let means = if n > 0 {
-        format!("mean DoS {:.4}, mean DoA {:.4} ({name})", sum_dos / n as f64, sum_doa / n as f64)
+        let [dos, doa, polarization, milling, clusters, largest, c_nn] = sums.map(|v| v / n as f64);
+        let edge = if ranks.is_empty() { "no ranked catch".to_string() } else { format!("edge rank of caught {name} {:.3} ({} catches)", ranks.iter().sum::<f64>() / ranks.len() as f64, ranks.len()) };
+        format!(
+            "mean DoS {dos:.4}, DoA {doa:.4}, polarization {polarization:.3}, milling {milling:.3}, \
+             {clusters:.1} clusters (largest {:.0} %), C_nn {c_nn:.3}, {edge} ({name})",
+            100.0 * largest
+        )
     } else {
         format!("no DoS/DoA: fewer than two {name}")
     };

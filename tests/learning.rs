@@ -41,15 +41,19 @@ fn a_tiny_training_run_writes_scene_metrics_and_checkpoints() {
     assert_eq!(summaries.len(), 5);
     let lines = metrics_without_wall_clock(&run);
     assert_eq!(lines.len(), 6, "header and one row per episode");
-    assert!(lines[0].starts_with(
-        "episode,steps,dos_predator,doa_predator,polarization_predator,milling_predator,dos_prey,doa_prey,polarization_prey,milling_prey,catches"
-    ));
+    let order = ["dos", "doa", "polarization", "milling", "clusters", "largest_cluster", "nn_correlation", "edge_rank"];
+    let per_species = |s: &str| order.map(|q| format!("{q}_{s}")).join(",");
+    assert!(lines[0].starts_with(&format!("episode,steps,{},{},catches", per_species("predator"), per_species("prey"))), "{}", lines[0]);
     assert!(lines[0].contains("critic_loss_prey,actor_loss_prey,noise_std_prey,epsilon_prey"));
-    // Losses appear once the buffer has warmed up (13 agents × 20 steps per episode ≫ 32).
+    let header: Vec<&str> = lines[0].split(',').collect();
     let last: Vec<&str> = lines[5].split(',').collect();
-    assert!(last[13].parse::<f64>().unwrap().is_finite(), "critic loss recorded: {}", lines[5]);
+    let cell = |name: &str| last[header.iter().position(|h| *h == name).unwrap()].parse::<f64>().unwrap();
+    // Losses appear once the buffer has warmed up (13 agents × 20 steps per episode ≫ 32).
+    assert!(cell("critic_loss_prey").is_finite(), "critic loss recorded: {}", lines[5]);
     // σ fell by the decay once per episode.
-    assert!((last[15].parse::<f64>().unwrap() - (0.1 - 5.0 * 5e-5)).abs() < 1e-12);
+    assert!((cell("noise_std_prey") - (0.1 - 5.0 * 5e-5)).abs() < 1e-12);
+    // Group structure is measured every episode: at least one cluster, the largest a fraction of N.
+    assert!(cell("clusters_prey") >= 1.0 && (0.0..=1.0).contains(&cell("largest_cluster_prey")));
     Scene::load(&run.join("scene.ron")).expect("the resolved scene loads back");
     for f in ["prey-actor.safetensors", "prey-training.safetensors", "predator-actor.safetensors", "state.ron"] {
         assert!(run.join("checkpoint").join(f).exists(), "{f}");

@@ -1,5 +1,5 @@
 //! Live plots (egui_plot): DoS and DoA per episode with their 100-episode running means, DoS, DoA,
-//! polarization and milling step by step within the current episode, and catches per episode, for the
+//! polarization, milling, largest cluster and nearest-neighbour heading correlation step by step within the current episode, and catches per episode, for the
 //! headline species (the prey).
 
 use crate::episode::Episode;
@@ -25,6 +25,8 @@ pub struct History {
     pub step_doa: Vec<[f64; 2]>,
     pub step_polarization: Vec<[f64; 2]>,
     pub step_milling: Vec<[f64; 2]>,
+    pub step_largest_cluster: Vec<[f64; 2]>,
+    pub step_nn_correlation: Vec<[f64; 2]>,
 }
 
 impl History {
@@ -37,6 +39,8 @@ impl History {
         self.step_doa.clear();
         self.step_polarization.clear();
         self.step_milling.clear();
+        self.step_largest_cluster.clear();
+        self.step_nn_correlation.clear();
     }
 }
 
@@ -71,6 +75,8 @@ pub fn record_step(world: &mut World) {
         h.step_doa.push([step, s.doa]);
         h.step_polarization.push([step, s.polarization]);
         h.step_milling.push([step, s.milling]);
+        h.step_largest_cluster.push([step, s.largest_cluster]);
+        h.step_nn_correlation.push([step, s.nn_correlation]);
     }
 }
 
@@ -103,6 +109,8 @@ pub fn show(ui: &mut egui::Ui, h: &History, species: &str) {
         p.line(line("DoA", &h.step_doa, DOA, 1.5));
         p.line(line("polarization", &h.step_polarization, egui::Color32::from_rgb(60, 160, 90), 1.0));
         p.line(line("milling", &h.step_milling, egui::Color32::from_rgb(150, 90, 200), 1.0));
+        p.line(line("largest cluster / N", &h.step_largest_cluster, egui::Color32::from_rgb(120, 120, 120), 1.0));
+        p.line(line("C_nn (local order)", &h.step_nn_correlation, egui::Color32::from_rgb(200, 60, 140), 1.0));
     });
     ui.label("catches per episode");
     Plot::new("catches").height(height).include_y(0.0).show(ui, |p| {

@@ -1,0 +1,232 @@
+//! Measures of collective behaviour the paper shows only as pictures and words (not in the paper):
+//! group structure, the local order a shared heading attractor cannot fake, marginal predation and the
+//! confusion effect. Pure functions of one instant; [`crate::metrics`] applies them every step.
+//!
+//! ```text
+//!   clusters        groups of agents linked by chains of neighbours closer than ℓ (single linkage),
+//!                   ℓ = cluster_link · 2·radius (the scene's `cluster_link`, default 2 body diameters)
+//!   nn correlation  C_nn = Σ_j δh_j·δh_k(j) / Σ_j |δh_j|²,   δh_j = h_j − (1/N) Σ_i h_i,  k(j) = j's nearest
+//!                   the connected correlation of heading fluctuations at nearest-neighbour distance:
+//!                   0 when each agent's deviation from the mean heading ignores its neighbour's (as for
+//!                   agents steered to one absolute heading without interaction), 1 when neighbours
+//!                   deviate together (Cavagna et al., PNAS 2010, at the first shell)
+//!   edge rank       for a caught prey in a group of n ≥ 3: the number of the group's other members
+//!                   nearer the group's centre than it, ties counting ½, over n − 1. 0 = caught at the
+//!                   centre, 1 = at the edge; its mean over catches is 0.5 without marginal predation
+//! ```
+
+use crate::space::{Arena, CellGrid};
+use bevy::math::DVec2;
+use std::ops::Range;
+
+/// Single-linkage clusters of `members` (indices into `positions`, the members of `grid`): the cluster
+/// label of each member, in member order, labels 0..k numbered by first appearance.
+pub fn cluster_labels(arena: &Arena, positions: &[DVec2], grid: &CellGrid, members: Range<usize>, link: f64) -> Vec<u32> {
+    let start = members.start;
+    let mut parent: Vec<u32> = (0..members.len() as u32).collect();
+    fn root(parent: &mut [u32], mut i: u32) -> u32 {
+        while parent[i as usize] != i {
+            parent[i as usize] = parent[parent[i as usize] as usize];
+            i = parent[i as usize];
+        }
+        i
+    }
+    let link2 = link * link;
+    for j in members.clone() {
+        grid.for_each_near(positions[j], link, |i, x| {
+            let i = i as usize;
+            if i > j && arena.delta(positions[j], x).length_squared() <= link2 {
+                let (a, b) = (root(&mut parent, (j - start) as u32), root(&mut parent, (i - start) as u32));
+                parent[a.max(b) as usize] = a.min(b);
+            }
+        });
+    }
+    let mut label = vec![u32::MAX; members.len()];
+    let mut next = 0;
+    (0..members.len())
+        .map(|m| {
+            let r = root(&mut parent, m as u32) as usize;
+            if label[r] == u32::MAX {
+                label[r] = next;
+                next += 1;
+            }
+            label[r]
+        })
+        .collect()
+}
+
+/// Sizes of the clusters of [`cluster_labels`], by label.
+pub fn cluster_sizes(labels: &[u32]) -> Vec<usize> {
+    let mut sizes = vec![0; labels.iter().map(|&l| l as usize + 1).max().unwrap_or(0)];
+    labels.iter().for_each(|&l| sizes[l as usize] += 1);
+    sizes
+}
+
+/// C_nn of unit `headings` given each one's nearest neighbour `nearest[j]` (an index into `headings`).
+/// 0 when the headings do not fluctuate at all (a perfectly polarized group has nothing to correlate).
+pub fn nn_correlation(headings: &[DVec2], nearest: &[usize]) -> f64 {
+    let n = headings.len().max(1) as f64;
+    let mean = headings.iter().copied().sum::<DVec2>() / n;
+    let variance: f64 = headings.iter().map(|h| (*h - mean).length_squared()).sum();
+    if variance <= 1e-12 * n {
+        return 0.0;
+    }
+    let covariance: f64 = headings.iter().zip(nearest).map(|(h, &k)| (*h - mean).dot(headings[k] - mean)).sum();
+    covariance / variance
+}
+
+/// The edge rank of agent `j` within `group` (indices into `positions`, j among them); None for groups
+/// of fewer than three. The centre is the mean of the members' minimum-image offsets from j, so it is
+/// well defined for a group straddling the torus seam.
+pub fn edge_rank(arena: &Arena, positions: &[DVec2], group: &[usize], j: usize) -> Option<f64> {
+    if group.len() < 3 {
+        return None;
+    }
+    let offset = |i: usize| arena.delta(positions[j], positions[i]);
+    let centre = group.iter().map(|&i| offset(i)).sum::<DVec2>() / group.len() as f64;
+    let distance = |i: usize| (offset(i) - centre).length();
+    let dj = distance(j);
+    let nearer: f64 = group
+        .iter()
+        .filter(|&&i| i != j)
+        .map(|&i| {
+            let d = distance(i);
+            if (d - dj).abs() <= 1e-12 { 0.5 } else if d < dj { 1.0 } else { 0.0 }
+        })
+        .sum();
+    Some(nearer / (group.len() - 1) as f64)
+}
+
+/// Bins of "prey within the predator's perception radius" for the confusion curve: 0, 1, 2, 3–4, 5–8,
+/// 9–16, 17–32, 33+ (doubling, so a few predators among thousands of prey still fill the upper bins).
+pub const CONFUSION_BINS: [(u32, u32); 8] = [(0, 0), (1, 1), (2, 2), (3, 4), (5, 8), (9, 16), (17, 32), (33, u32::MAX)];
+
+pub fn confusion_bin(prey_in_range: u32) -> usize {
+    CONFUSION_BINS.iter().position(|&(lo, hi)| (lo..=hi).contains(&prey_in_range)).expect("bins cover u32")
+}
+
+pub fn confusion_bin_label(b: usize) -> String {
+    match CONFUSION_BINS[b] {
+        (lo, u32::MAX) => format!("{lo}+"),
+        (lo, hi) if lo == hi => lo.to_string(),
+        (lo, hi) => format!("{lo}-{hi}"),
+    }
+}
+
+/// One bin of the confusion curve: predator decisions taken with this many prey in view, and what
+/// followed (the turn command's magnitude, the speed reached, the catches made).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ConfusionBin {
+    pub samples: u64,
+    /// Σ |turn command|, normalized to [0, 1] (1 = the species' max turn rate).
+    pub turn: f64,
+    /// Σ speed / max_speed.
+    pub speed: f64,
+    pub catches: u64,
+}
+
+impl ConfusionBin {
+    pub fn add(&mut self, turn: f64, speed: f64, catches: u32) {
+        self.samples += 1;
+        self.turn += turn.abs();
+        self.speed += speed;
+        self.catches += catches as u64;
+    }
+
+    /// (mean |turn|, mean speed fraction, catches per predator-step); None when empty.
+    pub fn means(&self) -> Option<(f64, f64, f64)> {
+        (self.samples > 0).then(|| {
+            let n = self.samples as f64;
+            (self.turn / n, self.speed / n, self.catches as f64 / n)
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::Boundary;
+    use rand::{Rng, SeedableRng};
+
+    fn grid(arena: &Arena, pos: &[DVec2]) -> CellGrid {
+        let mut g = CellGrid::default();
+        g.rebuild(arena, pos, 0..pos.len());
+        g
+    }
+
+    #[test]
+    fn clusters_link_chains_across_the_seam() {
+        let arena = Arena { edge: 2.0, boundary: Boundary::Periodic };
+        // A chain of three across the seam (steps of 0.08 < ℓ = 0.1), a pair, and a loner.
+        let pos = [
+            DVec2::new(0.96, 0.0),
+            DVec2::new(-0.96, 0.0),
+            DVec2::new(-0.88, 0.0),
+            DVec2::new(0.0, 0.5),
+            DVec2::new(0.05, 0.55),
+            DVec2::new(0.5, -0.5),
+        ];
+        let labels = cluster_labels(&arena, &pos, &grid(&arena, &pos), 0..pos.len(), 0.1);
+        assert_eq!(labels, vec![0, 0, 0, 1, 1, 2]);
+        assert_eq!(cluster_sizes(&labels), vec![3, 2, 1]);
+        // With walls the seam does not join them.
+        let walls = Arena { edge: 2.0, boundary: Boundary::Walls };
+        let labels = cluster_labels(&walls, &pos, &grid(&walls, &pos), 0..pos.len(), 0.1);
+        assert_eq!(cluster_sizes(&labels), vec![1, 2, 2, 1]);
+    }
+
+    #[test]
+    fn nn_correlation_tells_interaction_from_a_shared_attractor() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        // Pairs of nearest neighbours. Independent headings around a common mean: C_nn ≈ 0.
+        let n = 20_000;
+        let nearest: Vec<usize> = (0..n).map(|j| j ^ 1).collect();
+        let independent: Vec<DVec2> = (0..n).map(|_| DVec2::from_angle(0.3 + rng.gen_range(-0.8..0.8))).collect();
+        let c = nn_correlation(&independent, &nearest);
+        assert!(c.abs() < 0.05, "{c}");
+        // Each pair shares its deviation: C_nn = 1.
+        let shared: Vec<DVec2> = (0..n / 2).map(|_| DVec2::from_angle(0.3 + rng.gen_range(-0.8..0.8))).flat_map(|h| [h, h]).collect();
+        assert!((nn_correlation(&shared, &nearest) - 1.0).abs() < 1e-12);
+        // Opposite deviations: C_nn = −1.
+        let opposite: Vec<DVec2> = (0..n / 2).map(|_| rng.gen_range(-0.8..0.8)).flat_map(|d: f64| [DVec2::from_angle(d), DVec2::from_angle(-d)]).collect();
+        assert!(nn_correlation(&opposite, &nearest) < -0.9);
+        // A perfect flock has no fluctuations to correlate.
+        assert_eq!(nn_correlation(&[DVec2::X; 4], &[1, 0, 3, 2]), 0.0);
+    }
+
+    #[test]
+    fn edge_rank_of_a_catch_at_the_edge_and_at_the_centre() {
+        let arena = Arena { edge: 2.0, boundary: Boundary::Periodic };
+        // A ring of 8 around a centre prey, the group straddling the seam.
+        let c = DVec2::new(0.98, 0.2);
+        let mut pos: Vec<DVec2> = (0..8).map(|i| arena.wrap(c + 0.1 * DVec2::from_angle(i as f64 * 0.785))).collect();
+        pos.push(c);
+        // One more farther out, on the edge.
+        pos.push(arena.wrap(c + DVec2::new(0.0, 0.25)));
+        let group: Vec<usize> = (0..pos.len()).collect();
+        assert_eq!(edge_rank(&arena, &pos, &group, 9), Some(1.0));
+        assert_eq!(edge_rank(&arena, &pos, &group, 8), Some(0.0));
+        // A ring member: the centre prey is nearer, the far one is not, and the other seven tie with it.
+        let r = edge_rank(&arena, &pos, &group, 0).unwrap();
+        assert!(r > 0.1 && r < 0.9, "{r}");
+        assert_eq!(edge_rank(&arena, &pos, &group[..2], 0), None);
+        // Averaged over every member, ranks are 0.5: no edge effect when catches are random.
+        let mean: f64 = group.iter().map(|&j| edge_rank(&arena, &pos, &group, j).unwrap()).sum::<f64>() / group.len() as f64;
+        assert!((mean - 0.5).abs() < 1e-12, "{mean}");
+    }
+
+    #[test]
+    fn confusion_bins_cover_every_count() {
+        assert_eq!(confusion_bin(0), 0);
+        assert_eq!(confusion_bin(4), 3);
+        assert_eq!(confusion_bin(9), 5);
+        assert_eq!(confusion_bin(1_000_000), 7);
+        assert_eq!(confusion_bin_label(3), "3-4");
+        assert_eq!(confusion_bin_label(7), "33+");
+        let mut b = ConfusionBin::default();
+        assert_eq!(b.means(), None);
+        b.add(-0.5, 0.8, 1);
+        b.add(0.25, 0.4, 0);
+        assert_eq!(b.means(), Some((0.375, 0.6000000000000001, 0.5)));
+    }
+}
