@@ -104,6 +104,7 @@ pub fn insert_scene(world: &mut World, scene: &Scene) {
     world.insert_resource(SimRng(SimRng::stream(scene.seed, 0)));
     world.insert_resource(metrics::EpisodeLog::default());
     world.insert_resource(metrics::SwarmMetrics::default());
+    world.insert_resource(metrics::Confusion::default());
     world.insert_resource(physics::StateFault::default());
     perception::insert_scene_resources(world, scene);
 }

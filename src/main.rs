@@ -71,6 +71,10 @@ struct Cli {
     /// --eval: the file name of the per-step CSV inside the run folder [default: eval.csv].
     #[arg(long, value_name = "NAME.csv")]
     eval_out: Option<String>,
+    /// --eval: prey within this many metres of a predator count as in view for the confusion curve
+    /// (NAME-confusion.csv) [default: the scene's confusion_radius, else the perception radius].
+    #[arg(long, value_name = "M")]
+    confusion_radius: Option<f64>,
 
     /// Run an experiment file (experiments/*.ron), or `all` of them: every preset × variant × seed as a
     /// run under results/, resuming killed runs and skipping finished ones, then evaluations, summaries,
@@ -182,7 +186,7 @@ impl RunMode {
         let own: &[&str] = match self {
             RunMode::Train => &["train", "scene", "seed", "episodes", "out", "overwrite", "quiet"],
             RunMode::Resume => &["resume", "episodes", "quiet"],
-            RunMode::Eval => &["eval", "episodes", "steps", "seed", "prey", "predators", "count", "eval_out", "control"],
+            RunMode::Eval => &["eval", "episodes", "steps", "seed", "prey", "predators", "count", "eval_out", "control", "confusion_radius"],
             RunMode::Record => &["record", "run", "scene", "seed", "steps", "prey", "predators", "count", "overwrite"],
             RunMode::Bench => &["bench", "bench_seconds"],
             RunMode::Experiment => &["experiment", "jobs", "task", "emit_slurm", "quiet"],
@@ -300,6 +304,7 @@ fn run(cli: Cli, mode: RunMode) -> Result<(), String> {
                 episodes: cli.episodes.unwrap_or(1),
                 steps: cli.steps,
                 seed: cli.seed,
+                confusion_radius: cli.confusion_radius,
             };
             println!("{}", coevo::train::evaluate(&opts)?);
             Ok(())

@@ -12,7 +12,6 @@
 
 use crate::collective::{self, ConfusionBin, CONFUSION_BINS};
 use crate::components::*;
-use crate::episode::Episode;
 use crate::perception::Population;
 use crate::space::{Arena, CellGrid};
 use crate::species::SpeciesRegistry;
@@ -169,8 +168,8 @@ pub fn running_mean(values: &[f64], window: usize) -> Vec<f64> {
         .collect()
 }
 
-/// Per-step metrics of the current state, the running sums of the current episode, and the confusion
-/// curve of the whole run.
+/// Per-step metrics of the current state and the running sums of the current episode (a new population
+/// starts them afresh).
 #[derive(Resource, Default, Debug, Clone)]
 pub struct SwarmMetrics {
     /// Per species; None with fewer than two agents.
@@ -182,14 +181,16 @@ pub struct SwarmMetrics {
     /// Per prey species: the edge ranks of the prey caught at this step (contacts that began with it),
     /// among groups of three or more ([`collective::edge_rank`]).
     pub edge_ranks_now: Vec<Vec<f64>>,
-    /// Per species (empty bins for species that catch nothing): the confusion curve since the scene
-    /// started, by [`collective::CONFUSION_BINS`] of prey in view.
-    pub confusion: Vec<[ConfusionBin; CONFUSION_BINS.len()]>,
-    /// Prey in view of each agent at the previous state (index as [`Population`]) and its episode: the
+    /// Prey in view of each agent at the previous state of this episode (index as [`Population`]): the
     /// decision taken there is scored at the next step.
-    in_view: (usize, Vec<u32>),
+    in_view: Vec<u32>,
     episode: EpisodeSums,
 }
+
+/// The confusion curve since the scene started: per species (empty bins for species that catch
+/// nothing), predator decisions by [`collective::CONFUSION_BINS`] of prey in view.
+#[derive(Resource, Default, Debug, Clone)]
+pub struct Confusion(pub Vec<[ConfusionBin; CONFUSION_BINS.len()]>);
 
 #[derive(Default, Debug, Clone)]
 struct EpisodeSums {
@@ -242,7 +243,7 @@ pub struct MetricsPlugin;
 
 impl Plugin for MetricsPlugin {
     fn build(&self, app: &mut App) {
-        app.init_resource::<SwarmMetrics>().init_resource::<EpisodeLog>();
+        app.init_resource::<SwarmMetrics>().init_resource::<EpisodeLog>().init_resource::<Confusion>();
         app.add_systems(FixedUpdate, measure.in_set(SimSet::Measure));
     }
 }
@@ -255,8 +256,8 @@ fn measure(
     arena: Res<Arena>,
     registry: Res<SpeciesRegistry>,
     scene: Res<crate::ActiveScene>,
-    episode: Res<Episode>,
     mut metrics: ResMut<SwarmMetrics>,
+    mut confusion: ResMut<Confusion>,
     agents: Query<(&Slot, &Contacts, &Reward)>,
 ) {
     let n_species = registry.len();
@@ -298,11 +299,11 @@ fn measure(
         }
     }
     // Confusion: each predator's last decision against the prey it had in view when taking it.
-    m.confusion.resize(n_species, Default::default());
+    confusion.0.resize(n_species, Default::default());
     let in_view: Vec<u32> = (0..pop.len())
         .map(|i| {
             let s = pop.species[i];
-            let radius = registry.perception_radius[s];
+            let radius = scene.0.confusion_radius.unwrap_or(registry.perception_radius[s]);
             let mut n = 0;
             for t in registry.prey_of(s) {
                 pop.grids[t].for_each_near(pop.position[i], radius, |_, x| n += (arena.delta(pop.position[i], x).length() <= radius) as u32);
@@ -310,16 +311,16 @@ fn measure(
             n
         })
         .collect();
-    if m.in_view.0 == episode.index && m.in_view.1.len() == pop.len() {
-        for (i, &n) in m.in_view.1.iter().enumerate() {
+    if m.in_view.len() == pop.len() {
+        for (i, &n) in m.in_view.iter().enumerate() {
             let s = pop.species[i];
             if registry.prey_of(s).next().is_some() {
                 let speed = pop.velocity[i].length() / registry.defs[s].max_speed;
-                m.confusion[s][collective::confusion_bin(n)].add(pop.turn[i], speed, contacts[i].catching);
+                confusion.0[s][collective::confusion_bin(n)].add(pop.turn[i], speed, contacts[i].catching);
             }
         }
     }
-    m.in_view = (episode.index, in_view);
+    m.in_view = in_view;
     // The episode's running sums.
     let e = &mut m.episode;
     e.swarming.resize(n_species, [0.0; 7]);

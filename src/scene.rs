@@ -223,6 +223,11 @@ pub struct Scene {
     /// cluster, for the group-structure measures (not in the paper; absent in older scene files).
     #[serde(default = "default_cluster_link")]
     pub cluster_link: f64,
+    /// Prey within this many metres of a predator count as "in view" for the confusion curve (None:
+    /// the predator's perception radius; with `Full` perception every prey is in view, so a smaller
+    /// radius is needed for a curve).
+    #[serde(default)]
+    pub confusion_radius: Option<f64>,
 }
 
 fn default_cluster_link() -> f64 {
@@ -267,6 +272,8 @@ pub struct ScenePatch {
     pub observation_frame: Option<ObservationFrame>,
     #[serde(default)]
     pub cluster_link: Option<f64>,
+    #[serde(default)]
+    pub confusion_radius: Option<f64>,
 }
 
 /// Reads RON text of a coevo file (a scene, an experiment) into `T`, with `Some` implied for optional
@@ -381,6 +388,9 @@ impl Scene {
         if let Some(v) = patch.cluster_link {
             self.cluster_link = v;
         }
+        if let Some(v) = patch.confusion_radius {
+            self.confusion_radius = Some(v);
+        }
         if let Some(p) = patch.world {
             p.apply(&mut self.world);
         }
@@ -436,6 +446,9 @@ impl Scene {
         }
         let w = &self.world;
         positive(self.cluster_link, "cluster_link")?;
+        if let Some(r) = self.confusion_radius {
+            positive(r, "confusion_radius")?;
+        }
         positive(w.arena_edge, "world.arena_edge")?;
         positive(w.dt, "world.dt")?;
         non_negative(w.drag, "world.drag")?;
@@ -759,6 +772,7 @@ fn paper_preset() -> Scene {
         },
         observation_frame: ObservationFrame::World,
         cluster_link: default_cluster_link(),
+        confusion_radius: None,
     }
 }
 

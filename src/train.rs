@@ -316,6 +316,8 @@ pub struct EvalOptions {
     pub episodes: usize,
     pub steps: Option<usize>,
     pub seed: Option<u64>,
+    /// Radius (m) of "prey in view" for the confusion curve (default: the scene's).
+    pub confusion_radius: Option<f64>,
 }
 
 /// Deploys a run's policies without noise and streams per-step DoS/DoA to `RUN/eval.csv` (replaced
@@ -331,6 +333,9 @@ pub fn evaluate(opts: &EvalOptions) -> Result<String, String> {
     }
     if let Some(seed) = opts.seed {
         scene.seed = seed;
+    }
+    if let Some(r) = opts.confusion_radius {
+        scene.confusion_radius = Some(r);
     }
     if opts.episodes == 0 {
         return Err("--episodes: must be ≥ 1".into());
@@ -388,9 +393,9 @@ pub fn evaluate(opts: &EvalOptions) -> Result<String, String> {
         let (lo, hi) = (b as f64 * NN_BIN_DIAMETERS, if b == NN_BINS { f64::INFINITY } else { (b + 1) as f64 * NN_BIN_DIAMETERS });
         nn.push_str(&format!("{lo},{hi},{},{},{}\n", lo * diameter, hi * diameter, *count as f64 / total));
     }
-    let m = sim.world().resource::<SwarmMetrics>();
+    let curve = sim.world().resource::<crate::metrics::Confusion>();
     let mut confusion = String::from("species,prey_in_view,samples,mean_abs_turn,mean_speed_fraction,catches_per_step\n");
-    for (s, bins) in m.confusion.iter().enumerate().filter(|(s, _)| registry.prey_of(*s).next().is_some()) {
+    for (s, bins) in curve.0.iter().enumerate().filter(|(s, _)| registry.prey_of(*s).next().is_some()) {
         for (b, bin) in bins.iter().enumerate() {
             let (turn, speed, catches) = bin.means().map_or([None; 3], |(t, v, c)| [Some(t), Some(v), Some(c)]).into();
             confusion.push_str(&format!(

@@ -130,7 +130,7 @@ fn corrupt_missing_or_mismatched_checkpoints_are_refused_clearly() {
     train(tiny(1), &opts(&run, false, None)).unwrap();
     std::fs::write(run.join("checkpoint/prey-actor.safetensors"), b"not a tensor file").unwrap();
     let eval = |counts: Vec<(String, usize)>| {
-        evaluate(&EvalOptions { run: run.clone(), out: None, control: Default::default(), counts, episodes: 1, steps: Some(5), seed: None })
+        evaluate(&EvalOptions { run: run.clone(), out: None, control: Default::default(), counts, episodes: 1, steps: Some(5), seed: None, confusion_radius: None })
     };
     let corrupt = eval(vec![]).unwrap_err();
     assert!(corrupt.contains("prey-actor.safetensors: not a valid safetensors file"), "{corrupt}");
@@ -159,6 +159,7 @@ fn evaluation_deploys_on_fifty_prey_and_without_predators() {
         episodes: 2,
         steps: Some(30),
         seed: None,
+        confusion_radius: None,
     })
     .unwrap();
     assert!(line.contains("0 predator + 50 prey"), "{line}");
@@ -171,9 +172,33 @@ fn evaluation_deploys_on_fifty_prey_and_without_predators() {
         assert!(cols[2].parse::<f64>().is_ok_and(|d| d > 0.0 && d < 1.0) && cols[3].parse::<f64>().is_ok(), "{line}");
     }
 
+    // The distributions beside it: nearest-neighbour distances sum to 1; no predators, an empty curve.
+    let nn = std::fs::read_to_string(run.join("eval-nn.csv")).unwrap();
+    let total: f64 = nn.lines().skip(1).map(|l| l.rsplit(',').next().unwrap().parse::<f64>().unwrap()).sum();
+    assert!((total - 1.0).abs() < 1e-9, "{total}");
+    let confusion = std::fs::read_to_string(run.join("eval-confusion.csv")).unwrap();
+    assert!(confusion.lines().skip(1).all(|l| l.split(',').nth(2) == Some("0")), "{confusion}");
+    // With predators, every predator decision after the first step lands in one bin of the curve.
+    let steps = 20;
+    evaluate(&EvalOptions {
+        run: run.clone(),
+        out: Some("with-predators.csv".into()),
+        control: Default::default(),
+        counts: vec![("prey".into(), 50), ("predator".into(), 3)],
+        episodes: 2,
+        steps: Some(steps),
+        seed: None,
+        confusion_radius: Some(0.5),
+    })
+    .unwrap();
+    let confusion = std::fs::read_to_string(run.join("with-predators-confusion.csv")).unwrap();
+    let samples: u64 = confusion.lines().skip(1).map(|l| l.split(',').nth(2).unwrap().parse::<u64>().unwrap()).sum();
+    assert_eq!(samples, 2 * 3 * (steps as u64 - 1), "{confusion}");
+    assert!(confusion.lines().filter(|l| !l.ends_with(",0,,,")).count() > 2, "a 0.5 m radius spreads decisions over bins: {confusion}");
+
     // One step per episode: measured, not zeros; with one prey there is nothing to measure, and it says so.
     let one = |counts: Vec<(String, usize)>| {
-        evaluate(&EvalOptions { run: run.clone(), out: None, control: Default::default(), counts, episodes: 1, steps: Some(1), seed: None }).unwrap()
+        evaluate(&EvalOptions { run: run.clone(), out: None, control: Default::default(), counts, episodes: 1, steps: Some(1), seed: None, confusion_radius: None }).unwrap()
     };
     let line = one(vec![]);
     assert!(!line.contains("mean DoS 0.0000"), "{line}");

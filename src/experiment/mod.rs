@@ -82,6 +82,9 @@ pub struct Evaluation {
     /// `Blind` or `Shuffled` neighbours: controls for alignment claims (default `Seeing`).
     #[serde(default)]
     pub control: crate::learning::ObservationControl,
+    /// Radius (m) of "prey in view" for the confusion curve (default: the scene's).
+    #[serde(default)]
+    pub confusion_radius: Option<f64>,
 }
 
 fn three() -> usize {

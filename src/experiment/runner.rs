@@ -99,7 +99,7 @@ pub fn complete_run(exp: &Experiment, run: &Run, exe: &Path, threads: usize) -> 
     }
     for e in &exp.spec.evaluations {
         let out = eval_file(&run.dir, &e.name);
-        if out.exists() {
+        if evaluated(&out) {
             continue;
         }
         let mut args = vec!["--eval".into(), dir.clone(), "--episodes".into(), e.episodes.to_string()];
@@ -113,6 +113,9 @@ pub fn complete_run(exp: &Experiment, run: &Run, exe: &Path, threads: usize) -> 
             let name = clap::ValueEnum::to_possible_value(&e.control).expect("every control has a name");
             args.extend(["--control".into(), name.get_name().to_string()]);
         }
+        if let Some(r) = e.confusion_radius {
+            args.extend(["--confusion-radius".into(), r.to_string()]);
+        }
         args.extend(["--eval-out".into(), out.file_name().expect("a file").to_string_lossy().into_owned(), "--threads".into(), threads.clone()]);
         child(exe, &args).map_err(|err| format!("{dir}: evaluation {}: {err}", e.name))?;
     }
@@ -121,7 +124,13 @@ pub fn complete_run(exp: &Experiment, run: &Run, exe: &Path, threads: usize) -> 
 
 /// Whether a run is trained and has every evaluation.
 fn finished(exp: &Experiment, run: &Run) -> bool {
-    stage(run) == Ok(Stage::Trained) && exp.spec.evaluations.iter().all(|e| eval_file(&run.dir, &e.name).exists())
+    stage(run) == Ok(Stage::Trained) && exp.spec.evaluations.iter().all(|e| evaluated(&eval_file(&run.dir, &e.name)))
+}
+
+/// Whether an evaluation's files are complete: its per-step CSV and, written last, its confusion curve
+/// (evaluations by a coevo without the collective measures lack it and are run again).
+fn evaluated(eval_csv: &Path) -> bool {
+    eval_csv.exists() && eval_csv.with_file_name(format!("{}-confusion.csv", eval_csv.file_stem().unwrap_or_default().to_string_lossy())).exists()
 }
 
 /// Writes every variant's resolved scene (the seed is set per run), refusing runs of other scenes first.
