@@ -13,6 +13,7 @@
 //! | `Learn`    | Algorithm 1: replay buffers and DDPG updates                       | `learning/`       |
 //! | `Episode`  | end of episode: summary, respawn                                  | `episode.rs`      |
 
+pub mod animate;
 pub mod bench;
 pub mod collective;
 pub mod components;
@@ -30,6 +31,7 @@ pub mod reward;
 pub mod scene;
 pub mod space;
 pub mod species;
+pub mod svg;
 pub mod train;
 #[cfg(feature = "viewer")]
 pub mod viewer;

@@ -17,7 +17,7 @@ use std::time::Duration;
 /// A flag the chosen mode does not use is refused, never ignored.
 #[derive(Parser, Debug)]
 #[command(name = "coevo", version, about, long_about = None)]
-#[command(group(ArgGroup::new("mode").args(["train", "resume", "eval", "record", "bench", "experiment", "plot"]).multiple(false)))]
+#[command(group(ArgGroup::new("mode").args(["train", "resume", "eval", "record", "animate", "bench", "experiment", "plot"]).multiple(false)))]
 struct Cli {
     /// Scene file to run [default: scenes/standard.ron].
     #[arg(long, value_name = "PATH")]
@@ -99,8 +99,15 @@ struct Cli {
     /// Record a trajectory CSV: step,id,species,x,y,vx,vy,theta,thrust,turn_rate,reward.
     #[arg(long, value_name = "OUT.csv")]
     record: Option<PathBuf>,
-    /// --record: the run whose trained actors drive the scene's learned species (default: the seed's
-    /// freshly initialized actors); its scene.ron is the scene unless --scene is given.
+    /// Render an episode to an animated GIF, headless (no window, no GPU): species colours, heading
+    /// lines, optional --trails, a caption with the step and the live DoS/DoA/polarization/milling.
+    #[arg(long, value_name = "OUT.gif")]
+    animate: Option<PathBuf>,
+    /// --animate: width of the arena image in pixels [default: 480].
+    #[arg(long, value_name = "PX")]
+    size: Option<u32>,
+    /// --record, --animate: the run whose trained actors drive the scene's learned species (default: the
+    /// seed's freshly initialized actors); its scene.ron is the scene unless --scene is given.
     #[arg(long, value_name = "DIR")]
     run: Option<PathBuf>,
     /// Print throughput figures for this machine.
@@ -149,6 +156,7 @@ enum RunMode {
     Resume,
     Eval,
     Record,
+    Animate,
     Bench,
     Experiment,
     Plot,
@@ -162,6 +170,7 @@ impl RunMode {
             _ if cli.resume.is_some() => RunMode::Resume,
             _ if cli.eval.is_some() => RunMode::Eval,
             _ if cli.record.is_some() => RunMode::Record,
+            _ if cli.animate.is_some() => RunMode::Animate,
             _ if cli.bench => RunMode::Bench,
             _ if cli.experiment.is_some() => RunMode::Experiment,
             _ if cli.plot.is_some() => RunMode::Plot,
@@ -175,6 +184,7 @@ impl RunMode {
             RunMode::Resume => "--resume",
             RunMode::Eval => "--eval",
             RunMode::Record => "--record",
+            RunMode::Animate => "--animate",
             RunMode::Bench => "--bench",
             RunMode::Experiment => "--experiment",
             RunMode::Plot => "--plot",
@@ -188,6 +198,21 @@ impl RunMode {
             RunMode::Resume => &["resume", "episodes", "quiet"],
             RunMode::Eval => &["eval", "episodes", "steps", "seed", "prey", "predators", "count", "eval_out", "control", "confusion_radius"],
             RunMode::Record => &["record", "run", "scene", "seed", "steps", "prey", "predators", "count", "overwrite"],
+            RunMode::Animate => &[
+                "animate",
+                "run",
+                "scene",
+                "seed",
+                "steps",
+                "prey",
+                "predators",
+                "count",
+                "overwrite",
+                "trails",
+                "steps_per_frame",
+                "size",
+                "quiet",
+            ],
             RunMode::Bench => &["bench", "bench_seconds"],
             RunMode::Experiment => &["experiment", "jobs", "task", "emit_slurm", "quiet"],
             RunMode::Plot => &["plot"],
@@ -334,29 +359,48 @@ fn run(cli: Cli, mode: RunMode) -> Result<(), String> {
         }
         RunMode::Record => {
             let out = cli.record.clone().expect("record mode");
-            let default = cli.run.as_ref().map_or(standard.to_path_buf(), |r| r.join("scene.ron"));
-            let (scene, source) = load_scene(&cli, &default)?;
-            let mut scene = with_counts(&cli, scene, &source)?;
-            let steps = cli.steps.unwrap_or(scene.episode_steps);
-            scene.episode_steps = steps;
-            // Every species acts exactly as in --eval: trained actors without noise.
-            let mut sim = coevo::train::learning_simulation(scene.clone(), Mode::Evaluate, cli.run.as_deref())?;
+            let (mut sim, steps, actors) = deployed(&cli, standard)?;
             let existing = if cli.overwrite { Existing::Replace } else { Existing::Refuse };
             coevo::record::record(&mut sim, steps, &out, existing)?;
-            let actors: Vec<String> = scene
-                .species
-                .iter()
-                .filter_map(|def| match (&def.policy, &cli.run) {
-                    (Policy::Learned, Some(run)) => Some(format!("{}: trained actor of {}", def.name, run.display())),
-                    (Policy::Learned, None) => {
-                        Some(format!("{}: freshly initialized actor of seed {} (untrained: no --run given)", def.name, scene.seed))
-                    }
-                    (Policy::Frozen(path), _) => Some(format!("{}: trained actor of {path}", def.name)),
-                    _ => None,
-                })
-                .collect();
-            let actors = if actors.is_empty() { String::new() } else { format!(" ({})", actors.join("; ")) };
             eprintln!("coevo: wrote {steps} steps to {}{actors}", out.display());
+            Ok(())
+        }
+        RunMode::Animate => {
+            let out = cli.animate.clone().expect("animate mode");
+            if out.extension().is_none_or(|e| e != "gif") {
+                return Err(format!("--animate {}: the file must end in .gif", out.display()));
+            }
+            at_least_one("--steps-per-frame", cli.steps_per_frame)?;
+            let size = cli.size.unwrap_or(480);
+            if !(64..=2048).contains(&size) {
+                return Err(format!("--size {size}: must be within 64..=2048 pixels"));
+            }
+            let existing = if cli.overwrite { Existing::Replace } else { Existing::Refuse };
+            coevo::io::check_target(&out, existing).map_err(|e| format!("--animate {}: {e}", out.display()))?;
+            let (mut sim, steps, actors) = deployed(&cli, standard)?;
+            let title = match (&cli.run, &cli.scene) {
+                (Some(run), _) => format!("trained run {}", run.display()),
+                (None, Some(scene)) => scene.display().to_string(),
+                (None, None) => standard.display().to_string(),
+            };
+            let opts = coevo::animate::AnimateOptions {
+                steps,
+                steps_per_frame: cli.steps_per_frame.unwrap_or(1),
+                trails: cli.trails,
+                size,
+                title,
+                progress: !cli.quiet,
+            };
+            let s = coevo::animate::animate(&mut sim, &opts, &out, existing)?;
+            eprintln!(
+                "coevo: wrote {} frames ({steps} steps, {:.1} MB) to {}{actors}; over the clip: polarization {:.3}, milling {:.3}, DoA {:.3}",
+                s.frames,
+                s.bytes as f64 / 1e6,
+                out.display(),
+                s.polarization,
+                s.milling,
+                s.doa
+            );
             Ok(())
         }
         RunMode::Experiment => experiment(&cli),
@@ -448,6 +492,30 @@ fn plot(dir: &Path) -> Result<(), String> {
     let claims = aggregate::aggregate(&exp, &aggregate::load(&exp)?)?;
     eprintln!("coevo: wrote {}/summary.csv, summary-mean.csv and figures/ ({} claims checked)", exp.root.display(), claims.len());
     Ok(())
+}
+
+/// The simulation --record and --animate show: the scene of --run (or --scene) with the counts applied,
+/// every species acting exactly as in --eval (trained actors without noise); the steps to run; and a
+/// note saying which actors drive it.
+fn deployed(cli: &Cli, standard: &Path) -> Result<(coevo::Simulation, usize, String), String> {
+    let default = cli.run.as_ref().map_or(standard.to_path_buf(), |r| r.join("scene.ron"));
+    let (scene, source) = load_scene(cli, &default)?;
+    let mut scene = with_counts(cli, scene, &source)?;
+    let steps = cli.steps.unwrap_or(scene.episode_steps);
+    scene.episode_steps = steps;
+    let sim = coevo::train::learning_simulation(scene.clone(), Mode::Evaluate, cli.run.as_deref())?;
+    let actors: Vec<String> = scene
+        .species
+        .iter()
+        .filter_map(|def| match (&def.policy, &cli.run) {
+            (Policy::Learned, Some(run)) => Some(format!("{}: trained actor of {}", def.name, run.display())),
+            (Policy::Learned, None) => Some(format!("{}: freshly initialized actor of seed {} (untrained: no --run given)", def.name, scene.seed)),
+            (Policy::Frozen(path), _) => Some(format!("{}: trained actor of {path}", def.name)),
+            _ => None,
+        })
+        .collect();
+    let actors = if actors.is_empty() { String::new() } else { format!(" ({})", actors.join("; ")) };
+    Ok((sim, steps, actors))
 }
 
 /// --prey, --predators and --count NAME=N, in that order.

@@ -66,6 +66,7 @@ fn workspace() -> tempfile::TempDir {
     std::fs::write(&actor, bytes).unwrap();
 
     std::fs::write(root.join("notes.csv"), "a user's file\n").unwrap();
+    std::fs::write(root.join("notes.gif"), "a user's picture\n").unwrap();
     std::fs::create_dir(root.join("mine")).unwrap();
     std::fs::write(root.join("mine/thesis.txt"), "not a run\n").unwrap();
     #[cfg(unix)]
@@ -125,6 +126,13 @@ fn cases() -> Vec<(Vec<&'static str>, &'static str)> {
         (vec!["--train", "--scene", "buffer.ron"], "learning.buffer_capacity: a replay buffer of"),
         (vec!["--train", "--scene", "/dev/zero"], "/dev/zero: is larger than 1 MiB"),
         (vec!["--record", "out.csv", "--threads", "0"], "--threads: must be ≥ 1"),
+        (vec!["--animate", "clip.png"], "--animate clip.png: the file must end in .gif"),
+        (vec!["--animate", "notes.gif"], "notes.gif: already exists; choose a new name or pass --overwrite"),
+        (vec!["--animate", "clip.gif", "--size", "10"], "--size 10: must be within 64..=2048 pixels"),
+        (vec!["--animate", "clip.gif", "--steps-per-frame", "0"], "--steps-per-frame: must be ≥ 1"),
+        (vec!["--animate", "clip.gif", "--run", "nan-run"], "prey-actor.safetensors: tensor 0.weight holds a non-finite value"),
+        (vec!["--animate", "clip.gif", "--control", "blind"], "--control: not used by --animate"),
+        (vec!["--eval", "run", "--confusion-radius", "0"], "confusion_radius: must be a finite number > 0"),
         // Silent accepts.
         (vec!["--record", "out.csv", "--scene", "plugin.ron"], "species[prey].policy: no plugin decides Plugin(\"nobody\")"),
         (vec!["--train", "--scene", "twice.ron"], "species[prey]: appears twice in this scene"),

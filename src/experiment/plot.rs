@@ -4,7 +4,6 @@
 
 use plotters::prelude::*;
 use std::path::Path;
-use std::sync::Arc;
 
 /// One curve: its mean and, where known, the lower and upper ends of its band.
 pub struct Curve {
@@ -113,19 +112,7 @@ fn draw_panel(panel: &Panel, area: &DrawingArea<SVGBackend, plotters::coord::Shi
 
 /// Rasterizes SVG text to PNG bytes.
 pub fn png(svg: &str) -> Result<Vec<u8>, String> {
-    let mut options = resvg::usvg::Options::default();
-    let fonts = Arc::make_mut(&mut options.fontdb);
-    fonts.load_font_data(epaint_default_fonts::UBUNTU_LIGHT.to_vec());
-    let family = fonts.faces().next().and_then(|f| f.families.first()).map(|f| f.0.clone());
-    if let Some(family) = family {
-        fonts.set_sans_serif_family(family.clone());
-        options.font_family = family;
-    }
-    let tree = resvg::usvg::Tree::from_str(svg, &options).map_err(draw_err)?;
-    let size = tree.size().to_int_size();
-    let mut pixmap = resvg::tiny_skia::Pixmap::new(size.width(), size.height()).ok_or("empty figure")?;
-    resvg::render(&tree, resvg::tiny_skia::Transform::default(), &mut pixmap.as_mut());
-    pixmap.encode_png().map_err(draw_err)
+    crate::svg::rasterize(svg, &crate::svg::options())?.encode_png().map_err(draw_err)
 }
 
 /// Writes `stem.svg` and `stem.png` (atomically, replacing earlier figures).
