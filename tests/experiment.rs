@@ -14,8 +14,14 @@ const TINY: &str = r#"(
         (name: "1:1", patch: (episode_steps: 30, learning: (hidden: 16, batch_size: 32, warmup_transitions: 32, updates_per_episode: 3, checkpoint_every: 1))),
         (name: "5:3", patch: (episode_steps: 30, species: [(name: "prey", max_speed: 0.1)], learning: (hidden: 16, batch_size: 32, warmup_transitions: 32, updates_per_episode: 3, checkpoint_every: 1))),
     ],
-    evaluations: [(name: "50 prey", counts: [("prey", 50)], episodes: 2, steps: 20)],
-    claims: [(text: "DoS falls", variant: "5:3", quantity: DosChange, paper: -0.03)],
+    evaluations: [
+        (name: "50 prey", counts: [("prey", 50)], episodes: 2, steps: 20),
+        (name: "50 prey, blind", counts: [("prey", 50)], episodes: 2, steps: 20, control: Blind),
+    ],
+    claims: [
+        (text: "DoS falls", variant: "5:3", quantity: DosChange, paper: -0.03),
+        (text: "seeing minus blind", variant: "5:3", quantity: InteractionDoa("50 prey, blind")),
+    ],
 )"#;
 
 /// A working folder with the project's scenes and the tiny experiment.
@@ -54,6 +60,8 @@ fn experiment_files_expand_to_runs_and_bad_ones_are_one_line() {
         (TINY.replace("variant: \"5:3\"", "variant: \"7:3\""), "bad.ron: claims: no variant named \"7:3\""),
         (TINY.replace("(\"prey\", 50)", "(\"hawk\", 50)"), "evaluations[50 prey]: no species named \"hawk\""),
         (TINY.replace("scenes/standard.ron", "scenes/none.ron"), "bad.ron: base: scenes/none.ron: cannot read"),
+        (TINY.replace("quantity: DosChange", "quantity: InteractionDoa(\"50 prey\")"), "evaluation \"50 prey\" needs a control (Blind or Shuffled)"),
+        (TINY.replace("quantity: DosChange", "quantity: EvalOrder(\"50 prey\", \"swirl\")"), "no order parameter named \"swirl\""),
     ] {
         std::fs::write(dir.path().join("experiments/bad.ron"), text).unwrap();
         let out = coevo(dir.path(), &["--experiment", "experiments/bad.ron"]);
@@ -77,8 +85,22 @@ fn a_tiny_experiment_runs_resumes_and_gives_the_same_summary_at_one_or_two_jobs(
     let rows = summary(two.path());
     assert_eq!(rows.len(), 5, "header and four runs: {rows:?}");
     assert!(rows[0].starts_with("preset,variant,seed,episodes,dos_first100,dos_last100,doa_first100,doa_last100,eval_50-prey_dos_settled"));
+    let header: Vec<&str> = rows[0].split(',').collect();
     for row in &rows[1..] {
-        assert!(row.split(',').skip(3).all(|c| c.parse::<f64>().is_ok_and(f64::is_finite)), "{row}");
+        for (name, cell) in header.iter().zip(row.split(',')).skip(3) {
+            // Every value is a finite number; only an order parameter may be blank (an evaluation without
+            // a catch has no edge rank), never NaN.
+            let optional = name.starts_with("eval_") && !name.ends_with("_settled") && !name.ends_with("_interaction");
+            assert!(cell.parse::<f64>().is_ok_and(f64::is_finite) || (optional && cell.is_empty()), "{name} = {cell:?} in {row}");
+        }
+    }
+    // The interaction-driven part of the alignment is seeing minus blind, run by run.
+    let column = |name: &str| header.iter().position(|h| *h == name).unwrap_or_else(|| panic!("no {name} in {header:?}"));
+    for row in &rows[1..] {
+        let cells: Vec<f64> = row.split(',').map(|c| c.parse().unwrap_or(f64::NAN)).collect();
+        let (seeing, blind, interaction) =
+            (cells[column("eval_50-prey_doa_settled")], cells[column("eval_50-prey-blind_doa_settled")], cells[column("eval_50-prey-blind_doa_interaction")]);
+        assert!((seeing - blind - interaction).abs() < 1e-12, "{row}");
     }
     let means = std::fs::read_to_string(two.path().join("results/tiny/summary-mean.csv")).unwrap();
     assert!(means.lines().any(|l| l.starts_with("paper,5:3,dos_last100,2,")), "{means}");

@@ -5,6 +5,7 @@ use super::plot::{self, Curve, Panel};
 use super::runner::{eval_file, stage, Stage};
 use super::stats::{estimate, mean, running_mean, Estimate};
 use super::{slug, Claim, Experiment, Quantity};
+use crate::metrics::Swarming;
 use crate::species::SpeciesRegistry;
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
@@ -23,8 +24,24 @@ pub struct RunData {
     pub catches: Vec<f64>,
     pub returns: Vec<f64>,
     pub wall_seconds: f64,
-    /// Per evaluation: DoS and DoA per step, averaged over its episodes.
-    pub evals: BTreeMap<String, (Vec<f64>, Vec<f64>)>,
+    /// Per evaluation, by name.
+    pub evals: BTreeMap<String, EvalData>,
+}
+
+/// One evaluation of a run.
+#[derive(Clone, Debug, Default)]
+pub struct EvalData {
+    /// Per order parameter of [`Swarming::NAMES`] (DoS, DoA, polarization, ...): its value per step,
+    /// averaged over the evaluation's episodes (NaN throughout for columns an older coevo did not write).
+    pub per_step: Vec<Vec<f64>>,
+    /// Mean edge rank over every ranked catch of the evaluation (NaN without one).
+    pub edge_rank: f64,
+}
+
+impl EvalData {
+    fn series(&self, name: &str) -> &[f64] {
+        Swarming::NAMES.iter().position(|n| *n == name).and_then(|i| self.per_step.get(i)).map_or(&[], |v| v.as_slice())
+    }
 }
 
 /// Reads a CSV file into its header and rows of numbers (blank or unreadable cells are NaN).
@@ -75,15 +92,26 @@ pub fn load(exp: &Experiment) -> Result<BTreeMap<usize, RunData>, String> {
                 continue;
             }
             let (header, rows) = read_csv(&path)?;
-            let (step, dos, doa) =
-                (column(&header, &rows, "step", &path)?, column(&header, &rows, &format!("dos_{prey}"), &path)?, column(&header, &rows, &format!("doa_{prey}"), &path)?);
+            let step = column(&header, &rows, "step", &path)?;
             let steps = step.iter().fold(0.0f64, |a, &b| a.max(b)) as usize;
             let per_step = |values: &[f64]| -> Vec<f64> {
                 (1..=steps)
                     .map(|s| mean(&step.iter().zip(values).filter(|(t, v)| **t as usize == s && v.is_finite()).map(|(_, v)| *v).collect::<Vec<_>>()).unwrap_or(f64::NAN))
                     .collect()
             };
-            d.evals.insert(e.name.clone(), (per_step(&dos), per_step(&doa)));
+            // DoS and DoA must be there; the other order parameters only since the collective measures.
+            let series = |name: &str| -> Result<Vec<f64>, String> {
+                let col = format!("{name}_{prey}");
+                match column(&header, &rows, &col, &path) {
+                    Ok(values) => Ok(per_step(&values)),
+                    Err(_) if !matches!(name, "dos" | "doa") => Ok(vec![f64::NAN; steps]),
+                    Err(e) => Err(e),
+                }
+            };
+            let per_step = Swarming::NAMES.iter().map(|n| series(n)).collect::<Result<Vec<_>, String>>()?;
+            let ranks = column(&header, &rows, &format!("edge_rank_{prey}"), &path).unwrap_or_default();
+            let edge_rank = mean(&ranks.into_iter().filter(|x| x.is_finite()).collect::<Vec<_>>()).unwrap_or(f64::NAN);
+            d.evals.insert(e.name.clone(), EvalData { per_step, edge_rank });
         }
         data.insert(i, d);
     }
@@ -97,8 +125,9 @@ fn window_mean(values: &[f64], first: bool) -> f64 {
 }
 
 /// A run's value of a quantity.
-pub fn quantity(d: &RunData, q: &Quantity) -> f64 {
+pub fn quantity(exp: &Experiment, d: &RunData, q: &Quantity) -> f64 {
     let settled = |v: &[f64]| mean(&v[v.len().saturating_sub(SETTLED_STEPS)..].iter().copied().filter(|x| x.is_finite()).collect::<Vec<_>>()).unwrap_or(f64::NAN);
+    let eval = |e: &str, name: &str| d.evals.get(e).map_or(f64::NAN, |x| settled(x.series(name)));
     match q {
         Quantity::DosFirst => window_mean(&d.dos, true),
         Quantity::DosLast => window_mean(&d.dos, false),
@@ -106,8 +135,14 @@ pub fn quantity(d: &RunData, q: &Quantity) -> f64 {
         Quantity::DoaLast => window_mean(&d.doa, false),
         Quantity::DosChange => window_mean(&d.dos, false) - window_mean(&d.dos, true),
         Quantity::DoaChange => window_mean(&d.doa, false) - window_mean(&d.doa, true),
-        Quantity::EvalDos(e) => d.evals.get(e).map_or(f64::NAN, |(dos, _)| settled(dos)),
-        Quantity::EvalDoa(e) => d.evals.get(e).map_or(f64::NAN, |(_, doa)| settled(doa)),
+        Quantity::EvalDos(e) => eval(e, "dos"),
+        Quantity::EvalDoa(e) => eval(e, "doa"),
+        Quantity::EvalOrder(e, name) if name == "edge_rank" => d.evals.get(e).map_or(f64::NAN, |x| x.edge_rank),
+        Quantity::EvalOrder(e, name) => eval(e, name),
+        Quantity::InteractionDoa(e) => match super::seeing_partner(&exp.spec.evaluations, e) {
+            Some(seeing) => eval(&seeing.name, "doa") - eval(e, "doa"),
+            None => f64::NAN,
+        },
     }
 }
 
@@ -161,6 +196,13 @@ pub fn aggregate(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> Result<Ve
     for e in &evals {
         quantities.push((format!("eval_{}_dos_settled", slug(e)), Quantity::EvalDos(e.clone())));
         quantities.push((format!("eval_{}_doa_settled", slug(e)), Quantity::EvalDoa(e.clone())));
+        for order in super::EVAL_ORDER {
+            quantities.push((format!("eval_{}_{order}", slug(e)), Quantity::EvalOrder(e.clone(), order.into())));
+        }
+        // Beside every control: how much of the seeing actors' alignment it removes.
+        if super::seeing_partner(&exp.spec.evaluations, e).is_some() {
+            quantities.push((format!("eval_{}_doa_interaction", slug(e)), Quantity::InteractionDoa(e.clone())));
+        }
     }
     let mut summary = String::from("preset,variant,seed,episodes");
     for (name, _) in &quantities {
@@ -171,7 +213,9 @@ pub fn aggregate(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> Result<Ve
         let r = &exp.runs[*i];
         write!(summary, "{},{},{},{}", r.preset, r.variant, r.seed, d.dos.len()).unwrap();
         for (_, q) in &quantities {
-            write!(summary, ",{}", quantity(d, q)).unwrap();
+            // Blank, never NaN, where a run has no value (an evaluation without a catch has no edge rank).
+            let v = quantity(exp, d, q);
+            write!(summary, ",{}", if v.is_finite() { v.to_string() } else { String::new() }).unwrap();
         }
         let (c0, c1, r0, r1) = (window_mean(&d.catches, true), window_mean(&d.catches, false), window_mean(&d.returns, true), window_mean(&d.returns, false));
         writeln!(summary, ",{c0},{c1},{r0},{r1},{}", d.wall_seconds).unwrap();
@@ -186,14 +230,14 @@ pub fn aggregate(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> Result<Ve
         for v in &exp.spec.variants {
             let runs = of_variant(&v.name);
             for (name, q) in &quantities {
-                if let Some(e) = estimate(&runs.iter().map(|d| quantity(d, q)).filter(|x| x.is_finite()).collect::<Vec<_>>()) {
+                if let Some(e) = estimate(&runs.iter().map(|d| quantity(exp, d, q)).filter(|x| x.is_finite()).collect::<Vec<_>>()) {
                     let ci = e.ci.map_or(String::new(), |c| c.to_string());
                     writeln!(means, "{preset},{},{name},{},{},{ci}", v.name, e.n, e.mean).unwrap();
                 }
             }
         }
         for claim in &exp.spec.claims {
-            let samples: Vec<f64> = of_variant(&claim.variant).iter().map(|d| quantity(d, &claim.quantity)).filter(|x| x.is_finite()).collect();
+            let samples: Vec<f64> = of_variant(&claim.variant).iter().map(|d| quantity(exp, d, &claim.quantity)).filter(|x| x.is_finite()).collect();
             let e = estimate(&samples);
             results.push(ClaimResult { experiment: exp.name.clone(), preset: preset.clone(), claim: claim.clone(), estimate: e, verdict: verdict(claim, e) });
         }
@@ -247,8 +291,8 @@ fn figures<'a>(exp: &Experiment, preset: &str, prey: &str, of_variant: &dyn Fn(&
     plot::save(&dir.join(format!("{preset}-catches")), &catches)?;
     for e in &exp.spec.evaluations {
         let panels = [
-            Panel { title: title(&format!("{}: DoS per step", e.name)), x_label: "time step".into(), y_label: "DoS".into(), curves: curves(&|d| d.evals.get(&e.name).map_or(vec![], |x| x.0.clone()), 1.0) },
-            Panel { title: title(&format!("{}: DoA per step", e.name)), x_label: "time step".into(), y_label: "DoA".into(), curves: curves(&|d| d.evals.get(&e.name).map_or(vec![], |x| x.1.clone()), 1.0) },
+            Panel { title: title(&format!("{}: DoS per step", e.name)), x_label: "time step".into(), y_label: "DoS".into(), curves: curves(&|d| d.evals.get(&e.name).map_or(vec![], |x| x.series("dos").to_vec()), 1.0) },
+            Panel { title: title(&format!("{}: DoA per step", e.name)), x_label: "time step".into(), y_label: "DoA".into(), curves: curves(&|d| d.evals.get(&e.name).map_or(vec![], |x| x.series("doa").to_vec()), 1.0) },
         ];
         if panels.iter().any(|p| !p.curves.is_empty()) {
             plot::save(&dir.join(format!("{preset}-eval-{}", slug(&e.name))), &panels)?;
@@ -266,7 +310,10 @@ pub fn reproduction(experiments: &[(Experiment, Vec<ClaimResult>, f64, usize)]) 
          `results/`; do not edit by hand. Each number is the mean over seeds of the prey's 100-episode means (first or last 100 \
          episodes of training) or of an evaluation's last 50 steps, ± the half-width of its 95 % confidence interval (Student t \
          over seeds). A claim *holds* when the paper's value lies inside that interval. Nothing in the metrics, rewards or \
-         physics was tuned toward a claim; see the README's \"Does it learn?\" for what the numbers mean.\n\n",
+         physics was tuned toward a claim; see the README's \"Does it learn?\" for what the numbers mean. Baselines: \
+         independent random headings give DoA = 2/π ≈ 0.637 and C_nn = 0; random catches give an edge rank of 0.5. \
+         *Seeing minus blind* (or shuffled) is the part of the trained actors' alignment that comes from seeing \
+         their neighbours, computed run by run.\n\n",
     );
     md.push_str("| experiment | preset | claim (the paper) | quantity | paper | coevo (mean ± 95 % CI, seeds) | verdict |\n|---|---|---|---|---|---|---|\n");
     for (exp, results, _, _) in experiments {
@@ -305,6 +352,8 @@ fn quantity_name(q: &Quantity) -> String {
         Quantity::DoaChange => "DoA change, last − first 100".into(),
         Quantity::EvalDos(e) => format!("DoS settled in evaluation \"{e}\""),
         Quantity::EvalDoa(e) => format!("DoA settled in evaluation \"{e}\""),
+        Quantity::EvalOrder(e, q) => format!("{q} in evaluation \"{e}\""),
+        Quantity::InteractionDoa(e) => format!("DoA seeing minus \"{e}\" (interaction-driven alignment)"),
     }
 }
 

@@ -118,6 +118,27 @@ pub enum Quantity {
     /// The evaluation's mean over its last 50 steps (the trained policies' settled state).
     EvalDos(String),
     EvalDoa(String),
+    /// The same for another order parameter of the evaluation: `polarization`, `milling`, `clusters`,
+    /// `largest_cluster`, `nn_correlation`; or `edge_rank`, the mean edge rank of every prey caught in it.
+    EvalOrder(String, String),
+    /// The interaction-driven part of the alignment: DoA of the seeing evaluation with the same counts,
+    /// episodes and steps, minus DoA of this control evaluation (blind or shuffled), per run.
+    InteractionDoa(String),
+}
+
+/// Order parameters an [`Quantity::EvalOrder`] may name.
+pub const EVAL_ORDER: [&str; 6] = ["polarization", "milling", "clusters", "largest_cluster", "nn_correlation", "edge_rank"];
+
+/// The seeing evaluation a control evaluation `name` is compared with: same counts, episodes and steps.
+/// None when `name` is no control or has no such partner.
+pub fn seeing_partner<'a>(evaluations: &'a [Evaluation], name: &str) -> Option<&'a Evaluation> {
+    let control = evaluations.iter().find(|e| e.name == name)?;
+    if control.control == crate::learning::ObservationControl::Seeing {
+        return None;
+    }
+    evaluations.iter().find(|e| {
+        e.control == crate::learning::ObservationControl::Seeing && e.counts == control.counts && e.episodes == control.episodes && e.steps == control.steps
+    })
 }
 
 /// One run of an experiment.
@@ -190,9 +211,19 @@ impl Experiment {
             if !spec.variants.iter().any(|v| v.name == c.variant) {
                 return Err(err("claims", format!("no variant named {:?}", c.variant)));
             }
-            if let Quantity::EvalDos(e) | Quantity::EvalDoa(e) = &c.quantity {
+            if let Quantity::EvalDos(e) | Quantity::EvalDoa(e) | Quantity::EvalOrder(e, _) | Quantity::InteractionDoa(e) = &c.quantity {
                 if !spec.evaluations.iter().any(|x| &x.name == e) {
                     return Err(err("claims", format!("no evaluation named {e:?}")));
+                }
+            }
+            if let Quantity::EvalOrder(_, q) = &c.quantity {
+                if !EVAL_ORDER.contains(&q.as_str()) {
+                    return Err(err("claims", format!("no order parameter named {q:?} (one of {})", EVAL_ORDER.join(", "))));
+                }
+            }
+            if let Quantity::InteractionDoa(e) = &c.quantity {
+                if seeing_partner(&spec.evaluations, e).is_none() {
+                    return Err(err("claims", format!("evaluation {e:?} needs a control (Blind or Shuffled) and a seeing evaluation with the same counts, episodes and steps")));
                 }
             }
         }
