@@ -38,7 +38,7 @@ fn workspace() -> tempfile::TempDir {
         let path = entry.unwrap().path();
         std::fs::copy(&path, root.join("scenes").join(path.file_name().unwrap())).unwrap();
     }
-    let mut scene = coevo::Scene::load(Path::new("scenes/standard.ron")).unwrap();
+    let mut scene = coevo::Scene::load(Path::new("scenes/paper.ron")).unwrap();
     scene.episode_steps = 10;
     scene.learning.hidden = 8;
     scene.learning.batch_size = 16;
@@ -141,7 +141,7 @@ fn cases() -> Vec<(Vec<&'static str>, &'static str)> {
         (vec!["--record", "out.csv", "--train"], "cannot be used with"),
         (vec!["--train", "--steps", "5"], "--steps: not used by --train"),
         (vec!["--train", "--prey", "50"], "--prey: not used by --train"),
-        (vec!["--resume", "run", "--scene", "scenes/standard.ron"], "--scene: not used by --resume"),
+        (vec!["--resume", "run", "--scene", "scenes/paper.ron"], "--scene: not used by --resume"),
         (vec!["--eval", "run", "--out", "x"], "--out: not used by --eval"),
         (vec!["--bench", "--seed", "3"], "--seed: not used by --bench"),
         (vec!["--train", "--episodes", "0"], "--episodes: must be ≥ 1 (got 0)"),

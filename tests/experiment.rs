@@ -7,7 +7,7 @@ use std::process::Command;
 
 const TINY: &str = r#"(
     description: "a tiny sweep",
-    base: "scenes/standard.ron",
+    base: "scenes/paper.ron",
     seeds: [1, 2],
     episodes: 3,
     variants: [
@@ -29,7 +29,7 @@ fn workspace() -> tempfile::TempDir {
     let dir = tempfile::tempdir().unwrap();
     std::fs::create_dir_all(dir.path().join("scenes")).unwrap();
     std::fs::create_dir_all(dir.path().join("experiments")).unwrap();
-    std::fs::copy("scenes/standard.ron", dir.path().join("scenes/standard.ron")).unwrap();
+    std::fs::copy("scenes/paper.ron", dir.path().join("scenes/paper.ron")).unwrap();
     std::fs::write(dir.path().join("experiments/tiny.ron"), TINY).unwrap();
     dir
 }
@@ -59,7 +59,7 @@ fn experiment_files_expand_to_runs_and_bad_ones_are_one_line() {
         (TINY.replace("description", "descripton"), "bad.ron:2: descripton:"),
         (TINY.replace("variant: \"5:3\"", "variant: \"7:3\""), "bad.ron: claims: no variant named \"7:3\""),
         (TINY.replace("(\"prey\", 50)", "(\"hawk\", 50)"), "evaluations[50 prey]: no species named \"hawk\""),
-        (TINY.replace("scenes/standard.ron", "scenes/none.ron"), "bad.ron: base: scenes/none.ron: cannot read"),
+        (TINY.replace("scenes/paper.ron", "scenes/none.ron"), "bad.ron: base: scenes/none.ron: cannot read"),
         (TINY.replace("quantity: DosChange", "quantity: InteractionDoa(\"50 prey\")"), "evaluation \"50 prey\" needs a control (Blind or Shuffled)"),
         (TINY.replace("quantity: DosChange", "quantity: EvalOrder(\"50 prey\", \"swirl\")"), "no order parameter named \"swirl\""),
     ] {

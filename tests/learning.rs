@@ -8,7 +8,7 @@ use std::path::Path;
 
 /// The standard scene shrunk to seconds: short episodes, small networks and batches.
 fn tiny(episodes: usize) -> Scene {
-    let mut s = Scene::load(Path::new("scenes/standard.ron")).unwrap();
+    let mut s = Scene::load(Path::new("scenes/paper.ron")).unwrap();
     s.episode_steps = 20;
     s.episodes = episodes;
     s.learning.hidden = 16;
@@ -267,4 +267,21 @@ fn a_restarted_world_trains_exactly_like_a_fresh_one() {
     trajectory(&mut reused, 30);
     coevo::restart(reused.world_mut(), &target, Some(Learners::new(&target, Mode::Train)));
     assert_eq!(trajectory(&mut reused, steps), expected);
+}
+
+#[test]
+fn the_shipped_trained_run_is_the_default_scene_and_loads() {
+    // assets/trained-standard is what the viewer's run list offers first and what the README's GIF shows.
+    let asset = Path::new("assets/trained-standard");
+    let scene = Scene::load(&asset.join("scene.ron")).unwrap();
+    let mut default = Scene::load(Path::new("scenes/standard.ron")).unwrap();
+    default.seed = scene.seed;
+    assert_eq!(scene, default, "the shipped actors were trained on scenes/standard.ron");
+    let mut small = scene.clone();
+    small.episode_steps = 3;
+    let mut sim = coevo::train::learning_simulation(small, coevo::learning::Mode::Evaluate, Some(asset)).unwrap();
+    for _ in 0..3 {
+        sim.step();
+    }
+    sim.check().unwrap();
 }

@@ -91,7 +91,7 @@ fn a_record_drives_learned_species_with_the_runs_actors() {
     use coevo::scene::Scene;
     let dir = tempfile::tempdir().unwrap();
     let run = dir.path().join("run");
-    let mut scene = Scene::load(std::path::Path::new("scenes/standard.ron")).unwrap();
+    let mut scene = Scene::load(std::path::Path::new("scenes/paper.ron")).unwrap();
     scene.episode_steps = 20;
     scene.learning.hidden = 16;
     scene.learning.batch_size = 32;

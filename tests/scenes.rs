@@ -18,8 +18,17 @@ fn every_shipped_scene_loads() {
 }
 
 #[test]
-fn standard_scene_is_the_papers_setup() {
+fn the_default_scene_is_the_authors_code_seen_from_each_body() {
+    // What --train and the viewer open: the condition with interaction-driven swarming (README).
     let s = Scene::load(Path::new("scenes/standard.ron")).unwrap();
+    let gym = Scene::load(Path::new("scenes/gym-pps.ron")).unwrap();
+    assert_eq!(s.observation_frame, coevo::scene::ObservationFrame::Body);
+    assert_eq!(Scene { observation_frame: gym.observation_frame, ..s }, gym, "otherwise the gym-pps scene");
+}
+
+#[test]
+fn paper_scene_is_the_papers_setup() {
+    let s = Scene::load(Path::new("scenes/paper.ron")).unwrap();
     assert_eq!(s.world.boundary, Boundary::Periodic);
     assert_eq!((s.species[0].name.as_str(), s.species[0].count), ("predator", 3));
     assert_eq!((s.species[1].name.as_str(), s.species[1].count), ("prey", 10));

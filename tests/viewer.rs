@@ -102,9 +102,9 @@ fn colour_coverage(w: u32, h: u32, pixels: &[[u8; 3]], scene: &Scene) -> Vec<(f6
 
 #[test]
 fn a_screenshot_of_the_standard_scene_shows_the_arena_and_both_species() {
-    let (w, h, pixels) = screenshot(&["--scene", "scenes/standard.ron", "--rules", "--seed", "3"]);
+    let (w, h, pixels) = screenshot(&["--scene", "scenes/paper.ron", "--rules", "--seed", "3"]);
     assert_eq!((w, h), (WIDTH, HEIGHT));
-    let scene = Scene::load(Path::new("scenes/standard.ron")).unwrap();
+    let scene = Scene::load(Path::new("scenes/paper.ron")).unwrap();
     for ((counted, expected), s) in colour_coverage(w, h, &pixels, &scene).into_iter().zip(&scene.species) {
         // Heading lines and overlaps take some pixels of a disc away; nothing else has these colours.
         let ratio = counted / expected;
@@ -117,7 +117,7 @@ fn live_training_in_the_window_is_the_headless_training_run() {
     // The same scene and seed, trained headless for two episodes and live in the window at 25 steps per
     // frame: the episodes' DoS, DoA and catches must be the same numbers, to the last digit.
     let dir = tempfile::tempdir().unwrap();
-    let mut scene = Scene::load(Path::new("scenes/standard.ron")).unwrap();
+    let mut scene = Scene::load(Path::new("scenes/paper.ron")).unwrap();
     scene.episode_steps = 200;
     let file = dir.path().join("short.ron");
     std::fs::write(&file, scene.to_ron()).unwrap();
@@ -155,7 +155,7 @@ fn a_bad_scene_is_refused_before_a_window_opens() {
 
 /// A one-episode run of the standard scene with small networks.
 fn tiny_run(dir: &Path) -> PathBuf {
-    let mut s = Scene::load(Path::new("scenes/standard.ron")).unwrap();
+    let mut s = Scene::load(Path::new("scenes/paper.ron")).unwrap();
     s.episode_steps = 10;
     s.learning.hidden = 8;
     s.learning.buffer_capacity = 500;
@@ -211,8 +211,8 @@ fn watching_a_run_in_the_window_deploys_it_on_fifty_prey_without_predators() {
 
 #[test]
 fn rule_based_mode_replaces_learned_species_by_chase_and_flee() {
-    let scene = Scene::load(Path::new("scenes/standard.ron")).unwrap();
-    let (scene, learners) = Setup { scene, source: "scenes/standard.ron".into(), mode: RunMode::RuleBased }.prepare().unwrap();
+    let scene = Scene::load(Path::new("scenes/paper.ron")).unwrap();
+    let (scene, learners) = Setup { scene, source: "scenes/paper.ron".into(), mode: RunMode::RuleBased }.prepare().unwrap();
     use coevo::scene::Policy;
     assert_eq!(scene.species[0].policy, Policy::ChaseNearest);
     assert_eq!(scene.species[1].policy, Policy::FleeNearest);

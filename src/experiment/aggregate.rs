@@ -36,6 +36,10 @@ pub struct EvalData {
     pub per_step: Vec<Vec<f64>>,
     /// Mean edge rank over every ranked catch of the evaluation (NaN without one).
     pub edge_rank: f64,
+    /// The confusion curve of the first predator species in `<eval>-confusion.csv`, per bin of prey in
+    /// view: mean |turn command|, mean speed / max speed, catches per predator-step (NaN for empty bins;
+    /// empty when the file is absent).
+    pub confusion: Vec<[f64; 3]>,
 }
 
 impl EvalData {
@@ -55,6 +59,19 @@ fn read_csv(path: &Path) -> Result<(Vec<String>, Vec<Vec<f64>>), String> {
         .filter(|r| r.len() == header.len())
         .collect();
     Ok((header, rows))
+}
+
+/// The first species' rows of a confusion curve file (`species,prey_in_view,samples,mean_abs_turn,
+/// mean_speed_fraction,catches_per_step`); empty when there is no file.
+fn read_confusion(path: &Path) -> Result<Vec<[f64; 3]>, String> {
+    if !path.exists() {
+        return Ok(vec![]);
+    }
+    let text = crate::io::read_text(path, crate::io::MAX_TEXT_BYTES).map_err(|e| format!("{}: {e}", path.display()))?;
+    let rows: Vec<Vec<&str>> = text.lines().skip(1).map(|l| l.split(',').collect()).filter(|r: &Vec<&str>| r.len() == 6).collect();
+    let first = rows.first().map(|r| r[0]).unwrap_or_default();
+    let cell = |c: &str| c.parse::<f64>().unwrap_or(f64::NAN);
+    Ok(rows.iter().filter(|r| r[0] == first).map(|r| [cell(r[3]), cell(r[4]), cell(r[5])]).collect())
 }
 
 fn column(header: &[String], rows: &[Vec<f64>], name: &str, path: &Path) -> Result<Vec<f64>, String> {
@@ -111,7 +128,8 @@ pub fn load(exp: &Experiment) -> Result<BTreeMap<usize, RunData>, String> {
             let per_step = Swarming::NAMES.iter().map(|n| series(n)).collect::<Result<Vec<_>, String>>()?;
             let ranks = column(&header, &rows, &format!("edge_rank_{prey}"), &path).unwrap_or_default();
             let edge_rank = mean(&ranks.into_iter().filter(|x| x.is_finite()).collect::<Vec<_>>()).unwrap_or(f64::NAN);
-            d.evals.insert(e.name.clone(), EvalData { per_step, edge_rank });
+            let confusion = read_confusion(&path.with_file_name(format!("{}-confusion.csv", path.file_stem().unwrap_or_default().to_string_lossy())))?;
+            d.evals.insert(e.name.clone(), EvalData { per_step, edge_rank, confusion });
         }
         data.insert(i, d);
     }
@@ -211,7 +229,7 @@ pub fn aggregate(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> Result<Ve
     summary.push_str(",catches_first100,catches_last100,return_first100,return_last100,wall_seconds\n");
     for (i, d) in data {
         let r = &exp.runs[*i];
-        write!(summary, "{},{},{},{}", r.preset, r.variant, r.seed, d.dos.len()).unwrap();
+        write!(summary, "{},{},{},{}", csv_text(&r.preset), csv_text(&r.variant), r.seed, d.dos.len()).unwrap();
         for (_, q) in &quantities {
             // Blank, never NaN, where a run has no value (an evaluation without a catch has no edge rank).
             let v = quantity(exp, d, q);
@@ -232,7 +250,7 @@ pub fn aggregate(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> Result<Ve
             for (name, q) in &quantities {
                 if let Some(e) = estimate(&runs.iter().map(|d| quantity(exp, d, q)).filter(|x| x.is_finite()).collect::<Vec<_>>()) {
                     let ci = e.ci.map_or(String::new(), |c| c.to_string());
-                    writeln!(means, "{preset},{},{name},{},{},{ci}", v.name, e.n, e.mean).unwrap();
+                    writeln!(means, "{},{},{name},{},{},{ci}", csv_text(preset), csv_text(&v.name), e.n, e.mean).unwrap();
                 }
             }
         }
@@ -250,6 +268,16 @@ pub fn aggregate(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> Result<Ve
         crate::io::write_file(&exp.root.join("summary-mean.csv"), crate::io::Existing::Replace, means.as_bytes())?;
     }
     Ok(results)
+}
+
+/// A name as one CSV field: quoted (RFC 4180) when it holds a comma or a quote, as variant names may
+/// ("body frame, no predators").
+fn csv_text(s: &str) -> String {
+    if s.contains([',', '"', '\n']) {
+        format!("\"{}\"", s.replace('"', "\"\""))
+    } else {
+        s.to_string()
+    }
 }
 
 /// Mean and 95 % band over seeds, point by point, of equally long series (cut to the shortest).
@@ -296,6 +324,18 @@ fn figures<'a>(exp: &Experiment, preset: &str, prey: &str, of_variant: &dyn Fn(&
         ];
         if panels.iter().any(|p| !p.curves.is_empty()) {
             plot::save(&dir.join(format!("{preset}-eval-{}", slug(&e.name))), &panels)?;
+        }
+        // The confusion curve: what a predator does, and catches, against the prey it has in view.
+        let bins = (0..crate::collective::CONFUSION_BINS.len()).map(crate::collective::confusion_bin_label).collect::<Vec<_>>().join(", ");
+        let x_label = format!("prey in view, bins {bins}");
+        let confusion = |k: usize| curves(&|d| d.evals.get(&e.name).map_or(vec![], |x| x.confusion.iter().map(|b| b[k]).collect()), 0.0);
+        let panels = [
+            Panel { title: title(&format!("{}: predator |turn|", e.name)), x_label: x_label.clone(), y_label: "mean |turn command| / max".into(), curves: confusion(0) },
+            Panel { title: title(&format!("{}: predator speed", e.name)), x_label: x_label.clone(), y_label: "mean speed / max".into(), curves: confusion(1) },
+            Panel { title: title(&format!("{}: catch rate", e.name)), x_label, y_label: "catches per predator-step".into(), curves: confusion(2) },
+        ];
+        if panels.iter().any(|p| p.curves.iter().any(|c| c.mean.iter().any(|v| v.is_finite()))) {
+            plot::save(&dir.join(format!("{preset}-confusion-{}", slug(&e.name))), &panels)?;
         }
     }
     Ok(())
@@ -376,4 +416,14 @@ pub fn plot_run(dir: &Path) -> Result<std::path::PathBuf, String> {
     std::fs::create_dir_all(&figures).map_err(|e| format!("{}: {e}", figures.display()))?;
     plot::save(&figures.join("training"), &panels)?;
     Ok(figures.join("training.png"))
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn names_with_commas_stay_one_csv_field() {
+        assert_eq!(super::csv_text("5:3"), "5:3");
+        assert_eq!(super::csv_text("body frame, no predators"), "\"body frame, no predators\"");
+        assert_eq!(super::csv_text("a \"b\", c"), "\"a \"\"b\"\", c\"");
+    }
 }

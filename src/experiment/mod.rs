@@ -4,7 +4,7 @@
 //! ```ron
 //! (
 //!     description: "Effect of the speed limit ratio predator:prey (the paper's Fig. 10)",
-//!     base: "scenes/standard.ron",          // the scene every variant starts from
+//!     base: "scenes/paper.ron",             // the scene every variant starts from
 //!     presets: ["paper", "gym-pps"],        // the base is run on each preset (default ["paper"])
 //!     seeds: [1, 2, 3],
 //!     episodes: 2000,                       // optional: overrides the base scene's

@@ -303,9 +303,17 @@ pub fn scene_files() -> Vec<PathBuf> {
     list_dir("scenes", |p| p.extension().is_some_and(|e| e == "ron"))
 }
 
-/// The run folders a picker offers: `runs/*/` holding a `checkpoint/`, sorted.
+/// The trained run shipped with coevo: the default scene's actors (see its README), so a trained swarm is
+/// one click away before anything has been trained here.
+pub const SHIPPED_RUN: &str = "assets/trained-standard";
+
+/// The run folders a picker offers: the shipped run first, then `runs/*/` holding a `checkpoint/`, sorted.
 pub fn run_folders() -> Vec<PathBuf> {
-    list_dir("runs", |p| p.join("checkpoint").is_dir() && p.join("scene.ron").is_file())
+    let is_run = |p: &std::path::Path| p.join("checkpoint").is_dir() && p.join("scene.ron").is_file();
+    let shipped = PathBuf::from(SHIPPED_RUN);
+    let mut runs: Vec<PathBuf> = is_run(&shipped).then_some(shipped).into_iter().collect();
+    runs.extend(list_dir("runs", is_run));
+    runs
 }
 
 fn list_dir(dir: &str, keep: impl Fn(&std::path::Path) -> bool) -> Vec<PathBuf> {
