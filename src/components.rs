@@ -55,8 +55,9 @@ pub struct Reward(pub f64);
 #[derive(Component, Clone, Copy, Debug, PartialEq, Default)]
 pub struct ContactForce(pub DVec2);
 
-/// Contacts at a state: how many agents this one catches / is caught by, and walls touched.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+/// Contacts at a state: how many agents this one catches / is caught by, what those contacts pay, and
+/// walls touched.
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
 pub struct ContactCounts {
     /// Agents of species this one catches that overlap it (a predator's catches).
     pub catching: u32,
@@ -64,10 +65,13 @@ pub struct ContactCounts {
     pub caught: u32,
     /// Walls the body penetrates (0 on the torus, 2 in a corner).
     pub walls: u32,
+    /// The summed contact rewards of those contacts, pair by pair
+    /// ([`crate::species::SpeciesRegistry::contact_reward`]).
+    pub contact_reward: f64,
 }
 
 /// Contacts at the current state and at the state before it (for rewards judged before the move).
-#[derive(Component, Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[derive(Component, Clone, Copy, Debug, PartialEq, Default)]
 pub struct Contacts {
     pub now: ContactCounts,
     pub before: ContactCounts,

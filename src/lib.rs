@@ -15,6 +15,7 @@
 
 pub mod animate;
 pub mod bench;
+pub mod cli;
 pub mod collective;
 pub mod components;
 pub mod episode;
@@ -94,6 +95,8 @@ impl Plugin for SimulationPlugin {
         );
         app.add_plugins((PerceptionPlugin, PolicyPlugin, PhysicsPlugin, RewardPlugin, MetricsPlugin, EpisodePlugin));
         app.add_systems(FixedUpdate, perception::run_perceive.in_set(SimSet::Perceive));
+        // Species of this program's plugins (species::SpeciesPlugins::register), in every simulation.
+        species::catalog::build_plugins(app);
     }
 }
 

@@ -241,8 +241,14 @@ fn detect_contacts(
                 // Coincident centres have no line of centres: separate them along x, by slot order.
                 let away = if dist > 0.0 { -d / dist } else { DVec2::X * if i < j { -1.0 } else { 1.0 } };
                 f += k * overlap * away;
-                counts.catching += registry.catches[si][t] as u32;
-                counts.caught += registry.catches[t][si] as u32;
+                if registry.catches[si][t] {
+                    counts.catching += 1;
+                    counts.contact_reward += registry.contact_reward[si][t].0;
+                }
+                if registry.catches[t][si] {
+                    counts.caught += 1;
+                    counts.contact_reward += registry.contact_reward[t][si].1;
+                }
             });
         }
         counts.walls = arena.wall_contact(xi, DVec2::ZERO, ri, 0.0, 0.0).1;

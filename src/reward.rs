@@ -2,11 +2,14 @@
 //! cost and, in walled scenes that enable it, a wall penalty.
 //!
 //! ```text
-//!   r = contact·(agents caught − catchers touching) − thrust_cost·|a_F| − turn_cost·|a_R| − wall_penalty·walls
+//!   r = Σ_contacts r_pair − thrust_cost·|a_F| − turn_cost·|a_R| − wall_penalty·walls
 //! ```
 //!
-//! In the paper's two-species world that is +1 per prey touched for a predator and −1 per predator
-//! touching a prey. Contacts are judged on the state after the move (`paper`) or before it (`gym-pps`).
+//! r_pair is what the contact pays this side: +contact to a catcher and −contact to the caught unless the
+//! scene's `contact_rewards` (or a species plugin) sets the pair. In the paper's two-species world that is
+//! +1 per prey touched for a predator and −1 per predator touching a prey. Contacts are judged on the state
+//! after the move (`paper`) or before it (`gym-pps`). Species plugins add terms of their own after
+//! [`RewardStage::Survival`].
 
 use crate::components::*;
 use crate::perception::Batches;
@@ -14,12 +17,26 @@ use crate::scene::{ContactJudging, RewardParams, WallPenaltyMode};
 use crate::{ActiveScene, SimSet};
 use bevy::prelude::*;
 
+/// Within `SimSet::Reward`: the survival reward and energy costs first; extra terms of species plugins
+/// go `.after(RewardStage::Survival)` and add to both the agent's [`Reward`] and its batch row (see
+/// [`add_reward`]).
+#[derive(SystemSet, Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum RewardStage {
+    Survival,
+}
+
 pub struct RewardPlugin;
 
 impl Plugin for RewardPlugin {
     fn build(&self, app: &mut App) {
-        app.add_systems(FixedUpdate, assign_rewards.in_set(SimSet::Reward));
+        app.add_systems(FixedUpdate, assign_rewards.in_set(RewardStage::Survival).in_set(SimSet::Reward));
     }
+}
+
+/// Adds `amount` to an agent's reward for this transition, where the learner reads it too.
+pub fn add_reward(batches: &mut Batches, species: SpeciesId, slot: Slot, reward: &mut Reward, amount: f64) {
+    reward.0 += amount;
+    batches.species[species.0].rewards[slot.row as usize] = reward.0 as f32;
 }
 
 /// The reward of one agent for one transition.
@@ -32,7 +49,7 @@ pub fn reward(params: &RewardParams, action: &Action, contacts: &Contacts) -> f6
         WallPenaltyMode::AnyWall => (c.walls > 0) as u32,
         WallPenaltyMode::PerWall => c.walls,
     };
-    params.contact * (c.catching as f64 - c.caught as f64)
+    c.contact_reward
         - params.thrust_cost * action.thrust.abs()
         - params.turn_cost * action.turn_rate.abs()
         - params.wall_penalty * walls as f64

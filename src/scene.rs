@@ -228,6 +228,22 @@ pub struct Scene {
     /// radius is needed for a curve).
     #[serde(default)]
     pub confusion_radius: Option<f64>,
+    /// Contact rewards of particular (catcher, caught) pairs; every other pair pays ±`rewards.contact`.
+    #[serde(default)]
+    pub contact_rewards: Vec<ContactReward>,
+}
+
+/// The reward of one contact between a catcher and a species it catches, for each side (a species plugin
+/// brings these for its pairs; a scene may set or override them).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ContactReward {
+    pub catcher: String,
+    pub caught: String,
+    /// Paid to the catcher per contact (the paper: +contact).
+    pub catcher_reward: f64,
+    /// Paid to the caught per contact (the paper: −contact).
+    pub caught_reward: f64,
 }
 
 fn default_cluster_link() -> f64 {
@@ -274,6 +290,9 @@ pub struct ScenePatch {
     pub cluster_link: Option<f64>,
     #[serde(default)]
     pub confusion_radius: Option<f64>,
+    /// Replaces the list of per-pair contact rewards.
+    #[serde(default)]
+    pub contact_rewards: Option<Vec<ContactReward>>,
 }
 
 /// Reads RON text of a coevo file (a scene, an experiment) into `T`, with `Some` implied for optional
@@ -391,6 +410,9 @@ impl Scene {
         if let Some(v) = patch.confusion_radius {
             self.confusion_radius = Some(v);
         }
+        if let Some(v) = patch.contact_rewards {
+            self.contact_rewards = v;
+        }
         if let Some(p) = patch.world {
             p.apply(&mut self.world);
         }
@@ -413,13 +435,35 @@ impl Scene {
             }
             if let Some(existing) = self.species.iter_mut().find(|s| s.name == name) {
                 sp.apply(existing);
+            } else if let Some(t) = crate::species::catalog::get(&name) {
+                // A species a plugin of this program defines: its defaults, then the scene's fields.
+                let mut def = t.def.clone();
+                sp.apply(&mut def);
+                self.species.push(def);
+                for catcher in &t.caught_by {
+                    if let Some(c) = self.species.iter_mut().find(|s| &s.name == catcher) {
+                        if !c.catches.contains(&name) {
+                            c.catches.push(name.clone());
+                        }
+                    }
+                }
+                for r in &t.contact_rewards {
+                    let present = |n: &str| self.species.iter().any(|s| s.name == n);
+                    let set = self.contact_rewards.iter().any(|c| c.catcher == r.catcher && c.caught == r.caught);
+                    if !set && present(&r.catcher) && present(&r.caught) {
+                        self.contact_rewards.push(r.clone());
+                    }
+                }
             } else {
                 let mut def = SpeciesDef::template(&name);
                 let missing = sp.missing_fields();
                 if !missing.is_empty() {
                     return Err((
                         format!("species[{name}]"),
-                        format!("new species (not in the preset) must set: {}", missing.join(", ")),
+                        format!(
+                            "no preset or species plugin of this program defines {name:?}; a new species must set: {}",
+                            missing.join(", ")
+                        ),
                     ));
                 }
                 sp.apply(&mut def);
@@ -498,6 +542,19 @@ impl Scene {
                 })?;
                 check(target != &s.name, &f("catches"), || "a species cannot catch itself".into())?;
             }
+        }
+        for (i, r) in self.contact_rewards.iter().enumerate() {
+            let field = format!("contact_rewards[{i}]");
+            let catcher = self.species.iter().find(|s| s.name == r.catcher);
+            check(catcher.is_some(), &field, || format!("no species named {:?} in this scene", r.catcher))?;
+            check(self.species.iter().any(|s| s.name == r.caught), &field, || format!("no species named {:?} in this scene", r.caught))?;
+            check(catcher.is_some_and(|c| c.catches.contains(&r.caught)), &field, || format!("{} does not catch {}", r.catcher, r.caught))?;
+            check(r.catcher_reward.is_finite() && r.caught_reward.is_finite(), &field, || "rewards must be finite numbers".into())?;
+            check(
+                !self.contact_rewards[..i].iter().any(|o| o.catcher == r.catcher && o.caught == r.caught),
+                &field,
+                || format!("the pair {} → {} appears twice", r.catcher, r.caught),
+            )?;
         }
         let l = &self.learning;
         positive(l.actor_lr, "learning.actor_lr")?;
@@ -773,6 +830,7 @@ fn paper_preset() -> Scene {
         observation_frame: ObservationFrame::World,
         cluster_link: default_cluster_link(),
         confusion_radius: None,
+        contact_rewards: vec![],
     }
 }
 

@@ -1,9 +1,17 @@
-//! Species are data: a registry of definitions loaded from the scene. A scene adds a third species with one
-//! more entry (see `tests/scenes.rs`), and its policy can be a `Plugin(name)` decided by your own system in
-//! `SimSet::Decide`; nothing in the core names "predator" or "prey".
+//! Species are data: a registry of definitions loaded from the scene; nothing in the core names
+//! "predator" or "prey".
+//!
+//! A new species is a [`SpeciesPlugin`]: a Bevy plugin that also gives the species' definition with its
+//! defaults and its interactions ([`SpeciesTemplate`]). Programs hand their species plugins to
+//! [`crate::cli::main`], which registers them in a program-wide [`catalog`] before any scene is read, so a
+//! scene only names the species and overrides what it wants (`(name: "hawk", count: 2)`), and every
+//! simulation the program makes (headless or in the viewer) gets the plugins' systems (extra reward terms,
+//! a decide system of its own). `examples/hawk.rs` is a complete one.
 
-use crate::scene::{Perception, Policy, Scene, SpeciesDef};
+use crate::scene::{ContactReward, Perception, Policy, Scene, SpeciesDef};
 use bevy::prelude::*;
+use std::sync::Arc;
+
 
 /// Own state in the observation: [x, y, v_x, v_y, h_x, h_y].
 pub const OWN_STATE_DIM: usize = 6;
@@ -20,6 +28,9 @@ pub struct SpeciesRegistry {
     pub catches: Vec<Vec<bool>>,
     /// Perception radius R in metres, resolved against D.
     pub perception_radius: Vec<f64>,
+    /// `contact_reward[a][b]`: (to the catcher, to the caught) per contact where a catches b; ±contact
+    /// unless the scene's `contact_rewards` sets the pair.
+    pub contact_reward: Vec<Vec<(f64, f64)>>,
 }
 
 impl SpeciesRegistry {
@@ -47,7 +58,22 @@ impl SpeciesRegistry {
                 Perception::Radius(r) => r,
             })
             .collect();
-        SpeciesRegistry { defs, catches, perception_radius }
+        let contact = scene.rewards.contact;
+        let contact_reward = defs
+            .iter()
+            .map(|a| {
+                defs.iter()
+                    .map(|b| {
+                        scene
+                            .contact_rewards
+                            .iter()
+                            .find(|r| r.catcher == a.name && r.caught == b.name)
+                            .map_or((contact, -contact), |r| (r.catcher_reward, r.caught_reward))
+                    })
+                    .collect()
+            })
+            .collect();
+        SpeciesRegistry { defs, catches, perception_radius, contact_reward }
     }
 
     pub fn len(&self) -> usize {
@@ -87,4 +113,159 @@ impl SpeciesRegistry {
     pub fn predators_of(&self, s: usize) -> impl Iterator<Item = usize> + '_ {
         (0..self.len()).filter(move |&t| self.catches[t][s])
     }
+}
+
+/// A species as a plugin brings it: its definition with defaults, the species that catch it, and the
+/// reward of each contact it takes part in (its own catches are `def.catches`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct SpeciesTemplate {
+    pub def: SpeciesDef,
+    /// Species that catch this one (added to their `catches` when both are in a scene).
+    pub caught_by: Vec<String>,
+    /// Contact rewards of its pairs, either side; a scene's own `contact_rewards` entry for a pair wins.
+    pub contact_rewards: Vec<ContactReward>,
+}
+
+/// A species of your own: a Bevy plugin (whatever systems it needs, e.g. an extra reward term in
+/// `SimSet::Reward` after [`crate::reward::RewardStage::Survival`], or a decide system for a `Plugin(name)`
+/// policy) that also defines the species ([`SpeciesTemplate`]).
+pub trait SpeciesPlugin: Plugin + Clone {
+    fn template(&self) -> SpeciesTemplate;
+}
+
+/// The species plugins of a program: registered in the [`catalog`] at start-up, built into every
+/// simulation it makes.
+#[derive(Clone, Default)]
+pub struct SpeciesPlugins {
+    templates: Vec<SpeciesTemplate>,
+    builders: Vec<catalog::Builder>,
+}
+
+impl SpeciesPlugins {
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Adds a species plugin.
+    pub fn with<P: SpeciesPlugin>(mut self, plugin: P) -> Self {
+        self.templates.push(plugin.template());
+        self.builders.push(Arc::new(move |app: &mut App| {
+            app.add_plugins(plugin.clone());
+        }));
+        self
+    }
+
+    pub fn templates(&self) -> &[SpeciesTemplate] {
+        &self.templates
+    }
+
+    /// Puts every template in the program's catalog, after checking that no two species share a name
+    /// (with each other or the presets' species) and that every species an interaction names exists.
+    pub fn register(&self) -> Result<(), String> {
+        let preset_names: Vec<String> =
+            crate::scene::PRESETS.iter().filter_map(|p| Scene::preset(p)).flat_map(|s| s.species.into_iter().map(|d| d.name)).collect();
+        let mut known: Vec<String> = preset_names.clone();
+        for t in &self.templates {
+            let name = &t.def.name;
+            if known.contains(name) {
+                let whose = if preset_names.contains(name) { "a preset's species" } else { "another species plugin" };
+                return Err(format!("species plugin {name:?}: {whose} has that name already; give each species its own name"));
+            }
+            known.push(name.clone());
+        }
+        for t in &self.templates {
+            let names = t.def.catches.iter().chain(&t.caught_by).chain(t.contact_rewards.iter().flat_map(|r| [&r.catcher, &r.caught]));
+            for other in names {
+                if !known.contains(other) {
+                    return Err(format!(
+                        "species plugin {:?}: its interactions name {other:?}, which no preset or species plugin of this program defines",
+                        t.def.name
+                    ));
+                }
+            }
+        }
+        self.templates.iter().zip(&self.builders).try_for_each(|(t, b)| catalog::insert(t.clone(), b.clone()))
+    }
+}
+
+/// The species templates of this program, read when scenes are resolved (scenes are read before any app
+/// exists, like the presets, so this is program-wide state, filled once at start-up).
+pub mod catalog {
+    use super::SpeciesTemplate;
+    use bevy::prelude::App;
+    use std::sync::{Arc, RwLock};
+
+    /// Adds a species plugin to an app.
+    pub type Builder = Arc<dyn Fn(&mut App) + Send + Sync>;
+
+    static SPECIES: RwLock<Vec<(SpeciesTemplate, Builder)>> = RwLock::new(Vec::new());
+
+    /// Adds a species; the same template again is a no-op, another one of the same name an error.
+    pub fn insert(t: SpeciesTemplate, build: Builder) -> Result<(), String> {
+        let mut all = SPECIES.write().unwrap_or_else(|e| e.into_inner());
+        match all.iter().find(|(o, _)| o.def.name == t.def.name) {
+            Some((o, _)) if *o == t => Ok(()),
+            Some(_) => Err(format!("species plugin {:?}: two species plugins define it", t.def.name)),
+            None => {
+                all.push((t, build));
+                Ok(())
+            }
+        }
+    }
+
+    /// The template of a species name, if a plugin of this program defines it.
+    pub fn get(name: &str) -> Option<SpeciesTemplate> {
+        SPECIES.read().unwrap_or_else(|e| e.into_inner()).iter().find(|(t, _)| t.def.name == name).map(|(t, _)| t.clone())
+    }
+
+    /// Adds every registered species plugin to an app (what [`crate::SimulationPlugin`] does); their
+    /// systems find their species in the registry and do nothing in a scene without it.
+    pub fn build_plugins(app: &mut App) {
+        let builders: Vec<Builder> = SPECIES.read().unwrap_or_else(|e| e.into_inner()).iter().map(|(_, b)| b.clone()).collect();
+        for b in builders {
+            b(app);
+        }
+    }
+}
+
+/// A scene as the simulation will run it, for `coevo --describe-scene`: species and counts, who catches
+/// whom with the reward of each contact, each observer species' observation layout (offsets, d_o), then
+/// every resolved parameter.
+pub fn describe(scene: &Scene, source: &str) -> String {
+    use std::fmt::Write as _;
+    let r = SpeciesRegistry::from_scene(scene);
+    let mut out = String::new();
+    let _ = writeln!(out, "scene {source}: preset {}, seed {}, {:?} observations", scene.preset, scene.seed, scene.observation_frame);
+    let _ = writeln!(out, "\nspecies (registry order = the order of observation blocks):");
+    for (s, d) in r.defs.iter().enumerate() {
+        let _ = writeln!(
+            out,
+            "  {s} {}: {} agents, policy {:?}, mass {} kg, radius {} m, max speed {} m/s, perception R = {:.4} m, at most {} observed per species",
+            d.name, d.count, d.policy, d.mass, d.radius, d.max_speed, r.perception_radius[s], d.topological_limit
+        );
+    }
+    let _ = writeln!(out, "\ncontacts (catcher -> caught: reward to the catcher / to the caught, per contact):");
+    let mut any = false;
+    for a in 0..r.len() {
+        for b in r.prey_of(a) {
+            let (to_catcher, to_caught) = r.contact_reward[a][b];
+            let _ = writeln!(out, "  {} -> {}: {to_catcher:+} / {to_caught:+}", r.defs[a].name, r.defs[b].name);
+            any = true;
+        }
+    }
+    if !any {
+        out.push_str("  none\n");
+    }
+    for s in 0..r.len() {
+        let d_o = r.observation_dim(s);
+        let _ = writeln!(out, "\nobservation of {} (d_o = {d_o}):", r.defs[s].name);
+        let _ = writeln!(out, "  [0, {OWN_STATE_DIM}) own state");
+        for t in 0..r.len() {
+            let from = r.block_offset(s, t);
+            let slots = r.defs[s].topological_limit;
+            let _ = writeln!(out, "  [{from}, {}) {}: {slots} slots × {NEIGHBOUR_DIM}", from + slots * NEIGHBOUR_DIM, r.defs[t].name);
+        }
+    }
+    let _ = writeln!(out, "\nresolved scene:\n{}", scene.to_ron());
+    out
 }

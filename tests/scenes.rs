@@ -87,7 +87,7 @@ fn errors_name_file_line_and_field() {
     assert!(err("(world: (arena_edge: 0.0))").contains("world.arena_edge: must be a finite number > 0"));
     assert!(err("(world: (drag: NaN))").contains("world.drag: must be a finite number"), "{}", err("(world: (drag: NaN))"));
     assert!(err("(species: [(name: \"prey\", catches: [\"shark\"])])").contains("no species named \"shark\""));
-    assert!(err("(species: [(name: \"apex\", count: 1)])").contains("species[apex]: new species (not in the preset) must set: mass"));
+    assert!(err("(species: [(name: \"apex\", count: 1)])").contains("species[apex]: no preset or species plugin of this program defines \"apex\"; a new species must set: mass"));
     assert!(err("(species: [(count: 1)])").contains("species[0].name: every species entry needs a name"));
     assert!(err("(learning: (gamma: 1.5))").contains("learning.gamma: must be in [0, 1]"));
     let missing = Scene::load(Path::new("scenes/nope.ron")).unwrap_err().to_string();
