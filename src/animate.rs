@@ -7,14 +7,14 @@
 //! the scene's colours and their blends with the floor; pixels unchanged since the previous frame are
 //! written transparent, which keeps a 300-step clip of 50 prey around a megabyte.
 
-use crate::components::*;
-use crate::episode::Episode;
+use crate::sim::components::*;
+use crate::sim::episode::Episode;
 use crate::io::{AtomicFile, Existing};
-use crate::metrics::SwarmMetrics;
+use crate::sim::metrics::SwarmMetrics;
 use crate::scene::Boundary;
-use crate::space::Arena;
-use crate::species::SpeciesRegistry;
-use crate::Simulation;
+use crate::sim::space::Arena;
+use crate::sim::species::SpeciesRegistry;
+use crate::sim::Simulation;
 use bevy::math::DVec2;
 use indicatif::{ProgressBar, ProgressStyle};
 use std::collections::{HashMap, VecDeque};
@@ -79,7 +79,7 @@ pub fn animate(sim: &mut Simulation, opts: &AnimateOptions, path: &Path, existin
     let mut file = AtomicFile::create(path, existing).map_err(|e| io_err(&e))?;
     let mut encoder = gif::Encoder::new(file.writer(), width as u16, height as u16, &palette.rgb).map_err(|e| io_err(&e))?;
     encoder.set_repeat(gif::Repeat::Infinite).map_err(|e| io_err(&e))?;
-    let dt = sim.world().resource::<crate::ActiveScene>().0.world.dt;
+    let dt = sim.world().resource::<crate::sim::ActiveScene>().0.world.dt;
     let delay = ((dt * opts.steps_per_frame as f64 * 100.0).round() as u16).max(2);
     let svg_options = crate::svg::options();
     let frames = opts.steps / opts.steps_per_frame + 1;

@@ -5,7 +5,7 @@
 //! density stays that of 3+10.
 
 use crate::scene::{Policy, Scene};
-use crate::Simulation;
+use crate::sim::Simulation;
 use std::time::{Duration, Instant};
 
 /// One measured configuration.
@@ -51,7 +51,7 @@ pub fn environment(budget: Duration) -> Vec<Figure> {
             for _ in 0..10 {
                 sim.step(); // warm the grids and batches
             }
-            let edge = sim.world().resource::<crate::ActiveScene>().0.world.arena_edge;
+            let edge = sim.world().resource::<crate::sim::ActiveScene>().0.world.arena_edge;
             Figure {
                 label: format!("environment step, {p}+{e} agents, arena {edge:.1} m, random actions"),
                 per_second: per_second(budget, 20, || sim.step()),

@@ -10,7 +10,7 @@ use crate::scene::{Policy, Scene};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Duration;
-use crate::species::SpeciesPlugins;
+use crate::sim::species::SpeciesPlugins;
 
 /// Predators and prey that learn together: a simulator of Li, Li & Zhao (New J. Phys. 2023).
 ///
@@ -425,7 +425,7 @@ fn run(cli: Cli, mode: RunMode) -> Result<(), String> {
             let path = cli.describe_scene.clone().expect("describe mode");
             let (scene, source) = load_scene(&Cli { scene: Some(path), ..cli.clone() }, standard)?;
             let scene = with_counts(&cli, scene, &source)?;
-            print!("{}", crate::species::describe(&scene, &source.display().to_string()));
+            print!("{}", crate::sim::species::describe(&scene, &source.display().to_string()));
             Ok(())
         }
         RunMode::Plot => plot(cli.plot.as_deref().expect("plot mode")),
@@ -521,7 +521,7 @@ fn plot(dir: &Path) -> Result<(), String> {
 /// The simulation --record and --animate show: the scene of --run (or --scene) with the counts applied,
 /// every species acting exactly as in --eval (trained actors without noise); the steps to run; and a
 /// note saying which actors drive it.
-fn deployed(cli: &Cli, standard: &Path) -> Result<(crate::Simulation, usize, String), String> {
+fn deployed(cli: &Cli, standard: &Path) -> Result<(crate::sim::Simulation, usize, String), String> {
     let default = cli.run.as_ref().map_or(standard.to_path_buf(), |r| r.join("scene.ron"));
     let (scene, source) = load_scene(cli, &default)?;
     let mut scene = with_counts(cli, scene, &source)?;

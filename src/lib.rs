@@ -1,195 +1,33 @@
 //! coevo: predators and prey that learn together (Li, Li & Zhao, New J. Phys. 2023) as a Bevy ECS app.
 //!
-//! One fixed step, top to bottom (the sets of [`SimSet`], chained in `FixedUpdate`):
+//! The crate reads as the data flows: scene → simulation → learning → runs and experiments → viewer.
 //!
-//! | set        | what happens                                                      | file              |
-//! |------------|-------------------------------------------------------------------|-------------------|
-//! | `Decide`   | each species' policy fills its batch of normalized actions        | `policy.rs`, `learning/` |
-//! | `Act`      | actions rescaled to thrust a_F (N) and turn rate a_R (rad/s)      | `policy.rs`       |
-//! | `Physics`  | Eq. (1): heading, velocity, speed clip, position, periodic wrap   | `physics.rs`      |
-//! | `Perceive` | the new state: cell grids, Hooke contacts, observation vectors    | `perception.rs`   |
-//! | `Reward`   | survival ±1 per contact, energy cost, wall penalty                | `reward.rs`       |
-//! | `Measure`  | DoS, DoA, catches                                                  | `metrics.rs`      |
-//! | `Learn`    | Algorithm 1: replay buffers and DDPG updates                       | `learning/`       |
-//! | `Episode`  | end of episode: summary, respawn                                  | `episode.rs`      |
+//! | folder / file | what |
+//! |---|---|
+//! | `scene.rs` | scenes: presets, patches, validation |
+//! | `sim/` | the simulation core (components, space, physics, perception, reward, metrics, collective measures, episodes, species, policies) and [`Simulation`]; one fixed step is the chain of [`SimSet`]s (see [`sim`]) |
+//! | `learning/` | Algorithm 1 (DDPG) as a plugin on dfdx, checkpoints |
+//! | `train.rs`, `record.rs`, `animate.rs`, `bench.rs`, `experiment/` | the run modes and the experiment layer |
+//! | `viewer/` | the window (`--features viewer`) |
+//! | `cli.rs` | the command line (`main.rs` and examples call [`cli::main`]) |
+//! | `io.rs`, `parallel.rs`, `svg.rs` | files written safely, threads that never change a result, SVG to pixels |
 
 pub mod animate;
 pub mod bench;
 pub mod cli;
-pub mod collective;
-pub mod components;
-pub mod episode;
 pub mod experiment;
 pub mod io;
 pub mod learning;
-pub mod metrics;
 pub mod parallel;
-pub mod perception;
-pub mod physics;
-pub mod policy;
 pub mod record;
-pub mod reward;
 pub mod scene;
-pub mod space;
-pub mod species;
+pub mod sim;
 pub mod svg;
 pub mod train;
 #[cfg(feature = "viewer")]
 pub mod viewer;
 
-use bevy::ecs::schedule::{ScheduleLabel, SingleThreadedExecutor};
-use bevy::prelude::*;
-use episode::{Episode, EpisodePlugin, SimRng};
-use metrics::MetricsPlugin;
-use perception::PerceptionPlugin;
-use physics::PhysicsPlugin;
-use policy::PolicyPlugin;
-use reward::RewardPlugin;
+// The core's modules and types at the crate root too, as `coevo::physics`, `coevo::Simulation`, ...
 pub use scene::Scene;
-
-/// The scene the world runs, as resolved from its file and preset.
-#[derive(Resource, Clone, Debug)]
-pub struct ActiveScene(pub Scene);
-
-/// The stages of one fixed step, in order.
-#[derive(SystemSet, Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum SimSet {
-    Decide,
-    Act,
-    Physics,
-    Perceive,
-    Reward,
-    Measure,
-    Learn,
-    Episode,
-}
-
-/// The simulation: every stage's plugin, the scene's resources and the step's order.
-pub struct SimulationPlugin {
-    pub scene: Scene,
-}
-
-impl Plugin for SimulationPlugin {
-    fn build(&self, app: &mut App) {
-        insert_scene(app.world_mut(), &self.scene);
-        // One thread, in declaration order: the same seed gives the same run whether or not Bevy's
-        // multi-threaded executor is compiled in (the viewer's window features turn it on).
-        for schedule in [FixedUpdate.intern(), perception::Perceive.intern()] {
-            app.edit_schedule(schedule, |s| {
-                s.set_executor(SingleThreadedExecutor::new());
-            });
-        }
-        app.configure_sets(
-            FixedUpdate,
-            (
-                SimSet::Decide,
-                SimSet::Act,
-                SimSet::Physics,
-                SimSet::Perceive,
-                SimSet::Reward,
-                SimSet::Measure,
-                SimSet::Learn,
-                SimSet::Episode,
-            )
-                .chain(),
-        );
-        app.add_plugins((PerceptionPlugin, PolicyPlugin, PhysicsPlugin, RewardPlugin, MetricsPlugin, EpisodePlugin));
-        app.add_systems(FixedUpdate, perception::run_perceive.in_set(SimSet::Perceive));
-        // Species of this program's plugins (species::SpeciesPlugins::register), in every simulation.
-        species::catalog::build_plugins(app);
-    }
-}
-
-/// Puts a scene into a world, replacing the scene before: the scene itself, the episode clock, the
-/// environment's random stream, arena, species and cleared metrics. Agents are spawned separately
-/// ([`episode::spawn_population`]), and learners by the learning plugin ([`learning::Learners::new`]).
-pub fn insert_scene(world: &mut World, scene: &Scene) {
-    world.insert_resource(ActiveScene(scene.clone()));
-    world.insert_resource(Episode { index: 0, step: 0, length: scene.episode_steps, auto_reset: true });
-    world.insert_resource(SimRng(SimRng::stream(scene.seed, 0)));
-    world.insert_resource(metrics::EpisodeLog::default());
-    world.insert_resource(metrics::SwarmMetrics::default());
-    world.insert_resource(metrics::Confusion::default());
-    world.insert_resource(physics::StateFault::default());
-    perception::insert_scene_resources(world, scene);
-}
-
-/// Starts a scene afresh in a running world, as a new [`Simulation`] of it would start: its resources,
-/// the learners (for an app with the learning plugin) and a new population. The viewer's reset and scene
-/// picker use this, so a restarted world steps exactly like a headless one of the same scene and seed.
-pub fn restart(world: &mut World, scene: &Scene, learners: Option<learning::Learners>) {
-    insert_scene(world, scene);
-    if let Some(learners) = learners {
-        world.insert_resource(learners);
-    }
-    episode::spawn_population(world);
-}
-
-/// A headless simulation: the app, its schedule driven directly one fixed step at a time, as fast as it
-/// goes (not paced by wall-clock time).
-pub struct Simulation {
-    pub app: App,
-}
-
-impl Simulation {
-    /// The simulation of a scene with the core plugins only. Panics on a scene with a `Plugin(name)`
-    /// policy (nothing here decides it); programs use [`Simulation::try_with_plugins`].
-    pub fn new(scene: Scene) -> Self {
-        Self::with_plugins(scene, |_| {})
-    }
-
-    /// [`Simulation::try_with_plugins`] for scenes known to be complete (tests, benchmarks): panics where
-    /// that returns an error.
-    pub fn with_plugins(scene: Scene, extra: impl FnOnce(&mut App)) -> Self {
-        Self::try_with_plugins(scene, extra).unwrap_or_else(|e| panic!("{e}"))
-    }
-
-    /// The simulation of a scene, with more plugins (learning, a species of your own) added by `extra`.
-    /// Err when a species' `Plugin(name)` policy is decided by none of them.
-    pub fn try_with_plugins(scene: Scene, extra: impl FnOnce(&mut App)) -> Result<Self, String> {
-        let mut app = App::new();
-        app.add_plugins(SimulationPlugin { scene: scene.clone() });
-        extra(&mut app);
-        app.world().resource::<policy::PolicyPlugins>().check(&scene)?;
-        app.finish();
-        app.cleanup();
-        episode::spawn_population(app.world_mut());
-        Ok(Simulation { app })
-    }
-
-    /// One environment step t → t+1.
-    pub fn step(&mut self) {
-        self.app.world_mut().run_schedule(FixedUpdate);
-    }
-
-    pub fn world(&self) -> &World {
-        self.app.world()
-    }
-
-    pub fn world_mut(&mut self) -> &mut World {
-        self.app.world_mut()
-    }
-
-    pub fn episode(&self) -> Episode {
-        *self.world().resource::<Episode>()
-    }
-
-    /// One line when the last step left the physically possible ([`physics::StateFault`]): every run mode
-    /// checks after every step and stops, so no NaN or escaped body ever reaches a result file.
-    pub fn check(&self) -> Result<(), String> {
-        check_state(self.world())
-    }
-}
-
-/// [`Simulation::check`] for any world running the simulation (the viewer's too).
-pub fn check_state(world: &World) -> Result<(), String> {
-    let Some(f) = &world.resource::<physics::StateFault>().0 else {
-        return Ok(());
-    };
-    let name = &world.resource::<species::SpeciesRegistry>().defs[f.species].name;
-    Err(format!(
-        "episode {}, step {}: agent {} ({name}): {}; the integrator is unstable for this scene \
-             (check world.dt, world.contact_stiffness, world.wall_stiffness and species[{name}].mass)",
-        f.episode, f.step, f.agent, f.what
-    ))
-}
+pub use sim::{check_state, collective, components, episode, insert_scene, metrics, perception, physics, policy, reward, space, species};
+pub use sim::{ActiveScene, SimSet, Simulation, SimulationPlugin};

@@ -7,11 +7,11 @@
 //! action and reward are empty. Numbers are printed in the shortest form that reads back to the same f64.
 //! The record is one continuous trajectory: the episode does not reset during it.
 
-use crate::components::*;
-use crate::episode::Episode;
+use crate::sim::components::*;
+use crate::sim::episode::Episode;
 use crate::io::{AtomicFile, Existing};
-use crate::species::SpeciesRegistry;
-use crate::Simulation;
+use crate::sim::species::SpeciesRegistry;
+use crate::sim::Simulation;
 use std::io::{self, Write};
 use std::path::Path;
 

@@ -247,7 +247,7 @@ pub struct ContactReward {
 }
 
 fn default_cluster_link() -> f64 {
-    crate::metrics::DEFAULT_CLUSTER_LINK
+    crate::sim::metrics::DEFAULT_CLUSTER_LINK
 }
 
 /// The frame of an agent's observation.
@@ -435,7 +435,7 @@ impl Scene {
             }
             if let Some(existing) = self.species.iter_mut().find(|s| s.name == name) {
                 sp.apply(existing);
-            } else if let Some(t) = crate::species::catalog::get(&name) {
+            } else if let Some(t) = crate::sim::species::catalog::get(&name) {
                 // A species a plugin of this program defines: its defaults, then the scene's fields.
                 let mut def = t.def.clone();
                 sp.apply(&mut def);
@@ -641,7 +641,7 @@ impl Scene {
     /// components and observation rows, per learned species its networks (online, target, Adam moments and
     /// the copies kept for saving) and its replay buffer (at most what a full run can fill).
     pub fn check_memory(&self, limit: f64) -> Result<(), (String, String)> {
-        let registry = crate::species::SpeciesRegistry::from_scene(self);
+        let registry = crate::sim::species::SpeciesRegistry::from_scene(self);
         let gb = |b: f64| format!("{:.1} GB", b / 1e9);
         let refuse = |field: String, what: String, bytes: f64| {
             Err((field, format!("{what} would need {}, more than this machine's {} of memory", gb(bytes), gb(limit))))

@@ -3,14 +3,14 @@
 //! A run folder holds `scene.ron` (the resolved scene), `metrics.csv` (one row per episode) and
 //! `checkpoint/` (see `learning::checkpoint`). `--eval` adds `eval.csv` (one row per time step).
 
-use crate::episode::{Episode, SimRng};
+use crate::sim::episode::{Episode, SimRng};
 use crate::io::{AtomicFile, Existing};
 use crate::learning::checkpoint::{self, SpeciesState, TrainingState};
 use crate::learning::{Learners, LearningPlugin, Mode};
-use crate::metrics::{EpisodeLog, EpisodeSummary, SwarmMetrics, Swarming};
+use crate::sim::metrics::{EpisodeLog, EpisodeSummary, SwarmMetrics, Swarming};
 use crate::scene::Scene;
-use crate::species::SpeciesRegistry;
-use crate::Simulation;
+use crate::sim::species::SpeciesRegistry;
+use crate::sim::Simulation;
 use bevy::prelude::App;
 use indicatif::{ProgressBar, ProgressStyle};
 use std::io::Write;
@@ -215,7 +215,7 @@ pub fn train(scene: Scene, opts: &TrainOptions) -> Result<Vec<EpisodeSummary>, S
         };
         world.resource_mut::<SimRng>().0 = state.sim_rng.clone();
         world.resource_mut::<Episode>().index = state.episodes_done;
-        crate::episode::spawn_population(world);
+        crate::sim::episode::spawn_population(world);
         // A run begun by an older coevo keeps its rows, under today's columns (new ones blank).
         metrics_text = with_header(&state.metrics_csv, &metrics_header(&registry, world.resource::<Learners>()));
     } else {
@@ -364,7 +364,7 @@ pub fn evaluate(opts: &EvalOptions) -> Result<String, String> {
     let mut nn_histogram = vec![0u64; NN_BINS + 1];
     for episode in 0..opts.episodes {
         if episode > 0 {
-            crate::episode::next_episode(sim.world_mut());
+            crate::sim::episode::next_episode(sim.world_mut());
         }
         for step in 1..=scene.episode_steps {
             sim.step();
@@ -393,7 +393,7 @@ pub fn evaluate(opts: &EvalOptions) -> Result<String, String> {
         let (lo, hi) = (b as f64 * NN_BIN_DIAMETERS, if b == NN_BINS { f64::INFINITY } else { (b + 1) as f64 * NN_BIN_DIAMETERS });
         nn.push_str(&format!("{lo},{hi},{},{},{}\n", lo * diameter, hi * diameter, *count as f64 / total));
     }
-    let curve = sim.world().resource::<crate::metrics::Confusion>();
+    let curve = sim.world().resource::<crate::sim::metrics::Confusion>();
     let mut confusion = String::from("species,prey_in_view,samples,mean_abs_turn,mean_speed_fraction,catches_per_step\n");
     for (s, bins) in curve.0.iter().enumerate().filter(|(s, _)| registry.prey_of(*s).next().is_some()) {
         for (b, bin) in bins.iter().enumerate() {
@@ -401,7 +401,7 @@ pub fn evaluate(opts: &EvalOptions) -> Result<String, String> {
             confusion.push_str(&format!(
                 "{},{},{},{},{},{}\n",
                 registry.defs[s].name,
-                crate::collective::confusion_bin_label(b),
+                crate::sim::collective::confusion_bin_label(b),
                 bin.samples,
                 blank(turn),
                 blank(speed),

@@ -265,7 +265,7 @@ fn a_restarted_world_trains_exactly_like_a_fresh_one() {
 
     let mut reused = learning_simulation(other, Mode::Train, None).unwrap();
     trajectory(&mut reused, 30);
-    coevo::restart(reused.world_mut(), &target, Some(Learners::new(&target, Mode::Train)));
+    coevo::learning::restart(reused.world_mut(), &target, Some(Learners::new(&target, Mode::Train)));
     assert_eq!(trajectory(&mut reused, steps), expected);
 }
 

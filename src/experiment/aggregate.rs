@@ -5,8 +5,8 @@ use super::plot::{self, Curve, Panel};
 use super::runner::{eval_file, stage, Stage};
 use super::stats::{estimate, mean, running_mean, Estimate};
 use super::{slug, Claim, Experiment, Quantity};
-use crate::metrics::Swarming;
-use crate::species::SpeciesRegistry;
+use crate::sim::metrics::Swarming;
+use crate::sim::species::SpeciesRegistry;
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::Path;
@@ -326,7 +326,7 @@ fn figures<'a>(exp: &Experiment, preset: &str, prey: &str, of_variant: &dyn Fn(&
             plot::save(&dir.join(format!("{preset}-eval-{}", slug(&e.name))), &panels)?;
         }
         // The confusion curve: what a predator does, and catches, against the prey it has in view.
-        let bins = (0..crate::collective::CONFUSION_BINS.len()).map(crate::collective::confusion_bin_label).collect::<Vec<_>>().join(", ");
+        let bins = (0..crate::sim::collective::CONFUSION_BINS.len()).map(crate::sim::collective::confusion_bin_label).collect::<Vec<_>>().join(", ");
         let x_label = format!("prey in view, bins {bins}");
         let confusion = |k: usize| curves(&|d| d.evals.get(&e.name).map_or(vec![], |x| x.confusion.iter().map(|b| b[k]).collect()), 0.0);
         let panels = [

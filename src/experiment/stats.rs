@@ -1,7 +1,7 @@
 //! The statistics of the paper's figures: 100-episode running means, and the mean over seeds with its
 //! 95 % confidence interval (Student t, n − 1 degrees of freedom).
 
-pub use crate::metrics::running_mean;
+pub use crate::sim::metrics::running_mean;
 
 /// Mean of a slice (None when empty).
 pub fn mean(values: &[f64]) -> Option<f64> {

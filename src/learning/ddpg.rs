@@ -13,7 +13,7 @@
 use super::nets::{matrix, Adam, Dev, Mlp, Output};
 use super::replay::Batch;
 use crate::scene::LearningParams;
-use crate::species::ACTION_DIM;
+use crate::sim::species::ACTION_DIM;
 use dfdx::losses::mse_loss;
 use dfdx::prelude::*;
 use rand_chacha::ChaCha8Rng;

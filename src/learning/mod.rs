@@ -17,13 +17,13 @@ pub mod ddpg;
 pub mod nets;
 pub mod replay;
 
-use crate::episode::{Episode, SimRng};
-use crate::perception::{Batches, SpeciesBatch};
+use crate::sim::episode::{Episode, SimRng};
+use crate::sim::perception::{Batches, SpeciesBatch};
 use crate::scene::{LearningParams, Policy, Scene};
-use crate::species::{SpeciesRegistry, ACTION_DIM, OWN_STATE_DIM};
+use crate::sim::species::{SpeciesRegistry, ACTION_DIM, OWN_STATE_DIM};
 use rand::seq::SliceRandom;
 use serde::{Deserialize, Serialize};
-use crate::{ActiveScene, SimSet};
+use crate::sim::{ActiveScene, SimSet};
 use bevy::prelude::*;
 use ddpg::{Ddpg, Losses};
 use nets::Dev;
@@ -368,4 +368,15 @@ mod tests {
             assert_eq!(row[..OWN_STATE_DIM], orig[..OWN_STATE_DIM]);
         }
     }
+}
+
+/// Starts a scene afresh in a running world, as a new [`Simulation`] of it would start: its resources,
+/// the learners (for an app with the learning plugin) and a new population. The viewer's reset and scene
+/// picker use this, so a restarted world steps exactly like a headless one of the same scene and seed.
+pub fn restart(world: &mut World, scene: &Scene, learners: Option<Learners>) {
+    crate::sim::insert_scene(world, scene);
+    if let Some(learners) = learners {
+        world.insert_resource(learners);
+    }
+    crate::sim::episode::spawn_population(world);
 }

@@ -7,12 +7,12 @@
 //! streak. Overlays are gizmos: trails, catches, the selected agent's perception radius and neighbours.
 
 use super::ViewerSet;
-use crate::components::{AgentId, Body, Contacts, Heading, Position, SpeciesId, Slot};
-use crate::perception::{neighbour_slot, Batches};
+use crate::sim::components::{AgentId, Body, Contacts, Heading, Position, SpeciesId, Slot};
+use crate::sim::perception::{neighbour_slot, Batches};
 use crate::scene::Boundary;
-use crate::space::Arena;
-use crate::species::SpeciesRegistry;
-use crate::ActiveScene;
+use crate::sim::space::Arena;
+use crate::sim::species::SpeciesRegistry;
+use crate::sim::ActiveScene;
 use bevy::camera::ScalingMode;
 use bevy::core_pipeline::tonemapping::Tonemapping;
 use bevy::math::DVec2;
@@ -394,7 +394,7 @@ fn draw_overlays(
     arena: Res<Arena>,
     registry: Res<SpeciesRegistry>,
     batches: Res<Batches>,
-    scene: Res<crate::ActiveScene>,
+    scene: Res<crate::sim::ActiveScene>,
     agents: OverlayAgents,
 ) {
     let arena = *arena;

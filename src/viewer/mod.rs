@@ -23,8 +23,8 @@ mod plots;
 
 use crate::learning::{Learners, LearningPlugin, Mode};
 use crate::scene::{Policy, Scene};
-use crate::species::SpeciesRegistry;
-use crate::{ActiveScene, SimulationPlugin};
+use crate::sim::species::SpeciesRegistry;
+use crate::sim::{ActiveScene, SimulationPlugin};
 use bevy::app::FixedMainScheduleOrder;
 use bevy::ecs::schedule::ScheduleLabel;
 use bevy::log::LogPlugin;
@@ -88,7 +88,7 @@ impl Setup {
         }
         scene.validate().map_err(|(field, message)| format!("{}: {field}: {message}", self.source.display()))?;
         // The viewer registers no plugin policies of its own.
-        crate::policy::PolicyPlugins::default().check(&scene).map_err(|e| format!("{}: {e}", self.source.display()))?;
+        crate::sim::policy::PolicyPlugins::default().check(&scene).map_err(|e| format!("{}: {e}", self.source.display()))?;
         let (mode, run) = match &self.mode {
             RunMode::Watch(run) => (Mode::Evaluate, Some(run.as_path())),
             _ => (Mode::Train, None),
@@ -207,7 +207,7 @@ pub fn run(options: ViewerOptions) -> Result<(), String> {
     app.insert_resource(learners);
     app.add_plugins(LearningPlugin { mode: Mode::Train });
     app.add_plugins(ViewerPlugin { options });
-    app.add_systems(Startup, |world: &mut World| crate::episode::spawn_population(world));
+    app.add_systems(Startup, |world: &mut World| crate::sim::episode::spawn_population(world));
     match app.run() {
         AppExit::Success => Ok(()),
         AppExit::Error(code) => Err(format!("viewer exited with code {code}")),
@@ -223,7 +223,7 @@ fn apply_control(world: &mut World) {
     if let Some(setup) = restart {
         match setup.prepare() {
             Ok((scene, learners)) => {
-                crate::restart(world, &scene, Some(learners));
+                crate::learning::restart(world, &scene, Some(learners));
                 world.resource_mut::<plots::History>().clear();
                 let mut c = world.resource_mut::<Control>();
                 c.current = setup;
@@ -252,8 +252,8 @@ fn respawn_with_counts(world: &mut World, counts: &[usize]) {
     world.insert_resource(SpeciesRegistry::from_scene(&scene));
     world.resource_mut::<Control>().current.scene.species.iter_mut().zip(counts).for_each(|(d, &n)| d.count = n);
     world.resource_mut::<ActiveScene>().0 = scene;
-    world.resource_mut::<crate::episode::Episode>().step = 0;
-    crate::episode::spawn_population(world);
+    world.resource_mut::<crate::sim::episode::Episode>().step = 0;
+    crate::sim::episode::spawn_population(world);
     world.resource_mut::<plots::History>().start_episode();
     world.resource_mut::<Control>().error = None;
 }
@@ -272,7 +272,7 @@ fn step(world: &mut World) {
         Box::new(move |done| done < p.steps_per_frame)
     };
     let mut done = 0;
-    while budget(done) && world.resource::<Learners>().failure.is_none() && crate::check_state(world).is_ok() {
+    while budget(done) && world.resource::<Learners>().failure.is_none() && crate::sim::check_state(world).is_ok() {
         world.run_schedule(FixedUpdate);
         plots::record_step(world);
         draw::record_trails(world);
@@ -280,7 +280,7 @@ fn step(world: &mut World) {
     }
     let failure = world.resource::<Learners>().failure.clone().map(|f| format!("training stopped: {f}"));
     // The same guard as headless runs: an unphysical state stops the world with its one-line reason.
-    let fault = crate::check_state(world).err();
+    let fault = crate::sim::check_state(world).err();
     if let Some(message) = failure.or(fault) {
         let mut c = world.resource_mut::<Control>();
         if c.error.is_none() {

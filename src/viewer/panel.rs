@@ -10,12 +10,12 @@ use super::capture::ScreenshotQueue;
 use super::draw::{species_colour, Overlays, PanelSpace, Selection};
 use super::plots::{self, History};
 use super::{run_folders, scene_files, Control, Playback, RunMode, Setup};
-use crate::components::{Action, AgentId, Contacts, Heading, Position, Reward, Slot, SpeciesId, Velocity};
-use crate::episode::Episode;
+use crate::sim::components::{Action, AgentId, Contacts, Heading, Position, Reward, Slot, SpeciesId, Velocity};
+use crate::sim::episode::Episode;
 use crate::learning::Learners;
-use crate::perception::{neighbour_slot, Batches};
+use crate::sim::perception::{neighbour_slot, Batches};
 use crate::scene::{Boundary, Perception, Scene, PRESETS};
-use crate::species::{SpeciesRegistry, OWN_STATE_DIM};
+use crate::sim::species::{SpeciesRegistry, OWN_STATE_DIM};
 use crate::train::headline_species;
 use bevy::ecs::system::SystemParam;
 use bevy::prelude::*;
@@ -294,7 +294,7 @@ fn inspector(
     registry: Res<SpeciesRegistry>,
     batches: Res<Batches>,
     history: Res<History>,
-    scene: Res<crate::ActiveScene>,
+    scene: Res<crate::sim::ActiveScene>,
 ) -> Result {
     let ctx = contexts.ctx_mut()?;
     let mut root = root_ui(ctx, "inspector_root");

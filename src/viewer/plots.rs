@@ -2,9 +2,9 @@
 //! polarization, milling, largest cluster and nearest-neighbour heading correlation step by step within the current episode, and catches per episode, for the
 //! headline species (the prey).
 
-use crate::episode::Episode;
-use crate::metrics::{EpisodeLog, SwarmMetrics};
-use crate::species::SpeciesRegistry;
+use crate::sim::episode::Episode;
+use crate::sim::metrics::{EpisodeLog, SwarmMetrics};
+use crate::sim::species::SpeciesRegistry;
 use crate::train::headline_species;
 use bevy::prelude::*;
 use bevy_egui::egui;
@@ -83,7 +83,7 @@ pub fn record_step(world: &mut World) {
 /// Running mean over the last `window` points (fewer at the start).
 pub fn running_mean(points: &[[f64; 2]], window: usize) -> Vec<[f64; 2]> {
     let values: Vec<f64> = points.iter().map(|p| p[1]).collect();
-    points.iter().zip(crate::metrics::running_mean(&values, window)).map(|(p, m)| [p[0], m]).collect()
+    points.iter().zip(crate::sim::metrics::running_mean(&values, window)).map(|(p, m)| [p[0], m]).collect()
 }
 
 const DOS: egui::Color32 = egui::Color32::from_rgb(70, 130, 220);

@@ -10,7 +10,7 @@ use bevy::prelude::*;
 #[derive(Component, Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub struct AgentId(pub u32);
 
-/// Index of the agent's species in the [`crate::species::SpeciesRegistry`].
+/// Index of the agent's species in the [`crate::sim::species::SpeciesRegistry`].
 #[derive(Component, Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub struct SpeciesId(pub usize);
 
@@ -66,7 +66,7 @@ pub struct ContactCounts {
     /// Walls the body penetrates (0 on the torus, 2 in a corner).
     pub walls: u32,
     /// The summed contact rewards of those contacts, pair by pair
-    /// ([`crate::species::SpeciesRegistry::contact_reward`]).
+    /// ([`crate::sim::species::SpeciesRegistry::contact_reward`]).
     pub contact_reward: f64,
 }
 
@@ -81,7 +81,7 @@ pub struct Contacts {
 #[derive(Component, Clone, Copy, Debug, PartialEq)]
 pub struct Energy(pub f64);
 
-/// Where the agent sits in this step's perceived state: `index` into [`crate::perception::Population`]
+/// Where the agent sits in this step's perceived state: `index` into [`crate::sim::perception::Population`]
 /// and `row` in its species' observation / action batch.
 #[derive(Component, Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub struct Slot {

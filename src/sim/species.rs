@@ -127,7 +127,7 @@ pub struct SpeciesTemplate {
 }
 
 /// A species of your own: a Bevy plugin (whatever systems it needs, e.g. an extra reward term in
-/// `SimSet::Reward` after [`crate::reward::RewardStage::Survival`], or a decide system for a `Plugin(name)`
+/// `SimSet::Reward` after [`crate::sim::reward::RewardStage::Survival`], or a decide system for a `Plugin(name)`
 /// policy) that also defines the species ([`SpeciesTemplate`]).
 pub trait SpeciesPlugin: Plugin + Clone {
     fn template(&self) -> SpeciesTemplate;
@@ -218,7 +218,7 @@ pub mod catalog {
         SPECIES.read().unwrap_or_else(|e| e.into_inner()).iter().find(|(t, _)| t.def.name == name).map(|(t, _)| t.clone())
     }
 
-    /// Adds every registered species plugin to an app (what [`crate::SimulationPlugin`] does); their
+    /// Adds every registered species plugin to an app (what [`crate::sim::SimulationPlugin`] does); their
     /// systems find their species in the registry and do nothing in a scene without it.
     pub fn build_plugins(app: &mut App) {
         let builders: Vec<Builder> = SPECIES.read().unwrap_or_else(|e| e.into_inner()).iter().map(|(_, b)| b.clone()).collect();

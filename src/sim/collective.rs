@@ -1,6 +1,6 @@
 //! Measures of collective behaviour the paper shows only as pictures and words (not in the paper):
 //! group structure, the local order a shared heading attractor cannot fake, marginal predation and the
-//! confusion effect. Pure functions of one instant; [`crate::metrics`] applies them every step.
+//! confusion effect. Pure functions of one instant; [`crate::sim::metrics`] applies them every step.
 //!
 //! ```text
 //!   clusters        groups of agents linked by chains of neighbours closer than ℓ (single linkage),
@@ -15,7 +15,7 @@
 //!                   centre, 1 = at the edge; its mean over catches is 0.5 without marginal predation
 //! ```
 
-use crate::space::{Arena, CellGrid};
+use crate::sim::space::{Arena, CellGrid};
 use bevy::math::DVec2;
 use std::ops::Range;
 

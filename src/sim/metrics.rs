@@ -10,12 +10,12 @@
 //! reports them for prey. Per step ([`SwarmMetrics::now`]) and per episode ([`EpisodeLog`]), with catches
 //! (predator–prey pairs in contact) and each species' mean return per agent.
 
-use crate::collective::{self, ConfusionBin, CONFUSION_BINS};
-use crate::components::*;
-use crate::perception::Population;
-use crate::space::{Arena, CellGrid};
-use crate::species::SpeciesRegistry;
-use crate::SimSet;
+use crate::sim::collective::{self, ConfusionBin, CONFUSION_BINS};
+use crate::sim::components::*;
+use crate::sim::perception::Population;
+use crate::sim::space::{Arena, CellGrid};
+use crate::sim::species::SpeciesRegistry;
+use crate::sim::SimSet;
 use bevy::math::DVec2;
 use bevy::prelude::*;
 
@@ -25,7 +25,7 @@ use bevy::prelude::*;
 /// ```text
 ///   polarization P = ‖(1/N) Σ_j h_j‖                        1 = all aligned, ~1/√N for random headings
 ///   milling      M = |(1/N) Σ_j (r̂_j × h_j)_z|,  r_j = x_j − c    1 = a perfect mill, ~0 for a flock
-///   clusters, largest_cluster (a fraction of N), nn_correlation C_nn: see crate::collective
+///   clusters, largest_cluster (a fraction of N), nn_correlation C_nn: see crate::sim::collective
 /// ```
 ///
 /// c is the group's centre: the mean position with walls, and on the torus the circular mean per axis
@@ -255,7 +255,7 @@ fn measure(
     pop: Res<Population>,
     arena: Res<Arena>,
     registry: Res<SpeciesRegistry>,
-    scene: Res<crate::ActiveScene>,
+    scene: Res<crate::sim::ActiveScene>,
     mut metrics: ResMut<SwarmMetrics>,
     mut confusion: ResMut<Confusion>,
     agents: Query<(&Slot, &Contacts, &Reward)>,

@@ -5,14 +5,14 @@
 //! inside a wall), headings uniform in (−π, π], velocities zero. Overlaps at spawn are allowed; the
 //! contact springs separate them. The paper is silent on this; it is what the authors' code does.
 
-use crate::components::*;
-use crate::metrics::{EpisodeLog, SwarmMetrics};
-use crate::perception::Perceive;
-use crate::physics::{PhysicsSet, FULL_ENERGY};
+use crate::sim::components::*;
+use crate::sim::metrics::{EpisodeLog, SwarmMetrics};
+use crate::sim::perception::Perceive;
+use crate::sim::physics::{PhysicsSet, FULL_ENERGY};
 use crate::scene::Boundary;
-use crate::space::Arena;
-use crate::species::SpeciesRegistry;
-use crate::{ActiveScene, SimSet};
+use crate::sim::space::Arena;
+use crate::sim::species::SpeciesRegistry;
+use crate::sim::{ActiveScene, SimSet};
 use bevy::math::DVec2;
 use bevy::prelude::*;
 use rand::{Rng, SeedableRng};
@@ -104,7 +104,7 @@ pub fn spawn_population(world: &mut World) {
             let reach = arena.half() - margin;
             for _ in 0..def.count {
                 let x = DVec2::new(rng.0.gen_range(-reach..reach), rng.0.gen_range(-reach..reach));
-                let theta = crate::physics::wrap_angle(rng.0.gen_range(-PI..PI));
+                let theta = crate::sim::physics::wrap_angle(rng.0.gen_range(-PI..PI));
                 bundles.push(AgentBundle {
                     id: AgentId(bundles.len() as u32),
                     species: SpeciesId(s),

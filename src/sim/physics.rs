@@ -8,16 +8,16 @@
 //!   x(t+1) = x(t) + v(t+1)·Δt                   semi-implicit Euler, then periodic wrap
 //! ```
 //!
-//! f_a (agent contacts) comes from [`crate::perception`], computed on the positions at t when state t
+//! f_a (agent contacts) comes from [`crate::sim::perception`], computed on the positions at t when state t
 //! was perceived; f_b (walls) is computed here from x(t), v(t). Appendix B writes v(t) in the position
 //! update; the authors' code uses the updated velocity, which is also the stable choice with stiff
 //! springs (parameters.md, "Integration order").
 
-use crate::components::*;
+use crate::sim::components::*;
 use crate::scene::SpeedClip;
-use crate::space::Arena;
-use crate::species::SpeciesRegistry;
-use crate::{ActiveScene, SimSet};
+use crate::sim::space::Arena;
+use crate::sim::species::SpeciesRegistry;
+use crate::sim::{ActiveScene, SimSet};
 use bevy::math::DVec2;
 use bevy::prelude::*;
 use std::f64::consts::PI;
@@ -36,7 +36,7 @@ pub struct PhysicsPlugin;
 /// The first agent whose state stopped being physical during a step (a non-finite velocity or position,
 /// or a body that left a walled arena). Validated scenes keep the integrator stable
 /// ([`crate::scene::Scene::validate`]); this guard catches whatever still goes wrong, so a run stops with one
-/// line naming the agent instead of writing NaN as results. Checked by [`crate::Simulation::check`].
+/// line naming the agent instead of writing NaN as results. Checked by [`crate::sim::Simulation::check`].
 #[derive(Resource, Clone, Debug, Default, PartialEq)]
 pub struct StateFault(pub Option<Fault>);
 
@@ -54,7 +54,7 @@ pub struct Fault {
 impl StateFault {
     /// Keeps the first fault of a run: agent `agent` of species `species` went wrong during the step that
     /// follows `episode`'s current one.
-    fn report(&mut self, episode: &crate::episode::Episode, agent: u32, species: usize, what: impl FnOnce() -> String) {
+    fn report(&mut self, episode: &crate::sim::episode::Episode, agent: u32, species: usize, what: impl FnOnce() -> String) {
         if self.0.is_none() {
             self.0 = Some(Fault { episode: episode.index, step: episode.step + 1, agent, species, what: what() });
         }
@@ -122,7 +122,7 @@ fn integrate(
     scene: Res<ActiveScene>,
     arena: Res<Arena>,
     registry: Res<SpeciesRegistry>,
-    episode: Res<crate::episode::Episode>,
+    episode: Res<crate::sim::episode::Episode>,
     mut fault: ResMut<StateFault>,
     mut agents: IntegrateQuery,
 ) {
@@ -156,7 +156,7 @@ fn apply_boundary(
     arena: Res<Arena>,
     scene: Res<ActiveScene>,
     registry: Res<SpeciesRegistry>,
-    episode: Res<crate::episode::Episode>,
+    episode: Res<crate::sim::episode::Episode>,
     mut fault: ResMut<StateFault>,
     mut agents: Query<(&AgentId, &SpeciesId, &Body, &mut Position)>,
 ) {
