@@ -64,6 +64,7 @@ fn metrics_header(registry: &SpeciesRegistry, learners: &Learners) -> String {
         cols.extend(Swarming::NAMES.iter().chain(&["edge_rank"]).map(|q| format!("{q}_{}", d.name)));
     }
     cols.push("catches".into());
+    cols.extend(split_catchers(registry).iter().map(|&s| format!("catches_by_{}", registry.defs[s].name)));
     for d in &registry.defs {
         cols.push(format!("return_{}", d.name));
     }
@@ -82,7 +83,14 @@ fn metrics_header(registry: &SpeciesRegistry, learners: &Learners) -> String {
     cols.join(",")
 }
 
-fn metrics_row(e: &EpisodeSummary, learners: &mut Learners, wall_seconds: f64) -> String {
+/// The species whose catches metrics.csv also gives apart (`catches_by_<name>`): every species that
+/// catches, when more than one does (a third species); none in the two-species scenes.
+fn split_catchers(registry: &SpeciesRegistry) -> Vec<usize> {
+    let catchers: Vec<usize> = (0..registry.len()).filter(|&s| registry.prey_of(s).next().is_some()).collect();
+    if catchers.len() > 1 { catchers } else { vec![] }
+}
+
+fn metrics_row(e: &EpisodeSummary, registry: &SpeciesRegistry, learners: &mut Learners, wall_seconds: f64) -> String {
     let blank = |x: Option<f64>| x.map_or(String::new(), |v| v.to_string());
     let mut cols = vec![e.episode.to_string(), e.steps.to_string()];
     for (s, edge_rank) in e.swarming.iter().zip(&e.edge_rank) {
@@ -90,6 +98,7 @@ fn metrics_row(e: &EpisodeSummary, learners: &mut Learners, wall_seconds: f64) -
         cols.push(blank(*edge_rank));
     }
     cols.push(e.catches.to_string());
+    cols.extend(split_catchers(registry).iter().map(|&s| e.catches_by.get(s).copied().unwrap_or(0).to_string()));
     cols.extend(e.mean_return.iter().map(|r| r.to_string()));
     let losses = learners.take_losses();
     for (l, loss) in learners.species.iter().zip(losses) {
@@ -283,7 +292,7 @@ pub fn train(scene: Scene, opts: &TrainOptions) -> Result<Vec<EpisodeSummary>, S
             continue;
         };
         let wall = started.elapsed().as_secs_f64();
-        let row = metrics_row(&summary, &mut sim.world_mut().resource_mut::<Learners>(), wall);
+        let row = metrics_row(&summary, &registry, &mut sim.world_mut().resource_mut::<Learners>(), wall);
         writeln!(csv, "{row}").map_err(io_err(&metrics_path))?;
         metrics_text.push_str(&row);
         metrics_text.push('\n');
@@ -356,7 +365,9 @@ pub fn evaluate(opts: &EvalOptions) -> Result<String, String> {
     let write_err = |e: std::io::Error| format!("{}: {e}", path.display());
     let mut file = AtomicFile::create(&path, Existing::Replace).map_err(write_err)?;
     let columns: Vec<String> = Swarming::NAMES.iter().chain(&["edge_rank"]).map(|q| format!("{q}_{name}")).collect();
-    writeln!(file.writer(), "episode,step,{},catches", columns.join(",")).map_err(write_err)?;
+    let catchers = split_catchers(&registry);
+    let by: String = catchers.iter().map(|&s| format!(",catches_by_{}", registry.defs[s].name)).collect();
+    writeln!(file.writer(), "episode,step,{},catches{by}", columns.join(",")).map_err(write_err)?;
     let blank = |x: Option<f64>| x.map_or(String::new(), |v| v.to_string());
     let (mut sums, mut n) = ([0.0; 7], 0usize);
     let mut ranks = Vec::new();
@@ -374,7 +385,8 @@ pub fn evaluate(opts: &EvalOptions) -> Result<String, String> {
             let step_ranks = &m.edge_ranks_now[prey];
             let edge_rank = (!step_ranks.is_empty()).then(|| step_ranks.iter().sum::<f64>() / step_ranks.len() as f64);
             let cells: Vec<String> = sw.map_or([None; 7], |s| s.values().map(Some)).map(blank).into_iter().chain([blank(edge_rank)]).collect();
-            writeln!(file.writer(), "{episode},{step},{},{}", cells.join(","), m.catches_now).map_err(write_err)?;
+            let by: String = catchers.iter().map(|&s| format!(",{}", m.catches_now_by[s])).collect();
+            writeln!(file.writer(), "{episode},{step},{},{}{by}", cells.join(","), m.catches_now).map_err(write_err)?;
             if let Some(sw) = sw {
                 sums.iter_mut().zip(sw.values()).for_each(|(a, v)| *a += v);
                 n += 1;

@@ -259,6 +259,9 @@ fn a_plugin_species_learns_with_the_other_two() {
     let header: Vec<&str> = metrics.lines().next().unwrap().split(',').collect();
     let last: Vec<&str> = metrics.lines().last().unwrap().split(',').collect();
     let cell = |name: &str| last[header.iter().position(|h| *h == name).unwrap_or_else(|| panic!("{name}"))].parse::<f64>().unwrap();
+    // Catches by catcher species: predators on prey and owls on predators, apart.
+    assert!(header.contains(&"catches_by_predator") && header.contains(&"catches_by_owl"), "{header:?}");
+    assert_eq!(cell("catches"), cell("catches_by_predator") + cell("catches_by_owl"));
     for species in ["predator", "prey", "owl"] {
         assert!(cell(&format!("critic_loss_{species}")).is_finite(), "{species} learned");
         assert!(run.join(format!("checkpoint/{species}-actor.safetensors")).exists());

@@ -176,6 +176,9 @@ pub struct SwarmMetrics {
     pub now: Vec<Option<Swarming>>,
     /// Predator–prey pairs in contact at the current state.
     pub catches_now: u32,
+    /// The same by catcher species (per pair when a species catches one species, as in every shipped
+    /// scene and example).
+    pub catches_now_by: Vec<u32>,
     /// Per species: each agent's nearest-neighbour distance (m) at this state.
     pub nn_distances_now: Vec<Vec<f64>>,
     /// Per prey species: the edge ranks of the prey caught at this step (contacts that began with it),
@@ -197,6 +200,7 @@ struct EpisodeSums {
     steps: usize,
     swarming: Vec<[f64; 7]>,
     catches: u64,
+    catches_by: Vec<u64>,
     rewards: Vec<f64>,
     agents: Vec<usize>,
     edge_ranks: Vec<(f64, u64)>,
@@ -211,6 +215,8 @@ pub struct EpisodeSummary {
     pub swarming: Vec<Option<Swarming>>,
     /// Catches summed over the episode's steps.
     pub catches: u64,
+    /// The same by catcher species.
+    pub catches_by: Vec<u64>,
     /// Per species: summed reward over the episode divided by the number of agents (mean return).
     pub mean_return: Vec<f64>,
     /// Per species: the mean edge rank of its prey caught this episode; None without a ranked catch.
@@ -233,6 +239,7 @@ impl SwarmMetrics {
             steps: sums.steps,
             swarming: sums.swarming.iter().zip(&sums.agents).map(|(s, &n)| (n >= 2).then(|| Swarming::from_values(s.map(|v| v / t)))).collect(),
             catches: sums.catches,
+            catches_by: sums.catches_by,
             mean_return: sums.rewards.iter().zip(&sums.agents).map(|(r, &n)| if n > 0 { r / n as f64 } else { 0.0 }).collect(),
             edge_rank: sums.edge_ranks.iter().map(|&(sum, n)| (n > 0).then(|| sum / n as f64)).collect(),
         }
@@ -267,11 +274,14 @@ fn measure(
     let mut started = vec![false; pop.len()];
     m.episode.rewards.resize(n_species, 0.0);
     m.catches_now = 0;
+    m.catches_now_by.clear();
+    m.catches_now_by.resize(n_species, 0);
     for (slot, c, reward) in &agents {
         let i = slot.index as usize;
         contacts[i] = c.now;
         started[i] = c.now.caught > 0 && c.before.caught == 0;
         m.catches_now += c.now.catching;
+        m.catches_now_by[pop.species[i]] += c.now.catching;
         m.episode.rewards[pop.species[i]] += reward.0;
     }
     let labels: Vec<Vec<u32>> = (0..n_species)
@@ -336,6 +346,8 @@ fn measure(
         sum.1 += ranks.len() as u64;
     }
     e.catches += m.catches_now as u64;
+    e.catches_by.resize(n_species, 0);
+    e.catches_by.iter_mut().zip(&m.catches_now_by).for_each(|(a, &b)| *a += b as u64);
     e.steps += 1;
 }
 
