@@ -218,3 +218,13 @@ fn rule_based_mode_replaces_learned_species_by_chase_and_flee() {
     assert_eq!(scene.species[1].policy, Policy::FleeNearest);
     assert!(learners.species.iter().all(Option::is_none), "nothing learns");
 }
+
+#[test]
+fn the_shipped_trained_run_is_first_in_the_run_list_and_loads() {
+    let runs = coevo::viewer::run_folders();
+    assert_eq!(runs.first().map(PathBuf::as_path), Some(Path::new(coevo::viewer::SHIPPED_RUN)));
+    let run = PathBuf::from(coevo::viewer::SHIPPED_RUN);
+    let scene = Scene::load(&run.join("scene.ron")).unwrap();
+    let (_, learners) = Setup { scene, source: run.join("scene.ron"), mode: RunMode::Watch(run.clone()) }.prepare().expect("the shipped actors fit their scene");
+    assert!(learners.species.iter().flatten().all(|l| l.frozen));
+}
