@@ -6,10 +6,15 @@
 //! transition. Step 0 is the spawned state; the last row of each agent (step = N) has no transition, so its
 //! action and reward are empty. Numbers are printed in the shortest form that reads back to the same f64.
 //! The record is one continuous trajectory: the episode does not reset during it.
+//!
+//! Beside it, `OUT-order.csv` holds the order parameters of every species with two or more agents at
+//! every step (`step,species,dos,doa,polarization,milling,clusters,largest_cluster,nn_correlation`, see
+//! [`crate::sim::metrics::Swarming`]); step 0, the spawned state, is not measured.
 
 use crate::sim::components::*;
 use crate::sim::episode::Episode;
 use crate::io::{AtomicFile, Existing};
+use crate::sim::metrics::{SwarmMetrics, Swarming};
 use crate::sim::species::SpeciesRegistry;
 use crate::sim::Simulation;
 use std::io::{self, Write};
@@ -22,14 +27,26 @@ pub const HEADER: &str = "step,id,species,x,y,vx,vy,theta,thrust,turn_rate,rewar
 /// physical ([`Simulation::check`]).
 pub fn record(sim: &mut Simulation, steps: usize, path: &Path, existing: Existing) -> Result<(), String> {
     let io_err = |e: io::Error| format!("{}: {e}", path.display());
+    let order_path = order_file(path);
+    let order_err = |e: io::Error| format!("{}: {e}", order_path.display());
     sim.world_mut().resource_mut::<Episode>().auto_reset = false;
+    crate::io::check_target(&order_path, existing).map_err(order_err)?;
     let mut file = AtomicFile::create(path, existing).map_err(io_err)?;
+    let mut order = AtomicFile::create(&order_path, existing).map_err(order_err)?;
     writeln!(file.writer(), "{HEADER}").map_err(io_err)?;
+    writeln!(order.writer(), "step,species,{}", Swarming::NAMES.join(",")).map_err(order_err)?;
+    let names: Vec<String> = sim.world().resource::<SpeciesRegistry>().defs.iter().map(|d| d.name.clone()).collect();
     for t in 0..=steps {
         let states = snapshot(sim);
         let transitions = if t < steps {
             sim.step();
             sim.check()?;
+            for (s, now) in sim.world().resource::<SwarmMetrics>().now.iter().enumerate() {
+                if let Some(now) = now {
+                    let values: Vec<String> = now.values().iter().map(f64::to_string).collect();
+                    writeln!(order.writer(), "{},{},{}", t + 1, names[s], values.join(",")).map_err(order_err)?;
+                }
+            }
             Some(snapshot_transitions(sim))
         } else {
             None
@@ -44,7 +61,14 @@ pub fn record(sim: &mut Simulation, steps: usize, path: &Path, existing: Existin
             .map_err(io_err)?;
         }
     }
-    file.commit().map_err(io_err)
+    file.commit().map_err(io_err)?;
+    order.commit().map_err(order_err)
+}
+
+/// The order-parameter file beside a record: `OUT.csv` → `OUT-order.csv`.
+pub fn order_file(record: &Path) -> std::path::PathBuf {
+    let stem = record.file_stem().unwrap_or_default().to_string_lossy();
+    record.with_file_name(format!("{stem}-order.csv"))
 }
 
 struct Row {

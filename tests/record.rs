@@ -139,3 +139,35 @@ fn a_record_drives_learned_species_with_the_runs_actors() {
     // Not the old default of half thrust and no turning.
     assert!(rows.iter().filter(|r| !r[8].is_empty()).any(|r| num(r, 9) != 0.0));
 }
+
+#[test]
+fn the_order_parameters_beside_a_record_are_those_of_its_trajectory() {
+    use bevy::math::DVec2;
+    let dir = tempfile::tempdir().unwrap();
+    let steps = 15;
+    let text = record(dir.path(), "t.csv", "scenes/gym-pps.ron", "5", &steps.to_string());
+    let order = std::fs::read_to_string(dir.path().join("t-order.csv")).unwrap();
+    let mut lines = order.lines();
+    assert_eq!(lines.next(), Some("step,species,dos,doa,polarization,milling,clusters,largest_cluster,nn_correlation"));
+    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    assert_eq!(rows.len(), steps * 2, "both species, steps 1..={steps}");
+    // Recomputed from the trajectory alone: the prey's positions and headings at each step.
+    let scene = coevo::Scene::load(std::path::Path::new("scenes/gym-pps.ron")).unwrap();
+    let arena = coevo::space::Arena { edge: scene.world.arena_edge, boundary: scene.world.boundary };
+    let link = scene.cluster_link * 2.0 * scene.species[1].radius;
+    for t in 1..=steps {
+        let (pos, head): (Vec<DVec2>, Vec<DVec2>) = text
+            .lines()
+            .skip(1)
+            .map(|l| l.split(',').collect::<Vec<_>>())
+            .filter(|r| r[0] == t.to_string() && r[2] == "prey")
+            .map(|r| (DVec2::new(r[3].parse().unwrap(), r[4].parse().unwrap()), DVec2::from_angle(r[7].parse().unwrap())))
+            .unzip();
+        let expected = coevo::metrics::swarming_of(&arena, &pos, &head, link).unwrap().values();
+        let row = rows.iter().find(|r| r[0] == t.to_string() && r[1] == "prey").unwrap();
+        for (k, e) in expected.iter().enumerate() {
+            let got: f64 = row[2 + k].parse().unwrap();
+            assert!((got - e).abs() < 1e-9, "step {t}, column {}: {got} vs {e}", k + 2);
+        }
+    }
+}
