@@ -27,11 +27,15 @@ pub struct TrainOptions {
     pub progress: bool,
 }
 
-/// The species whose DoS/DoA headline a run: the first that something catches (the prey), else the first
-/// with at least two agents.
+/// The species whose DoS/DoA headline a run: the first that something catches and that catches nothing
+/// (the prey, also in a scene where hawks catch predators), else the first that something catches, else
+/// the first with at least two agents.
 pub fn headline_species(registry: &SpeciesRegistry) -> usize {
+    let caught = |s: usize| registry.predators_of(s).next().is_some() && registry.defs[s].count >= 2;
+    // The bottom of the food chain first (prey, also when hawks catch predators), then anything caught.
     (0..registry.len())
-        .find(|&s| registry.predators_of(s).next().is_some() && registry.defs[s].count >= 2)
+        .find(|&s| caught(s) && registry.prey_of(s).next().is_none())
+        .or_else(|| (0..registry.len()).find(|&s| caught(s)))
         .or_else(|| (0..registry.len()).find(|&s| registry.defs[s].count >= 2))
         .unwrap_or(0)
 }
