@@ -9,7 +9,7 @@ use coevo::scene::{Boundary, Perception, Policy};
 use coevo::space::min_image;
 use coevo::Simulation;
 use common::{place, scene};
-use std::f64::consts::FRAC_PI_2;
+use std::f64::consts::{FRAC_PI_2, FRAC_PI_6};
 
 /// 2 predators (ids 0, 1) and 9 prey (ids 2..=10). Prey 2 is the observer at (0.95, 0) facing +x; prey
 /// 2+k sits 0.1·k m away in direction 0.7·k rad (k = 1..=8), facing +y, several across the seam.
@@ -106,11 +106,11 @@ fn body_frame_observations_are_hand_rotated_and_invariant_under_turning_the_worl
         let mut s = scene(2, 4, Policy::Still, Boundary::Periodic);
         s.observation_frame = ObservationFrame::Body;
         let mut sim = Simulation::new(s);
-        // Observer prey 2 at (0.5, 0.2) heading 30°, moving; others around it, one across the seam.
+        // Observer prey 2 at (0.5, 0.2) heading 30° (π/6), moving; others around it, one across the seam.
         let agents = [
             (0u32, DVec2::new(0.6, 0.5), 2.0),
             (1, DVec2::new(-0.9, 0.2), -1.0),
-            (2, DVec2::new(0.5, 0.2), 0.5236),
+            (2, DVec2::new(0.5, 0.2), FRAC_PI_6),
             (3, DVec2::new(0.7, 0.1), 1.2),
             (4, DVec2::new(0.95, 0.9), -2.5),
             (5, DVec2::new(-0.95, 0.25), 0.1),
@@ -125,12 +125,12 @@ fn body_frame_observations_are_hand_rotated_and_invariant_under_turning_the_worl
     let (plain, turned) = (build(false), build(true));
     let obs = observation_of_prey_observer(&plain);
     // By hand: forward h = (cos 30°, sin 30°), left = (−sin 30°, cos 30°).
-    let (h, left) = (DVec2::from_angle(0.5236), DVec2::from_angle(0.5236 + FRAC_PI_2));
+    let (h, left) = (DVec2::from_angle(FRAC_PI_6), DVec2::from_angle(FRAC_PI_6 + FRAC_PI_2));
     let v = DVec2::new(0.2, 0.05);
     assert!(close(&obs[..6], &[v.dot(h), v.dot(left), 0.0, 0.0, 0.0, 0.0]), "own {:?}", &obs[..6]);
     // The nearest prey is prey 3 at Δ = (0.2, −0.1), heading 1.2 rad.
     let d = DVec2::new(0.2, -0.1);
-    let dh = DVec2::from_angle(1.2 - 0.5236) - DVec2::X;
+    let dh = DVec2::from_angle(1.2 - FRAC_PI_6) - DVec2::X;
     assert!(close(&obs[30..34], &[d.dot(h), d.dot(left), dh.x, dh.y]), "nearest prey {:?}", &obs[30..34]);
     for s in 0..2 {
         let a = &plain.world().resource::<Batches>().species[s].observations;

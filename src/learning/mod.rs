@@ -341,6 +341,17 @@ fn learn(mut learners: ResMut<Learners>, batches: Res<Batches>, episode: Res<Epi
     }
 }
 
+/// Starts a scene afresh in a running world, as a new [`Simulation`] of it would start: its resources,
+/// the learners (for an app with the learning plugin) and a new population. The viewer's reset and scene
+/// picker use this, so a restarted world steps exactly like a headless one of the same scene and seed.
+pub fn restart(world: &mut World, scene: &Scene, learners: Option<Learners>) {
+    crate::sim::insert_scene(world, scene);
+    if let Some(learners) = learners {
+        world.insert_resource(learners);
+    }
+    crate::sim::episode::spawn_population(world);
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -368,15 +379,4 @@ mod tests {
             assert_eq!(row[..OWN_STATE_DIM], orig[..OWN_STATE_DIM]);
         }
     }
-}
-
-/// Starts a scene afresh in a running world, as a new [`Simulation`] of it would start: its resources,
-/// the learners (for an app with the learning plugin) and a new population. The viewer's reset and scene
-/// picker use this, so a restarted world steps exactly like a headless one of the same scene and seed.
-pub fn restart(world: &mut World, scene: &Scene, learners: Option<Learners>) {
-    crate::sim::insert_scene(world, scene);
-    if let Some(learners) = learners {
-        world.insert_resource(learners);
-    }
-    crate::sim::episode::spawn_population(world);
 }

@@ -96,6 +96,8 @@ pub fn polarization_and_milling(arena: &Arena, positions: &[DVec2], headings: &[
 /// `members`) for the nearest-neighbour search, or `known_nearest[j]` where perception already found
 /// j's nearest kin, and their cluster `labels` ([`collective::cluster_labels`]); `nn_distances` gets each
 /// member's nearest-neighbour distance in metres. None with fewer than two agents.
+// The measure system already holds each of these per species; a struct around them would only be unpacked.
+#[allow(clippy::too_many_arguments)]
 pub fn swarming(
     arena: &Arena,
     positions: &[DVec2],
