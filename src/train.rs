@@ -377,6 +377,10 @@ pub fn evaluate(opts: &EvalOptions) -> Result<String, String> {
     let mut ranks = Vec::new();
     let diameter = 2.0 * registry.defs[prey].radius;
     let mut nn_histogram = vec![0u64; NN_BINS + 1];
+    // C(r) of heading fluctuations in bins of one body diameter, out to half the arena's edge.
+    let arena = *sim.world().resource::<crate::sim::space::Arena>();
+    let mut correlation = vec![(0.0, 0u64); (arena.edge / 2.0 / diameter).ceil().max(1.0) as usize];
+    let mut variance = (0.0, 0u64);
     for episode in 0..opts.episodes {
         if episode > 0 {
             crate::sim::episode::next_episode(sim.world_mut());
@@ -399,6 +403,9 @@ pub fn evaluate(opts: &EvalOptions) -> Result<String, String> {
             for d in &m.nn_distances_now[prey] {
                 nn_histogram[((d / diameter / NN_BIN_DIAMETERS) as usize).min(NN_BINS)] += 1;
             }
+            let pop = sim.world().resource::<crate::sim::perception::Population>();
+            let range = pop.ranges[prey].clone();
+            crate::sim::collective::add_heading_correlation(&arena, &pop.position[range.clone()], &pop.heading[range], diameter, &mut correlation, &mut variance);
         }
     }
     // The distributions beside the per-step file: <stem>-nn.csv and <stem>-confusion.csv.
@@ -408,6 +415,11 @@ pub fn evaluate(opts: &EvalOptions) -> Result<String, String> {
     for (b, count) in nn_histogram.iter().enumerate() {
         let (lo, hi) = (b as f64 * NN_BIN_DIAMETERS, if b == NN_BINS { f64::INFINITY } else { (b + 1) as f64 * NN_BIN_DIAMETERS });
         nn.push_str(&format!("{lo},{hi},{},{},{}\n", lo * diameter, hi * diameter, *count as f64 / total));
+    }
+    let (c_of_r, correlation_length) = crate::sim::collective::heading_correlation(&correlation, variance, diameter);
+    let mut correlation_csv = String::from("from_m,to_m,pairs,c\n");
+    for (b, (c, &(_, pairs))) in c_of_r.iter().zip(&correlation).enumerate() {
+        correlation_csv.push_str(&format!("{},{},{pairs},{}\n", b as f64 * diameter, (b + 1) as f64 * diameter, blank(*c)));
     }
     let curve = sim.world().resource::<crate::sim::metrics::Confusion>();
     let mut confusion = String::from("species,prey_in_view,samples,mean_abs_turn,mean_speed_fraction,catches_per_step\n");
@@ -427,6 +439,7 @@ pub fn evaluate(opts: &EvalOptions) -> Result<String, String> {
     }
     file.commit().map_err(write_err)?;
     crate::io::write_file(&opts.run.join(format!("{stem}-nn.csv")), Existing::Replace, nn.as_bytes())?;
+    crate::io::write_file(&opts.run.join(format!("{stem}-correlation.csv")), Existing::Replace, correlation_csv.as_bytes())?;
     crate::io::write_file(&opts.run.join(format!("{stem}-confusion.csv")), Existing::Replace, confusion.as_bytes())?;
     let counts: Vec<String> = registry.defs.iter().map(|d| format!("{} {}", d.count, d.name)).collect();
     let means = if n > 0 {
@@ -434,8 +447,9 @@ pub fn evaluate(opts: &EvalOptions) -> Result<String, String> {
         let edge = if ranks.is_empty() { "no ranked catch".to_string() } else { format!("edge rank of caught {name} {:.3} ({} catches)", ranks.iter().sum::<f64>() / ranks.len() as f64, ranks.len()) };
         format!(
             "mean DoS {dos:.4}, DoA {doa:.4}, polarization {polarization:.3}, milling {milling:.3}, \
-             {clusters:.1} clusters (largest {:.0} %), C_nn {c_nn:.3}, {edge} ({name})",
-            100.0 * largest
+             {clusters:.1} clusters (largest {:.0} %), C_nn {c_nn:.3}, correlation length {}, {edge} ({name})",
+            100.0 * largest,
+            correlation_length.map_or("beyond half the arena".to_string(), |xi| format!("{xi:.3} m"))
         )
     } else {
         format!("no DoS/DoA: fewer than two {name}")

@@ -176,6 +176,11 @@ fn evaluation_deploys_on_fifty_prey_and_without_predators() {
     let nn = std::fs::read_to_string(run.join("eval-nn.csv")).unwrap();
     let total: f64 = nn.lines().skip(1).map(|l| l.rsplit(',').next().unwrap().parse::<f64>().unwrap()).sum();
     assert!((total - 1.0).abs() < 1e-9, "{total}");
+    // C(r) in bins of one prey diameter out to half the arena, every bin with pairs in it measured.
+    let correlation = std::fs::read_to_string(run.join("eval-correlation.csv")).unwrap();
+    let rows: Vec<Vec<&str>> = correlation.lines().skip(1).map(|l| l.split(',').collect()).collect();
+    assert_eq!(rows.len(), (1.0 / 0.07f64).ceil() as usize, "{correlation}");
+    assert!(rows.iter().all(|r| r[2] == "0" || r[3].parse::<f64>().is_ok_and(|c| (-1.0..=1.0).contains(&c))), "{correlation}");
     let confusion = std::fs::read_to_string(run.join("eval-confusion.csv")).unwrap();
     assert!(confusion.lines().skip(1).all(|l| l.split(',').nth(2) == Some("0")), "{confusion}");
     // With predators, every predator decision after the first step lands in one bin of the curve.

@@ -75,6 +75,51 @@ pub fn nn_correlation(headings: &[DVec2], nearest: &[usize]) -> f64 {
     covariance / variance
 }
 
+/// Adds one instant to the spatial correlation function of heading fluctuations (Cavagna et al., PNAS
+/// 2010): for every pair (i, j) at minimum-image distance r in bin ⌊r / width⌋, `bins[b]` collects
+/// Σ δh_i·δh_j and the pair count; `variance` collects Σ_j |δh_j|² and the agents, to normalize:
+/// C(r) = (Σ_pairs δh_i·δh_j / pairs) / (Σ |δh|² / N). Pairs beyond the last bin are left out.
+pub fn add_heading_correlation(arena: &Arena, positions: &[DVec2], headings: &[DVec2], width: f64, bins: &mut [(f64, u64)], variance: &mut (f64, u64)) {
+    let n = headings.len();
+    if n < 2 {
+        return;
+    }
+    let mean = headings.iter().copied().sum::<DVec2>() / n as f64;
+    let delta: Vec<DVec2> = headings.iter().map(|h| *h - mean).collect();
+    variance.0 += delta.iter().map(|d| d.length_squared()).sum::<f64>();
+    variance.1 += n as u64;
+    for i in 0..n {
+        for j in i + 1..n {
+            let b = (arena.delta(positions[i], positions[j]).length() / width) as usize;
+            if let Some(bin) = bins.get_mut(b) {
+                bin.0 += delta[i].dot(delta[j]);
+                bin.1 += 1;
+            }
+        }
+    }
+}
+
+/// C(r) per bin from [`add_heading_correlation`]'s sums (None for empty bins or no fluctuation), and
+/// the correlation length: the r where C first crosses zero, interpolated between bin centres (None if
+/// it stays positive).
+pub fn heading_correlation(bins: &[(f64, u64)], variance: (f64, u64), width: f64) -> (Vec<Option<f64>>, Option<f64>) {
+    let v = if variance.1 > 0 { variance.0 / variance.1 as f64 } else { 0.0 };
+    let c: Vec<Option<f64>> = bins.iter().map(|&(sum, n)| (n > 0 && v > 1e-12).then(|| sum / n as f64 / v)).collect();
+    let centre = |b: usize| (b as f64 + 0.5) * width;
+    let mut last: Option<(f64, f64)> = None;
+    for (b, value) in c.iter().enumerate() {
+        let Some(value) = *value else { continue };
+        if value <= 0.0 {
+            return (c.clone(), Some(match last {
+                Some((r0, c0)) => r0 + (centre(b) - r0) * c0 / (c0 - value),
+                None => centre(b),
+            }));
+        }
+        last = Some((centre(b), value));
+    }
+    (c, None)
+}
+
 /// The edge rank of agent `j` within `group` (indices into `positions`, j among them); None for groups
 /// of fewer than three. The centre is the mean of the members' minimum-image offsets from j, so it is
 /// well defined for a group straddling the torus seam.
@@ -213,6 +258,31 @@ mod tests {
         // Averaged over every member, ranks are 0.5: no edge effect when catches are random.
         let mean: f64 = group.iter().map(|&j| edge_rank(&arena, &pos, &group, j).unwrap()).sum::<f64>() / group.len() as f64;
         assert!((mean - 0.5).abs() < 1e-12, "{mean}");
+    }
+
+    #[test]
+    fn heading_correlation_of_a_vortex_crosses_zero_and_independent_headings_do_not_correlate() {
+        let arena = Arena { edge: 20.0, boundary: Boundary::Walls };
+        // Agents on a line, each heading turned by its position: neighbours deviate alike, distant ones
+        // oppositely, so C(r) starts near 1 and crosses zero.
+        let pos: Vec<DVec2> = (0..200).map(|i| DVec2::new(-5.0 + 0.05 * i as f64, 0.0)).collect();
+        let head: Vec<DVec2> = pos.iter().map(|p| DVec2::from_angle(0.3 * p.x)).collect();
+        let (mut bins, mut var) = (vec![(0.0, 0); 40], (0.0, 0));
+        add_heading_correlation(&arena, &pos, &head, 0.25, &mut bins, &mut var);
+        let (c, xi) = heading_correlation(&bins, var, 0.25);
+        assert!(c[0].unwrap() > 0.9, "{:?}", c[0]);
+        let xi = xi.expect("it crosses zero");
+        assert!(xi > 1.0 && xi < 6.0, "ξ = {xi}");
+        // Independent headings: C ≈ 0 at every distance.
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(9);
+        let (mut bins, mut var) = (vec![(0.0, 0); 4], (0.0, 0));
+        for _ in 0..50 {
+            let pos: Vec<DVec2> = (0..100).map(|_| DVec2::new(rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0))).collect();
+            let head: Vec<DVec2> = (0..100).map(|_| DVec2::from_angle(rng.gen_range(-3.1..3.1))).collect();
+            add_heading_correlation(&arena, &pos, &head, 0.5, &mut bins, &mut var);
+        }
+        let (c, _) = heading_correlation(&bins, var, 0.5);
+        assert!(c.iter().flatten().all(|v| v.abs() < 0.05), "{c:?}");
     }
 
     #[test]
