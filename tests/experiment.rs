@@ -84,13 +84,14 @@ fn a_tiny_experiment_runs_resumes_and_gives_the_same_summary_at_one_or_two_jobs(
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let rows = summary(two.path());
     assert_eq!(rows.len(), 5, "header and four runs: {rows:?}");
-    assert!(rows[0].starts_with("preset,variant,seed,episodes,dos_first100,dos_last100,doa_first100,doa_last100,eval_50-prey_dos_settled"));
+    assert!(rows[0].starts_with("preset,variant,seed,episodes,dos_first100,dos_last100,doa_first100,doa_last100,polarization_first100,polarization_last100,milling_first100"), "{}", rows[0]);
+    assert!(rows[0].contains(",eval_50-prey_dos_settled,eval_50-prey_doa_settled,"), "{}", rows[0]);
     let header: Vec<&str> = rows[0].split(',').collect();
     for row in &rows[1..] {
         for (name, cell) in header.iter().zip(row.split(',')).skip(3) {
             // Every value is a finite number; only an order parameter may be blank (an evaluation without
             // a catch has no edge rank), never NaN.
-            let optional = name.starts_with("eval_") && !name.ends_with("_settled") && !name.ends_with("_interaction");
+            let optional = (name.starts_with("eval_") && !name.ends_with("_settled") && !name.ends_with("_interaction")) || name.starts_with("edge_rank_");
             assert!(cell.parse::<f64>().is_ok_and(f64::is_finite) || (optional && cell.is_empty()), "{name} = {cell:?} in {row}");
         }
     }

@@ -23,6 +23,9 @@ pub struct RunData {
     pub doa: Vec<f64>,
     pub catches: Vec<f64>,
     pub returns: Vec<f64>,
+    /// The other per-episode order parameters by name ([`super::EVAL_ORDER`]); NaN for episodes (or
+    /// runs) written before they were measured.
+    pub orders: BTreeMap<String, Vec<f64>>,
     pub wall_seconds: f64,
     /// Per evaluation, by name.
     pub evals: BTreeMap<String, EvalData>,
@@ -101,6 +104,10 @@ pub fn load(exp: &Experiment) -> Result<BTreeMap<usize, RunData>, String> {
             catches: column(&header, &rows, "catches", &path)?,
             returns: column(&header, &rows, &format!("return_{prey}"), &path)?,
             wall_seconds: column(&header, &rows, "wall_seconds", &path)?.last().copied().unwrap_or(0.0),
+            orders: super::EVAL_ORDER
+                .iter()
+                .map(|q| (q.to_string(), column(&header, &rows, &format!("{q}_{prey}"), &path).unwrap_or_else(|_| vec![f64::NAN; rows.len()])))
+                .collect(),
             evals: BTreeMap::new(),
         };
         for e in &exp.spec.evaluations {
@@ -148,6 +155,8 @@ pub fn quantity(exp: &Experiment, d: &RunData, q: &Quantity) -> f64 {
     let eval = |e: &str, name: &str| d.evals.get(e).map_or(f64::NAN, |x| settled(x.series(name)));
     match q {
         Quantity::DosFirst => window_mean(&d.dos, true),
+        Quantity::TrainingFirst(q) => d.orders.get(q).map_or(f64::NAN, |v| window_mean(v, true)),
+        Quantity::TrainingLast(q) => d.orders.get(q).map_or(f64::NAN, |v| window_mean(v, false)),
         Quantity::DosLast => window_mean(&d.dos, false),
         Quantity::DoaFirst => window_mean(&d.doa, true),
         Quantity::DoaLast => window_mean(&d.doa, false),
@@ -211,6 +220,10 @@ pub fn aggregate(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> Result<Ve
         ("doa_first100".into(), Quantity::DoaFirst),
         ("doa_last100".into(), Quantity::DoaLast),
     ];
+    for order in super::EVAL_ORDER {
+        quantities.push((format!("{order}_first100"), Quantity::TrainingFirst(order.into())));
+        quantities.push((format!("{order}_last100"), Quantity::TrainingLast(order.into())));
+    }
     for e in &evals {
         quantities.push((format!("eval_{}_dos_settled", slug(e)), Quantity::EvalDos(e.clone())));
         quantities.push((format!("eval_{}_doa_settled", slug(e)), Quantity::EvalDoa(e.clone())));
@@ -385,6 +398,8 @@ pub fn reproduction(experiments: &[(Experiment, Vec<ClaimResult>, f64, usize)]) 
 fn quantity_name(q: &Quantity) -> String {
     match q {
         Quantity::DosFirst => "DoS, first 100 episodes".into(),
+        Quantity::TrainingFirst(q) => format!("{q}, first 100 episodes"),
+        Quantity::TrainingLast(q) => format!("{q}, last 100 episodes"),
         Quantity::DosLast => "DoS, last 100 episodes".into(),
         Quantity::DoaFirst => "DoA, first 100 episodes".into(),
         Quantity::DoaLast => "DoA, last 100 episodes".into(),

@@ -115,6 +115,10 @@ pub enum Quantity {
     /// Last 100 minus first 100 (the paper's "falls from … to …").
     DosChange,
     DoaChange,
+    /// Another per-episode order parameter of training (`polarization`, `milling`, `clusters`,
+    /// `largest_cluster`, `nn_correlation`, `edge_rank`): mean of the first / last 100 episodes.
+    TrainingFirst(String),
+    TrainingLast(String),
     /// The evaluation's mean over its last 50 steps (the trained policies' settled state).
     EvalDos(String),
     EvalDoa(String),
@@ -216,7 +220,7 @@ impl Experiment {
                     return Err(err("claims", format!("no evaluation named {e:?}")));
                 }
             }
-            if let Quantity::EvalOrder(_, q) = &c.quantity {
+            if let Quantity::EvalOrder(_, q) | Quantity::TrainingFirst(q) | Quantity::TrainingLast(q) = &c.quantity {
                 if !EVAL_ORDER.contains(&q.as_str()) {
                     return Err(err("claims", format!("no order parameter named {q:?} (one of {})", EVAL_ORDER.join(", "))));
                 }
