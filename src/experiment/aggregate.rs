@@ -392,6 +392,16 @@ pub fn reproduction(experiments: &[(Experiment, Vec<ClaimResult>, f64, usize)]) 
         )
         .unwrap();
     }
+    let (seconds, finished, runs) = experiments.iter().fold((0.0, 0, 0), |(s, f, r), (exp, _, sec, fin)| (s + sec, f + fin, r + exp.runs.len()));
+    writeln!(
+        md,
+        "\nThe whole suite (`coevo --experiment all --jobs 2`): {finished} of {runs} runs finished, {:.1} h of training summed over \
+         runs, each timed by its own `metrics.csv` (`wall_seconds`, the run's own wall clock; runs copied between experiments \
+         count once per experiment). Two runs go side by side on a 2-core machine, so the suite takes about half that in wall \
+         time there.",
+        seconds / 3600.0
+    )
+    .unwrap();
     md
 }
 
