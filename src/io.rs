@@ -91,6 +91,13 @@ pub fn write_atomically(
 }
 
 /// [`write_atomically`] of whole bytes, with the error as one line naming the file.
+/// The file written beside `path` under the same stem: `OUT.csv` → `OUT-{what}.csv` (an evaluation's
+/// distributions, a record's order parameters).
+pub fn beside(path: &Path, what: &str) -> PathBuf {
+    let stem = path.file_stem().unwrap_or_default().to_string_lossy();
+    path.with_file_name(format!("{stem}-{what}.csv"))
+}
+
 pub fn write_file(path: &Path, existing: Existing, bytes: &[u8]) -> Result<(), String> {
     write_atomically(path, existing, |w| w.write_all(bytes)).map_err(|e| format!("{}: {e}", path.display()))
 }

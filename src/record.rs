@@ -27,7 +27,7 @@ pub const HEADER: &str = "step,id,species,x,y,vx,vy,theta,thrust,turn_rate,rewar
 /// physical ([`Simulation::check`]).
 pub fn record(sim: &mut Simulation, steps: usize, path: &Path, existing: Existing) -> Result<(), String> {
     let io_err = |e: io::Error| format!("{}: {e}", path.display());
-    let order_path = order_file(path);
+    let order_path = crate::io::beside(path, "order");
     let order_err = |e: io::Error| format!("{}: {e}", order_path.display());
     sim.world_mut().resource_mut::<Episode>().auto_reset = false;
     crate::io::check_target(&order_path, existing).map_err(order_err)?;
@@ -63,12 +63,6 @@ pub fn record(sim: &mut Simulation, steps: usize, path: &Path, existing: Existin
     }
     file.commit().map_err(io_err)?;
     order.commit().map_err(order_err)
-}
-
-/// The order-parameter file beside a record: `OUT.csv` → `OUT-order.csv`.
-pub fn order_file(record: &Path) -> std::path::PathBuf {
-    let stem = record.file_stem().unwrap_or_default().to_string_lossy();
-    record.with_file_name(format!("{stem}-order.csv"))
 }
 
 struct Row {

@@ -408,8 +408,7 @@ pub fn evaluate(opts: &EvalOptions) -> Result<String, String> {
             crate::sim::collective::add_heading_correlation(&arena, &pop.position[range.clone()], &pop.heading[range], diameter, &mut correlation, &mut variance);
         }
     }
-    // The distributions beside the per-step file: <stem>-nn.csv and <stem>-confusion.csv.
-    let stem = file_name.trim_end_matches(".csv");
+    // The distributions beside the per-step file: <stem>-nn.csv, -correlation.csv and -confusion.csv.
     let total = nn_histogram.iter().sum::<u64>().max(1) as f64;
     let mut nn = String::from("from_diameters,to_diameters,from_m,to_m,fraction\n");
     for (b, count) in nn_histogram.iter().enumerate() {
@@ -438,9 +437,10 @@ pub fn evaluate(opts: &EvalOptions) -> Result<String, String> {
         }
     }
     file.commit().map_err(write_err)?;
-    crate::io::write_file(&opts.run.join(format!("{stem}-nn.csv")), Existing::Replace, nn.as_bytes())?;
-    crate::io::write_file(&opts.run.join(format!("{stem}-correlation.csv")), Existing::Replace, correlation_csv.as_bytes())?;
-    crate::io::write_file(&opts.run.join(format!("{stem}-confusion.csv")), Existing::Replace, confusion.as_bytes())?;
+    // The confusion curve last: the experiment runner takes its presence for a complete evaluation.
+    crate::io::write_file(&crate::io::beside(&path, "nn"), Existing::Replace, nn.as_bytes())?;
+    crate::io::write_file(&crate::io::beside(&path, "correlation"), Existing::Replace, correlation_csv.as_bytes())?;
+    crate::io::write_file(&crate::io::beside(&path, "confusion"), Existing::Replace, confusion.as_bytes())?;
     let counts: Vec<String> = registry.defs.iter().map(|d| format!("{} {}", d.count, d.name)).collect();
     let means = if n > 0 {
         let [dos, doa, polarization, milling, clusters, largest, c_nn] = sums.map(|v| v / n as f64);

@@ -135,7 +135,7 @@ pub fn load(exp: &Experiment) -> Result<BTreeMap<usize, RunData>, String> {
             let per_step = Swarming::NAMES.iter().map(|n| series(n)).collect::<Result<Vec<_>, String>>()?;
             let ranks = column(&header, &rows, &format!("edge_rank_{prey}"), &path).unwrap_or_default();
             let edge_rank = mean(&ranks.into_iter().filter(|x| x.is_finite()).collect::<Vec<_>>()).unwrap_or(f64::NAN);
-            let confusion = read_confusion(&path.with_file_name(format!("{}-confusion.csv", path.file_stem().unwrap_or_default().to_string_lossy())))?;
+            let confusion = read_confusion(&crate::io::beside(&path, "confusion"))?;
             d.evals.insert(e.name.clone(), EvalData { per_step, edge_rank, confusion });
         }
         data.insert(i, d);

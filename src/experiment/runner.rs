@@ -130,7 +130,7 @@ fn finished(exp: &Experiment, run: &Run) -> bool {
 /// Whether an evaluation's files are complete: its per-step CSV and, written last, its confusion curve
 /// (evaluations by a coevo without the collective measures lack it and are run again).
 fn evaluated(eval_csv: &Path) -> bool {
-    eval_csv.exists() && eval_csv.with_file_name(format!("{}-confusion.csv", eval_csv.file_stem().unwrap_or_default().to_string_lossy())).exists()
+    eval_csv.exists() && crate::io::beside(eval_csv, "confusion").exists()
 }
 
 /// Writes every variant's resolved scene (the seed is set per run), refusing runs of other scenes first.

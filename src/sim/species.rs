@@ -155,10 +155,6 @@ impl SpeciesPlugins {
         self
     }
 
-    pub fn templates(&self) -> &[SpeciesTemplate] {
-        &self.templates
-    }
-
     /// Puts every template in the program's catalog, after checking that no two species share a name
     /// (with each other or the presets' species) and that every species an interaction names exists.
     pub fn register(&self) -> Result<(), String> {
