@@ -107,7 +107,13 @@ fn a_tiny_experiment_runs_resumes_and_gives_the_same_summary_at_one_or_two_jobs(
     assert!(means.lines().any(|l| l.starts_with("paper,5:3,dos_last100,2,")), "{means}");
     let md = std::fs::read_to_string(two.path().join("REPRODUCTION.md")).unwrap();
     assert!(md.contains("| tiny | paper | DoS falls | DoS change, last − first 100 of `5:3` | -0.030 |"), "{md}");
-    for figure in ["paper-training.png", "paper-catches.png", "paper-eval-50-prey.png"] {
+    // The variants compared: one row per variant (with its seed count) in each panel, the interaction
+    // panel among them.
+    let variants = std::fs::read_to_string(two.path().join("results/tiny/figures/paper-variants.svg")).unwrap();
+    for text in ["1:1 (2)", "5:3 (2)", "DoA seeing − 50 prey, blind", "change over training"] {
+        assert!(variants.contains(text), "{text} not in the variants figure");
+    }
+    for figure in ["paper-training.png", "paper-catches.png", "paper-eval-50-prey.png", "paper-variants.png"] {
         let bytes = std::fs::read(two.path().join("results/tiny/figures").join(figure)).unwrap();
         let png = resvg::tiny_skia::Pixmap::decode_png(&bytes).unwrap();
         assert!(png.width() >= 600 && png.height() >= 400, "{figure}");

@@ -1,7 +1,7 @@
 //! From the runs' CSV files alone (never retraining): per-run summaries, means with 95 % confidence
 //! intervals over seeds, the figures, and the paper's claims checked against them.
 
-use super::plot::{self, Curve, Panel};
+use super::plot::{self, Curve, EstimatePanel, Panel, Row};
 use super::runner::{eval_file, stage, Stage};
 use super::stats::{estimate, mean, running_mean, Estimate};
 use super::{slug, Claim, Experiment, Quantity};
@@ -323,6 +323,32 @@ fn figures<'a>(exp: &Experiment, preset: &str, prey: &str, of_variant: &dyn Fn(&
         return Ok(());
     }
     plot::save(&dir.join(format!("{preset}-training")), &training)?;
+    // Variants side by side: what each change does to the learning and to the interaction-driven part of
+    // the alignment (seeing minus each control), mean over seeds with its 95 % CI; the ablations' answer to
+    // "which differences decide".
+    if exp.spec.variants.len() > 1 {
+        let mut compared = vec![
+            (format!("DoA of {prey}: change over training"), format!("DoA, last − first {WINDOW} episodes"), Quantity::DoaChange),
+            (format!("DoS of {prey}: change over training"), format!("DoS, last − first {WINDOW} episodes"), Quantity::DosChange),
+        ];
+        for e in exp.spec.evaluations.iter().filter(|e| super::seeing_partner(&exp.spec.evaluations, &e.name).is_some()) {
+            let seeing = &super::seeing_partner(&exp.spec.evaluations, &e.name).expect("filtered").name;
+            compared.push((format!("{seeing}: DoA seeing − {e}", e = e.name), format!("DoA difference, last {SETTLED_STEPS} steps"), Quantity::InteractionDoa(e.name.clone())));
+        }
+        let panels: Vec<EstimatePanel> = compared
+            .into_iter()
+            .map(|(what, x_label, q)| {
+                let rows = exp.spec.variants.iter().map(|v| {
+                    let samples: Vec<f64> = of_variant(&v.name).iter().map(|d| quantity(exp, d, &q)).filter(|x| x.is_finite()).collect();
+                    let e = estimate(&samples);
+                    let label = format!("{} ({})", v.name, e.map_or(0, |e| e.n));
+                    Row { label, mean: e.map_or(f64::NAN, |e| e.mean), ci: e.and_then(|e| e.ci) }
+                });
+                EstimatePanel { title: title(&what), x_label, rows: rows.collect() }
+            })
+            .collect();
+        plot::save_estimates(&dir.join(format!("{preset}-variants")), &panels)?;
+    }
     let catches = [Panel {
         title: title("catches per episode"),
         x_label: "episode".into(),

@@ -1,4 +1,5 @@
-//! Figures: curves with shaded 95 % confidence bands, one panel per quantity, as the paper draws them.
+//! Figures: curves with shaded 95 % confidence bands, one panel per quantity, as the paper draws them; and
+//! estimates per variant with their 95 % confidence intervals (forest plots), for comparing variants.
 //! plotters draws the figure as SVG (kept beside the PNG); resvg rasterizes it to PNG with egui's bundled
 //! Ubuntu font, so no system font is needed.
 
@@ -21,8 +22,29 @@ pub struct Panel {
     pub curves: Vec<Curve>,
 }
 
-/// Figure size in pixels (each panel side by side).
+/// One row of an [`EstimatePanel`]: a variant's mean over seeds and the half-width of its 95 % CI (None
+/// with one seed; a mean of NaN when the variant has no run yet).
+pub struct Row {
+    pub label: String,
+    pub mean: f64,
+    pub ci: Option<f64>,
+}
+
+/// A panel of estimates, one row per variant, top to bottom, against a line at zero: which variants
+/// change a quantity, and whether the change is outside the 95 % CI.
+pub struct EstimatePanel {
+    pub title: String,
+    pub x_label: String,
+    pub rows: Vec<Row>,
+}
+
+/// Size in pixels of one panel of curves (panels side by side).
 pub const PANEL_SIZE: (u32, u32) = (640, 420);
+/// Width in pixels of one estimates panel, and height per row (panels two to a row).
+const ESTIMATE_PANEL_WIDTH: u32 = 600;
+const ESTIMATE_ROW_HEIGHT: u32 = 34;
+
+type Area<'a> = DrawingArea<SVGBackend<'a>, plotters::coord::Shift>;
 
 const COLOURS: [RGBColor; 8] = [
     RGBColor(31, 119, 180),
@@ -39,22 +61,87 @@ fn draw_err(e: impl std::fmt::Display) -> String {
     format!("cannot draw the figure: {e}")
 }
 
-/// The figure as SVG text.
-pub fn svg(panels: &[Panel]) -> Result<String, String> {
+/// The figure as SVG text: `panels` drawn by `draw` on a grid of `columns` columns of `cell`-sized cells.
+fn figure<P>(panels: &[P], columns: usize, cell: (u32, u32), draw: &dyn Fn(&P, &Area) -> Result<(), String>) -> Result<String, String> {
+    let columns = columns.clamp(1, panels.len().max(1));
+    let rows = panels.len().div_ceil(columns).max(1);
     let mut text = String::new();
     {
-        let size = (PANEL_SIZE.0 * panels.len() as u32, PANEL_SIZE.1);
+        let size = (cell.0 * columns as u32, cell.1 * rows as u32);
         let root = SVGBackend::with_string(&mut text, size).into_drawing_area();
         root.fill(&WHITE).map_err(draw_err)?;
-        for (panel, area) in panels.iter().zip(root.split_evenly((1, panels.len()))) {
-            draw_panel(panel, &area)?;
+        for (panel, area) in panels.iter().zip(root.split_evenly((rows, columns))) {
+            draw(panel, &area)?;
         }
         root.present().map_err(draw_err)?;
     }
     Ok(text)
 }
 
-fn draw_panel(panel: &Panel, area: &DrawingArea<SVGBackend, plotters::coord::Shift>) -> Result<(), String> {
+/// A figure of curves, its panels side by side, as SVG text.
+pub fn svg(panels: &[Panel]) -> Result<String, String> {
+    figure(panels, panels.len(), PANEL_SIZE, &draw_panel)
+}
+
+/// A figure of estimates, two panels to a row, as SVG text.
+pub fn estimates_svg(panels: &[EstimatePanel]) -> Result<String, String> {
+    let rows = panels.iter().map(|p| p.rows.len()).max().unwrap_or(1) as u32;
+    figure(panels, 2, (ESTIMATE_PANEL_WIDTH, (90 + ESTIMATE_ROW_HEIGHT * rows).max(240)), &draw_estimates)
+}
+
+fn draw_estimates(panel: &EstimatePanel, area: &Area) -> Result<(), String> {
+    use plotters::coord::ranged1d::SegmentValue;
+    let n = panel.rows.len();
+    let ci = |r: &Row| r.ci.unwrap_or(0.0);
+    // The axis always holds zero (the line every change is judged against) and every interval.
+    let ends = panel.rows.iter().flat_map(|r| [r.mean - ci(r), r.mean + ci(r)]).filter(|v| v.is_finite());
+    let (lo, hi) = ends.fold((0.0f64, 0.0f64), |(a, b), v| (a.min(v), b.max(v)));
+    let pad = 0.08 * (hi - lo).max(1e-3);
+    let label = |v: &SegmentValue<i32>| match v {
+        // Row 0 on top: plotters counts up from the bottom.
+        SegmentValue::CenterOf(k) if (*k as usize) < n => panel.rows[n - 1 - *k as usize].label.clone(),
+        _ => String::new(),
+    };
+    let mut chart = ChartBuilder::on(area)
+        .caption(&panel.title, ("sans-serif", 17))
+        .margin(12)
+        .x_label_area_size(36)
+        .y_label_area_size(200)
+        // A segmented range of 0..k holds k + 1 segments, one per row here.
+        .build_cartesian_2d((lo - pad)..(hi + pad), (0..(n as i32 - 1).max(0)).into_segmented())
+        .map_err(draw_err)?;
+    chart
+        .configure_mesh()
+        .x_desc(&panel.x_label)
+        .label_style(("sans-serif", 13))
+        .y_labels(n)
+        .y_label_formatter(&label)
+        .x_label_formatter(&tick)
+        .disable_y_mesh()
+        .light_line_style(WHITE.mix(0.0))
+        .draw()
+        .map_err(draw_err)?;
+    let zero = [(0.0, SegmentValue::Exact(0)), (0.0, SegmentValue::Last)];
+    chart.draw_series(LineSeries::new(zero, BLACK.mix(0.5).stroke_width(1))).map_err(draw_err)?;
+    let bars = panel.rows.iter().enumerate().filter(|(_, r)| r.mean.is_finite()).map(|(i, r)| {
+        let colour = COLOURS[i % COLOURS.len()];
+        ErrorBar::new_horizontal(SegmentValue::CenterOf((n - 1 - i) as i32), r.mean - ci(r), r.mean, r.mean + ci(r), colour.filled().stroke_width(2), 10)
+    });
+    chart.draw_series(bars).map_err(draw_err)?;
+    Ok(())
+}
+
+/// A tick value as plotters would print it, without the "-0.0" of a rounding error.
+fn tick(x: &f64) -> String {
+    let v = (x * 1e9).round() / 1e9;
+    if v == 0.0 {
+        "0".into()
+    } else {
+        v.to_string()
+    }
+}
+
+fn draw_panel(panel: &Panel, area: &Area) -> Result<(), String> {
     let finite = |v: &&f64| v.is_finite();
     let xs = panel.curves.iter().flat_map(|c| c.x.iter()).filter(finite);
     let (x0, x1) = xs.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| (a.min(x), b.max(x)));
@@ -115,12 +202,32 @@ pub fn png(svg: &str) -> Result<Vec<u8>, String> {
     crate::svg::rasterize(svg, &crate::svg::options())?.encode_png().map_err(draw_err)
 }
 
-/// Writes `stem.svg` and `stem.png` (atomically, replacing earlier figures).
+/// Writes a figure of curves as `stem.svg` and `stem.png` (atomically, replacing earlier figures).
 pub fn save(stem: &Path, panels: &[Panel]) -> Result<(), String> {
-    let text = svg(panels)?;
+    write(stem, svg(panels)?)
+}
+
+/// Writes a figure of estimates as `stem.svg` and `stem.png` (atomically, replacing earlier figures).
+pub fn save_estimates(stem: &Path, panels: &[EstimatePanel]) -> Result<(), String> {
+    write(stem, estimates_svg(panels)?)
+}
+
+fn write(stem: &Path, text: String) -> Result<(), String> {
     let bytes = png(&text)?;
     for (ext, data) in [("svg", text.as_bytes()), ("png", bytes.as_slice())] {
         crate::io::write_file(&stem.with_extension(ext), crate::io::Existing::Replace, data)?;
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ticks_read_as_written_without_a_negative_zero() {
+        assert_eq!(tick(&-1.3877787807814457e-17), "0");
+        assert_eq!(tick(&(0.1 + 0.2)), "0.3");
+        assert_eq!(tick(&-0.05), "-0.05");
+    }
 }
