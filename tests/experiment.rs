@@ -21,6 +21,7 @@ const TINY: &str = r#"(
     claims: [
         (text: "DoS falls", variant: "5:3", quantity: DosChange, paper: -0.03),
         (text: "seeing minus blind", variant: "5:3", quantity: InteractionDoa("50 prey, blind")),
+        (text: "5:3 against 1:1", variant: "5:3", versus: "1:1", quantity: DosChange),
     ],
 )"#;
 
@@ -58,6 +59,8 @@ fn experiment_files_expand_to_runs_and_bad_ones_are_one_line() {
         (TINY.replace("max_speed: 0.1", "max_speed: -1.0"), "bad.ron: variants[5:3]: species[prey].max_speed: must be a finite number > 0"),
         (TINY.replace("description", "descripton"), "bad.ron:2: descripton:"),
         (TINY.replace("variant: \"5:3\"", "variant: \"7:3\""), "bad.ron: claims: no variant named \"7:3\""),
+        (TINY.replace("versus: \"1:1\"", "versus: \"2:1\""), "bad.ron: claims: no variant named \"2:1\""),
+        (TINY.replace("versus: \"1:1\"", "versus: \"5:3\""), "bad.ron: claims: \"5:3 against 1:1\" is compared with itself"),
         (TINY.replace("(\"prey\", 50)", "(\"hawk\", 50)"), "evaluations[50 prey]: no species named \"hawk\""),
         (TINY.replace("scenes/paper.ron", "scenes/none.ron"), "bad.ron: base: scenes/none.ron: cannot read"),
         (TINY.replace("quantity: DosChange", "quantity: InteractionDoa(\"50 prey\")"), "evaluation \"50 prey\" needs a control (Blind or Shuffled)"),
@@ -107,6 +110,13 @@ fn a_tiny_experiment_runs_resumes_and_gives_the_same_summary_at_one_or_two_jobs(
     assert!(means.lines().any(|l| l.starts_with("paper,5:3,dos_last100,2,")), "{means}");
     let md = std::fs::read_to_string(two.path().join("REPRODUCTION.md")).unwrap();
     assert!(md.contains("| tiny | paper | DoS falls | DoS change, last − first 100 of `5:3` | -0.030 |"), "{md}");
+    // A comparison of two variants: the difference of their seed means (Welch's interval beside it).
+    let change = |variant: &str| {
+        let rows: Vec<Vec<f64>> = rows[1..].iter().filter(|r| r.starts_with(&format!("paper,{variant},"))).map(|r| r.split(',').map(|c| c.parse().unwrap_or(f64::NAN)).collect()).collect();
+        rows.iter().map(|c| c[column("dos_last100")] - c[column("dos_first100")]).sum::<f64>() / rows.len() as f64
+    };
+    let expected = format!("| tiny | paper | 5:3 against 1:1 | DoS change, last − first 100 of `5:3` minus `1:1` (Welch) | – | {:.3} ± ", change("5:3") - change("1:1"));
+    assert!(md.contains(&expected), "{expected} not in {md}");
     // The variants compared: one row per variant (with its seed count) in each panel, the interaction
     // panel among them.
     let variants = std::fs::read_to_string(two.path().join("results/tiny/figures/paper-variants.svg")).unwrap();

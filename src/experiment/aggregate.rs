@@ -3,7 +3,7 @@
 
 use super::plot::{self, Curve, EstimatePanel, Panel, Row};
 use super::runner::{eval_file, stage, Stage};
-use super::stats::{estimate, mean, running_mean, Estimate};
+use super::stats::{difference, estimate, mean, running_mean, Estimate};
 use super::{slug, Claim, Experiment, Quantity};
 use crate::sim::metrics::Swarming;
 use crate::sim::species::SpeciesRegistry;
@@ -186,6 +186,13 @@ pub struct ClaimResult {
 /// Whether a measured estimate bears out the paper's number.
 pub fn verdict(claim: &Claim, e: Option<Estimate>) -> String {
     let Some(e) = e else { return "not run yet".into() };
+    if let (None, Some(base)) = (claim.paper, &claim.versus) {
+        return match e.ci {
+            None => "one seed: no interval".into(),
+            Some(ci) if e.mean.abs() > ci => format!("differs from `{base}`: the 95 % CI excludes 0"),
+            Some(_) => format!("no difference from `{base}` detected"),
+        };
+    }
     let Some(paper) = claim.paper else { return "measured (the paper gives no number)".into() };
     let Some(ci) = e.ci else { return "one seed: no interval".into() };
     let change = matches!(claim.quantity, Quantity::DosChange | Quantity::DoaChange);
@@ -268,8 +275,11 @@ pub fn aggregate(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> Result<Ve
             }
         }
         for claim in &exp.spec.claims {
-            let samples: Vec<f64> = of_variant(&claim.variant).iter().map(|d| quantity(exp, d, &claim.quantity)).filter(|x| x.is_finite()).collect();
-            let e = estimate(&samples);
+            let samples = |variant: &str| -> Vec<f64> { of_variant(variant).iter().map(|d| quantity(exp, d, &claim.quantity)).filter(|x| x.is_finite()).collect() };
+            let e = match &claim.versus {
+                Some(base) => difference(&samples(&claim.variant), &samples(base)),
+                None => estimate(&samples(&claim.variant)),
+            };
             results.push(ClaimResult { experiment: exp.name.clone(), preset: preset.clone(), claim: claim.clone(), estimate: e, verdict: verdict(claim, e) });
         }
         if written {
@@ -392,7 +402,9 @@ pub fn reproduction(experiments: &[(Experiment, Vec<ClaimResult>, f64, usize)]) 
          physics was tuned toward a claim; see the README's \"Does it learn?\" for what the numbers mean. Baselines: \
          independent random headings give DoA = 2/π ≈ 0.637 and C_nn = 0; random catches give an edge rank of 0.5. \
          *Seeing minus blind* (or shuffled) is the part of the trained actors' alignment that comes from seeing \
-         their neighbours, computed run by run.\n\n",
+         their neighbours, computed run by run. A quantity *of `X` minus `Y` (Welch)* compares two variants: the difference \
+         of their means with Welch's 95 % interval (unequal variances; seeds: the smaller count); `X` *differs* from `Y` when \
+         that interval excludes 0.\n\n",
     );
     md.push_str("| experiment | preset | claim (the paper) | quantity | paper | coevo (mean ± 95 % CI, seeds) | verdict |\n|---|---|---|---|---|---|---|\n");
     for (exp, results, _, _) in experiments {
@@ -402,7 +414,11 @@ pub fn reproduction(experiments: &[(Experiment, Vec<ClaimResult>, f64, usize)]) 
                 None => "–".into(),
             };
             let paper = r.claim.paper.map_or("–".into(), |p| format!("{p:.3}"));
-            writeln!(md, "| {} | {} | {} | {} of `{}` | {paper} | {ours} | {} |", exp.name, r.preset, r.claim.text, quantity_name(&r.claim.quantity), r.claim.variant, r.verdict).unwrap();
+            let of = match &r.claim.versus {
+                Some(base) => format!("`{}` minus `{base}` (Welch)", r.claim.variant),
+                None => format!("`{}`", r.claim.variant),
+            };
+            writeln!(md, "| {} | {} | {} | {} of {of} | {paper} | {ours} | {} |", exp.name, r.preset, r.claim.text, quantity_name(&r.claim.quantity), r.verdict).unwrap();
         }
     }
     md.push_str("\n## How each was produced\n\n| experiment | command | runs finished | training time (sum over runs) | figures |\n|---|---|---|---|---|\n");

@@ -102,6 +102,10 @@ pub struct Claim {
     /// The paper's number, when it gives one.
     #[serde(default)]
     pub paper: Option<f64>,
+    /// Compare with this variant: the claim's number becomes `variant`'s mean minus this variant's, with
+    /// Welch's 95 % interval (e.g. an ablation variant against the base it changes one thing of).
+    #[serde(default)]
+    pub versus: Option<String>,
 }
 
 /// A number the aggregate computes per run (prey, or the experiment's headline species).
@@ -212,8 +216,13 @@ impl Experiment {
             }
         }
         for c in &spec.claims {
-            if !spec.variants.iter().any(|v| v.name == c.variant) {
-                return Err(err("claims", format!("no variant named {:?}", c.variant)));
+            for v in std::iter::once(&c.variant).chain(&c.versus) {
+                if !spec.variants.iter().any(|x| &x.name == v) {
+                    return Err(err("claims", format!("no variant named {v:?}")));
+                }
+            }
+            if c.versus.as_ref() == Some(&c.variant) {
+                return Err(err("claims", format!("{:?} is compared with itself (versus)", c.text)));
             }
             if let Quantity::EvalDos(e) | Quantity::EvalDoa(e) | Quantity::EvalOrder(e, _) | Quantity::InteractionDoa(e) = &c.quantity {
                 if !spec.evaluations.iter().any(|x| &x.name == e) {

@@ -31,7 +31,8 @@ pub struct Row {
 }
 
 /// A panel of estimates, one row per variant, top to bottom, against a line at zero: which variants
-/// change a quantity, and whether the change is outside the 95 % CI.
+/// change a quantity, and whether the change is outside the 95 % CI. The first row's interval is shaded
+/// across the panel: the base the other variants are read against.
 pub struct EstimatePanel {
     pub title: String,
     pub x_label: String,
@@ -123,6 +124,10 @@ fn draw_estimates(panel: &EstimatePanel, area: &Area) -> Result<(), String> {
         .map_err(draw_err)?;
     let zero = [(0.0, SegmentValue::Exact(0)), (0.0, SegmentValue::Last)];
     chart.draw_series(LineSeries::new(zero, BLACK.mix(0.5).stroke_width(1))).map_err(draw_err)?;
+    if let Some(base) = panel.rows.first().filter(|r| r.mean.is_finite() && r.ci.is_some()) {
+        let band = [(base.mean - ci(base), SegmentValue::Exact(0)), (base.mean + ci(base), SegmentValue::Last)];
+        chart.draw_series(std::iter::once(Rectangle::new(band, COLOURS[0].mix(0.12).filled()))).map_err(draw_err)?;
+    }
     let bars = panel.rows.iter().enumerate().filter(|(_, r)| r.mean.is_finite()).map(|(i, r)| {
         let colour = COLOURS[i % COLOURS.len()];
         ErrorBar::new_horizontal(SegmentValue::CenterOf((n - 1 - i) as i32), r.mean - ci(r), r.mean, r.mean + ci(r), colour.filled().stroke_width(2), 10)

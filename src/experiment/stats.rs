@@ -1,5 +1,6 @@
 //! The statistics of the paper's figures: 100-episode running means, and the mean over seeds with its
-//! 95 % confidence interval (Student t, n − 1 degrees of freedom).
+//! 95 % confidence interval (Student t, n − 1 degrees of freedom); and the difference of two variants'
+//! means with Welch's interval (unequal variances), for comparing a variant with the one it changes.
 
 pub use crate::sim::metrics::running_mean;
 
@@ -42,6 +43,27 @@ pub fn estimate(samples: &[f64]) -> Option<Estimate> {
     Some(Estimate { mean: m, ci, n })
 }
 
+fn variance(samples: &[f64], m: f64) -> f64 {
+    samples.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (samples.len() - 1) as f64
+}
+
+/// Mean of `a` minus mean of `b`, with the half-width of Welch's 95 % interval: standard error
+/// √(s²_a/n_a + s²_b/n_b), Student t at the Welch–Satterthwaite degrees of freedom rounded down (the
+/// conservative side). `n` is the smaller sample; the interval is None unless both have two or more.
+pub fn difference(a: &[f64], b: &[f64]) -> Option<Estimate> {
+    let (ma, mb) = (mean(a)?, mean(b)?);
+    let n = a.len().min(b.len());
+    let ci = (n >= 2).then(|| {
+        let (qa, qb) = (variance(a, ma) / a.len() as f64, variance(b, mb) / b.len() as f64);
+        let se2 = qa + qb;
+        let df = se2 * se2 / (qa * qa / (a.len() - 1) as f64 + qb * qb / (b.len() - 1) as f64);
+        // Identical samples on both sides (no spread at all) leave df undefined: the interval is zero.
+        let df = if df.is_finite() { (df.floor() as usize).max(1) } else { a.len() + b.len() - 2 };
+        t95(df) * se2.sqrt()
+    });
+    Some(Estimate { mean: ma - mb, ci, n })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -56,5 +78,18 @@ mod tests {
         assert_eq!(estimate(&[5.0]).unwrap().ci, None);
         assert!(estimate(&[]).is_none());
         assert_eq!(t95(1000), 1.96);
+    }
+
+    #[test]
+    fn welch_difference_of_known_data() {
+        // Means 2 and 6, variances 1 and 4, n = 3 each: se² = 5/3, df = (5/3)² / ((1/3)²/2 + (4/3)²/2) =
+        // 2.94, rounded down to 2.
+        let d = difference(&[1.0, 2.0, 3.0], &[4.0, 6.0, 8.0]).unwrap();
+        assert_eq!(d.mean, -4.0);
+        assert!((d.ci.unwrap() - 4.303 * (5.0f64 / 3.0).sqrt()).abs() < 1e-12);
+        assert_eq!(d.n, 3);
+        assert_eq!(difference(&[1.0, 2.0], &[3.0]).unwrap().ci, None);
+        assert_eq!(difference(&[1.0, 1.0], &[1.0, 1.0]).unwrap().ci, Some(0.0));
+        assert!(difference(&[], &[1.0]).is_none());
     }
 }
