@@ -109,13 +109,15 @@ fn a_tiny_experiment_runs_resumes_and_gives_the_same_summary_at_one_or_two_jobs(
     let means = std::fs::read_to_string(two.path().join("results/tiny/summary-mean.csv")).unwrap();
     assert!(means.lines().any(|l| l.starts_with("paper,5:3,dos_last100,2,")), "{means}");
     let md = std::fs::read_to_string(two.path().join("REPRODUCTION.md")).unwrap();
-    assert!(md.contains("| tiny | paper | DoS falls | DoS change, last − first 100 of `5:3` | -0.030 |"), "{md}");
+    assert!(md.contains("| [tiny](#tiny) | a tiny sweep | `coevo --experiment experiments/tiny.ron --jobs 2` | 4 of 4 |"), "{md}");
+    assert!(md.contains("\n## tiny\n") && md.contains("![paper-variants](results/tiny/figures/paper-variants.png)"), "{md}");
+    assert!(md.contains("| paper | DoS falls | DoS change, last − first 100 of `5:3` | -0.030 |"), "{md}");
     // A comparison of two variants: the difference of their seed means (Welch's interval beside it).
     let change = |variant: &str| {
         let rows: Vec<Vec<f64>> = rows[1..].iter().filter(|r| r.starts_with(&format!("paper,{variant},"))).map(|r| r.split(',').map(|c| c.parse().unwrap_or(f64::NAN)).collect()).collect();
         rows.iter().map(|c| c[column("dos_last100")] - c[column("dos_first100")]).sum::<f64>() / rows.len() as f64
     };
-    let expected = format!("| tiny | paper | 5:3 against 1:1 | DoS change, last − first 100 of `5:3` minus `1:1` (Welch) | – | {:.3} ± ", change("5:3") - change("1:1"));
+    let expected = format!("| paper | 5:3 against 1:1 | DoS change, last − first 100 of `5:3` minus `1:1` (Welch) | – | {:.3} ± ", change("5:3") - change("1:1"));
     assert!(md.contains(&expected), "{expected} not in {md}");
     // The variants compared: one row per variant (with its seed count) in each panel, the interaction
     // panel among them.

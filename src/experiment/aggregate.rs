@@ -406,8 +406,21 @@ pub fn reproduction(experiments: &[(Experiment, Vec<ClaimResult>, f64, usize)]) 
          of their means with Welch's 95 % interval (unequal variances; seeds: the smaller count); `X` *differs* from `Y` when \
          that interval excludes 0.\n\n",
     );
-    md.push_str("| experiment | preset | claim (the paper) | quantity | paper | coevo (mean ± 95 % CI, seeds) | verdict |\n|---|---|---|---|---|---|---|\n");
+    // Contents first: each experiment, what it tests, how far it got and the command that continues it.
+    md.push_str("| experiment | what | command | runs finished | training time (sum over runs) |\n|---|---|---|---|---|\n");
+    for (exp, _, seconds, finished) in experiments {
+        let command = format!("`coevo --experiment {} --jobs 2`", exp.file.display());
+        let (name, runs, hours) = (&exp.name, exp.runs.len(), seconds / 3600.0);
+        writeln!(md, "| [{name}](#{name}) | {} | {command} | {finished} of {runs} | {hours:.1} h |", exp.spec.description).unwrap();
+    }
+    // Then per experiment: its claims, and its figures (the comparison of variants and the learning curves
+    // shown, the rest linked).
     for (exp, results, _, _) in experiments {
+        let what = if exp.spec.description.is_empty() { String::new() } else { format!("{}. ", exp.spec.description) };
+        writeln!(md, "\n## {}\n\n{what}`{}`, results in `{}/`.\n", exp.name, exp.file.display(), exp.root.display()).unwrap();
+        if !results.is_empty() {
+            md.push_str("| preset | claim (the paper) | quantity | paper | coevo (mean ± 95 % CI, seeds) | verdict |\n|---|---|---|---|---|---|\n");
+        }
         for r in results {
             let ours = match r.estimate {
                 Some(e) => format!("{:.3}{} ({})", e.mean, e.ci.map_or(String::new(), |c| format!(" ± {c:.3}")), e.n),
@@ -418,26 +431,25 @@ pub fn reproduction(experiments: &[(Experiment, Vec<ClaimResult>, f64, usize)]) 
                 Some(base) => format!("`{}` minus `{base}` (Welch)", r.claim.variant),
                 None => format!("`{}`", r.claim.variant),
             };
-            writeln!(md, "| {} | {} | {} | {} of {of} | {paper} | {ours} | {} |", exp.name, r.preset, r.claim.text, quantity_name(&r.claim.quantity), r.verdict).unwrap();
+            writeln!(md, "| {} | {} | {} of {of} | {paper} | {ours} | {} |", r.preset, r.claim.text, quantity_name(&r.claim.quantity), r.verdict).unwrap();
         }
-    }
-    md.push_str("\n## How each was produced\n\n| experiment | command | runs finished | training time (sum over runs) | figures |\n|---|---|---|---|---|\n");
-    for (exp, _, seconds, finished) in experiments {
-        writeln!(
-            md,
-            "| {} | `coevo --experiment {} --jobs 2` | {finished} of {} | {:.1} h | `{}/figures/` |",
-            exp.name,
-            exp.file.display(),
-            exp.runs.len(),
-            seconds / 3600.0,
-            exp.root.display()
-        )
-        .unwrap();
+        let dir = exp.root.join("figures");
+        for preset in &exp.spec.presets {
+            let shown: Vec<String> = ["variants", "training"]
+                .iter()
+                .map(|what| dir.join(format!("{preset}-{what}.png")))
+                .filter(|path| path.exists())
+                .map(|path| format!("![{}]({})", path.file_stem().unwrap_or_default().to_string_lossy(), path.display()))
+                .collect();
+            if !shown.is_empty() {
+                writeln!(md, "\n{}\n", shown.join("\n")).unwrap();
+            }
+        }
     }
     let (seconds, finished, runs) = experiments.iter().fold((0.0, 0, 0), |(s, f, r), (exp, _, sec, fin)| (s + sec, f + fin, r + exp.runs.len()));
     writeln!(
         md,
-        "\nThe whole suite (`coevo --experiment all --jobs 2`): {finished} of {runs} runs finished, {:.1} h of training summed over \
+        "\n## The whole suite\n\n`coevo --experiment all --jobs 2`: {finished} of {runs} runs finished, {:.1} h of training summed over \
          runs, each timed by its own `metrics.csv` (`wall_seconds`, the run's own wall clock; runs copied between experiments \
          count once per experiment). Two runs go side by side on a 2-core machine, so the suite takes about half that in wall \
          time there.",
