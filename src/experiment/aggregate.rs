@@ -162,6 +162,7 @@ pub fn quantity(exp: &Experiment, d: &RunData, q: &Quantity) -> f64 {
         Quantity::DoaLast => window_mean(&d.doa, false),
         Quantity::DosChange => window_mean(&d.dos, false) - window_mean(&d.dos, true),
         Quantity::DoaChange => window_mean(&d.doa, false) - window_mean(&d.doa, true),
+        Quantity::CatchesChange => window_mean(&d.catches, false) - window_mean(&d.catches, true),
         Quantity::EvalDos(e) => eval(e, "dos"),
         Quantity::EvalDoa(e) => eval(e, "doa"),
         Quantity::EvalOrder(e, name) if name == "edge_rank" => d.evals.get(e).map_or(f64::NAN, |x| x.edge_rank),
@@ -195,7 +196,7 @@ pub fn verdict(claim: &Claim, e: Option<Estimate>) -> String {
     }
     let Some(paper) = claim.paper else { return "measured (the paper gives no number)".into() };
     let Some(ci) = e.ci else { return "one seed: no interval".into() };
-    let change = matches!(claim.quantity, Quantity::DosChange | Quantity::DoaChange);
+    let change = matches!(claim.quantity, Quantity::DosChange | Quantity::DoaChange | Quantity::CatchesChange);
     if (e.mean - paper).abs() <= ci {
         "holds: the paper's value is inside the 95 % CI".into()
     } else if change && e.mean.abs() <= ci {
@@ -340,6 +341,7 @@ fn figures<'a>(exp: &Experiment, preset: &str, prey: &str, of_variant: &dyn Fn(&
         let mut compared = vec![
             (format!("DoA of {prey}: change over training"), format!("DoA, last − first {WINDOW} episodes"), Quantity::DoaChange),
             (format!("DoS of {prey}: change over training"), format!("DoS, last − first {WINDOW} episodes"), Quantity::DosChange),
+            ("catches: change over training".into(), format!("catches per episode, last − first {WINDOW} episodes"), Quantity::CatchesChange),
         ];
         for e in exp.spec.evaluations.iter().filter(|e| super::seeing_partner(&exp.spec.evaluations, &e.name).is_some()) {
             let seeing = &super::seeing_partner(&exp.spec.evaluations, &e.name).expect("filtered").name;
@@ -469,6 +471,7 @@ fn quantity_name(q: &Quantity) -> String {
         Quantity::DoaLast => "DoA, last 100 episodes".into(),
         Quantity::DosChange => "DoS change, last − first 100".into(),
         Quantity::DoaChange => "DoA change, last − first 100".into(),
+        Quantity::CatchesChange => "catches per episode, change, last − first 100".into(),
         Quantity::EvalDos(e) => format!("DoS settled in evaluation \"{e}\""),
         Quantity::EvalDoa(e) => format!("DoA settled in evaluation \"{e}\""),
         Quantity::EvalOrder(e, q) => format!("{q} in evaluation \"{e}\""),

@@ -119,6 +119,9 @@ pub enum Quantity {
     /// Last 100 minus first 100 (the paper's "falls from … to …").
     DosChange,
     DoaChange,
+    /// Catches per episode (every predator–prey contact that began), last 100 minus first 100: whether
+    /// the prey learned to escape faster than the predators learned to catch.
+    CatchesChange,
     /// Another per-episode order parameter of training (`polarization`, `milling`, `clusters`,
     /// `largest_cluster`, `nn_correlation`, `edge_rank`): mean of the first / last 100 episodes.
     TrainingFirst(String),
