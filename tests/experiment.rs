@@ -22,6 +22,7 @@ const TINY: &str = r#"(
         (text: "DoS falls", variant: "5:3", quantity: DosChange, paper: -0.03),
         (text: "seeing minus blind", variant: "5:3", quantity: InteractionDoa("50 prey, blind")),
         (text: "5:3 against 1:1", variant: "5:3", versus: "1:1", quantity: DosChange),
+        (text: "catches", variant: "5:3", quantity: CatchesChange),
     ],
 )"#;
 
@@ -119,10 +120,12 @@ fn a_tiny_experiment_runs_resumes_and_gives_the_same_summary_at_one_or_two_jobs(
     };
     let expected = format!("| paper | 5:3 against 1:1 | DoS change, last − first 100 of `5:3` minus `1:1` (Welch) | – | {:.3} ± ", change("5:3") - change("1:1"));
     assert!(md.contains(&expected), "{expected} not in {md}");
+    // Catches per episode, last − first 100 (here all 3 episodes in both windows: no change).
+    assert!(md.contains("| paper | catches | catches per episode, change, last − first 100 of `5:3` | – | 0.000 ± 0.000 (2) |"), "{md}");
     // The variants compared: one row per variant (with its seed count) in each panel, the interaction
     // panel among them.
     let variants = std::fs::read_to_string(two.path().join("results/tiny/figures/paper-variants.svg")).unwrap();
-    for text in ["1:1 (2)", "5:3 (2)", "DoA seeing − 50 prey, blind", "change over training"] {
+    for text in ["1:1 (2)", "5:3 (2)", "DoA seeing − 50 prey, blind", "DoA of prey: change over training", "catches: change over training"] {
         assert!(variants.contains(text), "{text} not in the variants figure");
     }
     for figure in ["paper-training.png", "paper-catches.png", "paper-eval-50-prey.png", "paper-variants.png"] {

@@ -502,6 +502,19 @@ pub fn plot_run(dir: &Path) -> Result<std::path::PathBuf, String> {
 
 #[cfg(test)]
 mod tests {
+    use super::*;
+
+    #[test]
+    fn changes_are_the_last_window_minus_the_first() {
+        let exp = Experiment::load(Path::new("experiments/ablation-from-paper.ron"), Path::new("results")).unwrap();
+        // 250 episodes: the first 100 and the last 100 do not overlap.
+        let series = |first: f64, last: f64| (0..250).map(|i| if i < 100 { first } else if i >= 150 { last } else { f64::NAN }).collect::<Vec<_>>();
+        let d = RunData { dos: series(0.22, 0.19), doa: series(0.70, 0.85), catches: series(72.0, 26.0), ..Default::default() };
+        for (q, expected) in [(Quantity::DosChange, -0.03), (Quantity::DoaChange, 0.15), (Quantity::CatchesChange, -46.0)] {
+            assert!((quantity(&exp, &d, &q) - expected).abs() < 1e-12, "{q:?}");
+        }
+    }
+
     #[test]
     fn names_with_commas_stay_one_csv_field() {
         assert_eq!(super::csv_text("5:3"), "5:3");
