@@ -149,6 +149,11 @@ fn window_mean(values: &[f64], first: bool) -> f64 {
     mean(&part.iter().copied().filter(|v| v.is_finite()).collect::<Vec<_>>()).unwrap_or(f64::NAN)
 }
 
+/// The finite values of a quantity over `runs` (one per seed), the samples of an estimate.
+fn values(exp: &Experiment, runs: &[&RunData], q: &Quantity) -> Vec<f64> {
+    runs.iter().map(|d| quantity(exp, d, q)).filter(|x| x.is_finite()).collect()
+}
+
 /// A run's value of a quantity.
 pub fn quantity(exp: &Experiment, d: &RunData, q: &Quantity) -> f64 {
     let settled = |v: &[f64]| mean(&v[v.len().saturating_sub(SETTLED_STEPS)..].iter().copied().filter(|x| x.is_finite()).collect::<Vec<_>>()).unwrap_or(f64::NAN);
@@ -187,15 +192,14 @@ pub struct ClaimResult {
 /// Whether a measured estimate bears out the paper's number.
 pub fn verdict(claim: &Claim, e: Option<Estimate>) -> String {
     let Some(e) = e else { return "not run yet".into() };
-    if let (None, Some(base)) = (claim.paper, &claim.versus) {
-        return match e.ci {
-            None => "one seed: no interval".into(),
-            Some(ci) if e.mean.abs() > ci => format!("differs from `{base}`: the 95 % CI excludes 0"),
-            Some(_) => format!("no difference from `{base}` detected"),
-        };
-    }
-    let Some(paper) = claim.paper else { return "measured (the paper gives no number)".into() };
-    let Some(ci) = e.ci else { return "one seed: no interval".into() };
+    let (paper, ci) = match (claim.paper, &claim.versus, e.ci) {
+        (None, None, _) => return "measured (the paper gives no number)".into(),
+        (_, _, None) => return "one seed: no interval".into(),
+        // A comparison of two variants without a number of the paper: is the difference outside its interval?
+        (None, Some(base), Some(ci)) if e.mean.abs() > ci => return format!("differs from `{base}`: the 95 % CI excludes 0"),
+        (None, Some(base), Some(_)) => return format!("no difference from `{base}` detected"),
+        (Some(paper), _, Some(ci)) => (paper, ci),
+    };
     let change = matches!(claim.quantity, Quantity::DosChange | Quantity::DoaChange | Quantity::CatchesChange);
     if (e.mean - paper).abs() <= ci {
         "holds: the paper's value is inside the 95 % CI".into()
@@ -269,14 +273,14 @@ pub fn aggregate(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> Result<Ve
         for v in &exp.spec.variants {
             let runs = of_variant(&v.name);
             for (name, q) in &quantities {
-                if let Some(e) = estimate(&runs.iter().map(|d| quantity(exp, d, q)).filter(|x| x.is_finite()).collect::<Vec<_>>()) {
+                if let Some(e) = estimate(&values(exp, &runs, q)) {
                     let ci = e.ci.map_or(String::new(), |c| c.to_string());
                     writeln!(means, "{},{},{name},{},{},{ci}", csv_text(preset), csv_text(&v.name), e.n, e.mean).unwrap();
                 }
             }
         }
         for claim in &exp.spec.claims {
-            let samples = |variant: &str| -> Vec<f64> { of_variant(variant).iter().map(|d| quantity(exp, d, &claim.quantity)).filter(|x| x.is_finite()).collect() };
+            let samples = |variant: &str| values(exp, &of_variant(variant), &claim.quantity);
             let e = match &claim.versus {
                 Some(base) => difference(&samples(&claim.variant), &samples(base)),
                 None => estimate(&samples(&claim.variant)),
@@ -343,16 +347,17 @@ fn figures<'a>(exp: &Experiment, preset: &str, prey: &str, of_variant: &dyn Fn(&
             (format!("DoS of {prey}: change over training"), format!("DoS, last − first {WINDOW} episodes"), Quantity::DosChange),
             ("catches: change over training".into(), format!("catches per episode, last − first {WINDOW} episodes"), Quantity::CatchesChange),
         ];
-        for e in exp.spec.evaluations.iter().filter(|e| super::seeing_partner(&exp.spec.evaluations, &e.name).is_some()) {
-            let seeing = &super::seeing_partner(&exp.spec.evaluations, &e.name).expect("filtered").name;
-            compared.push((format!("{seeing}: DoA seeing − {e}", e = e.name), format!("DoA difference, last {SETTLED_STEPS} steps"), Quantity::InteractionDoa(e.name.clone())));
+        for e in &exp.spec.evaluations {
+            if let Some(seeing) = super::seeing_partner(&exp.spec.evaluations, &e.name) {
+                let title = format!("{}: DoA seeing − {}", seeing.name, e.name);
+                compared.push((title, format!("DoA difference, last {SETTLED_STEPS} steps"), Quantity::InteractionDoa(e.name.clone())));
+            }
         }
         let panels: Vec<EstimatePanel> = compared
             .into_iter()
             .map(|(what, x_label, q)| {
                 let rows = exp.spec.variants.iter().map(|v| {
-                    let samples: Vec<f64> = of_variant(&v.name).iter().map(|d| quantity(exp, d, &q)).filter(|x| x.is_finite()).collect();
-                    let e = estimate(&samples);
+                    let e = estimate(&values(exp, &of_variant(&v.name), &q));
                     let label = format!("{} ({})", v.name, e.map_or(0, |e| e.n));
                     Row { label, mean: e.map_or(f64::NAN, |e| e.mean), ci: e.and_then(|e| e.ci) }
                 });

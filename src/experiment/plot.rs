@@ -85,7 +85,7 @@ pub fn svg(panels: &[Panel]) -> Result<String, String> {
 }
 
 /// A figure of estimates, two panels to a row, as SVG text.
-pub fn estimates_svg(panels: &[EstimatePanel]) -> Result<String, String> {
+fn estimates_svg(panels: &[EstimatePanel]) -> Result<String, String> {
     let rows = panels.iter().map(|p| p.rows.len()).max().unwrap_or(1) as u32;
     figure(panels, 2, (ESTIMATE_PANEL_WIDTH, (90 + ESTIMATE_ROW_HEIGHT * rows).max(240)), &draw_estimates)
 }

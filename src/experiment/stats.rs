@@ -36,13 +36,11 @@ pub struct Estimate {
 pub fn estimate(samples: &[f64]) -> Option<Estimate> {
     let n = samples.len();
     let m = mean(samples)?;
-    let ci = (n >= 2).then(|| {
-        let var = samples.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1) as f64;
-        t95(n - 1) * (var / n as f64).sqrt()
-    });
+    let ci = (n >= 2).then(|| t95(n - 1) * (variance(samples, m) / n as f64).sqrt());
     Some(Estimate { mean: m, ci, n })
 }
 
+/// The sample variance (n − 1 in the denominator) about the samples' mean `m`.
 fn variance(samples: &[f64], m: f64) -> f64 {
     samples.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (samples.len() - 1) as f64
 }
