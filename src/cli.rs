@@ -19,7 +19,7 @@ use crate::sim::species::SpeciesPlugins;
 /// headless mode, it opens the window. Scenes are RON files under scenes/ (see README, "Scenes").
 /// A flag the chosen mode does not use is refused, never ignored.
 #[derive(Parser, Debug, Clone)]
-#[command(name = "coevo", version, about, long_about = None)]
+#[command(name = "coevo", version, about, long_about = None, allow_negative_numbers = true)]
 #[command(group(ArgGroup::new("mode").args(["train", "resume", "eval", "record", "animate", "bench", "experiment", "plot", "describe_scene"]).multiple(false)))]
 struct Cli {
     /// Scene file to run [default: scenes/standard.ron].
@@ -268,6 +268,9 @@ pub fn main(species: SpeciesPlugins) -> ExitCode {
         Err(e) => return fail(e.to_string().lines().next().unwrap_or("").trim_start_matches("error: ")),
     };
     let mode = RunMode::of(&cli);
+    if mode != RunMode::Viewer {
+        crate::io::install_signal_cleanup();
+    }
     let command = Cli::command();
     let is_arg = |id: &str| command.get_arguments().any(|a| a.get_id().as_str() == id);
     let given = matches
@@ -440,7 +443,7 @@ const RESULTS: &str = "results";
 /// `--experiment FILE|all`: run, evaluate and aggregate; then REPRODUCTION.md from every experiment's
 /// results so far.
 fn experiment(cli: &Cli) -> Result<(), String> {
-    use crate::experiment::{runner, Experiment};
+    use crate::experiment::{aggregate, runner, Experiment};
     let which = cli.experiment.as_deref().expect("experiment mode");
     let files = match which {
         "all" => Experiment::files(Path::new(EXPERIMENTS))?,
@@ -448,10 +451,17 @@ fn experiment(cli: &Cli) -> Result<(), String> {
     };
     let experiments = files.iter().map(|f| Experiment::load(f, Path::new(RESULTS))).collect::<Result<Vec<_>, _>>()?;
     at_least_one("--jobs", cli.jobs)?;
-    if cli.task.is_some() && experiments.len() != 1 {
-        return Err("--task: names a run of one experiment file, not of `all`".into());
+    if let Some(task) = cli.task {
+        match experiments.as_slice() {
+            [exp] if task < exp.runs.len() => {}
+            [exp] => return Err(format!("--task {task}: {} has runs 0 to {}", exp.file.display(), exp.runs.len() - 1)),
+            _ => return Err("--task: names a run of one experiment file, not of `all`".into()),
+        }
     }
     if cli.emit_slurm {
+        if cli.task.is_some() {
+            return Err("--task: not used by --emit-slurm, which writes a job for every run".into());
+        }
         let exe = std::env::current_exe().map_err(|e| format!("cannot find the coevo binary: {e}"))?;
         for exp in &experiments {
             let dir = runner::emit_slurm(exp, &exe.to_string_lossy())?;
@@ -464,17 +474,35 @@ fn experiment(cli: &Cli) -> Result<(), String> {
         jobs: cli.jobs.unwrap_or(2),
         progress: !cli.quiet,
     };
-    let mut failed = None;
+    // Every experiment is attempted; the one error line names the first failure.
+    let failed: Vec<String> = experiments.iter().filter_map(|exp| runner::run(exp, &opts, cli.task).err()).collect();
+    if let Some(first) = failed.first() {
+        let others = match failed.len() {
+            1 => String::new(),
+            n => format!("; {} more experiments failed", n - 1),
+        };
+        return Err(format!("{first}{others} (REPRODUCTION.md left as it was)"));
+    }
+    if cli.task.is_some() {
+        return Ok(());
+    }
+    // REPRODUCTION.md covers the project's experiment files; another file's experiment reports alone.
+    if which == "all" || experiments.iter().all(|e| in_experiments_folder(&e.file)) {
+        return write_reproduction();
+    }
     for exp in &experiments {
-        if let Err(e) = runner::run(exp, &opts, cli.task) {
-            eprintln!("coevo: {e}");
-            failed.get_or_insert(e);
-        }
+        let claims = aggregate::aggregate(exp, &aggregate::load(exp)?)?;
+        eprintln!("coevo: wrote {}/summary.csv, summary-mean.csv and figures/ ({} claims checked)", exp.root.display(), claims.len());
     }
-    if cli.task.is_none() {
-        write_reproduction()?;
-    }
-    failed.map_or(Ok(()), Err)
+    Ok(())
+}
+
+/// Whether an experiment file is one of the project's (in ./experiments), whose results REPRODUCTION.md
+/// gathers.
+fn in_experiments_folder(file: &Path) -> bool {
+    let folder = |p: &Path| std::fs::canonicalize(p).ok();
+    let parent = file.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    folder(parent).is_some_and(|p| Some(p) == folder(Path::new(EXPERIMENTS)))
 }
 
 /// Summaries and figures of every experiment with finished runs, and REPRODUCTION.md over all of them.
@@ -501,7 +529,7 @@ fn plot(dir: &Path) -> Result<(), String> {
     if dir == Path::new("all") {
         return write_reproduction();
     }
-    if crate::train::is_run(dir) {
+    if crate::run::is_run(dir) {
         let path = crate::experiment::aggregate::plot_run(dir)?;
         eprintln!("coevo: wrote {}", path.display());
         return Ok(());
@@ -513,7 +541,11 @@ fn plot(dir: &Path) -> Result<(), String> {
     }
     let results = dir.parent().unwrap_or(Path::new("."));
     let exp = Experiment::load(&file, results)?;
-    let claims = aggregate::aggregate(&exp, &aggregate::load(&exp)?)?;
+    let data = aggregate::load(&exp)?;
+    if data.is_empty() {
+        return Err(format!("--plot {}: no finished run of {} there; nothing written", dir.display(), file.display()));
+    }
+    let claims = aggregate::aggregate(&exp, &data)?;
     eprintln!("coevo: wrote {}/summary.csv, summary-mean.csv and figures/ ({} claims checked)", exp.root.display(), claims.len());
     Ok(())
 }
@@ -522,7 +554,10 @@ fn plot(dir: &Path) -> Result<(), String> {
 /// every species acting exactly as in --eval (trained actors without noise); the steps to run; and a
 /// note saying which actors drive it.
 fn deployed(cli: &Cli, standard: &Path) -> Result<(crate::sim::Simulation, usize, String), String> {
-    let default = cli.run.as_ref().map_or(standard.to_path_buf(), |r| r.join("scene.ron"));
+    if let Some(run) = &cli.run {
+        crate::run::RunDir::new(run).check_plugins()?;
+    }
+    let default = cli.run.as_ref().map_or(standard.to_path_buf(), |r| r.join(crate::run::SCENE));
     let (scene, source) = load_scene(cli, &default)?;
     let mut scene = with_counts(cli, scene, &source)?;
     let steps = cli.steps.unwrap_or(scene.episode_steps);
@@ -565,7 +600,10 @@ fn viewer(cli: &Cli) -> Result<(), String> {
         return Err("--watch: shows a run in its own scene; it does not combine with --scene or --rules".into());
     }
     let (default, mode) = match &cli.watch {
-        Some(run) => (run.join("scene.ron"), ViewMode::Watch(run.clone())),
+        Some(run) => {
+            crate::run::RunDir::new(run).check_plugins()?;
+            (run.join(crate::run::SCENE), ViewMode::Watch(run.clone()))
+        }
         None => {
             (PathBuf::from("scenes/standard.ron"), if cli.rules { ViewMode::RuleBased } else { ViewMode::LiveTraining })
         }

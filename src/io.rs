@@ -7,12 +7,88 @@
 //! - A file the user names (`--record OUT.csv`, `--screenshot`) is never overwritten unless they say
 //!   `--overwrite` ([`Existing`]); coevo's own files inside a run folder (metrics, checkpoints, eval) are
 //!   replaced as the run goes.
-//! - Inputs are read with a size limit, so a scene path pointing at something endless (`/dev/zero`) stops
-//!   with an error instead of filling memory ([`read_text`]).
+//! - Inputs are read with a size limit, and only from regular files, so a scene path pointing at something
+//!   endless (`/dev/zero`) or blocking (a FIFO) stops with an error instead of filling memory or hanging
+//!   ([`read_text`]).
+//! - Temporaries are registered while they live: SIGINT, SIGTERM and SIGHUP remove them before coevo exits
+//!   ([`install_signal_cleanup`]), and those of a killed process (its PID no longer alive) are removed by the
+//!   next write of the same target ([`AtomicFile::create`]) or the next use of a run folder.
 
 use std::fs::File;
 use std::io::{self, BufWriter, Read, Write};
 use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+
+/// Temporary files and folders of this process that a signal must not leave behind.
+static LIVE_TEMPORARIES: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
+/// Registers a temporary file or folder (and the lock files of [`crate::run`]) for removal on a signal.
+pub fn register_temporary(path: &Path) {
+    LIVE_TEMPORARIES.lock().unwrap_or_else(|e| e.into_inner()).push(path.to_path_buf());
+}
+
+/// Forgets a temporary: it was renamed into place or removed.
+pub fn unregister_temporary(path: &Path) {
+    LIVE_TEMPORARIES.lock().unwrap_or_else(|e| e.into_inner()).retain(|p| p != path);
+}
+
+/// Removes every registered temporary (folders whole).
+fn remove_live_temporaries() {
+    for path in LIVE_TEMPORARIES.lock().unwrap_or_else(|e| e.into_inner()).drain(..) {
+        match std::fs::symlink_metadata(&path) {
+            Ok(m) if m.is_dir() => drop(std::fs::remove_dir_all(&path)),
+            Ok(_) => drop(std::fs::remove_file(&path)),
+            Err(_) => {}
+        }
+    }
+}
+
+/// On SIGINT, SIGTERM or SIGHUP: remove this process's temporaries and lock files, then exit with 130
+/// (the shell's code for an interrupted command). Headless modes only: the viewer keeps Bevy's handler.
+pub fn install_signal_cleanup() {
+    let _ = ctrlc::set_handler(|| {
+        remove_live_temporaries();
+        // Not eprintln!: stderr may be a pipe to a parent that is gone, and a panic here would keep the
+        // process alive without its handler.
+        let _ = writeln!(io::stderr(), "coevo: interrupted; temporary files removed, finished work kept");
+        std::process::exit(130);
+    });
+}
+
+/// Whether a process with this PID exists (a PID that is ours is alive; `kill(pid, 0)` asks without
+/// sending anything, EPERM means it exists under another user).
+pub fn process_alive(pid: u32) -> bool {
+    if pid == std::process::id() {
+        return true;
+    }
+    let Ok(pid) = libc::pid_t::try_from(pid) else { return false };
+    // SAFETY: signal 0 only checks that the process exists.
+    let r = unsafe { libc::kill(pid, 0) };
+    r == 0 || io::Error::last_os_error().raw_os_error() == Some(libc::EPERM)
+}
+
+/// The PID in a temporary's name `.NAME.PID.tmp` ([`temporary_beside`]), with NAME.
+fn temporary_owner(file_name: &str) -> Option<(&str, u32)> {
+    let rest = file_name.strip_prefix('.')?.strip_suffix(".tmp")?;
+    let (name, pid) = rest.rsplit_once('.')?;
+    Some((name, pid.parse().ok()?))
+}
+
+/// Removes the temporaries in `dir` left by processes that no longer run (killed mid-write), for every
+/// target, or only for `target` (a file name) when given. Returns how many were removed.
+pub fn remove_stale_temporaries(dir: &Path, target: Option<&str>) -> usize {
+    let Ok(entries) = std::fs::read_dir(dir) else { return 0 };
+    let mut removed = 0;
+    for entry in entries.flatten() {
+        let name = entry.file_name().to_string_lossy().into_owned();
+        let Some((of, pid)) = temporary_owner(&name) else { continue };
+        let is_file = entry.file_type().is_ok_and(|t| t.is_file());
+        if is_file && target.is_none_or(|t| t == of) && !process_alive(pid) && std::fs::remove_file(entry.path()).is_ok() {
+            removed += 1;
+        }
+    }
+    removed
+}
 
 /// What to do when the target of a write already exists.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -51,8 +127,13 @@ impl AtomicFile {
     /// Starts writing `path`, after checking that it may be written ([`check_target`]).
     pub fn create(path: &Path, existing: Existing) -> io::Result<AtomicFile> {
         check_target(path, existing)?;
+        if let Some(name) = path.file_name() {
+            let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+            remove_stale_temporaries(dir, Some(&name.to_string_lossy()));
+        }
         let tmp = temporary_beside(path);
         let out = BufWriter::new(File::create(&tmp)?);
+        register_temporary(&tmp);
         Ok(AtomicFile { target: path.to_path_buf(), tmp, out: Some(out) })
     }
 
@@ -67,7 +148,12 @@ impl AtomicFile {
         out.flush()?;
         out.get_ref().sync_all()?;
         drop(out);
-        std::fs::rename(&self.tmp, &self.target)
+        let renamed = std::fs::rename(&self.tmp, &self.target);
+        if renamed.is_err() {
+            let _ = std::fs::remove_file(&self.tmp);
+        }
+        unregister_temporary(&self.tmp);
+        renamed
     }
 }
 
@@ -75,6 +161,7 @@ impl Drop for AtomicFile {
     fn drop(&mut self) {
         if self.out.take().is_some() {
             let _ = std::fs::remove_file(&self.tmp);
+            unregister_temporary(&self.tmp);
         }
     }
 }
@@ -114,6 +201,11 @@ pub const MAX_TEXT_BYTES: u64 = 64 << 20;
 /// Reads a UTF-8 text file of at most `limit` bytes; a leading byte-order mark is dropped. Errors say
 /// what is wrong in a user's words.
 pub fn read_text(path: &Path, limit: u64) -> Result<String, String> {
+    // Asked before opening: opening a FIFO blocks until a writer comes, a device may never end.
+    let meta = std::fs::metadata(path).map_err(|e| format!("cannot read: {e}"))?;
+    if !meta.is_file() {
+        return Err("is not a regular file (a folder, pipe or device); coevo reads its inputs from files".into());
+    }
     let file = File::open(path).map_err(|e| format!("cannot read: {e}"))?;
     let mut bytes = Vec::new();
     file.take(limit + 1).read_to_end(&mut bytes).map_err(|e| format!("cannot read: {e}"))?;
@@ -126,17 +218,52 @@ pub fn read_text(path: &Path, limit: u64) -> Result<String, String> {
     Ok(text.strip_prefix('\u{feff}').map(str::to_string).unwrap_or(text))
 }
 
-/// This machine's memory in bytes (`MemTotal` of /proc/meminfo), or 1 TB where that cannot be read:
-/// what sizes are validated against before anything is allocated.
+/// The memory coevo may use, in bytes: the least of what the machine has free (`MemAvailable`), the
+/// limit of its cgroup (v2 `memory.max`, v1 `memory.limit_in_bytes`) and the address space left under
+/// `ulimit -v` (`RLIMIT_AS` minus what the process already maps), or 1 TB where none can be read. Sizes
+/// are validated against it before anything is allocated, so a limit is one error line, never an abort.
 pub fn memory_bytes() -> f64 {
-    std::fs::read_to_string("/proc/meminfo")
-        .ok()
-        .and_then(|m| {
-            m.lines()
-                .find(|l| l.starts_with("MemTotal:"))
-                .and_then(|l| l.split_whitespace().nth(1)?.parse::<f64>().ok())
-        })
-        .map_or(1e12, |kib| kib * 1024.0)
+    [mem_available(), cgroup_limit(), address_space_left()].into_iter().flatten().fold(1e12, f64::min)
+}
+
+/// A `Key: N kB` line of a /proc file, in bytes.
+fn proc_kib(file: &str, key: &str) -> Option<f64> {
+    let text = std::fs::read_to_string(file).ok()?;
+    let line = text.lines().find(|l| l.starts_with(key))?;
+    Some(line.split_whitespace().nth(1)?.parse::<f64>().ok()? * 1024.0)
+}
+
+fn mem_available() -> Option<f64> {
+    proc_kib("/proc/meminfo", "MemAvailable:")
+}
+
+/// The memory limit of this process's cgroup, where it has one.
+fn cgroup_limit() -> Option<f64> {
+    let groups = std::fs::read_to_string("/proc/self/cgroup").ok()?;
+    let read = |file: String| std::fs::read_to_string(file).ok()?.trim().parse::<f64>().ok();
+    groups.lines().find_map(|line| {
+        let mut parts = line.splitn(3, ':');
+        let (_, controllers, path) = (parts.next()?, parts.next()?, parts.next()?);
+        match controllers {
+            // cgroup v2: "max" (no limit) does not parse.
+            "" => read(format!("/sys/fs/cgroup{path}/memory.max")),
+            c if c.split(',').any(|c| c == "memory") => {
+                read(format!("/sys/fs/cgroup/memory{path}/memory.limit_in_bytes")).filter(|&b| b < 1e18)
+            }
+            _ => None,
+        }
+    })
+}
+
+/// What `ulimit -v` leaves this process to map.
+fn address_space_left() -> Option<f64> {
+    let mut limit = libc::rlimit { rlim_cur: 0, rlim_max: 0 };
+    // SAFETY: getrlimit writes the struct it is given.
+    if unsafe { libc::getrlimit(libc::RLIMIT_AS, &mut limit) } != 0 || limit.rlim_cur == libc::RLIM_INFINITY {
+        return None;
+    }
+    let mapped = proc_kib("/proc/self/status", "VmSize:").unwrap_or(0.0);
+    Some((limit.rlim_cur as f64 - mapped).max(0.0))
 }
 
 #[cfg(test)]

@@ -7,6 +7,7 @@
 //! | `scene.rs` | scenes: presets, patches, validation |
 //! | `sim/` | the simulation core (components, space, physics, perception, reward, metrics, collective measures, episodes, species, policies) and [`Simulation`]; one fixed step is the chain of [`SimSet`]s (see [`sim`]) |
 //! | `learning/` | Algorithm 1 (DDPG) as a plugin on dfdx, checkpoints |
+//! | `run/` | a run folder: its names, reserved outputs, lock, provenance |
 //! | `train.rs`, `record.rs`, `animate.rs`, `bench.rs`, `experiment/` | the run modes and the experiment layer |
 //! | `viewer/` | the window (`--features viewer`) |
 //! | `cli.rs` | the command line (`main.rs` and examples call [`cli::main`]) |
@@ -20,6 +21,7 @@ pub mod io;
 pub mod learning;
 pub mod parallel;
 pub mod record;
+pub mod run;
 pub mod scene;
 pub mod sim;
 pub mod svg;

@@ -517,6 +517,12 @@ impl Scene {
         for (i, s) in self.species.iter().enumerate() {
             let f = |name: &str| format!("species[{}].{name}", s.name);
             check(!s.name.is_empty(), &format!("species[{i}].name"), || "must not be empty".into())?;
+            // Names become CSV column names (dos_prey, catches_by_hawk) and file names (prey-actor.safetensors).
+            check(
+                s.name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-'),
+                &format!("species[{i}].name"),
+                || format!("{:?}: use letters, digits, _ and - only (it names CSV columns and checkpoint files)", s.name),
+            )?;
             check(self.species.iter().filter(|o| o.name == s.name).count() == 1, &f("name"), || {
                 format!("species name {:?} appears twice", s.name)
             })?;
@@ -644,7 +650,7 @@ impl Scene {
         let registry = crate::sim::species::SpeciesRegistry::from_scene(self);
         let gb = |b: f64| format!("{:.1} GB", b / 1e9);
         let refuse = |field: String, what: String, bytes: f64| {
-            Err((field, format!("{what} would need {}, more than this machine's {} of memory", gb(bytes), gb(limit))))
+            Err((field, format!("{what} would need {}, more than the {} of memory coevo may use here (the least of free memory, the cgroup limit and ulimit -v)", gb(bytes), gb(limit))))
         };
         let mut total = 0.0;
         for (s, def) in self.species.iter().enumerate() {

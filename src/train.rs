@@ -3,7 +3,8 @@
 //! A run folder holds `scene.ron` (the resolved scene), `metrics.csv` (one row per episode) and
 //! `checkpoint/` (see `learning::checkpoint`). `--eval` adds `eval.csv` (one row per time step).
 
-use crate::sim::episode::{Episode, SimRng};
+use crate::run::RunDir;
+use crate::sim::episode::{Episode, SimRng, SpawnedFrom};
 use crate::io::{AtomicFile, Existing};
 use crate::learning::checkpoint::{self, SpeciesState, TrainingState};
 use crate::learning::{Learners, LearningPlugin, Mode};
@@ -140,60 +141,49 @@ fn io_err(path: &Path) -> impl Fn(std::io::Error) -> String + '_ {
     move |e| format!("{}: {e}", path.display())
 }
 
-/// The files and folders coevo writes in a run folder; nothing else in it is ever touched.
-const RUN_FILES: [&str; 3] = ["scene.ron", "metrics.csv", "eval.csv"];
-const CHECKPOINT_DIRS: [&str; 3] = ["checkpoint", "checkpoint.tmp", "checkpoint.old"];
-
-/// Whether a folder holds a run (any of coevo's run files).
-pub fn is_run(dir: &Path) -> bool {
-    RUN_FILES.iter().chain(&CHECKPOINT_DIRS).any(|f| dir.join(f).exists())
+/// The wall_seconds of the last row of a metrics text (0 without rows).
+fn last_wall_seconds(metrics: &str) -> f64 {
+    let mut lines = metrics.lines();
+    let header: Vec<&str> = lines.next().unwrap_or("").split(',').collect();
+    let Some(col) = header.iter().position(|h| *h == "wall_seconds") else { return 0.0 };
+    lines.filter(|l| !l.is_empty()).last().and_then(|l| l.split(',').nth(col)?.parse().ok()).unwrap_or(0.0)
 }
 
-/// Makes `run` ready for a new run. A new or empty folder is used as it is. A folder that holds a run is
-/// refused unless `overwrite`, and then only coevo's own files are removed (after checking that its
-/// checkpoint folders hold nothing else). Any other non-empty folder is refused: coevo never writes into it.
-fn prepare_new_run(run: &Path, overwrite: bool) -> Result<(), String> {
-    let shown = run.display();
-    match std::fs::symlink_metadata(run) {
-        Err(_) => return Ok(()),
-        Ok(m) if !m.is_dir() => return Err(format!("{shown}: exists and is not a folder")),
-        Ok(_) => {}
-    }
-    let empty = std::fs::read_dir(run).map_err(io_err(run))?.next().is_none();
-    if empty {
-        return Ok(());
-    }
-    if !is_run(run) {
+/// Refuses a resume that could not continue the run as it was: its scene.ron edited since training
+/// began, a checkpoint whose metrics disagree with its episode count, or nothing left to train.
+fn check_resumable(run: &Path, scene: &Scene, state: &TrainingState, total: usize, asked: bool) -> Result<(), String> {
+    let (now, then) = (scene.to_ron(), state.scene.to_ron());
+    if now != then {
+        let line = now.lines().zip(then.lines()).find(|(a, b)| a != b).map_or_else(
+            || "its length".to_string(),
+            |(a, b)| format!("`{}` (trained with `{}`)", a.trim(), b.trim()),
+        );
         return Err(format!(
-            "{shown}: is not empty and holds no coevo run; coevo writes runs only into new or empty folders"
+            "{}: differs from the scene the run was trained on (checkpoint/state.ron), first at {line}; a run continues only under its own scene: restore the file or train a new run",
+            RunDir::new(run).scene().display()
         ));
     }
-    if !overwrite {
+    let rows: Vec<usize> = state.metrics_csv.lines().skip(1).filter(|l| !l.is_empty()).map(|l| l.split(',').next().and_then(|e| e.parse().ok()).unwrap_or(usize::MAX)).collect();
+    if rows != (0..state.episodes_done).collect::<Vec<_>>() {
         return Err(format!(
-            "{shown}: already holds a run; continue it with --resume {shown}, or replace it with --overwrite"
-        ));
-    }
-    for dir in CHECKPOINT_DIRS.iter().map(|d| run.join(d)).filter(|d| d.exists()) {
-        for entry in std::fs::read_dir(&dir).map_err(io_err(&dir))? {
-            let entry = entry.map_err(io_err(&dir))?;
-            let name = entry.file_name().to_string_lossy().into_owned();
-            let ours = entry.file_type().is_ok_and(|t| t.is_file())
-                && (name.ends_with(".safetensors")
-                    || name == "state.ron"
-                    || (name.starts_with('.') && name.ends_with(".tmp")));
-            if !ours {
-                return Err(format!(
-                    "{}: not a file coevo wrote; --overwrite removes only coevo's files, so move it first",
-                    entry.path().display()
-                ));
+            "{}: damaged checkpoint: episodes_done is {} but its metrics hold episodes {}; restore the checkpoint or train the run again",
+            RunDir::new(run).checkpoint().join("state.ron").display(),
+            state.episodes_done,
+            match (rows.first(), rows.last()) {
+                (Some(a), Some(b)) => format!("{a}..={b} ({} rows)", rows.len()),
+                _ => "none".to_string(),
             }
-        }
+        ));
     }
-    for dir in CHECKPOINT_DIRS.iter().map(|d| run.join(d)).filter(|d| d.exists()) {
-        std::fs::remove_dir_all(&dir).map_err(io_err(&dir))?;
-    }
-    for file in RUN_FILES.iter().map(|f| run.join(f)).filter(|f| f.exists()) {
-        std::fs::remove_file(&file).map_err(io_err(&file))?;
+    if total <= state.episodes_done {
+        let why = if asked { format!("--episodes {total} asks for no more") } else { "its scene's episodes are all done".to_string() };
+        return Err(format!(
+            "{}: already trained {} episodes and {why}; extend it with --resume {} --episodes N (N > {})",
+            run.display(),
+            state.episodes_done,
+            run.display(),
+            state.episodes_done
+        ));
     }
     Ok(())
 }
@@ -202,39 +192,59 @@ fn prepare_new_run(run: &Path, overwrite: bool) -> Result<(), String> {
 /// validated and loaded before the run folder is created or touched.
 pub fn train(scene: Scene, opts: &TrainOptions) -> Result<Vec<EpisodeSummary>, String> {
     let run = &opts.run;
-    let scene = if opts.resume {
-        if !is_run(run) {
+    let dir = RunDir::new(run);
+    if opts.resume {
+        if !dir.is_run() {
             return Err(format!("{}: holds no coevo run to resume", run.display()));
         }
-        Scene::load(&run.join("scene.ron")).map_err(|e| e.to_string())?
+        dir.check_plugins()?;
     } else {
-        scene
-    };
+        dir.check_new(opts.overwrite)?;
+    }
+    // One process per run: a resume takes it before reading what another process may be writing; a new
+    // run once everything is validated and loaded, so a refused scene leaves no folder behind.
+    let mut lock = if opts.resume { Some(dir.lock()?) } else { None };
+    let scene = if opts.resume { Scene::load(&dir.scene()).map_err(|e| e.to_string())? } else { scene };
     scene.validate().map_err(|(f, m)| format!("{}: {f}: {m}", run.display()))?;
     let total = opts.episodes.unwrap_or(scene.episodes);
     if total == 0 {
         return Err("--episodes: must be ≥ 1".into());
     }
     let mut sim = learning_simulation(scene.clone(), Mode::Train, None)?;
+    if lock.is_none() {
+        lock = Some(dir.lock()?);
+    }
+    let _lock = lock;
     let registry = sim.world().resource::<SpeciesRegistry>().clone();
     let names: Vec<String> = registry.defs.iter().map(|d| d.name.clone()).collect();
-    let metrics_path = run.join("metrics.csv");
+    let metrics_path = dir.metrics();
     let mut metrics_text: String;
+    // Seconds trained before this invocation: wall_seconds counts the run's whole training time.
+    let mut wall_before = 0.0;
     if opts.resume {
         let world = sim.world_mut();
         let state = {
             let mut learners = world.resource_mut::<Learners>();
             checkpoint::load(run, &mut learners.species, &names)?
         };
-        world.resource_mut::<SimRng>().0 = state.sim_rng.clone();
+        check_resumable(run, &scene, &state, total, opts.episodes.is_some())?;
+        world.resource_mut::<SimRng>().0 = state.spawn_rng.clone().unwrap_or_else(|| state.sim_rng.clone());
         world.resource_mut::<Episode>().index = state.episodes_done;
         crate::sim::episode::spawn_population(world);
+        if state.spawn_rng.is_none() || state.species.iter().flatten().any(|s| s.transitions.is_none()) {
+            eprintln!(
+                "coevo: {}: checkpoint of an older coevo (no replay buffers or spawn state): the resumed run refills its buffers and differs from an uninterrupted one",
+                run.display()
+            );
+        }
         // A run begun by an older coevo keeps its rows, under today's columns (new ones blank).
         metrics_text = with_header(&state.metrics_csv, &metrics_header(&registry, world.resource::<Learners>()));
+        wall_before = last_wall_seconds(&metrics_text);
     } else {
-        prepare_new_run(run, opts.overwrite)?;
-        std::fs::create_dir_all(run).map_err(io_err(run))?;
-        crate::io::write_file(&run.join("scene.ron"), Existing::Replace, scene.to_ron().as_bytes())?;
+        dir.check_new(opts.overwrite)?;
+        dir.clear()?;
+        crate::io::write_file(&dir.scene(), Existing::Replace, scene.to_ron().as_bytes())?;
+        dir.write_provenance(&scene)?;
         let header = metrics_header(&registry, sim.world().resource::<Learners>());
         metrics_text = format!("{header}\n");
     }
@@ -261,6 +271,7 @@ pub fn train(scene: Scene, opts: &TrainOptions) -> Result<Vec<EpisodeSummary>, S
             scene: scene.clone(),
             episodes_done: world.resource::<Episode>().index,
             sim_rng: world.resource::<SimRng>().0.clone(),
+            spawn_rng: Some(world.resource::<SpawnedFrom>().0.clone()),
             species: species
                 .iter()
                 .zip(&names)
@@ -272,6 +283,7 @@ pub fn train(scene: Scene, opts: &TrainOptions) -> Result<Vec<EpisodeSummary>, S
                         actor_adam_step: l.ddpg.actor_opt.step,
                         critic_adam_step: l.ddpg.critic_opt.step,
                         rng: Some(l.rng.clone()),
+                        transitions: (!l.frozen).then_some(l.buffer.pushed),
                     })
                 })
                 .collect(),
@@ -295,7 +307,7 @@ pub fn train(scene: Scene, opts: &TrainOptions) -> Result<Vec<EpisodeSummary>, S
         let Some(summary) = sim.world_mut().resource_mut::<EpisodeLog>().episodes.pop() else {
             continue;
         };
-        let wall = started.elapsed().as_secs_f64();
+        let wall = wall_before + started.elapsed().as_secs_f64();
         let row = metrics_row(&summary, &registry, &mut sim.world_mut().resource_mut::<Learners>(), wall);
         writeln!(csv, "{row}").map_err(io_err(&metrics_path))?;
         metrics_text.push_str(&row);
@@ -305,7 +317,8 @@ pub fn train(scene: Scene, opts: &TrainOptions) -> Result<Vec<EpisodeSummary>, S
             save(&sim, None, &metrics_text)?;
         }
         if let Some(sw) = summary.swarming.get(prey).copied().flatten() {
-            bar.set_message(format!("DoS {:.3} DoA {:.3}  {:.0} steps/s", sw.dos, sw.doa, steps as f64 / wall));
+            let rate = steps as f64 / started.elapsed().as_secs_f64();
+            bar.set_message(format!("DoS {:.3} DoA {:.3}  {rate:.0} steps/s", sw.dos, sw.doa));
         }
         bar.set_position(done as u64);
         summaries.push(summary);
@@ -336,7 +349,13 @@ pub struct EvalOptions {
 /// Deploys a run's policies without noise and streams per-step DoS/DoA to `RUN/eval.csv` (replaced
 /// whole, when complete); returns the summary line.
 pub fn evaluate(opts: &EvalOptions) -> Result<String, String> {
-    let scene_path = opts.run.join("scene.ron");
+    let dir = RunDir::new(&opts.run);
+    let path = dir.eval_output(opts.out.as_deref())?;
+    if !dir.is_run() {
+        return Err(format!("{}: holds no coevo run to evaluate", opts.run.display()));
+    }
+    dir.check_plugins()?;
+    let scene_path = dir.scene();
     let mut scene = Scene::load(&scene_path).map_err(|e| e.to_string())?;
     for (name, n) in &opts.counts {
         scene.set_count(name, *n).map_err(|e| format!("{}: {e}", scene_path.display()))?;
@@ -354,18 +373,15 @@ pub fn evaluate(opts: &EvalOptions) -> Result<String, String> {
         return Err("--episodes: must be ≥ 1".into());
     }
     scene.validate().map_err(|(f, m)| format!("{}: {f}: {m}", opts.run.display()))?;
-    let file_name = opts.out.as_deref().unwrap_or("eval.csv");
-    if file_name.is_empty() || file_name.contains(['/', '\\']) || file_name.starts_with('.') || !file_name.ends_with(".csv") {
-        return Err(format!("--eval-out {file_name}: must be a plain file name ending in .csv (written inside the run folder)"));
-    }
     let mut sim = learning_simulation(scene.clone(), Mode::Evaluate, Some(&opts.run))?;
+    // Nobody else writes the run while it is evaluated (a training would swap its checkpoint).
+    let _lock = dir.lock()?;
     sim.world_mut().insert_resource(opts.control);
     // Each episode's last step is read before the next population is spawned.
     sim.world_mut().resource_mut::<Episode>().auto_reset = false;
     let registry = sim.world().resource::<SpeciesRegistry>().clone();
     let prey = headline_species(&registry);
     let name = &registry.defs[prey].name;
-    let path = opts.run.join(file_name);
     let write_err = |e: std::io::Error| format!("{}: {e}", path.display());
     let mut file = AtomicFile::create(&path, Existing::Replace).map_err(write_err)?;
     let columns: Vec<String> = Swarming::NAMES.iter().chain(&["edge_rank"]).map(|q| format!("{q}_{name}")).collect();
@@ -438,9 +454,9 @@ pub fn evaluate(opts: &EvalOptions) -> Result<String, String> {
     }
     file.commit().map_err(write_err)?;
     // The confusion curve last: the experiment runner takes its presence for a complete evaluation.
-    crate::io::write_file(&crate::io::beside(&path, "nn"), Existing::Replace, nn.as_bytes())?;
-    crate::io::write_file(&crate::io::beside(&path, "correlation"), Existing::Replace, correlation_csv.as_bytes())?;
-    crate::io::write_file(&crate::io::beside(&path, "confusion"), Existing::Replace, confusion.as_bytes())?;
+    for (what, text) in crate::run::EVAL_BESIDE.iter().zip([nn, correlation_csv, confusion]) {
+        crate::io::write_file(&crate::io::beside(&path, what), Existing::Replace, text.as_bytes())?;
+    }
     let counts: Vec<String> = registry.defs.iter().map(|d| format!("{} {}", d.count, d.name)).collect();
     let means = if n > 0 {
         let [dos, doa, polarization, milling, clusters, largest, c_nn] = sums.map(|v| v / n as f64);

@@ -65,6 +65,27 @@ fn workspace() -> tempfile::TempDir {
     bytes[8 + header + start..8 + header + start + 4].copy_from_slice(&f32::NAN.to_le_bytes());
     std::fs::write(&actor, bytes).unwrap();
 
+    // Runs that must not be resumed as they are: scene.ron edited after training, episodes_done lowered
+    // by hand, a species plugin this binary lacks, and one another live process holds.
+    for (run, file, from, to) in [
+        ("edited-run", "scene.ron", "max_speed: 0.5", "max_speed: 0.4"),
+        ("lowered-run", "checkpoint/state.ron", "episodes_done: 1", "episodes_done: 0"),
+    ] {
+        copy_dir(&root.join("run"), &root.join(run));
+        let path = root.join(run).join(file);
+        let text = std::fs::read_to_string(&path).unwrap();
+        assert!(text.contains(from), "{file} holds {from}");
+        std::fs::write(&path, text.replacen(from, to, 1)).unwrap();
+    }
+    copy_dir(&root.join("run"), &root.join("hawk-run"));
+    std::fs::write(root.join("hawk-run/provenance.ron"), "(coevo_version: \"0.1.0\", plugins: [\"hawk\"])\n").unwrap();
+    copy_dir(&root.join("run"), &root.join("busy-run"));
+    std::fs::write(root.join("busy-run/coevo.lock"), format!("{}\n", std::process::id())).unwrap();
+    std::fs::create_dir(root.join("experiments")).unwrap();
+    for (name, text) in EXPERIMENTS {
+        std::fs::write(root.join("experiments").join(format!("{name}.ron")), text).unwrap();
+    }
+
     std::fs::write(root.join("notes.csv"), "a user's file\n").unwrap();
     std::fs::write(root.join("notes.gif"), "a user's picture\n").unwrap();
     std::fs::create_dir(root.join("mine")).unwrap();
@@ -73,6 +94,36 @@ fn workspace() -> tempfile::TempDir {
     std::os::unix::fs::symlink(root.join("notes.csv"), root.join("link.csv")).unwrap();
     dir
 }
+
+fn copy_dir(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for entry in std::fs::read_dir(from).unwrap() {
+        let entry = entry.unwrap();
+        if entry.file_type().unwrap().is_dir() {
+            copy_dir(&entry.path(), &to.join(entry.file_name()));
+        } else {
+            std::fs::copy(entry.path(), to.join(entry.file_name())).unwrap();
+        }
+    }
+}
+
+/// Experiment files written into the workspace's experiments/, by name: each is refused at load, before
+/// anything is trained or written.
+const EXPERIMENTS: &[(&str, &str)] = &[
+    ("dotdot", r#"(base: "scenes/paper.ron", seeds: [1], variants: [(name: "..")])"#),
+    ("dot", r#"(base: "scenes/paper.ron", seeds: [1], variants: [(name: ".")])"#),
+    ("...", r#"(base: "scenes/paper.ron", seeds: [1], variants: [(name: "a")])"#),
+    ("no-presets", r#"(base: "scenes/paper.ron", presets: [], seeds: [1], variants: [(name: "a")])"#),
+    ("twin-presets", r#"(base: "scenes/paper.ron", presets: ["paper", "paper"], seeds: [1], variants: [(name: "a")])"#),
+    ("twin-seeds", r#"(base: "scenes/paper.ron", seeds: [1, 2, 1], variants: [(name: "a")])"#),
+    ("no-episodes", r#"(base: "scenes/paper.ron", seeds: [1], episodes: 0, variants: [(name: "a")])"#),
+    ("nan-claim", r#"(base: "scenes/paper.ron", seeds: [1], variants: [(name: "a")], claims: [(text: "t", variant: "a", quantity: DoaLast, paper: NaN)])"#),
+    ("inf-claim", r#"(base: "scenes/paper.ron", seeds: [1], variants: [(name: "a")], claims: [(text: "t", variant: "a", quantity: DoaLast, paper: inf)])"#),
+    ("radius", r#"(base: "scenes/paper.ron", seeds: [1], variants: [(name: "a")], evaluations: [(name: "x", confusion_radius: -1.0)])"#),
+    ("collide", r#"(base: "scenes/paper.ron", seeds: [1], variants: [(name: "a")], evaluations: [(name: "x"), (name: "x-confusion")])"#),
+    ("comma", r#"(base: "scenes/paper.ron", seeds: [1], variants: [(name: "a", patch: (species: [(name: "pr,ey", count: 2, mass: 1.0, radius: 0.03, max_speed: 0.5, max_thrust: 1.0, max_turn_rate: 0.5, perception: Full, topological_limit: 6, colour: (0.1, 0.1, 0.1), catches: [], policy: Random)]))])"#),
+    ("fine", r#"(base: "scenes/paper.ron", seeds: [1, 2], variants: [(name: "a")])"#),
+];
 
 /// Scenes written into the workspace for the cases below, by name.
 const SCENES: &[(&str, &str)] = &[
@@ -96,6 +147,7 @@ const SCENES: &[(&str, &str)] = &[
     ("truncated", "(\n  seed: 3,\n  species: [(name: \"prey\", count: 2)\n"),
     ("frozen-missing", r#"(species: [(name: "prey", policy: Frozen("no-such-run"))])"#),
     ("unknown-field", "(world: (gravity: 9.81))"),
+    ("comma", r#"(species: [(name: "prey", count: 3), (name: "pr,ey", count: 2, mass: 1.0, radius: 0.03, max_speed: 0.5, max_thrust: 1.0, max_turn_rate: 0.5, perception: Full, topological_limit: 6, colour: (0.1, 0.1, 0.1), catches: [], policy: Random)])"#),
 ];
 
 /// (arguments, what the one error line must contain).
@@ -126,7 +178,7 @@ fn cases() -> Vec<(Vec<&'static str>, &'static str)> {
         (vec!["--train", "--scene", "hidden.ron"], "learning.hidden: networks of width 100000000"),
         (vec!["--train", "--scene", "batch.ron"], "learning.batch_size: mini-batches of 100000000000"),
         (vec!["--train", "--scene", "buffer.ron"], "learning.buffer_capacity: a replay buffer of"),
-        (vec!["--train", "--scene", "/dev/zero"], "/dev/zero: is larger than 1 MiB"),
+        (vec!["--train", "--scene", "/dev/zero"], "/dev/zero: is not a regular file"),
         (vec!["--record", "out.csv", "--threads", "0"], "--threads: must be ≥ 1"),
         (vec!["--animate", "clip.png"], "--animate clip.png: the file must end in .gif"),
         (vec!["--animate", "notes.gif"], "notes.gif: already exists; choose a new name or pass --overwrite"),
@@ -160,6 +212,40 @@ fn cases() -> Vec<(Vec<&'static str>, &'static str)> {
         (vec!["--train", "--scene", "truncated.ron"], "the file ends too early"),
         (vec!["--train", "--scene", "unknown-field.ron"], "gravity"),
         (vec!["--train", "--scene", "binary.ron"], "binary.ron: is not UTF-8 text"),
+        (vec!["--train", "--episodes", "-1"], "invalid value '-1' for '--episodes <N>'"),
+        (vec!["--describe-scene", "comma.ron"], "species[2].name: \"pr,ey\": use letters, digits, _ and - only"),
+        // A run continues only as the run it is: its own scene, its own episodes, its own plugins, one
+        // process at a time.
+        (vec!["--resume", "edited-run", "--episodes", "3"], "edited-run/scene.ron: differs from the scene the run was trained on"),
+        (vec!["--resume", "lowered-run", "--episodes", "3"], "damaged checkpoint: episodes_done is 0 but its metrics hold episodes 0..=0"),
+        (vec!["--resume", "run", "--episodes", "1"], "run: already trained 1 episodes and --episodes 1 asks for no more"),
+        (vec!["--resume", "hawk-run", "--episodes", "3"], "hawk-run: the run needs the species plugin \"hawk\""),
+        (vec!["--eval", "hawk-run"], "the run needs the species plugin \"hawk\""),
+        (vec!["--record", "out.csv", "--run", "hawk-run"], "the run needs the species plugin \"hawk\""),
+        (vec!["--resume", "busy-run", "--episodes", "3"], "busy-run: in use by coevo process"),
+        (vec!["--eval", "busy-run"], "busy-run: in use by coevo process"),
+        // A user-chosen output never takes a run's own name or another evaluation's.
+        (vec!["--eval", "run", "--eval-out", "metrics.csv"], "--eval-out metrics.csv: is one of the run's own files"),
+        (vec!["--eval", "run", "--eval-out", "scene.csv"], "--eval-out scene.csv: is one of the run's own files"),
+        (vec!["--eval", "run", "--eval-out", "x-confusion.csv"], "ends in -confusion, the name of another evaluation's confusion file"),
+        (vec!["--eval", "run", "--eval-out", "../x.csv"], "--eval-out ../x.csv: must be a single name"),
+        // Experiment files are checked whole before anything runs.
+        (vec!["--experiment", "experiments/dotdot.ron"], "experiments/dotdot.ron: variants[..].name: as a folder name (\"..\") it must not start with a dot"),
+        (vec!["--experiment", "experiments/dot.ron"], "variants[.].name"),
+        (vec!["--experiment", "experiments/....ron"], "experiments/....ron: the file name must not start with a dot"),
+        (vec!["--experiment", "experiments/no-presets.ron"], "presets: an experiment needs at least one preset"),
+        (vec!["--experiment", "experiments/no-presets.ron", "--emit-slurm"], "presets: an experiment needs at least one preset"),
+        (vec!["--experiment", "experiments/twin-presets.ron"], "presets: \"paper\" appears twice"),
+        (vec!["--experiment", "experiments/twin-seeds.ron"], "seeds: seed 1 appears twice"),
+        (vec!["--experiment", "experiments/no-episodes.ron"], "no-episodes.ron: episodes: must be ≥ 1"),
+        (vec!["--experiment", "experiments/nan-claim.ron"], "claims: \"t\": paper must be a finite number (got NaN)"),
+        (vec!["--experiment", "experiments/inf-claim.ron"], "paper must be a finite number (got inf)"),
+        (vec!["--experiment", "experiments/radius.ron"], "evaluations[x].confusion_radius: must be a finite number of metres > 0"),
+        (vec!["--experiment", "experiments/collide.ron"], "evaluations[x-confusion].name: as the file eval-x-confusion.csv: ends in -confusion"),
+        (vec!["--experiment", "experiments/comma.ron"], "use letters, digits, _ and - only"),
+        (vec!["--experiment", "experiments/fine.ron", "--task", "99999"], "--task 99999: experiments/fine.ron has runs 0 to 1"),
+        (vec!["--experiment", "experiments/fine.ron", "--task", "0", "--emit-slurm"], "--task: not used by --emit-slurm"),
+        (vec!["--plot", "results/fine"], "--plot results/fine: no finished run of experiments/fine.ron there; nothing written"),
     ]
 }
 

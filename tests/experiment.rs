@@ -184,7 +184,7 @@ fn slurm_scripts_have_the_array_range_and_the_aggregate_dependency() {
     assert!(dir.path().join("results/tiny/paper/5-3/seed1/checkpoint/state.ron").exists());
     assert!(!dir.path().join("results/tiny/paper/1-1/seed1").exists());
     let bad = coevo(dir.path(), &["--experiment", "experiments/tiny.ron", "--task", "9"]);
-    assert!(String::from_utf8_lossy(&bad.stderr).contains("--task 9: the experiment has runs 0 to 3"));
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("--task 9: experiments/tiny.ron has runs 0 to 3"));
 }
 
 #[test]

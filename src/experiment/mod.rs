@@ -189,6 +189,11 @@ pub fn slug(name: &str) -> String {
     out.trim_end_matches('-').to_string()
 }
 
+/// The first value that appears twice.
+fn first_repeat<T: PartialEq>(values: &[T]) -> Option<&T> {
+    values.iter().enumerate().find(|(i, v)| values[..*i].contains(v)).map(|(_, v)| v)
+}
+
 impl Experiment {
     /// Loads an experiment file and resolves every run's scene; errors are one line naming the file and
     /// the field, as for scenes.
@@ -196,29 +201,57 @@ impl Experiment {
         let shown = file.display().to_string();
         let text = crate::io::read_text(file, crate::scene::MAX_SCENE_BYTES).map_err(|e| format!("{shown}: {e}"))?;
         let spec: ExperimentFile = parse_ron(&text, &shown).map_err(|e| e.to_string())?;
-        let name = file.file_stem().map_or("experiment".into(), |s| s.to_string_lossy().into_owned());
+        let name = file.file_stem().map_or(String::new(), |s| s.to_string_lossy().into_owned());
         let err = |field: &str, message: String| format!("{shown}: {field}: {message}");
+        // The name is a folder under results/: one safe component, never `.`, `..` or hidden.
+        crate::run::check_name(&name).map_err(|m| format!("{shown}: the file name {m}, as it names the folder results/{name}"))?;
+        if spec.presets.is_empty() {
+            return Err(err("presets", "an experiment needs at least one preset".into()));
+        }
+        if let Some(p) = first_repeat(&spec.presets) {
+            return Err(err("presets", format!("{p:?} appears twice")));
+        }
         if spec.seeds.is_empty() {
             return Err(err("seeds", "an experiment needs at least one seed".into()));
+        }
+        if let Some(s) = first_repeat(&spec.seeds) {
+            return Err(err("seeds", format!("seed {s} appears twice (a run of the same scene and seed is the same run)")));
+        }
+        if spec.episodes == Some(0) {
+            return Err(err("episodes", "must be ≥ 1".into()));
         }
         if spec.variants.is_empty() {
             return Err(err("variants", "an experiment needs at least one variant".into()));
         }
         for (i, v) in spec.variants.iter().enumerate() {
-            if slug(&v.name).is_empty() || spec.variants[..i].iter().any(|o| slug(&o.name) == slug(&v.name)) {
-                let message = "variant names need a letter or digit and must stay distinct as folder names".into();
-                return Err(err(&format!("variants[{}]", v.name), message));
+            let field = format!("variants[{}].name", v.name);
+            crate::run::check_name(&slug(&v.name))
+                .map_err(|m| err(&field, format!("as a folder name ({:?}) it {m}; use letters or digits", slug(&v.name))))?;
+            if spec.variants[..i].iter().any(|o| slug(&o.name) == slug(&v.name)) {
+                return Err(err(&field, format!("names the same folder ({:?}) as another variant", slug(&v.name))));
             }
         }
         for (i, e) in spec.evaluations.iter().enumerate() {
-            if slug(&e.name).is_empty() || spec.evaluations[..i].iter().any(|o| slug(&o.name) == slug(&e.name)) {
-                return Err(err("evaluations", "evaluation names need a letter or digit and must stay distinct as file names".into()));
+            let field = |f: &str| format!("evaluations[{}].{f}", e.name);
+            let file = format!("eval-{}.csv", slug(&e.name));
+            if slug(&e.name).is_empty() {
+                return Err(err(&field("name"), "needs a letter or digit".into()));
+            }
+            crate::run::RunDir::new(".").eval_output(Some(&file)).map_err(|m| err(&field("name"), m.replacen("--eval-out ", "as the file ", 1)))?;
+            if spec.evaluations[..i].iter().any(|o| slug(&o.name) == slug(&e.name)) {
+                return Err(err(&field("name"), format!("names the same file ({file}) as another evaluation")));
             }
             if e.episodes == 0 || e.steps == Some(0) {
-                return Err(err(&format!("evaluations[{}]", e.name), "episodes and steps must be ≥ 1".into()));
+                return Err(err(&field("episodes"), "episodes and steps must be ≥ 1".into()));
+            }
+            if let Some(r) = e.confusion_radius.filter(|r| !(r.is_finite() && *r > 0.0)) {
+                return Err(err(&field("confusion_radius"), format!("must be a finite number of metres > 0 (got {r})")));
             }
         }
         for c in &spec.claims {
+            if let Some(v) = c.paper.filter(|v| !v.is_finite()) {
+                return Err(err("claims", format!("{:?}: paper must be a finite number (got {v})", c.text)));
+            }
             for v in std::iter::once(&c.variant).chain(&c.versus) {
                 if !spec.variants.iter().any(|x| &x.name == v) {
                     return Err(err("claims", format!("no variant named {v:?}")));
@@ -243,15 +276,22 @@ impl Experiment {
                 }
             }
         }
-        let base_text = crate::io::read_text(Path::new(&spec.base), crate::scene::MAX_SCENE_BYTES)
-            .map_err(|e| err("base", format!("{}: {e}", spec.base)))?;
+        // The base scene: relative to the working folder, as the project's files say ("scenes/paper.ron"),
+        // else to the experiment file's own folder, so a file works from anywhere.
+        let beside = file.parent().map(|p| p.join(&spec.base));
+        let base = match beside {
+            Some(b) if !Path::new(&spec.base).exists() && b.exists() => b,
+            _ => PathBuf::from(&spec.base),
+        };
+        let base_text = crate::io::read_text(&base, crate::scene::MAX_SCENE_BYTES)
+            .map_err(|e| err("base", format!("{}: {e}", base.display())))?;
         let root = results.join(&name);
         let mut runs = Vec::new();
         for preset in &spec.presets {
             if !PRESETS.contains(&preset.as_str()) {
                 return Err(err("presets", format!("unknown preset {preset:?} (known: {})", PRESETS.join(", "))));
             }
-            let base = Scene::parse_with_preset(&base_text, &spec.base, Some(preset)).map_err(|e| err("base", e.to_string()))?;
+            let base = Scene::parse_with_preset(&base_text, &base.display().to_string(), Some(preset)).map_err(|e| err("base", e.to_string()))?;
             for v in &spec.variants {
                 let mut scene = base.patched(v.patch.clone()).map_err(|(f, m)| err(&format!("variants[{}]", v.name), format!("{f}: {m}")))?;
                 if let Some(episodes) = spec.episodes {

@@ -41,7 +41,7 @@ fn variant_scene(run: &Run) -> PathBuf {
 /// The stage of a run, and a refusal when its folder holds a run of another scene (the experiment file
 /// changed under it: coevo never mixes the two).
 pub fn stage(run: &Run) -> Result<Stage, String> {
-    if !crate::train::is_run(&run.dir) {
+    if !crate::run::is_run(&run.dir) {
         return Ok(Stage::Fresh);
     }
     let shown = run.dir.display();
@@ -66,12 +66,36 @@ pub fn eval_file(dir: &Path, evaluation: &str) -> PathBuf {
 
 /// Runs one child process; Err is its one-line error.
 fn child(exe: &Path, args: &[String]) -> Result<(), String> {
-    let out = Command::new(exe).args(args).output().map_err(|e| format!("{}: cannot start: {e}", exe.display()))?;
+    let mut command = Command::new(exe);
+    command.args(args);
+    dies_with_parent(&mut command);
+    let out = command.output().map_err(|e| format!("{}: cannot start: {e}", exe.display()))?;
     if out.status.success() {
         Ok(())
     } else {
         let stderr = String::from_utf8_lossy(&out.stderr);
         Err(stderr.lines().rev().find(|l| !l.trim().is_empty()).unwrap_or("failed without a message").to_string())
+    }
+}
+
+/// Makes a child end when the runner ends, also by SIGKILL: the kernel sends it SIGTERM (on which it
+/// removes its temporaries and its run's lock), so no orphan keeps writing into `results/` while a re-run
+/// starts on the same folders.
+fn dies_with_parent(command: &mut Command) {
+    use std::os::unix::process::CommandExt;
+    let parent = std::process::id();
+    // SAFETY: only async-signal-safe calls between fork and exec.
+    unsafe {
+        command.pre_exec(move || {
+            if libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGTERM) != 0 {
+                return Err(std::io::Error::last_os_error());
+            }
+            // The parent died before the line above: nobody would ever send the signal.
+            if libc::getppid() as u32 != parent {
+                libc::_exit(1);
+            }
+            Ok(())
+        });
     }
 }
 

@@ -6,14 +6,26 @@
 //!   `6.bias` (2). `model.load_state_dict(safetensors.torch.load_file(path))` loads it.
 //! - `<species>-training.safetensors`: `critic.*`, `target_actor.*`, `target_critic.*` (same naming) and the
 //!   Adam moments `actor_adam.m.*`, `actor_adam.v.*`, `critic_adam.m.*`, `critic_adam.v.*`.
-//! - `state.ron`: the scene, episodes done, RNG states (environment, each species), exploration σ/ε, Adam step counts, metrics so far.
+//! - `<species>-replay-<from>-<to>.safetensors`: the replay buffer's transitions `from..to` (indices among
+//!   every transition the species ever stored), tensors `obs` (n, d_o), `actions` (n, 2), `rewards` (n),
+//!   `next_obs` (n, d_o). Together the segments cover what the buffer holds (its last `buffer_capacity`
+//!   transitions), so a resumed run samples exactly the mini-batches the uninterrupted run would.
+//! - `state.ron`: the scene, episodes done, RNG states (environment as it stood before the current
+//!   population was spawned, each species), exploration σ/ε, Adam step counts, transitions stored,
+//!   metrics so far.
+//!
+//! Everything a run's future depends on is here, so a run killed at any moment and resumed equals the
+//! uninterrupted run (every `metrics.csv` column but the wall clock, and the checkpoint bytes).
 //!
 //! The folder is written whole as `checkpoint.tmp/` and then swapped in, so a run killed at any moment
-//! leaves either the previous checkpoint or the new one, never a mix. Replay buffers are not saved (up to
-//! 5·10⁵ transitions, ~220 MB per species): a resumed run refills them.
+//! leaves either the previous checkpoint or the new one, never a mix. Replay segments are written once:
+//! each checkpoint hard-links the previous checkpoint's segments that the buffer still holds and adds one
+//! segment with the transitions since, so a checkpoint costs the new data only, and the folder holds at
+//! most one buffer's worth plus one segment (~0.22 GB per species of the standard scene).
 
 use super::ddpg::Ddpg;
 use super::nets::Mlp;
+use super::replay::ReplayBuffer;
 use super::SpeciesLearner;
 use crate::io::Existing;
 use crate::scene::Scene;
@@ -29,6 +41,11 @@ pub struct TrainingState {
     pub scene: Scene,
     pub episodes_done: usize,
     pub sim_rng: ChaCha8Rng,
+    /// The environment stream as it stood before the next episode's population was spawned: a resume
+    /// spawns that population again from it (absent in checkpoints of coevo before exact resumes, which
+    /// spawn from `sim_rng`).
+    #[serde(default)]
+    pub spawn_rng: Option<ChaCha8Rng>,
     pub species: Vec<Option<SpeciesState>>,
     /// metrics.csv as it stood at this checkpoint.
     pub metrics_csv: String,
@@ -45,10 +62,158 @@ pub struct SpeciesState {
     /// streams: a resumed run then continues on a fresh stream of the seed).
     #[serde(default)]
     pub rng: Option<ChaCha8Rng>,
+    /// Transitions the species has stored so far; its replay segments hold the last ones (absent in
+    /// checkpoints of coevo before saved buffers: a resumed run then refills its buffer).
+    #[serde(default)]
+    pub transitions: Option<u64>,
 }
 
 pub fn checkpoint_dir(run: &Path) -> PathBuf {
-    run.join("checkpoint")
+    crate::run::RunDir::new(run).checkpoint()
+}
+
+/// A replay segment: transitions `from..to` of a species, in `path`.
+#[derive(Clone, Debug, PartialEq)]
+struct Segment {
+    from: u64,
+    to: u64,
+    path: PathBuf,
+}
+
+fn segment_name(species: &str, from: u64, to: u64) -> String {
+    format!("{species}-replay-{from}-{to}.safetensors")
+}
+
+/// The replay segments of `species` in a checkpoint folder, by first transition.
+fn segments(dir: &Path, species: &str) -> Vec<Segment> {
+    let prefix = format!("{species}-replay-");
+    let mut found: Vec<Segment> = std::fs::read_dir(dir)
+        .into_iter()
+        .flatten()
+        .flatten()
+        .filter_map(|e| {
+            let name = e.file_name().to_string_lossy().into_owned();
+            let range = name.strip_prefix(&prefix)?.strip_suffix(".safetensors")?;
+            let (from, to) = range.split_once('-')?;
+            let (from, to) = (from.parse().ok()?, to.parse().ok()?);
+            (from < to).then(|| Segment { from, to, path: e.path() })
+        })
+        .collect();
+    found.sort_by_key(|s| (s.from, s.to));
+    found
+}
+
+/// The segments that tile `from..to` in order, or None where a transition is missing.
+fn chain(segments: &[Segment], from: u64, to: u64) -> Option<Vec<Segment>> {
+    let (mut covered, mut out) = (from, Vec::new());
+    while covered < to {
+        let next = segments.iter().filter(|s| s.from <= covered && s.to > covered && s.to <= to).max_by_key(|s| s.to)?;
+        covered = next.to;
+        out.push(next.clone());
+    }
+    Some(out)
+}
+
+/// Writes transitions `from..to` of a buffer as one safetensors file, streamed (a segment can hold a
+/// whole buffer, ~0.2 GB, which is never copied in memory).
+fn write_segment(path: &Path, buf: &ReplayBuffer, from: u64, to: u64) -> std::io::Result<()> {
+    let n = (to - from) as usize;
+    let (d, a) = (buf.obs_dim, buf.act_dim);
+    let sizes = [("obs", vec![n, d]), ("actions", vec![n, a]), ("rewards", vec![n]), ("next_obs", vec![n, d])];
+    let mut offset = 0usize;
+    let entries: Vec<String> = sizes
+        .iter()
+        .map(|(name, shape)| {
+            let bytes = 4 * shape.iter().product::<usize>();
+            let shape: Vec<String> = shape.iter().map(usize::to_string).collect();
+            let entry = format!(
+                "\"{name}\":{{\"dtype\":\"F32\",\"shape\":[{}],\"data_offsets\":[{offset},{}]}}",
+                shape.join(","),
+                offset + bytes
+            );
+            offset += bytes;
+            entry
+        })
+        .collect();
+    let mut header = format!("{{{}}}", entries.join(","));
+    // Padded to 8 bytes with spaces, as safetensors' own writer does.
+    while header.len() % 8 != 0 {
+        header.push(' ');
+    }
+    crate::io::write_atomically(path, Existing::Replace, |w| {
+        use std::io::Write;
+        w.write_all(&(header.len() as u64).to_le_bytes())?;
+        w.write_all(header.as_bytes())?;
+        let put = |w: &mut std::io::BufWriter<std::fs::File>, values: &[f32]| {
+            values.iter().try_for_each(|v| w.write_all(&v.to_le_bytes()))
+        };
+        for part in 0..4 {
+            for k in from..to {
+                let (o, act, r, o2) = buf.transition(k);
+                match part {
+                    0 => put(w, o)?,
+                    1 => put(w, act)?,
+                    2 => put(w, &[r])?,
+                    _ => put(w, o2)?,
+                }
+            }
+        }
+        Ok(())
+    })
+}
+
+/// Saves a species' buffer into the checkpoint being written (`tmp`): the segments of the current
+/// checkpoint (`dir`) that still hold transitions of the buffer are hard-linked (copied where links
+/// are not possible), the transitions since go into one new segment.
+fn save_replay(dir: &Path, tmp: &Path, species: &str, buf: &ReplayBuffer) -> std::io::Result<()> {
+    let (first, pushed) = (buf.first_held(), buf.pushed);
+    let existing = segments(dir, species);
+    let mut covered = first;
+    for s in &existing {
+        if s.from <= covered && s.to > covered && s.to <= pushed {
+            let to = tmp.join(s.path.file_name().expect("a segment file"));
+            if std::fs::hard_link(&s.path, &to).is_err() {
+                std::fs::copy(&s.path, &to)?;
+            }
+            covered = s.to;
+        }
+    }
+    if covered < pushed {
+        write_segment(&tmp.join(segment_name(species, covered, pushed)), buf, covered, pushed)?;
+    }
+    Ok(())
+}
+
+/// The buffer a checkpoint saved: `transitions` stored in all, the held ones read back from the segments.
+fn load_replay(dir: &Path, species: &str, like: &ReplayBuffer, transitions: u64) -> Result<ReplayBuffer, String> {
+    let mut buf = ReplayBuffer::restoring(like.capacity, like.obs_dim, like.act_dim, transitions);
+    let (d, a) = (like.obs_dim, like.act_dim);
+    let Some(parts) = chain(&segments(dir, species), buf.first_held(), transitions) else {
+        return Err(format!(
+            "{}: the replay buffer of {species} is incomplete (transitions {}..{transitions} are not all in its segments); the checkpoint is damaged",
+            dir.display(),
+            buf.first_held()
+        ));
+    };
+    for s in parts {
+        let bytes = read_file(&s.path)?;
+        let st = parse(&s.path, &bytes)?;
+        let n = (s.to - s.from) as usize;
+        let tensor = |name: &str, shape: Vec<usize>| -> Result<Vec<f32>, String> {
+            let t = st.tensor(name).map_err(|_| format!("{}: no tensor {name:?}", s.path.display()))?;
+            if t.dtype() != Dtype::F32 || t.shape() != shape.as_slice() {
+                return Err(format!("{}: tensor {name} is {:?} {:?}, expected F32 {shape:?}", s.path.display(), t.dtype(), t.shape()));
+            }
+            Ok(t.data().chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect())
+        };
+        let (obs, actions, rewards, next_obs) =
+            (tensor("obs", vec![n, d])?, tensor("actions", vec![n, a])?, tensor("rewards", vec![n])?, tensor("next_obs", vec![n, d])?);
+        for k in s.from.max(buf.first_held())..s.to {
+            let i = (k - s.from) as usize;
+            buf.put(k, &obs[i * d..(i + 1) * d], &actions[i * a..(i + 1) * a], rewards[i], &next_obs[i * d..(i + 1) * d]);
+        }
+    }
+    Ok(buf)
 }
 
 /// Names of an MLP's tensors as in PyTorch's `nn.Sequential` with activations between the layers.
@@ -131,12 +296,41 @@ pub fn save(
     state: &TrainingState,
 ) -> std::io::Result<()> {
     let dir = checkpoint_dir(run);
-    let tmp = run.join("checkpoint.tmp");
-    let old = run.join("checkpoint.old");
+    let tmp = run.join(crate::run::CHECKPOINT_TMP);
+    let old = run.join(crate::run::CHECKPOINT_OLD);
     let _ = std::fs::remove_dir_all(&tmp);
     std::fs::create_dir_all(&tmp)?;
+    crate::io::register_temporary(&tmp);
+    let written = write_checkpoint(&dir, &tmp, learners, names, state);
+    if written.is_err() {
+        let _ = std::fs::remove_dir_all(&tmp);
+        crate::io::unregister_temporary(&tmp);
+        return written;
+    }
+    // Swap: the old checkpoint stays until the new one is in place; `load` falls back to `.old`.
+    let _ = std::fs::remove_dir_all(&old);
+    if dir.exists() {
+        std::fs::rename(&dir, &old)?;
+    }
+    std::fs::rename(&tmp, &dir)?;
+    crate::io::unregister_temporary(&tmp);
+    let _ = std::fs::remove_dir_all(&old);
+    Ok(())
+}
+
+/// Every file of a checkpoint, into `tmp`.
+fn write_checkpoint(
+    dir: &Path,
+    tmp: &Path,
+    learners: &[Option<SpeciesLearner>],
+    names: &[String],
+    state: &TrainingState,
+) -> std::io::Result<()> {
     for (learner, name) in learners.iter().zip(names) {
         let Some(l) = learner else { continue };
+        if !l.frozen {
+            save_replay(dir, tmp, name, &l.buffer)?;
+        }
         let d = &l.ddpg;
         let actor = named("", d.actor.parameters(), &d.actor);
         crate::io::write_atomically(&tmp.join(format!("{name}-actor.safetensors")), Existing::Replace, |w| {
@@ -157,22 +351,18 @@ pub fn save(
         .map_err(|e| std::io::Error::other(e.to_string()))?;
     crate::io::write_atomically(&tmp.join("state.ron"), Existing::Replace, |w| {
         std::io::Write::write_all(w, ron.as_bytes())
-    })?;
-    // Swap: the old checkpoint stays until the new one is in place; `load` falls back to `.old`.
-    let _ = std::fs::remove_dir_all(&old);
-    if dir.exists() {
-        std::fs::rename(&dir, &old)?;
-    }
-    std::fs::rename(&tmp, &dir)?;
-    let _ = std::fs::remove_dir_all(&old);
-    Ok(())
+    })
 }
 
 /// Restores learners from `run/checkpoint/` (or `checkpoint.old` after a kill mid-swap) and returns the state.
 pub fn load(run: &Path, learners: &mut [Option<SpeciesLearner>], names: &[String]) -> Result<TrainingState, String> {
     let mut dir = checkpoint_dir(run);
-    if !dir.join("state.ron").exists() && run.join("checkpoint.old/state.ron").exists() {
-        dir = run.join("checkpoint.old");
+    let old = run.join(crate::run::CHECKPOINT_OLD);
+    if !dir.join("state.ron").exists() && old.join("state.ron").exists() {
+        // Killed mid-swap: the old checkpoint is whole; put it back, so the next save links from it.
+        if !dir.exists() && std::fs::rename(&old, &dir).is_err() {
+            dir = old;
+        }
     }
     let state_path = dir.join("state.ron");
     if !state_path.exists() {
@@ -215,6 +405,9 @@ pub fn load(run: &Path, learners: &mut [Option<SpeciesLearner>], names: &[String
         l.epsilon = s.epsilon;
         if let Some(rng) = &s.rng {
             l.rng = rng.clone();
+        }
+        if let (Some(transitions), false) = (s.transitions, l.frozen) {
+            l.buffer = load_replay(&dir, name, &l.buffer, transitions)?;
         }
     }
     Ok(state)

@@ -14,6 +14,10 @@ pub struct ReplayBuffer {
     pub len: usize,
     /// Where the next transition goes; wraps to 0 at capacity, overwriting the oldest.
     next: usize,
+    /// Transitions ever pushed: transition k (from 0) sits in slot k mod capacity while it is held, which
+    /// is what a checkpoint saves and restores (`learning::checkpoint`), so a resumed run samples exactly
+    /// what the uninterrupted one would.
+    pub pushed: u64,
     obs: Vec<f32>,
     actions: Vec<f32>,
     rewards: Vec<f32>,
@@ -33,7 +37,7 @@ pub struct Batch {
 impl ReplayBuffer {
     /// An empty buffer; memory grows with use up to `capacity` transitions.
     pub fn new(capacity: usize, obs_dim: usize, act_dim: usize) -> Self {
-        ReplayBuffer { capacity, obs_dim, act_dim, len: 0, next: 0, obs: vec![], actions: vec![], rewards: vec![], next_obs: vec![] }
+        ReplayBuffer { capacity, obs_dim, act_dim, len: 0, next: 0, pushed: 0, obs: vec![], actions: vec![], rewards: vec![], next_obs: vec![] }
     }
 
     pub fn push(&mut self, obs: &[f32], action: &[f32], reward: f32, next_obs: &[f32]) {
@@ -52,6 +56,48 @@ impl ReplayBuffer {
             self.next_obs[i * d..(i + 1) * d].copy_from_slice(next_obs);
         }
         self.next = (self.next + 1) % self.capacity;
+        self.pushed += 1;
+    }
+
+    /// The oldest transition still held (its index among all ever pushed).
+    pub fn first_held(&self) -> u64 {
+        self.pushed - self.len as u64
+    }
+
+    /// Transition `k` (an index among all ever pushed, from [`ReplayBuffer::first_held`] on):
+    /// (o, a, r, o').
+    pub fn transition(&self, k: u64) -> (&[f32], &[f32], f32, &[f32]) {
+        assert!(k >= self.first_held() && k < self.pushed, "transition {k} is not held");
+        let (d, a, i) = (self.obs_dim, self.act_dim, (k % self.capacity as u64) as usize);
+        (&self.obs[i * d..(i + 1) * d], &self.actions[i * a..(i + 1) * a], self.rewards[i], &self.next_obs[i * d..(i + 1) * d])
+    }
+
+    /// An empty frame of the buffer as it stood after `pushed` transitions: [`ReplayBuffer::put`] each
+    /// transition it held (`first_held()..pushed`) back, and it samples exactly as the saved one did.
+    pub fn restoring(capacity: usize, obs_dim: usize, act_dim: usize, pushed: u64) -> Self {
+        let len = pushed.min(capacity as u64) as usize;
+        ReplayBuffer {
+            capacity,
+            obs_dim,
+            act_dim,
+            len,
+            next: (pushed % capacity as u64) as usize,
+            pushed,
+            obs: vec![0.0; len * obs_dim],
+            actions: vec![0.0; len * act_dim],
+            rewards: vec![0.0; len],
+            next_obs: vec![0.0; len * obs_dim],
+        }
+    }
+
+    /// Puts transition `k` back in its slot (see [`ReplayBuffer::restoring`]).
+    pub fn put(&mut self, k: u64, obs: &[f32], action: &[f32], reward: f32, next_obs: &[f32]) {
+        assert!(k >= self.first_held() && k < self.pushed, "transition {k} is not held");
+        let (d, a, i) = (self.obs_dim, self.act_dim, (k % self.capacity as u64) as usize);
+        self.obs[i * d..(i + 1) * d].copy_from_slice(obs);
+        self.actions[i * a..(i + 1) * a].copy_from_slice(action);
+        self.rewards[i] = reward;
+        self.next_obs[i * d..(i + 1) * d].copy_from_slice(next_obs);
     }
 
     /// `n` transitions drawn uniformly (with replacement) from all held.
@@ -92,6 +138,28 @@ mod tests {
         for i in 0..batch.n {
             assert_eq!(batch.obs[i], batch.rewards[i]);
             assert_eq!(batch.next_obs[i], batch.rewards[i] + 1.0);
+        }
+    }
+
+    #[test]
+    fn a_restored_buffer_samples_as_the_saved_one() {
+        for pushes in [3, 5, 8, 13] {
+            let mut buf = ReplayBuffer::new(5, 2, 1);
+            for i in 0..pushes {
+                let x = i as f32;
+                buf.push(&[x, -x], &[x / 2.0], x * 10.0, &[x + 1.0, -x - 1.0]);
+            }
+            let mut back = ReplayBuffer::restoring(5, 2, 1, buf.pushed);
+            for k in buf.first_held()..buf.pushed {
+                let (o, a, r, o2) = buf.transition(k);
+                back.put(k, o, a, r, o2);
+            }
+            let (mut r1, mut r2) = (ChaCha8Rng::seed_from_u64(3), ChaCha8Rng::seed_from_u64(3));
+            assert_eq!(buf.sample(64, &mut r1), back.sample(64, &mut r2), "after {pushes} pushes");
+            // And both go on identically.
+            buf.push(&[9.0, 9.0], &[9.0], 9.0, &[9.0, 9.0]);
+            back.push(&[9.0, 9.0], &[9.0], 9.0, &[9.0, 9.0]);
+            assert_eq!(buf.sample(64, &mut r1), back.sample(64, &mut r2), "after {pushes} + 1 pushes");
         }
     }
 }

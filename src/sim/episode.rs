@@ -32,6 +32,11 @@ impl SimRng {
     }
 }
 
+/// The environment stream as it stood before the current population was spawned: with it, a resumed run
+/// spawns exactly the population the uninterrupted run had (`learning::checkpoint`).
+#[derive(Resource, Clone, Debug)]
+pub struct SpawnedFrom(pub ChaCha8Rng);
+
 /// Where the run is: episode index (from 0) and steps done in it.
 #[derive(Resource, Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Episode {
@@ -97,6 +102,8 @@ pub fn spawn_population(world: &mut World) {
     let arena = *world.resource::<Arena>();
     let energy_budget = world.resource::<ActiveScene>().0.world.energy_budget;
     let mut bundles = Vec::new();
+    let before = world.resource::<SimRng>().0.clone();
+    world.insert_resource(SpawnedFrom(before));
     {
         let mut rng = world.resource_mut::<SimRng>();
         for (s, def) in registry.defs.iter().enumerate() {

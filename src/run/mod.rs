@@ -1,0 +1,307 @@
+//! A run folder: the one owner of its names, of what may be written into it, and of who may write.
+//!
+//! ```text
+//! RUN/
+//!   scene.ron          the resolved scene the run was trained on
+//!   provenance.ron     what made it: coevo's version and the species plugins the run needs
+//!   metrics.csv        one row per training episode
+//!   checkpoint/        networks, optimizer moments, RNG states, replay buffers (learning::checkpoint)
+//!   eval*.csv          evaluations (`--eval`), each with -nn, -correlation and -confusion files beside
+//!   coevo.lock         while a process trains or evaluates it: that process's PID
+//! ```
+//!
+//! User-chosen outputs (`--eval-out`, an experiment's evaluation names) never take a reserved name, and a
+//! second process on the same run is refused while the first is alive ([`RunLock`]).
+
+use crate::io::{process_alive, register_temporary, unregister_temporary, Existing};
+use serde::{Deserialize, Serialize};
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+pub const SCENE: &str = "scene.ron";
+pub const PROVENANCE: &str = "provenance.ron";
+pub const METRICS: &str = "metrics.csv";
+/// The default evaluation output.
+pub const EVAL: &str = "eval.csv";
+pub const LOCK: &str = "coevo.lock";
+pub const CHECKPOINT: &str = "checkpoint";
+/// A checkpoint being written, and the previous one during the swap (see `learning::checkpoint::save`).
+pub const CHECKPOINT_TMP: &str = "checkpoint.tmp";
+pub const CHECKPOINT_OLD: &str = "checkpoint.old";
+/// The files an evaluation writes beside its per-step CSV (`OUT-nn.csv`, ...); the confusion curve last.
+pub const EVAL_BESIDE: [&str; 3] = ["nn", "correlation", "confusion"];
+
+/// The files and folders coevo writes in a run folder and owns.
+const RUN_FILES: [&str; 4] = [SCENE, PROVENANCE, METRICS, EVAL];
+const CHECKPOINT_DIRS: [&str; 3] = [CHECKPOINT, CHECKPOINT_TMP, CHECKPOINT_OLD];
+
+fn io_err(path: &Path) -> impl Fn(std::io::Error) -> String + '_ {
+    move |e| format!("{}: {e}", path.display())
+}
+
+/// A run folder.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct RunDir {
+    path: PathBuf,
+}
+
+impl RunDir {
+    pub fn new(path: impl Into<PathBuf>) -> RunDir {
+        RunDir { path: path.into() }
+    }
+
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    pub fn scene(&self) -> PathBuf {
+        self.path.join(SCENE)
+    }
+
+    pub fn metrics(&self) -> PathBuf {
+        self.path.join(METRICS)
+    }
+
+    pub fn checkpoint(&self) -> PathBuf {
+        self.path.join(CHECKPOINT)
+    }
+
+    pub fn provenance(&self) -> PathBuf {
+        self.path.join(PROVENANCE)
+    }
+
+    /// Whether the folder holds a run (any of coevo's run files).
+    pub fn is_run(&self) -> bool {
+        RUN_FILES.iter().chain(&CHECKPOINT_DIRS).any(|f| self.path.join(f).exists())
+    }
+
+    /// The per-step file of an evaluation named `file_name` by the user (default [`EVAL`]): a plain
+    /// `NAME.csv` inside the run that takes none of the run's own names, nor the name of another
+    /// evaluation's distribution files.
+    pub fn eval_output(&self, file_name: Option<&str>) -> Result<PathBuf, String> {
+        let name = file_name.unwrap_or(EVAL);
+        let refuse = |why: &str| Err(format!("--eval-out {name}: {why}"));
+        let Some(stem) = name.strip_suffix(".csv") else {
+            return refuse("must be a plain file name ending in .csv (written inside the run folder)");
+        };
+        if let Err(why) = check_name(stem) {
+            return refuse(&why);
+        }
+        // Reserved by stem, so no output reads as one of the run's own files (scene.csv, checkpoint.csv).
+        let stem_of = |f: &str| f.split('.').next().unwrap_or(f).to_string();
+        let reserved = RUN_FILES.iter().chain(&CHECKPOINT_DIRS).chain(&[LOCK]).filter(|f| **f != EVAL);
+        if reserved.map(|f| stem_of(f)).any(|s| s == stem) {
+            return refuse("is one of the run's own files; choose another name");
+        }
+        if let Some(suffix) = EVAL_BESIDE.iter().find(|s| stem.ends_with(&format!("-{s}"))) {
+            return refuse(&format!("ends in -{suffix}, the name of another evaluation's {suffix} file; choose another name"));
+        }
+        Ok(self.path.join(name))
+    }
+
+    /// Checks that the folder may receive a new run, changing nothing: a new or empty folder, or (with
+    /// `overwrite`) one that holds a run whose checkpoint folders hold only coevo's files.
+    pub fn check_new(&self, overwrite: bool) -> Result<(), String> {
+        let shown = self.path.display();
+        match std::fs::symlink_metadata(&self.path) {
+            Err(_) => return Ok(()),
+            Ok(m) if !m.is_dir() => return Err(format!("{shown}: exists and is not a folder")),
+            Ok(_) => {}
+        }
+        let mut entries = std::fs::read_dir(&self.path).map_err(io_err(&self.path))?;
+        if entries.all(|e| e.is_ok_and(|e| e.file_name() == LOCK)) {
+            return Ok(());
+        }
+        if !self.is_run() {
+            return Err(format!(
+                "{shown}: is not empty and holds no coevo run; coevo writes runs only into new or empty folders"
+            ));
+        }
+        if !overwrite {
+            return Err(format!(
+                "{shown}: already holds a run; continue it with --resume {shown}, or replace it with --overwrite"
+            ));
+        }
+        for dir in CHECKPOINT_DIRS.iter().map(|d| self.path.join(d)).filter(|d| d.exists()) {
+            for entry in std::fs::read_dir(&dir).map_err(io_err(&dir))? {
+                let entry = entry.map_err(io_err(&dir))?;
+                let name = entry.file_name().to_string_lossy().into_owned();
+                let ours = entry.file_type().is_ok_and(|t| t.is_file())
+                    && (name.ends_with(".safetensors")
+                        || name == "state.ron"
+                        || (name.starts_with('.') && name.ends_with(".tmp")));
+                if !ours {
+                    return Err(format!(
+                        "{}: not a file coevo wrote; --overwrite removes only coevo's files, so move it first",
+                        entry.path().display()
+                    ));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Removes the run's own files (after [`RunDir::check_new`] with `overwrite`), keeping the lock.
+    pub fn clear(&self) -> Result<(), String> {
+        for dir in CHECKPOINT_DIRS.iter().map(|d| self.path.join(d)).filter(|d| d.exists()) {
+            std::fs::remove_dir_all(&dir).map_err(io_err(&dir))?;
+        }
+        for file in RUN_FILES.iter().map(|f| self.path.join(f)).filter(|f| f.exists()) {
+            std::fs::remove_file(&file).map_err(io_err(&file))?;
+        }
+        Ok(())
+    }
+
+    /// Takes the run's lock for this process (creating the folder if needed), after removing what a
+    /// killed process left: a stale lock, temporaries of dead PIDs, a half-written `checkpoint.tmp/`.
+    pub fn lock(&self) -> Result<RunLock, String> {
+        std::fs::create_dir_all(&self.path).map_err(io_err(&self.path))?;
+        let path = self.path.join(LOCK);
+        for _ in 0..2 {
+            match std::fs::OpenOptions::new().write(true).create_new(true).open(&path) {
+                Ok(mut f) => {
+                    register_temporary(&path);
+                    writeln!(f, "{}", std::process::id()).map_err(io_err(&path))?;
+                    self.remove_leftovers();
+                    return Ok(RunLock { path });
+                }
+                Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {
+                    let owner = std::fs::read_to_string(&path).ok().and_then(|t| t.trim().parse::<u32>().ok());
+                    match owner {
+                        Some(pid) if process_alive(pid) => {
+                            return Err(format!(
+                                "{}: in use by coevo process {pid} ({}); wait for it to end, or end it",
+                                self.path.display(),
+                                path.display()
+                            ))
+                        }
+                        // A lock of a process that is gone (or half-written by one killed at once): stale.
+                        _ => std::fs::remove_file(&path).map_err(io_err(&path))?,
+                    }
+                }
+                Err(e) => return Err(io_err(&path)(e)),
+            }
+        }
+        Err(format!("{}: could not take the run's lock", path.display()))
+    }
+
+    /// What killed processes left behind (only called with the lock held, so nobody is writing).
+    fn remove_leftovers(&self) {
+        let _ = std::fs::remove_dir_all(self.path.join(CHECKPOINT_TMP));
+        crate::io::remove_stale_temporaries(&self.path, None);
+        crate::io::remove_stale_temporaries(&self.checkpoint(), None);
+    }
+
+    /// Writes what made the run: the version and the species plugins its scene needs.
+    pub fn write_provenance(&self, scene: &crate::scene::Scene) -> Result<(), String> {
+        let provenance = Provenance::of(scene);
+        let text = ron::ser::to_string_pretty(&provenance, ron::ser::PrettyConfig::new().struct_names(false))
+            .map_err(|e| format!("{}: {e}", self.provenance().display()))?;
+        crate::io::write_file(&self.provenance(), Existing::Replace, format!("{text}\n").as_bytes())
+    }
+
+    /// Refuses a run that needs species plugins this program does not have (resumed or evaluated by a
+    /// binary without the plugin, its species would lose their systems). Runs older than provenance files
+    /// need none.
+    pub fn check_plugins(&self) -> Result<(), String> {
+        let path = self.provenance();
+        if !path.exists() {
+            return Ok(());
+        }
+        let text = crate::io::read_text(&path, crate::io::MAX_TEXT_BYTES).map_err(|e| format!("{}: {e}", path.display()))?;
+        let p: Provenance = ron::from_str(&text).map_err(|e| format!("{}: damaged ({e})", path.display()))?;
+        match p.plugins.iter().find(|name| crate::sim::species::catalog::get(name).is_none()) {
+            Some(name) => Err(format!(
+                "{}: the run needs the species plugin {name:?}, which this program does not have; use the program that trained it (e.g. cargo run --release --example {name})",
+                self.path.display()
+            )),
+            None => Ok(()),
+        }
+    }
+}
+
+/// Whether a folder holds a run.
+pub fn is_run(dir: &Path) -> bool {
+    RunDir::new(dir).is_run()
+}
+
+/// What made a run (`provenance.ron`).
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct Provenance {
+    pub coevo_version: String,
+    /// Species of the scene that come from species plugins of the program that trained it.
+    pub plugins: Vec<String>,
+}
+
+impl Provenance {
+    pub fn of(scene: &crate::scene::Scene) -> Provenance {
+        Provenance {
+            coevo_version: env!("CARGO_PKG_VERSION").to_string(),
+            plugins: scene
+                .species
+                .iter()
+                .filter(|d| crate::sim::species::catalog::get(&d.name).is_some())
+                .map(|d| d.name.clone())
+                .collect(),
+        }
+    }
+}
+
+/// A run's lock, held while this process writes the run; removed when dropped (and on a signal).
+#[derive(Debug)]
+pub struct RunLock {
+    path: PathBuf,
+}
+
+impl Drop for RunLock {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_file(&self.path);
+        unregister_temporary(&self.path);
+    }
+}
+
+/// Checks that a user-chosen name (an experiment, a variant's or an evaluation's folder-safe slug, an
+/// output stem) is one safe path component: not empty, no separator, no leading dot (so never `.`, `..`
+/// or a hidden file), no control character.
+pub fn check_name(name: &str) -> Result<(), String> {
+    if name.is_empty() {
+        return Err("must not be empty".into());
+    }
+    if name.contains(['/', '\\']) || name.chars().any(char::is_control) {
+        return Err("must be a single name: no path separator or control character".into());
+    }
+    if name.starts_with('.') {
+        return Err("must not start with a dot (., .. and hidden names would leave or hide in the results folder)".into());
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn eval_outputs_never_take_the_runs_own_names() {
+        let run = RunDir::new("/tmp/some-run");
+        assert_eq!(run.eval_output(None).unwrap(), Path::new("/tmp/some-run/eval.csv"));
+        assert!(run.eval_output(Some("eval-50-prey.csv")).is_ok());
+        for bad in ["metrics.csv", "scene.csv", "checkpoint.csv", "coevo.csv", "x-confusion.csv", "x-nn.csv", "../x.csv", ".x.csv", "x.ron", "a/b.csv", ".csv"] {
+            assert!(run.eval_output(Some(bad)).is_err(), "{bad}");
+        }
+    }
+
+    #[test]
+    fn a_second_lock_is_refused_and_a_stale_one_taken_over() {
+        let dir = tempfile::tempdir().unwrap();
+        let run = RunDir::new(dir.path().join("run"));
+        let held = run.lock().unwrap();
+        assert!(run.lock().unwrap_err().contains("in use by coevo process"));
+        drop(held);
+        assert!(!dir.path().join("run").join(LOCK).exists());
+        // A PID that cannot be alive.
+        std::fs::write(dir.path().join("run").join(LOCK), "4294967295\n").unwrap();
+        std::fs::write(dir.path().join("run").join(".metrics.csv.4294967295.tmp"), "half").unwrap();
+        let _held = run.lock().unwrap();
+        assert!(!dir.path().join("run").join(".metrics.csv.4294967295.tmp").exists(), "a dead process's temporary is removed");
+    }
+}

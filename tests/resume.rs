@@ -1,0 +1,256 @@
+//! A run is a function of its scene and seed, also across kills and resumes; processes clean up after
+//! themselves. Every run here is a real `coevo` process, killed with SIGKILL or SIGTERM as a machine or a
+//! user would.
+
+use coevo::learning::checkpoint::TrainingState;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+fn coevo() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_coevo"))
+}
+
+/// The default scene, for processes started in a temporary folder.
+fn standard() -> PathBuf {
+    std::fs::canonicalize("scenes/standard.ron").unwrap()
+}
+
+/// A small training scene with checkpoints every 2 episodes and a replay buffer that wraps (700
+/// transitions, 1 800 stored per episode), under either update schedule.
+fn scene_text(per_step: bool) -> String {
+    let schedule = if per_step { "updates_per_episode: 0, updates_per_step: 1" } else { "updates_per_episode: 20, updates_per_step: 0" };
+    format!(
+        r#"(
+    preset: "paper",
+    seed: 11,
+    episode_steps: 150,
+    episodes: 24,
+    species: [(name: "prey", count: 12)],
+    learning: (hidden: 16, batch_size: 32, warmup_transitions: 32, buffer_capacity: 700,
+               {schedule}, checkpoint_every: 2),
+)"#
+    )
+}
+
+fn train(scene: &Path, run: &Path) -> Child {
+    coevo()
+        .args(["--train", "--quiet", "--threads", "1", "--scene"])
+        .arg(scene)
+        .arg("--out")
+        .arg(run)
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap()
+}
+
+fn rows(run: &Path) -> usize {
+    std::fs::read_to_string(run.join("metrics.csv")).map_or(0, |t| t.lines().count().saturating_sub(1))
+}
+
+/// Every metrics.csv column but the wall clock.
+fn metrics(run: &Path) -> Vec<String> {
+    let text = std::fs::read_to_string(run.join("metrics.csv")).unwrap();
+    text.lines().map(|l| l.rsplit_once(',').unwrap().0.to_string()).collect()
+}
+
+/// Every file of the checkpoint with its bytes; state.ron with its copy of the metrics' wall clock
+/// dropped (the one thing that is not a function of scene and seed).
+fn checkpoint(run: &Path) -> Vec<(String, Vec<u8>)> {
+    let mut files: Vec<(String, Vec<u8>)> = std::fs::read_dir(run.join("checkpoint"))
+        .unwrap()
+        .map(|e| {
+            let e = e.unwrap();
+            let name = e.file_name().to_string_lossy().into_owned();
+            let mut bytes = std::fs::read(e.path()).unwrap();
+            if name == "state.ron" {
+                let mut state: TrainingState = ron::from_str(std::str::from_utf8(&bytes).unwrap()).unwrap();
+                let lines: Vec<&str> = state.metrics_csv.lines().map(|l| l.rsplit_once(',').unwrap().0).collect();
+                state.metrics_csv = lines.join("\n");
+                bytes = ron::to_string(&state).unwrap().into_bytes();
+            }
+            (name, bytes)
+        })
+        .collect();
+    files.sort();
+    files
+}
+
+fn finish(child: Child) {
+    let out = child.wait_with_output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+}
+
+#[test]
+fn a_run_killed_at_any_moment_and_resumed_equals_the_uninterrupted_run() {
+    let dir = tempfile::tempdir().unwrap();
+    for per_step in [true, false] {
+        let scene = dir.path().join(format!("scene-{per_step}.ron"));
+        std::fs::write(&scene, scene_text(per_step)).unwrap();
+        let whole = dir.path().join(format!("whole-{per_step}"));
+        finish(train(&scene, &whole));
+        assert_eq!(rows(&whole), 24);
+        // Kill points spread over the run: before the buffer wraps, after, and near the end; each a
+        // few milliseconds into an episode (or into a checkpoint being written).
+        for (i, after) in [3usize, 11, 19].into_iter().enumerate() {
+            let run = dir.path().join(format!("killed-{per_step}-{after}"));
+            let mut child = train(&scene, &run);
+            let started = Instant::now();
+            while rows(&run) < after {
+                assert!(child.try_wait().unwrap().is_none(), "the run ended before it could be killed");
+                assert!(started.elapsed() < Duration::from_secs(120), "no progress");
+                std::thread::sleep(Duration::from_millis(1));
+            }
+            std::thread::sleep(Duration::from_millis(7 * i as u64));
+            child.kill().unwrap();
+            child.wait().unwrap();
+            assert!(rows(&run) < 24, "killed before the end ({per_step}, {after})");
+            let resumed = coevo().arg("--resume").arg(&run).args(["--quiet", "--threads", "2"]).output().unwrap();
+            assert!(resumed.status.success(), "{}", String::from_utf8_lossy(&resumed.stderr));
+            let note = String::from_utf8_lossy(&resumed.stderr);
+            assert!(!note.contains("older coevo"), "{note}");
+            assert_eq!(metrics(&run), metrics(&whole), "metrics after a kill at episode {after} (per step: {per_step})");
+            assert!(checkpoint(&run) == checkpoint(&whole), "checkpoint after a kill at episode {after} (per step: {per_step})");
+            assert!(!run.join("coevo.lock").exists() && !run.join("checkpoint.tmp").exists());
+        }
+    }
+}
+
+/// The lock file of the first run under `results`, with the PID in it, once one exists.
+fn child_pid(results: &Path) -> Option<(PathBuf, u32)> {
+    let mut stack = vec![results.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for e in std::fs::read_dir(&d).ok()?.flatten() {
+            let p = e.path();
+            if p.is_dir() {
+                stack.push(p);
+            } else if p.file_name().is_some_and(|n| n == "coevo.lock") {
+                let pid = std::fs::read_to_string(&p).ok()?.trim().parse().ok()?;
+                return Some((p, pid));
+            }
+        }
+    }
+    None
+}
+
+/// Whether a process runs (a zombie, dead but not yet reaped, does not).
+fn running(pid: u32) -> bool {
+    std::fs::read_to_string(format!("/proc/{pid}/stat"))
+        .is_ok_and(|s| s.rsplit_once(')').is_some_and(|(_, rest)| !rest.trim_start().starts_with('Z')))
+}
+
+#[test]
+fn a_killed_experiment_leaves_no_child_running_and_can_be_run_again() {
+    let dir = tempfile::tempdir().unwrap();
+    let root = dir.path();
+    std::fs::write(root.join("long.ron"), scene_text(true).replace("episodes: 24", "episodes: 100000")).unwrap();
+    std::fs::create_dir(root.join("exp")).unwrap();
+    // An experiment file outside experiments/, its base beside it.
+    std::fs::write(root.join("exp/long.ron"), r#"(base: "../long.ron", seeds: [1], episodes: 100000, variants: [(name: "a")])"#).unwrap();
+    let mut parent = coevo().args(["--experiment", "exp/long.ron", "--quiet", "--jobs", "1"]).current_dir(root).spawn().unwrap();
+    let started = Instant::now();
+    let (lock, pid) = loop {
+        if let Some(found) = child_pid(&root.join("results")) {
+            break found;
+        }
+        assert!(started.elapsed() < Duration::from_secs(60), "no training child started");
+        std::thread::sleep(Duration::from_millis(5));
+    };
+    assert!(running(pid));
+    parent.kill().unwrap();
+    parent.wait().unwrap();
+    let killed = Instant::now();
+    while running(pid) {
+        assert!(killed.elapsed() < Duration::from_secs(10), "the training child {pid} outlived its experiment");
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    assert!(!lock.exists(), "the child removed its lock on the way out");
+    // The experiment picks the run up again (here: resumes or restarts it) instead of finding it busy.
+    let mut again = coevo().args(["--experiment", "exp/long.ron", "--quiet", "--jobs", "1"]).current_dir(root).spawn().unwrap();
+    let restarted = Instant::now();
+    loop {
+        if let Some((_, p)) = child_pid(&root.join("results")) {
+            if p != pid {
+                break;
+            }
+        }
+        assert!(again.try_wait().unwrap().is_none(), "the re-run ended instead of training");
+        assert!(restarted.elapsed() < Duration::from_secs(60), "no training child restarted");
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    again.kill().unwrap();
+    again.wait().unwrap();
+}
+
+#[test]
+fn a_pipe_given_as_an_input_is_one_error_line_not_a_hang() {
+    let dir = tempfile::tempdir().unwrap();
+    let fifo = dir.path().join("scene.ron");
+    let made = Command::new("mkfifo").arg(&fifo).status().unwrap();
+    assert!(made.success());
+    for args in [vec!["--train", "--scene"], vec!["--describe-scene"], vec!["--experiment"]] {
+        let mut child = coevo().args(&args).arg(&fifo).current_dir(dir.path()).stderr(Stdio::piped()).spawn().unwrap();
+        let started = Instant::now();
+        while child.try_wait().unwrap().is_none() {
+            if started.elapsed() > Duration::from_secs(10) {
+                child.kill().unwrap();
+                panic!("coevo {args:?} FIFO: hangs");
+            }
+            std::thread::sleep(Duration::from_millis(10));
+        }
+        let out = child.wait_with_output().unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success());
+        assert_eq!(stderr.lines().count(), 1, "{stderr}");
+        assert!(stderr.contains("is not a regular file"), "{stderr}");
+    }
+}
+
+#[test]
+fn a_memory_limit_turns_a_huge_population_into_one_error_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let exe = env!("CARGO_BIN_EXE_coevo");
+    // 8 GB of address space: 10 million prey need ~11.6 GB.
+    let script = format!("ulimit -v 8000000 && exec {exe} --record x.csv --steps 1 --prey 10000000 --scene {}", standard().display());
+    let out = Command::new("sh").arg("-c").arg(&script).current_dir(dir.path()).output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert_eq!(stderr.lines().count(), 1, "{stderr}");
+    assert!(stderr.contains("species[prey]: 10000000 agents") && stderr.contains("ulimit -v"), "{stderr}");
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0, "nothing written");
+}
+
+#[test]
+fn interrupted_writes_leave_no_temporary_behind() {
+    let dir = tempfile::tempdir().unwrap();
+    let root = dir.path();
+    let temporaries = || -> Vec<String> {
+        std::fs::read_dir(root).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).filter(|n| n.ends_with(".tmp")).collect()
+    };
+    let record = |signal: &str| {
+        let mut child = coevo().args(["--record", "big.csv", "--steps", "100000", "--prey", "300", "--scene"]).arg(standard()).current_dir(root).stderr(Stdio::piped()).spawn().unwrap();
+        let started = Instant::now();
+        while temporaries().is_empty() {
+            assert!(child.try_wait().unwrap().is_none(), "the record ended before it was interrupted");
+            assert!(started.elapsed() < Duration::from_secs(60));
+            std::thread::sleep(Duration::from_millis(2));
+        }
+        std::thread::sleep(Duration::from_millis(50));
+        let sent = Command::new("kill").args([signal, &child.id().to_string()]).status().unwrap();
+        assert!(sent.success());
+        child.wait_with_output().unwrap()
+    };
+    // SIGTERM and SIGINT: the process removes its temporary before it exits.
+    for signal in ["-TERM", "-INT"] {
+        let out = record(signal);
+        assert!(!out.status.success());
+        assert!(temporaries().is_empty(), "{signal} left {:?}", temporaries());
+        assert!(!root.join("big.csv").exists(), "no half-written output");
+    }
+    // SIGKILL leaves it; the next write of the same file removes it.
+    record("-KILL");
+    assert!(!temporaries().is_empty());
+    let out = coevo().args(["--record", "big.csv", "--steps", "2", "--scene"]).arg(standard()).current_dir(root).output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(temporaries().is_empty(), "left: {:?}", temporaries());
+}
