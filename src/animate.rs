@@ -8,7 +8,7 @@
 //! written transparent, which keeps a 300-step clip of 50 prey around a megabyte.
 
 use crate::sim::components::*;
-use crate::sim::episode::Episode;
+use crate::sim::clock::Episode;
 use crate::io::{AtomicFile, Existing};
 use crate::sim::metrics::SwarmMetrics;
 use crate::scene::Boundary;

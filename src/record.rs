@@ -12,7 +12,7 @@
 //! [`crate::sim::metrics::Swarming`]); step 0, the spawned state, is not measured.
 
 use crate::sim::components::*;
-use crate::sim::episode::Episode;
+use crate::sim::clock::Episode;
 use crate::io::{AtomicFile, Existing};
 use crate::sim::metrics::{SwarmMetrics, Swarming};
 use crate::sim::species::SpeciesRegistry;

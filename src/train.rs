@@ -4,7 +4,8 @@
 //! `checkpoint/` (see `learning::checkpoint`). `--eval` adds `eval.csv` (one row per time step).
 
 use crate::run::RunDir;
-use crate::sim::episode::{Episode, SimRng, SpawnedFrom};
+use crate::sim::clock::Episode;
+use crate::sim::episode::{SimRng, SpawnedFrom};
 use crate::io::{AtomicFile, Existing};
 use crate::learning::checkpoint::{self, SpeciesState, TrainingState};
 use crate::learning::{Learners, LearningPlugin, Mode};
@@ -233,7 +234,7 @@ pub fn train(scene: Scene, opts: &TrainOptions) -> Result<Vec<EpisodeSummary>, S
         crate::sim::episode::spawn_population(world);
         if state.spawn_rng.is_none() || state.species.iter().flatten().any(|s| s.transitions.is_none()) {
             eprintln!(
-                "coevo: {}: checkpoint of an older coevo (no replay buffers or spawn state): the resumed run refills its buffers and differs from an uninterrupted one",
+                "coevo: {}: the checkpoint lacks replay buffers or spawn state (an older coevo, or segments removed): the resumed run refills its buffers and differs from an uninterrupted one",
                 run.display()
             );
         }

@@ -108,12 +108,31 @@ fn a_run_killed_at_any_moment_and_resumed_equals_the_uninterrupted_run() {
             let resumed = coevo().arg("--resume").arg(&run).args(["--quiet", "--threads", "2"]).output().unwrap();
             assert!(resumed.status.success(), "{}", String::from_utf8_lossy(&resumed.stderr));
             let note = String::from_utf8_lossy(&resumed.stderr);
-            assert!(!note.contains("older coevo"), "{note}");
+            assert!(!note.contains("lacks replay buffers"), "{note}");
             assert_eq!(metrics(&run), metrics(&whole), "metrics after a kill at episode {after} (per step: {per_step})");
             assert!(checkpoint(&run) == checkpoint(&whole), "checkpoint after a kill at episode {after} (per step: {per_step})");
             assert!(!run.join("coevo.lock").exists() && !run.join("checkpoint.tmp").exists());
         }
     }
+    // Replay segments: one missing is a damaged checkpoint; all removed (to free space) is a resume that
+    // refills its buffers and says so.
+    let run = dir.path().join("whole-true");
+    let segments: Vec<PathBuf> = std::fs::read_dir(run.join("checkpoint"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.to_string_lossy().contains("-replay-"))
+        .collect();
+    assert!(segments.len() >= 2, "{segments:?}");
+    std::fs::remove_file(&segments[0]).unwrap();
+    let extend = || coevo().arg("--resume").arg(&run).args(["--episodes", "25", "--quiet"]).output().unwrap();
+    let out = extend();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("is incomplete"), "{}", String::from_utf8_lossy(&out.stderr));
+    segments[1..].iter().for_each(|p| std::fs::remove_file(p).unwrap());
+    let out = extend();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("lacks replay buffers"));
+    assert_eq!(rows(&run), 25);
 }
 
 /// The lock file of the first run under `results`, with the PID in it, once one exists.

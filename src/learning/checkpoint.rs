@@ -370,8 +370,9 @@ pub fn load(run: &Path, learners: &mut [Option<SpeciesLearner>], names: &[String
     }
     let text = crate::io::read_text(&state_path, crate::io::MAX_TEXT_BYTES)
         .map_err(|e| format!("{}: {e}", state_path.display()))?;
-    let state: TrainingState =
+    let mut state: TrainingState =
         ron::from_str(&text).map_err(|e| format!("{}: corrupt checkpoint state ({e})", state_path.display()))?;
+    let mut dropped = Vec::new();
     for (learner, name) in learners.iter_mut().zip(names) {
         let Some(l) = learner else { continue };
         let s = state
@@ -407,8 +408,17 @@ pub fn load(run: &Path, learners: &mut [Option<SpeciesLearner>], names: &[String
             l.rng = rng.clone();
         }
         if let (Some(transitions), false) = (s.transitions, l.frozen) {
-            l.buffer = load_replay(&dir, name, &l.buffer, transitions)?;
+            // Segments removed by hand (to free space) leave the buffer to be refilled, as in checkpoints
+            // of an older coevo; some of them missing is damage.
+            if transitions > 0 && segments(&dir, name).is_empty() {
+                dropped.push(name.clone());
+            } else {
+                l.buffer = load_replay(&dir, name, &l.buffer, transitions)?;
+            }
         }
+    }
+    for s in state.species.iter_mut().flatten().filter(|s| dropped.contains(&s.name)) {
+        s.transitions = None;
     }
     Ok(state)
 }

@@ -17,7 +17,8 @@ pub mod ddpg;
 pub mod nets;
 pub mod replay;
 
-use crate::sim::episode::{Episode, SimRng};
+use crate::sim::clock::Episode;
+use crate::sim::episode::SimRng;
 use crate::sim::perception::{Batches, SpeciesBatch};
 use crate::scene::{LearningParams, Policy, Scene};
 use crate::sim::species::{SpeciesRegistry, ACTION_DIM, OWN_STATE_DIM};

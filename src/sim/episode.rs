@@ -5,6 +5,7 @@
 //! inside a wall), headings uniform in (−π, π], velocities zero. Overlaps at spawn are allowed; the
 //! contact springs separate them. The paper is silent on this; it is what the authors' code does.
 
+use crate::sim::clock::Episode;
 use crate::sim::components::*;
 use crate::sim::metrics::{EpisodeLog, SwarmMetrics};
 use crate::sim::perception::Perceive;
@@ -36,23 +37,6 @@ impl SimRng {
 /// spawns exactly the population the uninterrupted run had (`learning::checkpoint`).
 #[derive(Resource, Clone, Debug)]
 pub struct SpawnedFrom(pub ChaCha8Rng);
-
-/// Where the run is: episode index (from 0) and steps done in it.
-#[derive(Resource, Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct Episode {
-    pub index: usize,
-    pub step: usize,
-    pub length: usize,
-    /// Respawn when an episode ends (off while recording one continuous trajectory).
-    pub auto_reset: bool,
-}
-
-impl Episode {
-    /// True during the step that completes the episode (from Measure on).
-    pub fn is_done(&self) -> bool {
-        self.step == self.length
-    }
-}
 
 pub struct EpisodePlugin;
 

@@ -15,6 +15,7 @@
 //! | `Learn`    | Algorithm 1: replay buffers and DDPG updates                       | `learning/`       |
 //! | `Episode`  | end of episode: summary, respawn                                  | `episode.rs`      |
 
+pub mod clock;
 pub mod collective;
 pub mod components;
 pub mod episode;
@@ -28,7 +29,8 @@ pub mod species;
 
 use bevy::ecs::schedule::{ScheduleLabel, SingleThreadedExecutor};
 use bevy::prelude::*;
-use episode::{Episode, EpisodePlugin, SimRng};
+use clock::Episode;
+use episode::{EpisodePlugin, SimRng};
 use metrics::MetricsPlugin;
 use perception::PerceptionPlugin;
 use physics::PhysicsPlugin;

@@ -54,7 +54,7 @@ pub struct Fault {
 impl StateFault {
     /// Keeps the first fault of a run: agent `agent` of species `species` went wrong during the step that
     /// follows `episode`'s current one.
-    fn report(&mut self, episode: &crate::sim::episode::Episode, agent: u32, species: usize, what: impl FnOnce() -> String) {
+    fn report(&mut self, episode: &crate::sim::clock::Episode, agent: u32, species: usize, what: impl FnOnce() -> String) {
         if self.0.is_none() {
             self.0 = Some(Fault { episode: episode.index, step: episode.step + 1, agent, species, what: what() });
         }
@@ -122,7 +122,7 @@ fn integrate(
     scene: Res<ActiveScene>,
     arena: Res<Arena>,
     registry: Res<SpeciesRegistry>,
-    episode: Res<crate::sim::episode::Episode>,
+    episode: Res<crate::sim::clock::Episode>,
     mut fault: ResMut<StateFault>,
     mut agents: IntegrateQuery,
 ) {
@@ -156,7 +156,7 @@ fn apply_boundary(
     arena: Res<Arena>,
     scene: Res<ActiveScene>,
     registry: Res<SpeciesRegistry>,
-    episode: Res<crate::sim::episode::Episode>,
+    episode: Res<crate::sim::clock::Episode>,
     mut fault: ResMut<StateFault>,
     mut agents: Query<(&AgentId, &SpeciesId, &Body, &mut Position)>,
 ) {

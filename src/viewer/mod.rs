@@ -252,7 +252,7 @@ fn respawn_with_counts(world: &mut World, counts: &[usize]) {
     world.insert_resource(SpeciesRegistry::from_scene(&scene));
     world.resource_mut::<Control>().current.scene.species.iter_mut().zip(counts).for_each(|(d, &n)| d.count = n);
     world.resource_mut::<ActiveScene>().0 = scene;
-    world.resource_mut::<crate::sim::episode::Episode>().step = 0;
+    world.resource_mut::<crate::sim::clock::Episode>().step = 0;
     crate::sim::episode::spawn_population(world);
     world.resource_mut::<plots::History>().start_episode();
     world.resource_mut::<Control>().error = None;

@@ -11,7 +11,7 @@ use super::draw::{species_colour, Overlays, PanelSpace, Selection};
 use super::plots::{self, History};
 use super::{run_folders, scene_files, Control, Playback, RunMode, Setup};
 use crate::sim::components::{Action, AgentId, Contacts, Heading, Position, Reward, Slot, SpeciesId, Velocity};
-use crate::sim::episode::Episode;
+use crate::sim::clock::Episode;
 use crate::learning::Learners;
 use crate::sim::perception::{neighbour_slot, Batches};
 use crate::scene::{Boundary, Perception, Scene, PRESETS};

@@ -2,7 +2,7 @@
 //! polarization, milling, largest cluster and nearest-neighbour heading correlation step by step within the current episode, and catches per episode, for the
 //! headline species (the prey).
 
-use crate::sim::episode::Episode;
+use crate::sim::clock::Episode;
 use crate::sim::metrics::{EpisodeLog, SwarmMetrics};
 use crate::sim::species::SpeciesRegistry;
 use crate::train::headline_species;
