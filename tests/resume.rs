@@ -16,8 +16,9 @@ fn standard() -> PathBuf {
     std::fs::canonicalize("scenes/standard.ron").unwrap()
 }
 
-/// A small training scene with checkpoints every 2 episodes and a replay buffer that wraps (700
-/// transitions, 1 800 stored per episode), under either update schedule.
+/// A small training scene with checkpoints every 2 episodes and replay buffers that wrap (1 000
+/// transitions; prey store 1 800 per episode, predators 450, so the predators' buffer spans two
+/// checkpoints' segments), under either update schedule.
 fn scene_text(per_step: bool) -> String {
     let schedule = if per_step { "updates_per_episode: 0, updates_per_step: 1" } else { "updates_per_episode: 20, updates_per_step: 0" };
     format!(
@@ -27,7 +28,7 @@ fn scene_text(per_step: bool) -> String {
     episode_steps: 150,
     episodes: 24,
     species: [(name: "prey", count: 12)],
-    learning: (hidden: 16, batch_size: 32, warmup_transitions: 32, buffer_capacity: 700,
+    learning: (hidden: 16, batch_size: 32, warmup_transitions: 32, buffer_capacity: 1000,
                {schedule}, checkpoint_every: 2),
 )"#
     )
@@ -122,13 +123,14 @@ fn a_run_killed_at_any_moment_and_resumed_equals_the_uninterrupted_run() {
         .map(|e| e.unwrap().path())
         .filter(|p| p.to_string_lossy().contains("-replay-"))
         .collect();
-    assert!(segments.len() >= 2, "{segments:?}");
-    std::fs::remove_file(&segments[0]).unwrap();
+    let predators: Vec<&PathBuf> = segments.iter().filter(|p| p.to_string_lossy().contains("predator-replay-")).collect();
+    assert_eq!(predators.len(), 2, "{segments:?}");
+    std::fs::remove_file(predators[0]).unwrap();
     let extend = || coevo().arg("--resume").arg(&run).args(["--episodes", "25", "--quiet"]).output().unwrap();
     let out = extend();
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("is incomplete"), "{}", String::from_utf8_lossy(&out.stderr));
-    segments[1..].iter().for_each(|p| std::fs::remove_file(p).unwrap());
+    segments.iter().filter(|p| p.exists()).for_each(|p| std::fs::remove_file(p).unwrap());
     let out = extend();
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     assert!(String::from_utf8_lossy(&out.stderr).contains("lacks replay buffers"));
