@@ -257,9 +257,6 @@ impl Plugin for MetricsPlugin {
     }
 }
 
-/// Body diameters within which two agents of a species belong to one cluster, unless the scene says.
-pub const DEFAULT_CLUSTER_LINK: f64 = 2.0;
-
 fn measure(
     pop: Res<Population>,
     arena: Res<Arena>,

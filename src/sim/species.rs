@@ -8,17 +8,12 @@
 //! simulation the program makes (headless or in the viewer) gets the plugins' systems (extra reward terms,
 //! a decide system of its own). `examples/hawk.rs` is a complete one.
 
-use crate::scene::{ContactReward, Perception, Policy, Scene, SpeciesDef};
+use crate::scene::{Perception, Policy, Scene, SpeciesDef};
 use bevy::prelude::*;
 use std::sync::Arc;
 
-
-/// Own state in the observation: [x, y, v_x, v_y, h_x, h_y].
-pub const OWN_STATE_DIM: usize = 6;
-/// Per observed neighbour: [Δx, Δy, h_jx − h_ix, h_jy − h_iy].
-pub const NEIGHBOUR_DIM: usize = 4;
-/// An action is [thrust, turn rate], normalized to [−1, 1] each.
-pub const ACTION_DIM: usize = 2;
+pub use crate::scene::catalog::SpeciesTemplate;
+pub use crate::scene::layout::{ACTION_DIM, NEIGHBOUR_DIM, OWN_STATE_DIM};
 
 /// The species of the scene, in registry order (which is also the order of observation blocks).
 #[derive(Resource, Clone, Debug)]
@@ -91,7 +86,7 @@ impl SpeciesRegistry {
     /// d_o for an observer of species `s`: own state, then `topological_limit` neighbour slots for every
     /// species in registry order (54 for the paper's two species and limit 6).
     pub fn observation_dim(&self, s: usize) -> usize {
-        OWN_STATE_DIM + NEIGHBOUR_DIM * self.defs[s].topological_limit * self.len()
+        crate::scene::layout::observation_dim(self.defs[s].topological_limit, self.len())
     }
 
     /// Offset of the block of species `t` in the observation of species `s`.
@@ -113,17 +108,6 @@ impl SpeciesRegistry {
     pub fn predators_of(&self, s: usize) -> impl Iterator<Item = usize> + '_ {
         (0..self.len()).filter(move |&t| self.catches[t][s])
     }
-}
-
-/// A species as a plugin brings it: its definition with defaults, the species that catch it, and the
-/// reward of each contact it takes part in (its own catches are `def.catches`).
-#[derive(Clone, Debug, PartialEq)]
-pub struct SpeciesTemplate {
-    pub def: SpeciesDef,
-    /// Species that catch this one (added to their `catches` when both are in a scene).
-    pub caught_by: Vec<String>,
-    /// Contact rewards of its pairs, either side; a scene's own `contact_rewards` entry for a pair wins.
-    pub contact_rewards: Vec<ContactReward>,
 }
 
 /// A species of your own: a Bevy plugin (whatever systems it needs, e.g. an extra reward term in
@@ -191,33 +175,26 @@ pub mod catalog {
     use bevy::prelude::App;
     use std::sync::{Arc, RwLock};
 
+    pub use crate::scene::catalog::get;
+
     /// Adds a species plugin to an app.
     pub type Builder = Arc<dyn Fn(&mut App) + Send + Sync>;
 
-    static SPECIES: RwLock<Vec<(SpeciesTemplate, Builder)>> = RwLock::new(Vec::new());
+    static BUILDERS: RwLock<Vec<Builder>> = RwLock::new(Vec::new());
 
-    /// Adds a species; the same template again is a no-op, another one of the same name an error.
+    /// Adds a species (its template to the scenes' catalog, its systems to every app); the same template
+    /// again is a no-op, another one of the same name an error.
     pub fn insert(t: SpeciesTemplate, build: Builder) -> Result<(), String> {
-        let mut all = SPECIES.write().unwrap_or_else(|e| e.into_inner());
-        match all.iter().find(|(o, _)| o.def.name == t.def.name) {
-            Some((o, _)) if *o == t => Ok(()),
-            Some(_) => Err(format!("species plugin {:?}: two species plugins define it", t.def.name)),
-            None => {
-                all.push((t, build));
-                Ok(())
-            }
+        if crate::scene::catalog::insert(t)? {
+            BUILDERS.write().unwrap_or_else(|e| e.into_inner()).push(build);
         }
-    }
-
-    /// The template of a species name, if a plugin of this program defines it.
-    pub fn get(name: &str) -> Option<SpeciesTemplate> {
-        SPECIES.read().unwrap_or_else(|e| e.into_inner()).iter().find(|(t, _)| t.def.name == name).map(|(t, _)| t.clone())
+        Ok(())
     }
 
     /// Adds every registered species plugin to an app (what [`crate::sim::SimulationPlugin`] does); their
     /// systems find their species in the registry and do nothing in a scene without it.
     pub fn build_plugins(app: &mut App) {
-        let builders: Vec<Builder> = SPECIES.read().unwrap_or_else(|e| e.into_inner()).iter().map(|(_, b)| b.clone()).collect();
+        let builders: Vec<Builder> = BUILDERS.read().unwrap_or_else(|e| e.into_inner()).clone();
         for b in builders {
             b(app);
         }

@@ -8,6 +8,13 @@
 //!
 //! Every error is one line naming the file, the line when it is known, and the field.
 
+pub mod catalog;
+mod diagnostics;
+pub mod layout;
+mod presets;
+mod validate;
+
+use diagnostics::{field_before, locate, readable};
 use serde::{Deserialize, Serialize};
 use std::fmt;
 use std::path::Path;
@@ -246,8 +253,11 @@ pub struct ContactReward {
     pub caught_reward: f64,
 }
 
+/// Body diameters within which two agents of a species belong to one cluster, unless the scene says.
+pub const DEFAULT_CLUSTER_LINK: f64 = 2.0;
+
 fn default_cluster_link() -> f64 {
-    crate::sim::metrics::DEFAULT_CLUSTER_LINK
+    DEFAULT_CLUSTER_LINK
 }
 
 /// The frame of an agent's observation.
@@ -345,8 +355,8 @@ impl Scene {
     /// A preset by name (`paper` or `gym-pps`).
     pub fn preset(name: &str) -> Option<Scene> {
         match name {
-            "paper" => Some(paper_preset()),
-            "gym-pps" => Some(gym_pps_preset()),
+            "paper" => Some(presets::paper()),
+            "gym-pps" => Some(presets::gym_pps()),
             _ => None,
         }
     }
@@ -435,7 +445,7 @@ impl Scene {
             }
             if let Some(existing) = self.species.iter_mut().find(|s| s.name == name) {
                 sp.apply(existing);
-            } else if let Some(t) = crate::sim::species::catalog::get(&name) {
+            } else if let Some(t) = catalog::get(&name) {
                 // A species a plugin of this program defines: its defaults, then the scene's fields.
                 let mut def = t.def.clone();
                 sp.apply(&mut def);
@@ -469,232 +479,6 @@ impl Scene {
                 sp.apply(&mut def);
                 self.species.push(def);
             }
-        }
-        Ok(())
-    }
-
-    /// Checks every value the physics or learning would choke on. Err is (field path, message).
-    pub fn validate(&self) -> Result<(), (String, String)> {
-        fn check(ok: bool, field: &str, message: impl FnOnce() -> String) -> Result<(), (String, String)> {
-            if ok {
-                Ok(())
-            } else {
-                Err((field.to_string(), message()))
-            }
-        }
-        fn positive(v: f64, field: &str) -> Result<(), (String, String)> {
-            check(v.is_finite() && v > 0.0, field, || format!("must be a finite number > 0 (got {v})"))
-        }
-        fn non_negative(v: f64, field: &str) -> Result<(), (String, String)> {
-            check(v.is_finite() && v >= 0.0, field, || format!("must be a finite number ≥ 0 (got {v})"))
-        }
-        let w = &self.world;
-        positive(self.cluster_link, "cluster_link")?;
-        if let Some(r) = self.confusion_radius {
-            positive(r, "confusion_radius")?;
-        }
-        positive(w.arena_edge, "world.arena_edge")?;
-        positive(w.dt, "world.dt")?;
-        non_negative(w.drag, "world.drag")?;
-        non_negative(w.contact_stiffness, "world.contact_stiffness")?;
-        non_negative(w.wall_stiffness, "world.wall_stiffness")?;
-        non_negative(w.wall_damping, "world.wall_damping")?;
-        let r = &self.rewards;
-        for (v, f) in [
-            (r.contact, "rewards.contact"),
-            (r.thrust_cost, "rewards.thrust_cost"),
-            (r.turn_cost, "rewards.turn_cost"),
-            (r.wall_penalty, "rewards.wall_penalty"),
-        ] {
-            check(v.is_finite(), f, || format!("must be a finite number (got {v})"))?;
-        }
-        check(self.episode_steps > 0, "episode_steps", || "must be ≥ 1".into())?;
-        check(self.episodes > 0, "episodes", || "must be ≥ 1".into())?;
-        check(!self.species.is_empty(), "species", || "a scene needs at least one species".into())?;
-        check(self.species.iter().any(|s| s.count > 0), "species", || {
-            "every species has count 0: there would be no agent to simulate".into()
-        })?;
-        for (i, s) in self.species.iter().enumerate() {
-            let f = |name: &str| format!("species[{}].{name}", s.name);
-            check(!s.name.is_empty(), &format!("species[{i}].name"), || "must not be empty".into())?;
-            // Names become CSV column names (dos_prey, catches_by_hawk) and file names (prey-actor.safetensors).
-            check(
-                s.name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-'),
-                &format!("species[{i}].name"),
-                || format!("{:?}: use letters, digits, _ and - only (it names CSV columns and checkpoint files)", s.name),
-            )?;
-            check(self.species.iter().filter(|o| o.name == s.name).count() == 1, &f("name"), || {
-                format!("species name {:?} appears twice", s.name)
-            })?;
-            positive(s.mass, &f("mass"))?;
-            positive(s.radius, &f("radius"))?;
-            check(2.0 * s.radius < w.arena_edge, &f("radius"), || {
-                format!("body diameter {} m does not fit in the arena of edge {} m", 2.0 * s.radius, w.arena_edge)
-            })?;
-            positive(s.max_speed, &f("max_speed"))?;
-            non_negative(s.max_thrust, &f("max_thrust"))?;
-            non_negative(s.max_turn_rate, &f("max_turn_rate"))?;
-            match s.perception {
-                Perception::Full => {}
-                Perception::FractionOfD(x) => positive(x, &f("perception"))?,
-                Perception::Radius(x) => positive(x, &f("perception"))?,
-            }
-            for c in &s.colour {
-                check((0.0..=1.0).contains(c), &f("colour"), || format!("components must be in [0, 1] (got {c})"))?;
-            }
-            for target in &s.catches {
-                check(self.species.iter().any(|o| &o.name == target), &f("catches"), || {
-                    format!("no species named {target:?} in this scene")
-                })?;
-                check(target != &s.name, &f("catches"), || "a species cannot catch itself".into())?;
-            }
-        }
-        for (i, r) in self.contact_rewards.iter().enumerate() {
-            let field = format!("contact_rewards[{i}]");
-            let catcher = self.species.iter().find(|s| s.name == r.catcher);
-            check(catcher.is_some(), &field, || format!("no species named {:?} in this scene", r.catcher))?;
-            check(self.species.iter().any(|s| s.name == r.caught), &field, || format!("no species named {:?} in this scene", r.caught))?;
-            check(catcher.is_some_and(|c| c.catches.contains(&r.caught)), &field, || format!("{} does not catch {}", r.catcher, r.caught))?;
-            check(r.catcher_reward.is_finite() && r.caught_reward.is_finite(), &field, || "rewards must be finite numbers".into())?;
-            check(
-                !self.contact_rewards[..i].iter().any(|o| o.catcher == r.catcher && o.caught == r.caught),
-                &field,
-                || format!("the pair {} → {} appears twice", r.catcher, r.caught),
-            )?;
-        }
-        let l = &self.learning;
-        positive(l.actor_lr, "learning.actor_lr")?;
-        positive(l.critic_lr, "learning.critic_lr")?;
-        check((0.0..=1.0).contains(&l.gamma), "learning.gamma", || format!("must be in [0, 1] (got {})", l.gamma))?;
-        check(l.tau > 0.0 && l.tau <= 1.0, "learning.tau", || format!("must be in (0, 1] (got {})", l.tau))?;
-        check(l.hidden > 0, "learning.hidden", || "must be ≥ 1".into())?;
-        check(l.batch_size > 0, "learning.batch_size", || "must be ≥ 1".into())?;
-        check(l.buffer_capacity >= l.batch_size, "learning.buffer_capacity", || {
-            format!("must hold at least one batch ({} transitions)", l.batch_size)
-        })?;
-        for (v, f) in [
-            (l.noise_std, "learning.noise_std"),
-            (l.epsilon, "learning.epsilon"),
-            (l.exploration_decay, "learning.exploration_decay"),
-            (l.exploration_floor, "learning.exploration_floor"),
-        ] {
-            non_negative(v, f)?;
-        }
-        check(l.epsilon <= 1.0, "learning.epsilon", || format!("is a probability (got {})", l.epsilon))?;
-        // The noise is added to actions in [−1, 1] and clamped back: beyond a few units it is all saturation.
-        check(l.noise_std <= 10.0, "learning.noise_std", || {
-            format!("must be ≤ 10 on actions in [−1, 1] (got {})", l.noise_std)
-        })?;
-        self.check_stability()?;
-        self.check_memory(crate::io::memory_bytes())
-    }
-
-    /// Refuses parameters for which the semi-implicit Euler step of Appendix B is unstable or unphysical.
-    /// With m the mass of a body and Δt the step:
-    ///
-    /// - drag: `(drag + wall damping)·Δt/m ≤ 1`, else one step reverses the velocity it damps;
-    /// - contacts: `k·Δt²·(1/m_a + 1/m_b) < 4` for the two lightest bodies, the stability bound ωΔt < 2 of
-    ///   the symplectic Euler step for a spring between them (the `paper` preset: 1);
-    /// - walls: `k_wall·Δt²/m < 4` for the lightest body (a spring to a fixed wall);
-    /// - travel: one step moves a body at most `max_speed·Δt` (×√2 when clipped per component), which must
-    ///   stay under half the arena edge, as the torus wrap and minimum-image distances assume.
-    fn check_stability(&self) -> Result<(), (String, String)> {
-        let w = &self.world;
-        let walls = w.boundary == Boundary::Walls;
-        let damping = w.drag + if walls { w.wall_damping } else { 0.0 };
-        let mut masses: Vec<(f64, &str)> = self.species.iter().map(|s| (s.mass, s.name.as_str())).collect();
-        masses.sort_by(|a, b| a.0.total_cmp(&b.0));
-        let (lightest, name) = masses[0];
-        let field = |f: &str| format!("species[{name}].{f}");
-        let ratio = damping * w.dt / lightest;
-        if ratio > 1.0 {
-            let what = if walls { "(drag + wall_damping)·dt/mass" } else { "drag·dt/mass" };
-            return Err((field("mass"), format!("{what} = {ratio} exceeds 1: a step would reverse velocities (lower world.drag or world.dt, or raise the mass)")));
-        }
-        // The two lightest bodies that can meet: the lightest twice if its species has two agents.
-        let lightest_species = self.species.iter().filter(|s| s.mass == lightest).map(|s| s.count).sum::<usize>();
-        let second = if lightest_species >= 2 || masses.len() < 2 { lightest } else { masses[1].0 };
-        let spring = w.contact_stiffness * w.dt * w.dt * (1.0 / lightest + 1.0 / second);
-        if spring >= 4.0 {
-            return Err((
-                "world.contact_stiffness".into(),
-                format!("k·dt²·(1/m_a + 1/m_b) = {spring} for the lightest bodies ({name}) is ≥ 4: contacts would blow up (lower k or dt, or raise masses)"),
-            ));
-        }
-        let wall = w.wall_stiffness * w.dt * w.dt / lightest;
-        if walls && wall >= 4.0 {
-            return Err((
-                "world.wall_stiffness".into(),
-                format!("k_wall·dt²/m = {wall} for {name} is ≥ 4: wall contacts would blow up (lower it or dt)"),
-            ));
-        }
-        let per_component = if w.speed_clip == SpeedClip::PerComponent { std::f64::consts::SQRT_2 } else { 1.0 };
-        for s in &self.species {
-            let travel = s.max_speed * w.dt * per_component;
-            if travel >= w.arena_edge / 2.0 {
-                let message = format!(
-                    "a body would move {travel} m in one step, not less than half the arena edge ({} m)",
-                    w.arena_edge / 2.0
-                );
-                return Err((format!("species[{}].max_speed", s.name), message));
-            }
-        }
-        Ok(())
-    }
-
-    /// Refuses a scene whose populations, observations or networks would need more than `limit` bytes,
-    /// before anything is allocated. The estimate counts what grows with the scene: per agent its
-    /// components and observation rows, per learned species its networks (online, target, Adam moments and
-    /// the copies kept for saving) and its replay buffer (at most what a full run can fill).
-    pub fn check_memory(&self, limit: f64) -> Result<(), (String, String)> {
-        let registry = crate::sim::species::SpeciesRegistry::from_scene(self);
-        let gb = |b: f64| format!("{:.1} GB", b / 1e9);
-        let refuse = |field: String, what: String, bytes: f64| {
-            Err((field, format!("{what} would need {}, more than the {} of memory coevo may use here (the least of free memory, the cgroup limit and ulimit -v)", gb(bytes), gb(limit))))
-        };
-        let mut total = 0.0;
-        for (s, def) in self.species.iter().enumerate() {
-            let n = def.count as f64;
-            let d = registry.observation_dim(s) as f64;
-            // Observations, the copy paired with the next step's, and an inference chunk's; ~512 B of
-            // components and perception arrays per agent.
-            let agents = n * (3.0 * d * 4.0 + 512.0);
-            if agents > limit {
-                let what = format!("{} agents with observations of {d} numbers (count, topological_limit)", def.count);
-                return refuse(format!("species[{}]", def.name), what, agents);
-            }
-            total += agents;
-            if matches!(def.policy, Policy::Learned | Policy::Frozen(_)) {
-                let (h, l) = (self.learning.hidden as f64, &self.learning);
-                let params = (d + 1.0) * h
-                    + 2.0 * (h + 1.0) * h
-                    + (h + 1.0) * 2.0
-                    + (d + 3.0) * h
-                    + 2.0 * (h + 1.0) * h
-                    + h
-                    + 1.0;
-                let activations = l.batch_size as f64 * (2.0 * d + 8.0 * h) * 4.0 * 8.0;
-                let nets = params * 4.0 * 10.0 + activations;
-                if nets > limit {
-                    let (field, what) = if activations > params * 40.0 {
-                        ("learning.batch_size", format!("mini-batches of {} observations of {d} numbers", l.batch_size))
-                    } else {
-                        ("learning.hidden", format!("networks of width {} on {d} inputs", l.hidden))
-                    };
-                    return refuse(field.into(), what, nets);
-                }
-                let transitions = (l.buffer_capacity as f64).min(n * self.episode_steps as f64 * self.episodes as f64);
-                let buffer = transitions * (2.0 * d + 3.0) * 4.0;
-                if buffer > limit {
-                    let what =
-                        format!("a replay buffer of {transitions:.0} transitions of {d} numbers for {}", def.name);
-                    return refuse("learning.buffer_capacity".into(), what, buffer);
-                }
-                total += nets + buffer;
-            }
-        }
-        if total > limit {
-            return refuse("species".into(), "this scene's agents, networks and replay buffers".into(), total);
         }
         Ok(())
     }
@@ -770,203 +554,4 @@ impl SpeciesPatch {
         );
         m
     }
-}
-
-/// The `paper` preset: the paper's values, the authors' code's where the paper is silent.
-fn paper_preset() -> Scene {
-    let species = |name: &str, count, radius, colour, catches: &[&str], policy| SpeciesDef {
-        name: name.into(),
-        count,
-        mass: 1.0,
-        radius,
-        max_speed: 0.5,
-        max_thrust: 1.0,
-        max_turn_rate: 0.5,
-        perception: Perception::Full,
-        topological_limit: 6,
-        colour,
-        catches: catches.iter().map(|s| s.to_string()).collect(),
-        policy,
-    };
-    Scene {
-        preset: "paper".into(),
-        seed: 0,
-        episode_steps: 500,
-        episodes: 2000,
-        world: WorldParams {
-            arena_edge: 2.0,
-            boundary: Boundary::Periodic,
-            dt: 0.1,
-            drag: 2.0,
-            contact_stiffness: 50.0,
-            wall_stiffness: 50.0,
-            wall_damping: 0.0,
-            speed_clip: SpeedClip::Norm,
-            energy_budget: false,
-        },
-        rewards: RewardParams {
-            contact: 1.0,
-            thrust_cost: 0.01,
-            turn_cost: 0.1,
-            wall_penalty: 0.0,
-            wall_penalty_mode: WallPenaltyMode::AnyWall,
-            contacts_judged: ContactJudging::AfterMove,
-        },
-        species: vec![
-            species("predator", 3, 0.06, [0.96, 0.55, 0.15], &["prey"], Policy::Learned),
-            species("prey", 10, 0.035, [0.2, 0.45, 0.9], &[], Policy::Learned),
-        ],
-        learning: LearningParams {
-            hidden: 64,
-            actor_lr: 1e-4,
-            critic_lr: 1e-3,
-            gamma: 0.95,
-            tau: 0.01,
-            batch_size: 256,
-            buffer_capacity: 500_000,
-            updates_per_episode: 30,
-            updates_per_step: 0,
-            warmup_transitions: 256,
-            noise_std: 0.1,
-            epsilon: 0.1,
-            exploration_decay: 5e-5,
-            exploration_floor: 0.05,
-            checkpoint_every: 100,
-        },
-        observation_frame: ObservationFrame::World,
-        cluster_link: default_cluster_link(),
-        confusion_radius: None,
-        contact_rewards: vec![],
-    }
-}
-
-/// The `gym-pps` preset: the authors' code as it runs (parameters.md, "gym-pps preset").
-fn gym_pps_preset() -> Scene {
-    let mut s = paper_preset();
-    s.preset = "gym-pps".into();
-    s.world.wall_stiffness = 100.0;
-    s.world.wall_damping = 5.0;
-    s.world.speed_clip = SpeedClip::PerComponent;
-    s.world.energy_budget = true;
-    s.rewards = RewardParams {
-        contact: 5.0,
-        thrust_cost: 0.0,
-        // −|Δθ| with Δθ = a_R·Δt in rad per step is −0.1·|a_R| with a_R in rad/s.
-        turn_cost: 0.1,
-        wall_penalty: 0.0,
-        wall_penalty_mode: WallPenaltyMode::PerWall,
-        contacts_judged: ContactJudging::BeforeMove,
-    };
-    for sp in &mut s.species {
-        // 0.5 rad per step at Δt = 0.1 s.
-        sp.max_turn_rate = 5.0;
-    }
-    s.species[0].mass = 3.0;
-    s
-}
-
-/// Finds the line of a field path such as `species[prey].mass` or `world.drag` in scene text, so an
-/// error can point at it; None when the value came from the preset.
-fn locate(text: &str, field: &str) -> Option<usize> {
-    let lines: Vec<&str> = text.lines().collect();
-    let has_key = |line: &str, key: &str| {
-        let code = line.split("//").next().unwrap_or("");
-        code.match_indices(key).any(|(i, _)| {
-            let before_ok = code[..i].chars().last().is_none_or(|c| !(c.is_alphanumeric() || c == '_'));
-            let rest = code[i + key.len()..].trim_start();
-            before_ok && rest.starts_with(':')
-        })
-    };
-    let (mut from, mut key) = (0usize, field);
-    if let Some(rest) = field.strip_prefix("species[") {
-        let (name, tail) = rest.split_once(']')?;
-        let quoted = format!("\"{name}\"");
-        from = lines
-            .iter()
-            .position(|l| has_key(l, "name") && l.contains(&quoted))
-            .or_else(|| name.parse::<usize>().ok().and_then(|_| lines.iter().position(|l| has_key(l, "species"))))?;
-        key = tail.trim_start_matches('.');
-        if key.is_empty() {
-            return Some(from + 1);
-        }
-    } else if let Some((section, last)) = field.rsplit_once('.') {
-        from = lines.iter().position(|l| has_key(l, section))?;
-        key = last;
-    }
-    lines.iter().enumerate().skip(from).find(|(_, l)| has_key(l, key)).map(|(i, _)| i + 1)
-}
-
-/// The key whose value a parse error points into: the last `name:` before (line, col), 1-based.
-fn field_before(text: &str, line: usize, col: usize) -> String {
-    let mut before: Vec<&str> = text.lines().take(line).collect();
-    if let Some(last) = before.last_mut() {
-        *last = &last[..last.char_indices().nth(col.saturating_sub(1)).map_or(last.len(), |(i, _)| i)];
-    }
-    let joined = before.join("\n");
-    let Some(colon) = joined.rfind(':') else {
-        return String::new();
-    };
-    let key: String =
-        joined[..colon].trim_end().chars().rev().take_while(|c| c.is_alphanumeric() || *c == '_').collect();
-    key.chars().rev().collect()
-}
-
-/// Whether brackets opened in `text` (outside strings and `//` comments) are left unclosed: a file cut
-/// short, or a missing `)`.
-fn unclosed(text: &str) -> bool {
-    let mut depth = 0i64;
-    for line in text.lines() {
-        let mut in_string = false;
-        let mut chars = line.chars().peekable();
-        while let Some(c) = chars.next() {
-            match c {
-                '"' => in_string = !in_string,
-                '\\' if in_string => {
-                    chars.next();
-                }
-                '/' if !in_string && chars.peek() == Some(&'/') => break,
-                '(' | '[' | '{' if !in_string => depth += 1,
-                ')' | ']' | '}' if !in_string => depth -= 1,
-                _ => {}
-            }
-        }
-    }
-    depth > 0
-}
-
-/// ron's message in a scene author's words: our patch types named as the sections they are, and the
-/// common slips (a fraction where a whole number goes, a file cut short) said plainly.
-fn readable(text: &str, e: &ron::error::SpannedError) -> String {
-    let (line, col) = (e.span.start.line, e.span.start.col);
-    let rest: String =
-        text.lines().nth(line.saturating_sub(1)).unwrap_or("").chars().skip(col.saturating_sub(1)).collect();
-    let before: String =
-        text.lines().nth(line.saturating_sub(1)).unwrap_or("").chars().take(col.saturating_sub(1)).collect();
-    let number_before = before.trim_end().chars().last().is_some_and(|c| c.is_ascii_digit());
-    if number_before && (rest.starts_with('.') || rest.starts_with('e') || rest.starts_with('E')) {
-        let whole: String = before
-            .chars()
-            .rev()
-            .take_while(|c| c.is_ascii_digit() || *c == '-')
-            .collect::<Vec<_>>()
-            .into_iter()
-            .rev()
-            .collect();
-        let frac: String =
-            rest.chars().take_while(|c| c.is_ascii_digit() || matches!(c, '.' | 'e' | 'E' | '-' | '+')).collect();
-        return format!("must be a whole number (got {whole}{frac})");
-    }
-    if matches!(e.code, ron::Error::Eof) || unclosed(text) {
-        return "the file ends too early: a closing `)` or `]` is missing, or the file was cut short"
-            .into();
-    }
-    [
-        ("`ScenePatch`", "the scene"),
-        ("`WorldParamsPatch`", "world"),
-        ("`RewardParamsPatch`", "rewards"),
-        ("`SpeciesPatch`", "a species"),
-        ("`LearningParamsPatch`", "learning"),
-    ]
-    .iter()
-    .fold(e.code.to_string(), |m, (from, to)| m.replace(from, to))
 }

@@ -1,0 +1,231 @@
+//! Validation of a resolved scene: every value the physics or learning would choke on, the integrator's
+//! stability bounds, and the memory a scene would need (before anything is allocated).
+
+use super::*;
+
+impl Scene {
+    /// Checks every value the physics or learning would choke on. Err is (field path, message).
+    pub fn validate(&self) -> Result<(), (String, String)> {
+        fn check(ok: bool, field: &str, message: impl FnOnce() -> String) -> Result<(), (String, String)> {
+            if ok {
+                Ok(())
+            } else {
+                Err((field.to_string(), message()))
+            }
+        }
+        fn positive(v: f64, field: &str) -> Result<(), (String, String)> {
+            check(v.is_finite() && v > 0.0, field, || format!("must be a finite number > 0 (got {v})"))
+        }
+        fn non_negative(v: f64, field: &str) -> Result<(), (String, String)> {
+            check(v.is_finite() && v >= 0.0, field, || format!("must be a finite number ≥ 0 (got {v})"))
+        }
+        let w = &self.world;
+        positive(self.cluster_link, "cluster_link")?;
+        if let Some(r) = self.confusion_radius {
+            positive(r, "confusion_radius")?;
+        }
+        positive(w.arena_edge, "world.arena_edge")?;
+        positive(w.dt, "world.dt")?;
+        non_negative(w.drag, "world.drag")?;
+        non_negative(w.contact_stiffness, "world.contact_stiffness")?;
+        non_negative(w.wall_stiffness, "world.wall_stiffness")?;
+        non_negative(w.wall_damping, "world.wall_damping")?;
+        let r = &self.rewards;
+        for (v, f) in [
+            (r.contact, "rewards.contact"),
+            (r.thrust_cost, "rewards.thrust_cost"),
+            (r.turn_cost, "rewards.turn_cost"),
+            (r.wall_penalty, "rewards.wall_penalty"),
+        ] {
+            check(v.is_finite(), f, || format!("must be a finite number (got {v})"))?;
+        }
+        check(self.episode_steps > 0, "episode_steps", || "must be ≥ 1".into())?;
+        check(self.episodes > 0, "episodes", || "must be ≥ 1".into())?;
+        check(!self.species.is_empty(), "species", || "a scene needs at least one species".into())?;
+        check(self.species.iter().any(|s| s.count > 0), "species", || {
+            "every species has count 0: there would be no agent to simulate".into()
+        })?;
+        for (i, s) in self.species.iter().enumerate() {
+            let f = |name: &str| format!("species[{}].{name}", s.name);
+            check(!s.name.is_empty(), &format!("species[{i}].name"), || "must not be empty".into())?;
+            // Names become CSV column names (dos_prey, catches_by_hawk) and file names (prey-actor.safetensors).
+            check(
+                s.name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-'),
+                &format!("species[{i}].name"),
+                || format!("{:?}: use letters, digits, _ and - only (it names CSV columns and checkpoint files)", s.name),
+            )?;
+            check(self.species.iter().filter(|o| o.name == s.name).count() == 1, &f("name"), || {
+                format!("species name {:?} appears twice", s.name)
+            })?;
+            positive(s.mass, &f("mass"))?;
+            positive(s.radius, &f("radius"))?;
+            check(2.0 * s.radius < w.arena_edge, &f("radius"), || {
+                format!("body diameter {} m does not fit in the arena of edge {} m", 2.0 * s.radius, w.arena_edge)
+            })?;
+            positive(s.max_speed, &f("max_speed"))?;
+            non_negative(s.max_thrust, &f("max_thrust"))?;
+            non_negative(s.max_turn_rate, &f("max_turn_rate"))?;
+            match s.perception {
+                Perception::Full => {}
+                Perception::FractionOfD(x) => positive(x, &f("perception"))?,
+                Perception::Radius(x) => positive(x, &f("perception"))?,
+            }
+            for c in &s.colour {
+                check((0.0..=1.0).contains(c), &f("colour"), || format!("components must be in [0, 1] (got {c})"))?;
+            }
+            for target in &s.catches {
+                check(self.species.iter().any(|o| &o.name == target), &f("catches"), || {
+                    format!("no species named {target:?} in this scene")
+                })?;
+                check(target != &s.name, &f("catches"), || "a species cannot catch itself".into())?;
+            }
+        }
+        for (i, r) in self.contact_rewards.iter().enumerate() {
+            let field = format!("contact_rewards[{i}]");
+            let catcher = self.species.iter().find(|s| s.name == r.catcher);
+            check(catcher.is_some(), &field, || format!("no species named {:?} in this scene", r.catcher))?;
+            check(self.species.iter().any(|s| s.name == r.caught), &field, || format!("no species named {:?} in this scene", r.caught))?;
+            check(catcher.is_some_and(|c| c.catches.contains(&r.caught)), &field, || format!("{} does not catch {}", r.catcher, r.caught))?;
+            check(r.catcher_reward.is_finite() && r.caught_reward.is_finite(), &field, || "rewards must be finite numbers".into())?;
+            check(
+                !self.contact_rewards[..i].iter().any(|o| o.catcher == r.catcher && o.caught == r.caught),
+                &field,
+                || format!("the pair {} → {} appears twice", r.catcher, r.caught),
+            )?;
+        }
+        let l = &self.learning;
+        positive(l.actor_lr, "learning.actor_lr")?;
+        positive(l.critic_lr, "learning.critic_lr")?;
+        check((0.0..=1.0).contains(&l.gamma), "learning.gamma", || format!("must be in [0, 1] (got {})", l.gamma))?;
+        check(l.tau > 0.0 && l.tau <= 1.0, "learning.tau", || format!("must be in (0, 1] (got {})", l.tau))?;
+        check(l.hidden > 0, "learning.hidden", || "must be ≥ 1".into())?;
+        check(l.batch_size > 0, "learning.batch_size", || "must be ≥ 1".into())?;
+        check(l.buffer_capacity >= l.batch_size, "learning.buffer_capacity", || {
+            format!("must hold at least one batch ({} transitions)", l.batch_size)
+        })?;
+        for (v, f) in [
+            (l.noise_std, "learning.noise_std"),
+            (l.epsilon, "learning.epsilon"),
+            (l.exploration_decay, "learning.exploration_decay"),
+            (l.exploration_floor, "learning.exploration_floor"),
+        ] {
+            non_negative(v, f)?;
+        }
+        check(l.epsilon <= 1.0, "learning.epsilon", || format!("is a probability (got {})", l.epsilon))?;
+        // The noise is added to actions in [−1, 1] and clamped back: beyond a few units it is all saturation.
+        check(l.noise_std <= 10.0, "learning.noise_std", || {
+            format!("must be ≤ 10 on actions in [−1, 1] (got {})", l.noise_std)
+        })?;
+        self.check_stability()?;
+        self.check_memory(crate::io::memory_bytes())
+    }
+
+    /// Refuses parameters for which the semi-implicit Euler step of Appendix B is unstable or unphysical.
+    /// With m the mass of a body and Δt the step:
+    ///
+    /// - drag: `(drag + wall damping)·Δt/m ≤ 1`, else one step reverses the velocity it damps;
+    /// - contacts: `k·Δt²·(1/m_a + 1/m_b) < 4` for the two lightest bodies, the stability bound ωΔt < 2 of
+    ///   the symplectic Euler step for a spring between them (the `paper` preset: 1);
+    /// - walls: `k_wall·Δt²/m < 4` for the lightest body (a spring to a fixed wall);
+    /// - travel: one step moves a body at most `max_speed·Δt` (×√2 when clipped per component), which must
+    ///   stay under half the arena edge, as the torus wrap and minimum-image distances assume.
+    fn check_stability(&self) -> Result<(), (String, String)> {
+        let w = &self.world;
+        let walls = w.boundary == Boundary::Walls;
+        let damping = w.drag + if walls { w.wall_damping } else { 0.0 };
+        let mut masses: Vec<(f64, &str)> = self.species.iter().map(|s| (s.mass, s.name.as_str())).collect();
+        masses.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let (lightest, name) = masses[0];
+        let field = |f: &str| format!("species[{name}].{f}");
+        let ratio = damping * w.dt / lightest;
+        if ratio > 1.0 {
+            let what = if walls { "(drag + wall_damping)·dt/mass" } else { "drag·dt/mass" };
+            return Err((field("mass"), format!("{what} = {ratio} exceeds 1: a step would reverse velocities (lower world.drag or world.dt, or raise the mass)")));
+        }
+        // The two lightest bodies that can meet: the lightest twice if its species has two agents.
+        let lightest_species = self.species.iter().filter(|s| s.mass == lightest).map(|s| s.count).sum::<usize>();
+        let second = if lightest_species >= 2 || masses.len() < 2 { lightest } else { masses[1].0 };
+        let spring = w.contact_stiffness * w.dt * w.dt * (1.0 / lightest + 1.0 / second);
+        if spring >= 4.0 {
+            return Err((
+                "world.contact_stiffness".into(),
+                format!("k·dt²·(1/m_a + 1/m_b) = {spring} for the lightest bodies ({name}) is ≥ 4: contacts would blow up (lower k or dt, or raise masses)"),
+            ));
+        }
+        let wall = w.wall_stiffness * w.dt * w.dt / lightest;
+        if walls && wall >= 4.0 {
+            return Err((
+                "world.wall_stiffness".into(),
+                format!("k_wall·dt²/m = {wall} for {name} is ≥ 4: wall contacts would blow up (lower it or dt)"),
+            ));
+        }
+        let per_component = if w.speed_clip == SpeedClip::PerComponent { std::f64::consts::SQRT_2 } else { 1.0 };
+        for s in &self.species {
+            let travel = s.max_speed * w.dt * per_component;
+            if travel >= w.arena_edge / 2.0 {
+                let message = format!(
+                    "a body would move {travel} m in one step, not less than half the arena edge ({} m)",
+                    w.arena_edge / 2.0
+                );
+                return Err((format!("species[{}].max_speed", s.name), message));
+            }
+        }
+        Ok(())
+    }
+
+    /// Refuses a scene whose populations, observations or networks would need more than `limit` bytes,
+    /// before anything is allocated. The estimate counts what grows with the scene: per agent its
+    /// components and observation rows, per learned species its networks (online, target, Adam moments and
+    /// the copies kept for saving) and its replay buffer (at most what a full run can fill).
+    pub fn check_memory(&self, limit: f64) -> Result<(), (String, String)> {
+        let gb = |b: f64| format!("{:.1} GB", b / 1e9);
+        let refuse = |field: String, what: String, bytes: f64| {
+            Err((field, format!("{what} would need {}, more than the {} of memory coevo may use here (the least of free memory, the cgroup limit and ulimit -v)", gb(bytes), gb(limit))))
+        };
+        let mut total = 0.0;
+        for (s, def) in self.species.iter().enumerate() {
+            let n = def.count as f64;
+            let d = self.observation_dim(s) as f64;
+            // Observations, the copy paired with the next step's, and an inference chunk's; ~512 B of
+            // components and perception arrays per agent.
+            let agents = n * (3.0 * d * 4.0 + 512.0);
+            if agents > limit {
+                let what = format!("{} agents with observations of {d} numbers (count, topological_limit)", def.count);
+                return refuse(format!("species[{}]", def.name), what, agents);
+            }
+            total += agents;
+            if matches!(def.policy, Policy::Learned | Policy::Frozen(_)) {
+                let (h, l) = (self.learning.hidden as f64, &self.learning);
+                let params = (d + 1.0) * h
+                    + 2.0 * (h + 1.0) * h
+                    + (h + 1.0) * 2.0
+                    + (d + 3.0) * h
+                    + 2.0 * (h + 1.0) * h
+                    + h
+                    + 1.0;
+                let activations = l.batch_size as f64 * (2.0 * d + 8.0 * h) * 4.0 * 8.0;
+                let nets = params * 4.0 * 10.0 + activations;
+                if nets > limit {
+                    let (field, what) = if activations > params * 40.0 {
+                        ("learning.batch_size", format!("mini-batches of {} observations of {d} numbers", l.batch_size))
+                    } else {
+                        ("learning.hidden", format!("networks of width {} on {d} inputs", l.hidden))
+                    };
+                    return refuse(field.into(), what, nets);
+                }
+                let transitions = (l.buffer_capacity as f64).min(n * self.episode_steps as f64 * self.episodes as f64);
+                let buffer = transitions * (2.0 * d + 3.0) * 4.0;
+                if buffer > limit {
+                    let what =
+                        format!("a replay buffer of {transitions:.0} transitions of {d} numbers for {}", def.name);
+                    return refuse("learning.buffer_capacity".into(), what, buffer);
+                }
+                total += nets + buffer;
+            }
+        }
+        if total > limit {
+            return refuse("species".into(), "this scene's agents, networks and replay buffers".into(), total);
+        }
+        Ok(())
+    }
+}
