@@ -8,13 +8,13 @@
 //! ```
 
 use bevy::prelude::*;
-use coevo::components::{Reward, Slot, SpeciesId};
-use coevo::perception::{Batches, Population};
-use coevo::reward::{add_reward, RewardStage};
+use coevo::sim::components::{Reward, Slot, SpeciesId};
+use coevo::sim::perception::{Batches, Population};
+use coevo::sim::reward::{add_reward, RewardStage};
 use coevo::scene::{ContactReward, Perception, Policy, SpeciesDef};
-use coevo::space::Arena;
-use coevo::species::{SpeciesPlugin, SpeciesPlugins, SpeciesRegistry, SpeciesTemplate};
-use coevo::SimSet;
+use coevo::sim::space::Arena;
+use coevo::sim::species::{SpeciesPlugin, SpeciesPlugins, SpeciesRegistry, SpeciesTemplate};
+use coevo::sim::SimSet;
 
 /// 1. The plugin: a Bevy plugin that is also a species.
 #[derive(Clone)]

@@ -335,13 +335,13 @@ fn run(cli: Cli, mode: RunMode) -> Result<(), String> {
                 return Err(format!("--bench-seconds: must be a number of seconds in (0, 3600] (got {seconds})"));
             }
             let budget = Duration::from_secs_f64(seconds);
-            crate::bench::print(&crate::bench::environment(budget));
-            crate::bench::print(&crate::bench::learning(budget));
+            crate::run::bench::print(&crate::run::bench::environment(budget));
+            crate::run::bench::print(&crate::run::bench::learning(budget));
             Ok(())
         }
         RunMode::Eval => {
             let run = cli.eval.clone().expect("eval mode");
-            let opts = crate::train::EvalOptions {
+            let opts = crate::run::evaluate::EvalOptions {
                 run,
                 out: cli.eval_out.clone(),
                 control: cli.control.unwrap_or_default(),
@@ -351,7 +351,7 @@ fn run(cli: Cli, mode: RunMode) -> Result<(), String> {
                 seed: cli.seed,
                 confusion_radius: cli.confusion_radius,
             };
-            println!("{}", crate::train::evaluate(&opts)?);
+            println!("{}", crate::run::evaluate::evaluate(&opts)?);
             Ok(())
         }
         RunMode::Train | RunMode::Resume => {
@@ -366,14 +366,14 @@ fn run(cli: Cli, mode: RunMode) -> Result<(), String> {
                     (scene, run)
                 }
             };
-            let opts = crate::train::TrainOptions {
+            let opts = crate::run::train::TrainOptions {
                 run: run.clone(),
                 resume: mode == RunMode::Resume,
                 overwrite: cli.overwrite,
                 episodes: cli.episodes,
                 progress: !cli.quiet,
             };
-            let summaries = crate::train::train(scene, &opts)?;
+            let summaries = crate::run::train::train(scene, &opts)?;
             eprintln!("coevo: trained {} episodes into {}", summaries.len(), run.display());
             Ok(())
         }
@@ -381,7 +381,7 @@ fn run(cli: Cli, mode: RunMode) -> Result<(), String> {
             let out = cli.record.clone().expect("record mode");
             let (mut sim, steps, actors) = deployed(&cli, standard)?;
             let existing = if cli.overwrite { Existing::Replace } else { Existing::Refuse };
-            crate::record::record(&mut sim, steps, &out, existing)?;
+            crate::run::record::record(&mut sim, steps, &out, existing)?;
             eprintln!("coevo: wrote {steps} steps to {}{actors}", out.display());
             Ok(())
         }
@@ -403,7 +403,7 @@ fn run(cli: Cli, mode: RunMode) -> Result<(), String> {
                 (None, Some(scene)) => scene.display().to_string(),
                 (None, None) => standard.display().to_string(),
             };
-            let opts = crate::animate::AnimateOptions {
+            let opts = crate::run::animate::AnimateOptions {
                 steps,
                 steps_per_frame: cli.steps_per_frame.unwrap_or(1),
                 trails: cli.trails,
@@ -411,7 +411,7 @@ fn run(cli: Cli, mode: RunMode) -> Result<(), String> {
                 title,
                 progress: !cli.quiet,
             };
-            let s = crate::animate::animate(&mut sim, &opts, &out, existing)?;
+            let s = crate::run::animate::animate(&mut sim, &opts, &out, existing)?;
             eprintln!(
                 "coevo: wrote {} frames ({steps} steps, {:.1} MB) to {}{actors}; over the clip: polarization {:.3}, milling {:.3}, DoA {:.3}",
                 s.frames,
@@ -562,7 +562,7 @@ fn deployed(cli: &Cli, standard: &Path) -> Result<(crate::sim::Simulation, usize
     let mut scene = with_counts(cli, scene, &source)?;
     let steps = cli.steps.unwrap_or(scene.episode_steps);
     scene.episode_steps = steps;
-    let sim = crate::train::learning_simulation(scene.clone(), Mode::Evaluate, cli.run.as_deref())?;
+    let sim = crate::learning::simulation(scene.clone(), Mode::Evaluate, cli.run.as_deref())?;
     let actors: Vec<String> = scene
         .species
         .iter()

@@ -13,23 +13,14 @@
 //! | `cli.rs` | the command line (`main.rs` and examples call [`cli::main`]) |
 //! | `io.rs`, `parallel.rs`, `svg.rs` | files written safely, threads that never change a result, SVG to pixels |
 
-pub mod animate;
-pub mod bench;
 pub mod cli;
 pub mod experiment;
 pub mod io;
 pub mod learning;
 pub mod parallel;
-pub mod record;
 pub mod run;
 pub mod scene;
 pub mod sim;
 pub mod svg;
-pub mod train;
 #[cfg(feature = "viewer")]
 pub mod viewer;
-
-// The core's modules and types at the crate root too, as `coevo::physics`, `coevo::Simulation`, ...
-pub use scene::Scene;
-pub use sim::{check_state, collective, components, episode, insert_scene, metrics, perception, physics, policy, reward, space, species};
-pub use sim::{ActiveScene, SimSet, Simulation, SimulationPlugin};

@@ -3,10 +3,10 @@
 
 mod common;
 
-use coevo::animate::{animate, AnimateOptions, CAPTION};
+use coevo::run::animate::{animate, AnimateOptions, CAPTION};
 use coevo::io::Existing;
 use coevo::scene::{Boundary, Policy};
-use coevo::Simulation;
+use coevo::sim::Simulation;
 
 fn rgb(c: [f32; 3]) -> [u8; 3] {
     c.map(|v| (v * 255.0).round() as u8)

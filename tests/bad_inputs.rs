@@ -38,21 +38,21 @@ fn workspace() -> tempfile::TempDir {
         let path = entry.unwrap().path();
         std::fs::copy(&path, root.join("scenes").join(path.file_name().unwrap())).unwrap();
     }
-    let mut scene = coevo::Scene::load(Path::new("scenes/paper.ron")).unwrap();
+    let mut scene = coevo::scene::Scene::load(Path::new("scenes/paper.ron")).unwrap();
     scene.episode_steps = 10;
     scene.learning.hidden = 8;
     scene.learning.batch_size = 16;
     scene.learning.warmup_transitions = 16;
     scene.learning.updates_per_episode = 2;
     for run in ["run", "nan-run"] {
-        let opts = coevo::train::TrainOptions {
+        let opts = coevo::run::train::TrainOptions {
             run: root.join(run),
             resume: false,
             overwrite: false,
             episodes: Some(1),
             progress: false,
         };
-        coevo::train::train(scene.clone(), &opts).unwrap();
+        coevo::run::train::train(scene.clone(), &opts).unwrap();
     }
     // A NaN in the prey actor's first weight: the safetensors header is followed by the tensors' bytes.
     let actor = root.join("nan-run/checkpoint/prey-actor.safetensors");

@@ -194,7 +194,7 @@ fn the_preset_ablations_change_exactly_one_difference_per_variant() {
     for (file, all_differences) in [("experiments/ablation-from-paper.ron", "paper"), ("experiments/ablation-from-gym-pps.ron", "gym-pps")] {
         let exp = Experiment::load(Path::new(file), Path::new("results")).unwrap();
         let first_seed: Vec<&coevo::experiment::Run> = exp.runs.iter().filter(|r| r.seed == 1).collect();
-        let lines = |s: &coevo::Scene| s.to_ron().lines().map(str::to_string).collect::<Vec<String>>();
+        let lines = |s: &coevo::scene::Scene| s.to_ron().lines().map(str::to_string).collect::<Vec<String>>();
         let base = lines(&first_seed[0].scene);
         let mut changed_in_total = std::collections::BTreeSet::new();
         for run in &first_seed[1..] {
@@ -215,8 +215,8 @@ fn the_preset_ablations_change_exactly_one_difference_per_variant() {
             changed_in_total.extend(changed);
         }
         // The other preset differs from this one in exactly these fields (walls aside, which do nothing here).
-        let other = coevo::Scene::preset(if all_differences == "paper" { "gym-pps" } else { "paper" }).unwrap();
-        let mine = coevo::Scene::preset(all_differences).unwrap();
+        let other = coevo::scene::Scene::preset(if all_differences == "paper" { "gym-pps" } else { "paper" }).unwrap();
+        let mine = coevo::scene::Scene::preset(all_differences).unwrap();
         let mut presets_differ: std::collections::BTreeSet<String> = lines(&mine)
             .iter()
             .zip(lines(&other))

@@ -1,9 +1,11 @@
 //! The learning plugin end to end, on tiny runs: training, checkpoints, resume, evaluation, bad input.
 
 use coevo::learning::{checkpoint, Learners, Mode};
-use coevo::perception::Batches;
+use coevo::sim::perception::Batches;
 use coevo::scene::{Policy, Scene};
-use coevo::train::{evaluate, learning_simulation, train, EvalOptions, TrainOptions};
+use coevo::learning::simulation as learning_simulation;
+use coevo::run::evaluate::{evaluate, EvalOptions};
+use coevo::run::train::{train, TrainOptions};
 use std::path::Path;
 
 /// The standard scene shrunk to seconds: short episodes, small networks and batches.
@@ -88,7 +90,7 @@ fn a_saved_actor_acts_identically_after_loading() {
         checkpoint::load(&run, &mut learners.species, &["predator".into(), "prey".into()]).unwrap();
     }
     let obs = eval.world().resource::<Batches>().species[1].observations.clone();
-    let act = |sim: &coevo::Simulation| {
+    let act = |sim: &coevo::sim::Simulation| {
         let l = sim.world().resource::<Learners>().species[1].as_ref().unwrap();
         l.ddpg.act(&l.dev, &obs, 10)
     };
@@ -236,8 +238,8 @@ fn algorithm_1_schedule_and_rule_based_predators_and_no_predators_train() {
 }
 
 /// Positions, velocities and headings of every agent, in id order, after each of `steps` steps.
-fn trajectory(sim: &mut coevo::Simulation, steps: usize) -> Vec<Vec<[f64; 5]>> {
-    use coevo::components::{AgentId, Heading, Position, Velocity};
+fn trajectory(sim: &mut coevo::sim::Simulation, steps: usize) -> Vec<Vec<[f64; 5]>> {
+    use coevo::sim::components::{AgentId, Heading, Position, Velocity};
     (0..steps)
         .map(|_| {
             sim.step();
@@ -284,7 +286,7 @@ fn the_shipped_trained_run_is_the_default_scene_and_loads() {
     assert_eq!(scene, default, "the shipped actors were trained on scenes/standard.ron");
     let mut small = scene.clone();
     small.episode_steps = 3;
-    let mut sim = coevo::train::learning_simulation(small, coevo::learning::Mode::Evaluate, Some(asset)).unwrap();
+    let mut sim = coevo::learning::simulation(small, coevo::learning::Mode::Evaluate, Some(asset)).unwrap();
     for _ in 0..3 {
         sim.step();
     }

@@ -2,10 +2,10 @@
 
 mod common;
 use bevy::math::DVec2;
-use coevo::components::*;
-use coevo::physics::{clip_speed, wrap_angle};
+use coevo::sim::components::*;
+use coevo::sim::physics::{clip_speed, wrap_angle};
 use coevo::scene::{Boundary, Policy, SpeedClip};
-use coevo::Simulation;
+use coevo::sim::Simulation;
 use common::{get, manual, place, scene};
 
 #[test]
@@ -90,7 +90,7 @@ fn semi_implicit_euler_in_the_stated_order() {
     s.species[1].max_speed = 10.0;
     let mut sim = manual(s);
     place(&mut sim, 0, DVec2::ZERO, DVec2::new(0.1, 0.0), 0.0);
-    sim.world_mut().resource_mut::<coevo::perception::Batches>().species[1].actions.copy_from_slice(&[1.0, 1.0]);
+    sim.world_mut().resource_mut::<coevo::sim::perception::Batches>().species[1].actions.copy_from_slice(&[1.0, 1.0]);
     sim.step();
     let theta = 0.5 * 0.1;
     let v = DVec2::new(0.1, 0.0) + (1.0 * DVec2::from_angle(theta) - 2.0 * DVec2::new(0.1, 0.0)) * 0.1;
@@ -132,7 +132,7 @@ fn predator_touching_prey_is_a_catch_rewarded_plus_and_minus_one() {
     assert_eq!(get::<Reward>(&mut sim, 0).0, 1.0);
     assert_eq!(get::<Reward>(&mut sim, 1).0, -1.0);
     assert_eq!(get::<Reward>(&mut sim, 2).0, 0.0);
-    assert_eq!(sim.world().resource::<coevo::metrics::SwarmMetrics>().catches_now, 1);
+    assert_eq!(sim.world().resource::<coevo::sim::metrics::SwarmMetrics>().catches_now, 1);
 }
 
 #[test]
@@ -140,7 +140,7 @@ fn energy_cost_of_the_paper() {
     let mut s = scene(0, 1, Policy::Plugin("test".into()), Boundary::Periodic);
     s.species[1].max_speed = 10.0;
     let mut sim = manual(s);
-    sim.world_mut().resource_mut::<coevo::perception::Batches>().species[1].actions.copy_from_slice(&[0.0, -0.5]);
+    sim.world_mut().resource_mut::<coevo::sim::perception::Batches>().species[1].actions.copy_from_slice(&[0.0, -0.5]);
     sim.step();
     // a_F = 0.5 N, a_R = −0.25 rad/s: r = −0.01·0.5 − 0.1·0.25.
     assert!((get::<Reward>(&mut sim, 0).0 - (-0.005 - 0.025)).abs() < 1e-15);

@@ -85,9 +85,9 @@ fn bad_input_is_one_line_and_a_failure_with_no_output() {
 #[test]
 fn a_record_drives_learned_species_with_the_runs_actors() {
     use bevy::math::DVec2;
-    use coevo::components::{AgentId, Heading, Position, Velocity};
+    use coevo::sim::components::{AgentId, Heading, Position, Velocity};
     use coevo::learning::{Learners, Mode};
-    use coevo::perception::{Batches, Perceive};
+    use coevo::sim::perception::{Batches, Perceive};
     use coevo::scene::Scene;
     let dir = tempfile::tempdir().unwrap();
     let run = dir.path().join("run");
@@ -97,8 +97,8 @@ fn a_record_drives_learned_species_with_the_runs_actors() {
     scene.learning.batch_size = 32;
     scene.learning.warmup_transitions = 32;
     scene.learning.updates_per_episode = 5;
-    let opts = coevo::train::TrainOptions { run: run.clone(), resume: false, overwrite: false, episodes: Some(2), progress: false };
-    coevo::train::train(scene, &opts).unwrap();
+    let opts = coevo::run::train::TrainOptions { run: run.clone(), resume: false, overwrite: false, episodes: Some(2), progress: false };
+    coevo::run::train::train(scene, &opts).unwrap();
 
     let out = dir.path().join("r.csv");
     let o = coevo(&["--record", out.to_str().unwrap(), "--run", run.to_str().unwrap(), "--steps", "6"]);
@@ -108,7 +108,7 @@ fn a_record_drives_learned_species_with_the_runs_actors() {
     let rows: Vec<Vec<String>> = text.lines().skip(1).map(|l| l.split(',').map(str::to_string).collect()).collect();
 
     // Rebuild the state of step 4 from the record, perceive it and ask the trained actors.
-    let mut sim = coevo::train::learning_simulation(Scene::load(&run.join("scene.ron")).unwrap(), Mode::Evaluate, Some(&run)).unwrap();
+    let mut sim = coevo::learning::simulation(Scene::load(&run.join("scene.ron")).unwrap(), Mode::Evaluate, Some(&run)).unwrap();
     let step: Vec<&Vec<String>> = rows.iter().filter(|r| r[0] == "4").collect();
     let num = |r: &Vec<String>, i: usize| r[i].parse::<f64>().unwrap();
     {
@@ -124,7 +124,7 @@ fn a_record_drives_learned_species_with_the_runs_actors() {
     }
     let world = sim.world();
     let learners = world.resource::<Learners>();
-    let registry = world.resource::<coevo::species::SpeciesRegistry>();
+    let registry = world.resource::<coevo::sim::species::SpeciesRegistry>();
     for (s, def) in registry.defs.iter().enumerate() {
         let batch = &world.resource::<Batches>().species[s];
         let l = learners.species[s].as_ref().unwrap();
@@ -132,7 +132,7 @@ fn a_record_drives_learned_species_with_the_runs_actors() {
         let recorded: Vec<&&Vec<String>> = step.iter().filter(|r| r[2] == def.name).collect();
         assert_eq!(recorded.len(), batch.n);
         for (row, r) in recorded.iter().enumerate() {
-            let a = coevo::policy::rescale([actions[2 * row], actions[2 * row + 1]], def.max_thrust, def.max_turn_rate);
+            let a = coevo::sim::policy::rescale([actions[2 * row], actions[2 * row + 1]], def.max_thrust, def.max_turn_rate);
             assert_eq!((num(r, 8), num(r, 9)), (a.thrust, a.turn_rate), "{} {}: recorded action is the actor's", def.name, r[1]);
         }
     }
@@ -152,8 +152,8 @@ fn the_order_parameters_beside_a_record_are_those_of_its_trajectory() {
     let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
     assert_eq!(rows.len(), steps * 2, "both species, steps 1..={steps}");
     // Recomputed from the trajectory alone: the prey's positions and headings at each step.
-    let scene = coevo::Scene::load(std::path::Path::new("scenes/gym-pps.ron")).unwrap();
-    let arena = coevo::space::Arena { edge: scene.world.arena_edge, boundary: scene.world.boundary };
+    let scene = coevo::scene::Scene::load(std::path::Path::new("scenes/gym-pps.ron")).unwrap();
+    let arena = coevo::sim::space::Arena { edge: scene.world.arena_edge, boundary: scene.world.boundary };
     let link = scene.cluster_link * 2.0 * scene.species[1].radius;
     for t in 1..=steps {
         let (pos, head): (Vec<DVec2>, Vec<DVec2>) = text
@@ -163,7 +163,7 @@ fn the_order_parameters_beside_a_record_are_those_of_its_trajectory() {
             .filter(|r| r[0] == t.to_string() && r[2] == "prey")
             .map(|r| (DVec2::new(r[3].parse().unwrap(), r[4].parse().unwrap()), DVec2::from_angle(r[7].parse().unwrap())))
             .unzip();
-        let expected = coevo::metrics::swarming_of(&arena, &pos, &head, link).unwrap().values();
+        let expected = coevo::sim::metrics::swarming_of(&arena, &pos, &head, link).unwrap().values();
         let row = rows.iter().find(|r| r[0] == t.to_string() && r[1] == "prey").unwrap();
         for (k, e) in expected.iter().enumerate() {
             let got: f64 = row[2 + k].parse().unwrap();

@@ -3,13 +3,13 @@
 //! species' rows of the action batch (`policy: Plugin("name")`).
 
 use bevy::prelude::*;
-use coevo::components::{Action, AgentId, Heading, SpeciesId};
-use coevo::perception::Batches;
-use coevo::physics::wrap_angle;
-use coevo::policy::PolicyPlugins;
+use coevo::sim::components::{Action, AgentId, Heading, SpeciesId};
+use coevo::sim::perception::Batches;
+use coevo::sim::physics::wrap_angle;
+use coevo::sim::policy::PolicyPlugins;
 use coevo::scene::{Policy, Scene};
-use coevo::species::SpeciesRegistry;
-use coevo::{SimSet, Simulation};
+use coevo::sim::species::SpeciesRegistry;
+use coevo::sim::{SimSet, Simulation};
 
 /// Circlers: full thrust, turning left as fast as they can, forever.
 struct CirclerPlugin;
@@ -100,7 +100,7 @@ fn a_plugin_policy_that_no_plugin_decides_is_refused() {
 mod owl {
     use bevy::prelude::*;
     use coevo::scene::{ContactReward, Perception, Policy, SpeciesDef};
-    use coevo::species::{SpeciesPlugin, SpeciesTemplate};
+    use coevo::sim::species::{SpeciesPlugin, SpeciesTemplate};
 
     /// An owl catches predators (+3 to the owl, −2 to the predator) and is caught by nobody.
     #[derive(Clone)]
@@ -170,7 +170,7 @@ mod owl {
 }
 
 fn owl_scene() -> Scene {
-    coevo::species::SpeciesPlugins::new().with(owl::OwlPlugin).register().unwrap();
+    coevo::sim::species::SpeciesPlugins::new().with(owl::OwlPlugin).register().unwrap();
     Scene::parse(
         r#"(
             preset: "paper",
@@ -193,7 +193,7 @@ fn a_scene_names_a_plugin_species_and_the_plugin_supplies_the_rest() {
     assert_eq!(scene.contact_rewards.len(), 1, "the plugin's pair reward entered the scene");
     // --describe-scene prints the layout the simulation uses.
     let registry = SpeciesRegistry::from_scene(&scene);
-    let text = coevo::species::describe(&scene, "owl.ron");
+    let text = coevo::sim::species::describe(&scene, "owl.ron");
     for s in 0..registry.len() {
         let name = &registry.defs[s].name;
         assert!(text.contains(&format!("observation of {name} (d_o = {}):", registry.observation_dim(s))), "{text}");
@@ -224,7 +224,7 @@ fn contact_rewards_are_paid_pair_by_pair() {
     common_place(&mut sim, 1, DVec2::new(0.03, 0.0));
     common_place(&mut sim, 2, DVec2::new(-0.03, 0.0));
     sim.step();
-    let batches = sim.world().resource::<coevo::perception::Batches>();
+    let batches = sim.world().resource::<coevo::sim::perception::Batches>();
     let reward = |name: &str| batches.species[registry.index_of(name).unwrap()].rewards[0];
     // The predator catches the prey (+1) and is caught by the owl (−2); the prey is caught (−1); the owl
     // catches (+3); the prey touching the owl is no catch either way.
@@ -233,13 +233,13 @@ fn contact_rewards_are_paid_pair_by_pair() {
 
 fn common_place(sim: &mut Simulation, id: u32, x: bevy::math::DVec2) {
     let world = sim.world_mut();
-    let mut q = world.query::<(&AgentId, &mut coevo::components::Position)>();
+    let mut q = world.query::<(&AgentId, &mut coevo::sim::components::Position)>();
     for (aid, mut p) in q.iter_mut(world) {
         if aid.0 == id {
             p.0 = x;
         }
     }
-    world.run_schedule(coevo::perception::Perceive);
+    world.run_schedule(coevo::sim::perception::Perceive);
 }
 
 #[test]
@@ -253,8 +253,8 @@ fn a_plugin_species_learns_with_the_other_two() {
     scene.learning.checkpoint_every = 1;
     let dir = tempfile::tempdir().unwrap();
     let run = dir.path().join("run");
-    let opts = coevo::train::TrainOptions { run: run.clone(), resume: false, overwrite: false, episodes: Some(2), progress: false };
-    coevo::train::train(scene, &opts).unwrap();
+    let opts = coevo::run::train::TrainOptions { run: run.clone(), resume: false, overwrite: false, episodes: Some(2), progress: false };
+    coevo::run::train::train(scene, &opts).unwrap();
     let metrics = std::fs::read_to_string(run.join("metrics.csv")).unwrap();
     let header: Vec<&str> = metrics.lines().next().unwrap().split(',').collect();
     let last: Vec<&str> = metrics.lines().last().unwrap().split(',').collect();
@@ -270,7 +270,7 @@ fn a_plugin_species_learns_with_the_other_two() {
 
 #[test]
 fn bad_species_plugins_are_refused_in_one_line() {
-    use coevo::species::SpeciesPlugins;
+    use coevo::sim::species::SpeciesPlugins;
     let err = SpeciesPlugins::new().with(owl::Griffin).register().unwrap_err();
     assert_eq!(err, "species plugin \"griffin\": its interactions name \"unicorn\", which no preset or species plugin of this program defines");
     let err = SpeciesPlugins::new().with(owl::FakePrey).register().unwrap_err();

@@ -5,7 +5,7 @@
 
 use coevo::learning::Mode;
 use coevo::scene::Scene;
-use coevo::train::{train, TrainOptions};
+use coevo::run::train::{train, TrainOptions};
 use coevo::viewer::{RunMode, Setup};
 use std::path::{Path, PathBuf};
 use std::process::Command;

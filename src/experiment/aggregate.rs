@@ -5,6 +5,8 @@ use super::plot::{self, Curve, EstimatePanel, Panel, Row};
 use super::runner::{eval_file, stage, Stage};
 use super::stats::{difference, estimate, mean, running_mean, Estimate};
 use super::{slug, Claim, Experiment, Quantity};
+use crate::run::schema::{self, Table};
+use crate::run::RunDir;
 use crate::sim::metrics::Swarming;
 use crate::sim::species::SpeciesRegistry;
 use std::collections::BTreeMap;
@@ -51,19 +53,6 @@ impl EvalData {
     }
 }
 
-/// Reads a CSV file into its header and rows of numbers (blank or unreadable cells are NaN).
-fn read_csv(path: &Path) -> Result<(Vec<String>, Vec<Vec<f64>>), String> {
-    let text = crate::io::read_text(path, crate::io::MAX_TEXT_BYTES).map_err(|e| format!("{}: {e}", path.display()))?;
-    let mut lines = text.lines();
-    let header: Vec<String> = lines.next().unwrap_or("").split(',').map(str::to_string).collect();
-    let rows = lines
-        .filter(|l| !l.is_empty())
-        .map(|l| l.split(',').map(|c| c.parse::<f64>().unwrap_or(f64::NAN)).collect::<Vec<f64>>())
-        .filter(|r| r.len() == header.len())
-        .collect();
-    Ok((header, rows))
-}
-
 /// The first species' rows of a confusion curve file (`species,prey_in_view,samples,mean_abs_turn,
 /// mean_speed_fraction,catches_per_step`); empty when there is no file.
 fn read_confusion(path: &Path) -> Result<Vec<[f64; 3]>, String> {
@@ -77,15 +66,10 @@ fn read_confusion(path: &Path) -> Result<Vec<[f64; 3]>, String> {
     Ok(rows.iter().filter(|r| r[0] == first).map(|r| [cell(r[3]), cell(r[4]), cell(r[5])]).collect())
 }
 
-fn column(header: &[String], rows: &[Vec<f64>], name: &str, path: &Path) -> Result<Vec<f64>, String> {
-    let i = header.iter().position(|h| h == name).ok_or_else(|| format!("{}: no column {name}", path.display()))?;
-    Ok(rows.iter().map(|r| r[i]).collect())
-}
-
 /// The species whose DoS/DoA an experiment reports (prey in the paper's scenes).
 fn headline(exp: &Experiment) -> String {
     let scene = &exp.runs[0].scene;
-    scene.species[crate::train::headline_species(&SpeciesRegistry::from_scene(scene))].name.clone()
+    scene.species[SpeciesRegistry::from_scene(scene).headline()].name.clone()
 }
 
 /// The data of every finished run, by run index.
@@ -96,17 +80,16 @@ pub fn load(exp: &Experiment) -> Result<BTreeMap<usize, RunData>, String> {
         if stage(run)? != Stage::Trained {
             continue;
         }
-        let path = run.dir.join("metrics.csv");
-        let (header, rows) = read_csv(&path)?;
+        let metrics = Table::read(&RunDir::new(&run.dir).metrics())?;
         let mut d = RunData {
-            dos: column(&header, &rows, &format!("dos_{prey}"), &path)?,
-            doa: column(&header, &rows, &format!("doa_{prey}"), &path)?,
-            catches: column(&header, &rows, "catches", &path)?,
-            returns: column(&header, &rows, &format!("return_{prey}"), &path)?,
-            wall_seconds: column(&header, &rows, "wall_seconds", &path)?.last().copied().unwrap_or(0.0),
+            dos: metrics.column(&schema::of("dos", &prey))?,
+            doa: metrics.column(&schema::of("doa", &prey))?,
+            catches: metrics.column(schema::CATCHES)?,
+            returns: metrics.column(&schema::of("return", &prey))?,
+            wall_seconds: metrics.column(schema::WALL_SECONDS)?.last().copied().unwrap_or(0.0),
             orders: super::EVAL_ORDER
                 .iter()
-                .map(|q| (q.to_string(), column(&header, &rows, &format!("{q}_{prey}"), &path).unwrap_or_else(|_| vec![f64::NAN; rows.len()])))
+                .map(|q| (q.to_string(), metrics.column(&schema::of(q, &prey)).unwrap_or_else(|_| vec![f64::NAN; metrics.rows.len()])))
                 .collect(),
             evals: BTreeMap::new(),
         };
@@ -115,8 +98,8 @@ pub fn load(exp: &Experiment) -> Result<BTreeMap<usize, RunData>, String> {
             if !path.exists() {
                 continue;
             }
-            let (header, rows) = read_csv(&path)?;
-            let step = column(&header, &rows, "step", &path)?;
+            let table = Table::read(&path)?;
+            let step = table.column(schema::STEP)?;
             let steps = step.iter().fold(0.0f64, |a, &b| a.max(b)) as usize;
             let per_step = |values: &[f64]| -> Vec<f64> {
                 (1..=steps)
@@ -125,15 +108,14 @@ pub fn load(exp: &Experiment) -> Result<BTreeMap<usize, RunData>, String> {
             };
             // DoS and DoA must be there; the other order parameters only since the collective measures.
             let series = |name: &str| -> Result<Vec<f64>, String> {
-                let col = format!("{name}_{prey}");
-                match column(&header, &rows, &col, &path) {
+                match table.column(&schema::of(name, &prey)) {
                     Ok(values) => Ok(per_step(&values)),
                     Err(_) if !matches!(name, "dos" | "doa") => Ok(vec![f64::NAN; steps]),
                     Err(e) => Err(e),
                 }
             };
             let per_step = Swarming::NAMES.iter().map(|n| series(n)).collect::<Result<Vec<_>, String>>()?;
-            let ranks = column(&header, &rows, &format!("edge_rank_{prey}"), &path).unwrap_or_default();
+            let ranks = table.column(&schema::of(schema::EDGE_RANK, &prey)).unwrap_or_default();
             let edge_rank = mean(&ranks.into_iter().filter(|x| x.is_finite()).collect::<Vec<_>>()).unwrap_or(f64::NAN);
             let confusion = read_confusion(&crate::io::beside(&path, "confusion"))?;
             d.evals.insert(e.name.clone(), EvalData { per_step, edge_rank, confusion });
@@ -487,17 +469,17 @@ fn quantity_name(q: &Quantity) -> String {
 /// One run's learning curves (DoS and DoA of the headline species, 100-episode running means) into
 /// `RUN/figures/training.png`, from its `metrics.csv`.
 pub fn plot_run(dir: &Path) -> Result<std::path::PathBuf, String> {
-    let scene = crate::Scene::load(&dir.join("scene.ron")).map_err(|e| e.to_string())?;
-    let prey = scene.species[crate::train::headline_species(&SpeciesRegistry::from_scene(&scene))].name.clone();
-    let path = dir.join("metrics.csv");
-    let (header, rows) = read_csv(&path)?;
+    let run = RunDir::new(dir);
+    let scene = crate::scene::Scene::load(&run.scene()).map_err(|e| e.to_string())?;
+    let prey = scene.species[SpeciesRegistry::from_scene(&scene).headline()].name.clone();
+    let metrics = Table::read(&run.metrics())?;
     let curve = |name: &str| -> Result<Vec<Curve>, String> {
-        let values = running_mean(&column(&header, &rows, name, &path)?, WINDOW);
+        let values = running_mean(&metrics.column(name)?, WINDOW);
         Ok(vec![Curve { label: dir.display().to_string(), x: (1..=values.len()).map(|x| x as f64).collect(), mean: values, band: None }])
     };
     let panels = [
-        Panel { title: format!("DoS of {prey}"), x_label: "episode".into(), y_label: format!("DoS ({WINDOW}-episode mean)"), curves: curve(&format!("dos_{prey}"))? },
-        Panel { title: format!("DoA of {prey}"), x_label: "episode".into(), y_label: format!("DoA ({WINDOW}-episode mean)"), curves: curve(&format!("doa_{prey}"))? },
+        Panel { title: format!("DoS of {prey}"), x_label: "episode".into(), y_label: format!("DoS ({WINDOW}-episode mean)"), curves: curve(&schema::of("dos", &prey))? },
+        Panel { title: format!("DoA of {prey}"), x_label: "episode".into(), y_label: format!("DoA ({WINDOW}-episode mean)"), curves: curve(&schema::of("doa", &prey))? },
     ];
     let figures = dir.join("figures");
     std::fs::create_dir_all(&figures).map_err(|e| format!("{}: {e}", figures.display()))?;

@@ -5,7 +5,6 @@
 //! to continue; no finished run is redone.
 
 use super::{slug, Experiment, Run};
-use crate::learning::checkpoint::TrainingState;
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -35,7 +34,7 @@ pub enum Stage {
 
 /// The variant's resolved scene file, which fresh runs are trained from.
 fn variant_scene(run: &Run) -> PathBuf {
-    run.dir.parent().expect("runs live in a variant folder").join("scene.ron")
+    run.dir.parent().expect("runs live in a variant folder").join(crate::run::SCENE)
 }
 
 /// The stage of a run, and a refusal when its folder holds a run of another scene (the experiment file
@@ -45,12 +44,11 @@ pub fn stage(run: &Run) -> Result<Stage, String> {
         return Ok(Stage::Fresh);
     }
     let shown = run.dir.display();
-    let state = run.dir.join("checkpoint/state.ron");
+    let state = crate::run::RunDir::new(&run.dir).state();
     if !state.exists() {
         return Ok(Stage::Unsaved);
     }
-    let text = crate::io::read_text(&state, crate::io::MAX_TEXT_BYTES).map_err(|e| format!("{}: {e}", state.display()))?;
-    let state: TrainingState = ron::from_str(&text).map_err(|e| format!("{shown}: corrupt checkpoint state ({e})"))?;
+    let state = crate::learning::checkpoint::read_state(&state)?;
     let mut theirs = state.scene.clone();
     theirs.episodes = run.scene.episodes;
     if theirs != run.scene {

@@ -68,8 +68,15 @@ pub struct SpeciesState {
     pub transitions: Option<u64>,
 }
 
+/// The checkpoint folder of a run, the one being written, and the previous one during the swap.
+pub const CHECKPOINT: &str = "checkpoint";
+pub const CHECKPOINT_TMP: &str = "checkpoint.tmp";
+pub const CHECKPOINT_OLD: &str = "checkpoint.old";
+/// Everything but the networks and buffers ([`TrainingState`]).
+pub const STATE: &str = "state.ron";
+
 pub fn checkpoint_dir(run: &Path) -> PathBuf {
-    crate::run::RunDir::new(run).checkpoint()
+    run.join(CHECKPOINT)
 }
 
 /// A replay segment: transitions `from..to` of a species, in `path`.
@@ -296,8 +303,8 @@ pub fn save(
     state: &TrainingState,
 ) -> std::io::Result<()> {
     let dir = checkpoint_dir(run);
-    let tmp = run.join(crate::run::CHECKPOINT_TMP);
-    let old = run.join(crate::run::CHECKPOINT_OLD);
+    let tmp = run.join(CHECKPOINT_TMP);
+    let old = run.join(CHECKPOINT_OLD);
     let _ = std::fs::remove_dir_all(&tmp);
     std::fs::create_dir_all(&tmp)?;
     crate::io::register_temporary(&tmp);
@@ -349,29 +356,32 @@ fn write_checkpoint(
     }
     let ron = ron::ser::to_string_pretty(state, ron::ser::PrettyConfig::new().struct_names(false))
         .map_err(|e| std::io::Error::other(e.to_string()))?;
-    crate::io::write_atomically(&tmp.join("state.ron"), Existing::Replace, |w| {
+    crate::io::write_atomically(&tmp.join(STATE), Existing::Replace, |w| {
         std::io::Write::write_all(w, ron.as_bytes())
     })
+}
+
+/// Reads a checkpoint's state file.
+pub fn read_state(path: &Path) -> Result<TrainingState, String> {
+    let text = crate::io::read_text(path, crate::io::MAX_TEXT_BYTES).map_err(|e| format!("{}: {e}", path.display()))?;
+    ron::from_str(&text).map_err(|e| format!("{}: corrupt checkpoint state ({e})", path.display()))
 }
 
 /// Restores learners from `run/checkpoint/` (or `checkpoint.old` after a kill mid-swap) and returns the state.
 pub fn load(run: &Path, learners: &mut [Option<SpeciesLearner>], names: &[String]) -> Result<TrainingState, String> {
     let mut dir = checkpoint_dir(run);
-    let old = run.join(crate::run::CHECKPOINT_OLD);
-    if !dir.join("state.ron").exists() && old.join("state.ron").exists() {
+    let old = run.join(CHECKPOINT_OLD);
+    if !dir.join(STATE).exists() && old.join(STATE).exists() {
         // Killed mid-swap: the old checkpoint is whole; put it back, so the next save links from it.
         if !dir.exists() && std::fs::rename(&old, &dir).is_err() {
             dir = old;
         }
     }
-    let state_path = dir.join("state.ron");
+    let state_path = dir.join(STATE);
     if !state_path.exists() {
         return Err(format!("{}: no checkpoint to resume", state_path.display()));
     }
-    let text = crate::io::read_text(&state_path, crate::io::MAX_TEXT_BYTES)
-        .map_err(|e| format!("{}: {e}", state_path.display()))?;
-    let mut state: TrainingState =
-        ron::from_str(&text).map_err(|e| format!("{}: corrupt checkpoint state ({e})", state_path.display()))?;
+    let mut state = read_state(&state_path)?;
     let mut dropped = Vec::new();
     for (learner, name) in learners.iter_mut().zip(names) {
         let Some(l) = learner else { continue };

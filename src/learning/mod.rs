@@ -32,6 +32,7 @@ use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 use replay::ReplayBuffer;
+use crate::sim::Simulation;
 use std::path::{Path, PathBuf};
 
 /// Train (explore, store, update) or only act (evaluation: no noise, no updates).
@@ -181,7 +182,7 @@ impl Learners {
 
 impl Plugin for LearningPlugin {
     fn build(&self, app: &mut App) {
-        // Learners inserted beforehand (with trained actors loaded, see `train::learning_simulation`) are
+        // Learners inserted beforehand (with trained actors loaded, see [`simulation`]) are
         // kept; otherwise fresh ones.
         if !app.world().contains_resource::<Learners>() {
             let scene = app.world().resource::<ActiveScene>().0.clone();
@@ -189,6 +190,28 @@ impl Plugin for LearningPlugin {
         }
         app.add_systems(FixedUpdate, (decide_learned.in_set(SimSet::Decide), learn.in_set(SimSet::Learn)));
     }
+}
+
+/// A simulation with the learning plugin, frozen actors loaded (`Frozen(path)` species, and with `eval_run`
+/// every `Learned` species from that run).
+pub fn simulation(scene: Scene, mode: Mode, eval_run: Option<&Path>) -> Result<Simulation, String> {
+    simulation_with(scene, mode, eval_run, |_| {})
+}
+
+/// [`simulation`] with more plugins (a species of your own) added by `extra`.
+pub fn simulation_with(
+    scene: Scene,
+    mode: Mode,
+    eval_run: Option<&Path>,
+    extra: impl FnOnce(&mut App),
+) -> Result<Simulation, String> {
+    let mut learners = Learners::new(&scene, mode);
+    learners.load_actors(&scene, eval_run)?;
+    Simulation::try_with_plugins(scene, |app| {
+        app.insert_resource(learners);
+        app.add_plugins(LearningPlugin { mode });
+        extra(app);
+    })
 }
 
 /// The random stream of learned species `s`: stream 16 + s of the seed (0 is the environment's, 1 the

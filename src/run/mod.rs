@@ -13,6 +13,13 @@
 //! User-chosen outputs (`--eval-out`, an experiment's evaluation names) never take a reserved name, and a
 //! second process on the same run is refused while the first is alive ([`RunLock`]).
 
+pub mod animate;
+pub mod bench;
+pub mod evaluate;
+pub mod record;
+pub mod schema;
+pub mod train;
+
 use crate::io::{process_alive, register_temporary, unregister_temporary, Existing};
 use serde::{Deserialize, Serialize};
 use std::io::Write;
@@ -24,10 +31,8 @@ pub const METRICS: &str = "metrics.csv";
 /// The default evaluation output.
 pub const EVAL: &str = "eval.csv";
 pub const LOCK: &str = "coevo.lock";
-pub const CHECKPOINT: &str = "checkpoint";
-/// A checkpoint being written, and the previous one during the swap (see `learning::checkpoint::save`).
-pub const CHECKPOINT_TMP: &str = "checkpoint.tmp";
-pub const CHECKPOINT_OLD: &str = "checkpoint.old";
+/// The checkpoint folders are the checkpoint's own (`learning::checkpoint`).
+pub use crate::learning::checkpoint::{CHECKPOINT, CHECKPOINT_OLD, CHECKPOINT_TMP};
 /// The files an evaluation writes beside its per-step CSV (`OUT-nn.csv`, ...); the confusion curve last.
 pub const EVAL_BESIDE: [&str; 3] = ["nn", "correlation", "confusion"];
 
@@ -68,6 +73,17 @@ impl RunDir {
 
     pub fn provenance(&self) -> PathBuf {
         self.path.join(PROVENANCE)
+    }
+
+    /// The checkpoint's state (`learning::checkpoint::TrainingState`).
+    pub fn state(&self) -> PathBuf {
+        self.checkpoint().join(crate::learning::checkpoint::STATE)
+    }
+
+    /// Whether the run has trained actors to deploy: its scene and a checkpoint (what `--watch` and the
+    /// viewer's run picker offer).
+    pub fn has_actors(&self) -> bool {
+        self.checkpoint().is_dir() && self.scene().is_file()
     }
 
     /// Whether the folder holds a run (any of coevo's run files).
@@ -128,7 +144,7 @@ impl RunDir {
                 let name = entry.file_name().to_string_lossy().into_owned();
                 let ours = entry.file_type().is_ok_and(|t| t.is_file())
                     && (name.ends_with(".safetensors")
-                        || name == "state.ron"
+                        || name == crate::learning::checkpoint::STATE
                         || (name.starts_with('.') && name.ends_with(".tmp")));
                 if !ours {
                     return Err(format!(

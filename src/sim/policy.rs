@@ -29,7 +29,7 @@ impl PolicyPlugins {
     }
 
     /// Err naming the first species whose `Plugin(name)` policy nothing registered.
-    pub fn check(&self, scene: &crate::Scene) -> Result<(), String> {
+    pub fn check(&self, scene: &crate::scene::Scene) -> Result<(), String> {
         for def in &scene.species {
             if let Policy::Plugin(name) = &def.policy {
                 if !self.0.contains(name) {

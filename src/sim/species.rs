@@ -94,6 +94,19 @@ impl SpeciesRegistry {
         OWN_STATE_DIM + NEIGHBOUR_DIM * self.defs[s].topological_limit * t
     }
 
+    /// The species whose DoS/DoA headline a run: the first that something catches and that catches nothing
+    /// (the prey, also in a scene where hawks catch predators), else the first that something catches, else
+    /// the first with at least two agents.
+    pub fn headline(&self) -> usize {
+        let caught = |s: usize| self.predators_of(s).next().is_some() && self.defs[s].count >= 2;
+        // The bottom of the food chain first (prey, also when hawks catch predators), then anything caught.
+        (0..self.len())
+            .find(|&s| caught(s) && self.prey_of(s).next().is_none())
+            .or_else(|| (0..self.len()).find(|&s| caught(s)))
+            .or_else(|| (0..self.len()).find(|&s| self.defs[s].count >= 2))
+            .unwrap_or(0)
+    }
+
     /// What decides the actions of species `s`.
     pub fn policy(&self, s: usize) -> &Policy {
         &self.defs[s].policy

@@ -309,7 +309,7 @@ pub const SHIPPED_RUN: &str = "assets/trained-standard";
 
 /// The run folders a picker offers: the shipped run first, then `runs/*/` holding a `checkpoint/`, sorted.
 pub fn run_folders() -> Vec<PathBuf> {
-    let is_run = |p: &std::path::Path| p.join("checkpoint").is_dir() && p.join("scene.ron").is_file();
+    let is_run = |p: &std::path::Path| crate::run::RunDir::new(p).has_actors();
     let shipped = PathBuf::from(SHIPPED_RUN);
     let mut runs: Vec<PathBuf> = is_run(&shipped).then_some(shipped).into_iter().collect();
     runs.extend(list_dir("runs", is_run));

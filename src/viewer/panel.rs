@@ -16,7 +16,6 @@ use crate::learning::Learners;
 use crate::sim::perception::{neighbour_slot, Batches};
 use crate::scene::{Boundary, Perception, Scene, PRESETS};
 use crate::sim::species::{SpeciesRegistry, OWN_STATE_DIM};
-use crate::train::headline_species;
 use bevy::ecs::system::SystemParam;
 use bevy::prelude::*;
 use bevy_egui::{egui, EguiContexts, EguiPrimaryContextPass};
@@ -145,7 +144,7 @@ fn mode_and_files(ui: &mut egui::Ui, c: &mut Control, draft: &mut Scene) {
         .show_ui(ui, |ui| {
             for run in &runs {
                 if ui.selectable_label(false, file_name(run)).clicked() {
-                    let path = run.join("scene.ron");
+                    let path = crate::run::RunDir::new(run).scene();
                     match Scene::load(&path) {
                         Ok(scene) => {
                             *draft = scene.clone();
@@ -243,7 +242,7 @@ fn parameters(ui: &mut egui::Ui, c: &mut Control, draft: &mut Scene) {
         ui.selectable_value(&mut draft.world.boundary, Boundary::Walls, "walls");
     });
     let registry = SpeciesRegistry::from_scene(draft);
-    let prey = headline_species(&registry);
+    let prey = registry.headline();
     if let Some(predator) = registry.predators_of(prey).next() {
         let v_predator = draft.species[predator].max_speed;
         let mut ratio = draft.species[prey].max_speed / v_predator;
@@ -312,7 +311,7 @@ fn inspector(
             }
             ui.separator();
             ui.heading("Swarming");
-            let prey = headline_species(&registry);
+            let prey = registry.headline();
             plots::show(ui, &history, registry.defs.get(prey).map_or("", |d| d.name.as_str()));
         })
         .response

@@ -5,7 +5,6 @@
 use crate::sim::clock::Episode;
 use crate::sim::metrics::{EpisodeLog, SwarmMetrics};
 use crate::sim::species::SpeciesRegistry;
-use crate::train::headline_species;
 use bevy::prelude::*;
 use bevy_egui::egui;
 use egui_plot::{Legend, Line, Plot, PlotPoints};
@@ -54,7 +53,7 @@ impl Plugin for PlotsPlugin {
 
 /// After a step: the step's DoS/DoA, and any episode that just ended.
 pub fn record_step(world: &mut World) {
-    let prey = headline_species(world.resource::<SpeciesRegistry>());
+    let prey = world.resource::<SpeciesRegistry>().headline();
     let ended = std::mem::take(&mut world.resource_mut::<EpisodeLog>().episodes);
     let step = world.resource::<Episode>().step as f64;
     let now = world.resource::<SwarmMetrics>().now.get(prey).copied().flatten();

@@ -2,10 +2,10 @@
 #![allow(dead_code)]
 
 use bevy::math::DVec2;
-use coevo::components::*;
-use coevo::perception::Perceive;
+use coevo::sim::components::*;
+use coevo::sim::perception::Perceive;
 use coevo::scene::{Boundary, Policy, Scene};
-use coevo::Simulation;
+use coevo::sim::Simulation;
 
 /// The `paper` preset with the given counts and policies, on the given boundary.
 pub fn scene(predators: usize, prey: usize, policy: Policy, boundary: Boundary) -> Scene {
@@ -43,5 +43,5 @@ pub fn get<C: bevy::prelude::Component + Copy>(sim: &mut Simulation, id: u32) ->
 
 /// A simulation whose `Plugin("test")` species are decided by the test itself, writing the action batch.
 pub fn manual(scene: Scene) -> Simulation {
-    Simulation::with_plugins(scene, |app| coevo::policy::PolicyPlugins::register(app, "test"))
+    Simulation::with_plugins(scene, |app| coevo::sim::policy::PolicyPlugins::register(app, "test"))
 }

@@ -72,7 +72,7 @@ pub fn animate(sim: &mut Simulation, opts: &AnimateOptions, path: &Path, existin
     sim.world_mut().resource_mut::<Episode>().auto_reset = false;
     let registry = sim.world().resource::<SpeciesRegistry>().clone();
     let arena = *sim.world().resource::<Arena>();
-    let prey = crate::train::headline_species(&registry);
+    let prey = registry.headline();
     let colours: Vec<[u8; 3]> = registry.defs.iter().map(|d| d.colour.map(|c| (c.clamp(0.0, 1.0) * 255.0).round() as u8)).collect();
     let palette = Palette::new(&colours);
     let (width, height) = (opts.size, opts.size + CAPTION);

@@ -97,7 +97,7 @@ pub fn learning(budget: Duration) -> Vec<Figure> {
     for s in &mut scene.species {
         s.policy = Policy::Learned;
     }
-    let mut sim = crate::train::learning_simulation(scene, Mode::Evaluate, None).expect("no checkpoint needed");
+    let mut sim = crate::learning::simulation(scene, Mode::Evaluate, None).expect("no checkpoint needed");
     figures.push(Figure {
         label: "policy-driven step, 3+10000 agents (untrained weights)".into(),
         per_second: per_second(budget, 5, || sim.step()),

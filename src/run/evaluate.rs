@@ -1,0 +1,219 @@
+//! `coevo --eval RUN`: a run's trained actors deployed without noise (the paper's "loading trained
+//! policies on agents"), optionally under an observation control. Writes the per-step file (DoS, DoA and
+//! the order parameters of the headline species, catches) and three distributions beside it: the
+//! nearest-neighbour distances (`-nn`), the heading correlation C(r) (`-correlation`) and the confusion
+//! curve (`-confusion`, written last: its presence marks a complete evaluation).
+//!
+//! The loop accumulates ([`Accumulated::step`]); the files and the summary line are written from what it
+//! accumulated ([`Accumulated::distributions`], [`Accumulated::summary`]).
+
+use super::schema;
+use super::RunDir;
+use crate::io::{AtomicFile, Existing};
+use crate::learning::{Mode, ObservationControl};
+use crate::scene::Scene;
+use crate::sim::clock::Episode;
+use crate::sim::collective::{add_heading_correlation, confusion_bin_label, heading_correlation};
+use crate::sim::metrics::{Confusion, SwarmMetrics};
+use crate::sim::perception::Population;
+use crate::sim::space::Arena;
+use crate::sim::species::SpeciesRegistry;
+use crate::sim::Simulation;
+use std::io::Write;
+use std::path::PathBuf;
+
+/// The nearest-neighbour distance histogram: bins of this many body diameters, NN_BINS of them and one
+/// for everything beyond.
+const NN_BIN_DIAMETERS: f64 = 0.25;
+const NN_BINS: usize = 80;
+
+pub struct EvalOptions {
+    pub run: PathBuf,
+    /// What the actors see of their neighbours (a control for alignment claims).
+    pub control: ObservationControl,
+    /// File name of the per-step CSV inside the run folder (default `eval.csv`).
+    pub out: Option<String>,
+    pub counts: Vec<(String, usize)>,
+    pub episodes: usize,
+    pub steps: Option<usize>,
+    pub seed: Option<u64>,
+    /// Radius (m) of "prey in view" for the confusion curve (default: the scene's).
+    pub confusion_radius: Option<f64>,
+}
+
+/// What the evaluation accumulates over its steps, of the headline species.
+struct Accumulated {
+    /// Sums of the order parameters of [`crate::sim::metrics::Swarming::NAMES`] over the steps that have them.
+    sums: [f64; 7],
+    steps: usize,
+    /// Edge rank of every ranked catch.
+    ranks: Vec<f64>,
+    diameter: f64,
+    nn_histogram: Vec<u64>,
+    /// C(r) of heading fluctuations in bins of one body diameter, out to half the arena's edge.
+    correlation: Vec<(f64, u64)>,
+    variance: (f64, u64),
+}
+
+impl Accumulated {
+    fn new(diameter: f64, arena: &Arena) -> Accumulated {
+        Accumulated {
+            sums: [0.0; 7],
+            steps: 0,
+            ranks: Vec::new(),
+            diameter,
+            nn_histogram: vec![0; NN_BINS + 1],
+            correlation: vec![(0.0, 0); (arena.edge / 2.0 / diameter).ceil().max(1.0) as usize],
+            variance: (0.0, 0),
+        }
+    }
+
+    /// Adds the step just simulated; returns its row of the per-step file.
+    fn step(&mut self, sim: &Simulation, prey: usize, catchers: &[usize], episode: usize, step: usize) -> String {
+        let world = sim.world();
+        let m = world.resource::<SwarmMetrics>();
+        let sw = m.now.get(prey).copied().flatten();
+        let step_ranks = &m.edge_ranks_now[prey];
+        let edge_rank = (!step_ranks.is_empty()).then(|| step_ranks.iter().sum::<f64>() / step_ranks.len() as f64);
+        let row = schema::eval_row(episode, step, sw, edge_rank, m.catches_now, catchers.iter().map(|&s| m.catches_now_by[s]));
+        if let Some(sw) = sw {
+            self.sums.iter_mut().zip(sw.values()).for_each(|(a, v)| *a += v);
+            self.steps += 1;
+        }
+        self.ranks.extend_from_slice(step_ranks);
+        for d in &m.nn_distances_now[prey] {
+            self.nn_histogram[((d / self.diameter / NN_BIN_DIAMETERS) as usize).min(NN_BINS)] += 1;
+        }
+        let pop = world.resource::<Population>();
+        let range = pop.ranges[prey].clone();
+        let arena = world.resource::<Arena>();
+        add_heading_correlation(arena, &pop.position[range.clone()], &pop.heading[range], self.diameter, &mut self.correlation, &mut self.variance);
+        row
+    }
+
+    /// The `-nn`, `-correlation` and `-confusion` files, in that order, and the correlation length.
+    fn distributions(&self, sim: &Simulation, registry: &SpeciesRegistry) -> ([String; 3], Option<f64>) {
+        let blank = |x: Option<f64>| x.map_or(String::new(), |v| v.to_string());
+        let total = self.nn_histogram.iter().sum::<u64>().max(1) as f64;
+        let mut nn = String::from("from_diameters,to_diameters,from_m,to_m,fraction\n");
+        for (b, count) in self.nn_histogram.iter().enumerate() {
+            let (lo, hi) = (b as f64 * NN_BIN_DIAMETERS, if b == NN_BINS { f64::INFINITY } else { (b + 1) as f64 * NN_BIN_DIAMETERS });
+            nn.push_str(&format!("{lo},{hi},{},{},{}\n", lo * self.diameter, hi * self.diameter, *count as f64 / total));
+        }
+        let (c_of_r, correlation_length) = heading_correlation(&self.correlation, self.variance, self.diameter);
+        let mut correlation = String::from("from_m,to_m,pairs,c\n");
+        for (b, (c, &(_, pairs))) in c_of_r.iter().zip(&self.correlation).enumerate() {
+            correlation.push_str(&format!("{},{},{pairs},{}\n", b as f64 * self.diameter, (b + 1) as f64 * self.diameter, blank(*c)));
+        }
+        let curve = sim.world().resource::<Confusion>();
+        let mut confusion = String::from("species,prey_in_view,samples,mean_abs_turn,mean_speed_fraction,catches_per_step\n");
+        for (s, bins) in curve.0.iter().enumerate().filter(|(s, _)| registry.prey_of(*s).next().is_some()) {
+            for (b, bin) in bins.iter().enumerate() {
+                let (turn, speed, catches) = bin.means().map_or([None; 3], |(t, v, c)| [Some(t), Some(v), Some(c)]).into();
+                confusion.push_str(&format!(
+                    "{},{},{},{},{},{}\n",
+                    registry.defs[s].name,
+                    confusion_bin_label(b),
+                    bin.samples,
+                    blank(turn),
+                    blank(speed),
+                    blank(catches)
+                ));
+            }
+        }
+        ([nn, correlation, confusion], correlation_length)
+    }
+
+    /// The means over the evaluation, in words.
+    fn summary(&self, name: &str, correlation_length: Option<f64>) -> String {
+        if self.steps == 0 {
+            return format!("no DoS/DoA: fewer than two {name}");
+        }
+        let [dos, doa, polarization, milling, clusters, largest, c_nn] = self.sums.map(|v| v / self.steps as f64);
+        let edge = if self.ranks.is_empty() {
+            "no ranked catch".to_string()
+        } else {
+            format!("edge rank of caught {name} {:.3} ({} catches)", self.ranks.iter().sum::<f64>() / self.ranks.len() as f64, self.ranks.len())
+        };
+        format!(
+            "mean DoS {dos:.4}, DoA {doa:.4}, polarization {polarization:.3}, milling {milling:.3}, \
+             {clusters:.1} clusters (largest {:.0} %), C_nn {c_nn:.3}, correlation length {}, {edge} ({name})",
+            100.0 * largest,
+            correlation_length.map_or("beyond half the arena".to_string(), |xi| format!("{xi:.3} m"))
+        )
+    }
+}
+
+/// Deploys a run's policies without noise and streams per-step DoS/DoA to `RUN/eval.csv` (replaced
+/// whole, when complete); returns the summary line.
+pub fn evaluate(opts: &EvalOptions) -> Result<String, String> {
+    let dir = RunDir::new(&opts.run);
+    let path = dir.eval_output(opts.out.as_deref())?;
+    if !dir.is_run() {
+        return Err(format!("{}: holds no coevo run to evaluate", opts.run.display()));
+    }
+    dir.check_plugins()?;
+    let scene_path = dir.scene();
+    let mut scene = Scene::load(&scene_path).map_err(|e| e.to_string())?;
+    for (name, n) in &opts.counts {
+        scene.set_count(name, *n).map_err(|e| format!("{}: {e}", scene_path.display()))?;
+    }
+    if let Some(steps) = opts.steps {
+        scene.episode_steps = steps;
+    }
+    if let Some(seed) = opts.seed {
+        scene.seed = seed;
+    }
+    if let Some(r) = opts.confusion_radius {
+        scene.confusion_radius = Some(r);
+    }
+    if opts.episodes == 0 {
+        return Err("--episodes: must be ≥ 1".into());
+    }
+    scene.validate().map_err(|(f, m)| format!("{}: {f}: {m}", opts.run.display()))?;
+    let mut sim = crate::learning::simulation(scene.clone(), Mode::Evaluate, Some(&opts.run))?;
+    // Nobody else writes the run while it is evaluated (a training would swap its checkpoint).
+    let _lock = dir.lock()?;
+    sim.world_mut().insert_resource(opts.control);
+    // Each episode's last step is read before the next population is spawned.
+    sim.world_mut().resource_mut::<Episode>().auto_reset = false;
+    let registry = sim.world().resource::<SpeciesRegistry>().clone();
+    let prey = registry.headline();
+    let name = &registry.defs[prey].name;
+    let catchers = schema::split_catchers(&registry);
+    let write_err = |e: std::io::Error| format!("{}: {e}", path.display());
+    let mut file = AtomicFile::create(&path, Existing::Replace).map_err(write_err)?;
+    writeln!(file.writer(), "{}", schema::eval_header(&registry, prey)).map_err(write_err)?;
+    let mut acc = Accumulated::new(2.0 * registry.defs[prey].radius, sim.world().resource::<Arena>());
+    for episode in 0..opts.episodes {
+        if episode > 0 {
+            crate::sim::episode::next_episode(sim.world_mut());
+        }
+        for step in 1..=scene.episode_steps {
+            sim.step();
+            sim.check()?;
+            let row = acc.step(&sim, prey, &catchers, episode, step);
+            writeln!(file.writer(), "{row}").map_err(write_err)?;
+        }
+    }
+    let (files, correlation_length) = acc.distributions(&sim, &registry);
+    file.commit().map_err(write_err)?;
+    // The confusion curve last: the experiment runner takes its presence for a complete evaluation.
+    for (what, text) in super::EVAL_BESIDE.iter().zip(files) {
+        crate::io::write_file(&crate::io::beside(&path, what), Existing::Replace, text.as_bytes())?;
+    }
+    let counts: Vec<String> = registry.defs.iter().map(|d| format!("{} {}", d.count, d.name)).collect();
+    Ok(format!(
+        "eval {}{}: {} episodes × {} steps, {}: {}; per step in {}",
+        opts.run.display(),
+        match opts.control {
+            ObservationControl::Seeing => String::new(),
+            c => format!(" ({c:?} control)"),
+        },
+        opts.episodes,
+        scene.episode_steps,
+        counts.join(" + "),
+        acc.summary(name, correlation_length),
+        path.display()
+    ))
+}

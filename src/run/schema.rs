@@ -1,0 +1,173 @@
+//! The CSV files of a run folder, as written by training (`metrics.csv`, one row per episode) and
+//! evaluation (`eval*.csv`, one row per step) and read back by the experiment layer: one definition of
+//! every column, used to write and to read.
+//!
+//! Per-species columns are `{quantity}_{species}`: the order parameters of [`Swarming::NAMES`] and
+//! `edge_rank` for every species, `return_{species}`, and per learning species its losses and exploration.
+
+use crate::learning::Learners;
+use crate::sim::metrics::{EpisodeSummary, Swarming};
+use crate::sim::species::SpeciesRegistry;
+use std::path::Path;
+
+pub const EPISODE: &str = "episode";
+pub const STEPS: &str = "steps";
+pub const STEP: &str = "step";
+pub const CATCHES: &str = "catches";
+pub const WALL_SECONDS: &str = "wall_seconds";
+/// The per-step quantity of an evaluation (and per-episode one of training) besides [`Swarming::NAMES`].
+pub const EDGE_RANK: &str = "edge_rank";
+
+/// The column of a per-species quantity: `dos_prey`, `edge_rank_prey`, `return_predator`.
+pub fn of(quantity: &str, species: &str) -> String {
+    format!("{quantity}_{species}")
+}
+
+/// The catches column of one catcher species (scenes where more than one species catches).
+pub fn catches_by(species: &str) -> String {
+    format!("catches_by_{species}")
+}
+
+/// The species whose catches are also given apart (`catches_by_<name>`): every species that catches,
+/// when more than one does (a third species); none in the two-species scenes.
+pub fn split_catchers(registry: &SpeciesRegistry) -> Vec<usize> {
+    let catchers: Vec<usize> = (0..registry.len()).filter(|&s| registry.prey_of(s).next().is_some()).collect();
+    if catchers.len() > 1 {
+        catchers
+    } else {
+        vec![]
+    }
+}
+
+/// The order parameters of a species, in their column order.
+fn species_columns(species: &str) -> impl Iterator<Item = String> + '_ {
+    Swarming::NAMES.iter().chain(&[EDGE_RANK]).map(move |q| of(q, species))
+}
+
+fn blank(x: Option<f64>) -> String {
+    x.map_or(String::new(), |v| v.to_string())
+}
+
+/// The cells of a species' order parameters, blank where it has none (fewer than two agents).
+fn species_cells(swarming: Option<Swarming>, edge_rank: Option<f64>) -> impl Iterator<Item = String> {
+    swarming.map_or([None; 7], |s| s.values().map(Some)).map(blank).into_iter().chain([blank(edge_rank)])
+}
+
+/// `metrics.csv`'s header.
+pub fn metrics_header(registry: &SpeciesRegistry, learners: &Learners) -> String {
+    let mut cols = vec![EPISODE.to_string(), STEPS.into()];
+    for d in &registry.defs {
+        cols.extend(species_columns(&d.name));
+    }
+    cols.push(CATCHES.into());
+    cols.extend(split_catchers(registry).iter().map(|&s| catches_by(&registry.defs[s].name)));
+    for d in &registry.defs {
+        cols.push(of("return", &d.name));
+    }
+    for (s, l) in learners.species.iter().enumerate() {
+        if l.as_ref().is_some_and(|l| !l.frozen) {
+            let n = &registry.defs[s].name;
+            cols.extend(["critic_loss", "actor_loss", "noise_std", "epsilon"].map(|q| of(q, n)));
+        }
+    }
+    cols.push(WALL_SECONDS.into());
+    cols.join(",")
+}
+
+/// One episode's row of `metrics.csv` (takes the losses since the last row from the learners).
+pub fn metrics_row(e: &EpisodeSummary, registry: &SpeciesRegistry, learners: &mut Learners, wall_seconds: f64) -> String {
+    let mut cols = vec![e.episode.to_string(), e.steps.to_string()];
+    for (s, edge_rank) in e.swarming.iter().zip(&e.edge_rank) {
+        cols.extend(species_cells(*s, *edge_rank));
+    }
+    cols.push(e.catches.to_string());
+    cols.extend(split_catchers(registry).iter().map(|&s| e.catches_by.get(s).copied().unwrap_or(0).to_string()));
+    cols.extend(e.mean_return.iter().map(|r| r.to_string()));
+    let losses = learners.take_losses();
+    for (l, loss) in learners.species.iter().zip(losses) {
+        if let Some(l) = l.as_ref().filter(|l| !l.frozen) {
+            cols.push(blank(loss.map(|x| x.critic as f64)));
+            cols.push(blank(loss.map(|x| x.actor as f64)));
+            cols.push(l.noise_std.to_string());
+            cols.push(l.epsilon.to_string());
+        }
+    }
+    cols.push(format!("{wall_seconds:.3}"));
+    cols.join(",")
+}
+
+/// An evaluation's per-step header: the headline species' order parameters and the catches.
+pub fn eval_header(registry: &SpeciesRegistry, prey: usize) -> String {
+    let columns: Vec<String> = species_columns(&registry.defs[prey].name).collect();
+    let by: String = split_catchers(registry).iter().map(|&s| format!(",{}", catches_by(&registry.defs[s].name))).collect();
+    format!("{EPISODE},{STEP},{},{CATCHES}{by}", columns.join(","))
+}
+
+/// One step's row of an evaluation.
+pub fn eval_row(
+    episode: usize,
+    step: usize,
+    swarming: Option<Swarming>,
+    edge_rank: Option<f64>,
+    catches: u32,
+    catches_by: impl Iterator<Item = u32>,
+) -> String {
+    let cells: Vec<String> = species_cells(swarming, edge_rank).collect();
+    let by: String = catches_by.map(|c| format!(",{c}")).collect();
+    format!("{episode},{step},{},{catches}{by}", cells.join(","))
+}
+
+/// CSV `text` rewritten under `header`: each row's cells moved to the columns of the same name, columns
+/// the old header lacks left blank, columns the new one lacks dropped. Identity when the headers agree.
+pub fn with_header(text: &str, header: &str) -> String {
+    let mut lines = text.lines();
+    let old: Vec<&str> = lines.next().unwrap_or("").split(',').collect();
+    if old.join(",") == header {
+        return text.to_string();
+    }
+    let map: Vec<Option<usize>> = header.split(',').map(|h| old.iter().position(|o| *o == h)).collect();
+    let mut out = format!("{header}\n");
+    for line in lines.filter(|l| !l.is_empty()) {
+        let cells: Vec<&str> = line.split(',').collect();
+        let row: Vec<&str> = map.iter().map(|i| i.and_then(|i| cells.get(i).copied()).unwrap_or("")).collect();
+        out.push_str(&row.join(","));
+        out.push('\n');
+    }
+    out
+}
+
+/// The wall_seconds of the last row of a metrics text (0 without rows).
+pub fn last_wall_seconds(metrics: &str) -> f64 {
+    let mut lines = metrics.lines();
+    let header: Vec<&str> = lines.next().unwrap_or("").split(',').collect();
+    let Some(col) = header.iter().position(|h| *h == WALL_SECONDS) else { return 0.0 };
+    lines.filter(|l| !l.is_empty()).last().and_then(|l| l.split(',').nth(col)?.parse().ok()).unwrap_or(0.0)
+}
+
+/// A CSV file of numbers: its header, and its rows (blank or unreadable cells NaN; rows of another
+/// width than the header dropped).
+pub struct Table {
+    pub header: Vec<String>,
+    pub rows: Vec<Vec<f64>>,
+    path: std::path::PathBuf,
+}
+
+impl Table {
+    pub fn read(path: &Path) -> Result<Table, String> {
+        let text = crate::io::read_text(path, crate::io::MAX_TEXT_BYTES).map_err(|e| format!("{}: {e}", path.display()))?;
+        let mut lines = text.lines();
+        let header: Vec<String> = lines.next().unwrap_or("").split(',').map(str::to_string).collect();
+        let rows: Vec<Vec<f64>> = lines
+            .filter(|l| !l.is_empty())
+            .map(|l| l.split(',').map(|c| c.parse::<f64>().unwrap_or(f64::NAN)).collect::<Vec<f64>>())
+            .filter(|r| r.len() == header.len())
+            .collect();
+        Ok(Table { header, rows, path: path.to_path_buf() })
+    }
+
+    /// A column by name.
+    pub fn column(&self, name: &str) -> Result<Vec<f64>, String> {
+        let i = self.header.iter().position(|h| h == name).ok_or_else(|| format!("{}: no column {name}", self.path.display()))?;
+        Ok(self.rows.iter().map(|r| r[i]).collect())
+    }
+}

@@ -1,0 +1,210 @@
+//! `coevo --train` and `--resume`: headless training (Algorithm 1), driving the fixed-step schedule
+//! directly, into a run folder ([`super::RunDir`]): `metrics.csv` one row per episode
+//! ([`super::schema`]), a checkpoint every `checkpoint_every` episodes (`learning::checkpoint`).
+
+use super::{schema, RunDir};
+use crate::io::Existing;
+use crate::learning::checkpoint::{self, SpeciesState, TrainingState};
+use crate::learning::{Learners, Mode};
+use crate::scene::Scene;
+use crate::sim::clock::Episode;
+use crate::sim::episode::{SimRng, SpawnedFrom};
+use crate::sim::metrics::{EpisodeLog, EpisodeSummary};
+use crate::sim::species::SpeciesRegistry;
+use crate::sim::Simulation;
+use indicatif::{ProgressBar, ProgressStyle};
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+pub struct TrainOptions {
+    pub run: PathBuf,
+    pub resume: bool,
+    /// Replace the run already in `run` (its own files only) instead of refusing.
+    pub overwrite: bool,
+    /// Total episodes of the run (the scene's `episodes` when None).
+    pub episodes: Option<usize>,
+    pub progress: bool,
+}
+
+fn io_err(path: &Path) -> impl Fn(std::io::Error) -> String + '_ {
+    move |e| format!("{}: {e}", path.display())
+}
+
+/// Refuses a resume that could not continue the run as it was: its scene.ron edited since training
+/// began, a checkpoint whose metrics disagree with its episode count, or nothing left to train.
+fn check_resumable(run: &Path, scene: &Scene, state: &TrainingState, total: usize, asked: bool) -> Result<(), String> {
+    let (now, then) = (scene.to_ron(), state.scene.to_ron());
+    if now != then {
+        let line = now.lines().zip(then.lines()).find(|(a, b)| a != b).map_or_else(
+            || "its length".to_string(),
+            |(a, b)| format!("`{}` (trained with `{}`)", a.trim(), b.trim()),
+        );
+        return Err(format!(
+            "{}: differs from the scene the run was trained on (checkpoint/state.ron), first at {line}; a run continues only under its own scene: restore the file or train a new run",
+            RunDir::new(run).scene().display()
+        ));
+    }
+    let rows: Vec<usize> = state.metrics_csv.lines().skip(1).filter(|l| !l.is_empty()).map(|l| l.split(',').next().and_then(|e| e.parse().ok()).unwrap_or(usize::MAX)).collect();
+    if rows != (0..state.episodes_done).collect::<Vec<_>>() {
+        return Err(format!(
+            "{}: damaged checkpoint: episodes_done is {} but its metrics hold episodes {}; restore the checkpoint or train the run again",
+            RunDir::new(run).state().display(),
+            state.episodes_done,
+            match (rows.first(), rows.last()) {
+                (Some(a), Some(b)) => format!("{a}..={b} ({} rows)", rows.len()),
+                _ => "none".to_string(),
+            }
+        ));
+    }
+    if total <= state.episodes_done {
+        let why = if asked { format!("--episodes {total} asks for no more") } else { "its scene's episodes are all done".to_string() };
+        return Err(format!(
+            "{}: already trained {} episodes and {why}; extend it with --resume {} --episodes N (N > {})",
+            run.display(),
+            state.episodes_done,
+            run.display(),
+            state.episodes_done
+        ));
+    }
+    Ok(())
+}
+
+/// Trains a scene (or resumes a run) and returns the episode summaries of this invocation. Everything is
+/// validated and loaded before the run folder is created or touched.
+pub fn train(scene: Scene, opts: &TrainOptions) -> Result<Vec<EpisodeSummary>, String> {
+    let run = &opts.run;
+    let dir = RunDir::new(run);
+    if opts.resume {
+        if !dir.is_run() {
+            return Err(format!("{}: holds no coevo run to resume", run.display()));
+        }
+        dir.check_plugins()?;
+    } else {
+        dir.check_new(opts.overwrite)?;
+    }
+    // One process per run: a resume takes it before reading what another process may be writing; a new
+    // run once everything is validated and loaded, so a refused scene leaves no folder behind.
+    let mut lock = if opts.resume { Some(dir.lock()?) } else { None };
+    let scene = if opts.resume { Scene::load(&dir.scene()).map_err(|e| e.to_string())? } else { scene };
+    scene.validate().map_err(|(f, m)| format!("{}: {f}: {m}", run.display()))?;
+    let total = opts.episodes.unwrap_or(scene.episodes);
+    if total == 0 {
+        return Err("--episodes: must be ≥ 1".into());
+    }
+    let mut sim = crate::learning::simulation(scene.clone(), Mode::Train, None)?;
+    if lock.is_none() {
+        lock = Some(dir.lock()?);
+    }
+    let _lock = lock;
+    let registry = sim.world().resource::<SpeciesRegistry>().clone();
+    let names: Vec<String> = registry.defs.iter().map(|d| d.name.clone()).collect();
+    let metrics_path = dir.metrics();
+    let mut metrics_text: String;
+    // Seconds trained before this invocation: wall_seconds counts the run's whole training time.
+    let mut wall_before = 0.0;
+    if opts.resume {
+        let world = sim.world_mut();
+        let state = {
+            let mut learners = world.resource_mut::<Learners>();
+            checkpoint::load(run, &mut learners.species, &names)?
+        };
+        check_resumable(run, &scene, &state, total, opts.episodes.is_some())?;
+        world.resource_mut::<SimRng>().0 = state.spawn_rng.clone().unwrap_or_else(|| state.sim_rng.clone());
+        world.resource_mut::<Episode>().index = state.episodes_done;
+        crate::sim::episode::spawn_population(world);
+        if state.spawn_rng.is_none() || state.species.iter().flatten().any(|s| s.transitions.is_none()) {
+            eprintln!(
+                "coevo: {}: the checkpoint lacks replay buffers or spawn state (an older coevo, or segments removed): the resumed run refills its buffers and differs from an uninterrupted one",
+                run.display()
+            );
+        }
+        // A run begun by an older coevo keeps its rows, under today's columns (new ones blank).
+        metrics_text = schema::with_header(&state.metrics_csv, &schema::metrics_header(&registry, world.resource::<Learners>()));
+        wall_before = schema::last_wall_seconds(&metrics_text);
+    } else {
+        dir.check_new(opts.overwrite)?;
+        dir.clear()?;
+        crate::io::write_file(&dir.scene(), Existing::Replace, scene.to_ron().as_bytes())?;
+        dir.write_provenance(&scene)?;
+        let header = schema::metrics_header(&registry, sim.world().resource::<Learners>());
+        metrics_text = format!("{header}\n");
+    }
+    crate::io::write_file(&metrics_path, Existing::Replace, metrics_text.as_bytes())?;
+    let mut csv = std::fs::OpenOptions::new().append(true).open(&metrics_path).map_err(io_err(&metrics_path))?;
+
+    let start_episode = sim.episode().index;
+    let every = scene.learning.checkpoint_every.max(1);
+    let prey = registry.headline();
+    let bar = if opts.progress { ProgressBar::new(total as u64) } else { ProgressBar::hidden() };
+    bar.set_style(
+        ProgressStyle::with_template("{bar:30} {pos}/{len} episodes  ETA {eta}  {msg}").expect("valid template"),
+    );
+    bar.set_position(start_episode as u64);
+    let started = Instant::now();
+    let (mut steps, mut summaries) = (0usize, Vec::new());
+    let save = |sim: &Simulation,
+                learners_override: Option<&Vec<Option<crate::learning::SpeciesLearner>>>,
+                metrics_text: &str| {
+        let world = sim.world();
+        let learners = world.resource::<Learners>();
+        let species = learners_override.unwrap_or(&learners.species);
+        let state = TrainingState {
+            scene: scene.clone(),
+            episodes_done: world.resource::<Episode>().index,
+            sim_rng: world.resource::<SimRng>().0.clone(),
+            spawn_rng: Some(world.resource::<SpawnedFrom>().0.clone()),
+            species: species
+                .iter()
+                .zip(&names)
+                .map(|(l, name)| {
+                    l.as_ref().map(|l| SpeciesState {
+                        name: name.clone(),
+                        noise_std: l.noise_std,
+                        epsilon: l.epsilon,
+                        actor_adam_step: l.ddpg.actor_opt.step,
+                        critic_adam_step: l.ddpg.critic_opt.step,
+                        rng: Some(l.rng.clone()),
+                        transitions: (!l.frozen).then_some(l.buffer.pushed),
+                    })
+                })
+                .collect(),
+            metrics_csv: metrics_text.to_string(),
+        };
+        checkpoint::save(run, species, &names, &state)
+            .map_err(|e| format!("{}: cannot save checkpoint: {e}", run.display()))
+    };
+    while sim.episode().index < total {
+        sim.step();
+        sim.check()?;
+        steps += 1;
+        if let Some(failure) = sim.world().resource::<Learners>().failure.clone() {
+            let last_good = sim.world().resource::<Learners>().last_good.clone();
+            save(&sim, last_good.as_ref(), &metrics_text)?;
+            return Err(format!(
+                "training stopped: {failure}; the last good networks are saved in {}",
+                checkpoint::checkpoint_dir(run).display()
+            ));
+        }
+        let Some(summary) = sim.world_mut().resource_mut::<EpisodeLog>().episodes.pop() else {
+            continue;
+        };
+        let wall = wall_before + started.elapsed().as_secs_f64();
+        let row = schema::metrics_row(&summary, &registry, &mut sim.world_mut().resource_mut::<Learners>(), wall);
+        writeln!(csv, "{row}").map_err(io_err(&metrics_path))?;
+        metrics_text.push_str(&row);
+        metrics_text.push('\n');
+        let done = summary.episode + 1;
+        if done % every == 0 || done == total {
+            save(&sim, None, &metrics_text)?;
+        }
+        if let Some(sw) = summary.swarming.get(prey).copied().flatten() {
+            let rate = steps as f64 / started.elapsed().as_secs_f64();
+            bar.set_message(format!("DoS {:.3} DoA {:.3}  {rate:.0} steps/s", sw.dos, sw.doa));
+        }
+        bar.set_position(done as u64);
+        summaries.push(summary);
+    }
+    bar.finish();
+    Ok(summaries)
+}
