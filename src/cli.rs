@@ -2,11 +2,10 @@
 //! experiments, benchmarks, the viewer), for the `coevo` binary and for programs with species of their own
 //! (`examples/hawk.rs`), which call [`main`] with their [`SpeciesPlugins`].
 
-use clap::parser::ValueSource;
 use clap::{error::ErrorKind, ArgGroup, CommandFactory, FromArgMatches, Parser};
 use crate::io::Existing;
 use crate::learning::Mode;
-use crate::scene::{Policy, Scene};
+use crate::scene::{Overrides, Policy, Scene};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Duration;
@@ -23,232 +22,236 @@ use crate::sim::species::SpeciesPlugins;
 #[command(group(ArgGroup::new("mode").args(["train", "resume", "eval", "record", "animate", "bench", "experiment", "plot", "describe_scene"]).multiple(false)))]
 struct Cli {
     /// Scene file to run [default: scenes/standard.ron].
-    #[arg(long, value_name = "PATH")]
+    #[arg(long, help_heading = "Scene", value_name = "PATH")]
     scene: Option<PathBuf>,
     /// Override the scene's random seed.
-    #[arg(long, value_name = "S")]
+    #[arg(long, help_heading = "Scene", value_name = "S")]
     seed: Option<u64>,
     /// Steps to simulate (--record) or per episode (--eval).
-    #[arg(long, value_name = "N")]
+    #[arg(long, help_heading = "Scene", value_name = "N")]
     steps: Option<usize>,
 
     /// Train the scene's learning species headless (Algorithm 1) into --out.
-    #[arg(long)]
+    #[arg(long, help_heading = "Modes")]
     train: bool,
     /// Episodes of the training run (default: the scene's `episodes`) or of the evaluation (default 1).
-    #[arg(long, value_name = "N")]
+    #[arg(long, help_heading = "Training and evaluation", value_name = "N")]
     episodes: Option<usize>,
     /// Run folder for --train (default runs/<scene>-seed<seed>); must be new or empty.
-    #[arg(long, value_name = "DIR")]
+    #[arg(long, help_heading = "Training and evaluation", value_name = "DIR")]
     out: Option<PathBuf>,
     /// --train into a folder that holds a run, or --record/--screenshot over an existing file: replace it
     /// (coevo's own files only).
-    #[arg(long)]
+    #[arg(long, help_heading = "Training and evaluation")]
     overwrite: bool,
     /// Continue a killed or finished run from its last checkpoint (to --episodes in total).
-    #[arg(long, value_name = "DIR")]
+    #[arg(long, help_heading = "Modes", value_name = "DIR")]
     resume: Option<PathBuf>,
     /// Evaluate a run's policies without noise; writes DIR/eval.csv (per-step DoS/DoA).
-    #[arg(long, value_name = "DIR")]
+    #[arg(long, help_heading = "Modes", value_name = "DIR")]
     eval: Option<PathBuf>,
     /// Number of prey (--eval, --record, viewer; the paper evaluates on 50).
-    #[arg(long, value_name = "N")]
+    #[arg(long, help_heading = "Scene", value_name = "N")]
     prey: Option<usize>,
     /// Number of predators (--eval, --record, viewer; 0 removes them, as in the paper's Fig. 5a).
-    #[arg(long, value_name = "N")]
+    #[arg(long, help_heading = "Scene", value_name = "N")]
     predators: Option<usize>,
     /// Any species' count, as NAME=N (repeatable; --eval, --record, viewer).
-    #[arg(long, value_name = "NAME=N")]
+    #[arg(long, help_heading = "Scene", value_name = "NAME=N")]
     count: Vec<String>,
     /// No progress bar (--train, --resume).
-    #[arg(long)]
+    #[arg(long, help_heading = "Training and evaluation")]
     quiet: bool,
     /// Worker threads (default: COEVO_THREADS, else all cores). Results never depend on it.
-    #[arg(long, value_name = "N")]
+    #[arg(long, help_heading = "Training and evaluation", value_name = "N")]
     threads: Option<usize>,
 
     /// --eval: what the actors see of their neighbours: `blind` zeroes every neighbour slot, `shuffled`
     /// gives each agent another's (controls for alignment claims) [default: seeing].
-    #[arg(long, value_name = "CONTROL")]
+    #[arg(long, help_heading = "Training and evaluation", value_name = "CONTROL")]
     control: Option<crate::learning::ObservationControl>,
     /// --eval: the file name of the per-step CSV inside the run folder [default: eval.csv].
-    #[arg(long, value_name = "NAME.csv")]
+    #[arg(long, help_heading = "Training and evaluation", value_name = "NAME.csv")]
     eval_out: Option<String>,
     /// --eval: prey within this many metres of a predator count as in view for the confusion curve
     /// (NAME-confusion.csv) [default: the scene's confusion_radius, else the perception radius].
-    #[arg(long, value_name = "M")]
+    #[arg(long, help_heading = "Training and evaluation", value_name = "M")]
     confusion_radius: Option<f64>,
 
     /// Run an experiment file (experiments/*.ron), or `all` of them: every preset × variant × seed as a
     /// run under results/, resuming killed runs and skipping finished ones, then evaluations, summaries,
     /// figures and REPRODUCTION.md.
-    #[arg(long, value_name = "FILE|all")]
+    #[arg(long, help_heading = "Modes", value_name = "FILE|all")]
     experiment: Option<String>,
     /// --experiment: runs at a time, sharing the cores (--threads / J each) [default: 2].
-    #[arg(long, value_name = "J")]
+    #[arg(long, help_heading = "Experiments", value_name = "J")]
     jobs: Option<usize>,
     /// --experiment: only run index N of the experiment (what a Slurm array task runs).
-    #[arg(long, value_name = "N")]
+    #[arg(long, help_heading = "Experiments", value_name = "N")]
     task: Option<usize>,
     /// --experiment: write a Slurm job array and a dependent aggregate job instead of running.
-    #[arg(long)]
+    #[arg(long, help_heading = "Experiments")]
     emit_slurm: bool,
     /// Regenerate summaries and figures from CSV files alone: an experiment's results folder
     /// (results/NAME, with experiments/NAME.ron), one run folder, or `all` (every experiment, and
     /// REPRODUCTION.md).
-    #[arg(long, value_name = "DIR")]
+    #[arg(long, help_heading = "Modes", value_name = "DIR")]
     plot: Option<PathBuf>,
 
     /// Record a trajectory CSV: step,id,species,x,y,vx,vy,theta,thrust,turn_rate,reward.
-    #[arg(long, value_name = "OUT.csv")]
+    #[arg(long, help_heading = "Modes", value_name = "OUT.csv")]
     record: Option<PathBuf>,
     /// Render an episode to an animated GIF, headless (no window, no GPU): species colours, heading
     /// lines, optional --trails, a caption with the step and the live DoS/DoA/polarization/milling.
-    #[arg(long, value_name = "OUT.gif")]
+    #[arg(long, help_heading = "Modes", value_name = "OUT.gif")]
     animate: Option<PathBuf>,
     /// --animate: width of the arena image in pixels [default: 480].
-    #[arg(long, value_name = "PX")]
+    #[arg(long, help_heading = "Recording and animation", value_name = "PX")]
     size: Option<u32>,
     /// --record, --animate: the run whose trained actors drive the scene's learned species (default: the
     /// seed's freshly initialized actors); its scene.ron is the scene unless --scene is given.
-    #[arg(long, value_name = "DIR")]
+    #[arg(long, help_heading = "Recording and animation", value_name = "DIR")]
     run: Option<PathBuf>,
     /// Print a scene as the simulation will run it: species, counts, who catches whom with the reward of
     /// each contact, the observation layout of each observer species with offsets, and every resolved
     /// parameter (with the species plugins of this program).
-    #[arg(long, value_name = "FILE")]
+    #[arg(long, help_heading = "Modes", value_name = "FILE")]
     describe_scene: Option<PathBuf>,
     /// Print throughput figures for this machine.
-    #[arg(long)]
+    #[arg(long, help_heading = "Modes")]
     bench: bool,
     /// Seconds per benchmark figure (--bench), in (0, 3600].
-    #[arg(long, value_name = "SECONDS")]
+    #[arg(long, help_heading = "Modes", value_name = "SECONDS")]
     bench_seconds: Option<f64>,
 
     /// Viewer: watch a run's trained actors (its scene.ron, with --prey/--predators/--count applied).
-    #[arg(long, value_name = "DIR")]
+    #[arg(long, help_heading = "Viewer", value_name = "DIR")]
     watch: Option<PathBuf>,
     /// Viewer: replace learned species by the paper's rule-based chase and flee.
-    #[arg(long)]
+    #[arg(long, help_heading = "Viewer")]
     rules: bool,
     /// Viewer: render --frames frames, save a PNG here and exit.
-    #[arg(long, value_name = "PATH.png")]
+    #[arg(long, help_heading = "Viewer", value_name = "PATH.png")]
     screenshot: Option<PathBuf>,
     /// Viewer: frames to render before --screenshot [default: 60].
-    #[arg(long, value_name = "N")]
+    #[arg(long, help_heading = "Viewer", value_name = "N")]
     frames: Option<usize>,
     /// Viewer: window size in pixels [default: 1280x720].
-    #[arg(long, value_name = "WxH")]
+    #[arg(long, help_heading = "Viewer", value_name = "WxH")]
     window: Option<String>,
     /// Viewer: fixed steps per rendered frame [default: 1].
-    #[arg(long, value_name = "N")]
+    #[arg(long, help_heading = "Viewer", value_name = "N")]
     steps_per_frame: Option<usize>,
     /// Viewer: step as fast as possible (for live training), still drawing every frame.
-    #[arg(long)]
+    #[arg(long, help_heading = "Viewer")]
     fast: bool,
     /// Viewer: start paused.
-    #[arg(long)]
+    #[arg(long, help_heading = "Viewer")]
     paused: bool,
     /// Viewer: draw fading trajectory tails from the start.
-    #[arg(long)]
+    #[arg(long, help_heading = "Viewer")]
     trails: bool,
     /// Viewer: select the agent with this id (its perception radius, neighbours and observation).
-    #[arg(long, value_name = "ID")]
+    #[arg(long, help_heading = "Viewer", value_name = "ID")]
     select: Option<u32>,
 }
 
-/// The mode of a call and the flags it uses (besides the mode's own flag and --threads).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum RunMode {
+/// The flags each mode takes besides its own flag and `--threads` (which every mode takes); the viewer is
+/// the call without a mode flag. clap enforces it ([`command`]): a flag conflicts with every mode that
+/// does not take it and, when the viewer does not take it either, requires one of the modes that do.
+const TAKES: [(&str, &[&str]); 10] = [
+    ("train", &["scene", "seed", "episodes", "out", "overwrite", "quiet"]),
+    ("resume", &["episodes", "quiet"]),
+    ("eval", &["episodes", "steps", "seed", "prey", "predators", "count", "eval_out", "control", "confusion_radius"]),
+    ("record", &["run", "scene", "seed", "steps", "prey", "predators", "count", "overwrite"]),
+    (
+        "animate",
+        &["run", "scene", "seed", "steps", "prey", "predators", "count", "overwrite", "trails", "steps_per_frame", "size", "quiet"],
+    ),
+    ("bench", &["bench_seconds"]),
+    ("describe_scene", &["seed", "prey", "predators", "count"]),
+    ("experiment", &["jobs", "task", "emit_slurm", "quiet"]),
+    ("plot", &[]),
+    (
+        VIEWER,
+        &[
+            "scene", "seed", "prey", "predators", "count", "watch", "rules", "screenshot", "frames", "window", "steps_per_frame", "fast",
+            "paused", "trails", "select", "overwrite",
+        ],
+    ),
+];
+
+/// The call without a mode flag.
+const VIEWER: &str = "";
+
+/// The command line as clap parses it: [`Cli`] with [`TAKES`] enforced.
+fn command() -> clap::Command {
+    let modes: Vec<&'static str> = TAKES.iter().map(|(m, _)| *m).filter(|m| *m != VIEWER).collect();
+    let mut command = Cli::command();
+    let flags: Vec<String> = command
+        .get_arguments()
+        .map(|a| a.get_id().to_string())
+        .filter(|id| !modes.contains(&id.as_str()) && !["threads", "help", "version"].contains(&id.as_str()))
+        .collect();
+    for flag in flags {
+        let takers: Vec<&'static str> = TAKES.iter().filter(|(_, f)| f.contains(&flag.as_str())).map(|(m, _)| *m).collect();
+        let others: Vec<&'static str> = modes.iter().copied().filter(|m| !takers.contains(m)).collect();
+        let group = format!("modes taking {flag}");
+        let viewer = takers.contains(&VIEWER);
+        if !viewer {
+            command = command.group(ArgGroup::new(group.clone()).args(takers).multiple(false));
+        }
+        command = command.mut_arg(&flag, |arg| {
+            let arg = arg.conflicts_with_all(others);
+            if viewer {
+                arg
+            } else {
+                arg.requires(group)
+            }
+        });
+    }
+    command
+}
+
+/// What a call does: its mode and the mode's own value.
+#[derive(Clone, Debug, PartialEq)]
+enum Call {
     Train,
-    Resume,
-    Eval,
-    Record,
-    Animate,
-    Describe,
+    Resume(PathBuf),
+    Eval(PathBuf),
+    Record(PathBuf),
+    Animate(PathBuf),
+    Describe(PathBuf),
     Bench,
-    Experiment,
-    Plot,
+    Experiment(String),
+    Plot(PathBuf),
     Viewer,
 }
 
-impl RunMode {
-    fn of(cli: &Cli) -> RunMode {
+impl Call {
+    fn of(cli: &Cli) -> Call {
+        let path = |p: &Option<PathBuf>| p.clone();
         match () {
-            _ if cli.train => RunMode::Train,
-            _ if cli.resume.is_some() => RunMode::Resume,
-            _ if cli.eval.is_some() => RunMode::Eval,
-            _ if cli.record.is_some() => RunMode::Record,
-            _ if cli.animate.is_some() => RunMode::Animate,
-            _ if cli.describe_scene.is_some() => RunMode::Describe,
-            _ if cli.bench => RunMode::Bench,
-            _ if cli.experiment.is_some() => RunMode::Experiment,
-            _ if cli.plot.is_some() => RunMode::Plot,
-            _ => RunMode::Viewer,
+            _ if cli.train => Call::Train,
+            _ if cli.bench => Call::Bench,
+            _ => path(&cli.resume)
+                .map(Call::Resume)
+                .or_else(|| path(&cli.eval).map(Call::Eval))
+                .or_else(|| path(&cli.record).map(Call::Record))
+                .or_else(|| path(&cli.animate).map(Call::Animate))
+                .or_else(|| path(&cli.describe_scene).map(Call::Describe))
+                .or_else(|| cli.experiment.clone().map(Call::Experiment))
+                .or_else(|| path(&cli.plot).map(Call::Plot))
+                .unwrap_or(Call::Viewer),
         }
     }
+}
 
-    fn flag(self) -> &'static str {
-        match self {
-            RunMode::Train => "--train",
-            RunMode::Resume => "--resume",
-            RunMode::Eval => "--eval",
-            RunMode::Record => "--record",
-            RunMode::Animate => "--animate",
-            RunMode::Describe => "--describe-scene",
-            RunMode::Bench => "--bench",
-            RunMode::Experiment => "--experiment",
-            RunMode::Plot => "--plot",
-            RunMode::Viewer => "the viewer",
-        }
-    }
-
-    fn uses(self, arg: &str) -> bool {
-        let own: &[&str] = match self {
-            RunMode::Train => &["train", "scene", "seed", "episodes", "out", "overwrite", "quiet"],
-            RunMode::Resume => &["resume", "episodes", "quiet"],
-            RunMode::Eval => &["eval", "episodes", "steps", "seed", "prey", "predators", "count", "eval_out", "control", "confusion_radius"],
-            RunMode::Record => &["record", "run", "scene", "seed", "steps", "prey", "predators", "count", "overwrite"],
-            RunMode::Animate => &[
-                "animate",
-                "run",
-                "scene",
-                "seed",
-                "steps",
-                "prey",
-                "predators",
-                "count",
-                "overwrite",
-                "trails",
-                "steps_per_frame",
-                "size",
-                "quiet",
-            ],
-            RunMode::Bench => &["bench", "bench_seconds"],
-            RunMode::Describe => &["describe_scene", "seed", "prey", "predators", "count"],
-            RunMode::Experiment => &["experiment", "jobs", "task", "emit_slurm", "quiet"],
-            RunMode::Plot => &["plot"],
-            RunMode::Viewer => &[
-                "scene",
-                "seed",
-                "prey",
-                "predators",
-                "count",
-                "watch",
-                "rules",
-                "screenshot",
-                "frames",
-                "window",
-                "steps_per_frame",
-                "fast",
-                "paused",
-                "trails",
-                "select",
-                "overwrite",
-            ],
-        };
-        arg == "threads" || own.contains(&arg)
-    }
+/// clap's error as one line: its message without the usage and help hints that follow it.
+fn one_line(e: &clap::Error) -> String {
+    let text = e.to_string();
+    let message = text.split("\n\nUsage:").next().unwrap_or("").split("\n\nFor more information").next().unwrap_or("");
+    message.split_whitespace().collect::<Vec<_>>().join(" ").trim_start_matches("error: ").to_string()
 }
 
 /// Runs the command line with `species` registered (none for plain `coevo`): one line on stderr and a
@@ -257,32 +260,20 @@ pub fn main(species: SpeciesPlugins) -> ExitCode {
     if let Err(e) = species.register() {
         return fail(&e);
     }
-    let matches = match Cli::command().try_get_matches() {
+    let matches = match command().try_get_matches() {
         Ok(m) => m,
         Err(e) if matches!(e.kind(), ErrorKind::DisplayHelp | ErrorKind::DisplayVersion) => e.exit(),
-        // clap's message, on one line: what is wrong and with which flag.
-        Err(e) => return fail(e.to_string().lines().next().unwrap_or("").trim_start_matches("error: ")),
+        Err(e) => return fail(&one_line(&e)),
     };
     let cli = match Cli::from_arg_matches(&matches) {
         Ok(cli) => cli,
-        Err(e) => return fail(e.to_string().lines().next().unwrap_or("").trim_start_matches("error: ")),
+        Err(e) => return fail(&one_line(&e)),
     };
-    let mode = RunMode::of(&cli);
-    if mode != RunMode::Viewer {
+    let call = Call::of(&cli);
+    if call != Call::Viewer {
         crate::io::install_signal_cleanup();
     }
-    let command = Cli::command();
-    let is_arg = |id: &str| command.get_arguments().any(|a| a.get_id().as_str() == id);
-    let given = matches
-        .ids()
-        .map(|id| id.as_str())
-        .filter(|id| is_arg(id) && matches.value_source(id) == Some(ValueSource::CommandLine));
-    for arg in given {
-        if !mode.uses(arg) {
-            return fail(&format!("--{}: not used by {} (see --help)", arg.replace('_', "-"), mode.flag()));
-        }
-    }
-    match run(cli, mode) {
+    match run(cli, call) {
         Ok(()) => ExitCode::SUCCESS,
         Err(message) => fail(&message),
     }
@@ -301,26 +292,28 @@ fn at_least_one(flag: &str, value: Option<usize>) -> Result<(), String> {
     }
 }
 
-/// The scene file of the call (--scene, else `default`), with --seed applied.
-fn load_scene(cli: &Cli, default: &Path) -> Result<(Scene, PathBuf), String> {
+/// What the call changes of the scene it loads: --prey, --predators and --count (in that order),
+/// --seed, and --steps per episode when `steps` (--eval; --record and --animate run --steps as one
+/// episode).
+fn overrides(cli: &Cli, steps: bool) -> Result<Overrides, String> {
+    let mut counts: Vec<(String, usize)> = cli.prey.map(|n| ("prey".to_string(), n)).into_iter().collect();
+    counts.extend(cli.predators.map(|n| ("predator".to_string(), n)));
+    for c in &cli.count {
+        let (name, n) = c.split_once('=').ok_or_else(|| format!("--count {c}: expected NAME=N"))?;
+        counts.push((name.to_string(), n.parse().map_err(|_| format!("--count {c}: {n} is not a count"))?));
+    }
+    Ok(Overrides { counts, seed: cli.seed, episode_steps: if steps { cli.steps } else { None }, confusion_radius: None })
+}
+
+/// The scene file of the call (--scene, else `default`) with the call's overrides applied and validated.
+fn load_scene(cli: &Cli, default: &Path, overrides: &Overrides) -> Result<(Scene, PathBuf), String> {
     let path = cli.scene.clone().unwrap_or_else(|| default.to_path_buf());
     let mut scene = Scene::load(&path).map_err(|e| e.to_string())?;
-    if let Some(seed) = cli.seed {
-        scene.seed = seed;
-    }
+    overrides.apply(&mut scene, &path)?;
     Ok((scene, path))
 }
 
-/// A scene with --prey, --predators and --count applied, validated again.
-fn with_counts(cli: &Cli, mut scene: Scene, source: &Path) -> Result<Scene, String> {
-    for (name, n) in counts(cli)? {
-        scene.set_count(&name, n).map_err(|e| format!("{}: {e}", source.display()))?;
-    }
-    scene.validate().map_err(|(f, m)| format!("{}: {f}: {m}", source.display()))?;
-    Ok(scene)
-}
-
-fn run(cli: Cli, mode: RunMode) -> Result<(), String> {
+fn run(cli: Cli, call: Call) -> Result<(), String> {
     at_least_one("--threads", cli.threads)?;
     if let Some(n) = cli.threads {
         crate::parallel::set_threads(n);
@@ -328,8 +321,8 @@ fn run(cli: Cli, mode: RunMode) -> Result<(), String> {
     at_least_one("--episodes", cli.episodes)?;
     at_least_one("--steps", cli.steps)?;
     let standard = Path::new("scenes/standard.ron");
-    match mode {
-        RunMode::Bench => {
+    match call {
+        Call::Bench => {
             let seconds = cli.bench_seconds.unwrap_or(2.0);
             if !(seconds > 0.0 && seconds <= 3600.0) {
                 return Err(format!("--bench-seconds: must be a number of seconds in (0, 3600] (got {seconds})"));
@@ -339,27 +332,23 @@ fn run(cli: Cli, mode: RunMode) -> Result<(), String> {
             crate::run::bench::print(&crate::run::bench::learning(budget));
             Ok(())
         }
-        RunMode::Eval => {
-            let run = cli.eval.clone().expect("eval mode");
+        Call::Eval(run) => {
             let opts = crate::run::evaluate::EvalOptions {
                 run,
                 out: cli.eval_out.clone(),
                 control: cli.control.unwrap_or_default(),
-                counts: counts(&cli)?,
                 episodes: cli.episodes.unwrap_or(1),
-                steps: cli.steps,
-                seed: cli.seed,
-                confusion_radius: cli.confusion_radius,
+                overrides: Overrides { confusion_radius: cli.confusion_radius, ..overrides(&cli, true)? },
             };
             println!("{}", crate::run::evaluate::evaluate(&opts)?);
             Ok(())
         }
-        RunMode::Train | RunMode::Resume => {
+        Call::Train | Call::Resume(_) => {
             let (scene, run) = match &cli.resume {
                 // The run's own scene is loaded by `train`.
-                Some(run) => (Scene::preset("paper").expect("preset"), run.clone()),
+                Some(run) => (Scene::preset("paper").expect("a preset of this program"), run.clone()),
                 None => {
-                    let (scene, path) = load_scene(&cli, standard)?;
+                    let (scene, path) = load_scene(&cli, standard, &overrides(&cli, false)?)?;
                     let stem = path.file_stem().map_or("run".into(), |s| s.to_string_lossy().into_owned());
                     let run =
                         cli.out.clone().unwrap_or_else(|| PathBuf::from(format!("runs/{stem}-seed{}", scene.seed)));
@@ -368,7 +357,7 @@ fn run(cli: Cli, mode: RunMode) -> Result<(), String> {
             };
             let opts = crate::run::train::TrainOptions {
                 run: run.clone(),
-                resume: mode == RunMode::Resume,
+                resume: cli.resume.is_some(),
                 overwrite: cli.overwrite,
                 episodes: cli.episodes,
                 progress: !cli.quiet,
@@ -377,16 +366,14 @@ fn run(cli: Cli, mode: RunMode) -> Result<(), String> {
             eprintln!("coevo: trained {} episodes into {}", summaries.len(), run.display());
             Ok(())
         }
-        RunMode::Record => {
-            let out = cli.record.clone().expect("record mode");
+        Call::Record(out) => {
             let (mut sim, steps, actors) = deployed(&cli, standard)?;
             let existing = if cli.overwrite { Existing::Replace } else { Existing::Refuse };
             crate::run::record::record(&mut sim, steps, &out, existing)?;
             eprintln!("coevo: wrote {steps} steps to {}{actors}", out.display());
             Ok(())
         }
-        RunMode::Animate => {
-            let out = cli.animate.clone().expect("animate mode");
+        Call::Animate(out) => {
             if out.extension().is_none_or(|e| e != "gif") {
                 return Err(format!("--animate {}: the file must end in .gif", out.display()));
             }
@@ -423,131 +410,21 @@ fn run(cli: Cli, mode: RunMode) -> Result<(), String> {
             );
             Ok(())
         }
-        RunMode::Experiment => experiment(&cli),
-        RunMode::Describe => {
-            let path = cli.describe_scene.clone().expect("describe mode");
-            let (scene, source) = load_scene(&Cli { scene: Some(path), ..cli.clone() }, standard)?;
-            let scene = with_counts(&cli, scene, &source)?;
+        Call::Experiment(which) => crate::experiment::report::experiment(&crate::experiment::report::Request {
+            which: &which,
+            jobs: cli.jobs,
+            task: cli.task,
+            emit_slurm: cli.emit_slurm,
+            quiet: cli.quiet,
+        }),
+        Call::Describe(path) => {
+            let (scene, source) = load_scene(&Cli { scene: Some(path), ..cli.clone() }, standard, &overrides(&cli, false)?)?;
             print!("{}", crate::sim::species::describe(&scene, &source.display().to_string()));
             Ok(())
         }
-        RunMode::Plot => plot(cli.plot.as_deref().expect("plot mode")),
-        RunMode::Viewer => viewer(&cli),
+        Call::Plot(dir) => crate::experiment::report::plot(&dir),
+        Call::Viewer => viewer(&cli),
     }
-}
-
-/// Where experiments are read and their runs written.
-const EXPERIMENTS: &str = "experiments";
-const RESULTS: &str = "results";
-
-/// `--experiment FILE|all`: run, evaluate and aggregate; then REPRODUCTION.md from every experiment's
-/// results so far.
-fn experiment(cli: &Cli) -> Result<(), String> {
-    use crate::experiment::{aggregate, runner, Experiment};
-    let which = cli.experiment.as_deref().expect("experiment mode");
-    let files = match which {
-        "all" => Experiment::files(Path::new(EXPERIMENTS))?,
-        file => vec![PathBuf::from(file)],
-    };
-    let experiments = files.iter().map(|f| Experiment::load(f, Path::new(RESULTS))).collect::<Result<Vec<_>, _>>()?;
-    at_least_one("--jobs", cli.jobs)?;
-    if let Some(task) = cli.task {
-        match experiments.as_slice() {
-            [exp] if task < exp.runs.len() => {}
-            [exp] => return Err(format!("--task {task}: {} has runs 0 to {}", exp.file.display(), exp.runs.len() - 1)),
-            _ => return Err("--task: names a run of one experiment file, not of `all`".into()),
-        }
-    }
-    if cli.emit_slurm {
-        if cli.task.is_some() {
-            return Err("--task: not used by --emit-slurm, which writes a job for every run".into());
-        }
-        let exe = std::env::current_exe().map_err(|e| format!("cannot find the coevo binary: {e}"))?;
-        for exp in &experiments {
-            let dir = runner::emit_slurm(exp, &exe.to_string_lossy())?;
-            println!("{}: {} runs; submit with: bash {}/submit.sh", exp.name, exp.runs.len(), dir.display());
-        }
-        return Ok(());
-    }
-    let opts = runner::RunnerOptions {
-        exe: std::env::current_exe().map_err(|e| format!("cannot find the coevo binary: {e}"))?,
-        jobs: cli.jobs.unwrap_or(2),
-        progress: !cli.quiet,
-    };
-    // Every experiment is attempted; the one error line names the first failure.
-    let failed: Vec<String> = experiments.iter().filter_map(|exp| runner::run(exp, &opts, cli.task).err()).collect();
-    if let Some(first) = failed.first() {
-        let others = match failed.len() {
-            1 => String::new(),
-            n => format!("; {} more experiments failed", n - 1),
-        };
-        return Err(format!("{first}{others} (REPRODUCTION.md left as it was)"));
-    }
-    if cli.task.is_some() {
-        return Ok(());
-    }
-    // REPRODUCTION.md covers the project's experiment files; another file's experiment reports alone.
-    if which == "all" || experiments.iter().all(|e| in_experiments_folder(&e.file)) {
-        return write_reproduction();
-    }
-    for exp in &experiments {
-        let claims = aggregate::aggregate(exp, &aggregate::load(exp)?)?;
-        eprintln!("coevo: wrote {}/summary.csv, summary-mean.csv and figures/ ({} claims checked)", exp.root.display(), claims.len());
-    }
-    Ok(())
-}
-
-/// Whether an experiment file is one of the project's (in ./experiments), whose results REPRODUCTION.md
-/// gathers.
-fn in_experiments_folder(file: &Path) -> bool {
-    let folder = |p: &Path| std::fs::canonicalize(p).ok();
-    let parent = file.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
-    folder(parent).is_some_and(|p| Some(p) == folder(Path::new(EXPERIMENTS)))
-}
-
-/// Summaries and figures of every experiment with finished runs, and REPRODUCTION.md over all of them.
-fn write_reproduction() -> Result<(), String> {
-    use crate::experiment::{aggregate, Experiment};
-    let mut all = Vec::new();
-    for file in Experiment::files(Path::new(EXPERIMENTS))? {
-        let exp = Experiment::load(&file, Path::new(RESULTS))?;
-        let data = aggregate::load(&exp)?;
-        // + 0.0: an empty f64 sum is −0.0, which would print as "-0.0 h".
-        let seconds: f64 = data.values().map(|d| d.wall_seconds).sum::<f64>() + 0.0;
-        let results = aggregate::aggregate(&exp, &data)?;
-        let finished = data.len();
-        all.push((exp, results, seconds, finished));
-    }
-    crate::io::write_file(Path::new("REPRODUCTION.md"), Existing::Replace, aggregate::reproduction(&all).as_bytes())?;
-    eprintln!("coevo: wrote REPRODUCTION.md");
-    Ok(())
-}
-
-/// `--plot DIR`: an experiment's summaries and figures, or one run's learning curves, from CSVs alone.
-fn plot(dir: &Path) -> Result<(), String> {
-    use crate::experiment::{aggregate, Experiment};
-    if dir == Path::new("all") {
-        return write_reproduction();
-    }
-    if crate::run::is_run(dir) {
-        let path = crate::experiment::aggregate::plot_run(dir)?;
-        eprintln!("coevo: wrote {}", path.display());
-        return Ok(());
-    }
-    let name = dir.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
-    let file = Path::new(EXPERIMENTS).join(format!("{name}.ron"));
-    if !file.exists() {
-        return Err(format!("--plot {}: neither a run folder nor the results of an experiment file {}", dir.display(), file.display()));
-    }
-    let results = dir.parent().unwrap_or(Path::new("."));
-    let exp = Experiment::load(&file, results)?;
-    let data = aggregate::load(&exp)?;
-    if data.is_empty() {
-        return Err(format!("--plot {}: no finished run of {} there; nothing written", dir.display(), file.display()));
-    }
-    let claims = aggregate::aggregate(&exp, &data)?;
-    eprintln!("coevo: wrote {}/summary.csv, summary-mean.csv and figures/ ({} claims checked)", exp.root.display(), claims.len());
-    Ok(())
 }
 
 /// The simulation --record and --animate show: the scene of --run (or --scene) with the counts applied,
@@ -558,8 +435,7 @@ fn deployed(cli: &Cli, standard: &Path) -> Result<(crate::sim::Simulation, usize
         crate::run::RunDir::new(run).check_plugins()?;
     }
     let default = cli.run.as_ref().map_or(standard.to_path_buf(), |r| r.join(crate::run::SCENE));
-    let (scene, source) = load_scene(cli, &default)?;
-    let mut scene = with_counts(cli, scene, &source)?;
+    let (mut scene, _) = load_scene(cli, &default, &overrides(cli, false)?)?;
     let steps = cli.steps.unwrap_or(scene.episode_steps);
     scene.episode_steps = steps;
     let sim = crate::learning::simulation(scene.clone(), Mode::Evaluate, cli.run.as_deref())?;
@@ -575,17 +451,6 @@ fn deployed(cli: &Cli, standard: &Path) -> Result<(crate::sim::Simulation, usize
         .collect();
     let actors = if actors.is_empty() { String::new() } else { format!(" ({})", actors.join("; ")) };
     Ok((sim, steps, actors))
-}
-
-/// --prey, --predators and --count NAME=N, in that order.
-fn counts(cli: &Cli) -> Result<Vec<(String, usize)>, String> {
-    let mut counts: Vec<(String, usize)> = cli.prey.map(|n| ("prey".to_string(), n)).into_iter().collect();
-    counts.extend(cli.predators.map(|n| ("predator".to_string(), n)));
-    for c in &cli.count {
-        let (name, n) = c.split_once('=').ok_or_else(|| format!("--count {c}: expected NAME=N"))?;
-        counts.push((name.to_string(), n.parse().map_err(|_| format!("--count {c}: {n} is not a count"))?));
-    }
-    Ok(counts)
 }
 
 #[cfg(not(feature = "viewer"))]
@@ -608,8 +473,7 @@ fn viewer(cli: &Cli) -> Result<(), String> {
             (PathBuf::from("scenes/standard.ron"), if cli.rules { ViewMode::RuleBased } else { ViewMode::LiveTraining })
         }
     };
-    let (scene, source) = load_scene(cli, &default)?;
-    let scene = with_counts(cli, scene, &source)?;
+    let (scene, source) = load_scene(cli, &default, &overrides(cli, false)?)?;
     at_least_one("--frames", cli.frames)?;
     at_least_one("--steps-per-frame", cli.steps_per_frame)?;
     let size = cli.window.clone().unwrap_or_else(|| "1280x720".into());

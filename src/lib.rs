@@ -4,11 +4,11 @@
 //!
 //! | folder / file | what |
 //! |---|---|
-//! | `scene.rs` | scenes: presets, patches, validation |
-//! | `sim/` | the simulation core (components, space, physics, perception, reward, metrics, collective measures, episodes, species, policies) and [`Simulation`]; one fixed step is the chain of [`SimSet`]s (see [`sim`]) |
+//! | `scene/` | scenes: schema, presets, patches and overrides, validation, the observation layout |
+//! | `sim/` | the simulation core (components, space, physics, perception, reward, metrics, collective measures, episodes, species, policies) and [`sim::Simulation`]; one fixed step is the chain of [`sim::SimSet`]s (see [`sim`]) |
 //! | `learning/` | Algorithm 1 (DDPG) as a plugin on dfdx, checkpoints |
-//! | `run/` | a run folder: its names, reserved outputs, lock, provenance |
-//! | `train.rs`, `record.rs`, `animate.rs`, `bench.rs`, `experiment/` | the run modes and the experiment layer |
+//! | `run/` | a run folder (names, reserved outputs, lock, provenance, CSV schemas) and the run modes: train, evaluate, record, animate, bench |
+//! | `experiment/` | experiment files, the runner, aggregation, claims and verdicts, reports |
 //! | `viewer/` | the window (`--features viewer`) |
 //! | `cli.rs` | the command line (`main.rs` and examples call [`cli::main`]) |
 //! | `io.rs`, `parallel.rs`, `svg.rs` | files written safely, threads that never change a result, SVG to pixels |

@@ -5,6 +5,7 @@ use coevo::sim::perception::Batches;
 use coevo::scene::{Policy, Scene};
 use coevo::learning::simulation as learning_simulation;
 use coevo::run::evaluate::{evaluate, EvalOptions};
+use coevo::scene::Overrides;
 use coevo::run::train::{train, TrainOptions};
 use std::path::Path;
 
@@ -132,7 +133,7 @@ fn corrupt_missing_or_mismatched_checkpoints_are_refused_clearly() {
     train(tiny(1), &opts(&run, false, None)).unwrap();
     std::fs::write(run.join("checkpoint/prey-actor.safetensors"), b"not a tensor file").unwrap();
     let eval = |counts: Vec<(String, usize)>| {
-        evaluate(&EvalOptions { run: run.clone(), out: None, control: Default::default(), counts, episodes: 1, steps: Some(5), seed: None, confusion_radius: None })
+        evaluate(&EvalOptions { run: run.clone(), out: None, control: Default::default(), episodes: 1, overrides: Overrides { counts, episode_steps: Some(5), ..Default::default() } })
     };
     let corrupt = eval(vec![]).unwrap_err();
     assert!(corrupt.contains("prey-actor.safetensors: not a valid safetensors file"), "{corrupt}");
@@ -157,11 +158,8 @@ fn evaluation_deploys_on_fifty_prey_and_without_predators() {
         run: run.clone(),
         out: None,
         control: Default::default(),
-        counts: vec![("prey".into(), 50), ("predator".into(), 0)],
         episodes: 2,
-        steps: Some(30),
-        seed: None,
-        confusion_radius: None,
+        overrides: Overrides { counts: vec![("prey".into(), 50), ("predator".into(), 0)], episode_steps: Some(30), ..Default::default() },
     })
     .unwrap();
     assert!(line.contains("0 predator + 50 prey"), "{line}");
@@ -191,11 +189,13 @@ fn evaluation_deploys_on_fifty_prey_and_without_predators() {
         run: run.clone(),
         out: Some("with-predators.csv".into()),
         control: Default::default(),
-        counts: vec![("prey".into(), 50), ("predator".into(), 3)],
         episodes: 2,
-        steps: Some(steps),
-        seed: None,
-        confusion_radius: Some(0.5),
+        overrides: Overrides {
+            counts: vec![("prey".into(), 50), ("predator".into(), 3)],
+            episode_steps: Some(steps),
+            confusion_radius: Some(0.5),
+            ..Default::default()
+        },
     })
     .unwrap();
     let confusion = std::fs::read_to_string(run.join("with-predators-confusion.csv")).unwrap();
@@ -205,7 +205,7 @@ fn evaluation_deploys_on_fifty_prey_and_without_predators() {
 
     // One step per episode: measured, not zeros; with one prey there is nothing to measure, and it says so.
     let one = |counts: Vec<(String, usize)>| {
-        evaluate(&EvalOptions { run: run.clone(), out: None, control: Default::default(), counts, episodes: 1, steps: Some(1), seed: None, confusion_radius: None }).unwrap()
+        evaluate(&EvalOptions { run: run.clone(), out: None, control: Default::default(), episodes: 1, overrides: Overrides { counts, episode_steps: Some(1), ..Default::default() } }).unwrap()
     };
     let line = one(vec![]);
     assert!(!line.contains("mean DoS 0.0000"), "{line}");

@@ -3,8 +3,9 @@
 
 use super::plot::{self, Curve, EstimatePanel, Panel, Row};
 use super::runner::{eval_file, stage, Stage};
-use super::stats::{difference, estimate, mean, running_mean, Estimate};
-use super::{slug, Claim, Experiment, Quantity};
+use super::claims::{quantity, values, verdict, window_mean, ClaimResult, SETTLED_STEPS, WINDOW};
+use super::stats::{difference, estimate, mean, running_mean};
+use super::{slug, Experiment, Quantity};
 use crate::run::schema::{self, Table};
 use crate::run::RunDir;
 use crate::sim::metrics::Swarming;
@@ -12,11 +13,6 @@ use crate::sim::species::SpeciesRegistry;
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::Path;
-
-/// The paper's running-mean window, in episodes.
-pub const WINDOW: usize = 100;
-/// Steps at the end of an evaluation episode averaged as its settled state.
-pub const SETTLED_STEPS: usize = 50;
 
 /// A run's episodes (prey, or the headline species) and its evaluations.
 #[derive(Clone, Debug, Default)]
@@ -48,7 +44,7 @@ pub struct EvalData {
 }
 
 impl EvalData {
-    fn series(&self, name: &str) -> &[f64] {
+    pub fn series(&self, name: &str) -> &[f64] {
         Swarming::NAMES.iter().position(|n| *n == name).and_then(|i| self.per_step.get(i)).map_or(&[], |v| v.as_slice())
     }
 }
@@ -123,77 +119,6 @@ pub fn load(exp: &Experiment) -> Result<BTreeMap<usize, RunData>, String> {
         data.insert(i, d);
     }
     Ok(data)
-}
-
-fn window_mean(values: &[f64], first: bool) -> f64 {
-    let n = values.len().min(WINDOW);
-    let part = if first { &values[..n] } else { &values[values.len() - n..] };
-    mean(&part.iter().copied().filter(|v| v.is_finite()).collect::<Vec<_>>()).unwrap_or(f64::NAN)
-}
-
-/// The finite values of a quantity over `runs` (one per seed), the samples of an estimate.
-fn values(exp: &Experiment, runs: &[&RunData], q: &Quantity) -> Vec<f64> {
-    runs.iter().map(|d| quantity(exp, d, q)).filter(|x| x.is_finite()).collect()
-}
-
-/// A run's value of a quantity.
-pub fn quantity(exp: &Experiment, d: &RunData, q: &Quantity) -> f64 {
-    let settled = |v: &[f64]| mean(&v[v.len().saturating_sub(SETTLED_STEPS)..].iter().copied().filter(|x| x.is_finite()).collect::<Vec<_>>()).unwrap_or(f64::NAN);
-    let eval = |e: &str, name: &str| d.evals.get(e).map_or(f64::NAN, |x| settled(x.series(name)));
-    match q {
-        Quantity::DosFirst => window_mean(&d.dos, true),
-        Quantity::TrainingFirst(q) => d.orders.get(q).map_or(f64::NAN, |v| window_mean(v, true)),
-        Quantity::TrainingLast(q) => d.orders.get(q).map_or(f64::NAN, |v| window_mean(v, false)),
-        Quantity::DosLast => window_mean(&d.dos, false),
-        Quantity::DoaFirst => window_mean(&d.doa, true),
-        Quantity::DoaLast => window_mean(&d.doa, false),
-        Quantity::DosChange => window_mean(&d.dos, false) - window_mean(&d.dos, true),
-        Quantity::DoaChange => window_mean(&d.doa, false) - window_mean(&d.doa, true),
-        Quantity::CatchesChange => window_mean(&d.catches, false) - window_mean(&d.catches, true),
-        Quantity::EvalDos(e) => eval(e, "dos"),
-        Quantity::EvalDoa(e) => eval(e, "doa"),
-        Quantity::EvalOrder(e, name) if name == "edge_rank" => d.evals.get(e).map_or(f64::NAN, |x| x.edge_rank),
-        Quantity::EvalOrder(e, name) => eval(e, name),
-        Quantity::InteractionDoa(e) => match super::seeing_partner(&exp.spec.evaluations, e) {
-            Some(seeing) => eval(&seeing.name, "doa") - eval(e, "doa"),
-            None => f64::NAN,
-        },
-    }
-}
-
-/// A claim checked on one preset.
-#[derive(Clone, Debug)]
-pub struct ClaimResult {
-    pub experiment: String,
-    pub preset: String,
-    pub claim: Claim,
-    pub estimate: Option<Estimate>,
-    pub verdict: String,
-}
-
-/// Whether a measured estimate bears out the paper's number.
-pub fn verdict(claim: &Claim, e: Option<Estimate>) -> String {
-    let Some(e) = e else { return "not run yet".into() };
-    let (paper, ci) = match (claim.paper, &claim.versus, e.ci) {
-        (None, None, _) => return "measured (the paper gives no number)".into(),
-        (_, _, None) => return "one seed: no interval".into(),
-        // A comparison of two variants without a number of the paper: is the difference outside its interval?
-        (None, Some(base), Some(ci)) if e.mean.abs() > ci => return format!("differs from `{base}`: the 95 % CI excludes 0"),
-        (None, Some(base), Some(_)) => return format!("no difference from `{base}` detected"),
-        (Some(paper), _, Some(ci)) => (paper, ci),
-    };
-    let change = matches!(claim.quantity, Quantity::DosChange | Quantity::DoaChange | Quantity::CatchesChange);
-    if (e.mean - paper).abs() <= ci {
-        "holds: the paper's value is inside the 95 % CI".into()
-    } else if change && e.mean.abs() <= ci {
-        "does not hold: no significant change".into()
-    } else if change && e.mean.signum() == paper.signum() {
-        "same direction, different size".into()
-    } else if change {
-        "does not hold: opposite direction".into()
-    } else {
-        "does not hold: outside the 95 % CI".into()
-    }
 }
 
 /// Checks an experiment's claims on the `data` of its finished runs ([`load`]) and, when there are any,
@@ -379,93 +304,6 @@ fn figures<'a>(exp: &Experiment, preset: &str, prey: &str, of_variant: &dyn Fn(&
     Ok(())
 }
 
-/// REPRODUCTION.md: every claim of the experiments, the paper's number, ours with its interval, the
-/// command that produced it and the verdict.
-pub fn reproduction(experiments: &[(Experiment, Vec<ClaimResult>, f64, usize)]) -> String {
-    let mut md = String::from(
-        "# Reproduction of Li, Li & Zhao (NJP 2023)\n\n\
-         Generated by `coevo --experiment all` (or `coevo --plot results/<experiment>` for one) from the runs' CSV files under \
-         `results/`; do not edit by hand. Each number is the mean over seeds of the prey's 100-episode means (first or last 100 \
-         episodes of training) or of an evaluation's last 50 steps, ± the half-width of its 95 % confidence interval (Student t \
-         over seeds). A claim *holds* when the paper's value lies inside that interval. Nothing in the metrics, rewards or \
-         physics was tuned toward a claim; see the README's \"Does it learn?\" for what the numbers mean. Baselines: \
-         independent random headings give DoA = 2/π ≈ 0.637 and C_nn = 0; random catches give an edge rank of 0.5. \
-         *Seeing minus blind* (or shuffled) is the part of the trained actors' alignment that comes from seeing \
-         their neighbours, computed run by run. A quantity *of `X` minus `Y` (Welch)* compares two variants: the difference \
-         of their means with Welch's 95 % interval (unequal variances; seeds: the smaller count); `X` *differs* from `Y` when \
-         that interval excludes 0.\n\n",
-    );
-    // Contents first: each experiment, what it tests, how far it got and the command that continues it.
-    md.push_str("| experiment | what | command | runs finished | training time (sum over runs) |\n|---|---|---|---|---|\n");
-    for (exp, _, seconds, finished) in experiments {
-        let command = format!("`coevo --experiment {} --jobs 2`", exp.file.display());
-        let (name, runs, hours) = (&exp.name, exp.runs.len(), seconds / 3600.0);
-        writeln!(md, "| [{name}](#{name}) | {} | {command} | {finished} of {runs} | {hours:.1} h |", exp.spec.description).unwrap();
-    }
-    // Then per experiment: its claims, and its figures (the comparison of variants and the learning curves
-    // shown, the rest linked).
-    for (exp, results, _, _) in experiments {
-        let what = if exp.spec.description.is_empty() { String::new() } else { format!("{}. ", exp.spec.description) };
-        writeln!(md, "\n## {}\n\n{what}`{}`, results in `{}/`.\n", exp.name, exp.file.display(), exp.root.display()).unwrap();
-        if !results.is_empty() {
-            md.push_str("| preset | claim (the paper) | quantity | paper | coevo (mean ± 95 % CI, seeds) | verdict |\n|---|---|---|---|---|---|\n");
-        }
-        for r in results {
-            let ours = match r.estimate {
-                Some(e) => format!("{:.3}{} ({})", e.mean, e.ci.map_or(String::new(), |c| format!(" ± {c:.3}")), e.n),
-                None => "–".into(),
-            };
-            let paper = r.claim.paper.map_or("–".into(), |p| format!("{p:.3}"));
-            let of = match &r.claim.versus {
-                Some(base) => format!("`{}` minus `{base}` (Welch)", r.claim.variant),
-                None => format!("`{}`", r.claim.variant),
-            };
-            writeln!(md, "| {} | {} | {} of {of} | {paper} | {ours} | {} |", r.preset, r.claim.text, quantity_name(&r.claim.quantity), r.verdict).unwrap();
-        }
-        let dir = exp.root.join("figures");
-        for preset in &exp.spec.presets {
-            let shown: Vec<String> = ["variants", "training"]
-                .iter()
-                .map(|what| dir.join(format!("{preset}-{what}.png")))
-                .filter(|path| path.exists())
-                .map(|path| format!("![{}]({})", path.file_stem().unwrap_or_default().to_string_lossy(), path.display()))
-                .collect();
-            if !shown.is_empty() {
-                writeln!(md, "\n{}\n", shown.join("\n")).unwrap();
-            }
-        }
-    }
-    let (seconds, finished, runs) = experiments.iter().fold((0.0, 0, 0), |(s, f, r), (exp, _, sec, fin)| (s + sec, f + fin, r + exp.runs.len()));
-    writeln!(
-        md,
-        "\n## The whole suite\n\n`coevo --experiment all --jobs 2`: {finished} of {runs} runs finished, {:.1} h of training summed over \
-         runs, each timed by its own `metrics.csv` (`wall_seconds`, the run's own wall clock; runs copied between experiments \
-         count once per experiment). Two runs go side by side on a 2-core machine, so the suite takes about half that in wall \
-         time there.",
-        seconds / 3600.0
-    )
-    .unwrap();
-    md
-}
-
-fn quantity_name(q: &Quantity) -> String {
-    match q {
-        Quantity::DosFirst => "DoS, first 100 episodes".into(),
-        Quantity::TrainingFirst(q) => format!("{q}, first 100 episodes"),
-        Quantity::TrainingLast(q) => format!("{q}, last 100 episodes"),
-        Quantity::DosLast => "DoS, last 100 episodes".into(),
-        Quantity::DoaFirst => "DoA, first 100 episodes".into(),
-        Quantity::DoaLast => "DoA, last 100 episodes".into(),
-        Quantity::DosChange => "DoS change, last − first 100".into(),
-        Quantity::DoaChange => "DoA change, last − first 100".into(),
-        Quantity::CatchesChange => "catches per episode, change, last − first 100".into(),
-        Quantity::EvalDos(e) => format!("DoS settled in evaluation \"{e}\""),
-        Quantity::EvalDoa(e) => format!("DoA settled in evaluation \"{e}\""),
-        Quantity::EvalOrder(e, q) => format!("{q} in evaluation \"{e}\""),
-        Quantity::InteractionDoa(e) => format!("DoA seeing minus \"{e}\" (interaction-driven alignment)"),
-    }
-}
-
 /// One run's learning curves (DoS and DoA of the headline species, 100-episode running means) into
 /// `RUN/figures/training.png`, from its `metrics.csv`.
 pub fn plot_run(dir: &Path) -> Result<std::path::PathBuf, String> {
@@ -490,17 +328,6 @@ pub fn plot_run(dir: &Path) -> Result<std::path::PathBuf, String> {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn changes_are_the_last_window_minus_the_first() {
-        let exp = Experiment::load(Path::new("experiments/ablation-from-paper.ron"), Path::new("results")).unwrap();
-        // 250 episodes: the first 100 and the last 100 do not overlap.
-        let series = |first: f64, last: f64| (0..250).map(|i| if i < 100 { first } else if i >= 150 { last } else { f64::NAN }).collect::<Vec<_>>();
-        let d = RunData { dos: series(0.22, 0.19), doa: series(0.70, 0.85), catches: series(72.0, 26.0), ..Default::default() };
-        for (q, expected) in [(Quantity::DosChange, -0.03), (Quantity::DoaChange, 0.15), (Quantity::CatchesChange, -46.0)] {
-            assert!((quantity(&exp, &d, &q) - expected).abs() < 1e-12, "{q:?}");
-        }
-    }
 
     #[test]
     fn names_with_commas_stay_one_csv_field() {

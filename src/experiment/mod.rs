@@ -24,11 +24,13 @@
 //! `summary.csv`, `summary-mean.csv` and the figures ([`plot`]).
 
 pub mod aggregate;
+pub mod claims;
 pub mod plot;
+pub mod report;
 pub mod runner;
 pub mod stats;
 
-use crate::scene::{parse_ron, Scene, ScenePatch, PRESETS};
+use crate::scene::{parse_ron, Overrides, Scene, ScenePatch, PRESETS};
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 
@@ -85,6 +87,13 @@ pub struct Evaluation {
     /// Radius (m) of "prey in view" for the confusion curve (default: the scene's).
     #[serde(default)]
     pub confusion_radius: Option<f64>,
+}
+
+impl Evaluation {
+    /// What the evaluation changes of a run's scene.
+    pub fn overrides(&self) -> Overrides {
+        Overrides { counts: self.counts.clone(), seed: None, episode_steps: self.steps, confusion_radius: self.confusion_radius }
+    }
 }
 
 fn three() -> usize {
@@ -297,12 +306,9 @@ impl Experiment {
                 if let Some(episodes) = spec.episodes {
                     scene.episodes = episodes;
                 }
+                // Each evaluation's scene as `coevo --eval` will make it, checked now rather than after training.
                 for e in &spec.evaluations {
-                    let mut deployed = scene.clone();
-                    for (species, n) in &e.counts {
-                        deployed.set_count(species, *n).map_err(|m| err(&format!("evaluations[{}]", e.name), m))?;
-                    }
-                    deployed.validate().map_err(|(f, m)| err(&format!("evaluations[{}]", e.name), format!("{f}: {m}")))?;
+                    e.overrides().apply(&mut scene.clone(), Path::new(&format!("evaluations[{}]", e.name))).map_err(|m| format!("{shown}: {m}"))?;
                 }
                 for &seed in &spec.seeds {
                     let mut scene = scene.clone();

@@ -11,7 +11,7 @@ use super::schema;
 use super::RunDir;
 use crate::io::{AtomicFile, Existing};
 use crate::learning::{Mode, ObservationControl};
-use crate::scene::Scene;
+use crate::scene::{Overrides, Scene};
 use crate::sim::clock::Episode;
 use crate::sim::collective::{add_heading_correlation, confusion_bin_label, heading_correlation};
 use crate::sim::metrics::{Confusion, SwarmMetrics};
@@ -33,12 +33,9 @@ pub struct EvalOptions {
     pub control: ObservationControl,
     /// File name of the per-step CSV inside the run folder (default `eval.csv`).
     pub out: Option<String>,
-    pub counts: Vec<(String, usize)>,
     pub episodes: usize,
-    pub steps: Option<usize>,
-    pub seed: Option<u64>,
-    /// Radius (m) of "prey in view" for the confusion curve (default: the scene's).
-    pub confusion_radius: Option<f64>,
+    /// Counts, seed, steps per episode and confusion radius for the evaluation (default: the run's).
+    pub overrides: Overrides,
 }
 
 /// What the evaluation accumulates over its steps, of the headline species.
@@ -153,24 +150,12 @@ pub fn evaluate(opts: &EvalOptions) -> Result<String, String> {
         return Err(format!("{}: holds no coevo run to evaluate", opts.run.display()));
     }
     dir.check_plugins()?;
-    let scene_path = dir.scene();
-    let mut scene = Scene::load(&scene_path).map_err(|e| e.to_string())?;
-    for (name, n) in &opts.counts {
-        scene.set_count(name, *n).map_err(|e| format!("{}: {e}", scene_path.display()))?;
-    }
-    if let Some(steps) = opts.steps {
-        scene.episode_steps = steps;
-    }
-    if let Some(seed) = opts.seed {
-        scene.seed = seed;
-    }
-    if let Some(r) = opts.confusion_radius {
-        scene.confusion_radius = Some(r);
-    }
     if opts.episodes == 0 {
         return Err("--episodes: must be ≥ 1".into());
     }
-    scene.validate().map_err(|(f, m)| format!("{}: {f}: {m}", opts.run.display()))?;
+    let scene_path = dir.scene();
+    let mut scene = Scene::load(&scene_path).map_err(|e| e.to_string())?;
+    opts.overrides.apply(&mut scene, &scene_path)?;
     let mut sim = crate::learning::simulation(scene.clone(), Mode::Evaluate, Some(&opts.run))?;
     // Nobody else writes the run while it is evaluated (a training would swap its checkpoint).
     let _lock = dir.lock()?;

@@ -507,6 +507,36 @@ impl Scene {
     }
 }
 
+/// What a call changes of a scene it loads: species counts (`--prey`, `--predators`, `--count`, an
+/// evaluation's `counts`), the seed, the steps per episode, the confusion radius. The one place where
+/// overrides are applied; the scene is validated again after them.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Overrides {
+    pub counts: Vec<(String, usize)>,
+    pub seed: Option<u64>,
+    pub episode_steps: Option<usize>,
+    pub confusion_radius: Option<f64>,
+}
+
+impl Overrides {
+    /// Applies the overrides to `scene` (read from `source`, which errors name) and validates the result.
+    pub fn apply(&self, scene: &mut Scene, source: &Path) -> Result<(), String> {
+        for (name, n) in &self.counts {
+            scene.set_count(name, *n).map_err(|e| format!("{}: {e}", source.display()))?;
+        }
+        if let Some(seed) = self.seed {
+            scene.seed = seed;
+        }
+        if let Some(steps) = self.episode_steps {
+            scene.episode_steps = steps;
+        }
+        if let Some(r) = self.confusion_radius {
+            scene.confusion_radius = Some(r);
+        }
+        scene.validate().map_err(|(f, m)| format!("{}: {f}: {m}", source.display()))
+    }
+}
+
 /// D for a boundary kind and arena edge (Section "Results", definition of DoS).
 pub fn max_distance(boundary: Boundary, edge: f64) -> f64 {
     match boundary {

@@ -1,0 +1,204 @@
+//! What an experiment reports, and the orchestration of `--experiment` and `--plot`: REPRODUCTION.md over
+//! the project's experiment files, an experiment's own summaries and figures otherwise.
+
+use super::aggregate;
+use super::claims::{quantity_name, ClaimResult};
+use super::{runner, Experiment};
+use crate::io::Existing;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+/// Where experiments are read and their runs written.
+const EXPERIMENTS: &str = "experiments";
+const RESULTS: &str = "results";
+
+/// What `--experiment` was asked.
+pub struct Request<'a> {
+    /// An experiment file, or `all` of `experiments/`.
+    pub which: &'a str,
+    /// Runs at a time [default 2].
+    pub jobs: Option<usize>,
+    /// Only this run (a Slurm array task).
+    pub task: Option<usize>,
+    /// Write Slurm scripts instead of running.
+    pub emit_slurm: bool,
+    pub quiet: bool,
+}
+
+/// `--experiment FILE|all`: run, evaluate and aggregate; then REPRODUCTION.md from every experiment's
+/// results so far (the project's experiment files), or the experiment's own summaries (any other file).
+pub fn experiment(request: &Request) -> Result<(), String> {
+    let which = request.which;
+    let files = match which {
+        "all" => Experiment::files(Path::new(EXPERIMENTS))?,
+        file => vec![PathBuf::from(file)],
+    };
+    let experiments = files.iter().map(|f| Experiment::load(f, Path::new(RESULTS))).collect::<Result<Vec<_>, _>>()?;
+    if request.jobs == Some(0) {
+        return Err("--jobs: must be ≥ 1 (got 0)".into());
+    }
+    if let Some(task) = request.task {
+        match experiments.as_slice() {
+            [exp] if task < exp.runs.len() => {}
+            [exp] => return Err(format!("--task {task}: {} has runs 0 to {}", exp.file.display(), exp.runs.len() - 1)),
+            _ => return Err("--task: names a run of one experiment file, not of `all`".into()),
+        }
+    }
+    if request.emit_slurm {
+        if request.task.is_some() {
+            return Err("--task: not used by --emit-slurm, which writes a job for every run".into());
+        }
+        let exe = std::env::current_exe().map_err(|e| format!("cannot find the coevo binary: {e}"))?;
+        for exp in &experiments {
+            let dir = runner::emit_slurm(exp, &exe.to_string_lossy())?;
+            println!("{}: {} runs; submit with: bash {}/submit.sh", exp.name, exp.runs.len(), dir.display());
+        }
+        return Ok(());
+    }
+    let opts = runner::RunnerOptions {
+        exe: std::env::current_exe().map_err(|e| format!("cannot find the coevo binary: {e}"))?,
+        jobs: request.jobs.unwrap_or(2),
+        progress: !request.quiet,
+    };
+    // Every experiment is attempted; the one error line names the first failure.
+    let failed: Vec<String> = experiments.iter().filter_map(|exp| runner::run(exp, &opts, request.task).err()).collect();
+    if let Some(first) = failed.first() {
+        let others = match failed.len() {
+            1 => String::new(),
+            n => format!("; {} more experiments failed", n - 1),
+        };
+        return Err(format!("{first}{others} (REPRODUCTION.md left as it was)"));
+    }
+    if request.task.is_some() {
+        return Ok(());
+    }
+    // REPRODUCTION.md covers the project's experiment files; another file's experiment reports alone.
+    if which == "all" || experiments.iter().all(|e| in_experiments_folder(&e.file)) {
+        return write_reproduction();
+    }
+    for exp in &experiments {
+        let claims = aggregate::aggregate(exp, &aggregate::load(exp)?)?;
+        eprintln!("coevo: wrote {}/summary.csv, summary-mean.csv and figures/ ({} claims checked)", exp.root.display(), claims.len());
+    }
+    Ok(())
+}
+
+/// Whether an experiment file is one of the project's (in ./experiments), whose results REPRODUCTION.md
+/// gathers.
+fn in_experiments_folder(file: &Path) -> bool {
+    let folder = |p: &Path| std::fs::canonicalize(p).ok();
+    let parent = file.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    folder(parent).is_some_and(|p| Some(p) == folder(Path::new(EXPERIMENTS)))
+}
+
+/// Summaries and figures of every experiment with finished runs, and REPRODUCTION.md over all of them.
+pub fn write_reproduction() -> Result<(), String> {
+    let mut all = Vec::new();
+    for file in Experiment::files(Path::new(EXPERIMENTS))? {
+        let exp = Experiment::load(&file, Path::new(RESULTS))?;
+        let data = aggregate::load(&exp)?;
+        // + 0.0: an empty f64 sum is −0.0, which would print as "-0.0 h".
+        let seconds: f64 = data.values().map(|d| d.wall_seconds).sum::<f64>() + 0.0;
+        let results = aggregate::aggregate(&exp, &data)?;
+        let finished = data.len();
+        all.push((exp, results, seconds, finished));
+    }
+    crate::io::write_file(Path::new("REPRODUCTION.md"), Existing::Replace, reproduction(&all).as_bytes())?;
+    eprintln!("coevo: wrote REPRODUCTION.md");
+    Ok(())
+}
+
+/// `--plot DIR`: an experiment's summaries and figures, or one run's learning curves, from CSVs alone.
+pub fn plot(dir: &Path) -> Result<(), String> {
+    if dir == Path::new("all") {
+        return write_reproduction();
+    }
+    if crate::run::is_run(dir) {
+        let path = aggregate::plot_run(dir)?;
+        eprintln!("coevo: wrote {}", path.display());
+        return Ok(());
+    }
+    let name = dir.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    let file = Path::new(EXPERIMENTS).join(format!("{name}.ron"));
+    if !file.exists() {
+        return Err(format!("--plot {}: neither a run folder nor the results of an experiment file {}", dir.display(), file.display()));
+    }
+    let results = dir.parent().unwrap_or(Path::new("."));
+    let exp = Experiment::load(&file, results)?;
+    let data = aggregate::load(&exp)?;
+    if data.is_empty() {
+        return Err(format!("--plot {}: no finished run of {} there; nothing written", dir.display(), file.display()));
+    }
+    let claims = aggregate::aggregate(&exp, &data)?;
+    eprintln!("coevo: wrote {}/summary.csv, summary-mean.csv and figures/ ({} claims checked)", exp.root.display(), claims.len());
+    Ok(())
+}
+
+/// REPRODUCTION.md: every claim of the experiments, the paper's number, ours with its interval, the
+/// command that produced it and the verdict.
+pub fn reproduction(experiments: &[(Experiment, Vec<ClaimResult>, f64, usize)]) -> String {
+    let mut md = String::from(
+        "# Reproduction of Li, Li & Zhao (NJP 2023)\n\n\
+         Generated by `coevo --experiment all` (or `coevo --plot results/<experiment>` for one) from the runs' CSV files under \
+         `results/`; do not edit by hand. Each number is the mean over seeds of the prey's 100-episode means (first or last 100 \
+         episodes of training) or of an evaluation's last 50 steps, ± the half-width of its 95 % confidence interval (Student t \
+         over seeds). A claim *holds* when the paper's value lies inside that interval. Nothing in the metrics, rewards or \
+         physics was tuned toward a claim; see the README's \"Does it learn?\" for what the numbers mean. Baselines: \
+         independent random headings give DoA = 2/π ≈ 0.637 and C_nn = 0; random catches give an edge rank of 0.5. \
+         *Seeing minus blind* (or shuffled) is the part of the trained actors' alignment that comes from seeing \
+         their neighbours, computed run by run. A quantity *of `X` minus `Y` (Welch)* compares two variants: the difference \
+         of their means with Welch's 95 % interval (unequal variances; seeds: the smaller count); `X` *differs* from `Y` when \
+         that interval excludes 0.\n\n",
+    );
+    // Contents first: each experiment, what it tests, how far it got and the command that continues it.
+    md.push_str("| experiment | what | command | runs finished | training time (sum over runs) |\n|---|---|---|---|---|\n");
+    for (exp, _, seconds, finished) in experiments {
+        let command = format!("`coevo --experiment {} --jobs 2`", exp.file.display());
+        let (name, runs, hours) = (&exp.name, exp.runs.len(), seconds / 3600.0);
+        writeln!(md, "| [{name}](#{name}) | {} | {command} | {finished} of {runs} | {hours:.1} h |", exp.spec.description).unwrap();
+    }
+    // Then per experiment: its claims, and its figures (the comparison of variants and the learning curves
+    // shown, the rest linked).
+    for (exp, results, _, _) in experiments {
+        let what = if exp.spec.description.is_empty() { String::new() } else { format!("{}. ", exp.spec.description) };
+        writeln!(md, "\n## {}\n\n{what}`{}`, results in `{}/`.\n", exp.name, exp.file.display(), exp.root.display()).unwrap();
+        if !results.is_empty() {
+            md.push_str("| preset | claim (the paper) | quantity | paper | coevo (mean ± 95 % CI, seeds) | verdict |\n|---|---|---|---|---|---|\n");
+        }
+        for r in results {
+            let ours = match r.estimate {
+                Some(e) => format!("{:.3}{} ({})", e.mean, e.ci.map_or(String::new(), |c| format!(" ± {c:.3}")), e.n),
+                None => "–".into(),
+            };
+            let paper = r.claim.paper.map_or("–".into(), |p| format!("{p:.3}"));
+            let of = match &r.claim.versus {
+                Some(base) => format!("`{}` minus `{base}` (Welch)", r.claim.variant),
+                None => format!("`{}`", r.claim.variant),
+            };
+            writeln!(md, "| {} | {} | {} of {of} | {paper} | {ours} | {} |", r.preset, r.claim.text, quantity_name(&r.claim.quantity), r.verdict).unwrap();
+        }
+        let dir = exp.root.join("figures");
+        for preset in &exp.spec.presets {
+            let shown: Vec<String> = ["variants", "training"]
+                .iter()
+                .map(|what| dir.join(format!("{preset}-{what}.png")))
+                .filter(|path| path.exists())
+                .map(|path| format!("![{}]({})", path.file_stem().unwrap_or_default().to_string_lossy(), path.display()))
+                .collect();
+            if !shown.is_empty() {
+                writeln!(md, "\n{}\n", shown.join("\n")).unwrap();
+            }
+        }
+    }
+    let (seconds, finished, runs) = experiments.iter().fold((0.0, 0, 0), |(s, f, r), (exp, _, sec, fin)| (s + sec, f + fin, r + exp.runs.len()));
+    writeln!(
+        md,
+        "\n## The whole suite\n\n`coevo --experiment all --jobs 2`: {finished} of {runs} runs finished, {:.1} h of training summed over \
+         runs, each timed by its own `metrics.csv` (`wall_seconds`, the run's own wall clock; runs copied between experiments \
+         count once per experiment). Two runs go side by side on a 2-core machine, so the suite takes about half that in wall \
+         time there.",
+        seconds / 3600.0
+    )
+    .unwrap();
+    md
+}
