@@ -8,10 +8,10 @@
 //! ```
 
 use bevy::prelude::*;
+use coevo::scene::{ContactReward, Perception, Policy, SpeciesDef};
 use coevo::sim::components::{Reward, Slot, SpeciesId};
 use coevo::sim::perception::{Batches, Population};
 use coevo::sim::reward::{add_reward, RewardStage};
-use coevo::scene::{ContactReward, Perception, Policy, SpeciesDef};
 use coevo::sim::space::Arena;
 use coevo::sim::species::{SpeciesPlugin, SpeciesPlugins, SpeciesRegistry, SpeciesTemplate};
 use coevo::sim::SimSet;
@@ -45,7 +45,12 @@ impl SpeciesPlugin for HawkPlugin {
             // Nobody catches hawks.
             caught_by: vec![],
             // A hawk on a predator: +5 for the hawk, −5 for the predator (the gym-pps contact reward).
-            contact_rewards: vec![ContactReward { catcher: "hawk".into(), caught: "predator".into(), catcher_reward: 5.0, caught_reward: -5.0 }],
+            contact_rewards: vec![ContactReward {
+                catcher: "hawk".into(),
+                caught: "predator".into(),
+                catcher_reward: 5.0,
+                caught_reward: -5.0,
+            }],
         }
     }
 }
@@ -71,7 +76,10 @@ fn territory(
             continue;
         }
         let me = pop.position[slot.index as usize];
-        let crowd = pop.ranges[hawk].clone().filter(|&j| j != slot.index as usize && arena.delta(me, pop.position[j]).length() < TERRITORY).count();
+        let crowd = pop.ranges[hawk]
+            .clone()
+            .filter(|&j| j != slot.index as usize && arena.delta(me, pop.position[j]).length() < TERRITORY)
+            .count();
         if crowd > 0 {
             add_reward(&mut batches, *species, *slot, &mut reward, -CROWDING_PENALTY * crowd as f64);
         }

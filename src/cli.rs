@@ -2,14 +2,14 @@
 //! experiments, benchmarks, the viewer), for the `coevo` binary and for programs with species of their own
 //! (`examples/hawk.rs`), which call [`main`] with their [`SpeciesPlugins`].
 
-use clap::{error::ErrorKind, ArgGroup, CommandFactory, FromArgMatches, Parser};
 use crate::io::Existing;
 use crate::learning::Mode;
 use crate::scene::{Overrides, Policy, Scene};
+use crate::sim::species::SpeciesPlugins;
+use clap::{error::ErrorKind, ArgGroup, CommandFactory, FromArgMatches, Parser};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Duration;
-use crate::sim::species::SpeciesPlugins;
 
 /// Predators and prey that learn together: a simulator of Li, Li & Zhao (New J. Phys. 2023).
 ///
@@ -166,7 +166,20 @@ const TAKES: [(&str, &[&str]); 10] = [
     ("record", &["run", "scene", "seed", "steps", "prey", "predators", "count", "overwrite"]),
     (
         "animate",
-        &["run", "scene", "seed", "steps", "prey", "predators", "count", "overwrite", "trails", "steps_per_frame", "size", "quiet"],
+        &[
+            "run",
+            "scene",
+            "seed",
+            "steps",
+            "prey",
+            "predators",
+            "count",
+            "overwrite",
+            "trails",
+            "steps_per_frame",
+            "size",
+            "quiet",
+        ],
     ),
     ("bench", &["bench_seconds"]),
     ("describe_scene", &["seed", "prey", "predators", "count"]),
@@ -175,8 +188,22 @@ const TAKES: [(&str, &[&str]); 10] = [
     (
         VIEWER,
         &[
-            "scene", "seed", "prey", "predators", "count", "watch", "rules", "screenshot", "frames", "window", "steps_per_frame", "fast",
-            "paused", "trails", "select", "overwrite",
+            "scene",
+            "seed",
+            "prey",
+            "predators",
+            "count",
+            "watch",
+            "rules",
+            "screenshot",
+            "frames",
+            "window",
+            "steps_per_frame",
+            "fast",
+            "paused",
+            "trails",
+            "select",
+            "overwrite",
         ],
     ),
 ];
@@ -194,7 +221,8 @@ fn command() -> clap::Command {
         .filter(|id| !modes.contains(&id.as_str()) && !["threads", "help", "version"].contains(&id.as_str()))
         .collect();
     for flag in flags {
-        let takers: Vec<&'static str> = TAKES.iter().filter(|(_, f)| f.contains(&flag.as_str())).map(|(m, _)| *m).collect();
+        let takers: Vec<&'static str> =
+            TAKES.iter().filter(|(_, f)| f.contains(&flag.as_str())).map(|(m, _)| *m).collect();
         let others: Vec<&'static str> = modes.iter().copied().filter(|m| !takers.contains(m)).collect();
         let group = format!("modes taking {flag}");
         let viewer = takers.contains(&VIEWER);
@@ -302,7 +330,12 @@ fn overrides(cli: &Cli, steps: bool) -> Result<Overrides, String> {
         let (name, n) = c.split_once('=').ok_or_else(|| format!("--count {c}: expected NAME=N"))?;
         counts.push((name.to_string(), n.parse().map_err(|_| format!("--count {c}: {n} is not a count"))?));
     }
-    Ok(Overrides { counts, seed: cli.seed, episode_steps: if steps { cli.steps } else { None }, confusion_radius: None })
+    Ok(Overrides {
+        counts,
+        seed: cli.seed,
+        episode_steps: if steps { cli.steps } else { None },
+        confusion_radius: None,
+    })
 }
 
 /// The scene file of the call (--scene, else `default`) with the call's overrides applied and validated.
@@ -418,7 +451,8 @@ fn run(cli: Cli, call: Call) -> Result<(), String> {
             quiet: cli.quiet,
         }),
         Call::Describe(path) => {
-            let (scene, source) = load_scene(&Cli { scene: Some(path), ..cli.clone() }, standard, &overrides(&cli, false)?)?;
+            let (scene, source) =
+                load_scene(&Cli { scene: Some(path), ..cli.clone() }, standard, &overrides(&cli, false)?)?;
             print!("{}", crate::sim::species::describe(&scene, &source.display().to_string()));
             Ok(())
         }
@@ -444,7 +478,10 @@ fn deployed(cli: &Cli, standard: &Path) -> Result<(crate::sim::Simulation, usize
         .iter()
         .filter_map(|def| match (&def.policy, &cli.run) {
             (Policy::Learned, Some(run)) => Some(format!("{}: trained actor of {}", def.name, run.display())),
-            (Policy::Learned, None) => Some(format!("{}: freshly initialized actor of seed {} (untrained: no --run given)", def.name, scene.seed)),
+            (Policy::Learned, None) => Some(format!(
+                "{}: freshly initialized actor of seed {} (untrained: no --run given)",
+                def.name, scene.seed
+            )),
             (Policy::Frozen(path), _) => Some(format!("{}: trained actor of {path}", def.name)),
             _ => None,
         })

@@ -83,7 +83,11 @@ pub fn remove_stale_temporaries(dir: &Path, target: Option<&str>) -> usize {
         let name = entry.file_name().to_string_lossy().into_owned();
         let Some((of, pid)) = temporary_owner(&name) else { continue };
         let is_file = entry.file_type().is_ok_and(|t| t.is_file());
-        if is_file && target.is_none_or(|t| t == of) && !process_alive(pid) && std::fs::remove_file(entry.path()).is_ok() {
+        if is_file
+            && target.is_none_or(|t| t == of)
+            && !process_alive(pid)
+            && std::fs::remove_file(entry.path()).is_ok()
+        {
             removed += 1;
         }
     }

@@ -3,8 +3,8 @@
 
 mod common;
 
-use coevo::run::animate::{animate, AnimateOptions, CAPTION};
 use coevo::io::Existing;
+use coevo::run::animate::{animate, AnimateOptions, CAPTION};
 use coevo::scene::{Boundary, Policy};
 use coevo::sim::Simulation;
 
@@ -20,7 +20,14 @@ fn a_rule_based_scene_renders_to_a_gif_with_both_species() {
     let mut sim = Simulation::new(scene);
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("clip.gif");
-    let opts = AnimateOptions { steps: 24, steps_per_frame: 3, trails: true, size: 160, title: "test".into(), progress: false };
+    let opts = AnimateOptions {
+        steps: 24,
+        steps_per_frame: 3,
+        trails: true,
+        size: 160,
+        title: "test".into(),
+        progress: false,
+    };
     let summary = animate(&mut sim, &opts, &path, Existing::Refuse).unwrap();
     assert_eq!(summary.frames, 24 / 3 + 1);
     assert!(summary.polarization.is_finite() && (0.0..=1.0).contains(&summary.milling));

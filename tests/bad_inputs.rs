@@ -61,7 +61,8 @@ fn workspace() -> tempfile::TempDir {
     let text = String::from_utf8(bytes[8..8 + header].to_vec()).unwrap();
     let at = text.find("\"0.weight\"").unwrap();
     let offsets = &text[at..];
-    let start: usize = offsets[offsets.find("data_offsets\":[").unwrap() + 15..].split(',').next().unwrap().parse().unwrap();
+    let start: usize =
+        offsets[offsets.find("data_offsets\":[").unwrap() + 15..].split(',').next().unwrap().parse().unwrap();
     bytes[8 + header + start..8 + header + start + 4].copy_from_slice(&f32::NAN.to_le_bytes());
     std::fs::write(&actor, bytes).unwrap();
 
@@ -117,11 +118,26 @@ const EXPERIMENTS: &[(&str, &str)] = &[
     ("twin-presets", r#"(base: "scenes/paper.ron", presets: ["paper", "paper"], seeds: [1], variants: [(name: "a")])"#),
     ("twin-seeds", r#"(base: "scenes/paper.ron", seeds: [1, 2, 1], variants: [(name: "a")])"#),
     ("no-episodes", r#"(base: "scenes/paper.ron", seeds: [1], episodes: 0, variants: [(name: "a")])"#),
-    ("nan-claim", r#"(base: "scenes/paper.ron", seeds: [1], variants: [(name: "a")], claims: [(text: "t", variant: "a", quantity: DoaLast, paper: NaN)])"#),
-    ("inf-claim", r#"(base: "scenes/paper.ron", seeds: [1], variants: [(name: "a")], claims: [(text: "t", variant: "a", quantity: DoaLast, paper: inf)])"#),
-    ("radius", r#"(base: "scenes/paper.ron", seeds: [1], variants: [(name: "a")], evaluations: [(name: "x", confusion_radius: -1.0)])"#),
-    ("collide", r#"(base: "scenes/paper.ron", seeds: [1], variants: [(name: "a")], evaluations: [(name: "x"), (name: "x-confusion")])"#),
-    ("comma", r#"(base: "scenes/paper.ron", seeds: [1], variants: [(name: "a", patch: (species: [(name: "pr,ey", count: 2, mass: 1.0, radius: 0.03, max_speed: 0.5, max_thrust: 1.0, max_turn_rate: 0.5, perception: Full, topological_limit: 6, colour: (0.1, 0.1, 0.1), catches: [], policy: Random)]))])"#),
+    (
+        "nan-claim",
+        r#"(base: "scenes/paper.ron", seeds: [1], variants: [(name: "a")], claims: [(text: "t", variant: "a", quantity: DoaLast, paper: NaN)])"#,
+    ),
+    (
+        "inf-claim",
+        r#"(base: "scenes/paper.ron", seeds: [1], variants: [(name: "a")], claims: [(text: "t", variant: "a", quantity: DoaLast, paper: inf)])"#,
+    ),
+    (
+        "radius",
+        r#"(base: "scenes/paper.ron", seeds: [1], variants: [(name: "a")], evaluations: [(name: "x", confusion_radius: -1.0)])"#,
+    ),
+    (
+        "collide",
+        r#"(base: "scenes/paper.ron", seeds: [1], variants: [(name: "a")], evaluations: [(name: "x"), (name: "x-confusion")])"#,
+    ),
+    (
+        "comma",
+        r#"(base: "scenes/paper.ron", seeds: [1], variants: [(name: "a", patch: (species: [(name: "pr,ey", count: 2, mass: 1.0, radius: 0.03, max_speed: 0.5, max_thrust: 1.0, max_turn_rate: 0.5, perception: Full, topological_limit: 6, colour: (0.1, 0.1, 0.1), catches: [], policy: Random)]))])"#,
+    ),
     ("fine", r#"(base: "scenes/paper.ron", seeds: [1, 2], variants: [(name: "a")])"#),
 ];
 
@@ -147,7 +163,10 @@ const SCENES: &[(&str, &str)] = &[
     ("truncated", "(\n  seed: 3,\n  species: [(name: \"prey\", count: 2)\n"),
     ("frozen-missing", r#"(species: [(name: "prey", policy: Frozen("no-such-run"))])"#),
     ("unknown-field", "(world: (gravity: 9.81))"),
-    ("comma", r#"(species: [(name: "prey", count: 3), (name: "pr,ey", count: 2, mass: 1.0, radius: 0.03, max_speed: 0.5, max_thrust: 1.0, max_turn_rate: 0.5, perception: Full, topological_limit: 6, colour: (0.1, 0.1, 0.1), catches: [], policy: Random)])"#),
+    (
+        "comma",
+        r#"(species: [(name: "prey", count: 3), (name: "pr,ey", count: 2, mass: 1.0, radius: 0.03, max_speed: 0.5, max_thrust: 1.0, max_turn_rate: 0.5, perception: Full, topological_limit: 6, colour: (0.1, 0.1, 0.1), catches: [], policy: Random)])"#,
+    ),
 ];
 
 /// (arguments, what the one error line must contain).
@@ -167,7 +186,10 @@ fn cases() -> Vec<(Vec<&'static str>, &'static str)> {
         (vec!["--record", "notes.csv"], "notes.csv: already exists; choose a new name or pass --overwrite"),
         (vec!["--record", "link.csv", "--overwrite"], "link.csv: exists and is not a regular file"),
         (vec!["--record", "mine", "--overwrite"], "mine: exists and is not a regular file"),
-        (vec!["--train", "--scene", "frozen-missing.ron", "--out", "fresh"], "no-such-run/checkpoint/prey-actor.safetensors"),
+        (
+            vec!["--train", "--scene", "frozen-missing.ron", "--out", "fresh"],
+            "no-such-run/checkpoint/prey-actor.safetensors",
+        ),
         // Sizes that would panic or exhaust memory.
         (vec!["--train", "--scene", "noise.ron"], "learning.noise_std: must be ≤ 10"),
         (vec!["--bench", "--bench-seconds", "inf"], "--bench-seconds: must be a number of seconds in (0, 3600]"),
@@ -184,25 +206,46 @@ fn cases() -> Vec<(Vec<&'static str>, &'static str)> {
         (vec!["--animate", "notes.gif"], "notes.gif: already exists; choose a new name or pass --overwrite"),
         (vec!["--animate", "clip.gif", "--size", "10"], "--size 10: must be within 64..=2048 pixels"),
         (vec!["--animate", "clip.gif", "--steps-per-frame", "0"], "--steps-per-frame: must be ≥ 1"),
-        (vec!["--animate", "clip.gif", "--run", "nan-run"], "prey-actor.safetensors: tensor 0.weight holds a non-finite value"),
-        (vec!["--animate", "clip.gif", "--control", "blind"], "the argument '--animate <OUT.gif>' cannot be used with '--control <CONTROL>'"),
+        (
+            vec!["--animate", "clip.gif", "--run", "nan-run"],
+            "prey-actor.safetensors: tensor 0.weight holds a non-finite value",
+        ),
+        (
+            vec!["--animate", "clip.gif", "--control", "blind"],
+            "the argument '--animate <OUT.gif>' cannot be used with '--control <CONTROL>'",
+        ),
         (vec!["--eval", "run", "--confusion-radius", "0"], "confusion_radius: must be a finite number > 0"),
         // Silent accepts.
-        (vec!["--record", "out.csv", "--scene", "plugin.ron"], "species[prey].policy: no plugin decides Plugin(\"nobody\")"),
+        (
+            vec!["--record", "out.csv", "--scene", "plugin.ron"],
+            "species[prey].policy: no plugin decides Plugin(\"nobody\")",
+        ),
         (vec!["--train", "--scene", "twice.ron"], "species[prey]: appears twice in this scene"),
-        (vec!["--describe-scene", "basilisk.ron"], "basilisk.ron:1: species[basilisk]: no preset or species plugin of this program defines \"basilisk\""),
+        (
+            vec!["--describe-scene", "basilisk.ron"],
+            "basilisk.ron:1: species[basilisk]: no preset or species plugin of this program defines \"basilisk\"",
+        ),
         (vec!["--describe-scene", "pair.ron"], "pair.ron: contact_rewards[0]: prey does not catch predator"),
         (vec!["--describe-scene", "nothere.ron"], "nothere.ron: cannot read scene"),
-        (vec!["--describe-scene", "scenes/paper.ron", "--steps", "3"], "'--describe-scene <FILE>' cannot be used with '--steps <N>'"),
+        (
+            vec!["--describe-scene", "scenes/paper.ron", "--steps", "3"],
+            "'--describe-scene <FILE>' cannot be used with '--steps <N>'",
+        ),
         (vec!["--train", "--scene", "cannibal.ron"], "species[prey].catches: a species cannot catch itself"),
         (vec!["--train", "--eval", "run"], "'--train' cannot be used with '--eval <DIR>'"),
         (vec!["--record", "out.csv", "--train"], "cannot be used with"),
         (vec!["--train", "--steps", "5"], "the argument '--train' cannot be used with '--steps <N>'"),
         (vec!["--train", "--prey", "50"], "'--train' cannot be used with '--prey <N>'"),
-        (vec!["--resume", "run", "--scene", "scenes/paper.ron"], "'--resume <DIR>' cannot be used with '--scene <PATH>'"),
+        (
+            vec!["--resume", "run", "--scene", "scenes/paper.ron"],
+            "'--resume <DIR>' cannot be used with '--scene <PATH>'",
+        ),
         (vec!["--eval", "run", "--out", "x"], "'--eval <DIR>' cannot be used with '--out <DIR>'"),
         (vec!["--bench", "--seed", "3"], "'--bench' cannot be used with '--seed <S>'"),
-        (vec!["--episodes", "5"], "the following required arguments were not provided: <--train|--resume <DIR>|--eval <DIR>>"),
+        (
+            vec!["--episodes", "5"],
+            "the following required arguments were not provided: <--train|--resume <DIR>|--eval <DIR>>",
+        ),
         (vec!["--train", "--episodes", "0"], "--episodes: must be ≥ 1 (got 0)"),
         (vec!["--train", "--scene", "no-episodes.ron"], "no-episodes.ron:1: episodes: must be ≥ 1"),
         (vec!["--eval", "run", "--steps", "0"], "--steps: must be ≥ 1"),
@@ -217,9 +260,18 @@ fn cases() -> Vec<(Vec<&'static str>, &'static str)> {
         (vec!["--describe-scene", "comma.ron"], "species[2].name: \"pr,ey\": use letters, digits, _ and - only"),
         // A run continues only as the run it is: its own scene, its own episodes, its own plugins, one
         // process at a time.
-        (vec!["--resume", "edited-run", "--episodes", "3"], "edited-run/scene.ron: differs from the scene the run was trained on"),
-        (vec!["--resume", "lowered-run", "--episodes", "3"], "damaged checkpoint: episodes_done is 0 but its metrics hold episodes 0..=0"),
-        (vec!["--resume", "run", "--episodes", "1"], "run: already trained 1 episodes and --episodes 1 asks for no more"),
+        (
+            vec!["--resume", "edited-run", "--episodes", "3"],
+            "edited-run/scene.ron: differs from the scene the run was trained on",
+        ),
+        (
+            vec!["--resume", "lowered-run", "--episodes", "3"],
+            "damaged checkpoint: episodes_done is 0 but its metrics hold episodes 0..=0",
+        ),
+        (
+            vec!["--resume", "run", "--episodes", "1"],
+            "run: already trained 1 episodes and --episodes 1 asks for no more",
+        ),
         (vec!["--resume", "hawk-run", "--episodes", "3"], "hawk-run: the run needs the species plugin \"hawk\""),
         (vec!["--eval", "hawk-run"], "the run needs the species plugin \"hawk\""),
         (vec!["--record", "out.csv", "--run", "hawk-run"], "the run needs the species plugin \"hawk\""),
@@ -228,25 +280,49 @@ fn cases() -> Vec<(Vec<&'static str>, &'static str)> {
         // A user-chosen output never takes a run's own name or another evaluation's.
         (vec!["--eval", "run", "--eval-out", "metrics.csv"], "--eval-out metrics.csv: is one of the run's own files"),
         (vec!["--eval", "run", "--eval-out", "scene.csv"], "--eval-out scene.csv: is one of the run's own files"),
-        (vec!["--eval", "run", "--eval-out", "x-confusion.csv"], "ends in -confusion, the name of another evaluation's confusion file"),
+        (
+            vec!["--eval", "run", "--eval-out", "x-confusion.csv"],
+            "ends in -confusion, the name of another evaluation's confusion file",
+        ),
         (vec!["--eval", "run", "--eval-out", "../x.csv"], "--eval-out ../x.csv: must be a single name"),
         // Experiment files are checked whole before anything runs.
-        (vec!["--experiment", "experiments/dotdot.ron"], "experiments/dotdot.ron: variants[..].name: as a folder name (\"..\") it must not start with a dot"),
+        (
+            vec!["--experiment", "experiments/dotdot.ron"],
+            "experiments/dotdot.ron: variants[..].name: as a folder name (\"..\") it must not start with a dot",
+        ),
         (vec!["--experiment", "experiments/dot.ron"], "variants[.].name"),
         (vec!["--experiment", "experiments/....ron"], "experiments/....ron: the file name must not start with a dot"),
         (vec!["--experiment", "experiments/no-presets.ron"], "presets: an experiment needs at least one preset"),
-        (vec!["--experiment", "experiments/no-presets.ron", "--emit-slurm"], "presets: an experiment needs at least one preset"),
+        (
+            vec!["--experiment", "experiments/no-presets.ron", "--emit-slurm"],
+            "presets: an experiment needs at least one preset",
+        ),
         (vec!["--experiment", "experiments/twin-presets.ron"], "presets: \"paper\" appears twice"),
         (vec!["--experiment", "experiments/twin-seeds.ron"], "seeds: seed 1 appears twice"),
         (vec!["--experiment", "experiments/no-episodes.ron"], "no-episodes.ron: episodes: must be ≥ 1"),
         (vec!["--experiment", "experiments/nan-claim.ron"], "claims: \"t\": paper must be a finite number (got NaN)"),
         (vec!["--experiment", "experiments/inf-claim.ron"], "paper must be a finite number (got inf)"),
-        (vec!["--experiment", "experiments/radius.ron"], "evaluations[x].confusion_radius: must be a finite number of metres > 0"),
-        (vec!["--experiment", "experiments/collide.ron"], "evaluations[x-confusion].name: as the file eval-x-confusion.csv: ends in -confusion"),
+        (
+            vec!["--experiment", "experiments/radius.ron"],
+            "evaluations[x].confusion_radius: must be a finite number of metres > 0",
+        ),
+        (
+            vec!["--experiment", "experiments/collide.ron"],
+            "evaluations[x-confusion].name: as the file eval-x-confusion.csv: ends in -confusion",
+        ),
         (vec!["--experiment", "experiments/comma.ron"], "use letters, digits, _ and - only"),
-        (vec!["--experiment", "experiments/fine.ron", "--task", "99999"], "--task 99999: experiments/fine.ron has runs 0 to 1"),
-        (vec!["--experiment", "experiments/fine.ron", "--task", "0", "--emit-slurm"], "--task: not used by --emit-slurm"),
-        (vec!["--plot", "results/fine"], "--plot results/fine: no finished run of experiments/fine.ron there; nothing written"),
+        (
+            vec!["--experiment", "experiments/fine.ron", "--task", "99999"],
+            "--task 99999: experiments/fine.ron has runs 0 to 1",
+        ),
+        (
+            vec!["--experiment", "experiments/fine.ron", "--task", "0", "--emit-slurm"],
+            "--task: not used by --emit-slurm",
+        ),
+        (
+            vec!["--plot", "results/fine"],
+            "--plot results/fine: no finished run of experiments/fine.ron there; nothing written",
+        ),
     ]
 }
 
@@ -276,7 +352,8 @@ fn every_bad_input_is_one_line_a_failure_and_changes_nothing() {
 fn what_may_be_written_is_written_and_nothing_else() {
     let dir = workspace();
     let root = dir.path();
-    let coevo = |args: &[&str]| Command::new(env!("CARGO_BIN_EXE_coevo")).args(args).current_dir(root).output().unwrap();
+    let coevo =
+        |args: &[&str]| Command::new(env!("CARGO_BIN_EXE_coevo")).args(args).current_dir(root).output().unwrap();
     // A scene that starts with a byte-order mark is read as the same scene.
     std::fs::write(root.join("bom.ron"), "\u{feff}(seed: 4)").unwrap();
     let out = coevo(&["--record", "bom.csv", "--scene", "bom.ron", "--steps", "3"]);

@@ -47,7 +47,10 @@ fn experiment_files_expand_to_runs_and_bad_ones_are_one_line() {
     let exp = Experiment::load(&dir.path().join("experiments/tiny.ron"), Path::new("results")).unwrap();
     assert_eq!(exp.runs.len(), 4, "1 preset × 2 variants × 2 seeds");
     assert_eq!(exp.runs[2].dir, Path::new("results/tiny/paper/5-3/seed1"));
-    assert_eq!((exp.runs[2].scene.species[1].max_speed, exp.runs[2].scene.episodes, exp.runs[3].scene.seed), (0.1, 3, 2));
+    assert_eq!(
+        (exp.runs[2].scene.species[1].max_speed, exp.runs[2].scene.episodes, exp.runs[3].scene.seed),
+        (0.1, 3, 2)
+    );
     assert_eq!(exp.spec.claims[0].quantity, Quantity::DosChange);
 
     // Every shipped experiment file loads.
@@ -57,20 +60,35 @@ fn experiment_files_expand_to_runs_and_bad_ones_are_one_line() {
 
     for (text, expected) in [
         (TINY.replace("seeds: [1, 2]", "seeds: []"), "bad.ron: seeds: an experiment needs at least one seed"),
-        (TINY.replace("max_speed: 0.1", "max_speed: -1.0"), "bad.ron: variants[5:3]: species[prey].max_speed: must be a finite number > 0"),
+        (
+            TINY.replace("max_speed: 0.1", "max_speed: -1.0"),
+            "bad.ron: variants[5:3]: species[prey].max_speed: must be a finite number > 0",
+        ),
         (TINY.replace("description", "descripton"), "bad.ron:2: descripton:"),
         (TINY.replace("variant: \"5:3\"", "variant: \"7:3\""), "bad.ron: claims: no variant named \"7:3\""),
         (TINY.replace("versus: \"1:1\"", "versus: \"2:1\""), "bad.ron: claims: no variant named \"2:1\""),
-        (TINY.replace("versus: \"1:1\"", "versus: \"5:3\""), "bad.ron: claims: \"5:3 against 1:1\" is compared with itself"),
+        (
+            TINY.replace("versus: \"1:1\"", "versus: \"5:3\""),
+            "bad.ron: claims: \"5:3 against 1:1\" is compared with itself",
+        ),
         (TINY.replace("(\"prey\", 50)", "(\"hawk\", 50)"), "evaluations[50 prey]: no species named \"hawk\""),
         (TINY.replace("scenes/paper.ron", "scenes/none.ron"), "bad.ron: base: scenes/none.ron: cannot read"),
-        (TINY.replace("quantity: DosChange", "quantity: InteractionDoa(\"50 prey\")"), "evaluation \"50 prey\" needs a control (Blind or Shuffled)"),
-        (TINY.replace("quantity: DosChange", "quantity: EvalOrder(\"50 prey\", \"swirl\")"), "no order parameter named \"swirl\""),
+        (
+            TINY.replace("quantity: DosChange", "quantity: InteractionDoa(\"50 prey\")"),
+            "evaluation \"50 prey\" needs a control (Blind or Shuffled)",
+        ),
+        (
+            TINY.replace("quantity: DosChange", "quantity: EvalOrder(\"50 prey\", \"swirl\")"),
+            "no order parameter named \"swirl\"",
+        ),
     ] {
         std::fs::write(dir.path().join("experiments/bad.ron"), text).unwrap();
         let out = coevo(dir.path(), &["--experiment", "experiments/bad.ron"]);
         let stderr = String::from_utf8_lossy(&out.stderr);
-        assert!(!out.status.success() && stderr.lines().count() == 1 && stderr.contains(expected), "{expected}: {stderr}");
+        assert!(
+            !out.status.success() && stderr.lines().count() == 1 && stderr.contains(expected),
+            "{expected}: {stderr}"
+        );
         assert!(!dir.path().join("results").exists(), "nothing written for a bad file");
     }
 }
@@ -95,44 +113,78 @@ fn a_tiny_experiment_runs_resumes_and_gives_the_same_summary_at_one_or_two_jobs(
         for (name, cell) in header.iter().zip(row.split(',')).skip(3) {
             // Every value is a finite number; only an order parameter may be blank (an evaluation without
             // a catch has no edge rank), never NaN.
-            let optional = (name.starts_with("eval_") && !name.ends_with("_settled") && !name.ends_with("_interaction")) || name.starts_with("edge_rank_");
-            assert!(cell.parse::<f64>().is_ok_and(f64::is_finite) || (optional && cell.is_empty()), "{name} = {cell:?} in {row}");
+            let optional =
+                (name.starts_with("eval_") && !name.ends_with("_settled") && !name.ends_with("_interaction"))
+                    || name.starts_with("edge_rank_");
+            assert!(
+                cell.parse::<f64>().is_ok_and(f64::is_finite) || (optional && cell.is_empty()),
+                "{name} = {cell:?} in {row}"
+            );
         }
     }
     // The interaction-driven part of the alignment is seeing minus blind, run by run.
-    let column = |name: &str| header.iter().position(|h| *h == name).unwrap_or_else(|| panic!("no {name} in {header:?}"));
+    let column =
+        |name: &str| header.iter().position(|h| *h == name).unwrap_or_else(|| panic!("no {name} in {header:?}"));
     for row in &rows[1..] {
         let cells: Vec<f64> = row.split(',').map(|c| c.parse().unwrap_or(f64::NAN)).collect();
-        let (seeing, blind, interaction) =
-            (cells[column("eval_50-prey_doa_settled")], cells[column("eval_50-prey-blind_doa_settled")], cells[column("eval_50-prey-blind_doa_interaction")]);
+        let (seeing, blind, interaction) = (
+            cells[column("eval_50-prey_doa_settled")],
+            cells[column("eval_50-prey-blind_doa_settled")],
+            cells[column("eval_50-prey-blind_doa_interaction")],
+        );
         assert!((seeing - blind - interaction).abs() < 1e-12, "{row}");
     }
     let means = std::fs::read_to_string(two.path().join("results/tiny/summary-mean.csv")).unwrap();
     assert!(means.lines().any(|l| l.starts_with("paper,5:3,dos_last100,2,")), "{means}");
     let md = std::fs::read_to_string(two.path().join("REPRODUCTION.md")).unwrap();
-    assert!(md.contains("| [tiny](#tiny) | a tiny sweep | `coevo --experiment experiments/tiny.ron --jobs 2` | 4 of 4 |"), "{md}");
-    assert!(md.contains("\n## tiny\n") && md.contains("![paper-variants](results/tiny/figures/paper-variants.png)"), "{md}");
+    assert!(
+        md.contains("| [tiny](#tiny) | a tiny sweep | `coevo --experiment experiments/tiny.ron --jobs 2` | 4 of 4 |"),
+        "{md}"
+    );
+    assert!(
+        md.contains("\n## tiny\n") && md.contains("![paper-variants](results/tiny/figures/paper-variants.png)"),
+        "{md}"
+    );
     assert!(md.contains("| paper | DoS falls | DoS change, last − first 100 of `5:3` | -0.030 |"), "{md}");
     // A comparison of two variants: the difference of their seed means (Welch's interval beside it).
     let change = |variant: &str| {
-        let rows: Vec<Vec<f64>> = rows[1..].iter().filter(|r| r.starts_with(&format!("paper,{variant},"))).map(|r| r.split(',').map(|c| c.parse().unwrap_or(f64::NAN)).collect()).collect();
+        let rows: Vec<Vec<f64>> = rows[1..]
+            .iter()
+            .filter(|r| r.starts_with(&format!("paper,{variant},")))
+            .map(|r| r.split(',').map(|c| c.parse().unwrap_or(f64::NAN)).collect())
+            .collect();
         rows.iter().map(|c| c[column("dos_last100")] - c[column("dos_first100")]).sum::<f64>() / rows.len() as f64
     };
-    let expected = format!("| paper | 5:3 against 1:1 | DoS change, last − first 100 of `5:3` minus `1:1` (Welch) | – | {:.3} ± ", change("5:3") - change("1:1"));
+    let expected = format!(
+        "| paper | 5:3 against 1:1 | DoS change, last − first 100 of `5:3` minus `1:1` (Welch) | – | {:.3} ± ",
+        change("5:3") - change("1:1")
+    );
     assert!(md.contains(&expected), "{expected} not in {md}");
     // Catches per episode, last − first 100 (here all 3 episodes in both windows: no change).
-    assert!(md.contains("| paper | catches | catches per episode, change, last − first 100 of `5:3` | – | 0.000 ± 0.000 (2) |"), "{md}");
+    assert!(
+        md.contains(
+            "| paper | catches | catches per episode, change, last − first 100 of `5:3` | – | 0.000 ± 0.000 (2) |"
+        ),
+        "{md}"
+    );
     // The variants compared: one row per variant (with its seed count) in each panel, the interaction
     // panel among them.
     let variants = std::fs::read_to_string(two.path().join("results/tiny/figures/paper-variants.svg")).unwrap();
-    for text in ["1:1 (2)", "5:3 (2)", "DoA seeing − 50 prey, blind", "DoA of prey: change over training", "catches: change over training"] {
+    for text in [
+        "1:1 (2)",
+        "5:3 (2)",
+        "DoA seeing − 50 prey, blind",
+        "DoA of prey: change over training",
+        "catches: change over training",
+    ] {
         assert!(variants.contains(text), "{text} not in the variants figure");
     }
     for figure in ["paper-training.png", "paper-catches.png", "paper-eval-50-prey.png", "paper-variants.png"] {
         let bytes = std::fs::read(two.path().join("results/tiny/figures").join(figure)).unwrap();
         let png = resvg::tiny_skia::Pixmap::decode_png(&bytes).unwrap();
         assert!(png.width() >= 600 && png.height() >= 400, "{figure}");
-        let distinct: std::collections::BTreeSet<[u8; 4]> = png.pixels().iter().map(|p| [p.red(), p.green(), p.blue(), p.alpha()]).collect();
+        let distinct: std::collections::BTreeSet<[u8; 4]> =
+            png.pixels().iter().map(|p| [p.red(), p.green(), p.blue(), p.alpha()]).collect();
         assert!(distinct.len() > 20, "{figure} is not blank");
     }
 
@@ -147,12 +199,30 @@ fn a_tiny_experiment_runs_resumes_and_gives_the_same_summary_at_one_or_two_jobs(
     let finished = one.path().join("results/tiny/paper/5-3/seed2");
     let untouched = std::fs::metadata(finished.join("metrics.csv")).unwrap().modified().unwrap();
     std::fs::remove_dir_all(&seed1).unwrap();
-    let partial = coevo(one.path(), &["--train", "--scene", "results/tiny/paper/1-1/scene.ron", "--seed", "1", "--out", seed1.to_str().unwrap(), "--episodes", "2", "--quiet"]);
+    let partial = coevo(
+        one.path(),
+        &[
+            "--train",
+            "--scene",
+            "results/tiny/paper/1-1/scene.ron",
+            "--seed",
+            "1",
+            "--out",
+            seed1.to_str().unwrap(),
+            "--episodes",
+            "2",
+            "--quiet",
+        ],
+    );
     assert!(partial.status.success(), "{}", String::from_utf8_lossy(&partial.stderr));
     std::fs::remove_dir_all(one.path().join("results/tiny/paper/1-1/seed2/checkpoint")).unwrap();
     std::fs::remove_file(one.path().join("results/tiny/paper/5-3/seed1/eval-50-prey.csv")).unwrap();
     assert!(coevo(one.path(), &["--experiment", "experiments/tiny.ron", "--jobs", "2"]).status.success());
-    assert_eq!(std::fs::metadata(finished.join("metrics.csv")).unwrap().modified().unwrap(), untouched, "a finished run is not redone");
+    assert_eq!(
+        std::fs::metadata(finished.join("metrics.csv")).unwrap().modified().unwrap(),
+        untouched,
+        "a finished run is not redone"
+    );
     assert!(one.path().join("results/tiny/paper/5-3/seed1/eval-50-prey.csv").exists());
     let again = summary(one.path());
     assert_eq!(again.len(), 5);
@@ -191,7 +261,9 @@ fn slurm_scripts_have_the_array_range_and_the_aggregate_dependency() {
 fn the_preset_ablations_change_exactly_one_difference_per_variant() {
     // Each variant's scene differs from its file's first variant in the named fields only, and in total
     // the variants walk every difference between the presets that acts on the periodic arena.
-    for (file, all_differences) in [("experiments/ablation-from-paper.ron", "paper"), ("experiments/ablation-from-gym-pps.ron", "gym-pps")] {
+    for (file, all_differences) in
+        [("experiments/ablation-from-paper.ron", "paper"), ("experiments/ablation-from-gym-pps.ron", "gym-pps")]
+    {
         let exp = Experiment::load(Path::new(file), Path::new("results")).unwrap();
         let first_seed: Vec<&coevo::experiment::Run> = exp.runs.iter().filter(|r| r.seed == 1).collect();
         let lines = |s: &coevo::scene::Scene| s.to_ron().lines().map(str::to_string).collect::<Vec<String>>();
@@ -200,7 +272,12 @@ fn the_preset_ablations_change_exactly_one_difference_per_variant() {
         for run in &first_seed[1..] {
             let variant = lines(&run.scene);
             assert_eq!(variant.len(), base.len(), "{file}: {}", run.variant);
-            let changed: Vec<String> = base.iter().zip(&variant).filter(|(a, b)| a != b).map(|(_, b)| b.trim().split(':').next().unwrap().to_string()).collect();
+            let changed: Vec<String> = base
+                .iter()
+                .zip(&variant)
+                .filter(|(a, b)| a != b)
+                .map(|(_, b)| b.trim().split(':').next().unwrap().to_string())
+                .collect();
             let expected: &[&str] = match run.variant.as_str() {
                 v if v.starts_with("turn rate") => &["max_turn_rate", "max_turn_rate"],
                 v if v.starts_with("predator mass") => &["mass"],

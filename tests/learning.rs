@@ -1,12 +1,12 @@
 //! The learning plugin end to end, on tiny runs: training, checkpoints, resume, evaluation, bad input.
 
-use coevo::learning::{checkpoint, Learners, Mode};
-use coevo::sim::perception::Batches;
-use coevo::scene::{Policy, Scene};
 use coevo::learning::simulation as learning_simulation;
+use coevo::learning::{checkpoint, Learners, Mode};
 use coevo::run::evaluate::{evaluate, EvalOptions};
-use coevo::scene::Overrides;
 use coevo::run::train::{train, TrainOptions};
+use coevo::scene::Overrides;
+use coevo::scene::{Policy, Scene};
+use coevo::sim::perception::Batches;
 use std::path::Path;
 
 /// The standard scene shrunk to seconds: short episodes, small networks and batches.
@@ -46,7 +46,11 @@ fn a_tiny_training_run_writes_scene_metrics_and_checkpoints() {
     assert_eq!(lines.len(), 6, "header and one row per episode");
     let order = ["dos", "doa", "polarization", "milling", "clusters", "largest_cluster", "nn_correlation", "edge_rank"];
     let per_species = |s: &str| order.map(|q| format!("{q}_{s}")).join(",");
-    assert!(lines[0].starts_with(&format!("episode,steps,{},{},catches", per_species("predator"), per_species("prey"))), "{}", lines[0]);
+    assert!(
+        lines[0].starts_with(&format!("episode,steps,{},{},catches", per_species("predator"), per_species("prey"))),
+        "{}",
+        lines[0]
+    );
     assert!(lines[0].contains("critic_loss_prey,actor_loss_prey,noise_std_prey,epsilon_prey"));
     let header: Vec<&str> = lines[0].split(',').collect();
     let last: Vec<&str> = lines[5].split(',').collect();
@@ -133,7 +137,13 @@ fn corrupt_missing_or_mismatched_checkpoints_are_refused_clearly() {
     train(tiny(1), &opts(&run, false, None)).unwrap();
     std::fs::write(run.join("checkpoint/prey-actor.safetensors"), b"not a tensor file").unwrap();
     let eval = |counts: Vec<(String, usize)>| {
-        evaluate(&EvalOptions { run: run.clone(), out: None, control: Default::default(), episodes: 1, overrides: Overrides { counts, episode_steps: Some(5), ..Default::default() } })
+        evaluate(&EvalOptions {
+            run: run.clone(),
+            out: None,
+            control: Default::default(),
+            episodes: 1,
+            overrides: Overrides { counts, episode_steps: Some(5), ..Default::default() },
+        })
     };
     let corrupt = eval(vec![]).unwrap_err();
     assert!(corrupt.contains("prey-actor.safetensors: not a valid safetensors file"), "{corrupt}");
@@ -159,7 +169,11 @@ fn evaluation_deploys_on_fifty_prey_and_without_predators() {
         out: None,
         control: Default::default(),
         episodes: 2,
-        overrides: Overrides { counts: vec![("prey".into(), 50), ("predator".into(), 0)], episode_steps: Some(30), ..Default::default() },
+        overrides: Overrides {
+            counts: vec![("prey".into(), 50), ("predator".into(), 0)],
+            episode_steps: Some(30),
+            ..Default::default()
+        },
     })
     .unwrap();
     assert!(line.contains("0 predator + 50 prey"), "{line}");
@@ -180,7 +194,10 @@ fn evaluation_deploys_on_fifty_prey_and_without_predators() {
     let correlation = std::fs::read_to_string(run.join("eval-correlation.csv")).unwrap();
     let rows: Vec<Vec<&str>> = correlation.lines().skip(1).map(|l| l.split(',').collect()).collect();
     assert_eq!(rows.len(), (1.0 / 0.07f64).ceil() as usize, "{correlation}");
-    assert!(rows.iter().all(|r| r[2] == "0" || r[3].parse::<f64>().is_ok_and(|c| (-1.0..=1.0).contains(&c))), "{correlation}");
+    assert!(
+        rows.iter().all(|r| r[2] == "0" || r[3].parse::<f64>().is_ok_and(|c| (-1.0..=1.0).contains(&c))),
+        "{correlation}"
+    );
     let confusion = std::fs::read_to_string(run.join("eval-confusion.csv")).unwrap();
     assert!(confusion.lines().skip(1).all(|l| l.split(',').nth(2) == Some("0")), "{confusion}");
     // With predators, every predator decision after the first step lands in one bin of the curve.
@@ -201,11 +218,21 @@ fn evaluation_deploys_on_fifty_prey_and_without_predators() {
     let confusion = std::fs::read_to_string(run.join("with-predators-confusion.csv")).unwrap();
     let samples: u64 = confusion.lines().skip(1).map(|l| l.split(',').nth(2).unwrap().parse::<u64>().unwrap()).sum();
     assert_eq!(samples, 2 * 3 * (steps as u64 - 1), "{confusion}");
-    assert!(confusion.lines().filter(|l| !l.ends_with(",0,,,")).count() > 2, "a 0.5 m radius spreads decisions over bins: {confusion}");
+    assert!(
+        confusion.lines().filter(|l| !l.ends_with(",0,,,")).count() > 2,
+        "a 0.5 m radius spreads decisions over bins: {confusion}"
+    );
 
     // One step per episode: measured, not zeros; with one prey there is nothing to measure, and it says so.
     let one = |counts: Vec<(String, usize)>| {
-        evaluate(&EvalOptions { run: run.clone(), out: None, control: Default::default(), episodes: 1, overrides: Overrides { counts, episode_steps: Some(1), ..Default::default() } }).unwrap()
+        evaluate(&EvalOptions {
+            run: run.clone(),
+            out: None,
+            control: Default::default(),
+            episodes: 1,
+            overrides: Overrides { counts, episode_steps: Some(1), ..Default::default() },
+        })
+        .unwrap()
     };
     let line = one(vec![]);
     assert!(!line.contains("mean DoS 0.0000"), "{line}");

@@ -4,8 +4,8 @@
 
 mod common;
 use bevy::math::DVec2;
-use coevo::sim::perception::Batches;
 use coevo::scene::{Boundary, Perception, Policy};
+use coevo::sim::perception::Batches;
 use coevo::sim::space::min_image;
 use coevo::sim::Simulation;
 use common::{place, scene};
@@ -140,7 +140,8 @@ fn body_frame_observations_are_hand_rotated_and_invariant_under_turning_the_worl
     // A network reading them acts the same in both worlds.
     let dev = coevo::learning::nets::Dev::default();
     let mut rng = <rand_chacha::ChaCha8Rng as rand::SeedableRng>::seed_from_u64(3);
-    let ddpg = coevo::learning::ddpg::Ddpg::new(&dev, 54, &coevo::scene::Scene::preset("paper").unwrap().learning, &mut rng);
+    let ddpg =
+        coevo::learning::ddpg::Ddpg::new(&dev, 54, &coevo::scene::Scene::preset("paper").unwrap().learning, &mut rng);
     let act = |sim: &Simulation| ddpg.act(&dev, &sim.world().resource::<Batches>().species[1].observations, 4);
     assert!(act(&plain).iter().zip(act(&turned)).all(|(x, y)| (x - y).abs() < 1e-5));
 }

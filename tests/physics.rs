@@ -2,9 +2,9 @@
 
 mod common;
 use bevy::math::DVec2;
+use coevo::scene::{Boundary, Policy, SpeedClip};
 use coevo::sim::components::*;
 use coevo::sim::physics::{clip_speed, wrap_angle};
-use coevo::scene::{Boundary, Policy, SpeedClip};
 use coevo::sim::Simulation;
 use common::{get, manual, place, scene};
 

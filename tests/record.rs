@@ -85,10 +85,10 @@ fn bad_input_is_one_line_and_a_failure_with_no_output() {
 #[test]
 fn a_record_drives_learned_species_with_the_runs_actors() {
     use bevy::math::DVec2;
-    use coevo::sim::components::{AgentId, Heading, Position, Velocity};
     use coevo::learning::{Learners, Mode};
-    use coevo::sim::perception::{Batches, Perceive};
     use coevo::scene::Scene;
+    use coevo::sim::components::{AgentId, Heading, Position, Velocity};
+    use coevo::sim::perception::{Batches, Perceive};
     let dir = tempfile::tempdir().unwrap();
     let run = dir.path().join("run");
     let mut scene = Scene::load(std::path::Path::new("scenes/paper.ron")).unwrap();
@@ -97,18 +97,28 @@ fn a_record_drives_learned_species_with_the_runs_actors() {
     scene.learning.batch_size = 32;
     scene.learning.warmup_transitions = 32;
     scene.learning.updates_per_episode = 5;
-    let opts = coevo::run::train::TrainOptions { run: run.clone(), resume: false, overwrite: false, episodes: Some(2), progress: false };
+    let opts = coevo::run::train::TrainOptions {
+        run: run.clone(),
+        resume: false,
+        overwrite: false,
+        episodes: Some(2),
+        progress: false,
+    };
     coevo::run::train::train(scene, &opts).unwrap();
 
     let out = dir.path().join("r.csv");
     let o = coevo(&["--record", out.to_str().unwrap(), "--run", run.to_str().unwrap(), "--steps", "6"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    assert!(String::from_utf8_lossy(&o.stderr).contains("prey: trained actor of"), "says which actor drives each species");
+    assert!(
+        String::from_utf8_lossy(&o.stderr).contains("prey: trained actor of"),
+        "says which actor drives each species"
+    );
     let text = std::fs::read_to_string(&out).unwrap();
     let rows: Vec<Vec<String>> = text.lines().skip(1).map(|l| l.split(',').map(str::to_string).collect()).collect();
 
     // Rebuild the state of step 4 from the record, perceive it and ask the trained actors.
-    let mut sim = coevo::learning::simulation(Scene::load(&run.join("scene.ron")).unwrap(), Mode::Evaluate, Some(&run)).unwrap();
+    let mut sim =
+        coevo::learning::simulation(Scene::load(&run.join("scene.ron")).unwrap(), Mode::Evaluate, Some(&run)).unwrap();
     let step: Vec<&Vec<String>> = rows.iter().filter(|r| r[0] == "4").collect();
     let num = |r: &Vec<String>, i: usize| r[i].parse::<f64>().unwrap();
     {
@@ -132,8 +142,18 @@ fn a_record_drives_learned_species_with_the_runs_actors() {
         let recorded: Vec<&&Vec<String>> = step.iter().filter(|r| r[2] == def.name).collect();
         assert_eq!(recorded.len(), batch.n);
         for (row, r) in recorded.iter().enumerate() {
-            let a = coevo::sim::policy::rescale([actions[2 * row], actions[2 * row + 1]], def.max_thrust, def.max_turn_rate);
-            assert_eq!((num(r, 8), num(r, 9)), (a.thrust, a.turn_rate), "{} {}: recorded action is the actor's", def.name, r[1]);
+            let a = coevo::sim::policy::rescale(
+                [actions[2 * row], actions[2 * row + 1]],
+                def.max_thrust,
+                def.max_turn_rate,
+            );
+            assert_eq!(
+                (num(r, 8), num(r, 9)),
+                (a.thrust, a.turn_rate),
+                "{} {}: recorded action is the actor's",
+                def.name,
+                r[1]
+            );
         }
     }
     // Not the old default of half thrust and no turning.
@@ -161,7 +181,9 @@ fn the_order_parameters_beside_a_record_are_those_of_its_trajectory() {
             .skip(1)
             .map(|l| l.split(',').collect::<Vec<_>>())
             .filter(|r| r[0] == t.to_string() && r[2] == "prey")
-            .map(|r| (DVec2::new(r[3].parse().unwrap(), r[4].parse().unwrap()), DVec2::from_angle(r[7].parse().unwrap())))
+            .map(|r| {
+                (DVec2::new(r[3].parse().unwrap(), r[4].parse().unwrap()), DVec2::from_angle(r[7].parse().unwrap()))
+            })
             .unzip();
         let expected = coevo::sim::metrics::swarming_of(&arena, &pos, &head, link).unwrap().values();
         let row = rows.iter().find(|r| r[0] == t.to_string() && r[1] == "prey").unwrap();

@@ -20,7 +20,11 @@ fn standard() -> PathBuf {
 /// transitions; prey store 1 800 per episode, predators 450, so the predators' buffer spans two
 /// checkpoints' segments), under either update schedule.
 fn scene_text(per_step: bool) -> String {
-    let schedule = if per_step { "updates_per_episode: 0, updates_per_step: 1" } else { "updates_per_episode: 20, updates_per_step: 0" };
+    let schedule = if per_step {
+        "updates_per_episode: 0, updates_per_step: 1"
+    } else {
+        "updates_per_episode: 20, updates_per_step: 0"
+    };
     format!(
         r#"(
     preset: "paper",
@@ -110,8 +114,15 @@ fn a_run_killed_at_any_moment_and_resumed_equals_the_uninterrupted_run() {
             assert!(resumed.status.success(), "{}", String::from_utf8_lossy(&resumed.stderr));
             let note = String::from_utf8_lossy(&resumed.stderr);
             assert!(!note.contains("lacks replay buffers"), "{note}");
-            assert_eq!(metrics(&run), metrics(&whole), "metrics after a kill at episode {after} (per step: {per_step})");
-            assert!(checkpoint(&run) == checkpoint(&whole), "checkpoint after a kill at episode {after} (per step: {per_step})");
+            assert_eq!(
+                metrics(&run),
+                metrics(&whole),
+                "metrics after a kill at episode {after} (per step: {per_step})"
+            );
+            assert!(
+                checkpoint(&run) == checkpoint(&whole),
+                "checkpoint after a kill at episode {after} (per step: {per_step})"
+            );
             assert!(!run.join("coevo.lock").exists() && !run.join("checkpoint.tmp").exists());
         }
     }
@@ -123,7 +134,8 @@ fn a_run_killed_at_any_moment_and_resumed_equals_the_uninterrupted_run() {
         .map(|e| e.unwrap().path())
         .filter(|p| p.to_string_lossy().contains("-replay-"))
         .collect();
-    let predators: Vec<&PathBuf> = segments.iter().filter(|p| p.to_string_lossy().contains("predator-replay-")).collect();
+    let predators: Vec<&PathBuf> =
+        segments.iter().filter(|p| p.to_string_lossy().contains("predator-replay-")).collect();
     assert_eq!(predators.len(), 2, "{segments:?}");
     std::fs::remove_file(predators[0]).unwrap();
     let extend = || coevo().arg("--resume").arg(&run).args(["--episodes", "25", "--quiet"]).output().unwrap();
@@ -167,8 +179,13 @@ fn a_killed_experiment_leaves_no_child_running_and_can_be_run_again() {
     std::fs::write(root.join("long.ron"), scene_text(true).replace("episodes: 24", "episodes: 100000")).unwrap();
     std::fs::create_dir(root.join("exp")).unwrap();
     // An experiment file outside experiments/, its base beside it.
-    std::fs::write(root.join("exp/long.ron"), r#"(base: "../long.ron", seeds: [1], episodes: 100000, variants: [(name: "a")])"#).unwrap();
-    let mut parent = coevo().args(["--experiment", "exp/long.ron", "--quiet", "--jobs", "1"]).current_dir(root).spawn().unwrap();
+    std::fs::write(
+        root.join("exp/long.ron"),
+        r#"(base: "../long.ron", seeds: [1], episodes: 100000, variants: [(name: "a")])"#,
+    )
+    .unwrap();
+    let mut parent =
+        coevo().args(["--experiment", "exp/long.ron", "--quiet", "--jobs", "1"]).current_dir(root).spawn().unwrap();
     let started = Instant::now();
     let (lock, pid) = loop {
         if let Some(found) = child_pid(&root.join("results")) {
@@ -187,7 +204,8 @@ fn a_killed_experiment_leaves_no_child_running_and_can_be_run_again() {
     }
     assert!(!lock.exists(), "the child removed its lock on the way out");
     // The experiment picks the run up again (here: resumes or restarts it) instead of finding it busy.
-    let mut again = coevo().args(["--experiment", "exp/long.ron", "--quiet", "--jobs", "1"]).current_dir(root).spawn().unwrap();
+    let mut again =
+        coevo().args(["--experiment", "exp/long.ron", "--quiet", "--jobs", "1"]).current_dir(root).spawn().unwrap();
     let restarted = Instant::now();
     loop {
         if let Some((_, p)) = child_pid(&root.join("results")) {
@@ -232,7 +250,10 @@ fn a_memory_limit_turns_a_huge_population_into_one_error_line() {
     let dir = tempfile::tempdir().unwrap();
     let exe = env!("CARGO_BIN_EXE_coevo");
     // 8 GB of address space: 10 million prey need ~11.6 GB.
-    let script = format!("ulimit -v 8000000 && exec {exe} --record x.csv --steps 1 --prey 10000000 --scene {}", standard().display());
+    let script = format!(
+        "ulimit -v 8000000 && exec {exe} --record x.csv --steps 1 --prey 10000000 --scene {}",
+        standard().display()
+    );
     let out = Command::new("sh").arg("-c").arg(&script).current_dir(dir.path()).output().unwrap();
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success());
@@ -246,10 +267,20 @@ fn interrupted_writes_leave_no_temporary_behind() {
     let dir = tempfile::tempdir().unwrap();
     let root = dir.path();
     let temporaries = || -> Vec<String> {
-        std::fs::read_dir(root).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).filter(|n| n.ends_with(".tmp")).collect()
+        std::fs::read_dir(root)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .filter(|n| n.ends_with(".tmp"))
+            .collect()
     };
     let record = |signal: &str| {
-        let mut child = coevo().args(["--record", "big.csv", "--steps", "100000", "--prey", "300", "--scene"]).arg(standard()).current_dir(root).stderr(Stdio::piped()).spawn().unwrap();
+        let mut child = coevo()
+            .args(["--record", "big.csv", "--steps", "100000", "--prey", "300", "--scene"])
+            .arg(standard())
+            .current_dir(root)
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
         let started = Instant::now();
         while temporaries().is_empty() {
             assert!(child.try_wait().unwrap().is_none(), "the record ended before it was interrupted");
@@ -271,7 +302,12 @@ fn interrupted_writes_leave_no_temporary_behind() {
     // SIGKILL leaves it; the next write of the same file removes it.
     record("-KILL");
     assert!(!temporaries().is_empty());
-    let out = coevo().args(["--record", "big.csv", "--steps", "2", "--scene"]).arg(standard()).current_dir(root).output().unwrap();
+    let out = coevo()
+        .args(["--record", "big.csv", "--steps", "2", "--scene"])
+        .arg(standard())
+        .current_dir(root)
+        .output()
+        .unwrap();
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     assert!(temporaries().is_empty(), "left: {:?}", temporaries());
 }

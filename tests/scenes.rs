@@ -82,12 +82,20 @@ fn errors_name_file_line_and_field() {
         "bad.ron:4: species[prey].mass: must be a finite number > 0 (got -1)"
     );
     assert_eq!(err("(\n  preset: \"papr\",\n)"), "bad.ron:2: preset: unknown preset \"papr\" (known: paper, gym-pps)");
-    assert!(err("(species: [(name: \"predator\", count: 0), (name: \"prey\", count: 0)])").contains("species: every species has count 0"));
-    assert!(err("(species: [(name: \"prey\", radius: 1.5)])").contains("species[prey].radius: body diameter 3 m does not fit"));
+    assert!(err("(species: [(name: \"predator\", count: 0), (name: \"prey\", count: 0)])")
+        .contains("species: every species has count 0"));
+    assert!(err("(species: [(name: \"prey\", radius: 1.5)])")
+        .contains("species[prey].radius: body diameter 3 m does not fit"));
     assert!(err("(world: (arena_edge: 0.0))").contains("world.arena_edge: must be a finite number > 0"));
-    assert!(err("(world: (drag: NaN))").contains("world.drag: must be a finite number"), "{}", err("(world: (drag: NaN))"));
+    assert!(
+        err("(world: (drag: NaN))").contains("world.drag: must be a finite number"),
+        "{}",
+        err("(world: (drag: NaN))")
+    );
     assert!(err("(species: [(name: \"prey\", catches: [\"shark\"])])").contains("no species named \"shark\""));
-    assert!(err("(species: [(name: \"apex\", count: 1)])").contains("species[apex]: no preset or species plugin of this program defines \"apex\"; a new species must set: mass"));
+    assert!(err("(species: [(name: \"apex\", count: 1)])").contains(
+        "species[apex]: no preset or species plugin of this program defines \"apex\"; a new species must set: mass"
+    ));
     assert!(err("(species: [(count: 1)])").contains("species[0].name: every species entry needs a name"));
     assert!(err("(learning: (gamma: 1.5))").contains("learning.gamma: must be in [0, 1]"));
     let missing = Scene::load(Path::new("scenes/nope.ron")).unwrap_err().to_string();

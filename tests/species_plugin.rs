@@ -3,11 +3,11 @@
 //! species' rows of the action batch (`policy: Plugin("name")`).
 
 use bevy::prelude::*;
+use coevo::scene::{Policy, Scene};
 use coevo::sim::components::{Action, AgentId, Heading, SpeciesId};
 use coevo::sim::perception::Batches;
 use coevo::sim::physics::wrap_angle;
 use coevo::sim::policy::PolicyPlugins;
-use coevo::scene::{Policy, Scene};
 use coevo::sim::species::SpeciesRegistry;
 use coevo::sim::{SimSet, Simulation};
 
@@ -128,7 +128,12 @@ mod owl {
                     policy: Policy::Learned,
                 },
                 caught_by: vec![],
-                contact_rewards: vec![ContactReward { catcher: "owl".into(), caught: "predator".into(), catcher_reward: 3.0, caught_reward: -2.0 }],
+                contact_rewards: vec![ContactReward {
+                    catcher: "owl".into(),
+                    caught: "predator".into(),
+                    catcher_reward: 3.0,
+                    caught_reward: -2.0,
+                }],
             }
         }
     }
@@ -199,7 +204,10 @@ fn a_scene_names_a_plugin_species_and_the_plugin_supplies_the_rest() {
         assert!(text.contains(&format!("observation of {name} (d_o = {}):", registry.observation_dim(s))), "{text}");
         for t in 0..registry.len() {
             let from = registry.block_offset(s, t);
-            assert!(text.contains(&format!("  [{from}, {}) {}: 6 slots × 4", from + 24, registry.defs[t].name)), "{text}");
+            assert!(
+                text.contains(&format!("  [{from}, {}) {}: 6 slots × 4", from + 24, registry.defs[t].name)),
+                "{text}"
+            );
         }
     }
     assert_eq!(registry.observation_dim(registry.index_of("owl").unwrap()), 6 + 4 * 6 * 3);
@@ -253,12 +261,20 @@ fn a_plugin_species_learns_with_the_other_two() {
     scene.learning.checkpoint_every = 1;
     let dir = tempfile::tempdir().unwrap();
     let run = dir.path().join("run");
-    let opts = coevo::run::train::TrainOptions { run: run.clone(), resume: false, overwrite: false, episodes: Some(2), progress: false };
+    let opts = coevo::run::train::TrainOptions {
+        run: run.clone(),
+        resume: false,
+        overwrite: false,
+        episodes: Some(2),
+        progress: false,
+    };
     coevo::run::train::train(scene, &opts).unwrap();
     let metrics = std::fs::read_to_string(run.join("metrics.csv")).unwrap();
     let header: Vec<&str> = metrics.lines().next().unwrap().split(',').collect();
     let last: Vec<&str> = metrics.lines().last().unwrap().split(',').collect();
-    let cell = |name: &str| last[header.iter().position(|h| *h == name).unwrap_or_else(|| panic!("{name}"))].parse::<f64>().unwrap();
+    let cell = |name: &str| {
+        last[header.iter().position(|h| *h == name).unwrap_or_else(|| panic!("{name}"))].parse::<f64>().unwrap()
+    };
     // Catches by catcher species: predators on prey and owls on predators, apart.
     assert!(header.contains(&"catches_by_predator") && header.contains(&"catches_by_owl"), "{header:?}");
     assert_eq!(cell("catches"), cell("catches_by_predator") + cell("catches_by_owl"));
@@ -274,11 +290,20 @@ fn bad_species_plugins_are_refused_in_one_line() {
     let err = SpeciesPlugins::new().with(owl::Griffin).register().unwrap_err();
     assert_eq!(err, "species plugin \"griffin\": its interactions name \"unicorn\", which no preset or species plugin of this program defines");
     let err = SpeciesPlugins::new().with(owl::FakePrey).register().unwrap_err();
-    assert_eq!(err, "species plugin \"prey\": a preset's species has that name already; give each species its own name");
+    assert_eq!(
+        err,
+        "species plugin \"prey\": a preset's species has that name already; give each species its own name"
+    );
     let err = SpeciesPlugins::new().with(owl::OwlPlugin).with(owl::OwlPlugin).register().unwrap_err();
-    assert_eq!(err, "species plugin \"owl\": another species plugin has that name already; give each species its own name");
+    assert_eq!(
+        err,
+        "species plugin \"owl\": another species plugin has that name already; give each species its own name"
+    );
     // A scene naming a species nothing defines.
     let err = Scene::parse(r#"(species: [(name: "basilisk", count: 2)])"#, "b.ron").unwrap_err().to_string();
-    assert!(err.starts_with("b.ron:1: species[basilisk]: no preset or species plugin of this program defines \"basilisk\""), "{err}");
+    assert!(
+        err.starts_with("b.ron:1: species[basilisk]: no preset or species plugin of this program defines \"basilisk\""),
+        "{err}"
+    );
     assert_eq!(err.lines().count(), 1);
 }

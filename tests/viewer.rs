@@ -4,8 +4,8 @@
 #![cfg(feature = "viewer")]
 
 use coevo::learning::Mode;
-use coevo::scene::Scene;
 use coevo::run::train::{train, TrainOptions};
+use coevo::scene::Scene;
 use coevo::viewer::{RunMode, Setup};
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -81,7 +81,10 @@ fn colour_coverage(w: u32, h: u32, pixels: &[[u8; 3]], scene: &Scene) -> Vec<(f6
             }
         }
     }
-    assert!(x1 > x0 + 300 && y1 > y0 + 300, "the arena floor fills a good part of the window ({x0}..{x1} × {y0}..{y1})");
+    assert!(
+        x1 > x0 + 300 && y1 > y0 + 300,
+        "the arena floor fills a good part of the window ({x0}..{x1} × {y0}..{y1})"
+    );
     let (aw, ah) = ((x1 - x0 + 1) as f64, (y1 - y0 + 1) as f64);
     assert!((aw / ah - 1.0).abs() < 0.03, "the arena is square on screen: {aw} × {ah}");
     let per_metre = aw / scene.world.arena_edge;
@@ -108,7 +111,11 @@ fn a_screenshot_of_the_standard_scene_shows_the_arena_and_both_species() {
     for ((counted, expected), s) in colour_coverage(w, h, &pixels, &scene).into_iter().zip(&scene.species) {
         // Heading lines and overlaps take some pixels of a disc away; nothing else has these colours.
         let ratio = counted / expected;
-        assert!((0.55..=1.1).contains(&ratio), "{}: {counted} pixels of its colour, {expected:.0} expected from its bodies", s.name);
+        assert!(
+            (0.55..=1.1).contains(&ratio),
+            "{}: {counted} pixels of its colour, {expected:.0} expected from its bodies",
+            s.name
+        );
     }
 }
 
@@ -122,7 +129,11 @@ fn live_training_in_the_window_is_the_headless_training_run() {
     let file = dir.path().join("short.ron");
     std::fs::write(&file, scene.to_ron()).unwrap();
     let run = dir.path().join("run");
-    train(scene, &TrainOptions { run: run.clone(), resume: false, overwrite: false, episodes: Some(2), progress: false }).unwrap();
+    train(
+        scene,
+        &TrainOptions { run: run.clone(), resume: false, overwrite: false, episodes: Some(2), progress: false },
+    )
+    .unwrap();
     let metrics = std::fs::read_to_string(run.join("metrics.csv")).unwrap();
     let header: Vec<&str> = metrics.lines().next().unwrap().split(',').collect();
     let col = |name: &str| header.iter().position(|h| *h == name).unwrap();
@@ -131,7 +142,13 @@ fn live_training_in_the_window_is_the_headless_training_run() {
         .skip(1)
         .map(|row| {
             let c: Vec<&str> = row.split(',').collect();
-            format!("coevo: episode {} dos {} doa {} catches {}", c[0], c[col("dos_prey")], c[col("doa_prey")], c[col("catches")])
+            format!(
+                "coevo: episode {} dos {} doa {} catches {}",
+                c[0],
+                c[col("dos_prey")],
+                c[col("doa_prey")],
+                c[col("catches")]
+            )
         })
         .collect();
 
@@ -160,7 +177,8 @@ fn tiny_run(dir: &Path) -> PathBuf {
     s.learning.hidden = 8;
     s.learning.buffer_capacity = 500;
     let run = dir.join("run");
-    train(s, &TrainOptions { run: run.clone(), resume: false, overwrite: false, episodes: Some(1), progress: false }).unwrap();
+    train(s, &TrainOptions { run: run.clone(), resume: false, overwrite: false, episodes: Some(1), progress: false })
+        .unwrap();
     run
 }
 
@@ -169,7 +187,8 @@ fn watching_a_run_loads_its_actors_and_refuses_a_scene_they_do_not_fit() {
     let dir = tempfile::tempdir().unwrap();
     let run = tiny_run(dir.path());
     let scene = Scene::load(&run.join("scene.ron")).unwrap();
-    let watch = |scene: Scene| Setup { scene, source: run.join("scene.ron"), mode: RunMode::Watch(run.clone()) }.prepare();
+    let watch =
+        |scene: Scene| Setup { scene, source: run.join("scene.ron"), mode: RunMode::Watch(run.clone()) }.prepare();
 
     let (_, learners) = watch(scene.clone()).expect("the run's own scene fits its checkpoint");
     assert_eq!(learners.mode, Mode::Evaluate);
@@ -185,7 +204,12 @@ fn watching_a_run_loads_its_actors_and_refuses_a_scene_they_do_not_fit() {
     let mut other = scene.clone();
     other.species[1].topological_limit = 4;
     let err = watch(other).err().expect("a mismatched checkpoint is refused");
-    assert!(err.starts_with("checkpoint refused:") && err.contains("prey-actor.safetensors") && err.contains("observation size"), "{err}");
+    assert!(
+        err.starts_with("checkpoint refused:")
+            && err.contains("prey-actor.safetensors")
+            && err.contains("observation size"),
+        "{err}"
+    );
 
     // A species the run never trained has no actor to load.
     let mut renamed = scene;
@@ -212,7 +236,8 @@ fn watching_a_run_in_the_window_deploys_it_on_fifty_prey_without_predators() {
 #[test]
 fn rule_based_mode_replaces_learned_species_by_chase_and_flee() {
     let scene = Scene::load(Path::new("scenes/paper.ron")).unwrap();
-    let (scene, learners) = Setup { scene, source: "scenes/paper.ron".into(), mode: RunMode::RuleBased }.prepare().unwrap();
+    let (scene, learners) =
+        Setup { scene, source: "scenes/paper.ron".into(), mode: RunMode::RuleBased }.prepare().unwrap();
     use coevo::scene::Policy;
     assert_eq!(scene.species[0].policy, Policy::ChaseNearest);
     assert_eq!(scene.species[1].policy, Policy::FleeNearest);
@@ -225,6 +250,8 @@ fn the_shipped_trained_run_is_first_in_the_run_list_and_loads() {
     assert_eq!(runs.first().map(PathBuf::as_path), Some(Path::new(coevo::viewer::SHIPPED_RUN)));
     let run = PathBuf::from(coevo::viewer::SHIPPED_RUN);
     let scene = Scene::load(&run.join("scene.ron")).unwrap();
-    let (_, learners) = Setup { scene, source: run.join("scene.ron"), mode: RunMode::Watch(run.clone()) }.prepare().expect("the shipped actors fit their scene");
+    let (_, learners) = Setup { scene, source: run.join("scene.ron"), mode: RunMode::Watch(run.clone()) }
+        .prepare()
+        .expect("the shipped actors fit their scene");
     assert!(learners.species.iter().flatten().all(|l| l.frozen));
 }

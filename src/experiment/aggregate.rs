@@ -1,9 +1,9 @@
 //! From the runs' CSV files alone (never retraining): per-run summaries, means with 95 % confidence
 //! intervals over seeds, the figures, and the paper's claims checked against them.
 
+use super::claims::{quantity, values, verdict, window_mean, ClaimResult, SETTLED_STEPS, WINDOW};
 use super::plot::{self, Curve, EstimatePanel, Panel, Row};
 use super::runner::{eval_file, stage, Stage};
-use super::claims::{quantity, values, verdict, window_mean, ClaimResult, SETTLED_STEPS, WINDOW};
 use super::stats::{difference, estimate, mean, running_mean};
 use super::{slug, Experiment, Quantity};
 use crate::run::schema::{self, Table};
@@ -56,7 +56,8 @@ fn read_confusion(path: &Path) -> Result<Vec<[f64; 3]>, String> {
         return Ok(vec![]);
     }
     let text = crate::io::read_text(path, crate::io::MAX_TEXT_BYTES).map_err(|e| format!("{}: {e}", path.display()))?;
-    let rows: Vec<Vec<&str>> = text.lines().skip(1).map(|l| l.split(',').collect()).filter(|r: &Vec<&str>| r.len() == 6).collect();
+    let rows: Vec<Vec<&str>> =
+        text.lines().skip(1).map(|l| l.split(',').collect()).filter(|r: &Vec<&str>| r.len() == 6).collect();
     let first = rows.first().map(|r| r[0]).unwrap_or_default();
     let cell = |c: &str| c.parse::<f64>().unwrap_or(f64::NAN);
     Ok(rows.iter().filter(|r| r[0] == first).map(|r| [cell(r[3]), cell(r[4]), cell(r[5])]).collect())
@@ -85,7 +86,12 @@ pub fn load(exp: &Experiment) -> Result<BTreeMap<usize, RunData>, String> {
             wall_seconds: metrics.column(schema::WALL_SECONDS)?.last().copied().unwrap_or(0.0),
             orders: super::EVAL_ORDER
                 .iter()
-                .map(|q| (q.to_string(), metrics.column(&schema::of(q, &prey)).unwrap_or_else(|_| vec![f64::NAN; metrics.rows.len()])))
+                .map(|q| {
+                    (
+                        q.to_string(),
+                        metrics.column(&schema::of(q, &prey)).unwrap_or_else(|_| vec![f64::NAN; metrics.rows.len()]),
+                    )
+                })
                 .collect(),
             evals: BTreeMap::new(),
         };
@@ -99,7 +105,17 @@ pub fn load(exp: &Experiment) -> Result<BTreeMap<usize, RunData>, String> {
             let steps = step.iter().fold(0.0f64, |a, &b| a.max(b)) as usize;
             let per_step = |values: &[f64]| -> Vec<f64> {
                 (1..=steps)
-                    .map(|s| mean(&step.iter().zip(values).filter(|(t, v)| **t as usize == s && v.is_finite()).map(|(_, v)| *v).collect::<Vec<_>>()).unwrap_or(f64::NAN))
+                    .map(|s| {
+                        mean(
+                            &step
+                                .iter()
+                                .zip(values)
+                                .filter(|(t, v)| **t as usize == s && v.is_finite())
+                                .map(|(_, v)| *v)
+                                .collect::<Vec<_>>(),
+                        )
+                        .unwrap_or(f64::NAN)
+                    })
                     .collect()
             };
             // DoS and DoA must be there; the other order parameters only since the collective measures.
@@ -167,7 +183,12 @@ pub fn aggregate(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> Result<Ve
             let v = quantity(exp, d, q);
             write!(summary, ",{}", if v.is_finite() { v.to_string() } else { String::new() }).unwrap();
         }
-        let (c0, c1, r0, r1) = (window_mean(&d.catches, true), window_mean(&d.catches, false), window_mean(&d.returns, true), window_mean(&d.returns, false));
+        let (c0, c1, r0, r1) = (
+            window_mean(&d.catches, true),
+            window_mean(&d.catches, false),
+            window_mean(&d.returns, true),
+            window_mean(&d.returns, false),
+        );
         writeln!(summary, ",{c0},{c1},{r0},{r1},{}", d.wall_seconds).unwrap();
     }
 
@@ -175,14 +196,18 @@ pub fn aggregate(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> Result<Ve
     let mut results = Vec::new();
     for preset in &exp.spec.presets {
         let of_variant = |variant: &str| -> Vec<&RunData> {
-            data.iter().filter(|(i, _)| exp.runs[**i].preset == *preset && exp.runs[**i].variant == variant).map(|(_, d)| d).collect()
+            data.iter()
+                .filter(|(i, _)| exp.runs[**i].preset == *preset && exp.runs[**i].variant == variant)
+                .map(|(_, d)| d)
+                .collect()
         };
         for v in &exp.spec.variants {
             let runs = of_variant(&v.name);
             for (name, q) in &quantities {
                 if let Some(e) = estimate(&values(exp, &runs, q)) {
                     let ci = e.ci.map_or(String::new(), |c| c.to_string());
-                    writeln!(means, "{},{},{name},{},{},{ci}", csv_text(preset), csv_text(&v.name), e.n, e.mean).unwrap();
+                    writeln!(means, "{},{},{name},{},{},{ci}", csv_text(preset), csv_text(&v.name), e.n, e.mean)
+                        .unwrap();
                 }
             }
         }
@@ -192,7 +217,13 @@ pub fn aggregate(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> Result<Ve
                 Some(base) => difference(&samples(&claim.variant), &samples(base)),
                 None => estimate(&samples(&claim.variant)),
             };
-            results.push(ClaimResult { experiment: exp.name.clone(), preset: preset.clone(), claim: claim.clone(), estimate: e, verdict: verdict(claim, e) });
+            results.push(ClaimResult {
+                experiment: exp.name.clone(),
+                preset: preset.clone(),
+                claim: claim.clone(),
+                estimate: e,
+                verdict: verdict(claim, e),
+            });
         }
         if written {
             figures(exp, preset, &prey, &of_variant)?;
@@ -231,15 +262,40 @@ fn band(series: &[Vec<f64>], label: &str, x0: f64) -> Option<Curve> {
     Some(Curve { label, x: (0..len).map(|t| x0 + t as f64).collect(), mean: m, band: (seeds > 1).then_some((lo, hi)) })
 }
 
-fn figures<'a>(exp: &Experiment, preset: &str, prey: &str, of_variant: &dyn Fn(&str) -> Vec<&'a RunData>) -> Result<(), String> {
+fn figures<'a>(
+    exp: &Experiment,
+    preset: &str,
+    prey: &str,
+    of_variant: &dyn Fn(&str) -> Vec<&'a RunData>,
+) -> Result<(), String> {
     let dir = exp.root.join("figures");
     let curves = |pick: &dyn Fn(&RunData) -> Vec<f64>, x0: f64| -> Vec<Curve> {
-        exp.spec.variants.iter().filter_map(|v| band(&of_variant(&v.name).iter().map(|d| pick(d)).filter(|s| !s.is_empty()).collect::<Vec<_>>(), &v.name, x0)).collect()
+        exp.spec
+            .variants
+            .iter()
+            .filter_map(|v| {
+                band(
+                    &of_variant(&v.name).iter().map(|d| pick(d)).filter(|s| !s.is_empty()).collect::<Vec<_>>(),
+                    &v.name,
+                    x0,
+                )
+            })
+            .collect()
     };
     let title = |what: &str| format!("{}, {preset}: {what}", exp.name);
     let training = [
-        Panel { title: title(&format!("DoS of {prey}")), x_label: "episode".into(), y_label: format!("DoS ({WINDOW}-episode mean)"), curves: curves(&|d| running_mean(&d.dos, WINDOW), 1.0) },
-        Panel { title: title(&format!("DoA of {prey}")), x_label: "episode".into(), y_label: format!("DoA ({WINDOW}-episode mean)"), curves: curves(&|d| running_mean(&d.doa, WINDOW), 1.0) },
+        Panel {
+            title: title(&format!("DoS of {prey}")),
+            x_label: "episode".into(),
+            y_label: format!("DoS ({WINDOW}-episode mean)"),
+            curves: curves(&|d| running_mean(&d.dos, WINDOW), 1.0),
+        },
+        Panel {
+            title: title(&format!("DoA of {prey}")),
+            x_label: "episode".into(),
+            y_label: format!("DoA ({WINDOW}-episode mean)"),
+            curves: curves(&|d| running_mean(&d.doa, WINDOW), 1.0),
+        },
     ];
     if training.iter().all(|p| p.curves.is_empty()) {
         return Ok(());
@@ -250,14 +306,30 @@ fn figures<'a>(exp: &Experiment, preset: &str, prey: &str, of_variant: &dyn Fn(&
     // "which differences decide".
     if exp.spec.variants.len() > 1 {
         let mut compared = vec![
-            (format!("DoA of {prey}: change over training"), format!("DoA, last − first {WINDOW} episodes"), Quantity::DoaChange),
-            (format!("DoS of {prey}: change over training"), format!("DoS, last − first {WINDOW} episodes"), Quantity::DosChange),
-            ("catches: change over training".into(), format!("catches per episode, last − first {WINDOW} episodes"), Quantity::CatchesChange),
+            (
+                format!("DoA of {prey}: change over training"),
+                format!("DoA, last − first {WINDOW} episodes"),
+                Quantity::DoaChange,
+            ),
+            (
+                format!("DoS of {prey}: change over training"),
+                format!("DoS, last − first {WINDOW} episodes"),
+                Quantity::DosChange,
+            ),
+            (
+                "catches: change over training".into(),
+                format!("catches per episode, last − first {WINDOW} episodes"),
+                Quantity::CatchesChange,
+            ),
         ];
         for e in &exp.spec.evaluations {
             if let Some(seeing) = super::seeing_partner(&exp.spec.evaluations, &e.name) {
                 let title = format!("{}: DoA seeing − {}", seeing.name, e.name);
-                compared.push((title, format!("DoA difference, last {SETTLED_STEPS} steps"), Quantity::InteractionDoa(e.name.clone())));
+                compared.push((
+                    title,
+                    format!("DoA difference, last {SETTLED_STEPS} steps"),
+                    Quantity::InteractionDoa(e.name.clone()),
+                ));
             }
         }
         let panels: Vec<EstimatePanel> = compared
@@ -282,20 +354,50 @@ fn figures<'a>(exp: &Experiment, preset: &str, prey: &str, of_variant: &dyn Fn(&
     plot::save(&dir.join(format!("{preset}-catches")), &catches)?;
     for e in &exp.spec.evaluations {
         let panels = [
-            Panel { title: title(&format!("{}: DoS per step", e.name)), x_label: "time step".into(), y_label: "DoS".into(), curves: curves(&|d| d.evals.get(&e.name).map_or(vec![], |x| x.series("dos").to_vec()), 1.0) },
-            Panel { title: title(&format!("{}: DoA per step", e.name)), x_label: "time step".into(), y_label: "DoA".into(), curves: curves(&|d| d.evals.get(&e.name).map_or(vec![], |x| x.series("doa").to_vec()), 1.0) },
+            Panel {
+                title: title(&format!("{}: DoS per step", e.name)),
+                x_label: "time step".into(),
+                y_label: "DoS".into(),
+                curves: curves(&|d| d.evals.get(&e.name).map_or(vec![], |x| x.series("dos").to_vec()), 1.0),
+            },
+            Panel {
+                title: title(&format!("{}: DoA per step", e.name)),
+                x_label: "time step".into(),
+                y_label: "DoA".into(),
+                curves: curves(&|d| d.evals.get(&e.name).map_or(vec![], |x| x.series("doa").to_vec()), 1.0),
+            },
         ];
         if panels.iter().any(|p| !p.curves.is_empty()) {
             plot::save(&dir.join(format!("{preset}-eval-{}", slug(&e.name))), &panels)?;
         }
         // The confusion curve: what a predator does, and catches, against the prey it has in view.
-        let bins = (0..crate::sim::collective::CONFUSION_BINS.len()).map(crate::sim::collective::confusion_bin_label).collect::<Vec<_>>().join(", ");
+        let bins = (0..crate::sim::collective::CONFUSION_BINS.len())
+            .map(crate::sim::collective::confusion_bin_label)
+            .collect::<Vec<_>>()
+            .join(", ");
         let x_label = format!("prey in view, bins {bins}");
-        let confusion = |k: usize| curves(&|d| d.evals.get(&e.name).map_or(vec![], |x| x.confusion.iter().map(|b| b[k]).collect()), 0.0);
+        let confusion = |k: usize| {
+            curves(&|d| d.evals.get(&e.name).map_or(vec![], |x| x.confusion.iter().map(|b| b[k]).collect()), 0.0)
+        };
         let panels = [
-            Panel { title: title(&format!("{}: predator |turn|", e.name)), x_label: x_label.clone(), y_label: "mean |turn command| / max".into(), curves: confusion(0) },
-            Panel { title: title(&format!("{}: predator speed", e.name)), x_label: x_label.clone(), y_label: "mean speed / max".into(), curves: confusion(1) },
-            Panel { title: title(&format!("{}: catch rate", e.name)), x_label, y_label: "catches per predator-step".into(), curves: confusion(2) },
+            Panel {
+                title: title(&format!("{}: predator |turn|", e.name)),
+                x_label: x_label.clone(),
+                y_label: "mean |turn command| / max".into(),
+                curves: confusion(0),
+            },
+            Panel {
+                title: title(&format!("{}: predator speed", e.name)),
+                x_label: x_label.clone(),
+                y_label: "mean speed / max".into(),
+                curves: confusion(1),
+            },
+            Panel {
+                title: title(&format!("{}: catch rate", e.name)),
+                x_label,
+                y_label: "catches per predator-step".into(),
+                curves: confusion(2),
+            },
         ];
         if panels.iter().any(|p| p.curves.iter().any(|c| c.mean.iter().any(|v| v.is_finite()))) {
             plot::save(&dir.join(format!("{preset}-confusion-{}", slug(&e.name))), &panels)?;
@@ -313,11 +415,26 @@ pub fn plot_run(dir: &Path) -> Result<std::path::PathBuf, String> {
     let metrics = Table::read(&run.metrics())?;
     let curve = |name: &str| -> Result<Vec<Curve>, String> {
         let values = running_mean(&metrics.column(name)?, WINDOW);
-        Ok(vec![Curve { label: dir.display().to_string(), x: (1..=values.len()).map(|x| x as f64).collect(), mean: values, band: None }])
+        Ok(vec![Curve {
+            label: dir.display().to_string(),
+            x: (1..=values.len()).map(|x| x as f64).collect(),
+            mean: values,
+            band: None,
+        }])
     };
     let panels = [
-        Panel { title: format!("DoS of {prey}"), x_label: "episode".into(), y_label: format!("DoS ({WINDOW}-episode mean)"), curves: curve(&schema::of("dos", &prey))? },
-        Panel { title: format!("DoA of {prey}"), x_label: "episode".into(), y_label: format!("DoA ({WINDOW}-episode mean)"), curves: curve(&schema::of("doa", &prey))? },
+        Panel {
+            title: format!("DoS of {prey}"),
+            x_label: "episode".into(),
+            y_label: format!("DoS ({WINDOW}-episode mean)"),
+            curves: curve(&schema::of("dos", &prey))?,
+        },
+        Panel {
+            title: format!("DoA of {prey}"),
+            x_label: "episode".into(),
+            y_label: format!("DoA ({WINDOW}-episode mean)"),
+            curves: curve(&schema::of("doa", &prey))?,
+        },
     ];
     let figures = dir.join("figures");
     std::fs::create_dir_all(&figures).map_err(|e| format!("{}: {e}", figures.display()))?;

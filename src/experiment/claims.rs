@@ -24,7 +24,10 @@ pub fn values(exp: &Experiment, runs: &[&RunData], q: &Quantity) -> Vec<f64> {
 
 /// A run's value of a quantity.
 pub fn quantity(exp: &Experiment, d: &RunData, q: &Quantity) -> f64 {
-    let settled = |v: &[f64]| mean(&v[v.len().saturating_sub(SETTLED_STEPS)..].iter().copied().filter(|x| x.is_finite()).collect::<Vec<_>>()).unwrap_or(f64::NAN);
+    let settled = |v: &[f64]| {
+        mean(&v[v.len().saturating_sub(SETTLED_STEPS)..].iter().copied().filter(|x| x.is_finite()).collect::<Vec<_>>())
+            .unwrap_or(f64::NAN)
+    };
     let eval = |e: &str, name: &str| d.evals.get(e).map_or(f64::NAN, |x| settled(x.series(name)));
     match q {
         Quantity::DosFirst => window_mean(&d.dos, true),
@@ -64,7 +67,9 @@ pub fn verdict(claim: &Claim, e: Option<Estimate>) -> String {
         (None, None, _) => return "measured (the paper gives no number)".into(),
         (_, _, None) => return "one seed: no interval".into(),
         // A comparison of two variants without a number of the paper: is the difference outside its interval?
-        (None, Some(base), Some(ci)) if e.mean.abs() > ci => return format!("differs from `{base}`: the 95 % CI excludes 0"),
+        (None, Some(base), Some(ci)) if e.mean.abs() > ci => {
+            return format!("differs from `{base}`: the 95 % CI excludes 0")
+        }
         (None, Some(base), Some(_)) => return format!("no difference from `{base}` detected"),
         (Some(paper), _, Some(ci)) => (paper, ci),
     };
@@ -109,9 +114,28 @@ mod tests {
     fn changes_are_the_last_window_minus_the_first() {
         let exp = Experiment::load(Path::new("experiments/ablation-from-paper.ron"), Path::new("results")).unwrap();
         // 250 episodes: the first 100 and the last 100 do not overlap.
-        let series = |first: f64, last: f64| (0..250).map(|i| if i < 100 { first } else if i >= 150 { last } else { f64::NAN }).collect::<Vec<_>>();
-        let d = RunData { dos: series(0.22, 0.19), doa: series(0.70, 0.85), catches: series(72.0, 26.0), ..Default::default() };
-        for (q, expected) in [(Quantity::DosChange, -0.03), (Quantity::DoaChange, 0.15), (Quantity::CatchesChange, -46.0)] {
+        let series = |first: f64, last: f64| {
+            (0..250)
+                .map(|i| {
+                    if i < 100 {
+                        first
+                    } else if i >= 150 {
+                        last
+                    } else {
+                        f64::NAN
+                    }
+                })
+                .collect::<Vec<_>>()
+        };
+        let d = RunData {
+            dos: series(0.22, 0.19),
+            doa: series(0.70, 0.85),
+            catches: series(72.0, 26.0),
+            ..Default::default()
+        };
+        for (q, expected) in
+            [(Quantity::DosChange, -0.03), (Quantity::DoaChange, 0.15), (Quantity::CatchesChange, -46.0)]
+        {
             assert!((quantity(&exp, &d, &q) - expected).abs() < 1e-12, "{q:?}");
         }
     }

@@ -92,7 +92,12 @@ pub struct Evaluation {
 impl Evaluation {
     /// What the evaluation changes of a run's scene.
     pub fn overrides(&self) -> Overrides {
-        Overrides { counts: self.counts.clone(), seed: None, episode_steps: self.steps, confusion_radius: self.confusion_radius }
+        Overrides {
+            counts: self.counts.clone(),
+            seed: None,
+            episode_steps: self.steps,
+            confusion_radius: self.confusion_radius,
+        }
     }
 }
 
@@ -147,7 +152,8 @@ pub enum Quantity {
 }
 
 /// Order parameters an [`Quantity::EvalOrder`] may name.
-pub const EVAL_ORDER: [&str; 6] = ["polarization", "milling", "clusters", "largest_cluster", "nn_correlation", "edge_rank"];
+pub const EVAL_ORDER: [&str; 6] =
+    ["polarization", "milling", "clusters", "largest_cluster", "nn_correlation", "edge_rank"];
 
 /// The seeing evaluation a control evaluation `name` is compared with: same counts, episodes and steps.
 /// None when `name` is no control or has no such partner.
@@ -157,7 +163,10 @@ pub fn seeing_partner<'a>(evaluations: &'a [Evaluation], name: &str) -> Option<&
         return None;
     }
     evaluations.iter().find(|e| {
-        e.control == crate::learning::ObservationControl::Seeing && e.counts == control.counts && e.episodes == control.episodes && e.steps == control.steps
+        e.control == crate::learning::ObservationControl::Seeing
+            && e.counts == control.counts
+            && e.episodes == control.episodes
+            && e.steps == control.steps
     })
 }
 
@@ -213,7 +222,8 @@ impl Experiment {
         let name = file.file_stem().map_or(String::new(), |s| s.to_string_lossy().into_owned());
         let err = |field: &str, message: String| format!("{shown}: {field}: {message}");
         // The name is a folder under results/: one safe component, never `.`, `..` or hidden.
-        crate::run::check_name(&name).map_err(|m| format!("{shown}: the file name {m}, as it names the folder results/{name}"))?;
+        crate::run::check_name(&name)
+            .map_err(|m| format!("{shown}: the file name {m}, as it names the folder results/{name}"))?;
         if spec.presets.is_empty() {
             return Err(err("presets", "an experiment needs at least one preset".into()));
         }
@@ -224,7 +234,10 @@ impl Experiment {
             return Err(err("seeds", "an experiment needs at least one seed".into()));
         }
         if let Some(s) = first_repeat(&spec.seeds) {
-            return Err(err("seeds", format!("seed {s} appears twice (a run of the same scene and seed is the same run)")));
+            return Err(err(
+                "seeds",
+                format!("seed {s} appears twice (a run of the same scene and seed is the same run)"),
+            ));
         }
         if spec.episodes == Some(0) {
             return Err(err("episodes", "must be ≥ 1".into()));
@@ -234,8 +247,9 @@ impl Experiment {
         }
         for (i, v) in spec.variants.iter().enumerate() {
             let field = format!("variants[{}].name", v.name);
-            crate::run::check_name(&slug(&v.name))
-                .map_err(|m| err(&field, format!("as a folder name ({:?}) it {m}; use letters or digits", slug(&v.name))))?;
+            crate::run::check_name(&slug(&v.name)).map_err(|m| {
+                err(&field, format!("as a folder name ({:?}) it {m}; use letters or digits", slug(&v.name)))
+            })?;
             if spec.variants[..i].iter().any(|o| slug(&o.name) == slug(&v.name)) {
                 return Err(err(&field, format!("names the same folder ({:?}) as another variant", slug(&v.name))));
             }
@@ -246,7 +260,9 @@ impl Experiment {
             if slug(&e.name).is_empty() {
                 return Err(err(&field("name"), "needs a letter or digit".into()));
             }
-            crate::run::RunDir::new(".").eval_output(Some(&file)).map_err(|m| err(&field("name"), m.replacen("--eval-out ", "as the file ", 1)))?;
+            crate::run::RunDir::new(".")
+                .eval_output(Some(&file))
+                .map_err(|m| err(&field("name"), m.replacen("--eval-out ", "as the file ", 1)))?;
             if spec.evaluations[..i].iter().any(|o| slug(&o.name) == slug(&e.name)) {
                 return Err(err(&field("name"), format!("names the same file ({file}) as another evaluation")));
             }
@@ -254,7 +270,10 @@ impl Experiment {
                 return Err(err(&field("episodes"), "episodes and steps must be ≥ 1".into()));
             }
             if let Some(r) = e.confusion_radius.filter(|r| !(r.is_finite() && *r > 0.0)) {
-                return Err(err(&field("confusion_radius"), format!("must be a finite number of metres > 0 (got {r})")));
+                return Err(err(
+                    &field("confusion_radius"),
+                    format!("must be a finite number of metres > 0 (got {r})"),
+                ));
             }
         }
         for c in &spec.claims {
@@ -269,14 +288,21 @@ impl Experiment {
             if c.versus.as_ref() == Some(&c.variant) {
                 return Err(err("claims", format!("{:?} is compared with itself (versus)", c.text)));
             }
-            if let Quantity::EvalDos(e) | Quantity::EvalDoa(e) | Quantity::EvalOrder(e, _) | Quantity::InteractionDoa(e) = &c.quantity {
+            if let Quantity::EvalDos(e)
+            | Quantity::EvalDoa(e)
+            | Quantity::EvalOrder(e, _)
+            | Quantity::InteractionDoa(e) = &c.quantity
+            {
                 if !spec.evaluations.iter().any(|x| &x.name == e) {
                     return Err(err("claims", format!("no evaluation named {e:?}")));
                 }
             }
             if let Quantity::EvalOrder(_, q) | Quantity::TrainingFirst(q) | Quantity::TrainingLast(q) = &c.quantity {
                 if !EVAL_ORDER.contains(&q.as_str()) {
-                    return Err(err("claims", format!("no order parameter named {q:?} (one of {})", EVAL_ORDER.join(", "))));
+                    return Err(err(
+                        "claims",
+                        format!("no order parameter named {q:?} (one of {})", EVAL_ORDER.join(", ")),
+                    ));
                 }
             }
             if let Quantity::InteractionDoa(e) = &c.quantity {
@@ -300,15 +326,20 @@ impl Experiment {
             if !PRESETS.contains(&preset.as_str()) {
                 return Err(err("presets", format!("unknown preset {preset:?} (known: {})", PRESETS.join(", "))));
             }
-            let base = Scene::parse_with_preset(&base_text, &base.display().to_string(), Some(preset)).map_err(|e| err("base", e.to_string()))?;
+            let base = Scene::parse_with_preset(&base_text, &base.display().to_string(), Some(preset))
+                .map_err(|e| err("base", e.to_string()))?;
             for v in &spec.variants {
-                let mut scene = base.patched(v.patch.clone()).map_err(|(f, m)| err(&format!("variants[{}]", v.name), format!("{f}: {m}")))?;
+                let mut scene = base
+                    .patched(v.patch.clone())
+                    .map_err(|(f, m)| err(&format!("variants[{}]", v.name), format!("{f}: {m}")))?;
                 if let Some(episodes) = spec.episodes {
                     scene.episodes = episodes;
                 }
                 // Each evaluation's scene as `coevo --eval` will make it, checked now rather than after training.
                 for e in &spec.evaluations {
-                    e.overrides().apply(&mut scene.clone(), Path::new(&format!("evaluations[{}]", e.name))).map_err(|m| format!("{shown}: {m}"))?;
+                    e.overrides()
+                        .apply(&mut scene.clone(), Path::new(&format!("evaluations[{}]", e.name)))
+                        .map_err(|m| format!("{shown}: {m}"))?;
                 }
                 for &seed in &spec.seeds {
                     let mut scene = scene.clone();

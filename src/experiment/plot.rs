@@ -63,7 +63,12 @@ fn draw_err(e: impl std::fmt::Display) -> String {
 }
 
 /// The figure as SVG text: `panels` drawn by `draw` on a grid of `columns` columns of `cell`-sized cells.
-fn figure<P>(panels: &[P], columns: usize, cell: (u32, u32), draw: &dyn Fn(&P, &Area) -> Result<(), String>) -> Result<String, String> {
+fn figure<P>(
+    panels: &[P],
+    columns: usize,
+    cell: (u32, u32),
+    draw: &dyn Fn(&P, &Area) -> Result<(), String>,
+) -> Result<String, String> {
     let columns = columns.clamp(1, panels.len().max(1));
     let rows = panels.len().div_ceil(columns).max(1);
     let mut text = String::new();
@@ -130,7 +135,14 @@ fn draw_estimates(panel: &EstimatePanel, area: &Area) -> Result<(), String> {
     }
     let bars = panel.rows.iter().enumerate().filter(|(_, r)| r.mean.is_finite()).map(|(i, r)| {
         let colour = COLOURS[i % COLOURS.len()];
-        ErrorBar::new_horizontal(SegmentValue::CenterOf((n - 1 - i) as i32), r.mean - ci(r), r.mean, r.mean + ci(r), colour.filled().stroke_width(2), 10)
+        ErrorBar::new_horizontal(
+            SegmentValue::CenterOf((n - 1 - i) as i32),
+            r.mean - ci(r),
+            r.mean,
+            r.mean + ci(r),
+            colour.filled().stroke_width(2),
+            10,
+        )
     });
     chart.draw_series(bars).map_err(draw_err)?;
     Ok(())
@@ -181,7 +193,8 @@ fn draw_panel(panel: &Panel, area: &Area) -> Result<(), String> {
         if let Some((lo, hi)) = &c.band {
             let upper = c.x.iter().zip(hi).map(|(&x, &y)| (x, y));
             let lower = c.x.iter().zip(lo).rev().map(|(&x, &y)| (x, y));
-            let outline: Vec<(f64, f64)> = upper.chain(lower).filter(|p| p.1.is_finite()).map(|(x, y)| (x, y.clamp(y0, y1))).collect();
+            let outline: Vec<(f64, f64)> =
+                upper.chain(lower).filter(|p| p.1.is_finite()).map(|(x, y)| (x, y.clamp(y0, y1))).collect();
             chart.draw_series(std::iter::once(Polygon::new(outline, colour.mix(0.2).filled()))).map_err(draw_err)?;
         }
         let points = c.x.iter().zip(&c.mean).map(|(&x, &y)| (x, y)).filter(|p| p.1.is_finite());

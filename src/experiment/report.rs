@@ -61,7 +61,8 @@ pub fn experiment(request: &Request) -> Result<(), String> {
         progress: !request.quiet,
     };
     // Every experiment is attempted; the one error line names the first failure.
-    let failed: Vec<String> = experiments.iter().filter_map(|exp| runner::run(exp, &opts, request.task).err()).collect();
+    let failed: Vec<String> =
+        experiments.iter().filter_map(|exp| runner::run(exp, &opts, request.task).err()).collect();
     if let Some(first) = failed.first() {
         let others = match failed.len() {
             1 => String::new(),
@@ -78,7 +79,11 @@ pub fn experiment(request: &Request) -> Result<(), String> {
     }
     for exp in &experiments {
         let claims = aggregate::aggregate(exp, &aggregate::load(exp)?)?;
-        eprintln!("coevo: wrote {}/summary.csv, summary-mean.csv and figures/ ({} claims checked)", exp.root.display(), claims.len());
+        eprintln!(
+            "coevo: wrote {}/summary.csv, summary-mean.csv and figures/ ({} claims checked)",
+            exp.root.display(),
+            claims.len()
+        );
     }
     Ok(())
 }
@@ -121,7 +126,11 @@ pub fn plot(dir: &Path) -> Result<(), String> {
     let name = dir.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
     let file = Path::new(EXPERIMENTS).join(format!("{name}.ron"));
     if !file.exists() {
-        return Err(format!("--plot {}: neither a run folder nor the results of an experiment file {}", dir.display(), file.display()));
+        return Err(format!(
+            "--plot {}: neither a run folder nor the results of an experiment file {}",
+            dir.display(),
+            file.display()
+        ));
     }
     let results = dir.parent().unwrap_or(Path::new("."));
     let exp = Experiment::load(&file, results)?;
@@ -130,7 +139,11 @@ pub fn plot(dir: &Path) -> Result<(), String> {
         return Err(format!("--plot {}: no finished run of {} there; nothing written", dir.display(), file.display()));
     }
     let claims = aggregate::aggregate(&exp, &data)?;
-    eprintln!("coevo: wrote {}/summary.csv, summary-mean.csv and figures/ ({} claims checked)", exp.root.display(), claims.len());
+    eprintln!(
+        "coevo: wrote {}/summary.csv, summary-mean.csv and figures/ ({} claims checked)",
+        exp.root.display(),
+        claims.len()
+    );
     Ok(())
 }
 
@@ -151,17 +164,25 @@ pub fn reproduction(experiments: &[(Experiment, Vec<ClaimResult>, f64, usize)]) 
          that interval excludes 0.\n\n",
     );
     // Contents first: each experiment, what it tests, how far it got and the command that continues it.
-    md.push_str("| experiment | what | command | runs finished | training time (sum over runs) |\n|---|---|---|---|---|\n");
+    md.push_str(
+        "| experiment | what | command | runs finished | training time (sum over runs) |\n|---|---|---|---|---|\n",
+    );
     for (exp, _, seconds, finished) in experiments {
         let command = format!("`coevo --experiment {} --jobs 2`", exp.file.display());
         let (name, runs, hours) = (&exp.name, exp.runs.len(), seconds / 3600.0);
-        writeln!(md, "| [{name}](#{name}) | {} | {command} | {finished} of {runs} | {hours:.1} h |", exp.spec.description).unwrap();
+        writeln!(
+            md,
+            "| [{name}](#{name}) | {} | {command} | {finished} of {runs} | {hours:.1} h |",
+            exp.spec.description
+        )
+        .unwrap();
     }
     // Then per experiment: its claims, and its figures (the comparison of variants and the learning curves
     // shown, the rest linked).
     for (exp, results, _, _) in experiments {
         let what = if exp.spec.description.is_empty() { String::new() } else { format!("{}. ", exp.spec.description) };
-        writeln!(md, "\n## {}\n\n{what}`{}`, results in `{}/`.\n", exp.name, exp.file.display(), exp.root.display()).unwrap();
+        writeln!(md, "\n## {}\n\n{what}`{}`, results in `{}/`.\n", exp.name, exp.file.display(), exp.root.display())
+            .unwrap();
         if !results.is_empty() {
             md.push_str("| preset | claim (the paper) | quantity | paper | coevo (mean ± 95 % CI, seeds) | verdict |\n|---|---|---|---|---|---|\n");
         }
@@ -175,7 +196,15 @@ pub fn reproduction(experiments: &[(Experiment, Vec<ClaimResult>, f64, usize)]) 
                 Some(base) => format!("`{}` minus `{base}` (Welch)", r.claim.variant),
                 None => format!("`{}`", r.claim.variant),
             };
-            writeln!(md, "| {} | {} | {} of {of} | {paper} | {ours} | {} |", r.preset, r.claim.text, quantity_name(&r.claim.quantity), r.verdict).unwrap();
+            writeln!(
+                md,
+                "| {} | {} | {} of {of} | {paper} | {ours} | {} |",
+                r.preset,
+                r.claim.text,
+                quantity_name(&r.claim.quantity),
+                r.verdict
+            )
+            .unwrap();
         }
         let dir = exp.root.join("figures");
         for preset in &exp.spec.presets {
@@ -183,14 +212,17 @@ pub fn reproduction(experiments: &[(Experiment, Vec<ClaimResult>, f64, usize)]) 
                 .iter()
                 .map(|what| dir.join(format!("{preset}-{what}.png")))
                 .filter(|path| path.exists())
-                .map(|path| format!("![{}]({})", path.file_stem().unwrap_or_default().to_string_lossy(), path.display()))
+                .map(|path| {
+                    format!("![{}]({})", path.file_stem().unwrap_or_default().to_string_lossy(), path.display())
+                })
                 .collect();
             if !shown.is_empty() {
                 writeln!(md, "\n{}\n", shown.join("\n")).unwrap();
             }
         }
     }
-    let (seconds, finished, runs) = experiments.iter().fold((0.0, 0, 0), |(s, f, r), (exp, _, sec, fin)| (s + sec, f + fin, r + exp.runs.len()));
+    let (seconds, finished, runs) =
+        experiments.iter().fold((0.0, 0, 0), |(s, f, r), (exp, _, sec, fin)| (s + sec, f + fin, r + exp.runs.len()));
     writeln!(
         md,
         "\n## The whole suite\n\n`coevo --experiment all --jobs 2`: {finished} of {runs} runs finished, {:.1} h of training summed over \

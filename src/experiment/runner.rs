@@ -105,7 +105,9 @@ pub fn complete_run(exp: &Experiment, run: &Run, exe: &Path, threads: usize) -> 
     let common = ["--quiet".to_string(), "--threads".into(), threads.clone()];
     let train: Option<Vec<String>> = match stage(run)? {
         Stage::Trained => None,
-        Stage::Partial(_) => Some(vec!["--resume".into(), dir.clone(), "--episodes".into(), run.scene.episodes.to_string()]),
+        Stage::Partial(_) => {
+            Some(vec!["--resume".into(), dir.clone(), "--episodes".into(), run.scene.episodes.to_string()])
+        }
         s @ (Stage::Fresh | Stage::Unsaved) => {
             let mut args = vec!["--train".into(), "--scene".into(), variant_scene(run).to_string_lossy().into_owned()];
             args.extend(["--seed".into(), run.seed.to_string(), "--out".into(), dir.clone()]);
@@ -138,7 +140,12 @@ pub fn complete_run(exp: &Experiment, run: &Run, exe: &Path, threads: usize) -> 
         if let Some(r) = e.confusion_radius {
             args.extend(["--confusion-radius".into(), r.to_string()]);
         }
-        args.extend(["--eval-out".into(), out.file_name().expect("a file").to_string_lossy().into_owned(), "--threads".into(), threads.clone()]);
+        args.extend([
+            "--eval-out".into(),
+            out.file_name().expect("a file").to_string_lossy().into_owned(),
+            "--threads".into(),
+            threads.clone(),
+        ]);
         child(exe, &args).map_err(|err| format!("{dir}: evaluation {}: {err}", e.name))?;
     }
     Ok(())
@@ -173,11 +180,17 @@ fn prepare(exp: &Experiment) -> Result<(), String> {
 pub fn run(exp: &Experiment, opts: &RunnerOptions, only: Option<usize>) -> Result<(), String> {
     prepare(exp)?;
     let runs: Vec<&Run> = match only {
-        Some(i) => vec![exp.runs.get(i).ok_or_else(|| format!("--task {i}: the experiment has runs 0 to {}", exp.runs.len() - 1))?],
+        Some(i) => vec![exp
+            .runs
+            .get(i)
+            .ok_or_else(|| format!("--task {i}: the experiment has runs 0 to {}", exp.runs.len() - 1))?],
         None => exp.runs.iter().collect(),
     };
     let bar = if opts.progress { ProgressBar::new(runs.len() as u64) } else { ProgressBar::hidden() };
-    bar.set_style(ProgressStyle::with_template("{bar:30} {pos}/{len} runs  {elapsed} elapsed, ETA {eta}  {msg}").expect("valid template"));
+    bar.set_style(
+        ProgressStyle::with_template("{bar:30} {pos}/{len} runs  {elapsed} elapsed, ETA {eta}  {msg}")
+            .expect("valid template"),
+    );
     bar.set_message(exp.name.clone());
     let already = runs.iter().filter(|r| finished(exp, r)).count();
     bar.set_position(already as u64);

@@ -114,7 +114,8 @@ fn segments(dir: &Path, species: &str) -> Vec<Segment> {
 fn chain(segments: &[Segment], from: u64, to: u64) -> Option<Vec<Segment>> {
     let (mut covered, mut out) = (from, Vec::new());
     while covered < to {
-        let next = segments.iter().filter(|s| s.from <= covered && s.to > covered && s.to <= to).max_by_key(|s| s.to)?;
+        let next =
+            segments.iter().filter(|s| s.from <= covered && s.to > covered && s.to <= to).max_by_key(|s| s.to)?;
         covered = next.to;
         out.push(next.clone());
     }
@@ -209,15 +210,30 @@ fn load_replay(dir: &Path, species: &str, like: &ReplayBuffer, transitions: u64)
         let tensor = |name: &str, shape: Vec<usize>| -> Result<Vec<f32>, String> {
             let t = st.tensor(name).map_err(|_| format!("{}: no tensor {name:?}", s.path.display()))?;
             if t.dtype() != Dtype::F32 || t.shape() != shape.as_slice() {
-                return Err(format!("{}: tensor {name} is {:?} {:?}, expected F32 {shape:?}", s.path.display(), t.dtype(), t.shape()));
+                return Err(format!(
+                    "{}: tensor {name} is {:?} {:?}, expected F32 {shape:?}",
+                    s.path.display(),
+                    t.dtype(),
+                    t.shape()
+                ));
             }
             Ok(t.data().chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect())
         };
-        let (obs, actions, rewards, next_obs) =
-            (tensor("obs", vec![n, d])?, tensor("actions", vec![n, a])?, tensor("rewards", vec![n])?, tensor("next_obs", vec![n, d])?);
+        let (obs, actions, rewards, next_obs) = (
+            tensor("obs", vec![n, d])?,
+            tensor("actions", vec![n, a])?,
+            tensor("rewards", vec![n])?,
+            tensor("next_obs", vec![n, d])?,
+        );
         for k in s.from.max(buf.first_held())..s.to {
             let i = (k - s.from) as usize;
-            buf.put(k, &obs[i * d..(i + 1) * d], &actions[i * a..(i + 1) * a], rewards[i], &next_obs[i * d..(i + 1) * d]);
+            buf.put(
+                k,
+                &obs[i * d..(i + 1) * d],
+                &actions[i * a..(i + 1) * a],
+                rewards[i],
+                &next_obs[i * d..(i + 1) * d],
+            );
         }
     }
     Ok(buf)
@@ -356,9 +372,7 @@ fn write_checkpoint(
     }
     let ron = ron::ser::to_string_pretty(state, ron::ser::PrettyConfig::new().struct_names(false))
         .map_err(|e| std::io::Error::other(e.to_string()))?;
-    crate::io::write_atomically(&tmp.join(STATE), Existing::Replace, |w| {
-        std::io::Write::write_all(w, ron.as_bytes())
-    })
+    crate::io::write_atomically(&tmp.join(STATE), Existing::Replace, |w| std::io::Write::write_all(w, ron.as_bytes()))
 }
 
 /// Reads a checkpoint's state file.

@@ -17,22 +17,22 @@ pub mod ddpg;
 pub mod nets;
 pub mod replay;
 
+use crate::scene::{LearningParams, Policy, Scene};
 use crate::sim::clock::Episode;
 use crate::sim::episode::SimRng;
 use crate::sim::perception::{Batches, SpeciesBatch};
-use crate::scene::{LearningParams, Policy, Scene};
 use crate::sim::species::{SpeciesRegistry, ACTION_DIM, OWN_STATE_DIM};
-use rand::seq::SliceRandom;
-use serde::{Deserialize, Serialize};
+use crate::sim::Simulation;
 use crate::sim::{ActiveScene, SimSet};
 use bevy::prelude::*;
 use ddpg::{Ddpg, Losses};
 use nets::Dev;
+use rand::seq::SliceRandom;
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 use replay::ReplayBuffer;
-use crate::sim::Simulation;
+use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
 /// Train (explore, store, update) or only act (evaluation: no noise, no updates).
@@ -256,7 +256,11 @@ impl ObservationControl {
 }
 
 /// Batched actor inference for every learned species, plus exploration while training.
-fn decide_learned(mut learners: ResMut<Learners>, mut batches: ResMut<Batches>, control: Option<Res<ObservationControl>>) {
+fn decide_learned(
+    mut learners: ResMut<Learners>,
+    mut batches: ResMut<Batches>,
+    control: Option<Res<ObservationControl>>,
+) {
     let l = &mut *learners;
     let explore = l.mode == Mode::Train;
     let control = control.map_or(ObservationControl::Seeing, |c| *c);

@@ -37,7 +37,18 @@ pub struct Batch {
 impl ReplayBuffer {
     /// An empty buffer; memory grows with use up to `capacity` transitions.
     pub fn new(capacity: usize, obs_dim: usize, act_dim: usize) -> Self {
-        ReplayBuffer { capacity, obs_dim, act_dim, len: 0, next: 0, pushed: 0, obs: vec![], actions: vec![], rewards: vec![], next_obs: vec![] }
+        ReplayBuffer {
+            capacity,
+            obs_dim,
+            act_dim,
+            len: 0,
+            next: 0,
+            pushed: 0,
+            obs: vec![],
+            actions: vec![],
+            rewards: vec![],
+            next_obs: vec![],
+        }
     }
 
     pub fn push(&mut self, obs: &[f32], action: &[f32], reward: f32, next_obs: &[f32]) {
@@ -69,7 +80,12 @@ impl ReplayBuffer {
     pub fn transition(&self, k: u64) -> (&[f32], &[f32], f32, &[f32]) {
         assert!(k >= self.first_held() && k < self.pushed, "transition {k} is not held");
         let (d, a, i) = (self.obs_dim, self.act_dim, (k % self.capacity as u64) as usize);
-        (&self.obs[i * d..(i + 1) * d], &self.actions[i * a..(i + 1) * a], self.rewards[i], &self.next_obs[i * d..(i + 1) * d])
+        (
+            &self.obs[i * d..(i + 1) * d],
+            &self.actions[i * a..(i + 1) * a],
+            self.rewards[i],
+            &self.next_obs[i * d..(i + 1) * d],
+        )
     }
 
     /// An empty frame of the buffer as it stood after `pushed` transitions: [`ReplayBuffer::put`] each
@@ -104,7 +120,13 @@ impl ReplayBuffer {
     pub fn sample(&self, n: usize, rng: &mut ChaCha8Rng) -> Batch {
         assert!(self.len > 0, "sampling an empty replay buffer");
         let (d, a) = (self.obs_dim, self.act_dim);
-        let mut b = Batch { n, obs: Vec::with_capacity(n * d), actions: Vec::with_capacity(n * a), rewards: Vec::with_capacity(n), next_obs: Vec::with_capacity(n * d) };
+        let mut b = Batch {
+            n,
+            obs: Vec::with_capacity(n * d),
+            actions: Vec::with_capacity(n * a),
+            rewards: Vec::with_capacity(n),
+            next_obs: Vec::with_capacity(n * d),
+        };
         for _ in 0..n {
             let i = rng.gen_range(0..self.len);
             b.obs.extend_from_slice(&self.obs[i * d..(i + 1) * d]);

@@ -7,11 +7,11 @@
 //! the scene's colours and their blends with the floor; pixels unchanged since the previous frame are
 //! written transparent, which keeps a 300-step clip of 50 prey around a megabyte.
 
-use crate::sim::components::*;
-use crate::sim::clock::Episode;
 use crate::io::{AtomicFile, Existing};
-use crate::sim::metrics::SwarmMetrics;
 use crate::scene::Boundary;
+use crate::sim::clock::Episode;
+use crate::sim::components::*;
+use crate::sim::metrics::SwarmMetrics;
 use crate::sim::space::Arena;
 use crate::sim::species::SpeciesRegistry;
 use crate::sim::Simulation;
@@ -64,7 +64,12 @@ pub struct AnimationSummary {
 }
 
 /// Steps `sim` for `opts.steps` steps and writes the GIF to `path` (atomically; see [`AtomicFile`]).
-pub fn animate(sim: &mut Simulation, opts: &AnimateOptions, path: &Path, existing: Existing) -> Result<AnimationSummary, String> {
+pub fn animate(
+    sim: &mut Simulation,
+    opts: &AnimateOptions,
+    path: &Path,
+    existing: Existing,
+) -> Result<AnimationSummary, String> {
     let io_err = |e: &dyn std::fmt::Display| format!("{}: {e}", path.display());
     if opts.steps_per_frame == 0 || !(64..=2048).contains(&opts.size) {
         return Err(io_err(&"steps per frame must be ≥ 1 and the size within 64..=2048 pixels"));
@@ -73,11 +78,13 @@ pub fn animate(sim: &mut Simulation, opts: &AnimateOptions, path: &Path, existin
     let registry = sim.world().resource::<SpeciesRegistry>().clone();
     let arena = *sim.world().resource::<Arena>();
     let prey = registry.headline();
-    let colours: Vec<[u8; 3]> = registry.defs.iter().map(|d| d.colour.map(|c| (c.clamp(0.0, 1.0) * 255.0).round() as u8)).collect();
+    let colours: Vec<[u8; 3]> =
+        registry.defs.iter().map(|d| d.colour.map(|c| (c.clamp(0.0, 1.0) * 255.0).round() as u8)).collect();
     let palette = Palette::new(&colours);
     let (width, height) = (opts.size, opts.size + CAPTION);
     let mut file = AtomicFile::create(path, existing).map_err(|e| io_err(&e))?;
-    let mut encoder = gif::Encoder::new(file.writer(), width as u16, height as u16, &palette.rgb).map_err(|e| io_err(&e))?;
+    let mut encoder =
+        gif::Encoder::new(file.writer(), width as u16, height as u16, &palette.rgb).map_err(|e| io_err(&e))?;
     encoder.set_repeat(gif::Repeat::Infinite).map_err(|e| io_err(&e))?;
     let dt = sim.world().resource::<crate::sim::ActiveScene>().0.world.dt;
     let delay = ((dt * opts.steps_per_frame as f64 * 100.0).round() as u16).max(2);
@@ -118,7 +125,9 @@ pub fn animate(sim: &mut Simulation, opts: &AnimateOptions, path: &Path, existin
         let indices = palette.index(pixels.data());
         // Unchanged pixels are transparent: the previous frame shows through (disposal Keep).
         let buffer: Vec<u8> = match &previous {
-            Some(prev) => indices.iter().zip(prev).map(|(&i, &p)| if i == p { palette.transparent } else { i }).collect(),
+            Some(prev) => {
+                indices.iter().zip(prev).map(|(&i, &p)| if i == p { palette.transparent } else { i }).collect()
+            }
             None => indices.clone(),
         };
         let frame = gif::Frame {
@@ -139,7 +148,8 @@ pub fn animate(sim: &mut Simulation, opts: &AnimateOptions, path: &Path, existin
     file.commit().map_err(|e| io_err(&e))?;
     summary.bytes = std::fs::metadata(path).map(|m| m.len()).unwrap_or(0);
     let n = measured.max(1) as f64;
-    (summary.polarization, summary.milling, summary.doa) = (summary.polarization / n, summary.milling / n, summary.doa / n);
+    (summary.polarization, summary.milling, summary.doa) =
+        (summary.polarization / n, summary.milling / n, summary.doa / n);
     Ok(summary)
 }
 
@@ -168,11 +178,19 @@ fn frame_svg(
     let _ = write!(svg, r#"<svg xmlns="http://www.w3.org/2000/svg" width="{w}" height="{h}" viewBox="0 0 {w} {h}">"#);
     let _ = write!(svg, r#"<rect width="{w}" height="{h}" fill="{}"/>"#, hex(OUTSIDE));
     // A nested viewport clips everything drawn outside the arena image.
-    let _ = write!(svg, r#"<svg x="0" y="0" width="{w}" height="{w}" overflow="hidden" shape-rendering="crispEdges"><rect width="{w}" height="{w}" fill="{}"/>"#, hex(FLOOR));
+    let _ = write!(
+        svg,
+        r#"<svg x="0" y="0" width="{w}" height="{w}" overflow="hidden" shape-rendering="crispEdges"><rect width="{w}" height="{w}" fill="{}"/>"#,
+        hex(FLOOR)
+    );
     if arena.boundary == Boundary::Walls {
         let (x0, y0) = px(DVec2::new(-arena.half(), arena.half()));
         let e = arena.edge * scale;
-        let _ = write!(svg, r#"<rect x="{x0:.1}" y="{y0:.1}" width="{e:.1}" height="{e:.1}" fill="none" stroke="{}" stroke-width="2"/>"#, hex(WALL));
+        let _ = write!(
+            svg,
+            r#"<rect x="{x0:.1}" y="{y0:.1}" width="{e:.1}" height="{e:.1}" fill="none" stroke="{}" stroke-width="2"/>"#,
+            hex(WALL)
+        );
     }
     // Images of a point that may show: itself and, on the torus, its copies one edge away.
     let images = |p: DVec2, reach: f64| -> Vec<DVec2> {
@@ -181,7 +199,8 @@ fn frame_svg(
             for dx in [-1.0, 0.0, 1.0] {
                 for dy in [-1.0, 0.0, 1.0] {
                     let q = p + DVec2::new(dx, dy) * arena.edge;
-                    if (dx != 0.0 || dy != 0.0) && q.x.abs() < arena.half() + reach && q.y.abs() < arena.half() + reach {
+                    if (dx != 0.0 || dy != 0.0) && q.x.abs() < arena.half() + reach && q.y.abs() < arena.half() + reach
+                    {
                         out.push(q);
                     }
                 }
@@ -234,7 +253,12 @@ fn frame_svg(
                 (0.35 * r).clamp(1.0, 3.0)
             );
             if *contacts > 0 {
-                let _ = write!(svg, r#"<circle cx="{cx:.1}" cy="{cy:.1}" r="{:.1}" fill="none" stroke="{}" stroke-width="1.5"/>"#, r + 2.0, hex(CATCH));
+                let _ = write!(
+                    svg,
+                    r#"<circle cx="{cx:.1}" cy="{cy:.1}" r="{:.1}" fill="none" stroke="{}" stroke-width="1.5"/>"#,
+                    r + 2.0,
+                    hex(CATCH)
+                );
             }
         }
     }
@@ -248,7 +272,10 @@ fn frame_svg(
         None => String::new(),
     };
     let name = &world.resource::<SpeciesRegistry>().defs[prey].name;
-    let caption = [format!("{}  ·  step {step}/{}", opts.title, opts.steps), format!("{name}: {order}  ·  in contact {}", m.catches_now)];
+    let caption = [
+        format!("{}  ·  step {step}/{}", opts.title, opts.steps),
+        format!("{name}: {order}  ·  in contact {}", m.catches_now),
+    ];
     for (line, text) in caption.iter().enumerate() {
         let y = opts.size as f64 + 15.0 + 16.0 * line as f64;
         let text = text.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;");
@@ -274,7 +301,9 @@ impl Palette {
 
     fn new(species: &[[u8; 3]]) -> Palette {
         let mut entries = vec![FLOOR, OUTSIDE];
-        let blend = |a: [u8; 3], b: [u8; 3], t: f64| -> [u8; 3] { std::array::from_fn(|i| (a[i] as f64 + (b[i] as f64 - a[i] as f64) * t).round() as u8) };
+        let blend = |a: [u8; 3], b: [u8; 3], t: f64| -> [u8; 3] {
+            std::array::from_fn(|i| (a[i] as f64 + (b[i] as f64 - a[i] as f64) * t).round() as u8)
+        };
         let mut inks: Vec<([u8; 3], [u8; 3])> = vec![(FLOOR, WALL), (FLOOR, CATCH), (OUTSIDE, TEXT)];
         for &c in species {
             inks.push((FLOOR, c));

@@ -72,7 +72,14 @@ impl Accumulated {
         let sw = m.now.get(prey).copied().flatten();
         let step_ranks = &m.edge_ranks_now[prey];
         let edge_rank = (!step_ranks.is_empty()).then(|| step_ranks.iter().sum::<f64>() / step_ranks.len() as f64);
-        let row = schema::eval_row(episode, step, sw, edge_rank, m.catches_now, catchers.iter().map(|&s| m.catches_now_by[s]));
+        let row = schema::eval_row(
+            episode,
+            step,
+            sw,
+            edge_rank,
+            m.catches_now,
+            catchers.iter().map(|&s| m.catches_now_by[s]),
+        );
         if let Some(sw) = sw {
             self.sums.iter_mut().zip(sw.values()).for_each(|(a, v)| *a += v);
             self.steps += 1;
@@ -84,7 +91,14 @@ impl Accumulated {
         let pop = world.resource::<Population>();
         let range = pop.ranges[prey].clone();
         let arena = world.resource::<Arena>();
-        add_heading_correlation(arena, &pop.position[range.clone()], &pop.heading[range], self.diameter, &mut self.correlation, &mut self.variance);
+        add_heading_correlation(
+            arena,
+            &pop.position[range.clone()],
+            &pop.heading[range],
+            self.diameter,
+            &mut self.correlation,
+            &mut self.variance,
+        );
         row
     }
 
@@ -94,19 +108,34 @@ impl Accumulated {
         let total = self.nn_histogram.iter().sum::<u64>().max(1) as f64;
         let mut nn = String::from("from_diameters,to_diameters,from_m,to_m,fraction\n");
         for (b, count) in self.nn_histogram.iter().enumerate() {
-            let (lo, hi) = (b as f64 * NN_BIN_DIAMETERS, if b == NN_BINS { f64::INFINITY } else { (b + 1) as f64 * NN_BIN_DIAMETERS });
-            nn.push_str(&format!("{lo},{hi},{},{},{}\n", lo * self.diameter, hi * self.diameter, *count as f64 / total));
+            let (lo, hi) = (
+                b as f64 * NN_BIN_DIAMETERS,
+                if b == NN_BINS { f64::INFINITY } else { (b + 1) as f64 * NN_BIN_DIAMETERS },
+            );
+            nn.push_str(&format!(
+                "{lo},{hi},{},{},{}\n",
+                lo * self.diameter,
+                hi * self.diameter,
+                *count as f64 / total
+            ));
         }
         let (c_of_r, correlation_length) = heading_correlation(&self.correlation, self.variance, self.diameter);
         let mut correlation = String::from("from_m,to_m,pairs,c\n");
         for (b, (c, &(_, pairs))) in c_of_r.iter().zip(&self.correlation).enumerate() {
-            correlation.push_str(&format!("{},{},{pairs},{}\n", b as f64 * self.diameter, (b + 1) as f64 * self.diameter, blank(*c)));
+            correlation.push_str(&format!(
+                "{},{},{pairs},{}\n",
+                b as f64 * self.diameter,
+                (b + 1) as f64 * self.diameter,
+                blank(*c)
+            ));
         }
         let curve = sim.world().resource::<Confusion>();
-        let mut confusion = String::from("species,prey_in_view,samples,mean_abs_turn,mean_speed_fraction,catches_per_step\n");
+        let mut confusion =
+            String::from("species,prey_in_view,samples,mean_abs_turn,mean_speed_fraction,catches_per_step\n");
         for (s, bins) in curve.0.iter().enumerate().filter(|(s, _)| registry.prey_of(*s).next().is_some()) {
             for (b, bin) in bins.iter().enumerate() {
-                let (turn, speed, catches) = bin.means().map_or([None; 3], |(t, v, c)| [Some(t), Some(v), Some(c)]).into();
+                let (turn, speed, catches) =
+                    bin.means().map_or([None; 3], |(t, v, c)| [Some(t), Some(v), Some(c)]).into();
                 confusion.push_str(&format!(
                     "{},{},{},{},{},{}\n",
                     registry.defs[s].name,
@@ -130,7 +159,11 @@ impl Accumulated {
         let edge = if self.ranks.is_empty() {
             "no ranked catch".to_string()
         } else {
-            format!("edge rank of caught {name} {:.3} ({} catches)", self.ranks.iter().sum::<f64>() / self.ranks.len() as f64, self.ranks.len())
+            format!(
+                "edge rank of caught {name} {:.3} ({} catches)",
+                self.ranks.iter().sum::<f64>() / self.ranks.len() as f64,
+                self.ranks.len()
+            )
         };
         format!(
             "mean DoS {dos:.4}, DoA {doa:.4}, polarization {polarization:.3}, milling {milling:.3}, \

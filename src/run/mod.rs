@@ -110,7 +110,9 @@ impl RunDir {
             return refuse("is one of the run's own files; choose another name");
         }
         if let Some(suffix) = EVAL_BESIDE.iter().find(|s| stem.ends_with(&format!("-{s}"))) {
-            return refuse(&format!("ends in -{suffix}, the name of another evaluation's {suffix} file; choose another name"));
+            return refuse(&format!(
+                "ends in -{suffix}, the name of another evaluation's {suffix} file; choose another name"
+            ));
         }
         Ok(self.path.join(name))
     }
@@ -224,7 +226,8 @@ impl RunDir {
         if !path.exists() {
             return Ok(());
         }
-        let text = crate::io::read_text(&path, crate::io::MAX_TEXT_BYTES).map_err(|e| format!("{}: {e}", path.display()))?;
+        let text =
+            crate::io::read_text(&path, crate::io::MAX_TEXT_BYTES).map_err(|e| format!("{}: {e}", path.display()))?;
         let p: Provenance = ron::from_str(&text).map_err(|e| format!("{}: damaged ({e})", path.display()))?;
         match p.plugins.iter().find(|name| crate::sim::species::catalog::get(name).is_none()) {
             Some(name) => Err(format!(
@@ -287,7 +290,9 @@ pub fn check_name(name: &str) -> Result<(), String> {
         return Err("must be a single name: no path separator or control character".into());
     }
     if name.starts_with('.') {
-        return Err("must not start with a dot (., .. and hidden names would leave or hide in the results folder)".into());
+        return Err(
+            "must not start with a dot (., .. and hidden names would leave or hide in the results folder)".into()
+        );
     }
     Ok(())
 }
@@ -301,7 +306,19 @@ mod tests {
         let run = RunDir::new("/tmp/some-run");
         assert_eq!(run.eval_output(None).unwrap(), Path::new("/tmp/some-run/eval.csv"));
         assert!(run.eval_output(Some("eval-50-prey.csv")).is_ok());
-        for bad in ["metrics.csv", "scene.csv", "checkpoint.csv", "coevo.csv", "x-confusion.csv", "x-nn.csv", "../x.csv", ".x.csv", "x.ron", "a/b.csv", ".csv"] {
+        for bad in [
+            "metrics.csv",
+            "scene.csv",
+            "checkpoint.csv",
+            "coevo.csv",
+            "x-confusion.csv",
+            "x-nn.csv",
+            "../x.csv",
+            ".x.csv",
+            "x.ron",
+            "a/b.csv",
+            ".csv",
+        ] {
             assert!(run.eval_output(Some(bad)).is_err(), "{bad}");
         }
     }
@@ -318,6 +335,9 @@ mod tests {
         std::fs::write(dir.path().join("run").join(LOCK), "4294967295\n").unwrap();
         std::fs::write(dir.path().join("run").join(".metrics.csv.4294967295.tmp"), "half").unwrap();
         let _held = run.lock().unwrap();
-        assert!(!dir.path().join("run").join(".metrics.csv.4294967295.tmp").exists(), "a dead process's temporary is removed");
+        assert!(
+            !dir.path().join("run").join(".metrics.csv.4294967295.tmp").exists(),
+            "a dead process's temporary is removed"
+        );
     }
 }

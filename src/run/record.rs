@@ -11,9 +11,9 @@
 //! every step (`step,species,dos,doa,polarization,milling,clusters,largest_cluster,nn_correlation`, see
 //! [`crate::sim::metrics::Swarming`]); step 0, the spawned state, is not measured.
 
-use crate::sim::components::*;
-use crate::sim::clock::Episode;
 use crate::io::{AtomicFile, Existing};
+use crate::sim::clock::Episode;
+use crate::sim::components::*;
 use crate::sim::metrics::{SwarmMetrics, Swarming};
 use crate::sim::species::SpeciesRegistry;
 use crate::sim::Simulation;

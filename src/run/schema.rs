@@ -75,7 +75,12 @@ pub fn metrics_header(registry: &SpeciesRegistry, learners: &Learners) -> String
 }
 
 /// One episode's row of `metrics.csv` (takes the losses since the last row from the learners).
-pub fn metrics_row(e: &EpisodeSummary, registry: &SpeciesRegistry, learners: &mut Learners, wall_seconds: f64) -> String {
+pub fn metrics_row(
+    e: &EpisodeSummary,
+    registry: &SpeciesRegistry,
+    learners: &mut Learners,
+    wall_seconds: f64,
+) -> String {
     let mut cols = vec![e.episode.to_string(), e.steps.to_string()];
     for (s, edge_rank) in e.swarming.iter().zip(&e.edge_rank) {
         cols.extend(species_cells(*s, *edge_rank));
@@ -99,7 +104,8 @@ pub fn metrics_row(e: &EpisodeSummary, registry: &SpeciesRegistry, learners: &mu
 /// An evaluation's per-step header: the headline species' order parameters and the catches.
 pub fn eval_header(registry: &SpeciesRegistry, prey: usize) -> String {
     let columns: Vec<String> = species_columns(&registry.defs[prey].name).collect();
-    let by: String = split_catchers(registry).iter().map(|&s| format!(",{}", catches_by(&registry.defs[s].name))).collect();
+    let by: String =
+        split_catchers(registry).iter().map(|&s| format!(",{}", catches_by(&registry.defs[s].name))).collect();
     format!("{EPISODE},{STEP},{},{CATCHES}{by}", columns.join(","))
 }
 
@@ -154,7 +160,8 @@ pub struct Table {
 
 impl Table {
     pub fn read(path: &Path) -> Result<Table, String> {
-        let text = crate::io::read_text(path, crate::io::MAX_TEXT_BYTES).map_err(|e| format!("{}: {e}", path.display()))?;
+        let text =
+            crate::io::read_text(path, crate::io::MAX_TEXT_BYTES).map_err(|e| format!("{}: {e}", path.display()))?;
         let mut lines = text.lines();
         let header: Vec<String> = lines.next().unwrap_or("").split(',').map(str::to_string).collect();
         let rows: Vec<Vec<f64>> = lines
@@ -167,7 +174,11 @@ impl Table {
 
     /// A column by name.
     pub fn column(&self, name: &str) -> Result<Vec<f64>, String> {
-        let i = self.header.iter().position(|h| h == name).ok_or_else(|| format!("{}: no column {name}", self.path.display()))?;
+        let i = self
+            .header
+            .iter()
+            .position(|h| h == name)
+            .ok_or_else(|| format!("{}: no column {name}", self.path.display()))?;
         Ok(self.rows.iter().map(|r| r[i]).collect())
     }
 }

@@ -36,16 +36,23 @@ fn io_err(path: &Path) -> impl Fn(std::io::Error) -> String + '_ {
 fn check_resumable(run: &Path, scene: &Scene, state: &TrainingState, total: usize, asked: bool) -> Result<(), String> {
     let (now, then) = (scene.to_ron(), state.scene.to_ron());
     if now != then {
-        let line = now.lines().zip(then.lines()).find(|(a, b)| a != b).map_or_else(
-            || "its length".to_string(),
-            |(a, b)| format!("`{}` (trained with `{}`)", a.trim(), b.trim()),
-        );
+        let line = now
+            .lines()
+            .zip(then.lines())
+            .find(|(a, b)| a != b)
+            .map_or_else(|| "its length".to_string(), |(a, b)| format!("`{}` (trained with `{}`)", a.trim(), b.trim()));
         return Err(format!(
             "{}: differs from the scene the run was trained on (checkpoint/state.ron), first at {line}; a run continues only under its own scene: restore the file or train a new run",
             RunDir::new(run).scene().display()
         ));
     }
-    let rows: Vec<usize> = state.metrics_csv.lines().skip(1).filter(|l| !l.is_empty()).map(|l| l.split(',').next().and_then(|e| e.parse().ok()).unwrap_or(usize::MAX)).collect();
+    let rows: Vec<usize> = state
+        .metrics_csv
+        .lines()
+        .skip(1)
+        .filter(|l| !l.is_empty())
+        .map(|l| l.split(',').next().and_then(|e| e.parse().ok()).unwrap_or(usize::MAX))
+        .collect();
     if rows != (0..state.episodes_done).collect::<Vec<_>>() {
         return Err(format!(
             "{}: damaged checkpoint: episodes_done is {} but its metrics hold episodes {}; restore the checkpoint or train the run again",
@@ -58,7 +65,11 @@ fn check_resumable(run: &Path, scene: &Scene, state: &TrainingState, total: usiz
         ));
     }
     if total <= state.episodes_done {
-        let why = if asked { format!("--episodes {total} asks for no more") } else { "its scene's episodes are all done".to_string() };
+        let why = if asked {
+            format!("--episodes {total} asks for no more")
+        } else {
+            "its scene's episodes are all done".to_string()
+        };
         return Err(format!(
             "{}: already trained {} episodes and {why}; extend it with --resume {} --episodes N (N > {})",
             run.display(),
@@ -120,7 +131,8 @@ pub fn train(scene: Scene, opts: &TrainOptions) -> Result<Vec<EpisodeSummary>, S
             );
         }
         // A run begun by an older coevo keeps its rows, under today's columns (new ones blank).
-        metrics_text = schema::with_header(&state.metrics_csv, &schema::metrics_header(&registry, world.resource::<Learners>()));
+        metrics_text =
+            schema::with_header(&state.metrics_csv, &schema::metrics_header(&registry, world.resource::<Learners>()));
         wall_before = schema::last_wall_seconds(&metrics_text);
     } else {
         dir.check_new(opts.overwrite)?;

@@ -92,8 +92,7 @@ pub(super) fn readable(text: &str, e: &ron::error::SpannedError) -> String {
         return format!("must be a whole number (got {whole}{frac})");
     }
     if matches!(e.code, ron::Error::Eof) || unclosed(text) {
-        return "the file ends too early: a closing `)` or `]` is missing, or the file was cut short"
-            .into();
+        return "the file ends too early: a closing `)` or `]` is missing, or the file was cut short".into();
     }
     [
         ("`ScenePatch`", "the scene"),

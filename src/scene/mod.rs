@@ -308,8 +308,8 @@ pub struct ScenePatch {
 /// Reads RON text of a coevo file (a scene, an experiment) into `T`, with `Some` implied for optional
 /// fields, and errors in a user's words: `file:line: field: message`.
 pub fn parse_ron<T: serde::de::DeserializeOwned>(text: &str, file: &str) -> Result<T, SceneError> {
-    ron::Options::default().with_default_extension(ron::extensions::Extensions::IMPLICIT_SOME).from_str(text).map_err(|e| {
-        SceneError {
+    ron::Options::default().with_default_extension(ron::extensions::Extensions::IMPLICIT_SOME).from_str(text).map_err(
+        |e| SceneError {
             file: file.to_string(),
             line: Some(e.span.start.line),
             field: match &e.code {
@@ -317,8 +317,8 @@ pub fn parse_ron<T: serde::de::DeserializeOwned>(text: &str, file: &str) -> Resu
                 _ => field_before(text, e.span.start.line, e.span.start.col),
             },
             message: readable(text, &e),
-        }
-    })
+        },
+    )
 }
 
 /// The largest scene file read (a real one is a few hundred bytes).
@@ -382,8 +382,14 @@ impl Scene {
     /// between the `paper` and `gym-pps` presets).
     pub fn parse_with_preset(text: &str, file: &str, preset: Option<&str>) -> Result<Scene, SceneError> {
         let patch: ScenePatch = parse_ron(text, file)?;
-        let located = |field: String, message: String| SceneError { file: file.to_string(), line: locate(text, &field), field, message };
-        let preset_name = preset.map(str::to_string).or_else(|| patch.preset.clone()).unwrap_or_else(|| "paper".to_string());
+        let located = |field: String, message: String| SceneError {
+            file: file.to_string(),
+            line: locate(text, &field),
+            field,
+            message,
+        };
+        let preset_name =
+            preset.map(str::to_string).or_else(|| patch.preset.clone()).unwrap_or_else(|| "paper".to_string());
         let mut scene = Scene::preset(&preset_name).ok_or_else(|| {
             located("preset".into(), format!("unknown preset {preset_name:?} (known: {})", PRESETS.join(", ")))
         })?;

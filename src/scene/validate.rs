@@ -52,7 +52,12 @@ impl Scene {
             check(
                 s.name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-'),
                 &format!("species[{i}].name"),
-                || format!("{:?}: use letters, digits, _ and - only (it names CSV columns and checkpoint files)", s.name),
+                || {
+                    format!(
+                        "{:?}: use letters, digits, _ and - only (it names CSV columns and checkpoint files)",
+                        s.name
+                    )
+                },
             )?;
             check(self.species.iter().filter(|o| o.name == s.name).count() == 1, &f("name"), || {
                 format!("species name {:?} appears twice", s.name)
@@ -84,9 +89,15 @@ impl Scene {
             let field = format!("contact_rewards[{i}]");
             let catcher = self.species.iter().find(|s| s.name == r.catcher);
             check(catcher.is_some(), &field, || format!("no species named {:?} in this scene", r.catcher))?;
-            check(self.species.iter().any(|s| s.name == r.caught), &field, || format!("no species named {:?} in this scene", r.caught))?;
-            check(catcher.is_some_and(|c| c.catches.contains(&r.caught)), &field, || format!("{} does not catch {}", r.catcher, r.caught))?;
-            check(r.catcher_reward.is_finite() && r.caught_reward.is_finite(), &field, || "rewards must be finite numbers".into())?;
+            check(self.species.iter().any(|s| s.name == r.caught), &field, || {
+                format!("no species named {:?} in this scene", r.caught)
+            })?;
+            check(catcher.is_some_and(|c| c.catches.contains(&r.caught)), &field, || {
+                format!("{} does not catch {}", r.catcher, r.caught)
+            })?;
+            check(r.catcher_reward.is_finite() && r.caught_reward.is_finite(), &field, || {
+                "rewards must be finite numbers".into()
+            })?;
             check(
                 !self.contact_rewards[..i].iter().any(|o| o.catcher == r.catcher && o.caught == r.caught),
                 &field,

@@ -21,7 +21,13 @@ use std::ops::Range;
 
 /// Single-linkage clusters of `members` (indices into `positions`, the members of `grid`): the cluster
 /// label of each member, in member order, labels 0..k numbered by first appearance.
-pub fn cluster_labels(arena: &Arena, positions: &[DVec2], grid: &CellGrid, members: Range<usize>, link: f64) -> Vec<u32> {
+pub fn cluster_labels(
+    arena: &Arena,
+    positions: &[DVec2],
+    grid: &CellGrid,
+    members: Range<usize>,
+    link: f64,
+) -> Vec<u32> {
     let start = members.start;
     let mut parent: Vec<u32> = (0..members.len() as u32).collect();
     fn root(parent: &mut [u32], mut i: u32) -> u32 {
@@ -79,7 +85,14 @@ pub fn nn_correlation(headings: &[DVec2], nearest: &[usize]) -> f64 {
 /// 2010): for every pair (i, j) at minimum-image distance r in bin ⌊r / width⌋, `bins[b]` collects
 /// Σ δh_i·δh_j and the pair count; `variance` collects Σ_j |δh_j|² and the agents, to normalize:
 /// C(r) = (Σ_pairs δh_i·δh_j / pairs) / (Σ |δh|² / N). Pairs beyond the last bin are left out.
-pub fn add_heading_correlation(arena: &Arena, positions: &[DVec2], headings: &[DVec2], width: f64, bins: &mut [(f64, u64)], variance: &mut (f64, u64)) {
+pub fn add_heading_correlation(
+    arena: &Arena,
+    positions: &[DVec2],
+    headings: &[DVec2],
+    width: f64,
+    bins: &mut [(f64, u64)],
+    variance: &mut (f64, u64),
+) {
     let n = headings.len();
     if n < 2 {
         return;
@@ -110,10 +123,13 @@ pub fn heading_correlation(bins: &[(f64, u64)], variance: (f64, u64), width: f64
     for (b, value) in c.iter().enumerate() {
         let Some(value) = *value else { continue };
         if value <= 0.0 {
-            return (c.clone(), Some(match last {
-                Some((r0, c0)) => r0 + (centre(b) - r0) * c0 / (c0 - value),
-                None => centre(b),
-            }));
+            return (
+                c.clone(),
+                Some(match last {
+                    Some((r0, c0)) => r0 + (centre(b) - r0) * c0 / (c0 - value),
+                    None => centre(b),
+                }),
+            );
         }
         last = Some((centre(b), value));
     }
@@ -136,7 +152,13 @@ pub fn edge_rank(arena: &Arena, positions: &[DVec2], group: &[usize], j: usize) 
         .filter(|&&i| i != j)
         .map(|&i| {
             let d = distance(i);
-            if (d - dj).abs() <= 1e-12 { 0.5 } else if d < dj { 1.0 } else { 0.0 }
+            if (d - dj).abs() <= 1e-12 {
+                0.5
+            } else if d < dj {
+                1.0
+            } else {
+                0.0
+            }
         })
         .sum();
     Some(nearer / (group.len() - 1) as f64)
@@ -230,10 +252,14 @@ mod tests {
         let c = nn_correlation(&independent, &nearest);
         assert!(c.abs() < 0.05, "{c}");
         // Each pair shares its deviation: C_nn = 1.
-        let shared: Vec<DVec2> = (0..n / 2).map(|_| DVec2::from_angle(0.3 + rng.gen_range(-0.8..0.8))).flat_map(|h| [h, h]).collect();
+        let shared: Vec<DVec2> =
+            (0..n / 2).map(|_| DVec2::from_angle(0.3 + rng.gen_range(-0.8..0.8))).flat_map(|h| [h, h]).collect();
         assert!((nn_correlation(&shared, &nearest) - 1.0).abs() < 1e-12);
         // Opposite deviations: C_nn = −1.
-        let opposite: Vec<DVec2> = (0..n / 2).map(|_| rng.gen_range(-0.8..0.8)).flat_map(|d: f64| [DVec2::from_angle(d), DVec2::from_angle(-d)]).collect();
+        let opposite: Vec<DVec2> = (0..n / 2)
+            .map(|_| rng.gen_range(-0.8..0.8))
+            .flat_map(|d: f64| [DVec2::from_angle(d), DVec2::from_angle(-d)])
+            .collect();
         assert!(nn_correlation(&opposite, &nearest) < -0.9);
         // A perfect flock has no fluctuations to correlate.
         assert_eq!(nn_correlation(&[DVec2::X; 4], &[1, 0, 3, 2]), 0.0);
@@ -256,7 +282,8 @@ mod tests {
         assert!(r > 0.1 && r < 0.9, "{r}");
         assert_eq!(edge_rank(&arena, &pos, &group[..2], 0), None);
         // Averaged over every member, ranks are 0.5: no edge effect when catches are random.
-        let mean: f64 = group.iter().map(|&j| edge_rank(&arena, &pos, &group, j).unwrap()).sum::<f64>() / group.len() as f64;
+        let mean: f64 =
+            group.iter().map(|&j| edge_rank(&arena, &pos, &group, j).unwrap()).sum::<f64>() / group.len() as f64;
         assert!((mean - 0.5).abs() < 1e-12, "{mean}");
     }
 
@@ -277,7 +304,8 @@ mod tests {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(9);
         let (mut bins, mut var) = (vec![(0.0, 0); 4], (0.0, 0));
         for _ in 0..50 {
-            let pos: Vec<DVec2> = (0..100).map(|_| DVec2::new(rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0))).collect();
+            let pos: Vec<DVec2> =
+                (0..100).map(|_| DVec2::new(rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0))).collect();
             let head: Vec<DVec2> = (0..100).map(|_| DVec2::from_angle(rng.gen_range(-3.1..3.1))).collect();
             add_heading_correlation(&arena, &pos, &head, 0.5, &mut bins, &mut var);
         }

@@ -5,12 +5,12 @@
 //! inside a wall), headings uniform in (−π, π], velocities zero. Overlaps at spawn are allowed; the
 //! contact springs separate them. The paper is silent on this; it is what the authors' code does.
 
+use crate::scene::Boundary;
 use crate::sim::clock::Episode;
 use crate::sim::components::*;
 use crate::sim::metrics::{EpisodeLog, SwarmMetrics};
 use crate::sim::perception::Perceive;
 use crate::sim::physics::{PhysicsSet, FULL_ENERGY};
-use crate::scene::Boundary;
 use crate::sim::space::Arena;
 use crate::sim::species::SpeciesRegistry;
 use crate::sim::{ActiveScene, SimSet};

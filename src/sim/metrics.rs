@@ -47,7 +47,8 @@ pub struct Swarming {
 
 impl Swarming {
     /// Column names, in the order of [`Swarming::values`] (CSV headers append `_<species>`).
-    pub const NAMES: [&'static str; 7] = ["dos", "doa", "polarization", "milling", "clusters", "largest_cluster", "nn_correlation"];
+    pub const NAMES: [&'static str; 7] =
+        ["dos", "doa", "polarization", "milling", "clusters", "largest_cluster", "nn_correlation"];
 
     pub fn values(&self) -> [f64; 7] {
         [self.dos, self.doa, self.polarization, self.milling, self.clusters, self.largest_cluster, self.nn_correlation]
@@ -67,7 +68,9 @@ pub fn centre(arena: &Arena, positions: &[DVec2]) -> DVec2 {
         crate::scene::Boundary::Periodic => {
             let turn = std::f64::consts::TAU / arena.edge;
             let axis = |get: fn(&DVec2) -> f64| {
-                let (s, c) = positions.iter().fold((0.0, 0.0), |(s, c), p| (s + (get(p) * turn).sin(), c + (get(p) * turn).cos()));
+                let (s, c) = positions
+                    .iter()
+                    .fold((0.0, 0.0), |(s, c), p| (s + (get(p) * turn).sin(), c + (get(p) * turn).cos()));
                 s.atan2(c) / turn
             };
             DVec2::new(axis(|p| p.x), axis(|p| p.y))
@@ -86,7 +89,11 @@ pub fn polarization_and_milling(arena: &Arena, positions: &[DVec2], headings: &[
         .map(|(&x, h)| {
             let r = arena.delta(c, x);
             let d = r.length();
-            if d > 0.0 { (r.x * h.y - r.y * h.x) / d } else { 0.0 }
+            if d > 0.0 {
+                (r.x * h.y - r.y * h.x) / d
+            } else {
+                0.0
+            }
         })
         .sum();
     (polarization, (rotation / n).abs())
@@ -131,7 +138,8 @@ pub fn swarming(
         alignment += (headings[j] + headings[k]).length();
         nearest.push(k - start);
     }
-    let (polarization, milling) = polarization_and_milling(arena, &positions[members.clone()], &headings[members.clone()]);
+    let (polarization, milling) =
+        polarization_and_milling(arena, &positions[members.clone()], &headings[members.clone()]);
     let sizes = collective::cluster_sizes(labels);
     Some(Swarming {
         dos: distance / (n as f64 * arena.max_distance()),
@@ -239,10 +247,20 @@ impl SwarmMetrics {
         EpisodeSummary {
             episode,
             steps: sums.steps,
-            swarming: sums.swarming.iter().zip(&sums.agents).map(|(s, &n)| (n >= 2).then(|| Swarming::from_values(s.map(|v| v / t)))).collect(),
+            swarming: sums
+                .swarming
+                .iter()
+                .zip(&sums.agents)
+                .map(|(s, &n)| (n >= 2).then(|| Swarming::from_values(s.map(|v| v / t))))
+                .collect(),
             catches: sums.catches,
             catches_by: sums.catches_by,
-            mean_return: sums.rewards.iter().zip(&sums.agents).map(|(r, &n)| if n > 0 { r / n as f64 } else { 0.0 }).collect(),
+            mean_return: sums
+                .rewards
+                .iter()
+                .zip(&sums.agents)
+                .map(|(r, &n)| if n > 0 { r / n as f64 } else { 0.0 })
+                .collect(),
             edge_rank: sums.edge_ranks.iter().map(|&(sum, n)| (n > 0).then(|| sum / n as f64)).collect(),
         }
     }
@@ -293,7 +311,16 @@ fn measure(
     m.now = (0..n_species)
         .map(|s| {
             let out = &mut m.nn_distances_now[s];
-            swarming(&arena, &pop.position, &pop.heading, &pop.grids[s], pop.ranges[s].clone(), &pop.nearest_kin, &labels[s], out)
+            swarming(
+                &arena,
+                &pop.position,
+                &pop.heading,
+                &pop.grids[s],
+                pop.ranges[s].clone(),
+                &pop.nearest_kin,
+                &labels[s],
+                out,
+            )
         })
         .collect();
     // Marginal predation: where in its group each newly caught prey was.
@@ -315,7 +342,9 @@ fn measure(
             let radius = scene.0.confusion_radius.unwrap_or(registry.perception_radius[s]);
             let mut n = 0;
             for t in registry.prey_of(s) {
-                pop.grids[t].for_each_near(pop.position[i], radius, |_, x| n += (arena.delta(pop.position[i], x).length() <= radius) as u32);
+                pop.grids[t].for_each_near(pop.position[i], radius, |_, x| {
+                    n += (arena.delta(pop.position[i], x).length() <= radius) as u32
+                });
             }
             n
         })
@@ -362,8 +391,11 @@ mod tests {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
         let (mut total, samples) = (0.0, 400);
         for _ in 0..samples {
-            let pos: Vec<DVec2> = (0..50).map(|_| DVec2::new(rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0))).collect();
-            let head: Vec<DVec2> = (0..50).map(|_| DVec2::from_angle(rng.gen_range(-std::f64::consts::PI..std::f64::consts::PI))).collect();
+            let pos: Vec<DVec2> =
+                (0..50).map(|_| DVec2::new(rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0))).collect();
+            let head: Vec<DVec2> = (0..50)
+                .map(|_| DVec2::from_angle(rng.gen_range(-std::f64::consts::PI..std::f64::consts::PI)))
+                .collect();
             total += swarming_of(&arena, &pos, &head, 0.1).unwrap().doa;
         }
         let doa = total / samples as f64;
@@ -376,8 +408,12 @@ mod tests {
         // 24 agents on a circle, each heading along the tangent.
         let arena = Arena { edge: 2.0, boundary: Boundary::Periodic };
         let centre = DVec2::new(0.95, -0.97);
-        let pos: Vec<DVec2> = (0..24).map(|i| arena.wrap(centre + 0.3 * DVec2::from_angle(i as f64 * std::f64::consts::TAU / 24.0))).collect();
-        let tangent: Vec<DVec2> = (0..24).map(|i| DVec2::from_angle(i as f64 * std::f64::consts::TAU / 24.0 + std::f64::consts::FRAC_PI_2)).collect();
+        let pos: Vec<DVec2> = (0..24)
+            .map(|i| arena.wrap(centre + 0.3 * DVec2::from_angle(i as f64 * std::f64::consts::TAU / 24.0)))
+            .collect();
+        let tangent: Vec<DVec2> = (0..24)
+            .map(|i| DVec2::from_angle(i as f64 * std::f64::consts::TAU / 24.0 + std::f64::consts::FRAC_PI_2))
+            .collect();
         let c = super::centre(&arena, &pos);
         assert!(arena.delta(c, centre).length() < 1e-9, "centre {c} across the seam");
         let (p, m) = polarization_and_milling(&arena, &pos, &tangent);
@@ -394,7 +430,8 @@ mod tests {
         let n = 400;
         let (mut total, samples) = (0.0, 200);
         for _ in 0..samples {
-            let pos: Vec<DVec2> = (0..n).map(|_| DVec2::new(rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0))).collect();
+            let pos: Vec<DVec2> =
+                (0..n).map(|_| DVec2::new(rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0))).collect();
             let head: Vec<DVec2> = (0..n).map(|_| DVec2::from_angle(rng.gen_range(-3.15..3.15))).collect();
             total += polarization_and_milling(&Arena { edge: 2.0, boundary: Boundary::Walls }, &pos, &head).0;
         }

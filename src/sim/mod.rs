@@ -27,6 +27,7 @@ pub mod reward;
 pub mod space;
 pub mod species;
 
+use crate::scene::Scene;
 use bevy::ecs::schedule::{ScheduleLabel, SingleThreadedExecutor};
 use bevy::prelude::*;
 use clock::Episode;
@@ -36,7 +37,6 @@ use perception::PerceptionPlugin;
 use physics::PhysicsPlugin;
 use policy::PolicyPlugin;
 use reward::RewardPlugin;
-use crate::scene::Scene;
 
 /// The scene the world runs, as resolved from its file and preset.
 #[derive(Resource, Clone, Debug)]

@@ -12,8 +12,8 @@
 //! Δ the minimum-image displacement, never itself; empty slots are zeros. For the paper's predators and
 //! prey with limit 6 that is 6 + 4·(6 + 6) = 54 numbers.
 
-use crate::sim::components::*;
 use crate::scene::{ObservationFrame, Scene};
+use crate::sim::components::*;
 use crate::sim::space::{Arena, CellGrid};
 use crate::sim::species::{SpeciesRegistry, ACTION_DIM, NEIGHBOUR_DIM, OWN_STATE_DIM};
 use crate::sim::ActiveScene;
@@ -159,7 +159,11 @@ fn index_population(
 ) {
     let turn_of = |s: usize, a: &Action| {
         let max = registry.defs[s].max_turn_rate;
-        if max > 0.0 { a.turn_rate / max } else { 0.0 }
+        if max > 0.0 {
+            a.turn_rate / max
+        } else {
+            0.0
+        }
     };
     let mut order: Vec<_> = agents
         .iter()

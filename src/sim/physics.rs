@@ -13,8 +13,8 @@
 //! update; the authors' code uses the updated velocity, which is also the stable choice with stiff
 //! springs (parameters.md, "Integration order").
 
-use crate::sim::components::*;
 use crate::scene::SpeedClip;
+use crate::sim::components::*;
 use crate::sim::space::Arena;
 use crate::sim::species::SpeciesRegistry;
 use crate::sim::{ActiveScene, SimSet};
@@ -54,7 +54,13 @@ pub struct Fault {
 impl StateFault {
     /// Keeps the first fault of a run: agent `agent` of species `species` went wrong during the step that
     /// follows `episode`'s current one.
-    fn report(&mut self, episode: &crate::sim::clock::Episode, agent: u32, species: usize, what: impl FnOnce() -> String) {
+    fn report(
+        &mut self,
+        episode: &crate::sim::clock::Episode,
+        agent: u32,
+        species: usize,
+        what: impl FnOnce() -> String,
+    ) {
         if self.0.is_none() {
             self.0 = Some(Fault { episode: episode.index, step: episode.step + 1, agent, species, what: what() });
         }
@@ -146,7 +152,13 @@ fn integrate(
         v.0 = new_v;
         x.0 += new_v * dt;
         if !(new_v.is_finite() && x.0.is_finite() && theta.0.is_finite()) {
-            let quantity = if !new_v.is_finite() { "velocity" } else if !x.0.is_finite() { "position" } else { "heading" };
+            let quantity = if !new_v.is_finite() {
+                "velocity"
+            } else if !x.0.is_finite() {
+                "position"
+            } else {
+                "heading"
+            };
             fault.report(&episode, id.0, species.0, || format!("{quantity} is not finite"));
         }
     }
@@ -166,7 +178,8 @@ fn apply_boundary(
         // back; a centre beyond that has escaped the arena.
         let reach = arena.half() + body.radius + registry.defs[species.0].max_speed * scene.0.world.dt * 2.0;
         if x.0.abs().max_element() > reach {
-            fault.report(&episode, id.0, species.0, || format!("left the arena (centre at {:.3}, {:.3})", x.0.x, x.0.y));
+            fault
+                .report(&episode, id.0, species.0, || format!("left the arena (centre at {:.3}, {:.3})", x.0.x, x.0.y));
         }
     }
 }

@@ -11,9 +11,9 @@
 //! after the move (`paper`) or before it (`gym-pps`). Species plugins add terms of their own after
 //! [`RewardStage::Survival`].
 
+use crate::scene::{ContactJudging, RewardParams, WallPenaltyMode};
 use crate::sim::components::*;
 use crate::sim::perception::Batches;
-use crate::scene::{ContactJudging, RewardParams, WallPenaltyMode};
 use crate::sim::{ActiveScene, SimSet};
 use bevy::prelude::*;
 

@@ -155,19 +155,29 @@ impl SpeciesPlugins {
     /// Puts every template in the program's catalog, after checking that no two species share a name
     /// (with each other or the presets' species) and that every species an interaction names exists.
     pub fn register(&self) -> Result<(), String> {
-        let preset_names: Vec<String> =
-            crate::scene::PRESETS.iter().filter_map(|p| Scene::preset(p)).flat_map(|s| s.species.into_iter().map(|d| d.name)).collect();
+        let preset_names: Vec<String> = crate::scene::PRESETS
+            .iter()
+            .filter_map(|p| Scene::preset(p))
+            .flat_map(|s| s.species.into_iter().map(|d| d.name))
+            .collect();
         let mut known: Vec<String> = preset_names.clone();
         for t in &self.templates {
             let name = &t.def.name;
             if known.contains(name) {
                 let whose = if preset_names.contains(name) { "a preset's species" } else { "another species plugin" };
-                return Err(format!("species plugin {name:?}: {whose} has that name already; give each species its own name"));
+                return Err(format!(
+                    "species plugin {name:?}: {whose} has that name already; give each species its own name"
+                ));
             }
             known.push(name.clone());
         }
         for t in &self.templates {
-            let names = t.def.catches.iter().chain(&t.caught_by).chain(t.contact_rewards.iter().flat_map(|r| [&r.catcher, &r.caught]));
+            let names = t
+                .def
+                .catches
+                .iter()
+                .chain(&t.caught_by)
+                .chain(t.contact_rewards.iter().flat_map(|r| [&r.catcher, &r.caught]));
             for other in names {
                 if !known.contains(other) {
                     return Err(format!(
@@ -221,7 +231,11 @@ pub fn describe(scene: &Scene, source: &str) -> String {
     use std::fmt::Write as _;
     let r = SpeciesRegistry::from_scene(scene);
     let mut out = String::new();
-    let _ = writeln!(out, "scene {source}: preset {}, seed {}, {:?} observations", scene.preset, scene.seed, scene.observation_frame);
+    let _ = writeln!(
+        out,
+        "scene {source}: preset {}, seed {}, {:?} observations",
+        scene.preset, scene.seed, scene.observation_frame
+    );
     let _ = writeln!(out, "\nspecies (registry order = the order of observation blocks):");
     for (s, d) in r.defs.iter().enumerate() {
         let _ = writeln!(
@@ -249,7 +263,12 @@ pub fn describe(scene: &Scene, source: &str) -> String {
         for t in 0..r.len() {
             let from = r.block_offset(s, t);
             let slots = r.defs[s].topological_limit;
-            let _ = writeln!(out, "  [{from}, {}) {}: {slots} slots × {NEIGHBOUR_DIM}", from + slots * NEIGHBOUR_DIM, r.defs[t].name);
+            let _ = writeln!(
+                out,
+                "  [{from}, {}) {}: {slots} slots × {NEIGHBOUR_DIM}",
+                from + slots * NEIGHBOUR_DIM,
+                r.defs[t].name
+            );
         }
     }
     let _ = writeln!(out, "\nresolved scene:\n{}", scene.to_ron());

@@ -41,7 +41,13 @@ impl Plugin for CapturePlugin {
     fn build(&self, app: &mut App) {
         app.init_resource::<ScreenshotQueue>().add_systems(Last, (screenshot_key, one_shot, take_screenshots).chain());
         if let Some(request) = &self.request {
-            app.insert_resource(OneShot { request: request.clone(), frames: 0, timing_from: None, requested_at: None, outcome: None });
+            app.insert_resource(OneShot {
+                request: request.clone(),
+                frames: 0,
+                timing_from: None,
+                requested_at: None,
+                outcome: None,
+            });
         }
     }
 }
@@ -60,21 +66,27 @@ fn screenshot_key(keys: Res<ButtonInput<KeyCode>>, mut queue: ResMut<ScreenshotQ
 
 fn take_screenshots(mut commands: Commands, mut queue: ResMut<ScreenshotQueue>) {
     for path in queue.0.drain(..) {
-        commands.spawn(Screenshot::primary_window()).observe(move |captured: On<ScreenshotCaptured>, shot: Option<ResMut<OneShot>>| {
-            let outcome = save_png(&captured.image, &path);
-            match &outcome {
-                Ok(()) => info!("screenshot saved to {}", path.display()),
-                Err(e) => error!("{e}"),
-            }
-            if let Some(mut shot) = shot.filter(|s| s.request.path == path) {
-                shot.outcome = Some(outcome);
-            }
-        });
+        commands.spawn(Screenshot::primary_window()).observe(
+            move |captured: On<ScreenshotCaptured>, shot: Option<ResMut<OneShot>>| {
+                let outcome = save_png(&captured.image, &path);
+                match &outcome {
+                    Ok(()) => info!("screenshot saved to {}", path.display()),
+                    Err(e) => error!("{e}"),
+                }
+                if let Some(mut shot) = shot.filter(|s| s.request.path == path) {
+                    shot.outcome = Some(outcome);
+                }
+            },
+        );
     }
 }
 
 fn save_png(image: &Image, path: &Path) -> Result<(), String> {
-    let rgb = image.clone().try_into_dynamic().map_err(|e| format!("{}: cannot convert the screenshot: {e}", path.display()))?.to_rgb8();
+    let rgb = image
+        .clone()
+        .try_into_dynamic()
+        .map_err(|e| format!("{}: cannot convert the screenshot: {e}", path.display()))?
+        .to_rgb8();
     if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
     }

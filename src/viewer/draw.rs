@@ -7,9 +7,9 @@
 //! streak. Overlays are gizmos: trails, catches, the selected agent's perception radius and neighbours.
 
 use super::ViewerSet;
-use crate::sim::components::{AgentId, Body, Contacts, Heading, Position, SpeciesId, Slot};
-use crate::sim::perception::{neighbour_slot, Batches};
 use crate::scene::Boundary;
+use crate::sim::components::{AgentId, Body, Contacts, Heading, Position, Slot, SpeciesId};
+use crate::sim::perception::{neighbour_slot, Batches};
 use crate::sim::space::Arena;
 use crate::sim::species::SpeciesRegistry;
 use crate::sim::ActiveScene;
@@ -238,7 +238,10 @@ fn place_ghosts(
     looks: Res<Looks>,
     arena: Res<Arena>,
     agents: Query<(&Position, &Heading, &Body, &SpeciesId), With<AgentId>>,
-    mut ghosts: Query<(Entity, &Ghost, &mut Transform, &mut Visibility, &mut MeshMaterial2d<ColorMaterial>), Without<AgentId>>,
+    mut ghosts: Query<
+        (Entity, &Ghost, &mut Transform, &mut Visibility, &mut MeshMaterial2d<ColorMaterial>),
+        Without<AgentId>,
+    >,
     mut lines: Query<&mut MeshMaterial2d<ColorMaterial>, (Without<Ghost>, Without<AgentId>)>,
 ) {
     let mut pool = ghosts.iter_mut();
@@ -385,7 +388,20 @@ pub fn record_trails(world: &mut World) {
     }
 }
 
-type OverlayAgents<'w, 's> = Query<'w, 's, (&'static AgentId, &'static Position, &'static Heading, &'static Body, &'static SpeciesId, &'static Contacts, &'static Slot, Option<&'static Trail>)>;
+type OverlayAgents<'w, 's> = Query<
+    'w,
+    's,
+    (
+        &'static AgentId,
+        &'static Position,
+        &'static Heading,
+        &'static Body,
+        &'static SpeciesId,
+        &'static Contacts,
+        &'static Slot,
+        Option<&'static Trail>,
+    ),
+>;
 
 fn draw_overlays(
     mut gizmos: Gizmos,
@@ -410,7 +426,13 @@ fn draw_overlays(
                 for (k, (a, b)) in trail.0.iter().zip(trail.0.iter().skip(1)).enumerate() {
                     // Fading with age; the segment is a minimum-image step, so the seam shows no streak.
                     let alpha = |k: usize| 0.55 * k as f32 / n as f32;
-                    wrapped_line(&mut gizmos, &arena, *a, *a + arena.delta(*a, *b), (c.with_alpha(alpha(k)), c.with_alpha(alpha(k + 1))));
+                    wrapped_line(
+                        &mut gizmos,
+                        &arena,
+                        *a,
+                        *a + arena.delta(*a, *b),
+                        (c.with_alpha(alpha(k)), c.with_alpha(alpha(k + 1))),
+                    );
                 }
             }
         }

@@ -88,7 +88,9 @@ impl Setup {
         }
         scene.validate().map_err(|(field, message)| format!("{}: {field}: {message}", self.source.display()))?;
         // The viewer registers no plugin policies of its own.
-        crate::sim::policy::PolicyPlugins::default().check(&scene).map_err(|e| format!("{}: {e}", self.source.display()))?;
+        crate::sim::policy::PolicyPlugins::default()
+            .check(&scene)
+            .map_err(|e| format!("{}: {e}", self.source.display()))?;
         let (mode, run) = match &self.mode {
             RunMode::Watch(run) => (Mode::Evaluate, Some(run.as_path())),
             _ => (Mode::Train, None),

@@ -10,11 +10,11 @@ use super::capture::ScreenshotQueue;
 use super::draw::{species_colour, Overlays, PanelSpace, Selection};
 use super::plots::{self, History};
 use super::{run_folders, scene_files, Control, Playback, RunMode, Setup};
-use crate::sim::components::{Action, AgentId, Contacts, Heading, Position, Reward, Slot, SpeciesId, Velocity};
-use crate::sim::clock::Episode;
 use crate::learning::Learners;
-use crate::sim::perception::{neighbour_slot, Batches};
 use crate::scene::{Boundary, Perception, Scene, PRESETS};
+use crate::sim::clock::Episode;
+use crate::sim::components::{Action, AgentId, Contacts, Heading, Position, Reward, Slot, SpeciesId, Velocity};
+use crate::sim::perception::{neighbour_slot, Batches};
 use crate::sim::species::{SpeciesRegistry, OWN_STATE_DIM};
 use bevy::ecs::system::SystemParam;
 use bevy::prelude::*;
@@ -86,7 +86,10 @@ fn controls(
                 ui.separator();
                 ui.label("Overlays");
                 ui.checkbox(&mut overlays.trails, "trails");
-                ui.add_enabled(overlays.trails, egui::Slider::new(&mut overlays.trail_length, 2..=400).text("trail steps"));
+                ui.add_enabled(
+                    overlays.trails,
+                    egui::Slider::new(&mut overlays.trail_length, 2..=400).text("trail steps"),
+                );
                 ui.checkbox(&mut overlays.catches, "highlight catches");
                 ui.checkbox(&mut overlays.perception, "perception of the selected agent");
                 if ui.button("Screenshot (F12)").clicked() {
@@ -111,10 +114,17 @@ fn status(ui: &mut egui::Ui, c: &Control, playback: &Playback, w: &Status) {
         w.registry.defs.iter().map(|d| d.count).sum::<usize>()
     ));
     let fps = 1.0 / w.time.delta_secs_f64().max(1e-6);
-    ui.label(format!("{:.0} steps/s  ·  {fps:.0} fps  ·  {} steps run", playback.steps_per_second, playback.total_steps));
+    ui.label(format!(
+        "{:.0} steps/s  ·  {fps:.0} fps  ·  {} steps run",
+        playback.steps_per_second, playback.total_steps
+    ));
     for (s, l) in w.learners.species.iter().enumerate() {
         if let Some(l) = l {
-            let what = if l.frozen { "frozen".to_string() } else { format!("learning: σ {:.3}, ε {:.3}, {} transitions", l.noise_std, l.epsilon, l.buffer.len) };
+            let what = if l.frozen {
+                "frozen".to_string()
+            } else {
+                format!("learning: σ {:.3}, ε {:.3}, {} transitions", l.noise_std, l.epsilon, l.buffer.len)
+            };
             ui.label(format!("{}: {what}", w.registry.defs[s].name));
         }
     }
@@ -139,7 +149,13 @@ fn mode_and_files(ui: &mut egui::Ui, c: &mut Control, draft: &mut Scene) {
     egui::ComboBox::from_label("run")
         .selected_text(match &c.current.mode {
             RunMode::Watch(run) => file_name(run),
-            _ => if runs.is_empty() { "no runs/ yet".into() } else { "choose…".into() },
+            _ => {
+                if runs.is_empty() {
+                    "no runs/ yet".into()
+                } else {
+                    "choose…".into()
+                }
+            }
         })
         .show_ui(ui, |ui| {
             for run in &runs {
@@ -197,7 +213,10 @@ fn playback_controls(ui: &mut egui::Ui, p: &mut Playback) {
         }
     });
     ui.checkbox(&mut p.as_fast_as_possible, "as fast as possible");
-    ui.add_enabled(!p.as_fast_as_possible, egui::Slider::new(&mut p.steps_per_frame, 1..=500).logarithmic(true).text("steps / frame"));
+    ui.add_enabled(
+        !p.as_fast_as_possible,
+        egui::Slider::new(&mut p.steps_per_frame, 1..=500).logarithmic(true).text("steps / frame"),
+    );
 }
 
 fn population(ui: &mut egui::Ui, c: &mut Control, registry: &SpeciesRegistry) {
@@ -205,7 +224,12 @@ fn population(ui: &mut egui::Ui, c: &mut Control, registry: &SpeciesRegistry) {
     let mut counts: Vec<usize> = registry.defs.iter().map(|d| d.count).collect();
     let mut apply = false;
     for (def, n) in registry.defs.iter().zip(counts.iter_mut()) {
-        let r = ui.add(egui::Slider::new(n, 0..=2000).logarithmic(true).text(&def.name).text_color(to_egui(species_colour(def.colour))));
+        let r = ui.add(
+            egui::Slider::new(n, 0..=2000)
+                .logarithmic(true)
+                .text(&def.name)
+                .text_color(to_egui(species_colour(def.colour))),
+        );
         apply |= r.drag_stopped() || (r.changed() && !r.dragged());
     }
     if apply {
@@ -246,7 +270,13 @@ fn parameters(ui: &mut egui::Ui, c: &mut Control, draft: &mut Scene) {
     if let Some(predator) = registry.predators_of(prey).next() {
         let v_predator = draft.species[predator].max_speed;
         let mut ratio = draft.species[prey].max_speed / v_predator;
-        if ui.add(egui::Slider::new(&mut ratio, 0.1..=3.0).text(format!("speed ratio {}/{}", draft.species[prey].name, draft.species[predator].name))).changed() {
+        if ui
+            .add(
+                egui::Slider::new(&mut ratio, 0.1..=3.0)
+                    .text(format!("speed ratio {}/{}", draft.species[prey].name, draft.species[predator].name)),
+            )
+            .changed()
+        {
             draft.species[prey].max_speed = ratio * v_predator;
         }
     }
@@ -282,7 +312,17 @@ const INSPECTOR_WIDTH: f32 = 370.0;
 type Inspected<'w, 's> = Query<
     'w,
     's,
-    (&'static AgentId, &'static SpeciesId, &'static Position, &'static Velocity, &'static Heading, &'static Action, &'static Reward, &'static Contacts, &'static Slot),
+    (
+        &'static AgentId,
+        &'static SpeciesId,
+        &'static Position,
+        &'static Velocity,
+        &'static Heading,
+        &'static Action,
+        &'static Reward,
+        &'static Contacts,
+        &'static Slot,
+    ),
 >;
 
 fn inspector(
@@ -321,12 +361,36 @@ fn inspector(
     Ok(())
 }
 
-type AgentRow<'a> = (&'a AgentId, &'a SpeciesId, &'a Position, &'a Velocity, &'a Heading, &'a Action, &'a Reward, &'a Contacts, &'a Slot);
+type AgentRow<'a> = (
+    &'a AgentId,
+    &'a SpeciesId,
+    &'a Position,
+    &'a Velocity,
+    &'a Heading,
+    &'a Action,
+    &'a Reward,
+    &'a Contacts,
+    &'a Slot,
+);
 
-fn agent_details(ui: &mut egui::Ui, a: AgentRow, registry: &SpeciesRegistry, batches: &Batches, frame: crate::scene::ObservationFrame) {
+fn agent_details(
+    ui: &mut egui::Ui,
+    a: AgentRow,
+    registry: &SpeciesRegistry,
+    batches: &Batches,
+    frame: crate::scene::ObservationFrame,
+) {
     let (id, s, x, v, h, action, reward, contacts, slot) = a;
     let def = &registry.defs[s.0];
-    ui.label(format!("{} #{}  ·  x ({:.3}, {:.3})  ·  |v| {:.3} m/s  ·  θ {:.2} rad", def.name, id.0, x.0.x, x.0.y, v.0.length(), h.0));
+    ui.label(format!(
+        "{} #{}  ·  x ({:.3}, {:.3})  ·  |v| {:.3} m/s  ·  θ {:.2} rad",
+        def.name,
+        id.0,
+        x.0.x,
+        x.0.y,
+        v.0.length(),
+        h.0
+    ));
     ui.label(format!("action: thrust a_F {:.3} N, turn rate a_R {:+.3} rad/s", action.thrust, action.turn_rate));
     ui.label(format!(
         "reward of the last step {:+.4}  ·  contacts: catching {}, caught {}, walls {}",
@@ -350,7 +414,11 @@ fn agent_details(ui: &mut egui::Ui, a: AgentRow, registry: &SpeciesRegistry, bat
     } else {
         ui.label(format!("observation, {} numbers; own state: x {}, v {}, h {}", obs.len(), own(0), own(2), own(4)));
     }
-    let headers = if body { ["neighbour", "Δ ahead", "Δ left", "Δh ahead", "Δh left"] } else { ["neighbour", "Δx", "Δy", "Δh_x", "Δh_y"] };
+    let headers = if body {
+        ["neighbour", "Δ ahead", "Δ left", "Δh ahead", "Δh left"]
+    } else {
+        ["neighbour", "Δx", "Δy", "Δh_x", "Δh_y"]
+    };
     egui::ScrollArea::vertical().id_salt("observation").max_height(200.0).show(ui, |ui| {
         egui::Grid::new("obs").striped(true).num_columns(5).show(ui, |ui| {
             for header in headers {

@@ -2,9 +2,9 @@
 #![allow(dead_code)]
 
 use bevy::math::DVec2;
+use coevo::scene::{Boundary, Policy, Scene};
 use coevo::sim::components::*;
 use coevo::sim::perception::Perceive;
-use coevo::scene::{Boundary, Policy, Scene};
 use coevo::sim::Simulation;
 
 /// The `paper` preset with the given counts and policies, on the given boundary.
