@@ -444,8 +444,6 @@ pub fn plot_run(dir: &Path) -> Result<std::path::PathBuf, String> {
 
 #[cfg(test)]
 mod tests {
-    use super::*;
-
     #[test]
     fn names_with_commas_stay_one_csv_field() {
         assert_eq!(super::csv_text("5:3"), "5:3");

@@ -16,6 +16,10 @@
 //! Bevy's own fixed-step loop is told not to run `FixedUpdate`: the viewer steps it itself, so the pace is
 //! steps per frame, not wall-clock time, and every step is exactly a headless step (same seed, same run).
 
+// Bevy systems take what they read and write as arguments, and their queries spell out component
+// tuples: both lints flag the ordinary shape of a system.
+#![allow(clippy::too_many_arguments, clippy::type_complexity)]
+
 mod capture;
 mod draw;
 mod panel;
