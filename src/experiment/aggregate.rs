@@ -1,7 +1,7 @@
 //! From the runs' CSV files alone (never retraining): per-run summaries, means with 95 % confidence
 //! intervals over seeds, the figures, and the paper's claims checked against them.
 
-use super::claims::{quantity, values, verdict, window_mean, ClaimResult, SETTLED_STEPS, WINDOW};
+use super::claims::{quantity, values, verdict, window_mean, ClaimResult, EvalData, RunData, SETTLED_STEPS, WINDOW};
 use super::plot::{self, Curve, EstimatePanel, Panel, Row};
 use super::runner::{eval_file, stage, Stage};
 use super::stats::{difference, estimate, mean, running_mean};
@@ -13,41 +13,6 @@ use crate::sim::species::SpeciesRegistry;
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::Path;
-
-/// A run's episodes (prey, or the headline species) and its evaluations.
-#[derive(Clone, Debug, Default)]
-pub struct RunData {
-    pub dos: Vec<f64>,
-    pub doa: Vec<f64>,
-    pub catches: Vec<f64>,
-    pub returns: Vec<f64>,
-    /// The other per-episode order parameters by name ([`super::EVAL_ORDER`]); NaN for episodes (or
-    /// runs) written before they were measured.
-    pub orders: BTreeMap<String, Vec<f64>>,
-    pub wall_seconds: f64,
-    /// Per evaluation, by name.
-    pub evals: BTreeMap<String, EvalData>,
-}
-
-/// One evaluation of a run.
-#[derive(Clone, Debug, Default)]
-pub struct EvalData {
-    /// Per order parameter of [`Swarming::NAMES`] (DoS, DoA, polarization, ...): its value per step,
-    /// averaged over the evaluation's episodes (NaN throughout for columns an older coevo did not write).
-    pub per_step: Vec<Vec<f64>>,
-    /// Mean edge rank over every ranked catch of the evaluation (NaN without one).
-    pub edge_rank: f64,
-    /// The confusion curve of the first predator species in `<eval>-confusion.csv`, per bin of prey in
-    /// view: mean |turn command|, mean speed / max speed, catches per predator-step (NaN for empty bins;
-    /// empty when the file is absent).
-    pub confusion: Vec<[f64; 3]>,
-}
-
-impl EvalData {
-    pub fn series(&self, name: &str) -> &[f64] {
-        Swarming::NAMES.iter().position(|n| *n == name).and_then(|i| self.per_step.get(i)).map_or(&[], |v| v.as_slice())
-    }
-}
 
 /// The first species' rows of a confusion curve file (`species,prey_in_view,samples,mean_abs_turn,
 /// mean_speed_fraction,catches_per_step`); empty when there is no file.

@@ -1,9 +1,46 @@
-//! What an experiment measures and concludes: the quantities computed per run from its CSV files
-//! ([`quantity`]), their names in reports, and the verdict on a claim ([`verdict`]).
+//! What an experiment measures and concludes: the data of a run read from its CSV files ([`RunData`]),
+//! the quantities computed from it ([`quantity`]), their names in reports, and the verdict on a claim
+//! ([`verdict`]).
 
-use super::aggregate::RunData;
 use super::stats::{mean, Estimate};
 use super::{Claim, Experiment, Quantity};
+use crate::sim::metrics::Swarming;
+use std::collections::BTreeMap;
+
+/// A run's episodes (prey, or the headline species) and its evaluations.
+#[derive(Clone, Debug, Default)]
+pub struct RunData {
+    pub dos: Vec<f64>,
+    pub doa: Vec<f64>,
+    pub catches: Vec<f64>,
+    pub returns: Vec<f64>,
+    /// The other per-episode order parameters by name ([`super::EVAL_ORDER`]); NaN for episodes (or
+    /// runs) written before they were measured.
+    pub orders: BTreeMap<String, Vec<f64>>,
+    pub wall_seconds: f64,
+    /// Per evaluation, by name.
+    pub evals: BTreeMap<String, EvalData>,
+}
+
+/// One evaluation of a run.
+#[derive(Clone, Debug, Default)]
+pub struct EvalData {
+    /// Per order parameter of [`Swarming::NAMES`] (DoS, DoA, polarization, ...): its value per step,
+    /// averaged over the evaluation's episodes (NaN throughout for columns an older coevo did not write).
+    pub per_step: Vec<Vec<f64>>,
+    /// Mean edge rank over every ranked catch of the evaluation (NaN without one).
+    pub edge_rank: f64,
+    /// The confusion curve of the first predator species in `<eval>-confusion.csv`, per bin of prey in
+    /// view: mean |turn command|, mean speed / max speed, catches per predator-step (NaN for empty bins;
+    /// empty when the file is absent).
+    pub confusion: Vec<[f64; 3]>,
+}
+
+impl EvalData {
+    pub fn series(&self, name: &str) -> &[f64] {
+        Swarming::NAMES.iter().position(|n| *n == name).and_then(|i| self.per_step.get(i)).map_or(&[], |v| v.as_slice())
+    }
+}
 
 /// The paper's running-mean window, in episodes.
 pub const WINDOW: usize = 100;
