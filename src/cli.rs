@@ -286,7 +286,7 @@ fn one_line(e: &clap::Error) -> String {
 /// non-zero exit on any error.
 pub fn main(species: SpeciesPlugins) -> ExitCode {
     if let Err(e) = species.register() {
-        return fail(&e);
+        return fail(&e.to_string());
     }
     let matches = match command().try_get_matches() {
         Ok(m) => m,
@@ -303,7 +303,7 @@ pub fn main(species: SpeciesPlugins) -> ExitCode {
     }
     match run(cli, call) {
         Ok(()) => ExitCode::SUCCESS,
-        Err(message) => fail(&message),
+        Err(e) => fail(&e.to_string()),
     }
 }
 
@@ -313,9 +313,9 @@ fn fail(message: &str) -> ExitCode {
 }
 
 /// A count-like flag that must be ≥ 1.
-fn at_least_one(flag: &str, value: Option<usize>) -> Result<(), String> {
+fn at_least_one(flag: &str, value: Option<usize>) -> crate::error::Result<()> {
     match value {
-        Some(0) => Err(format!("{flag}: must be ≥ 1 (got 0)")),
+        Some(0) => Err(format!("{flag}: must be ≥ 1 (got 0)").into()),
         _ => Ok(()),
     }
 }
@@ -323,7 +323,7 @@ fn at_least_one(flag: &str, value: Option<usize>) -> Result<(), String> {
 /// What the call changes of the scene it loads: --prey, --predators and --count (in that order),
 /// --seed, and --steps per episode when `steps` (--eval; --record and --animate run --steps as one
 /// episode).
-fn overrides(cli: &Cli, steps: bool) -> Result<Overrides, String> {
+fn overrides(cli: &Cli, steps: bool) -> crate::error::Result<Overrides> {
     let mut counts: Vec<(String, usize)> = cli.prey.map(|n| ("prey".to_string(), n)).into_iter().collect();
     counts.extend(cli.predators.map(|n| ("predator".to_string(), n)));
     for c in &cli.count {
@@ -339,14 +339,14 @@ fn overrides(cli: &Cli, steps: bool) -> Result<Overrides, String> {
 }
 
 /// The scene file of the call (--scene, else `default`) with the call's overrides applied and validated.
-fn load_scene(cli: &Cli, default: &Path, overrides: &Overrides) -> Result<(Scene, PathBuf), String> {
+fn load_scene(cli: &Cli, default: &Path, overrides: &Overrides) -> crate::error::Result<(Scene, PathBuf)> {
     let path = cli.scene.clone().unwrap_or_else(|| default.to_path_buf());
-    let mut scene = Scene::load(&path).map_err(|e| e.to_string())?;
+    let mut scene = Scene::load(&path)?;
     overrides.apply(&mut scene, &path)?;
     Ok((scene, path))
 }
 
-fn run(cli: Cli, call: Call) -> Result<(), String> {
+fn run(cli: Cli, call: Call) -> crate::error::Result<()> {
     at_least_one("--threads", cli.threads)?;
     if let Some(n) = cli.threads {
         crate::parallel::set_threads(n);
@@ -358,7 +358,7 @@ fn run(cli: Cli, call: Call) -> Result<(), String> {
         Call::Bench => {
             let seconds = cli.bench_seconds.unwrap_or(2.0);
             if !(seconds > 0.0 && seconds <= 3600.0) {
-                return Err(format!("--bench-seconds: must be a number of seconds in (0, 3600] (got {seconds})"));
+                return Err(format!("--bench-seconds: must be a number of seconds in (0, 3600] (got {seconds})").into());
             }
             let budget = Duration::from_secs_f64(seconds);
             crate::run::bench::print(&crate::run::bench::environment(budget));
@@ -408,12 +408,12 @@ fn run(cli: Cli, call: Call) -> Result<(), String> {
         }
         Call::Animate(out) => {
             if out.extension().is_none_or(|e| e != "gif") {
-                return Err(format!("--animate {}: the file must end in .gif", out.display()));
+                return Err(format!("--animate {}: the file must end in .gif", out.display()).into());
             }
             at_least_one("--steps-per-frame", cli.steps_per_frame)?;
             let size = cli.size.unwrap_or(480);
             if !(64..=2048).contains(&size) {
-                return Err(format!("--size {size}: must be within 64..=2048 pixels"));
+                return Err(format!("--size {size}: must be within 64..=2048 pixels").into());
             }
             let existing = if cli.overwrite { Existing::Replace } else { Existing::Refuse };
             crate::io::check_target(&out, existing).map_err(|e| format!("--animate {}: {e}", out.display()))?;
@@ -464,7 +464,7 @@ fn run(cli: Cli, call: Call) -> Result<(), String> {
 /// The simulation --record and --animate show: the scene of --run (or --scene) with the counts applied,
 /// every species acting exactly as in --eval (trained actors without noise); the steps to run; and a
 /// note saying which actors drive it.
-fn deployed(cli: &Cli, standard: &Path) -> Result<(crate::sim::Simulation, usize, String), String> {
+fn deployed(cli: &Cli, standard: &Path) -> crate::error::Result<(crate::sim::Simulation, usize, String)> {
     if let Some(run) = &cli.run {
         crate::run::RunDir::new(run).check_plugins()?;
     }
@@ -491,12 +491,12 @@ fn deployed(cli: &Cli, standard: &Path) -> Result<(crate::sim::Simulation, usize
 }
 
 #[cfg(not(feature = "viewer"))]
-fn viewer(_: &Cli) -> Result<(), String> {
+fn viewer(_: &Cli) -> crate::error::Result<()> {
     Err("choose a mode: --train, --eval RUN, --record OUT.csv or --bench (see --help); the window needs `--features viewer`".into())
 }
 
 #[cfg(feature = "viewer")]
-fn viewer(cli: &Cli) -> Result<(), String> {
+fn viewer(cli: &Cli) -> crate::error::Result<()> {
     use crate::viewer::{RunMode as ViewMode, ScreenshotRequest, Setup, ViewerOptions};
     if cli.watch.is_some() && (cli.scene.is_some() || cli.rules) {
         return Err("--watch: shows a run in its own scene; it does not combine with --scene or --rules".into());
@@ -521,7 +521,7 @@ fn viewer(cli: &Cli) -> Result<(), String> {
         .ok_or_else(|| format!("--window {size}: expected WxH of at least 320x240, e.g. 1280x720"))?;
     if let Some(path) = &cli.screenshot {
         if path.extension().is_none_or(|e| e != "png") {
-            return Err(format!("--screenshot {}: the file must end in .png", path.display()));
+            return Err(format!("--screenshot {}: the file must end in .png", path.display()).into());
         }
         let existing = if cli.overwrite { Existing::Replace } else { Existing::Refuse };
         crate::io::check_target(path, existing).map_err(|e| format!("--screenshot {}: {e}", path.display()))?;

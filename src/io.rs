@@ -189,8 +189,8 @@ pub fn beside(path: &Path, what: &str) -> PathBuf {
     path.with_file_name(format!("{stem}-{what}.csv"))
 }
 
-pub fn write_file(path: &Path, existing: Existing, bytes: &[u8]) -> Result<(), String> {
-    write_atomically(path, existing, |w| w.write_all(bytes)).map_err(|e| format!("{}: {e}", path.display()))
+pub fn write_file(path: &Path, existing: Existing, bytes: &[u8]) -> crate::error::Result<()> {
+    Ok(write_atomically(path, existing, |w| w.write_all(bytes)).map_err(|e| format!("{}: {e}", path.display()))?)
 }
 
 fn temporary_beside(path: &Path) -> PathBuf {
@@ -204,7 +204,7 @@ pub const MAX_TEXT_BYTES: u64 = 64 << 20;
 
 /// Reads a UTF-8 text file of at most `limit` bytes; a leading byte-order mark is dropped. Errors say
 /// what is wrong in a user's words.
-pub fn read_text(path: &Path, limit: u64) -> Result<String, String> {
+pub fn read_text(path: &Path, limit: u64) -> crate::error::Result<String> {
     // Asked before opening: opening a FIFO blocks until a writer comes, a device may never end.
     let meta = std::fs::metadata(path).map_err(|e| format!("cannot read: {e}"))?;
     if !meta.is_file() {
@@ -214,7 +214,7 @@ pub fn read_text(path: &Path, limit: u64) -> Result<String, String> {
     let mut bytes = Vec::new();
     file.take(limit + 1).read_to_end(&mut bytes).map_err(|e| format!("cannot read: {e}"))?;
     if bytes.len() as u64 > limit {
-        return Err(format!("is larger than {} MiB; not a file coevo reads", limit >> 20));
+        return Err(format!("is larger than {} MiB; not a file coevo reads", limit >> 20).into());
     }
     let text = String::from_utf8(bytes).map_err(|e| {
         format!("is not UTF-8 text (invalid byte at offset {}); save it as UTF-8", e.utf8_error().valid_up_to())
@@ -312,8 +312,8 @@ mod tests {
         let path = dir.path().join("s.ron");
         std::fs::write(&path, "\u{feff}(seed: 1)").unwrap();
         assert_eq!(read_text(&path, 100).unwrap(), "(seed: 1)");
-        assert!(read_text(&path, 4).unwrap_err().contains("larger than"));
+        assert!(read_text(&path, 4).unwrap_err().to_string().contains("larger than"));
         std::fs::write(&path, [0xff, 0xfe, 0x00]).unwrap();
-        assert!(read_text(&path, 100).unwrap_err().contains("not UTF-8"));
+        assert!(read_text(&path, 100).unwrap_err().to_string().contains("not UTF-8"));
     }
 }

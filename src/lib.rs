@@ -11,9 +11,10 @@
 //! | `experiment/` | experiment files, the runner, aggregation, claims and verdicts, reports |
 //! | `viewer/` | the window (`--features viewer`) |
 //! | `cli.rs` | the command line (`main.rs` and examples call [`cli::main`]) |
-//! | `io.rs`, `parallel.rs`, `svg.rs` | files written safely, threads that never change a result, SVG to pixels |
+//! | `error.rs`, `io.rs`, `parallel.rs`, `svg.rs` | the one error type, files written safely, threads that never change a result, SVG to pixels |
 
 pub mod cli;
+pub mod error;
 pub mod experiment;
 pub mod io;
 pub mod learning;

@@ -20,7 +20,7 @@ pub fn options() -> usvg::Options<'static> {
 }
 
 /// Rasterizes SVG text at its own size.
-pub fn rasterize(svg: &str, options: &usvg::Options) -> Result<Pixmap, String> {
+pub fn rasterize(svg: &str, options: &usvg::Options) -> crate::error::Result<Pixmap> {
     let draw_err = |e: &dyn std::fmt::Display| format!("cannot draw: {e}");
     let tree = usvg::Tree::from_str(svg, options).map_err(|e| draw_err(&e))?;
     let size = tree.size().to_int_size();

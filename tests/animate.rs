@@ -60,7 +60,7 @@ fn a_rule_based_scene_renders_to_a_gif_with_both_species() {
     // An existing file is refused without being touched, and no temporary file is left.
     let before = std::fs::read(&path).unwrap();
     let mut sim = Simulation::new(common::scene(1, 5, Policy::Random, Boundary::Walls));
-    let err = animate(&mut sim, &opts, &path, Existing::Refuse).unwrap_err();
+    let err = animate(&mut sim, &opts, &path, Existing::Refuse).unwrap_err().to_string();
     assert!(err.contains("clip.gif"), "{err}");
     assert_eq!(std::fs::read(&path).unwrap(), before);
     assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);

@@ -131,7 +131,7 @@ fn resume_after_a_kill_continues_the_count_and_the_metrics() {
 fn corrupt_missing_or_mismatched_checkpoints_are_refused_clearly() {
     let dir = tempfile::tempdir().unwrap();
     let run = dir.path().join("run");
-    let missing = train(tiny(1), &opts(&run, true, None)).unwrap_err();
+    let missing = train(tiny(1), &opts(&run, true, None)).unwrap_err().to_string();
     assert!(missing.contains("run: holds no coevo run to resume"), "{missing}");
 
     train(tiny(1), &opts(&run, false, None)).unwrap();
@@ -145,7 +145,7 @@ fn corrupt_missing_or_mismatched_checkpoints_are_refused_clearly() {
             overrides: Overrides { counts, episode_steps: Some(5), ..Default::default() },
         })
     };
-    let corrupt = eval(vec![]).unwrap_err();
+    let corrupt = eval(vec![]).unwrap_err().to_string();
     assert!(corrupt.contains("prey-actor.safetensors: not a valid safetensors file"), "{corrupt}");
 
     // A checkpoint of another observation size: prey that see only 2 neighbours per species.
@@ -155,7 +155,7 @@ fn corrupt_missing_or_mismatched_checkpoints_are_refused_clearly() {
     train(s, &opts(&other, false, None)).unwrap();
     std::fs::copy(other.join("checkpoint/prey-actor.safetensors"), run.join("checkpoint/prey-actor.safetensors"))
         .unwrap();
-    let mismatch = eval(vec![]).unwrap_err();
+    let mismatch = eval(vec![]).unwrap_err().to_string();
     assert!(mismatch.contains("tensor 0.weight is F32 [16, 22], this scene needs F32 [16, 54]"), "{mismatch}");
 }
 

@@ -173,10 +173,10 @@ fn an_unphysical_state_stops_the_run_with_one_line_naming_agent_and_step() {
     };
     let mut s = scene(0, 2, Policy::Still, Boundary::Periodic);
     s.species[1].mass = 1e-310;
-    assert_eq!(s.validate().unwrap_err().0, "species[prey].mass");
+    assert_eq!(s.validate().unwrap_err().field.as_deref(), Some("species[prey].mass"));
     let mut sim = Simulation::new(s);
     place(&mut sim, 0, DVec2::ZERO, DVec2::new(0.1, 0.0), 0.0);
-    let error = first_fault(&mut sim).expect("the NaN is caught");
+    let error = first_fault(&mut sim).expect("the NaN is caught").to_string();
     assert!(error.starts_with("episode 0, step 1: agent "), "{error}");
     assert!(error.contains("(prey): velocity is not finite; the integrator is unstable for this scene"), "{error}");
     assert_eq!(error.lines().count(), 1);
@@ -185,9 +185,9 @@ fn an_unphysical_state_stops_the_run_with_one_line_naming_agent_and_step() {
     s.world.dt = 20.0;
     s.world.drag = 0.0;
     s.world.contact_stiffness = 0.0;
-    assert_eq!(s.validate().unwrap_err().0, "species[predator].max_speed");
+    assert_eq!(s.validate().unwrap_err().field.as_deref(), Some("species[predator].max_speed"));
     let mut sim = Simulation::new(s);
     place(&mut sim, 0, DVec2::ZERO, DVec2::new(0.5, 0.0), 0.0);
-    let error = first_fault(&mut sim).expect("the escape is caught");
+    let error = first_fault(&mut sim).expect("the escape is caught").to_string();
     assert!(error.contains("(prey): left the arena"), "{error}");
 }

@@ -88,7 +88,7 @@ fn a_plugin_decides_a_third_species_that_everyone_observes() {
 
 #[test]
 fn a_plugin_policy_that_no_plugin_decides_is_refused() {
-    let err = Simulation::try_with_plugins(scene(), |_| {}).err().expect("refused");
+    let err = Simulation::try_with_plugins(scene(), |_| {}).err().expect("refused").to_string();
     assert_eq!(
         err,
         "species[circler].policy: no plugin decides Plugin(\"circler\") in this program (registered: none)"
@@ -287,14 +287,14 @@ fn a_plugin_species_learns_with_the_other_two() {
 #[test]
 fn bad_species_plugins_are_refused_in_one_line() {
     use coevo::sim::species::SpeciesPlugins;
-    let err = SpeciesPlugins::new().with(owl::Griffin).register().unwrap_err();
+    let err = SpeciesPlugins::new().with(owl::Griffin).register().unwrap_err().to_string();
     assert_eq!(err, "species plugin \"griffin\": its interactions name \"unicorn\", which no preset or species plugin of this program defines");
-    let err = SpeciesPlugins::new().with(owl::FakePrey).register().unwrap_err();
+    let err = SpeciesPlugins::new().with(owl::FakePrey).register().unwrap_err().to_string();
     assert_eq!(
         err,
         "species plugin \"prey\": a preset's species has that name already; give each species its own name"
     );
-    let err = SpeciesPlugins::new().with(owl::OwlPlugin).with(owl::OwlPlugin).register().unwrap_err();
+    let err = SpeciesPlugins::new().with(owl::OwlPlugin).with(owl::OwlPlugin).register().unwrap_err().to_string();
     assert_eq!(
         err,
         "species plugin \"owl\": another species plugin has that name already; give each species its own name"

@@ -203,7 +203,7 @@ fn watching_a_run_loads_its_actors_and_refuses_a_scene_they_do_not_fit() {
     // Observing 4 neighbours instead of 6 changes the observation size: refused, with the reason.
     let mut other = scene.clone();
     other.species[1].topological_limit = 4;
-    let err = watch(other).err().expect("a mismatched checkpoint is refused");
+    let err = watch(other).err().expect("a mismatched checkpoint is refused").to_string();
     assert!(
         err.starts_with("checkpoint refused:")
             && err.contains("prey-actor.safetensors")
@@ -215,7 +215,7 @@ fn watching_a_run_loads_its_actors_and_refuses_a_scene_they_do_not_fit() {
     let mut renamed = scene;
     renamed.species[1].name = "fish".into();
     renamed.species[0].catches = vec!["fish".into()];
-    let err = watch(renamed).err().expect("an unknown species is refused");
+    let err = watch(renamed).err().expect("an unknown species is refused").to_string();
     assert!(err.contains("fish-actor.safetensors"), "{err}");
 }
 

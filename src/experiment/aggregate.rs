@@ -16,7 +16,7 @@ use std::path::Path;
 
 /// The first species' rows of a confusion curve file (`species,prey_in_view,samples,mean_abs_turn,
 /// mean_speed_fraction,catches_per_step`); empty when there is no file.
-fn read_confusion(path: &Path) -> Result<Vec<[f64; 3]>, String> {
+fn read_confusion(path: &Path) -> crate::error::Result<Vec<[f64; 3]>> {
     if !path.exists() {
         return Ok(vec![]);
     }
@@ -35,7 +35,7 @@ fn headline(exp: &Experiment) -> String {
 }
 
 /// The data of every finished run, by run index.
-pub fn load(exp: &Experiment) -> Result<BTreeMap<usize, RunData>, String> {
+pub fn load(exp: &Experiment) -> crate::error::Result<BTreeMap<usize, RunData>> {
     let prey = headline(exp);
     let mut data = BTreeMap::new();
     for (i, run) in exp.runs.iter().enumerate() {
@@ -84,14 +84,14 @@ pub fn load(exp: &Experiment) -> Result<BTreeMap<usize, RunData>, String> {
                     .collect()
             };
             // DoS and DoA must be there; the other order parameters only since the collective measures.
-            let series = |name: &str| -> Result<Vec<f64>, String> {
+            let series = |name: &str| -> crate::error::Result<Vec<f64>> {
                 match table.column(&schema::of(name, &prey)) {
                     Ok(values) => Ok(per_step(&values)),
                     Err(_) if !matches!(name, "dos" | "doa") => Ok(vec![f64::NAN; steps]),
                     Err(e) => Err(e),
                 }
             };
-            let per_step = Swarming::NAMES.iter().map(|n| series(n)).collect::<Result<Vec<_>, String>>()?;
+            let per_step = Swarming::NAMES.iter().map(|n| series(n)).collect::<crate::error::Result<Vec<_>>>()?;
             let ranks = table.column(&schema::of(schema::EDGE_RANK, &prey)).unwrap_or_default();
             let edge_rank = mean(&ranks.into_iter().filter(|x| x.is_finite()).collect::<Vec<_>>()).unwrap_or(f64::NAN);
             let confusion = read_confusion(&crate::io::beside(&path, "confusion"))?;
@@ -104,7 +104,7 @@ pub fn load(exp: &Experiment) -> Result<BTreeMap<usize, RunData>, String> {
 
 /// Checks an experiment's claims on the `data` of its finished runs ([`load`]) and, when there are any,
 /// writes its summaries and figures. Claims with no run yet say so.
-pub fn aggregate(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> Result<Vec<ClaimResult>, String> {
+pub fn aggregate(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> crate::error::Result<Vec<ClaimResult>> {
     let written = !data.is_empty();
     let prey = headline(exp);
     fn io(path: &Path) -> impl Fn(std::io::Error) -> String + '_ {
@@ -232,7 +232,7 @@ fn figures<'a>(
     preset: &str,
     prey: &str,
     of_variant: &dyn Fn(&str) -> Vec<&'a RunData>,
-) -> Result<(), String> {
+) -> crate::error::Result<()> {
     let dir = exp.root.join("figures");
     let curves = |pick: &dyn Fn(&RunData) -> Vec<f64>, x0: f64| -> Vec<Curve> {
         exp.spec
@@ -373,12 +373,12 @@ fn figures<'a>(
 
 /// One run's learning curves (DoS and DoA of the headline species, 100-episode running means) into
 /// `RUN/figures/training.png`, from its `metrics.csv`.
-pub fn plot_run(dir: &Path) -> Result<std::path::PathBuf, String> {
+pub fn plot_run(dir: &Path) -> crate::error::Result<std::path::PathBuf> {
     let run = RunDir::new(dir);
-    let scene = crate::scene::Scene::load(&run.scene()).map_err(|e| e.to_string())?;
+    let scene = crate::scene::Scene::load(&run.scene())?;
     let prey = scene.species[SpeciesRegistry::from_scene(&scene).headline()].name.clone();
     let metrics = Table::read(&run.metrics())?;
-    let curve = |name: &str| -> Result<Vec<Curve>, String> {
+    let curve = |name: &str| -> crate::error::Result<Vec<Curve>> {
         let values = running_mean(&metrics.column(name)?, WINDOW);
         Ok(vec![Curve {
             label: dir.display().to_string(),

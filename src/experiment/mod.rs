@@ -30,6 +30,7 @@ pub mod report;
 pub mod runner;
 pub mod stats;
 
+use crate::error::{Error, Result};
 use crate::scene::{parse_ron, Overrides, Scene, ScenePatch, PRESETS};
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
@@ -215,12 +216,12 @@ fn first_repeat<T: PartialEq>(values: &[T]) -> Option<&T> {
 impl Experiment {
     /// Loads an experiment file and resolves every run's scene; errors are one line naming the file and
     /// the field, as for scenes.
-    pub fn load(file: &Path, results: &Path) -> Result<Experiment, String> {
+    pub fn load(file: &Path, results: &Path) -> Result<Experiment> {
         let shown = file.display().to_string();
         let text = crate::io::read_text(file, crate::scene::MAX_SCENE_BYTES).map_err(|e| format!("{shown}: {e}"))?;
-        let spec: ExperimentFile = parse_ron(&text, &shown).map_err(|e| e.to_string())?;
+        let spec: ExperimentFile = parse_ron(&text, &shown)?;
         let name = file.file_stem().map_or(String::new(), |s| s.to_string_lossy().into_owned());
-        let err = |field: &str, message: String| format!("{shown}: {field}: {message}");
+        let err = |field: &str, message: String| Error::field(field.to_string(), message).in_file(file);
         // The name is a folder under results/: one safe component, never `.`, `..` or hidden.
         crate::run::check_name(&name)
             .map_err(|m| format!("{shown}: the file name {m}, as it names the folder results/{name}"))?;
@@ -262,7 +263,7 @@ impl Experiment {
             }
             crate::run::RunDir::new(".")
                 .eval_output(Some(&file))
-                .map_err(|m| err(&field("name"), m.replacen("--eval-out ", "as the file ", 1)))?;
+                .map_err(|m| err(&field("name"), m.to_string().replacen("--eval-out ", "as the file ", 1)))?;
             if spec.evaluations[..i].iter().any(|o| slug(&o.name) == slug(&e.name)) {
                 return Err(err(&field("name"), format!("names the same file ({file}) as another evaluation")));
             }
@@ -329,9 +330,8 @@ impl Experiment {
             let base = Scene::parse_with_preset(&base_text, &base.display().to_string(), Some(preset))
                 .map_err(|e| err("base", e.to_string()))?;
             for v in &spec.variants {
-                let mut scene = base
-                    .patched(v.patch.clone())
-                    .map_err(|(f, m)| err(&format!("variants[{}]", v.name), format!("{f}: {m}")))?;
+                let mut scene =
+                    base.patched(v.patch.clone()).map_err(|e| err(&format!("variants[{}]", v.name), e.to_string()))?;
                 if let Some(episodes) = spec.episodes {
                     scene.episodes = episodes;
                 }
@@ -353,7 +353,7 @@ impl Experiment {
     }
 
     /// Every experiment file under `dir`, sorted.
-    pub fn files(dir: &Path) -> Result<Vec<PathBuf>, String> {
+    pub fn files(dir: &Path) -> Result<Vec<PathBuf>> {
         let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
             .map_err(|e| format!("{}: {e}", dir.display()))?
             .filter_map(|e| e.ok().map(|e| e.path()))

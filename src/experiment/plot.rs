@@ -67,8 +67,8 @@ fn figure<P>(
     panels: &[P],
     columns: usize,
     cell: (u32, u32),
-    draw: &dyn Fn(&P, &Area) -> Result<(), String>,
-) -> Result<String, String> {
+    draw: &dyn Fn(&P, &Area) -> crate::error::Result<()>,
+) -> crate::error::Result<String> {
     let columns = columns.clamp(1, panels.len().max(1));
     let rows = panels.len().div_ceil(columns).max(1);
     let mut text = String::new();
@@ -85,17 +85,17 @@ fn figure<P>(
 }
 
 /// A figure of curves, its panels side by side, as SVG text.
-pub fn svg(panels: &[Panel]) -> Result<String, String> {
+pub fn svg(panels: &[Panel]) -> crate::error::Result<String> {
     figure(panels, panels.len(), PANEL_SIZE, &draw_panel)
 }
 
 /// A figure of estimates, two panels to a row, as SVG text.
-fn estimates_svg(panels: &[EstimatePanel]) -> Result<String, String> {
+fn estimates_svg(panels: &[EstimatePanel]) -> crate::error::Result<String> {
     let rows = panels.iter().map(|p| p.rows.len()).max().unwrap_or(1) as u32;
     figure(panels, 2, (ESTIMATE_PANEL_WIDTH, (90 + ESTIMATE_ROW_HEIGHT * rows).max(240)), &draw_estimates)
 }
 
-fn draw_estimates(panel: &EstimatePanel, area: &Area) -> Result<(), String> {
+fn draw_estimates(panel: &EstimatePanel, area: &Area) -> crate::error::Result<()> {
     use plotters::coord::ranged1d::SegmentValue;
     let n = panel.rows.len();
     let ci = |r: &Row| r.ci.unwrap_or(0.0);
@@ -158,7 +158,7 @@ fn tick(x: &f64) -> String {
     }
 }
 
-fn draw_panel(panel: &Panel, area: &Area) -> Result<(), String> {
+fn draw_panel(panel: &Panel, area: &Area) -> crate::error::Result<()> {
     let finite = |v: &&f64| v.is_finite();
     let xs = panel.curves.iter().flat_map(|c| c.x.iter()).filter(finite);
     let (x0, x1) = xs.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| (a.min(x), b.max(x)));
@@ -216,21 +216,21 @@ fn draw_panel(panel: &Panel, area: &Area) -> Result<(), String> {
 }
 
 /// Rasterizes SVG text to PNG bytes.
-pub fn png(svg: &str) -> Result<Vec<u8>, String> {
-    crate::svg::rasterize(svg, &crate::svg::options())?.encode_png().map_err(draw_err)
+pub fn png(svg: &str) -> crate::error::Result<Vec<u8>> {
+    Ok(crate::svg::rasterize(svg, &crate::svg::options())?.encode_png().map_err(draw_err)?)
 }
 
 /// Writes a figure of curves as `stem.svg` and `stem.png` (atomically, replacing earlier figures).
-pub fn save(stem: &Path, panels: &[Panel]) -> Result<(), String> {
+pub fn save(stem: &Path, panels: &[Panel]) -> crate::error::Result<()> {
     write(stem, svg(panels)?)
 }
 
 /// Writes a figure of estimates as `stem.svg` and `stem.png` (atomically, replacing earlier figures).
-pub fn save_estimates(stem: &Path, panels: &[EstimatePanel]) -> Result<(), String> {
+pub fn save_estimates(stem: &Path, panels: &[EstimatePanel]) -> crate::error::Result<()> {
     write(stem, estimates_svg(panels)?)
 }
 
-fn write(stem: &Path, text: String) -> Result<(), String> {
+fn write(stem: &Path, text: String) -> crate::error::Result<()> {
     let bytes = png(&text)?;
     for (ext, data) in [("svg", text.as_bytes()), ("png", bytes.as_slice())] {
         crate::io::write_file(&stem.with_extension(ext), crate::io::Existing::Replace, data)?;

@@ -27,7 +27,7 @@ pub struct Request<'a> {
 
 /// `--experiment FILE|all`: run, evaluate and aggregate; then REPRODUCTION.md from every experiment's
 /// results so far (the project's experiment files), or the experiment's own summaries (any other file).
-pub fn experiment(request: &Request) -> Result<(), String> {
+pub fn experiment(request: &Request) -> crate::error::Result<()> {
     let which = request.which;
     let files = match which {
         "all" => Experiment::files(Path::new(EXPERIMENTS))?,
@@ -40,7 +40,9 @@ pub fn experiment(request: &Request) -> Result<(), String> {
     if let Some(task) = request.task {
         match experiments.as_slice() {
             [exp] if task < exp.runs.len() => {}
-            [exp] => return Err(format!("--task {task}: {} has runs 0 to {}", exp.file.display(), exp.runs.len() - 1)),
+            [exp] => {
+                return Err(format!("--task {task}: {} has runs 0 to {}", exp.file.display(), exp.runs.len() - 1).into())
+            }
             _ => return Err("--task: names a run of one experiment file, not of `all`".into()),
         }
     }
@@ -61,14 +63,14 @@ pub fn experiment(request: &Request) -> Result<(), String> {
         progress: !request.quiet,
     };
     // Every experiment is attempted; the one error line names the first failure.
-    let failed: Vec<String> =
+    let failed: Vec<crate::error::Error> =
         experiments.iter().filter_map(|exp| runner::run(exp, &opts, request.task).err()).collect();
     if let Some(first) = failed.first() {
         let others = match failed.len() {
             1 => String::new(),
             n => format!("; {} more experiments failed", n - 1),
         };
-        return Err(format!("{first}{others} (REPRODUCTION.md left as it was)"));
+        return Err(format!("{first}{others} (REPRODUCTION.md left as it was)").into());
     }
     if request.task.is_some() {
         return Ok(());
@@ -97,7 +99,7 @@ fn in_experiments_folder(file: &Path) -> bool {
 }
 
 /// Summaries and figures of every experiment with finished runs, and REPRODUCTION.md over all of them.
-pub fn write_reproduction() -> Result<(), String> {
+pub fn write_reproduction() -> crate::error::Result<()> {
     let mut all = Vec::new();
     for file in Experiment::files(Path::new(EXPERIMENTS))? {
         let exp = Experiment::load(&file, Path::new(RESULTS))?;
@@ -114,7 +116,7 @@ pub fn write_reproduction() -> Result<(), String> {
 }
 
 /// `--plot DIR`: an experiment's summaries and figures, or one run's learning curves, from CSVs alone.
-pub fn plot(dir: &Path) -> Result<(), String> {
+pub fn plot(dir: &Path) -> crate::error::Result<()> {
     if dir == Path::new("all") {
         return write_reproduction();
     }
@@ -130,13 +132,16 @@ pub fn plot(dir: &Path) -> Result<(), String> {
             "--plot {}: neither a run folder nor the results of an experiment file {}",
             dir.display(),
             file.display()
-        ));
+        )
+        .into());
     }
     let results = dir.parent().unwrap_or(Path::new("."));
     let exp = Experiment::load(&file, results)?;
     let data = aggregate::load(&exp)?;
     if data.is_empty() {
-        return Err(format!("--plot {}: no finished run of {} there; nothing written", dir.display(), file.display()));
+        return Err(
+            format!("--plot {}: no finished run of {} there; nothing written", dir.display(), file.display()).into()
+        );
     }
     let claims = aggregate::aggregate(&exp, &data)?;
     eprintln!(

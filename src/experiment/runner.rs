@@ -39,7 +39,7 @@ fn variant_scene(run: &Run) -> PathBuf {
 
 /// The stage of a run, and a refusal when its folder holds a run of another scene (the experiment file
 /// changed under it: coevo never mixes the two).
-pub fn stage(run: &Run) -> Result<Stage, String> {
+pub fn stage(run: &Run) -> crate::error::Result<Stage> {
     if !crate::run::is_run(&run.dir) {
         return Ok(Stage::Fresh);
     }
@@ -52,7 +52,9 @@ pub fn stage(run: &Run) -> Result<Stage, String> {
     let mut theirs = state.scene.clone();
     theirs.episodes = run.scene.episodes;
     if theirs != run.scene {
-        return Err(format!("{shown}: holds a run of another scene than the experiment's; move it away to rerun it"));
+        return Err(
+            format!("{shown}: holds a run of another scene than the experiment's; move it away to rerun it").into()
+        );
     }
     Ok(if state.episodes_done >= run.scene.episodes { Stage::Trained } else { Stage::Partial(state.episodes_done) })
 }
@@ -63,7 +65,7 @@ pub fn eval_file(dir: &Path, evaluation: &str) -> PathBuf {
 }
 
 /// Runs one child process; Err is its one-line error.
-fn child(exe: &Path, args: &[String]) -> Result<(), String> {
+fn child(exe: &Path, args: &[String]) -> crate::error::Result<()> {
     let mut command = Command::new(exe);
     command.args(args);
     dies_with_parent(&mut command);
@@ -72,7 +74,7 @@ fn child(exe: &Path, args: &[String]) -> Result<(), String> {
         Ok(())
     } else {
         let stderr = String::from_utf8_lossy(&out.stderr);
-        Err(stderr.lines().rev().find(|l| !l.trim().is_empty()).unwrap_or("failed without a message").to_string())
+        Err(stderr.lines().rev().find(|l| !l.trim().is_empty()).unwrap_or("failed without a message").into())
     }
 }
 
@@ -99,7 +101,7 @@ fn dies_with_parent(command: &mut Command) {
 
 /// Trains (or resumes) one run and runs its missing evaluations, on `threads` threads (results do not
 /// depend on it).
-pub fn complete_run(exp: &Experiment, run: &Run, exe: &Path, threads: usize) -> Result<(), String> {
+pub fn complete_run(exp: &Experiment, run: &Run, exe: &Path, threads: usize) -> crate::error::Result<()> {
     let dir = run.dir.to_string_lossy().into_owned();
     let threads = threads.max(1).to_string();
     let common = ["--quiet".to_string(), "--threads".into(), threads.clone()];
@@ -163,7 +165,7 @@ fn evaluated(eval_csv: &Path) -> bool {
 }
 
 /// Writes every variant's resolved scene (the seed is set per run), refusing runs of other scenes first.
-fn prepare(exp: &Experiment) -> Result<(), String> {
+fn prepare(exp: &Experiment) -> crate::error::Result<()> {
     for run in &exp.runs {
         stage(run)?;
     }
@@ -177,7 +179,7 @@ fn prepare(exp: &Experiment) -> Result<(), String> {
 
 /// Runs the experiment's runs (all, or only `only`, an index into `exp.runs` as a Slurm array task
 /// does), `jobs` at a time. Every run is attempted; Err lists the ones that failed.
-pub fn run(exp: &Experiment, opts: &RunnerOptions, only: Option<usize>) -> Result<(), String> {
+pub fn run(exp: &Experiment, opts: &RunnerOptions, only: Option<usize>) -> crate::error::Result<()> {
     prepare(exp)?;
     let runs: Vec<&Run> = match only {
         Some(i) => vec![exp
@@ -220,13 +222,13 @@ pub fn run(exp: &Experiment, opts: &RunnerOptions, only: Option<usize>) -> Resul
     let failures = failures.into_inner().expect("threads joined");
     match failures.len() {
         0 => Ok(()),
-        n => Err(format!("{n} of {} runs of {} failed; first: {}", runs.len(), exp.name, failures[0])),
+        n => Err(format!("{n} of {} runs of {} failed; first: {}", runs.len(), exp.name, failures[0]).into()),
     }
 }
 
 /// A Slurm job array (one task per run) and a dependent aggregate job, for the same experiment file on a
 /// cluster. Written to `results/<experiment>/slurm/`; `submit.sh` submits both.
-pub fn emit_slurm(exp: &Experiment, exe: &str) -> Result<PathBuf, String> {
+pub fn emit_slurm(exp: &Experiment, exe: &str) -> crate::error::Result<PathBuf> {
     let dir = exp.root.join("slurm");
     std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
     let file = exp.file.display();

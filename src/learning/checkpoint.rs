@@ -193,7 +193,7 @@ fn save_replay(dir: &Path, tmp: &Path, species: &str, buf: &ReplayBuffer) -> std
 }
 
 /// The buffer a checkpoint saved: `transitions` stored in all, the held ones read back from the segments.
-fn load_replay(dir: &Path, species: &str, like: &ReplayBuffer, transitions: u64) -> Result<ReplayBuffer, String> {
+fn load_replay(dir: &Path, species: &str, like: &ReplayBuffer, transitions: u64) -> crate::error::Result<ReplayBuffer> {
     let mut buf = ReplayBuffer::restoring(like.capacity, like.obs_dim, like.act_dim, transitions);
     let (d, a) = (like.obs_dim, like.act_dim);
     let Some(parts) = chain(&segments(dir, species), buf.first_held(), transitions) else {
@@ -201,13 +201,13 @@ fn load_replay(dir: &Path, species: &str, like: &ReplayBuffer, transitions: u64)
             "{}: the replay buffer of {species} is incomplete (transitions {}..{transitions} are not all in its segments); the checkpoint is damaged",
             dir.display(),
             buf.first_held()
-        ));
+        ).into());
     };
     for s in parts {
         let bytes = read_file(&s.path)?;
         let st = parse(&s.path, &bytes)?;
         let n = (s.to - s.from) as usize;
-        let tensor = |name: &str, shape: Vec<usize>| -> Result<Vec<f32>, String> {
+        let tensor = |name: &str, shape: Vec<usize>| -> crate::error::Result<Vec<f32>> {
             let t = st.tensor(name).map_err(|_| format!("{}: no tensor {name:?}", s.path.display()))?;
             if t.dtype() != Dtype::F32 || t.shape() != shape.as_slice() {
                 return Err(format!(
@@ -215,7 +215,8 @@ fn load_replay(dir: &Path, species: &str, like: &ReplayBuffer, transitions: u64)
                     s.path.display(),
                     t.dtype(),
                     t.shape()
-                ));
+                )
+                .into());
             }
             Ok(t.data().chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect())
         };
@@ -267,7 +268,7 @@ fn serialize(tensors: &[(String, Vec<usize>, Vec<f32>)]) -> Vec<u8> {
 }
 
 /// Reads the tensors `net` needs under `prefix` from a safetensors file, checking names and shapes.
-fn read_into(file: &Path, st: &SafeTensors, prefix: &str, like: &Mlp) -> Result<Vec<Vec<f32>>, String> {
+fn read_into(file: &Path, st: &SafeTensors, prefix: &str, like: &Mlp) -> crate::error::Result<Vec<Vec<f32>>> {
     named(prefix, like.parameters(), like)
         .into_iter()
         .map(|(name, shape, _)| {
@@ -278,31 +279,32 @@ fn read_into(file: &Path, st: &SafeTensors, prefix: &str, like: &Mlp) -> Result<
                     file.display(),
                     t.dtype(),
                     t.shape()
-                ));
+                ).into());
             }
             let values: Vec<f32> = t.data().chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect();
             match values.iter().position(|v| !v.is_finite()) {
-                Some(i) => Err(format!("{}: tensor {name} holds a non-finite value ({} at index {i}); refusing a broken network", file.display(), values[i])),
+                Some(i) => Err(format!("{}: tensor {name} holds a non-finite value ({} at index {i}); refusing a broken network", file.display(), values[i]).into()),
                 None => Ok(values),
             }
         })
         .collect()
 }
 
-fn read_file(path: &Path) -> Result<Vec<u8>, String> {
+fn read_file(path: &Path) -> crate::error::Result<Vec<u8>> {
     match std::fs::metadata(path) {
-        Ok(m) if !m.is_file() => Err(format!("{}: not a regular file, not a checkpoint", path.display())),
-        Ok(_) => std::fs::read(path).map_err(|e| format!("{}: cannot read checkpoint: {e}", path.display())),
-        Err(e) => Err(format!("{}: cannot read checkpoint: {e}", path.display())),
+        Ok(m) if !m.is_file() => Err(format!("{}: not a regular file, not a checkpoint", path.display()).into()),
+        Ok(_) => Ok(std::fs::read(path).map_err(|e| format!("{}: cannot read checkpoint: {e}", path.display()))?),
+        Err(e) => Err(format!("{}: cannot read checkpoint: {e}", path.display()).into()),
     }
 }
 
-fn parse<'a>(path: &Path, bytes: &'a [u8]) -> Result<SafeTensors<'a>, String> {
-    SafeTensors::deserialize(bytes).map_err(|e| format!("{}: not a valid safetensors file ({e:?})", path.display()))
+fn parse<'a>(path: &Path, bytes: &'a [u8]) -> crate::error::Result<SafeTensors<'a>> {
+    Ok(SafeTensors::deserialize(bytes)
+        .map_err(|e| format!("{}: not a valid safetensors file ({e:?})", path.display()))?)
 }
 
 /// Loads a species' actor from a run folder into `like` (which fixes the expected shapes).
-pub fn load_actor(run: &Path, species: &str, like: &Mlp) -> Result<Mlp, String> {
+pub fn load_actor(run: &Path, species: &str, like: &Mlp) -> crate::error::Result<Mlp> {
     let path = checkpoint_dir(run).join(format!("{species}-actor.safetensors"));
     let bytes = read_file(&path)?;
     let st = parse(&path, &bytes)?;
@@ -376,13 +378,17 @@ fn write_checkpoint(
 }
 
 /// Reads a checkpoint's state file.
-pub fn read_state(path: &Path) -> Result<TrainingState, String> {
+pub fn read_state(path: &Path) -> crate::error::Result<TrainingState> {
     let text = crate::io::read_text(path, crate::io::MAX_TEXT_BYTES).map_err(|e| format!("{}: {e}", path.display()))?;
-    ron::from_str(&text).map_err(|e| format!("{}: corrupt checkpoint state ({e})", path.display()))
+    Ok(ron::from_str(&text).map_err(|e| format!("{}: corrupt checkpoint state ({e})", path.display()))?)
 }
 
 /// Restores learners from `run/checkpoint/` (or `checkpoint.old` after a kill mid-swap) and returns the state.
-pub fn load(run: &Path, learners: &mut [Option<SpeciesLearner>], names: &[String]) -> Result<TrainingState, String> {
+pub fn load(
+    run: &Path,
+    learners: &mut [Option<SpeciesLearner>],
+    names: &[String],
+) -> crate::error::Result<TrainingState> {
     let mut dir = checkpoint_dir(run);
     let old = run.join(CHECKPOINT_OLD);
     if !dir.join(STATE).exists() && old.join(STATE).exists() {
@@ -393,7 +399,7 @@ pub fn load(run: &Path, learners: &mut [Option<SpeciesLearner>], names: &[String
     }
     let state_path = dir.join(STATE);
     if !state_path.exists() {
-        return Err(format!("{}: no checkpoint to resume", state_path.display()));
+        return Err(format!("{}: no checkpoint to resume", state_path.display()).into());
     }
     let mut state = read_state(&state_path)?;
     let mut dropped = Vec::new();

@@ -162,7 +162,7 @@ impl Learners {
     /// Loads trained actors: every `Frozen(path)` species from its folder and, with `run`, every `Learned`
     /// species from that run. Fails, changing nothing, when a checkpoint is missing or does not fit the
     /// scene (observation size, hidden width, species name).
-    pub fn load_actors(&mut self, scene: &Scene, run: Option<&Path>) -> Result<(), String> {
+    pub fn load_actors(&mut self, scene: &Scene, run: Option<&Path>) -> crate::error::Result<()> {
         let mut loaded = Vec::new();
         for (s, def) in scene.species.iter().enumerate() {
             let source = match (&def.policy, run) {
@@ -194,7 +194,7 @@ impl Plugin for LearningPlugin {
 
 /// A simulation with the learning plugin, frozen actors loaded (`Frozen(path)` species, and with `eval_run`
 /// every `Learned` species from that run).
-pub fn simulation(scene: Scene, mode: Mode, eval_run: Option<&Path>) -> Result<Simulation, String> {
+pub fn simulation(scene: Scene, mode: Mode, eval_run: Option<&Path>) -> crate::error::Result<Simulation> {
     simulation_with(scene, mode, eval_run, |_| {})
 }
 
@@ -204,7 +204,7 @@ pub fn simulation_with(
     mode: Mode,
     eval_run: Option<&Path>,
     extra: impl FnOnce(&mut App),
-) -> Result<Simulation, String> {
+) -> crate::error::Result<Simulation> {
     let mut learners = Learners::new(&scene, mode);
     learners.load_actors(&scene, eval_run)?;
     Simulation::try_with_plugins(scene, |app| {

@@ -69,10 +69,10 @@ pub fn animate(
     opts: &AnimateOptions,
     path: &Path,
     existing: Existing,
-) -> Result<AnimationSummary, String> {
+) -> crate::error::Result<AnimationSummary> {
     let io_err = |e: &dyn std::fmt::Display| format!("{}: {e}", path.display());
     if opts.steps_per_frame == 0 || !(64..=2048).contains(&opts.size) {
-        return Err(io_err(&"steps per frame must be ≥ 1 and the size within 64..=2048 pixels"));
+        return Err(io_err(&"steps per frame must be ≥ 1 and the size within 64..=2048 pixels").into());
     }
     sim.world_mut().resource_mut::<Episode>().auto_reset = false;
     let registry = sim.world().resource::<SpeciesRegistry>().clone();

@@ -176,18 +176,18 @@ impl Accumulated {
 
 /// Deploys a run's policies without noise and streams per-step DoS/DoA to `RUN/eval.csv` (replaced
 /// whole, when complete); returns the summary line.
-pub fn evaluate(opts: &EvalOptions) -> Result<String, String> {
+pub fn evaluate(opts: &EvalOptions) -> crate::error::Result<String> {
     let dir = RunDir::new(&opts.run);
     let path = dir.eval_output(opts.out.as_deref())?;
     if !dir.is_run() {
-        return Err(format!("{}: holds no coevo run to evaluate", opts.run.display()));
+        return Err(format!("{}: holds no coevo run to evaluate", opts.run.display()).into());
     }
     dir.check_plugins()?;
     if opts.episodes == 0 {
         return Err("--episodes: must be ≥ 1".into());
     }
     let scene_path = dir.scene();
-    let mut scene = Scene::load(&scene_path).map_err(|e| e.to_string())?;
+    let mut scene = Scene::load(&scene_path)?;
     opts.overrides.apply(&mut scene, &scene_path)?;
     let mut sim = crate::learning::simulation(scene.clone(), Mode::Evaluate, Some(&opts.run))?;
     // Nobody else writes the run while it is evaluated (a training would swap its checkpoint).

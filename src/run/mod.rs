@@ -94,14 +94,14 @@ impl RunDir {
     /// The per-step file of an evaluation named `file_name` by the user (default [`EVAL`]): a plain
     /// `NAME.csv` inside the run that takes none of the run's own names, nor the name of another
     /// evaluation's distribution files.
-    pub fn eval_output(&self, file_name: Option<&str>) -> Result<PathBuf, String> {
+    pub fn eval_output(&self, file_name: Option<&str>) -> crate::error::Result<PathBuf> {
         let name = file_name.unwrap_or(EVAL);
-        let refuse = |why: &str| Err(format!("--eval-out {name}: {why}"));
+        let refuse = |why: &str| Err(format!("--eval-out {name}: {why}").into());
         let Some(stem) = name.strip_suffix(".csv") else {
             return refuse("must be a plain file name ending in .csv (written inside the run folder)");
         };
         if let Err(why) = check_name(stem) {
-            return refuse(&why);
+            return refuse(&why.to_string());
         }
         // Reserved by stem, so no output reads as one of the run's own files (scene.csv, checkpoint.csv).
         let stem_of = |f: &str| f.split('.').next().unwrap_or(f).to_string();
@@ -119,11 +119,11 @@ impl RunDir {
 
     /// Checks that the folder may receive a new run, changing nothing: a new or empty folder, or (with
     /// `overwrite`) one that holds a run whose checkpoint folders hold only coevo's files.
-    pub fn check_new(&self, overwrite: bool) -> Result<(), String> {
+    pub fn check_new(&self, overwrite: bool) -> crate::error::Result<()> {
         let shown = self.path.display();
         match std::fs::symlink_metadata(&self.path) {
             Err(_) => return Ok(()),
-            Ok(m) if !m.is_dir() => return Err(format!("{shown}: exists and is not a folder")),
+            Ok(m) if !m.is_dir() => return Err(format!("{shown}: exists and is not a folder").into()),
             Ok(_) => {}
         }
         let mut entries = std::fs::read_dir(&self.path).map_err(io_err(&self.path))?;
@@ -133,12 +133,14 @@ impl RunDir {
         if !self.is_run() {
             return Err(format!(
                 "{shown}: is not empty and holds no coevo run; coevo writes runs only into new or empty folders"
-            ));
+            )
+            .into());
         }
         if !overwrite {
             return Err(format!(
                 "{shown}: already holds a run; continue it with --resume {shown}, or replace it with --overwrite"
-            ));
+            )
+            .into());
         }
         for dir in CHECKPOINT_DIRS.iter().map(|d| self.path.join(d)).filter(|d| d.exists()) {
             for entry in std::fs::read_dir(&dir).map_err(io_err(&dir))? {
@@ -152,7 +154,8 @@ impl RunDir {
                     return Err(format!(
                         "{}: not a file coevo wrote; --overwrite removes only coevo's files, so move it first",
                         entry.path().display()
-                    ));
+                    )
+                    .into());
                 }
             }
         }
@@ -160,7 +163,7 @@ impl RunDir {
     }
 
     /// Removes the run's own files (after [`RunDir::check_new`] with `overwrite`), keeping the lock.
-    pub fn clear(&self) -> Result<(), String> {
+    pub fn clear(&self) -> crate::error::Result<()> {
         for dir in CHECKPOINT_DIRS.iter().map(|d| self.path.join(d)).filter(|d| d.exists()) {
             std::fs::remove_dir_all(&dir).map_err(io_err(&dir))?;
         }
@@ -172,7 +175,7 @@ impl RunDir {
 
     /// Takes the run's lock for this process (creating the folder if needed), after removing what a
     /// killed process left: a stale lock, temporaries of dead PIDs, a half-written `checkpoint.tmp/`.
-    pub fn lock(&self) -> Result<RunLock, String> {
+    pub fn lock(&self) -> crate::error::Result<RunLock> {
         std::fs::create_dir_all(&self.path).map_err(io_err(&self.path))?;
         let path = self.path.join(LOCK);
         for _ in 0..2 {
@@ -191,16 +194,17 @@ impl RunDir {
                                 "{}: in use by coevo process {pid} ({}); wait for it to end, or end it",
                                 self.path.display(),
                                 path.display()
-                            ))
+                            )
+                            .into())
                         }
                         // A lock of a process that is gone (or half-written by one killed at once): stale.
                         _ => std::fs::remove_file(&path).map_err(io_err(&path))?,
                     }
                 }
-                Err(e) => return Err(io_err(&path)(e)),
+                Err(e) => return Err(io_err(&path)(e).into()),
             }
         }
-        Err(format!("{}: could not take the run's lock", path.display()))
+        Err(format!("{}: could not take the run's lock", path.display()).into())
     }
 
     /// What killed processes left behind (only called with the lock held, so nobody is writing).
@@ -211,7 +215,7 @@ impl RunDir {
     }
 
     /// Writes what made the run: the version and the species plugins its scene needs.
-    pub fn write_provenance(&self, scene: &crate::scene::Scene) -> Result<(), String> {
+    pub fn write_provenance(&self, scene: &crate::scene::Scene) -> crate::error::Result<()> {
         let provenance = Provenance::of(scene);
         let text = ron::ser::to_string_pretty(&provenance, ron::ser::PrettyConfig::new().struct_names(false))
             .map_err(|e| format!("{}: {e}", self.provenance().display()))?;
@@ -221,7 +225,7 @@ impl RunDir {
     /// Refuses a run that needs species plugins this program does not have (resumed or evaluated by a
     /// binary without the plugin, its species would lose their systems). Runs older than provenance files
     /// need none.
-    pub fn check_plugins(&self) -> Result<(), String> {
+    pub fn check_plugins(&self) -> crate::error::Result<()> {
         let path = self.provenance();
         if !path.exists() {
             return Ok(());
@@ -233,7 +237,7 @@ impl RunDir {
             Some(name) => Err(format!(
                 "{}: the run needs the species plugin {name:?}, which this program does not have; use the program that trained it (e.g. cargo run --release --example {name})",
                 self.path.display()
-            )),
+            ).into()),
             None => Ok(()),
         }
     }
@@ -282,7 +286,7 @@ impl Drop for RunLock {
 /// Checks that a user-chosen name (an experiment, a variant's or an evaluation's folder-safe slug, an
 /// output stem) is one safe path component: not empty, no separator, no leading dot (so never `.`, `..`
 /// or a hidden file), no control character.
-pub fn check_name(name: &str) -> Result<(), String> {
+pub fn check_name(name: &str) -> crate::error::Result<()> {
     if name.is_empty() {
         return Err("must not be empty".into());
     }
@@ -328,7 +332,7 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let run = RunDir::new(dir.path().join("run"));
         let held = run.lock().unwrap();
-        assert!(run.lock().unwrap_err().contains("in use by coevo process"));
+        assert!(run.lock().unwrap_err().to_string().contains("in use by coevo process"));
         drop(held);
         assert!(!dir.path().join("run").join(LOCK).exists());
         // A PID that cannot be alive.

@@ -25,7 +25,7 @@ pub const HEADER: &str = "step,id,species,x,y,vx,vy,theta,thrust,turn_rate,rewar
 /// Runs `steps` steps of `sim` and streams the trajectory to `path`, which appears only when complete
 /// (see [`crate::io::AtomicFile`]). Stops with an error, writing nothing, if the state stops being
 /// physical ([`Simulation::check`]).
-pub fn record(sim: &mut Simulation, steps: usize, path: &Path, existing: Existing) -> Result<(), String> {
+pub fn record(sim: &mut Simulation, steps: usize, path: &Path, existing: Existing) -> crate::error::Result<()> {
     let io_err = |e: io::Error| format!("{}: {e}", path.display());
     let order_path = crate::io::beside(path, "order");
     let order_err = |e: io::Error| format!("{}: {e}", order_path.display());
@@ -62,7 +62,7 @@ pub fn record(sim: &mut Simulation, steps: usize, path: &Path, existing: Existin
         }
     }
     file.commit().map_err(io_err)?;
-    order.commit().map_err(order_err)
+    Ok(order.commit().map_err(order_err)?)
 }
 
 struct Row {

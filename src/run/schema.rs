@@ -159,7 +159,7 @@ pub struct Table {
 }
 
 impl Table {
-    pub fn read(path: &Path) -> Result<Table, String> {
+    pub fn read(path: &Path) -> crate::error::Result<Table> {
         let text =
             crate::io::read_text(path, crate::io::MAX_TEXT_BYTES).map_err(|e| format!("{}: {e}", path.display()))?;
         let mut lines = text.lines();
@@ -173,7 +173,7 @@ impl Table {
     }
 
     /// A column by name.
-    pub fn column(&self, name: &str) -> Result<Vec<f64>, String> {
+    pub fn column(&self, name: &str) -> crate::error::Result<Vec<f64>> {
         let i = self
             .header
             .iter()

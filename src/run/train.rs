@@ -33,7 +33,13 @@ fn io_err(path: &Path) -> impl Fn(std::io::Error) -> String + '_ {
 
 /// Refuses a resume that could not continue the run as it was: its scene.ron edited since training
 /// began, a checkpoint whose metrics disagree with its episode count, or nothing left to train.
-fn check_resumable(run: &Path, scene: &Scene, state: &TrainingState, total: usize, asked: bool) -> Result<(), String> {
+fn check_resumable(
+    run: &Path,
+    scene: &Scene,
+    state: &TrainingState,
+    total: usize,
+    asked: bool,
+) -> crate::error::Result<()> {
     let (now, then) = (scene.to_ron(), state.scene.to_ron());
     if now != then {
         let line = now
@@ -44,7 +50,7 @@ fn check_resumable(run: &Path, scene: &Scene, state: &TrainingState, total: usiz
         return Err(format!(
             "{}: differs from the scene the run was trained on (checkpoint/state.ron), first at {line}; a run continues only under its own scene: restore the file or train a new run",
             RunDir::new(run).scene().display()
-        ));
+        ).into());
     }
     let rows: Vec<usize> = state
         .metrics_csv
@@ -62,7 +68,7 @@ fn check_resumable(run: &Path, scene: &Scene, state: &TrainingState, total: usiz
                 (Some(a), Some(b)) => format!("{a}..={b} ({} rows)", rows.len()),
                 _ => "none".to_string(),
             }
-        ));
+        ).into());
     }
     if total <= state.episodes_done {
         let why = if asked {
@@ -76,19 +82,20 @@ fn check_resumable(run: &Path, scene: &Scene, state: &TrainingState, total: usiz
             state.episodes_done,
             run.display(),
             state.episodes_done
-        ));
+        )
+        .into());
     }
     Ok(())
 }
 
 /// Trains a scene (or resumes a run) and returns the episode summaries of this invocation. Everything is
 /// validated and loaded before the run folder is created or touched.
-pub fn train(scene: Scene, opts: &TrainOptions) -> Result<Vec<EpisodeSummary>, String> {
+pub fn train(scene: Scene, opts: &TrainOptions) -> crate::error::Result<Vec<EpisodeSummary>> {
     let run = &opts.run;
     let dir = RunDir::new(run);
     if opts.resume {
         if !dir.is_run() {
-            return Err(format!("{}: holds no coevo run to resume", run.display()));
+            return Err(format!("{}: holds no coevo run to resume", run.display()).into());
         }
         dir.check_plugins()?;
     } else {
@@ -97,8 +104,8 @@ pub fn train(scene: Scene, opts: &TrainOptions) -> Result<Vec<EpisodeSummary>, S
     // One process per run: a resume takes it before reading what another process may be writing; a new
     // run once everything is validated and loaded, so a refused scene leaves no folder behind.
     let mut lock = if opts.resume { Some(dir.lock()?) } else { None };
-    let scene = if opts.resume { Scene::load(&dir.scene()).map_err(|e| e.to_string())? } else { scene };
-    scene.validate().map_err(|(f, m)| format!("{}: {f}: {m}", run.display()))?;
+    let scene = if opts.resume { Scene::load(&dir.scene())? } else { scene };
+    scene.validate().map_err(|e| e.in_file(run))?;
     let total = opts.episodes.unwrap_or(scene.episodes);
     if total == 0 {
         return Err("--episodes: must be ≥ 1".into());
@@ -196,7 +203,8 @@ pub fn train(scene: Scene, opts: &TrainOptions) -> Result<Vec<EpisodeSummary>, S
             return Err(format!(
                 "training stopped: {failure}; the last good networks are saved in {}",
                 checkpoint::checkpoint_dir(run).display()
-            ));
+            )
+            .into());
         }
         let Some(summary) = sim.world_mut().resource_mut::<EpisodeLog>().episodes.pop() else {
             continue;

@@ -20,11 +20,11 @@ static SPECIES: RwLock<Vec<SpeciesTemplate>> = RwLock::new(Vec::new());
 
 /// Adds a species template: Ok(true) when new, Ok(false) for the same template again, an error for
 /// another template of the same name.
-pub fn insert(t: SpeciesTemplate) -> Result<bool, String> {
+pub fn insert(t: SpeciesTemplate) -> crate::error::Result<bool> {
     let mut all = SPECIES.write().unwrap_or_else(|e| e.into_inner());
     match all.iter().find(|o| o.def.name == t.def.name) {
         Some(o) if *o == t => Ok(false),
-        Some(_) => Err(format!("species plugin {:?}: two species plugins define it", t.def.name)),
+        Some(_) => Err(format!("species plugin {:?}: two species plugins define it", t.def.name).into()),
         None => {
             all.push(t);
             Ok(true)

@@ -15,10 +15,9 @@ mod presets;
 mod resolve;
 mod validate;
 
-pub use resolve::{parse_ron, Overrides, SceneError};
+pub use resolve::{parse_ron, Overrides};
 
 use serde::{Deserialize, Serialize};
-use std::fmt;
 use std::path::Path;
 
 /// Declares a resolved config struct and its patch (every field optional) with `apply` between them,
@@ -325,7 +324,7 @@ impl Scene {
     }
 
     /// Sets the count of a named species (for `--prey 50`-style overrides).
-    pub fn set_count(&mut self, name: &str, count: usize) -> Result<(), String> {
+    pub fn set_count(&mut self, name: &str, count: usize) -> crate::error::Result<()> {
         let s = self.species.iter_mut().find(|s| s.name == name).ok_or_else(|| format!("no species named {name:?}"))?;
         s.count = count;
         Ok(())

@@ -4,46 +4,23 @@
 
 use super::diagnostics::{field_before, locate, readable};
 use super::*;
+use crate::error::{Error, Result};
 
 /// Reads RON text of a coevo file (a scene, an experiment) into `T`, with `Some` implied for optional
 /// fields, and errors in a user's words: `file:line: field: message`.
-pub fn parse_ron<T: serde::de::DeserializeOwned>(text: &str, file: &str) -> Result<T, SceneError> {
+pub fn parse_ron<T: serde::de::DeserializeOwned>(text: &str, file: &str) -> Result<T> {
     ron::Options::default().with_default_extension(ron::extensions::Extensions::IMPLICIT_SOME).from_str(text).map_err(
-        |e| SceneError {
-            file: file.to_string(),
+        |e| Error {
+            file: Some(file.to_string()),
             line: Some(e.span.start.line),
-            field: match &e.code {
+            field: Some(match &e.code {
                 ron::Error::NoSuchStructField { found, .. } => found.clone(),
                 _ => field_before(text, e.span.start.line, e.span.start.col),
-            },
+            }),
             message: readable(text, &e),
         },
     )
 }
-
-/// One clear error line: `file:line: field: message`.
-#[derive(Clone, Debug, PartialEq)]
-pub struct SceneError {
-    pub file: String,
-    pub line: Option<usize>,
-    pub field: String,
-    pub message: String,
-}
-
-impl fmt::Display for SceneError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "{}", self.file)?;
-        if let Some(line) = self.line {
-            write!(f, ":{line}")?;
-        }
-        if !self.field.is_empty() {
-            write!(f, ": {}", self.field)?;
-        }
-        write!(f, ": {}", self.message)
-    }
-}
-
-impl std::error::Error for SceneError {}
 
 impl Scene {
     /// A preset by name (`paper` or `gym-pps`).
@@ -56,44 +33,41 @@ impl Scene {
     }
 
     /// Loads, resolves and validates a scene file.
-    pub fn load(path: &Path) -> Result<Scene, SceneError> {
-        let file = path.display().to_string();
-        let text = crate::io::read_text(path, MAX_SCENE_BYTES).map_err(|e| SceneError {
-            file: file.clone(),
-            line: None,
-            field: String::new(),
-            message: e.replace("cannot read:", "cannot read scene:"),
-        })?;
-        Scene::parse(&text, &file)
+    pub fn load(path: &Path) -> Result<Scene> {
+        let text = crate::io::read_text(path, MAX_SCENE_BYTES)
+            .map_err(|e| Error::from(e.message.replace("cannot read:", "cannot read scene:")).in_file(path))?;
+        Scene::parse(&text, &path.display().to_string())
     }
 
     /// Parses, resolves and validates scene text; `file` names it in errors.
-    pub fn parse(text: &str, file: &str) -> Result<Scene, SceneError> {
+    pub fn parse(text: &str, file: &str) -> Result<Scene> {
         Scene::parse_with_preset(text, file, None)
     }
 
     /// [`Scene::parse`], on `preset` instead of the one the text names (experiments switch a sweep's base
     /// between the `paper` and `gym-pps` presets).
-    pub fn parse_with_preset(text: &str, file: &str, preset: Option<&str>) -> Result<Scene, SceneError> {
+    pub fn parse_with_preset(text: &str, file: &str, preset: Option<&str>) -> Result<Scene> {
         let patch: ScenePatch = parse_ron(text, file)?;
-        let located = |field: String, message: String| SceneError {
-            file: file.to_string(),
-            line: locate(text, &field),
-            field,
-            message,
+        // An error about a field, at the line of the file that sets it.
+        let located = |e: Error| {
+            let line = e.field.as_deref().and_then(|f| locate(text, f));
+            Error { file: Some(file.to_string()), line, ..e }
         };
         let preset_name =
             preset.map(str::to_string).or_else(|| patch.preset.clone()).unwrap_or_else(|| "paper".to_string());
         let mut scene = Scene::preset(&preset_name).ok_or_else(|| {
-            located("preset".into(), format!("unknown preset {preset_name:?} (known: {})", PRESETS.join(", ")))
+            located(Error::field(
+                "preset".into(),
+                format!("unknown preset {preset_name:?} (known: {})", PRESETS.join(", ")),
+            ))
         })?;
-        scene.apply(patch).map_err(|(field, message)| located(field, message))?;
-        scene.validate().map_err(|(field, message)| located(field, message))?;
+        scene.apply(patch).map_err(located)?;
+        scene.validate().map_err(located)?;
         Ok(scene)
     }
 
-    /// Applies a scene patch (an experiment's variant) and validates the result. Err is (field, message).
-    pub fn patched(&self, patch: ScenePatch) -> Result<Scene, (String, String)> {
+    /// Applies a scene patch (an experiment's variant) and validates the result.
+    pub fn patched(&self, patch: ScenePatch) -> Result<Scene> {
         let mut scene = self.clone();
         scene.apply(patch)?;
         scene.validate()?;
@@ -101,7 +75,7 @@ impl Scene {
     }
 
     /// Applies a patch; a new species must give every field.
-    fn apply(&mut self, patch: ScenePatch) -> Result<(), (String, String)> {
+    fn apply(&mut self, patch: ScenePatch) -> Result<()> {
         if let Some(v) = patch.seed {
             self.seed = v;
         }
@@ -135,10 +109,10 @@ impl Scene {
         let mut seen = std::collections::BTreeSet::new();
         for (i, sp) in patch.species.unwrap_or_default().into_iter().enumerate() {
             let Some(name) = sp.name.clone() else {
-                return Err((format!("species[{i}].name"), "every species entry needs a name".into()));
+                return Err(Error::field(format!("species[{i}].name"), "every species entry needs a name".into()));
             };
             if !seen.insert(name.clone()) {
-                return Err((
+                return Err(Error::field(
                     format!("species[{name}]"),
                     "appears twice in this scene; give each species one entry".into(),
                 ));
@@ -168,7 +142,7 @@ impl Scene {
                 let mut def = SpeciesDef::template(&name);
                 let missing = sp.missing_fields();
                 if !missing.is_empty() {
-                    return Err((
+                    return Err(Error::field(
                         format!("species[{name}]"),
                         format!(
                             "no preset or species plugin of this program defines {name:?}; a new species must set: {}",
@@ -197,7 +171,7 @@ pub struct Overrides {
 
 impl Overrides {
     /// Applies the overrides to `scene` (read from `source`, which errors name) and validates the result.
-    pub fn apply(&self, scene: &mut Scene, source: &Path) -> Result<(), String> {
+    pub fn apply(&self, scene: &mut Scene, source: &Path) -> Result<()> {
         for (name, n) in &self.counts {
             scene.set_count(name, *n).map_err(|e| format!("{}: {e}", source.display()))?;
         }
@@ -210,7 +184,7 @@ impl Overrides {
         if let Some(r) = self.confusion_radius {
             scene.confusion_radius = Some(r);
         }
-        scene.validate().map_err(|(f, m)| format!("{}: {f}: {m}", source.display()))
+        scene.validate().map_err(|e| e.in_file(source))
     }
 }
 

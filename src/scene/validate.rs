@@ -2,21 +2,22 @@
 //! stability bounds, and the memory a scene would need (before anything is allocated).
 
 use super::*;
+use crate::error::Error;
 
 impl Scene {
-    /// Checks every value the physics or learning would choke on. Err is (field path, message).
-    pub fn validate(&self) -> Result<(), (String, String)> {
-        fn check(ok: bool, field: &str, message: impl FnOnce() -> String) -> Result<(), (String, String)> {
+    /// Checks every value the physics or learning would choke on; an error names the field.
+    pub fn validate(&self) -> crate::error::Result<()> {
+        fn check(ok: bool, field: &str, message: impl FnOnce() -> String) -> crate::error::Result<()> {
             if ok {
                 Ok(())
             } else {
-                Err((field.to_string(), message()))
+                Err(Error::field(field.to_string(), message()))
             }
         }
-        fn positive(v: f64, field: &str) -> Result<(), (String, String)> {
+        fn positive(v: f64, field: &str) -> crate::error::Result<()> {
             check(v.is_finite() && v > 0.0, field, || format!("must be a finite number > 0 (got {v})"))
         }
-        fn non_negative(v: f64, field: &str) -> Result<(), (String, String)> {
+        fn non_negative(v: f64, field: &str) -> crate::error::Result<()> {
             check(v.is_finite() && v >= 0.0, field, || format!("must be a finite number ≥ 0 (got {v})"))
         }
         let w = &self.world;
@@ -140,7 +141,7 @@ impl Scene {
     /// - walls: `k_wall·Δt²/m < 4` for the lightest body (a spring to a fixed wall);
     /// - travel: one step moves a body at most `max_speed·Δt` (×√2 when clipped per component), which must
     ///   stay under half the arena edge, as the torus wrap and minimum-image distances assume.
-    fn check_stability(&self) -> Result<(), (String, String)> {
+    fn check_stability(&self) -> crate::error::Result<()> {
         let w = &self.world;
         let walls = w.boundary == Boundary::Walls;
         let damping = w.drag + if walls { w.wall_damping } else { 0.0 };
@@ -151,21 +152,21 @@ impl Scene {
         let ratio = damping * w.dt / lightest;
         if ratio > 1.0 {
             let what = if walls { "(drag + wall_damping)·dt/mass" } else { "drag·dt/mass" };
-            return Err((field("mass"), format!("{what} = {ratio} exceeds 1: a step would reverse velocities (lower world.drag or world.dt, or raise the mass)")));
+            return Err(Error::field(field("mass"), format!("{what} = {ratio} exceeds 1: a step would reverse velocities (lower world.drag or world.dt, or raise the mass)")));
         }
         // The two lightest bodies that can meet: the lightest twice if its species has two agents.
         let lightest_species = self.species.iter().filter(|s| s.mass == lightest).map(|s| s.count).sum::<usize>();
         let second = if lightest_species >= 2 || masses.len() < 2 { lightest } else { masses[1].0 };
         let spring = w.contact_stiffness * w.dt * w.dt * (1.0 / lightest + 1.0 / second);
         if spring >= 4.0 {
-            return Err((
+            return Err(Error::field(
                 "world.contact_stiffness".into(),
                 format!("k·dt²·(1/m_a + 1/m_b) = {spring} for the lightest bodies ({name}) is ≥ 4: contacts would blow up (lower k or dt, or raise masses)"),
             ));
         }
         let wall = w.wall_stiffness * w.dt * w.dt / lightest;
         if walls && wall >= 4.0 {
-            return Err((
+            return Err(Error::field(
                 "world.wall_stiffness".into(),
                 format!("k_wall·dt²/m = {wall} for {name} is ≥ 4: wall contacts would blow up (lower it or dt)"),
             ));
@@ -178,7 +179,7 @@ impl Scene {
                     "a body would move {travel} m in one step, not less than half the arena edge ({} m)",
                     w.arena_edge / 2.0
                 );
-                return Err((format!("species[{}].max_speed", s.name), message));
+                return Err(Error::field(format!("species[{}].max_speed", s.name), message));
             }
         }
         Ok(())
@@ -188,10 +189,10 @@ impl Scene {
     /// before anything is allocated. The estimate counts what grows with the scene: per agent its
     /// components and observation rows, per learned species its networks (online, target, Adam moments and
     /// the copies kept for saving) and its replay buffer (at most what a full run can fill).
-    pub fn check_memory(&self, limit: f64) -> Result<(), (String, String)> {
+    pub fn check_memory(&self, limit: f64) -> crate::error::Result<()> {
         let gb = |b: f64| format!("{:.1} GB", b / 1e9);
         let refuse = |field: String, what: String, bytes: f64| {
-            Err((field, format!("{what} would need {}, more than the {} of memory coevo may use here (the least of free memory, the cgroup limit and ulimit -v)", gb(bytes), gb(limit))))
+            Err(Error::field(field, format!("{what} would need {}, more than the {} of memory coevo may use here (the least of free memory, the cgroup limit and ulimit -v)", gb(bytes), gb(limit))))
         };
         let mut total = 0.0;
         for (s, def) in self.species.iter().enumerate() {

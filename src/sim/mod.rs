@@ -126,7 +126,7 @@ impl Simulation {
 
     /// The simulation of a scene, with more plugins (learning, a species of your own) added by `extra`.
     /// Err when a species' `Plugin(name)` policy is decided by none of them.
-    pub fn try_with_plugins(scene: Scene, extra: impl FnOnce(&mut App)) -> Result<Self, String> {
+    pub fn try_with_plugins(scene: Scene, extra: impl FnOnce(&mut App)) -> crate::error::Result<Self> {
         let mut app = App::new();
         app.add_plugins(SimulationPlugin { scene: scene.clone() });
         extra(&mut app);
@@ -156,13 +156,13 @@ impl Simulation {
 
     /// One line when the last step left the physically possible ([`physics::StateFault`]): every run mode
     /// checks after every step and stops, so no NaN or escaped body ever reaches a result file.
-    pub fn check(&self) -> Result<(), String> {
+    pub fn check(&self) -> crate::error::Result<()> {
         check_state(self.world())
     }
 }
 
 /// [`Simulation::check`] for any world running the simulation (the viewer's too).
-pub fn check_state(world: &World) -> Result<(), String> {
+pub fn check_state(world: &World) -> crate::error::Result<()> {
     let Some(f) = &world.resource::<physics::StateFault>().0 else {
         return Ok(());
     };
@@ -171,5 +171,6 @@ pub fn check_state(world: &World) -> Result<(), String> {
         "episode {}, step {}: agent {} ({name}): {}; the integrator is unstable for this scene \
              (check world.dt, world.contact_stiffness, world.wall_stiffness and species[{name}].mass)",
         f.episode, f.step, f.agent, f.what
-    ))
+    )
+    .into())
 }

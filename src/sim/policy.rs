@@ -29,7 +29,7 @@ impl PolicyPlugins {
     }
 
     /// Err naming the first species whose `Plugin(name)` policy nothing registered.
-    pub fn check(&self, scene: &crate::scene::Scene) -> Result<(), String> {
+    pub fn check(&self, scene: &crate::scene::Scene) -> crate::error::Result<()> {
         for def in &scene.species {
             if let Policy::Plugin(name) = &def.policy {
                 if !self.0.contains(name) {
@@ -41,7 +41,8 @@ impl PolicyPlugins {
                     return Err(format!(
                         "species[{}].policy: no plugin decides Plugin({name:?}) in this program (registered: {known})",
                         def.name
-                    ));
+                    )
+                    .into());
                 }
             }
         }

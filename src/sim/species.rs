@@ -154,7 +154,7 @@ impl SpeciesPlugins {
 
     /// Puts every template in the program's catalog, after checking that no two species share a name
     /// (with each other or the presets' species) and that every species an interaction names exists.
-    pub fn register(&self) -> Result<(), String> {
+    pub fn register(&self) -> crate::error::Result<()> {
         let preset_names: Vec<String> = crate::scene::PRESETS
             .iter()
             .filter_map(|p| Scene::preset(p))
@@ -167,7 +167,8 @@ impl SpeciesPlugins {
                 let whose = if preset_names.contains(name) { "a preset's species" } else { "another species plugin" };
                 return Err(format!(
                     "species plugin {name:?}: {whose} has that name already; give each species its own name"
-                ));
+                )
+                .into());
             }
             known.push(name.clone());
         }
@@ -183,7 +184,7 @@ impl SpeciesPlugins {
                     return Err(format!(
                         "species plugin {:?}: its interactions name {other:?}, which no preset or species plugin of this program defines",
                         t.def.name
-                    ));
+                    ).into());
                 }
             }
         }
@@ -207,7 +208,7 @@ pub mod catalog {
 
     /// Adds a species (its template to the scenes' catalog, its systems to every app); the same template
     /// again is a no-op, another one of the same name an error.
-    pub fn insert(t: SpeciesTemplate, build: Builder) -> Result<(), String> {
+    pub fn insert(t: SpeciesTemplate, build: Builder) -> crate::error::Result<()> {
         if crate::scene::catalog::insert(t)? {
             BUILDERS.write().unwrap_or_else(|e| e.into_inner()).push(build);
         }

@@ -25,7 +25,7 @@ struct OneShot {
     frames: usize,
     timing_from: Option<(usize, Instant)>,
     requested_at: Option<usize>,
-    outcome: Option<Result<(), String>>,
+    outcome: Option<crate::error::Result<()>>,
 }
 
 /// Frames rendered before the frame rate is timed (start-up, shader compilation).
@@ -81,7 +81,7 @@ fn take_screenshots(mut commands: Commands, mut queue: ResMut<ScreenshotQueue>) 
     }
 }
 
-fn save_png(image: &Image, path: &Path) -> Result<(), String> {
+fn save_png(image: &Image, path: &Path) -> crate::error::Result<()> {
     let rgb = image
         .clone()
         .try_into_dynamic()
@@ -90,10 +90,10 @@ fn save_png(image: &Image, path: &Path) -> Result<(), String> {
     if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
     }
-    crate::io::write_atomically(path, crate::io::Existing::Replace, |w| {
+    Ok(crate::io::write_atomically(path, crate::io::Existing::Replace, |w| {
         rgb.write_with_encoder(image::codecs::png::PngEncoder::new(w)).map_err(std::io::Error::other)
     })
-    .map_err(|e| format!("{}: cannot write PNG: {e}", path.display()))
+    .map_err(|e| format!("{}: cannot write PNG: {e}", path.display()))?)
 }
 
 /// Counts frames, asks for the screenshot at frame N and exits once it is saved.

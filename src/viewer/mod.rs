@@ -74,7 +74,7 @@ pub struct Setup {
 impl Setup {
     /// The scene as this mode runs it and the learners it needs. An error (a checkpoint that is missing or
     /// does not fit the scene) changes nothing.
-    pub fn prepare(&self) -> Result<(Scene, Learners), String> {
+    pub fn prepare(&self) -> crate::error::Result<(Scene, Learners)> {
         let mut scene = self.scene.clone();
         if self.mode == RunMode::RuleBased {
             let registry = SpeciesRegistry::from_scene(&scene);
@@ -90,7 +90,7 @@ impl Setup {
                 }
             }
         }
-        scene.validate().map_err(|(field, message)| format!("{}: {field}: {message}", self.source.display()))?;
+        scene.validate().map_err(|e| e.in_file(&self.source))?;
         // The viewer registers no plugin policies of its own.
         crate::sim::policy::PolicyPlugins::default()
             .check(&scene)
@@ -190,7 +190,7 @@ impl Plugin for ViewerPlugin {
 }
 
 /// Opens the window and runs until it is closed (or the screenshot is saved).
-pub fn run(options: ViewerOptions) -> Result<(), String> {
+pub fn run(options: ViewerOptions) -> crate::error::Result<()> {
     // Refuse a bad scene or checkpoint before a window opens.
     let (scene, learners) = options.setup.prepare()?;
     let mut window = Window {
@@ -216,7 +216,7 @@ pub fn run(options: ViewerOptions) -> Result<(), String> {
     app.add_systems(Startup, |world: &mut World| crate::sim::episode::spawn_population(world));
     match app.run() {
         AppExit::Success => Ok(()),
-        AppExit::Error(code) => Err(format!("viewer exited with code {code}")),
+        AppExit::Error(code) => Err(format!("viewer exited with code {code}").into()),
     }
 }
 
@@ -235,7 +235,7 @@ fn apply_control(world: &mut World) {
                 c.current = setup;
                 c.error = None;
             }
-            Err(e) => world.resource_mut::<Control>().error = Some(e),
+            Err(e) => world.resource_mut::<Control>().error = Some(e.to_string()),
         }
     }
     if let Some(counts) = respawn {
@@ -251,8 +251,8 @@ fn respawn_with_counts(world: &mut World, counts: &[usize]) {
         def.count = n;
     }
     let source = world.resource::<Control>().current.source.clone();
-    if let Err((field, message)) = scene.validate() {
-        world.resource_mut::<Control>().error = Some(format!("{}: {field}: {message}", source.display()));
+    if let Err(e) = scene.validate() {
+        world.resource_mut::<Control>().error = Some(e.in_file(&source).to_string());
         return;
     }
     world.insert_resource(SpeciesRegistry::from_scene(&scene));
@@ -286,7 +286,7 @@ fn step(world: &mut World) {
     }
     let failure = world.resource::<Learners>().failure.clone().map(|f| format!("training stopped: {f}"));
     // The same guard as headless runs: an unphysical state stops the world with its one-line reason.
-    let fault = crate::sim::check_state(world).err();
+    let fault = crate::sim::check_state(world).err().map(|e| e.to_string());
     if let Some(message) = failure.or(fault) {
         let mut c = world.resource_mut::<Control>();
         if c.error.is_none() {
