@@ -45,13 +45,7 @@ fn workspace() -> tempfile::TempDir {
     scene.learning.warmup_transitions = 16;
     scene.learning.updates_per_episode = 2;
     for run in ["run", "nan-run"] {
-        let opts = coevo::run::train::TrainOptions {
-            run: root.join(run),
-            resume: false,
-            overwrite: false,
-            episodes: Some(1),
-            progress: false,
-        };
+        let opts = coevo::run::train::TrainOptions::new(root.join(run), Some(1));
         coevo::run::train::train(scene.clone(), &opts).unwrap();
     }
     // A NaN in the prey actor's first weight: the safetensors header is followed by the tensors' bytes.

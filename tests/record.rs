@@ -97,13 +97,7 @@ fn a_record_drives_learned_species_with_the_runs_actors() {
     scene.learning.batch_size = 32;
     scene.learning.warmup_transitions = 32;
     scene.learning.updates_per_episode = 5;
-    let opts = coevo::run::train::TrainOptions {
-        run: run.clone(),
-        resume: false,
-        overwrite: false,
-        episodes: Some(2),
-        progress: false,
-    };
+    let opts = coevo::run::train::TrainOptions::new(run.clone(), Some(2));
     coevo::run::train::train(scene, &opts).unwrap();
 
     let out = dir.path().join("r.csv");

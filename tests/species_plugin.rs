@@ -261,13 +261,7 @@ fn a_plugin_species_learns_with_the_other_two() {
     scene.learning.checkpoint_every = 1;
     let dir = tempfile::tempdir().unwrap();
     let run = dir.path().join("run");
-    let opts = coevo::run::train::TrainOptions {
-        run: run.clone(),
-        resume: false,
-        overwrite: false,
-        episodes: Some(2),
-        progress: false,
-    };
+    let opts = coevo::run::train::TrainOptions::new(run.clone(), Some(2));
     coevo::run::train::train(scene, &opts).unwrap();
     let metrics = std::fs::read_to_string(run.join("metrics.csv")).unwrap();
     let header: Vec<&str> = metrics.lines().next().unwrap().split(',').collect();

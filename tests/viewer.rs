@@ -129,11 +129,7 @@ fn live_training_in_the_window_is_the_headless_training_run() {
     let file = dir.path().join("short.ron");
     std::fs::write(&file, scene.to_ron()).unwrap();
     let run = dir.path().join("run");
-    train(
-        scene,
-        &TrainOptions { run: run.clone(), resume: false, overwrite: false, episodes: Some(2), progress: false },
-    )
-    .unwrap();
+    train(scene, &TrainOptions::new(run.clone(), Some(2))).unwrap();
     let metrics = std::fs::read_to_string(run.join("metrics.csv")).unwrap();
     let header: Vec<&str> = metrics.lines().next().unwrap().split(',').collect();
     let col = |name: &str| header.iter().position(|h| *h == name).unwrap();
@@ -177,8 +173,7 @@ fn tiny_run(dir: &Path) -> PathBuf {
     s.learning.hidden = 8;
     s.learning.buffer_capacity = 500;
     let run = dir.join("run");
-    train(s, &TrainOptions { run: run.clone(), resume: false, overwrite: false, episodes: Some(1), progress: false })
-        .unwrap();
+    train(s, &TrainOptions::new(run.clone(), Some(1))).unwrap();
     run
 }
 

@@ -27,6 +27,14 @@ pub struct TrainOptions {
     pub progress: bool,
 }
 
+impl TrainOptions {
+    /// A new run of `episodes` episodes (the scene's when None) into `run`, quietly: what programs and
+    /// tests train with.
+    pub fn new(run: impl Into<PathBuf>, episodes: Option<usize>) -> TrainOptions {
+        TrainOptions { run: run.into(), resume: false, overwrite: false, episodes, progress: false }
+    }
+}
+
 fn io_err(path: &Path) -> impl Fn(std::io::Error) -> String + '_ {
     move |e| format!("{}: {e}", path.display())
 }
