@@ -234,6 +234,28 @@ fn a_tiny_experiment_runs_resumes_and_gives_the_same_summary_at_one_or_two_jobs(
     assert!(one.path().join("results/tiny/figures/paper-training.png").exists());
     assert!(coevo(one.path(), &["--plot", seed1.to_str().unwrap()]).status.success());
     assert!(seed1.join("figures/training.png").exists());
+
+    // As in a fresh clone (run folders are not committed): aggregating would replace the committed
+    // summaries and REPRODUCTION.md with fewer runs, so it is refused in one line and nothing changes.
+    std::fs::rename(one.path().join("results/tiny/paper"), one.path().join("elsewhere")).unwrap();
+    let committed = |p: &str| std::fs::read(one.path().join(p)).unwrap();
+    let before = (committed("REPRODUCTION.md"), committed("results/tiny/summary.csv"));
+    for args in
+        [&["--plot", "all"][..], &["--plot", "results/tiny"], &["--experiment", "experiments/tiny.ron", "--emit-slurm"]]
+    {
+        let out = coevo(one.path(), args);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        if args[0] == "--experiment" {
+            assert!(out.status.success(), "writing Slurm scripts aggregates nothing: {stderr}");
+            continue;
+        }
+        assert!(!out.status.success() && stderr.lines().count() == 1, "{args:?}: {stderr}");
+        assert!(
+            stderr.contains("no finished run") || stderr.contains("results/tiny/summary.csv: holds 4 runs but only 0"),
+            "{args:?}: {stderr}"
+        );
+    }
+    assert_eq!((committed("REPRODUCTION.md"), committed("results/tiny/summary.csv")), before);
 }
 
 #[test]

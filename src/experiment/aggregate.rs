@@ -102,9 +102,29 @@ pub fn load(exp: &Experiment) -> crate::error::Result<BTreeMap<usize, RunData>> 
     Ok(data)
 }
 
+/// Refuses to aggregate fewer runs than the experiment's `summary.csv` already holds: run folders are
+/// not committed, so in a fresh clone (or after runs were moved away) aggregating would replace the
+/// committed summaries, figures and REPRODUCTION.md rows with "not run yet". Nothing is written then.
+pub fn check_complete(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> crate::error::Result<()> {
+    let summary = exp.root.join("summary.csv");
+    let Ok(text) = crate::io::read_text(&summary, crate::io::MAX_TEXT_BYTES) else { return Ok(()) };
+    let held = text.lines().skip(1).filter(|l| !l.is_empty()).count();
+    if held > data.len() {
+        return Err(format!(
+            "{}: holds {held} runs but only {} of their run folders are here (run folders are not committed); nothing written: run `coevo --experiment {}` to rebuild them, or move the summary away",
+            summary.display(),
+            data.len(),
+            exp.file.display()
+        )
+        .into());
+    }
+    Ok(())
+}
+
 /// Checks an experiment's claims on the `data` of its finished runs ([`load`]) and, when there are any,
 /// writes its summaries and figures. Claims with no run yet say so.
 pub fn aggregate(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> crate::error::Result<Vec<ClaimResult>> {
+    check_complete(exp, data)?;
     let written = !data.is_empty();
     let prey = headline(exp);
     fn io(path: &Path) -> impl Fn(std::io::Error) -> String + '_ {

@@ -100,10 +100,16 @@ fn in_experiments_folder(file: &Path) -> bool {
 
 /// Summaries and figures of every experiment with finished runs, and REPRODUCTION.md over all of them.
 pub fn write_reproduction() -> crate::error::Result<()> {
-    let mut all = Vec::new();
+    // Everything loaded and checked before anything is written.
+    let mut loaded = Vec::new();
     for file in Experiment::files(Path::new(EXPERIMENTS))? {
         let exp = Experiment::load(&file, Path::new(RESULTS))?;
         let data = aggregate::load(&exp)?;
+        aggregate::check_complete(&exp, &data)?;
+        loaded.push((exp, data));
+    }
+    let mut all = Vec::new();
+    for (exp, data) in loaded {
         // + 0.0: an empty f64 sum is −0.0, which would print as "-0.0 h".
         let seconds: f64 = data.values().map(|d| d.wall_seconds).sum::<f64>() + 0.0;
         let results = aggregate::aggregate(&exp, &data)?;
