@@ -300,6 +300,9 @@ pub fn main(species: SpeciesPlugins) -> ExitCode {
     let call = Call::of(&cli);
     if call != Call::Viewer {
         crate::io::install_signal_cleanup();
+        // Output piped into `head` ends quietly, as a Unix tool's does, instead of panicking on EPIPE.
+        // SAFETY: restores the default action of one signal before any thread is started.
+        unsafe { libc::signal(libc::SIGPIPE, libc::SIG_DFL) };
     }
     match run(cli, call) {
         Ok(()) => ExitCode::SUCCESS,
@@ -361,6 +364,13 @@ fn run(cli: Cli, call: Call) -> crate::error::Result<()> {
                 return Err(format!("--bench-seconds: must be a number of seconds in (0, 3600] (got {seconds})").into());
             }
             let budget = Duration::from_secs_f64(seconds);
+            println!(
+                "coevo {} ({}), {} matrix-product kernels, {} threads",
+                env!("CARGO_PKG_VERSION"),
+                env!("COEVO_GIT_COMMIT"),
+                crate::learning::nets::kernels(),
+                crate::parallel::threads()
+            );
             crate::run::bench::print(&crate::run::bench::environment(budget));
             crate::run::bench::print(&crate::run::bench::learning(budget));
             Ok(())

@@ -74,6 +74,12 @@ fn workspace() -> tempfile::TempDir {
     }
     copy_dir(&root.join("run"), &root.join("hawk-run"));
     std::fs::write(root.join("hawk-run/provenance.ron"), "(coevo_version: \"0.1.0\", plugins: [\"hawk\"])\n").unwrap();
+    copy_dir(&root.join("run"), &root.join("kernels-run"));
+    std::fs::write(
+        root.join("kernels-run/provenance.ron"),
+        "(coevo_version: \"0.1.0\", kernels: \"another-family\", plugins: [])\n",
+    )
+    .unwrap();
     copy_dir(&root.join("run"), &root.join("busy-run"));
     std::fs::write(root.join("busy-run/coevo.lock"), format!("{}\n", std::process::id())).unwrap();
     std::fs::create_dir(root.join("experiments")).unwrap();
@@ -270,6 +276,10 @@ fn cases() -> Vec<(Vec<&'static str>, &'static str)> {
         (vec!["--eval", "hawk-run"], "the run needs the species plugin \"hawk\""),
         (vec!["--record", "out.csv", "--run", "hawk-run"], "the run needs the species plugin \"hawk\""),
         (vec!["--resume", "busy-run", "--episodes", "3"], "busy-run: in use by coevo process"),
+        (
+            vec!["--resume", "kernels-run", "--episodes", "3"],
+            "kernels-run: the run was trained on another-family kernels and this machine runs",
+        ),
         (vec!["--eval", "busy-run"], "busy-run: in use by coevo process"),
         // A user-chosen output never takes a run's own name or another evaluation's.
         (vec!["--eval", "run", "--eval-out", "metrics.csv"], "--eval-out metrics.csv: is one of the run's own files"),

@@ -9,6 +9,23 @@ use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 
 pub type Dev = Cpu;
+
+/// The family of matrix-product kernels this machine runs (gemm 0.19 through the vendored dfdx, chosen
+/// at run time as gemm chooses: AVX-512 where the CPU has it, else AVX2/FMA, else portable code).
+/// Results are bit-identical within a family at any thread count; across families they may differ in
+/// the last bits, so a run records its family (`provenance.ron`) and is resumed only on the same one.
+pub fn kernels() -> &'static str {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if std::arch::is_x86_feature_detected!("avx512f") {
+            return "avx512";
+        }
+        if std::arch::is_x86_feature_detected!("fma") {
+            return "avx2-fma";
+        }
+    }
+    "portable"
+}
 pub type Matrix<T = NoneTape> = Tensor<(usize, usize), f32, Dev, T>;
 pub type Vector = Tensor<(usize,), f32, Dev>;
 

@@ -222,17 +222,37 @@ impl RunDir {
         crate::io::write_file(&self.provenance(), Existing::Replace, format!("{text}\n").as_bytes())
     }
 
+    /// The run's provenance, None for runs older than provenance files.
+    pub fn read_provenance(&self) -> crate::error::Result<Option<Provenance>> {
+        let path = self.provenance();
+        if !path.exists() {
+            return Ok(None);
+        }
+        let text =
+            crate::io::read_text(&path, crate::io::MAX_TEXT_BYTES).map_err(|e| format!("{}: {e}", path.display()))?;
+        Ok(Some(ron::from_str(&text).map_err(|e| format!("{}: damaged ({e})", path.display()))?))
+    }
+
+    /// Refuses to continue training on another family of matrix-product kernels than the run began on:
+    /// the continuation would differ in the last bits from the uninterrupted run.
+    pub fn check_kernels(&self) -> crate::error::Result<()> {
+        let now = crate::learning::nets::kernels();
+        match self.read_provenance()? {
+            Some(p) if !p.kernels.is_empty() && p.kernels != now => Err(format!(
+                "{}: the run was trained on {} kernels and this machine runs {now}; continued here it would differ from an uninterrupted run (provenance.ron)",
+                self.path.display(),
+                p.kernels
+            )
+            .into()),
+            _ => Ok(()),
+        }
+    }
+
     /// Refuses a run that needs species plugins this program does not have (resumed or evaluated by a
     /// binary without the plugin, its species would lose their systems). Runs older than provenance files
     /// need none.
     pub fn check_plugins(&self) -> crate::error::Result<()> {
-        let path = self.provenance();
-        if !path.exists() {
-            return Ok(());
-        }
-        let text =
-            crate::io::read_text(&path, crate::io::MAX_TEXT_BYTES).map_err(|e| format!("{}: {e}", path.display()))?;
-        let p: Provenance = ron::from_str(&text).map_err(|e| format!("{}: damaged ({e})", path.display()))?;
+        let Some(p) = self.read_provenance()? else { return Ok(()) };
         match p.plugins.iter().find(|name| crate::sim::species::catalog::get(name).is_none()) {
             Some(name) => Err(format!(
                 "{}: the run needs the species plugin {name:?}, which this program does not have; use the program that trained it (e.g. cargo run --release --example {name})",
@@ -248,10 +268,20 @@ pub fn is_run(dir: &Path) -> bool {
     RunDir::new(dir).is_run()
 }
 
-/// What made a run (`provenance.ron`).
+/// What made a run (`provenance.ron`), written when the run is created. Fields a coevo before them did
+/// not write read as empty.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct Provenance {
     pub coevo_version: String,
+    /// The commit the binary was built from (`git describe --always --dirty`).
+    #[serde(default)]
+    pub git_commit: String,
+    /// The matrix-product kernels it ran on ([`crate::learning::nets::kernels`]).
+    #[serde(default)]
+    pub kernels: String,
+    /// Worker threads when the run was created (results never depend on them).
+    #[serde(default)]
+    pub threads: usize,
     /// Species of the scene that come from species plugins of the program that trained it.
     pub plugins: Vec<String>,
 }
@@ -260,6 +290,9 @@ impl Provenance {
     pub fn of(scene: &crate::scene::Scene) -> Provenance {
         Provenance {
             coevo_version: env!("CARGO_PKG_VERSION").to_string(),
+            git_commit: env!("COEVO_GIT_COMMIT").to_string(),
+            kernels: crate::learning::nets::kernels().to_string(),
+            threads: crate::parallel::threads(),
             plugins: scene
                 .species
                 .iter()

@@ -106,6 +106,7 @@ pub fn train(scene: Scene, opts: &TrainOptions) -> crate::error::Result<Vec<Epis
             return Err(format!("{}: holds no coevo run to resume", run.display()).into());
         }
         dir.check_plugins()?;
+        dir.check_kernels()?;
     } else {
         dir.check_new(opts.overwrite)?;
     }
