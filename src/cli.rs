@@ -407,6 +407,9 @@ fn run(cli: Cli, call: Call) -> crate::error::Result<()> {
             };
             let summaries = crate::run::train::train(scene, &opts)?;
             eprintln!("coevo: trained {} episodes into {}", summaries.len(), run.display());
+            if !cli.quiet {
+                eprint!("{}", crate::run::train::explain(&run)?);
+            }
             Ok(())
         }
         Call::Record(out) => {

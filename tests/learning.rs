@@ -319,3 +319,55 @@ fn the_shipped_trained_run_is_the_default_scene_and_loads() {
     }
     sim.check().unwrap();
 }
+
+#[test]
+fn a_finished_training_run_explains_itself() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("tiny.ron");
+    std::fs::write(
+        &scene,
+        r#"(episode_steps: 5, learning: (hidden: 8, batch_size: 16, warmup_transitions: 16, updates_per_episode: 1, checkpoint_every: 1000))"#,
+    )
+    .unwrap();
+    let train = |episodes: &str, out: &str| {
+        let o = std::process::Command::new(env!("CARGO_BIN_EXE_coevo"))
+            .args(["--train", "--scene"])
+            .arg(&scene)
+            .args(["--episodes", episodes, "--out"])
+            .arg(dir.path().join(out))
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        String::from_utf8_lossy(&o.stderr).into_owned()
+    };
+    // Three episodes: both windows are the same three episodes, and it says so.
+    let short = train("3", "short");
+    for expected in [
+        "prey, mean of the first → last 3 of 3 episodes",
+        "(random positions, 10 prey: 0.2",
+        "(random headings: 2/π = 0.637)",
+        "catches per episode",
+        "the two windows overlap (3 of 3 episodes are in both): not a change over training",
+        "next:",
+        "--control blind",
+        "--watch",
+    ] {
+        assert!(short.contains(expected), "{expected:?} not in:\n{short}");
+    }
+    assert!(short.contains(&format!("coevo --eval {}", dir.path().join("short").display())), "{short}");
+    // 210 episodes: first and last 100 apart, no overlap note.
+    let long = train("210", "long");
+    assert!(long.contains("first → last 100 of 210 episodes") && !long.contains("overlap"), "{long}");
+}
+
+#[test]
+fn random_positions_give_the_known_dos_baselines() {
+    use coevo::scene::Boundary;
+    use coevo::sim::space::Arena;
+    // Uniform random positions in the 2 m torus: DoS ≈ 0.227 at 10 prey and ≈ 0.100 at 50.
+    let torus = Arena { edge: 2.0, boundary: Boundary::Periodic };
+    let ten = coevo::run::train::random_dos(&torus, 10).unwrap();
+    let fifty = coevo::run::train::random_dos(&torus, 50).unwrap();
+    assert!((ten - 0.227).abs() < 0.005 && (fifty - 0.100).abs() < 0.003, "{ten} {fifty}");
+    assert_eq!(coevo::run::train::random_dos(&torus, 1), None);
+}

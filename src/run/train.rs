@@ -237,3 +237,78 @@ pub fn train(scene: Scene, opts: &TrainOptions) -> crate::error::Result<Vec<Epis
     bar.finish();
     Ok(summaries)
 }
+
+/// Uniform random positions, `n` of them in the arena, through the DoS formula (Eq. 2): the DoS a
+/// population has without any cohesion, at that density (a Monte Carlo estimate, fixed seed).
+pub fn random_dos(arena: &crate::sim::space::Arena, n: usize) -> Option<f64> {
+    use rand::{Rng, SeedableRng};
+    if n < 2 {
+        return None;
+    }
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(0);
+    let (samples, half) = (400, arena.half());
+    let mut sum = 0.0;
+    for _ in 0..samples {
+        let x: Vec<bevy::math::DVec2> =
+            (0..n).map(|_| bevy::math::DVec2::new(rng.gen_range(-half..half), rng.gen_range(-half..half))).collect();
+        for (i, a) in x.iter().enumerate() {
+            let nearest = x.iter().enumerate().filter(|(j, _)| *j != i).map(|(_, b)| arena.delta(*a, *b).length());
+            sum += nearest.fold(f64::INFINITY, f64::min);
+        }
+    }
+    Some(sum / (samples * n) as f64 / arena.max_distance())
+}
+
+/// What a finished `--train` says about its run: first → last DoS, DoA and catches with the baselines of
+/// no swarming at that density, overlapping windows named as such, and the next commands for this run.
+pub fn explain(run: &Path) -> crate::error::Result<String> {
+    use crate::experiment::claims::WINDOW;
+    let dir = RunDir::new(run);
+    let scene = Scene::load(&dir.scene())?;
+    let registry = SpeciesRegistry::from_scene(&scene);
+    let prey = registry.headline();
+    let name = &registry.defs[prey].name;
+    let table = schema::Table::read(&dir.metrics())?;
+    let (dos, doa, catches) = (
+        table.column(&schema::of("dos", name))?,
+        table.column(&schema::of("doa", name))?,
+        table.column(schema::CATCHES)?,
+    );
+    let n = dos.len();
+    let window = WINDOW.min(n);
+    let mean = |v: &[f64]| {
+        let finite: Vec<f64> = v.iter().copied().filter(|x| x.is_finite()).collect();
+        (!finite.is_empty()).then(|| finite.iter().sum::<f64>() / finite.len() as f64)
+    };
+    let span = |v: &[f64]| (mean(&v[..window]), mean(&v[n - window..]));
+    let shown = |x: Option<f64>, digits: usize| x.map_or("–".to_string(), |x| format!("{x:.digits$}"));
+    let arena = crate::sim::space::Arena { edge: scene.world.arena_edge, boundary: scene.world.boundary };
+    let count = registry.defs[prey].count;
+    let mut out = String::new();
+    let line = |out: &mut String, what: &str, (a, b): (Option<f64>, Option<f64>), digits: usize, baseline: String| {
+        out.push_str(&format!("  {what:<22} {} → {}{baseline}\n", shown(a, digits), shown(b, digits)));
+    };
+    out.push_str(&format!("  {name}, mean of the first → last {window} of {n} episodes (exploration noise on):\n"));
+    let random =
+        random_dos(&arena, count).map_or(String::new(), |r| format!("   (random positions, {count} {name}: {r:.3})"));
+    line(&mut out, "DoS", span(&dos), 3, random);
+    line(&mut out, "DoA", span(&doa), 3, "   (random headings: 2/π = 0.637)".into());
+    line(&mut out, "catches per episode", span(&catches), 1, String::new());
+    if n < 2 * WINDOW {
+        out.push_str(&format!(
+            "  the two windows overlap ({} of {n} episodes are in both): not a change over training; train at least {} episodes for one\n",
+            2 * window - n.min(2 * window),
+            2 * WINDOW
+        ));
+    }
+    out.push_str("  one run is one sample: seeds of the same scene differ widely; compare seeds with an experiment file (README, \"Experiments\")\n");
+    let r = run.display();
+    out.push_str(&format!(
+        "next:\n  coevo --eval {r} --prey 50 --episodes 10                                  # the trained actors, no noise, on 50 {name}\n  \
+         coevo --eval {r} --prey 50 --episodes 10 --control blind --eval-out eval-blind.csv   # without seeing neighbours\n  \
+         coevo --plot {r}                                                            # learning curves, {r}/figures/\n  \
+         coevo --animate {r}/clip.gif --run {r} --prey 50                            # a GIF of the trained swarm\n  \
+         cargo run --release --features viewer -- --watch {r}                        # watch it live\n"
+    ));
+    Ok(out)
+}
