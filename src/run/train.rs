@@ -2,7 +2,7 @@
 //! directly, into a run folder ([`super::RunDir`]): `metrics.csv` one row per episode
 //! ([`super::schema`]), a checkpoint every `checkpoint_every` episodes (`learning::checkpoint`).
 
-use super::{schema, RunDir};
+use super::{io_err, schema, RunDir};
 use crate::io::Existing;
 use crate::learning::checkpoint::{self, SpeciesState, TrainingState};
 use crate::learning::{Learners, Mode};
@@ -33,10 +33,6 @@ impl TrainOptions {
     pub fn new(run: impl Into<PathBuf>, episodes: Option<usize>) -> TrainOptions {
         TrainOptions { run: run.into(), resume: false, overwrite: false, episodes, progress: false }
     }
-}
-
-fn io_err(path: &Path) -> impl Fn(std::io::Error) -> String + '_ {
-    move |e| format!("{}: {e}", path.display())
 }
 
 /// Refuses a resume that could not continue the run as it was: its scene.ron edited since training
