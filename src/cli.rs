@@ -65,6 +65,10 @@ struct Cli {
     /// Worker threads (default: COEVO_THREADS, else all cores). Results never depend on it.
     #[arg(long, help_heading = "Training and evaluation", value_name = "N")]
     threads: Option<usize>,
+    /// Matrix-product kernels: auto, avx512, avx2 or portable (default: COEVO_KERNELS, else auto). Pin one
+    /// family so CPUs with and without AVX-512 compute identical runs.
+    #[arg(long, help_heading = "Training and evaluation", value_name = "FAMILY")]
+    kernels: Option<String>,
 
     /// --eval: what the actors see of their neighbours: `blind` zeroes every neighbour slot, `shuffled`
     /// gives each agent another's (controls for alignment claims) [default: seeing].
@@ -156,7 +160,7 @@ struct Cli {
     select: Option<u32>,
 }
 
-/// The flags each mode takes besides its own flag and `--threads` (which every mode takes); the viewer is
+/// The flags each mode takes besides its own flag, `--threads` and `--kernels` (which every mode takes); the viewer is
 /// the call without a mode flag. clap enforces it ([`command`]): a flag conflicts with every mode that
 /// does not take it and, when the viewer does not take it either, requires one of the modes that do.
 const TAKES: [(&str, &[&str]); 10] = [
@@ -218,7 +222,7 @@ fn command() -> clap::Command {
     let flags: Vec<String> = command
         .get_arguments()
         .map(|a| a.get_id().to_string())
-        .filter(|id| !modes.contains(&id.as_str()) && !["threads", "help", "version"].contains(&id.as_str()))
+        .filter(|id| !modes.contains(&id.as_str()) && !["threads", "kernels", "help", "version"].contains(&id.as_str()))
         .collect();
     for flag in flags {
         let takers: Vec<&'static str> =
@@ -353,6 +357,12 @@ fn run(cli: Cli, call: Call) -> crate::error::Result<()> {
     at_least_one("--threads", cli.threads)?;
     if let Some(n) = cli.threads {
         crate::parallel::set_threads(n);
+    }
+    // Before any network exists: gemm fixes its kernels at its first product.
+    match (&cli.kernels, std::env::var("COEVO_KERNELS")) {
+        (Some(family), _) => crate::learning::nets::pin_kernels(family).map_err(|e| format!("--kernels: {e}"))?,
+        (None, Ok(family)) => crate::learning::nets::pin_kernels(&family).map_err(|e| format!("COEVO_KERNELS: {e}"))?,
+        (None, Err(_)) => {}
     }
     at_least_one("--episodes", cli.episodes)?;
     at_least_one("--steps", cli.steps)?;

@@ -235,6 +235,22 @@ fn a_tiny_experiment_runs_resumes_and_gives_the_same_summary_at_one_or_two_jobs(
     assert!(coevo(one.path(), &["--plot", seed1.to_str().unwrap()]).status.success());
     assert!(seed1.join("figures/training.png").exists());
 
+    // A run whose provenance names another executable: refused in one line (every number of an
+    // experiment comes from one binary), unless the experiment file allows mixed binaries.
+    let provenance = finished.join("provenance.ron");
+    let original = std::fs::read_to_string(&provenance).unwrap();
+    assert!(original.contains("binary: \""), "{original}");
+    std::fs::write(&provenance, original.replacen("binary: \"", "binary: \"other", 1)).unwrap();
+    let out = coevo(one.path(), &["--plot", "results/tiny"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && stderr.lines().count() == 1, "{stderr}");
+    assert!(stderr.contains("more than one binary") && stderr.contains("mixed_binaries"), "{stderr}");
+    let tiny = one.path().join("experiments/tiny.ron");
+    std::fs::write(&tiny, TINY.replacen("seeds: [1, 2],", "seeds: [1, 2], mixed_binaries: true,", 1)).unwrap();
+    assert!(coevo(one.path(), &["--plot", "results/tiny"]).status.success());
+    std::fs::write(&tiny, TINY).unwrap();
+    std::fs::write(&provenance, original).unwrap();
+
     // As in a fresh clone (run folders are not committed): aggregating would replace the committed
     // summaries and REPRODUCTION.md with fewer runs, so it is refused in one line and nothing changes.
     std::fs::rename(one.path().join("results/tiny/paper"), one.path().join("elsewhere")).unwrap();

@@ -311,3 +311,41 @@ fn interrupted_writes_leave_no_temporary_behind() {
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     assert!(temporaries().is_empty(), "left: {:?}", temporaries());
 }
+
+#[test]
+fn a_run_names_every_executable_that_trained_or_evaluated_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("scene.ron");
+    std::fs::write(&scene, scene_text(false).replace("episodes: 24", "episodes: 3")).unwrap();
+    // Another build of coevo: the same program with bytes appended, so its file (its identity) differs.
+    let other = dir.path().join("coevo-other");
+    let mut bytes = std::fs::read(env!("CARGO_BIN_EXE_coevo")).unwrap();
+    bytes.extend_from_slice(b"another build");
+    std::fs::write(&other, bytes).unwrap();
+    std::fs::set_permissions(&other, std::os::unix::fs::PermissionsExt::from_mode(0o755)).unwrap();
+    let run = dir.path().join("run");
+    let ok = |out: std::process::Output| assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    ok(coevo()
+        .args(["--train", "--quiet", "--episodes", "2", "--scene"])
+        .arg(&scene)
+        .arg("--out")
+        .arg(&run)
+        .output()
+        .unwrap());
+    let provenance = || std::fs::read_to_string(run.join("provenance.ron")).unwrap();
+    let first = provenance();
+    assert!(first.contains("binary: \"") && !first.contains("also_by"), "{first}");
+    for episodes in ["3", "4"] {
+        // Resumed, then evaluated, by the other build, twice: named once.
+        ok(Command::new(&other)
+            .args(["--resume"])
+            .arg(&run)
+            .args(["--quiet", "--episodes", episodes])
+            .output()
+            .unwrap());
+        ok(Command::new(&other).args(["--eval"]).arg(&run).args(["--episodes", "1", "--steps", "5"]).output().unwrap());
+    }
+    let after = provenance();
+    let named = after.lines().skip_while(|l| !l.contains("also_by")).take_while(|l| !l.contains(']')).count();
+    assert_eq!(named, 2, "also_by and one executable: {after}");
+}

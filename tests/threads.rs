@@ -18,13 +18,17 @@ const SCENE: &str = r#"(
 )"#;
 
 fn train(dir: &Path, name: &str, threads: &str) -> (Vec<String>, Vec<Vec<u8>>) {
+    train_on(dir, name, threads, "auto")
+}
+
+fn train_on(dir: &Path, name: &str, threads: &str, kernels: &str) -> (Vec<String>, Vec<Vec<u8>>) {
     let run = dir.join(name);
     let out = Command::new(env!("CARGO_BIN_EXE_coevo"))
         .args(["--train", "--quiet", "--scene"])
         .arg(dir.join("scene.ron"))
         .arg("--out")
         .arg(&run)
-        .args(["--threads", threads])
+        .args(["--threads", threads, "--kernels", kernels])
         .output()
         .unwrap();
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
@@ -49,5 +53,52 @@ fn one_two_and_three_threads_train_identical_networks_and_metrics() {
         let (m, n) = train(dir.path(), threads, threads);
         assert_eq!(m, metrics, "metrics with {threads} threads");
         assert!(n == networks, "networks with {threads} threads differ from one thread's");
+    }
+}
+
+/// The kernel families this CPU can run, as `--kernels` names them.
+fn families() -> Vec<&'static str> {
+    let mut families = vec!["portable"];
+    #[cfg(target_arch = "x86_64")]
+    {
+        if std::arch::is_x86_feature_detected!("fma") {
+            families.push("avx2");
+        }
+        if std::arch::is_x86_feature_detected!("avx512f") {
+            families.push("avx512");
+        }
+    }
+    families
+}
+
+#[test]
+fn each_pinned_kernel_family_is_recorded_and_reproducible_at_any_thread_count() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("scene.ron"), SCENE).unwrap();
+    for family in families() {
+        let one = train_on(dir.path(), &format!("{family}-1"), "1", family);
+        let two = train_on(dir.path(), &format!("{family}-2"), "2", family);
+        assert_eq!(one.0, two.0, "{family}: metrics at 1 and 2 threads");
+        assert!(one.1 == two.1, "{family}: networks at 1 and 2 threads differ");
+        let provenance = std::fs::read_to_string(dir.path().join(format!("{family}-1/provenance.ron"))).unwrap();
+        let recorded = if family == "avx2" { "avx2-fma" } else { family };
+        assert!(provenance.contains(&format!("kernels: \"{recorded}\"")), "{family}: {provenance}");
+    }
+}
+
+#[test]
+fn an_unknown_kernel_family_is_one_error_line() {
+    for (args, env, names) in [(vec!["--kernels", "sse9"], None, "--kernels"), (vec![], Some("sse9"), "COEVO_KERNELS")]
+    {
+        let mut command = Command::new(env!("CARGO_BIN_EXE_coevo"));
+        command.args(["--describe-scene", "scenes/standard.ron"]).args(&args);
+        if let Some(v) = env {
+            command.env("COEVO_KERNELS", v);
+        }
+        let out = command.output().unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{names}: accepted");
+        assert_eq!(stderr.trim().lines().count(), 1, "{names}: {stderr}");
+        assert!(stderr.contains(names) && stderr.contains("sse9"), "{names}: {stderr}");
     }
 }

@@ -99,7 +99,40 @@ pub fn load(exp: &Experiment) -> crate::error::Result<BTreeMap<usize, RunData>> 
         }
         data.insert(i, d);
     }
+    check_one_binary(exp, &data)?;
     Ok(data)
+}
+
+/// Refuses runs (training, resumes, evaluations) made by more than one executable, unless the experiment
+/// file says `mixed_binaries: true`: its numbers would not come from one program.
+fn check_one_binary(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> crate::error::Result<()> {
+    if exp.spec.mixed_binaries {
+        return Ok(());
+    }
+    let mut first: Option<(String, &std::path::Path)> = None;
+    for &i in data.keys() {
+        let dir = &exp.runs[i].dir;
+        let binaries = match RunDir::new(dir).read_provenance()? {
+            Some(p) => p.binaries().into_iter().map(String::from).collect(),
+            None => vec!["unknown (no provenance.ron)".to_string()],
+        };
+        for b in binaries {
+            match &first {
+                None => first = Some((b, dir)),
+                Some((a, other)) if *a != b => {
+                    return Err(format!(
+                        "{}: runs of more than one binary ({} by {a}, {} by {b}); rerun them with one coevo or set mixed_binaries: true",
+                        exp.file.display(),
+                        other.display(),
+                        dir.display()
+                    )
+                    .into())
+                }
+                Some(_) => {}
+            }
+        }
+    }
+    Ok(())
 }
 
 /// Refuses to aggregate fewer runs than the experiment's `summary.csv` already holds: run folders are

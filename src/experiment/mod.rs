@@ -53,6 +53,10 @@ pub struct ExperimentFile {
     pub evaluations: Vec<Evaluation>,
     #[serde(default)]
     pub claims: Vec<Claim>,
+    /// Compare runs made by different executables (`provenance.ron`'s `binary` and `also_by`). Off by
+    /// default: every number of an experiment comes from one binary, and aggregation refuses otherwise.
+    #[serde(default)]
+    pub mixed_binaries: bool,
 }
 
 fn default_presets() -> Vec<String> {

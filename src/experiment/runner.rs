@@ -68,6 +68,8 @@ pub fn eval_file(dir: &Path, evaluation: &str) -> PathBuf {
 fn child(exe: &Path, args: &[String]) -> crate::error::Result<()> {
     let mut command = Command::new(exe);
     command.args(args);
+    // Every run of an experiment on the parent's kernel family, whatever pinned it.
+    command.env("COEVO_KERNELS", crate::learning::nets::kernels());
     dies_with_parent(&mut command);
     let out = command.output().map_err(|e| format!("{}: cannot start: {e}", exe.display()))?;
     if out.status.success() {

@@ -9,7 +9,12 @@
 //! ```
 //!
 //! Episodes end by a time limit, not by a terminal state, so the target always bootstraps.
+//!
+//! The update is written twice: [`Ddpg::update`] computes it with the passes of `fused.rs` (buffers reused,
+//! only the gradients it needs), [`Ddpg::update_reference`] with dfdx's tape. The tests below train the same
+//! networks both ways and require the same parameters.
 
+use super::fused::{gradients_like, Workspace};
 use super::nets::{matrix, Adam, Dev, Mlp, Output};
 use super::replay::Batch;
 use crate::scene::LearningParams;
@@ -35,6 +40,8 @@ pub struct Ddpg {
     pub gamma: f32,
     /// Soft update rate τ.
     pub tau: f32,
+    /// The update's buffers (not part of the learner's state: rebuilt at the first update).
+    pub work: Workspace,
 }
 
 /// Losses of one update.
@@ -60,6 +67,7 @@ impl Ddpg {
             critic,
             gamma: p.gamma as f32,
             tau: p.tau as f32,
+            work: Workspace::default(),
         }
     }
 
@@ -83,8 +91,49 @@ impl Ddpg {
         });
     }
 
-    /// One DDPG update on a mini-batch (the body of Algorithm 1's inner loop after sampling).
-    pub fn update(&mut self, dev: &Dev, b: Batch) -> Losses {
+    /// One DDPG update on a mini-batch (the body of Algorithm 1's inner loop after sampling), in the
+    /// reused buffers of `fused.rs`.
+    pub fn update(&mut self, b: &Batch) -> Losses {
+        let (n, d, w) = (b.n, self.obs_dim(), &mut self.work);
+        gradients_like(&mut w.critic_gradients, &self.critic);
+        gradients_like(&mut w.actor_gradients, &self.actor);
+
+        // TD target y = r + γ·Q'(o', μ'(o')), kept in d_q until the critic's gradient replaces it.
+        w.target_actor.forward(&self.target_actor, n, &b.next_obs, &[]);
+        w.target_critic.forward(&self.target_critic, n, &b.next_obs, w.target_actor.output());
+        w.d_q.clear();
+        w.d_q.extend(b.rewards.iter().zip(w.target_critic.output()).map(|(r, q)| r + q * self.gamma));
+
+        // Critic: minimise L = 1/S Σ (y − Q(o, a))², dL/dQ = 2 (Q − y) / S.
+        w.critic.forward(&self.critic, n, &b.obs, &b.actions);
+        let mut critic_loss = 0.0;
+        for (g, q) in w.d_q.iter_mut().zip(w.critic.output()) {
+            let e = q - *g;
+            critic_loss += e * e;
+            *g = 2.0 * e / n as f32;
+        }
+        w.critic.backward(&self.critic, &w.d_q, Some(&mut w.critic_gradients), None);
+        self.critic_opt.update(&mut self.critic, &w.critic_gradients);
+
+        // Actor: maximise Q(o, μ(o)) through the (just updated) critic: J = −1/S Σ Q, dJ/dQ = −1/S; only
+        // the critic's input gradient in its action columns, dJ/dμ, is needed.
+        w.actor.forward(&self.actor, n, &b.obs, &[]);
+        w.actor_value.forward(&self.critic, n, &b.obs, w.actor.output());
+        let actor_loss = -w.actor_value.output().iter().sum::<f32>() / n as f32;
+        w.d_q.fill(-1.0 / n as f32);
+        w.d_actions.resize(n * ACTION_DIM, 0.0);
+        w.actor_value.backward(&self.critic, &w.d_q, None, Some((d..d + ACTION_DIM, &mut w.d_actions)));
+        w.actor.backward(&self.actor, &w.d_actions, Some(&mut w.actor_gradients), None);
+        self.actor_opt.update(&mut self.actor, &w.actor_gradients);
+
+        // Targets follow slowly.
+        self.target_actor.soft_update_towards(&self.actor, self.tau);
+        self.target_critic.soft_update_towards(&self.critic, self.tau);
+        Losses { critic: critic_loss / n as f32, actor: actor_loss }
+    }
+
+    /// [`Ddpg::update`] computed by dfdx's tape: the reference the fused update is tested against.
+    pub fn update_reference(&mut self, dev: &Dev, b: Batch) -> Losses {
         let d = self.obs_dim();
         let obs = matrix(dev, b.obs, b.n, d);
         let actions = matrix(dev, b.actions, b.n, ACTION_DIM);
@@ -156,10 +205,10 @@ mod tests {
         let mut rng = ChaCha8Rng::seed_from_u64(5);
         let mut ddpg = Ddpg::new(&dev, 10, &Scene::preset("paper").unwrap().learning, &mut rng);
         let batch = fixed_batch(256, 10, &mut rng);
-        let first = ddpg.update(&dev, batch.clone()).critic;
+        let first = ddpg.update(&batch).critic;
         let mut last = first;
         for _ in 0..200 {
-            last = ddpg.update(&dev, batch.clone()).critic;
+            last = ddpg.update(&batch).critic;
         }
         assert!(last < 0.5 * first, "critic loss {first} -> {last}");
         assert!(ddpg.is_finite());
@@ -174,11 +223,56 @@ mod tests {
         ddpg.actor_opt.lr = 1e-3;
         ddpg.critic_opt.lr = 0.0;
         let batch = fixed_batch(128, 6, &mut rng);
-        let before = ddpg.update(&dev, batch.clone()).actor;
+        let before = ddpg.update(&batch).actor;
         let mut after = before;
         for _ in 0..100 {
-            after = ddpg.update(&dev, batch.clone()).actor;
+            after = ddpg.update(&batch).actor;
         }
         assert!(after < before, "actor loss −Q should fall: {before} -> {after}");
+    }
+
+    /// The largest difference between two networks' parameters.
+    fn max_difference(a: &Mlp, b: &Mlp) -> f32 {
+        a.parameter_slices()
+            .flatten()
+            .zip(b.parameter_slices().flatten())
+            .map(|(x, y)| (x - y).abs())
+            .fold(0.0, f32::max)
+    }
+
+    #[test]
+    fn the_fused_update_trains_the_networks_dfdx_trains() {
+        // The same networks, the same 500 mini-batches, both update paths: every parameter of all four
+        // networks, and every loss, must agree to ~1e-5 (the paths sum products in different orders).
+        let dev = Dev::default();
+        let mut rng = ChaCha8Rng::seed_from_u64(21);
+        let mut fused = Ddpg::new(&dev, 54, &Scene::preset("paper").unwrap().learning, &mut rng);
+        let mut reference = fused.clone();
+        for k in 0..500 {
+            let batch = fixed_batch(256, 54, &mut rng);
+            let (a, b) = (fused.update(&batch), reference.update_reference(&dev, batch));
+            let tolerance = 1e-5 * (1.0 + b.critic.abs().max(b.actor.abs()));
+            assert!((a.critic - b.critic).abs() <= tolerance, "update {k}: critic loss {a:?} vs {b:?}");
+            assert!((a.actor - b.actor).abs() <= tolerance, "update {k}: actor loss {a:?} vs {b:?}");
+        }
+        let pairs = [
+            (&fused.actor, &reference.actor),
+            (&fused.critic, &reference.critic),
+            (&fused.target_actor, &reference.target_actor),
+            (&fused.target_critic, &reference.target_critic),
+        ];
+        for (i, (a, b)) in pairs.into_iter().enumerate() {
+            let diff = max_difference(a, b);
+            assert!(diff <= 1e-5, "network {i}: parameters differ by {diff}");
+        }
+        // And the update did move them (the comparison is not of two untouched copies).
+        assert!(
+            max_difference(
+                &fused.actor,
+                &Ddpg::new(&dev, 54, &Scene::preset("paper").unwrap().learning, &mut ChaCha8Rng::seed_from_u64(21))
+                    .actor
+            ) > 1e-3
+        );
+        assert_eq!(fused.actor_opt.step, 500);
     }
 }

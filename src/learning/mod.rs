@@ -14,6 +14,7 @@
 
 pub mod checkpoint;
 pub mod ddpg;
+pub mod fused;
 pub mod nets;
 pub mod replay;
 
@@ -31,7 +32,7 @@ use rand::seq::SliceRandom;
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
-use replay::ReplayBuffer;
+use replay::{Batch, ReplayBuffer};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -64,6 +65,8 @@ pub struct SpeciesLearner {
     pub rng: ChaCha8Rng,
     /// The observations the current actions were chosen on (o_t), to pair with o_{t+1}.
     pending_obs: Vec<f32>,
+    /// The mini-batch buffers, reused by every update.
+    batch: Batch,
     /// Sum and count of losses since the last episode summary.
     pub loss_sum: Losses,
     pub updates: usize,
@@ -95,6 +98,7 @@ impl SpeciesLearner {
             epsilon: self.epsilon,
             rng: self.rng.clone(),
             pending_obs: vec![],
+            batch: Batch::default(),
             loss_sum: self.loss_sum,
             updates: self.updates,
         }
@@ -144,6 +148,7 @@ impl Learners {
                     epsilon: p.epsilon,
                     rng: species_stream(scene.seed, s),
                     pending_obs: vec![],
+                    batch: Batch::default(),
                     loss_sum: Losses::default(),
                     updates: 0,
                 })
@@ -312,7 +317,8 @@ impl SpeciesLearner {
     /// stream. Err (the losses) when a loss or, at the end, a parameter is not finite.
     fn update(&mut self, n: usize, batch_size: usize) -> Result<(), Losses> {
         for _ in 0..n {
-            let losses = self.ddpg.update(&self.dev, self.buffer.sample(batch_size, &mut self.rng));
+            self.buffer.sample_into(&mut self.batch, batch_size, &mut self.rng);
+            let losses = self.ddpg.update(&self.batch);
             self.loss_sum.critic += losses.critic;
             self.loss_sum.actor += losses.actor;
             self.updates += 1;

@@ -10,22 +10,52 @@ use rand_chacha::ChaCha8Rng;
 
 pub type Dev = Cpu;
 
-/// The family of matrix-product kernels this machine runs (gemm 0.19 through the vendored dfdx, chosen
-/// at run time as gemm chooses: AVX-512 where the CPU has it, else AVX2/FMA, else portable code).
-/// Results are bit-identical within a family at any thread count; across families they may differ in
-/// the last bits, so a run records its family (`provenance.ron`) and is resumed only on the same one.
+/// The family of matrix-product kernels this process runs (gemm 0.19, for dfdx's products and the fused
+/// update's): as gemm chooses at run time (AVX-512 where the CPU has it, else AVX2/FMA, else portable
+/// code) unless pinned by [`pin_kernels`]. Results are bit-identical within a family at any thread count;
+/// across families they may differ in the last bits, so a run records its family (`provenance.ron`) and
+/// is resumed only on the same one.
 pub fn kernels() -> &'static str {
     #[cfg(target_arch = "x86_64")]
     {
-        if std::arch::is_x86_feature_detected!("avx512f") {
+        use gemm_common::kernel_cap::{get, AUTO, AVX2_FMA};
+        if get() == AUTO && std::arch::is_x86_feature_detected!("avx512f") {
             return "avx512";
         }
-        if std::arch::is_x86_feature_detected!("fma") {
+        if get() <= AVX2_FMA && std::arch::is_x86_feature_detected!("fma") {
             return "avx2-fma";
         }
     }
     "portable"
 }
+
+/// The families `--kernels` and `COEVO_KERNELS` accept.
+pub const KERNEL_CHOICES: &str = "auto, avx512, avx2 or portable";
+
+/// Pins the kernel family (`auto`, `avx512`, `avx2`, `portable`), so that machines with different CPUs
+/// compute identical runs: e.g. `avx2` on a cluster whose nodes only partly have AVX-512. gemm fixes its
+/// choice at its first product, so this must run before the first network is used (the CLI does it
+/// first). Err names what is wrong: an unknown family, or one this CPU cannot run.
+pub fn pin_kernels(family: &str) -> Result<(), String> {
+    use gemm_common::kernel_cap::{set, AUTO, AVX2_FMA, PORTABLE};
+    #[cfg(target_arch = "x86_64")]
+    let (avx512, fma) = (std::arch::is_x86_feature_detected!("avx512f"), std::arch::is_x86_feature_detected!("fma"));
+    #[cfg(not(target_arch = "x86_64"))]
+    let (avx512, fma) = (false, false);
+    let cap = match family {
+        "auto" => AUTO,
+        "avx512" if avx512 => AUTO,
+        "avx2" | "avx2-fma" if fma => AVX2_FMA,
+        "portable" => PORTABLE,
+        "avx512" | "avx2" | "avx2-fma" => {
+            return Err(format!("this CPU cannot run the {family} kernels (it runs {})", kernels()));
+        }
+        other => return Err(format!("must be {KERNEL_CHOICES} (got {other:?})")),
+    };
+    set(cap);
+    Ok(())
+}
+
 pub type Matrix<T = NoneTape> = Tensor<(usize, usize), f32, Dev, T>;
 pub type Vector = Tensor<(usize,), f32, Dev>;
 
@@ -36,6 +66,20 @@ pub struct Dense {
     pub weight: Matrix,
     /// (out,).
     pub bias: Vector,
+}
+
+impl Dense {
+    pub fn inputs(&self) -> usize {
+        self.weight.shape().1
+    }
+
+    pub fn outputs(&self) -> usize {
+        self.weight.shape().0
+    }
+
+    pub fn weight_len(&self) -> usize {
+        self.inputs() * self.outputs()
+    }
 }
 
 /// What follows the last layer.
@@ -115,25 +159,31 @@ impl Mlp {
         }
     }
 
+    /// Every parameter in place, in `parameters()` order.
+    pub fn parameters_mut(&mut self) -> impl Iterator<Item = &mut [f32]> {
+        self.layers.iter_mut().flat_map(|l| [l.weight.as_mut_slice(), l.bias.as_mut_slice()])
+    }
+
+    /// Every parameter read in place, in `parameters()` order.
+    pub fn parameter_slices(&self) -> impl Iterator<Item = &[f32]> {
+        self.layers.iter().flat_map(|l| [l.weight.as_slice(), l.bias.as_slice()])
+    }
+
     /// Gradients of every parameter, in `parameters()` order.
     pub fn gradients(&self, grads: &Gradients<f32, Dev>) -> Vec<Vec<f32>> {
         self.layers.iter().flat_map(|l| [grads.get(&l.weight).as_vec(), grads.get(&l.bias).as_vec()]).collect()
     }
 
-    /// Soft target update θ' ← τ·θ + (1 − τ)·θ' (Algorithm 1, last line).
+    /// Soft target update θ' ← τ·θ + (1 − τ)·θ' (Algorithm 1, last line), in place.
     pub fn soft_update_towards(&mut self, online: &Mlp, tau: f32) {
-        let target: Vec<Vec<f32>> = self
-            .parameters()
-            .into_iter()
-            .zip(online.parameters())
-            .map(|(t, o)| t.iter().zip(&o).map(|(t, o)| tau * o + (1.0 - tau) * t).collect())
-            .collect();
-        self.set_parameters(&target);
+        for (target, online) in self.parameters_mut().zip(online.parameter_slices()) {
+            target.iter_mut().zip(online).for_each(|(t, o)| *t = tau * o + (1.0 - tau) * *t);
+        }
     }
 
     /// Whether every parameter is finite.
     pub fn is_finite(&self) -> bool {
-        self.parameters().iter().flatten().all(|x| x.is_finite())
+        self.parameter_slices().flatten().all(|x| x.is_finite())
     }
 }
 
@@ -156,20 +206,18 @@ impl Adam {
         Adam { lr, step: 0, m: zeros.clone(), v: zeros }
     }
 
-    /// One descent step of `net` along `gradients` (of a loss to minimise).
+    /// One descent step of `net` along `gradients` (of a loss to minimise), in place.
     pub fn update(&mut self, net: &mut Mlp, gradients: &[Vec<f32>]) {
         self.step += 1;
         let correct1 = 1.0 - BETA1.powi(self.step as i32);
         let correct2 = 1.0 - BETA2.powi(self.step as i32);
-        let mut params = net.parameters();
-        for (((p, g), m), v) in params.iter_mut().zip(gradients).zip(&mut self.m).zip(&mut self.v) {
+        for (((p, g), m), v) in net.parameters_mut().zip(gradients).zip(&mut self.m).zip(&mut self.v) {
             for i in 0..p.len() {
                 m[i] = flush_subnormal(BETA1 * m[i] + (1.0 - BETA1) * g[i]);
                 v[i] = flush_subnormal(BETA2 * v[i] + (1.0 - BETA2) * g[i] * g[i]);
                 p[i] -= self.lr * (m[i] / correct1) / ((v[i] / correct2).sqrt() + EPSILON);
             }
         }
-        net.set_parameters(&params);
     }
 }
 

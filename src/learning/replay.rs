@@ -25,7 +25,7 @@ pub struct ReplayBuffer {
 }
 
 /// A mini-batch, row-major.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct Batch {
     pub n: usize,
     pub obs: Vec<f32>,
@@ -118,15 +118,20 @@ impl ReplayBuffer {
 
     /// `n` transitions drawn uniformly (with replacement) from all held.
     pub fn sample(&self, n: usize, rng: &mut ChaCha8Rng) -> Batch {
+        let mut b = Batch::default();
+        self.sample_into(&mut b, n, rng);
+        b
+    }
+
+    /// `n` transitions drawn uniformly with replacement into `b`, whose buffers are reused.
+    pub fn sample_into(&self, b: &mut Batch, n: usize, rng: &mut ChaCha8Rng) {
         assert!(self.len > 0, "sampling an empty replay buffer");
         let (d, a) = (self.obs_dim, self.act_dim);
-        let mut b = Batch {
-            n,
-            obs: Vec::with_capacity(n * d),
-            actions: Vec::with_capacity(n * a),
-            rewards: Vec::with_capacity(n),
-            next_obs: Vec::with_capacity(n * d),
-        };
+        b.n = n;
+        b.obs.clear();
+        b.actions.clear();
+        b.rewards.clear();
+        b.next_obs.clear();
         for _ in 0..n {
             let i = rng.gen_range(0..self.len);
             b.obs.extend_from_slice(&self.obs[i * d..(i + 1) * d]);
@@ -134,7 +139,6 @@ impl ReplayBuffer {
             b.rewards.push(self.rewards[i]);
             b.next_obs.extend_from_slice(&self.next_obs[i * d..(i + 1) * d]);
         }
-        b
     }
 }
 

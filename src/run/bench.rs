@@ -81,7 +81,7 @@ pub fn learning(budget: Duration) -> Vec<Figure> {
     let mut figures = vec![Figure {
         label: "DDPG update (critic + actor + soft update), batch 256, d_o 54".into(),
         per_second: per_second(budget, 20, || {
-            ddpg.update(&dev, batch.clone());
+            ddpg.update(&batch);
         }),
         unit: "updates/s",
     }];

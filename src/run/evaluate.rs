@@ -192,6 +192,10 @@ pub fn evaluate(opts: &EvalOptions) -> crate::error::Result<String> {
     let mut sim = crate::learning::simulation(scene.clone(), Mode::Evaluate, Some(&opts.run))?;
     // Nobody else writes the run while it is evaluated (a training would swap its checkpoint).
     let _lock = dir.lock()?;
+    if path.starts_with(&opts.run) {
+        // Its numbers become part of the run's: the run records the evaluating executable.
+        dir.note_binary()?;
+    }
     sim.world_mut().insert_resource(opts.control);
     // Each episode's last step is read before the next population is spawned.
     sim.world_mut().resource_mut::<Episode>().auto_reset = false;

@@ -233,6 +233,19 @@ impl RunDir {
         Ok(Some(ron::from_str(&text).map_err(|e| format!("{}: damaged ({e})", path.display()))?))
     }
 
+    /// Records that this executable, not the run's creator, resumes or evaluates the run (once per
+    /// executable). Runs older than provenance files are left alone.
+    pub fn note_binary(&self) -> crate::error::Result<()> {
+        let Some(mut p) = self.read_provenance()? else { return Ok(()) };
+        if p.binaries().contains(&binary()) {
+            return Ok(());
+        }
+        p.also_by.push(binary().to_string());
+        let text = ron::ser::to_string_pretty(&p, ron::ser::PrettyConfig::new().struct_names(false))
+            .map_err(|e| format!("{}: {e}", self.provenance().display()))?;
+        crate::io::write_file(&self.provenance(), Existing::Replace, format!("{text}\n").as_bytes())
+    }
+
     /// Refuses to continue training on another family of matrix-product kernels than the run began on:
     /// the continuation would differ in the last bits from the uninterrupted run.
     pub fn check_kernels(&self) -> crate::error::Result<()> {
@@ -284,11 +297,39 @@ pub struct Provenance {
     pub threads: usize,
     /// Species of the scene that come from species plugins of the program that trained it.
     pub plugins: Vec<String>,
+    /// The executable that created the run ([`binary`]).
+    #[serde(default)]
+    pub binary: String,
+    /// Other executables that later resumed or evaluated it, in order: a run with any is not a run of
+    /// one binary, which the experiment layer refuses to compare unless told (`mixed_binaries`).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub also_by: Vec<String>,
+}
+
+/// The running executable's identity: the first 16 hex digits of the BLAKE3 hash of its file (`blake3`
+/// crate), or `unknown` where it cannot be read. Two builds differ here even when their commit names agree
+/// (a `-dirty` tree), so "one binary" means one file.
+pub fn binary() -> &'static str {
+    static BINARY: std::sync::OnceLock<String> = std::sync::OnceLock::new();
+    BINARY.get_or_init(|| {
+        std::env::current_exe()
+            .and_then(std::fs::read)
+            .map(|bytes| blake3::hash(&bytes).to_hex()[..16].to_string())
+            .unwrap_or_else(|_| "unknown".into())
+    })
 }
 
 impl Provenance {
+    /// Every executable that wrote into the run: its creator, then the others.
+    pub fn binaries(&self) -> Vec<&str> {
+        let creator = if self.binary.is_empty() { "unknown" } else { self.binary.as_str() };
+        std::iter::once(creator).chain(self.also_by.iter().map(String::as_str)).collect()
+    }
+
     pub fn of(scene: &crate::scene::Scene) -> Provenance {
         Provenance {
+            binary: binary().to_string(),
+            also_by: vec![],
             coevo_version: env!("CARGO_PKG_VERSION").to_string(),
             git_commit: env!("COEVO_GIT_COMMIT").to_string(),
             kernels: crate::learning::nets::kernels().to_string(),

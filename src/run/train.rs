@@ -133,6 +133,7 @@ pub fn train(scene: Scene, opts: &TrainOptions) -> crate::error::Result<Vec<Epis
             checkpoint::load(run, &mut learners.species, &names)?
         };
         check_resumable(run, &scene, &state, total, opts.episodes.is_some())?;
+        dir.note_binary()?;
         world.resource_mut::<SimRng>().0 = state.spawn_rng.clone().unwrap_or_else(|| state.sim_rng.clone());
         world.resource_mut::<Episode>().index = state.episodes_done;
         crate::sim::episode::spawn_population(world);

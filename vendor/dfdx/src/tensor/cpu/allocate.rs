@@ -196,6 +196,19 @@ impl<E: Unit> CopySlice<E> for Cpu {
     }
 }
 
+// coevo: a Cpu tensor's data in place (its physical layout), so that an optimizer can read and write
+// parameters without copying them out and back. See vendor/README.md.
+impl<S: Shape, E: Unit, T> Tensor<S, E, Cpu, T> {
+    /// The tensor's data, read in place.
+    pub fn as_slice(&self) -> &[E] {
+        &self.data.data[..]
+    }
+    /// The tensor's data, written in place (copied first if another tensor shares it).
+    pub fn as_mut_slice(&mut self) -> &mut [E] {
+        &mut std::sync::Arc::make_mut(&mut self.data).data[..]
+    }
+}
+
 impl<E: Unit> TensorFromVec<E> for Cpu {
     fn try_tensor_from_vec<S: Shape>(
         &self,

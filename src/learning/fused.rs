@@ -1,0 +1,252 @@
+//! The forward and backward passes of the DDPG update computed directly, without dfdx's machinery: the
+//! same products on the same gemm kernels, into buffers allocated at the first update and reused, the
+//! bias added in the product's epilogue and the activation in one pass, and only the gradients the update
+//! needs (no critic parameter gradients in the actor step, only the action columns of the critic's input
+//! gradient, no input gradients anywhere else).
+//!
+//! `ddpg.rs` strings these into Algorithm 1's update ([`super::ddpg::Ddpg::update`]); dfdx computes the same
+//! update with its tape ([`super::ddpg::Ddpg::update_reference`]) and stays the reference: the tests there
+//! train the same networks both ways and require the same parameters.
+//!
+//! Matrices are row-major; a network's weights are (out, in), PyTorch's `nn.Linear` layout (`nets.rs`).
+
+use super::nets::{Mlp, Output};
+use std::ops::Range;
+
+/// One network's forward pass over a batch, kept for its backward pass.
+#[derive(Clone, Debug, Default)]
+pub struct Pass {
+    rows: usize,
+    /// `acts[0]` is the input `[rows × in]`; `acts[l]` is layer l's output after its ReLU / tanh.
+    acts: Vec<Vec<f32>>,
+    /// dL/d(pre-activation) of the layer being back-propagated, and of the one below it.
+    delta: Vec<f32>,
+    below: Vec<f32>,
+}
+
+impl Pass {
+    /// Sizes the buffers for `rows` rows of `net` (allocates only the first time or when shapes grow).
+    fn shape_for(&mut self, net: &Mlp, rows: usize) {
+        self.rows = rows;
+        self.acts.resize_with(net.layers.len() + 1, Vec::new);
+        self.acts[0].resize(rows * net.input_width(), 0.0);
+        for (l, layer) in net.layers.iter().enumerate() {
+            self.acts[l + 1].resize(rows * layer.outputs(), 0.0);
+        }
+    }
+
+    /// The forward pass of `net` on the row-wise concatenation `[a | b]` (b may be empty): the critic's
+    /// input (o, a) is built in place.
+    pub fn forward(&mut self, net: &Mlp, rows: usize, a: &[f32], b: &[f32]) {
+        self.shape_for(net, rows);
+        let (wa, wb) = (a.len() / rows, b.len() / rows);
+        debug_assert_eq!(wa + wb, net.input_width());
+        for (r, x) in self.acts[0].chunks_exact_mut(wa + wb).enumerate() {
+            x[..wa].copy_from_slice(&a[r * wa..(r + 1) * wa]);
+            x[wa..].copy_from_slice(&b[r * wb..(r + 1) * wb]);
+        }
+        let last = net.layers.len() - 1;
+        for (l, layer) in net.layers.iter().enumerate() {
+            let (below, above) = self.acts.split_at_mut(l + 1);
+            let (x, z) = (&below[l], &mut above[0]);
+            let (inputs, outputs) = (layer.inputs(), layer.outputs());
+            // z = b (broadcast over rows), then z += x·Wᵀ in the product's epilogue.
+            let bias = layer.bias.as_slice();
+            z.chunks_exact_mut(outputs).for_each(|row| row.copy_from_slice(bias));
+            let w = layer.weight.as_slice();
+            // SAFETY: every pointer and stride below addresses only the buffers' own extents:
+            // z is rows × outputs, x is rows × inputs, Wᵀ is read as inputs × outputs from W (outputs × inputs).
+            unsafe {
+                product(
+                    rows,
+                    outputs,
+                    inputs,
+                    z.as_mut_ptr(),
+                    outputs,
+                    true,
+                    x.as_ptr(),
+                    (inputs, 1),
+                    w.as_ptr(),
+                    (1, inputs),
+                );
+            }
+            match (l == last, net.output) {
+                (false, _) => z.iter_mut().for_each(|v| *v = v.max(0.0)),
+                (true, Output::Tanh) => z.iter_mut().for_each(|v| *v = v.tanh()),
+                (true, Output::Linear) => {}
+            }
+        }
+    }
+
+    /// The network's output `[rows × out]`.
+    pub fn output(&self) -> &[f32] {
+        self.acts.last().expect("a forward pass ran")
+    }
+
+    /// Back-propagates `d_output` (dL/d output, `[rows × out]`) through `net`, whose forward pass this
+    /// holds. Writes the parameter gradients into `gradients` (in [`Mlp::parameters`] order) when asked,
+    /// and dL/d input for the input columns `columns` into `d_input` (`[rows × columns.len()]`) when asked.
+    pub fn backward(
+        &mut self,
+        net: &Mlp,
+        d_output: &[f32],
+        mut gradients: Option<&mut [Vec<f32>]>,
+        d_input: Option<(Range<usize>, &mut [f32])>,
+    ) {
+        let rows = self.rows;
+        let mut delta = std::mem::take(&mut self.delta);
+        let mut below = std::mem::take(&mut self.below);
+        // Through the output activation.
+        delta.clear();
+        match net.output {
+            Output::Tanh => delta.extend(d_output.iter().zip(self.output()).map(|(g, y)| g * (1.0 - y * y))),
+            Output::Linear => delta.extend_from_slice(d_output),
+        }
+        let mut d_input = d_input;
+        for l in (0..net.layers.len()).rev() {
+            let layer = &net.layers[l];
+            let (inputs, outputs) = (layer.inputs(), layer.outputs());
+            let x = &self.acts[l];
+            let w = layer.weight.as_slice();
+            if let Some(g) = gradients.as_deref_mut() {
+                let (dw, db) = g[2 * l..2 * l + 2].split_at_mut(1);
+                let (dw, db) = (&mut dw[0], &mut db[0]);
+                // dW = δᵀ·x: δᵀ (outputs × rows) read from δ (rows × outputs).
+                // SAFETY: dw is outputs × inputs, δ rows × outputs, x rows × inputs.
+                unsafe {
+                    product(
+                        outputs,
+                        inputs,
+                        rows,
+                        dw.as_mut_ptr(),
+                        inputs,
+                        false,
+                        delta.as_ptr(),
+                        (1, outputs),
+                        x.as_ptr(),
+                        (inputs, 1),
+                    );
+                }
+                db.fill(0.0);
+                for row in delta.chunks_exact(outputs) {
+                    db.iter_mut().zip(row).for_each(|(s, d)| *s += d);
+                }
+            }
+            if l > 0 {
+                // δ_below = (δ·W) ⊙ ReLU'(x): x is the ReLU output below, positive exactly where its input was.
+                below.resize(rows * inputs, 0.0);
+                // SAFETY: below is rows × inputs, δ rows × outputs, W outputs × inputs.
+                unsafe {
+                    product(
+                        rows,
+                        inputs,
+                        outputs,
+                        below.as_mut_ptr(),
+                        inputs,
+                        false,
+                        delta.as_ptr(),
+                        (outputs, 1),
+                        w.as_ptr(),
+                        (inputs, 1),
+                    );
+                }
+                below.iter_mut().zip(x).for_each(|(d, &x)| {
+                    if x <= 0.0 {
+                        *d = 0.0
+                    }
+                });
+                std::mem::swap(&mut delta, &mut below);
+            } else if let Some((columns, out)) = d_input.take() {
+                let n = columns.len();
+                assert!(columns.end <= inputs && out.len() == rows * n, "input gradient shape");
+                // dL/dx[:, columns] = δ·W[:, columns].
+                // SAFETY: out is rows × n; W[:, columns] is read from W (outputs × inputs) at offset
+                // columns.start, n ≤ inputs − columns.start columns per row.
+                unsafe {
+                    product(
+                        rows,
+                        n,
+                        outputs,
+                        out.as_mut_ptr(),
+                        n,
+                        false,
+                        delta.as_ptr(),
+                        (outputs, 1),
+                        w.as_ptr().add(columns.start),
+                        (inputs, 1),
+                    );
+                }
+            }
+        }
+        self.delta = delta;
+        self.below = below;
+    }
+}
+
+/// dst `[m × n]` (row stride `dst_rs`) = lhs `[m × k]` · rhs `[k × n]`, plus dst's previous contents when
+/// `accumulate`; lhs and rhs given by pointer and (row stride, column stride). One thread: the cores are
+/// used at a coarser grain (`crate::parallel`).
+///
+/// # Safety
+/// Every element the strides address must lie inside the pointed-to buffers.
+#[allow(clippy::too_many_arguments)]
+unsafe fn product(
+    m: usize,
+    n: usize,
+    k: usize,
+    dst: *mut f32,
+    dst_rs: usize,
+    accumulate: bool,
+    lhs: *const f32,
+    (lhs_rs, lhs_cs): (usize, usize),
+    rhs: *const f32,
+    (rhs_rs, rhs_cs): (usize, usize),
+) {
+    gemm::gemm(
+        m,
+        n,
+        k,
+        dst,
+        1,
+        dst_rs as isize,
+        accumulate,
+        lhs,
+        lhs_cs as isize,
+        lhs_rs as isize,
+        rhs,
+        rhs_cs as isize,
+        rhs_rs as isize,
+        1.0,
+        1.0,
+        false,
+        false,
+        false,
+        gemm::Parallelism::None,
+    );
+}
+
+/// Buffers of one species' update, allocated at its first update and reused by every later one.
+#[derive(Clone, Debug, Default)]
+pub struct Workspace {
+    /// μ'(o') and Q'(o', μ'(o')): the TD target's passes.
+    pub target_actor: Pass,
+    pub target_critic: Pass,
+    /// Q(o, a): the critic step's pass.
+    pub critic: Pass,
+    /// μ(o) and Q(o, μ(o)): the actor step's passes.
+    pub actor: Pass,
+    pub actor_value: Pass,
+    /// dL/dQ per row, reused by both steps.
+    pub d_q: Vec<f32>,
+    /// dL/dμ(o) `[rows × actions]`: the critic's input gradient in its action columns.
+    pub d_actions: Vec<f32>,
+    pub critic_gradients: Vec<Vec<f32>>,
+    pub actor_gradients: Vec<Vec<f32>>,
+}
+
+/// Gradient buffers shaped like `net`'s parameters (allocated once).
+pub fn gradients_like(buffers: &mut Vec<Vec<f32>>, net: &Mlp) {
+    if buffers.len() != 2 * net.layers.len() {
+        *buffers = net.layers.iter().flat_map(|l| [vec![0.0; l.weight_len()], vec![0.0; l.outputs()]]).collect();
+    }
+}
