@@ -41,6 +41,8 @@ impl SpeciesPlugin for HawkPlugin {
                 colour: [0.55, 0.2, 0.7],
                 catches: vec!["predator".into()],
                 policy: Policy::Learned,
+                blind_to: vec![],
+                perception_of: vec![],
             },
             // Nobody catches hawks.
             caught_by: vec![],

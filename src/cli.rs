@@ -70,10 +70,13 @@ struct Cli {
     #[arg(long, help_heading = "Training and evaluation", value_name = "FAMILY")]
     kernels: Option<String>,
 
-    /// --eval: what the actors see of their neighbours: `blind` zeroes every neighbour slot, `shuffled`
-    /// gives each agent another's (controls for alignment claims) [default: seeing].
+    /// --eval: what the actors see of their neighbours (controls for alignment claims) [default: seeing].
+    /// `blind` zeroes, `shuffled` swaps between individuals, every neighbour block of every learning
+    /// species; `blind:OBSERVER:OBSERVED` / `shuffled:OBSERVER:OBSERVED` only the block in which species
+    /// OBSERVER sees species OBSERVED (`blind:prey:prey`: prey blind to each other, still seeing the
+    /// predators; the predators untouched). Block forms repeat: --control blind:prey:prey --control ...
     #[arg(long, help_heading = "Training and evaluation", value_name = "CONTROL")]
-    control: Option<crate::learning::ObservationControl>,
+    control: Vec<String>,
     /// --eval: the file name of the per-step CSV inside the run folder [default: eval.csv].
     #[arg(long, help_heading = "Training and evaluation", value_name = "NAME.csv")]
     eval_out: Option<String>,
@@ -389,7 +392,8 @@ fn run(cli: Cli, call: Call) -> crate::error::Result<()> {
             let opts = crate::run::evaluate::EvalOptions {
                 run,
                 out: cli.eval_out.clone(),
-                control: cli.control.unwrap_or_default(),
+                control: crate::learning::control::ObservationControl::parse(&cli.control)
+                    .map_err(|e| format!("--control: {e}"))?,
                 episodes: cli.episodes.unwrap_or(1),
                 overrides: Overrides { confusion_radius: cli.confusion_radius, ..overrides(&cli, true)? },
             };

@@ -75,8 +75,13 @@ fn experiment_files_expand_to_runs_and_bad_ones_are_one_line() {
         (TINY.replace("scenes/paper.ron", "scenes/none.ron"), "bad.ron: base: scenes/none.ron: cannot read"),
         (
             TINY.replace("quantity: DosChange", "quantity: InteractionDoa(\"50 prey\")"),
-            "evaluation \"50 prey\" needs a control (Blind or Shuffled)",
+            "evaluation \"50 prey\" needs a control (Blind, Shuffled or a block form)",
         ),
+        (
+            TINY.replace("control: Blind", "control: \"blind:prey:hawk\""),
+            "evaluations[50 prey, blind].control: variant 1:1: blind:prey:hawk: no species named \"hawk\"",
+        ),
+        (TINY.replace("control: Blind", "control: \"blinded\""), "\"blinded\" is not a control"),
         (
             TINY.replace("quantity: DosChange", "quantity: EvalOrder(\"50 prey\", \"swirl\")"),
             "no order parameter named \"swirl\"",

@@ -15,8 +15,13 @@ use std::f64::consts::{FRAC_PI_2, FRAC_PI_6};
 /// 2+k sits 0.1·k m away in direction 0.7·k rad (k = 1..=8), facing +y, several across the seam.
 /// Predator 0 is 0.3 m away, predator 1 0.9 m away.
 fn configured(perception: Perception) -> (Simulation, Vec<DVec2>) {
+    configured_with(|s| s.species[1].perception = perception)
+}
+
+/// [`configured`] with the scene changed by `change` first.
+fn configured_with(change: impl FnOnce(&mut coevo::scene::Scene)) -> (Simulation, Vec<DVec2>) {
     let mut s = scene(2, 9, Policy::Still, Boundary::Periodic);
-    s.species[1].perception = perception;
+    change(&mut s);
     let mut sim = Simulation::new(s);
     let me = DVec2::new(0.95, 0.0);
     let wrap = |p: DVec2| DVec2::new(min_image(p.x, 2.0), min_image(p.y, 2.0));
@@ -72,6 +77,54 @@ fn perception_radius_masks_the_far_ones_and_never_the_self() {
     // Fraction of D resolves against D = √2: 0.45/√2 of D is the same radius.
     let (sim2, _) = configured(Perception::FractionOfD(0.45 / 2f64.sqrt()));
     assert_eq!(observation_of_prey_observer(&sim2), obs);
+}
+
+#[test]
+fn blind_to_zeroes_exactly_the_named_blocks_in_both_frames_and_keeps_d_o() {
+    for frame in [coevo::scene::ObservationFrame::World, coevo::scene::ObservationFrame::Body] {
+        let (sim, _) = configured_with(|s| s.observation_frame = frame);
+        let seeing = observation_of_prey_observer(&sim);
+        let predators = sim.world().resource::<Batches>().species[0].observations.clone();
+        for (blind_to, block) in [("prey", 30..54), ("predator", 6..30)] {
+            let (sim, _) = configured_with(|s| {
+                s.observation_frame = frame;
+                s.species[1].blind_to = vec![blind_to.into()];
+            });
+            let obs = observation_of_prey_observer(&sim);
+            let mut by_hand = seeing.clone();
+            by_hand[block.clone()].fill(0.0);
+            assert!(seeing[block].iter().any(|&x| x != 0.0), "{frame:?}: the block had something to hide");
+            assert_eq!(obs, by_hand, "{frame:?}, blind_to {blind_to}: the block zeroed, nothing else changed");
+            assert_eq!(obs.len(), 54, "d_o unchanged");
+            let batches = sim.world().resource::<Batches>();
+            assert_eq!(batches.species[0].observations, predators, "the predators are untouched");
+        }
+    }
+}
+
+#[test]
+fn perception_of_sets_the_radius_per_observed_species() {
+    let (full, offsets) = configured(Perception::Full);
+    let full = observation_of_prey_observer(&full);
+    // Predators within 0.45 m only (predator 0 at 0.3 m is seen, predator 1 at 0.9 m is not); prey as with
+    // full perception.
+    let (sim, _) =
+        configured_with(|s| s.species[1].perception_of = vec![("predator".into(), Perception::Radius(0.45))]);
+    let obs = observation_of_prey_observer(&sim);
+    assert!(close(&obs[6..10], &[0.0, 0.3, -1.0, 1.0]), "{:?}", &obs[6..10]);
+    assert!(obs[10..30].iter().all(|&x| x == 0.0), "the predator 0.9 m away is beyond its R = 0.45");
+    assert_eq!(obs[30..54], full[30..54], "prey are seen within the species' own R = D");
+    // The other way round: R = 0.45 m for everything but prey, which are seen within D.
+    let (sim, _) = configured_with(|s| {
+        s.species[1].perception = Perception::Radius(0.45);
+        s.species[1].perception_of = vec![("prey".into(), Perception::Full)];
+    });
+    let obs = observation_of_prey_observer(&sim);
+    assert!(obs[10..30].iter().all(|&x| x == 0.0));
+    for (n, d) in offsets.iter().take(6).enumerate() {
+        let at = 30 + 4 * n;
+        assert!(close(&obs[at..at + 4], &[d.x, d.y, -1.0, 1.0]), "prey slot {n}");
+    }
 }
 
 #[test]

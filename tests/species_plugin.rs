@@ -126,6 +126,8 @@ mod owl {
                     colour: [0.5, 0.3, 0.1],
                     catches: vec!["predator".into()],
                     policy: Policy::Learned,
+                    blind_to: vec![],
+                    perception_of: vec![],
                 },
                 caught_by: vec![],
                 contact_rewards: vec![ContactReward {

@@ -76,12 +76,23 @@ pub fn quantity(exp: &Experiment, d: &RunData, q: &Quantity) -> f64 {
         Quantity::DosChange => window_mean(&d.dos, false) - window_mean(&d.dos, true),
         Quantity::DoaChange => window_mean(&d.doa, false) - window_mean(&d.doa, true),
         Quantity::CatchesChange => window_mean(&d.catches, false) - window_mean(&d.catches, true),
+        Quantity::CatchesLast => window_mean(&d.catches, false),
         Quantity::EvalDos(e) => eval(e, "dos"),
         Quantity::EvalDoa(e) => eval(e, "doa"),
         Quantity::EvalOrder(e, name) if name == "edge_rank" => d.evals.get(e).map_or(f64::NAN, |x| x.edge_rank),
         Quantity::EvalOrder(e, name) => eval(e, name),
         Quantity::InteractionDoa(e) => match super::seeing_partner(&exp.spec.evaluations, e) {
             Some(seeing) => eval(&seeing.name, "doa") - eval(e, "doa"),
+            None => f64::NAN,
+        },
+        Quantity::Interaction(e, name) => match super::seeing_partner(&exp.spec.evaluations, e) {
+            Some(seeing) => {
+                let value = |e: &str| match name.as_str() {
+                    "edge_rank" => d.evals.get(e).map_or(f64::NAN, |x| x.edge_rank),
+                    _ => eval(e, name),
+                };
+                value(&seeing.name) - value(e)
+            }
             None => f64::NAN,
         },
     }
@@ -135,10 +146,12 @@ pub fn quantity_name(q: &Quantity) -> String {
         Quantity::DosChange => "DoS change, last − first 100".into(),
         Quantity::DoaChange => "DoA change, last − first 100".into(),
         Quantity::CatchesChange => "catches per episode, change, last − first 100".into(),
+        Quantity::CatchesLast => "catches per episode, last 100".into(),
         Quantity::EvalDos(e) => format!("DoS settled in evaluation \"{e}\""),
         Quantity::EvalDoa(e) => format!("DoA settled in evaluation \"{e}\""),
         Quantity::EvalOrder(e, q) => format!("{q} in evaluation \"{e}\""),
         Quantity::InteractionDoa(e) => format!("DoA seeing minus \"{e}\" (interaction-driven alignment)"),
+        Quantity::Interaction(e, q) => format!("{q} seeing minus \"{e}\""),
     }
 }
 

@@ -86,9 +86,10 @@ pub struct Evaluation {
     /// Steps per episode (default: the scene's).
     #[serde(default)]
     pub steps: Option<usize>,
-    /// `Blind` or `Shuffled` neighbours: controls for alignment claims (default `Seeing`).
+    /// What the actors see (`learning::control`): `Blind`, `Shuffled`, a block form such as
+    /// `"blind:prey:prey"`, or a list of block forms (default: seeing).
     #[serde(default)]
-    pub control: crate::learning::ObservationControl,
+    pub control: crate::learning::control::ObservationControl,
     /// Radius (m) of "prey in view" for the confusion curve (default: the scene's).
     #[serde(default)]
     pub confusion_radius: Option<f64>,
@@ -141,6 +142,8 @@ pub enum Quantity {
     /// Catches per episode (every predator–prey contact that began), last 100 minus first 100: whether
     /// the prey learned to escape faster than the predators learned to catch.
     CatchesChange,
+    /// Catches per episode over the last 100 episodes of training: how well the prey survive.
+    CatchesLast,
     /// Another per-episode order parameter of training (`polarization`, `milling`, `clusters`,
     /// `largest_cluster`, `nn_correlation`, `edge_rank`): mean of the first / last 100 episodes.
     TrainingFirst(String),
@@ -154,6 +157,9 @@ pub enum Quantity {
     /// The interaction-driven part of the alignment: DoA of the seeing evaluation with the same counts,
     /// episodes and steps, minus DoA of this control evaluation (blind or shuffled), per run.
     InteractionDoa(String),
+    /// The same for another order parameter (as [`Quantity::EvalOrder`] names them), e.g.
+    /// `Interaction("50 prey, blind to prey", "nn_correlation")`: seeing minus the control, per run.
+    Interaction(String, String),
 }
 
 /// Order parameters an [`Quantity::EvalOrder`] may name.
@@ -164,11 +170,11 @@ pub const EVAL_ORDER: [&str; 6] =
 /// None when `name` is no control or has no such partner.
 pub fn seeing_partner<'a>(evaluations: &'a [Evaluation], name: &str) -> Option<&'a Evaluation> {
     let control = evaluations.iter().find(|e| e.name == name)?;
-    if control.control == crate::learning::ObservationControl::Seeing {
+    if control.control.is_seeing() {
         return None;
     }
     evaluations.iter().find(|e| {
-        e.control == crate::learning::ObservationControl::Seeing
+        e.control.is_seeing()
             && e.counts == control.counts
             && e.episodes == control.episodes
             && e.steps == control.steps
@@ -296,13 +302,18 @@ impl Experiment {
             if let Quantity::EvalDos(e)
             | Quantity::EvalDoa(e)
             | Quantity::EvalOrder(e, _)
-            | Quantity::InteractionDoa(e) = &c.quantity
+            | Quantity::InteractionDoa(e)
+            | Quantity::Interaction(e, _) = &c.quantity
             {
                 if !spec.evaluations.iter().any(|x| &x.name == e) {
                     return Err(err("claims", format!("no evaluation named {e:?}")));
                 }
             }
-            if let Quantity::EvalOrder(_, q) | Quantity::TrainingFirst(q) | Quantity::TrainingLast(q) = &c.quantity {
+            if let Quantity::EvalOrder(_, q)
+            | Quantity::Interaction(_, q)
+            | Quantity::TrainingFirst(q)
+            | Quantity::TrainingLast(q) = &c.quantity
+            {
                 if !EVAL_ORDER.contains(&q.as_str()) {
                     return Err(err(
                         "claims",
@@ -310,9 +321,9 @@ impl Experiment {
                     ));
                 }
             }
-            if let Quantity::InteractionDoa(e) = &c.quantity {
+            if let Quantity::InteractionDoa(e) | Quantity::Interaction(e, _) = &c.quantity {
                 if seeing_partner(&spec.evaluations, e).is_none() {
-                    return Err(err("claims", format!("evaluation {e:?} needs a control (Blind or Shuffled) and a seeing evaluation with the same counts, episodes and steps")));
+                    return Err(err("claims", format!("evaluation {e:?} needs a control (Blind, Shuffled or a block form) and a seeing evaluation with the same counts, episodes and steps")));
                 }
             }
         }
@@ -341,9 +352,13 @@ impl Experiment {
                 }
                 // Each evaluation's scene as `coevo --eval` will make it, checked now rather than after training.
                 for e in &spec.evaluations {
+                    let mut evaluated = scene.clone();
                     e.overrides()
-                        .apply(&mut scene.clone(), Path::new(&format!("evaluations[{}]", e.name)))
+                        .apply(&mut evaluated, Path::new(&format!("evaluations[{}]", e.name)))
                         .map_err(|m| format!("{shown}: {m}"))?;
+                    e.control.resolve(&crate::sim::species::SpeciesRegistry::from_scene(&evaluated)).map_err(|m| {
+                        err(&format!("evaluations[{}].control", e.name), format!("variant {}: {m}", v.name))
+                    })?;
                 }
                 for &seed in &spec.seeds {
                     let mut scene = scene.clone();

@@ -137,9 +137,8 @@ pub fn complete_run(exp: &Experiment, run: &Run, exe: &Path, threads: usize) -> 
         for (species, n) in &e.counts {
             args.extend(["--count".into(), format!("{species}={n}")]);
         }
-        if e.control != crate::learning::ObservationControl::Seeing {
-            let name = clap::ValueEnum::to_possible_value(&e.control).expect("every control has a name");
-            args.extend(["--control".into(), name.get_name().to_string()]);
+        for form in e.control.texts() {
+            args.extend(["--control".into(), form]);
         }
         if let Some(r) = e.confusion_radius {
             args.extend(["--confusion-radius".into(), r.to_string()]);

@@ -13,6 +13,7 @@
 //! episode to `exploration_floor`.
 
 pub mod checkpoint;
+pub mod control;
 pub mod ddpg;
 pub mod fused;
 pub mod nets;
@@ -22,18 +23,17 @@ use crate::scene::{LearningParams, Policy, Scene};
 use crate::sim::clock::Episode;
 use crate::sim::episode::SimRng;
 use crate::sim::perception::{Batches, SpeciesBatch};
-use crate::sim::species::{SpeciesRegistry, ACTION_DIM, OWN_STATE_DIM};
+use crate::sim::species::{SpeciesRegistry, ACTION_DIM};
 use crate::sim::Simulation;
 use crate::sim::{ActiveScene, SimSet};
 use bevy::prelude::*;
+use control::ResolvedControl;
 use ddpg::{Ddpg, Losses};
 use nets::Dev;
-use rand::seq::SliceRandom;
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 use replay::{Batch, ReplayBuffer};
-use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
 /// Train (explore, store, update) or only act (evaluation: no noise, no updates).
@@ -225,61 +225,22 @@ pub fn species_stream(seed: u64, s: usize) -> ChaCha8Rng {
     SimRng::stream(seed, 16 + s as u64)
 }
 
-/// A control for alignment claims (evaluation only): what the actors see of their neighbours. With the
-/// neighbour blocks zeroed (`Blind`) or swapped between individuals (`Shuffled`), any alignment left comes
-/// from each agent's own state, not from interaction.
-#[derive(Resource, Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
-pub enum ObservationControl {
-    /// The observations as perceived.
-    #[default]
-    Seeing,
-    /// Every neighbour slot zero, as if nothing were within the perception radius.
-    Blind,
-    /// Each individual gets the neighbour blocks of another of its species (a random permutation every step).
-    Shuffled,
-}
-
-impl ObservationControl {
-    /// The observations an actor is given: `observations` (`[n × d]`, own state in the first
-    /// [`OWN_STATE_DIM`] numbers of a row) with the neighbour blocks altered by the control.
-    pub fn apply(self, observations: &[f32], n: usize, rng: &mut ChaCha8Rng) -> Vec<f32> {
-        let mut out = observations.to_vec();
-        let d = observations.len() / n.max(1);
-        match self {
-            ObservationControl::Seeing => {}
-            ObservationControl::Blind => out.chunks_exact_mut(d).for_each(|row| row[OWN_STATE_DIM..].fill(0.0)),
-            ObservationControl::Shuffled => {
-                let mut order: Vec<usize> = (0..n).collect();
-                order.shuffle(rng);
-                for (row, &from) in out.chunks_exact_mut(d).zip(&order) {
-                    row[OWN_STATE_DIM..].copy_from_slice(&observations[from * d + OWN_STATE_DIM..(from + 1) * d]);
-                }
-            }
-        }
-        out
-    }
-}
-
 /// Batched actor inference for every learned species, plus exploration while training.
-fn decide_learned(
-    mut learners: ResMut<Learners>,
-    mut batches: ResMut<Batches>,
-    control: Option<Res<ObservationControl>>,
-) {
+fn decide_learned(mut learners: ResMut<Learners>, mut batches: ResMut<Batches>, control: Option<Res<ResolvedControl>>) {
     let l = &mut *learners;
     let explore = l.mode == Mode::Train;
-    let control = control.map_or(ObservationControl::Seeing, |c| *c);
     for (s, learner) in l.species.iter_mut().enumerate() {
         let Some(learner) = learner else { continue };
         let batch = &mut batches.species[s];
         if batch.n == 0 {
             continue;
         }
-        if control == ObservationControl::Seeing || explore {
-            learner.ddpg.act_into(&learner.dev, &batch.observations, &mut batch.actions);
-        } else {
-            let seen = control.apply(&batch.observations, batch.n, &mut learner.rng);
-            learner.ddpg.act_into(&learner.dev, &seen, &mut batch.actions);
+        match control.as_deref().filter(|c| c.touches(s) && !explore) {
+            None => learner.ddpg.act_into(&learner.dev, &batch.observations, &mut batch.actions),
+            Some(control) => {
+                let seen = control.apply(s, &batch.observations, batch.n, &mut learner.rng);
+                learner.ddpg.act_into(&learner.dev, &seen, &mut batch.actions);
+            }
         }
         if explore && !learner.frozen {
             let rng = &mut learner.rng;
@@ -384,33 +345,4 @@ pub fn restart(world: &mut World, scene: &Scene, learners: Option<Learners>) {
         world.insert_resource(learners);
     }
     crate::sim::episode::spawn_population(world);
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use rand::SeedableRng;
-
-    #[test]
-    fn controls_zero_or_swap_every_neighbour_slot_and_keep_the_own_state() {
-        let (n, d) = (5, OWN_STATE_DIM + 8);
-        let obs: Vec<f32> = (0..n * d).map(|i| 1.0 + i as f32).collect();
-        let mut rng = ChaCha8Rng::seed_from_u64(1);
-        assert_eq!(ObservationControl::Seeing.apply(&obs, n, &mut rng), obs);
-        let blind = ObservationControl::Blind.apply(&obs, n, &mut rng);
-        for (row, orig) in blind.chunks(d).zip(obs.chunks(d)) {
-            assert_eq!(row[..OWN_STATE_DIM], orig[..OWN_STATE_DIM]);
-            assert!(row[OWN_STATE_DIM..].iter().all(|&x| x == 0.0));
-        }
-        let shuffled = ObservationControl::Shuffled.apply(&obs, n, &mut rng);
-        let mut blocks: Vec<&[f32]> = shuffled.chunks(d).map(|r| &r[OWN_STATE_DIM..]).collect();
-        let mut original: Vec<&[f32]> = obs.chunks(d).map(|r| &r[OWN_STATE_DIM..]).collect();
-        assert_ne!(blocks, original, "permuted");
-        blocks.sort_by(|a, b| a[0].total_cmp(&b[0]));
-        original.sort_by(|a, b| a[0].total_cmp(&b[0]));
-        assert_eq!(blocks, original, "the same blocks, each once");
-        for (row, orig) in shuffled.chunks(d).zip(obs.chunks(d)) {
-            assert_eq!(row[..OWN_STATE_DIM], orig[..OWN_STATE_DIM]);
-        }
-    }
 }

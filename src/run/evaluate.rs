@@ -10,7 +10,8 @@
 use super::schema;
 use super::RunDir;
 use crate::io::{AtomicFile, Existing};
-use crate::learning::{Mode, ObservationControl};
+use crate::learning::control::ObservationControl;
+use crate::learning::Mode;
 use crate::scene::{Overrides, Scene};
 use crate::sim::clock::Episode;
 use crate::sim::collective::{add_heading_correlation, confusion_bin_label, heading_correlation};
@@ -190,13 +191,17 @@ pub fn evaluate(opts: &EvalOptions) -> crate::error::Result<String> {
     let mut scene = Scene::load(&scene_path)?;
     opts.overrides.apply(&mut scene, &scene_path)?;
     let mut sim = crate::learning::simulation(scene.clone(), Mode::Evaluate, Some(&opts.run))?;
+    let control = {
+        let registry = sim.world().resource::<SpeciesRegistry>();
+        opts.control.resolve(registry).map_err(|e| format!("--control: {e}"))?
+    };
     // Nobody else writes the run while it is evaluated (a training would swap its checkpoint).
     let _lock = dir.lock()?;
     if path.starts_with(&opts.run) {
         // Its numbers become part of the run's: the run records the evaluating executable.
         dir.note_binary()?;
     }
-    sim.world_mut().insert_resource(opts.control);
+    sim.world_mut().insert_resource(control);
     // Each episode's last step is read before the next population is spawned.
     sim.world_mut().resource_mut::<Episode>().auto_reset = false;
     let registry = sim.world().resource::<SpeciesRegistry>().clone();
@@ -228,9 +233,9 @@ pub fn evaluate(opts: &EvalOptions) -> crate::error::Result<String> {
     Ok(format!(
         "eval {}{}: {} episodes × {} steps, {}: {}; per step in {}",
         opts.run.display(),
-        match opts.control {
-            ObservationControl::Seeing => String::new(),
-            c => format!(" ({c:?} control)"),
+        match opts.control.is_seeing() {
+            true => String::new(),
+            false => format!(" (control {}: {})", opts.control.texts().join(" + "), opts.control.describe()),
         },
         opts.episodes,
         scene.episode_steps,

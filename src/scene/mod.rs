@@ -24,12 +24,12 @@ use std::path::Path;
 /// so a field is written once.
 macro_rules! patchable {
     ($(#[$meta:meta])* pub struct $name:ident / $patch:ident {
-        $( $(#[doc = $doc:literal])* pub $field:ident : $ty:ty, )*
+        $( $(#[$fmeta:meta])* pub $field:ident : $ty:ty, )*
     }) => {
         $(#[$meta])*
         #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
         #[serde(deny_unknown_fields)]
-        pub struct $name { $( $(#[doc = $doc])* pub $field: $ty, )* }
+        pub struct $name { $( $(#[$fmeta])* pub $field: $ty, )* }
 
         #[doc = concat!("A partial [`", stringify!($name), "`], as written in a scene file.")]
         #[derive(Clone, Debug, Default, Deserialize)]
@@ -173,6 +173,15 @@ patchable! {
         /// Names of the species this one catches on contact.
         pub catches: Vec<String>,
         pub policy: Policy,
+        /// Names of species whose observation block this species never sees (not in the paper): the slots
+        /// stay in the layout as zeros, so d_o and checkpoints are unchanged. `blind_to: ["prey"]` on the prey
+        /// trains prey that cannot see each other, the control that separates flocking from herding.
+        #[serde(default, skip_serializing_if = "Vec::is_empty")]
+        pub blind_to: Vec<String>,
+        /// Perception per observed species (not in the paper): `[("predator", FractionOfD(0.0833))]` sees
+        /// predators only within D/12 and every other species within `perception` (the "many eyes" condition).
+        #[serde(default, skip_serializing_if = "Vec::is_empty")]
+        pub perception_of: Vec<(String, Perception)>,
     }
 }
 

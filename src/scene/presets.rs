@@ -18,6 +18,8 @@ pub(super) fn paper() -> Scene {
         colour,
         catches: catches.iter().map(|s| s.to_string()).collect(),
         policy,
+        blind_to: vec![],
+        perception_of: vec![],
     };
     Scene {
         preset: "paper".into(),

@@ -204,6 +204,8 @@ impl SpeciesDef {
             colour: [0.0; 3],
             catches: vec![],
             policy: Policy::Still,
+            blind_to: vec![],
+            perception_of: vec![],
         }
     }
 }

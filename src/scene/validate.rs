@@ -85,6 +85,23 @@ impl Scene {
                 })?;
                 check(target != &s.name, &f("catches"), || "a species cannot catch itself".into())?;
             }
+            for target in &s.blind_to {
+                check(self.species.iter().any(|o| &o.name == target), &f("blind_to"), || {
+                    format!("no species named {target:?} in this scene")
+                })?;
+            }
+            for (i, (target, perception)) in s.perception_of.iter().enumerate() {
+                check(self.species.iter().any(|o| &o.name == target), &f("perception_of"), || {
+                    format!("no species named {target:?} in this scene")
+                })?;
+                check(!s.perception_of[..i].iter().any(|(t, _)| t == target), &f("perception_of"), || {
+                    format!("{target:?} is named twice")
+                })?;
+                match *perception {
+                    Perception::Full => {}
+                    Perception::FractionOfD(x) | Perception::Radius(x) => positive(x, &f("perception_of"))?,
+                }
+            }
         }
         for (i, r) in self.contact_rewards.iter().enumerate() {
             let field = format!("contact_rewards[{i}]");

@@ -315,7 +315,7 @@ fn observe_rows(
     nearest_kin: &mut [Option<u32>],
 ) {
     let limit = registry.defs[s].topological_limit;
-    let radius = registry.perception_radius[s];
+    let (radii, blind) = (&registry.perception_radii[s], &registry.blind[s]);
     let dim = registry.observation_dim(s);
     let mut nearest = Vec::with_capacity(limit);
     for (row, (obs, kin)) in observations.chunks_exact_mut(dim).zip(nearest_kin.iter_mut()).enumerate() {
@@ -338,9 +338,14 @@ fn observe_rows(
         obs[..OWN_STATE_DIM].copy_from_slice(&own.map(|c| c as f32));
         let own_heading = seen(h);
         for (t, grid) in pop.grids.iter().enumerate() {
-            grid.k_nearest(arena, x, limit, radius, i as u32, &mut nearest);
+            grid.k_nearest(arena, x, limit, radii[t], i as u32, &mut nearest);
             if t == s {
+                // The nearest kin is measured (C_nn), whatever the species is allowed to see.
                 *kin = nearest.first().map(|&(_, j)| j);
+            }
+            if blind[t] {
+                // `blind_to`: the block stays zero.
+                continue;
             }
             let block = registry.block_offset(s, t);
             for (n, &(_, j)) in nearest.iter().enumerate() {

@@ -23,6 +23,11 @@ pub struct SpeciesRegistry {
     pub catches: Vec<Vec<bool>>,
     /// Perception radius R in metres, resolved against D.
     pub perception_radius: Vec<f64>,
+    /// `perception_radii[a][b]`: the radius within which species a perceives species b (R of a, unless
+    /// a's `perception_of` names b).
+    pub perception_radii: Vec<Vec<f64>>,
+    /// `blind[a][b]`: species a never sees species b (`blind_to`): its block of b stays zero.
+    pub blind: Vec<Vec<bool>>,
     /// `contact_reward[a][b]`: (to the catcher, to the caught) per contact where a catches b; ±contact
     /// unless the scene's `contact_rewards` sets the pair.
     pub contact_reward: Vec<Vec<(f64, f64)>>,
@@ -45,14 +50,22 @@ impl SpeciesRegistry {
             })
             .collect();
         let d = scene.max_distance();
-        let perception_radius = defs
+        let resolve = |p: &Perception| match *p {
+            Perception::Full => d,
+            Perception::FractionOfD(f) => f * d,
+            Perception::Radius(r) => r,
+        };
+        let perception_radius: Vec<f64> = defs.iter().map(|s| resolve(&s.perception)).collect();
+        let perception_radii = defs
             .iter()
-            .map(|s| match s.perception {
-                Perception::Full => d,
-                Perception::FractionOfD(f) => f * d,
-                Perception::Radius(r) => r,
+            .zip(&perception_radius)
+            .map(|(a, &r)| {
+                defs.iter()
+                    .map(|b| a.perception_of.iter().find(|(name, _)| *name == b.name).map_or(r, |(_, p)| resolve(p)))
+                    .collect()
             })
             .collect();
+        let blind = defs.iter().map(|a| defs.iter().map(|b| a.blind_to.contains(&b.name)).collect()).collect();
         let contact = scene.rewards.contact;
         let contact_reward = defs
             .iter()
@@ -68,7 +81,7 @@ impl SpeciesRegistry {
                     .collect()
             })
             .collect();
-        SpeciesRegistry { defs, catches, perception_radius, contact_reward }
+        SpeciesRegistry { defs, catches, perception_radius, perception_radii, blind, contact_reward }
     }
 
     pub fn len(&self) -> usize {
@@ -264,9 +277,16 @@ pub fn describe(scene: &Scene, source: &str) -> String {
         for t in 0..r.len() {
             let from = r.block_offset(s, t);
             let slots = r.defs[s].topological_limit;
+            let seen = if r.blind[s][t] {
+                " — never seen (blind_to): always zero".to_string()
+            } else if r.perception_radii[s][t] != r.perception_radius[s] {
+                format!(" within R = {:.4} m (perception_of)", r.perception_radii[s][t])
+            } else {
+                String::new()
+            };
             let _ = writeln!(
                 out,
-                "  [{from}, {}) {}: {slots} slots × {NEIGHBOUR_DIM}",
+                "  [{from}, {}) {}: {slots} slots × {NEIGHBOUR_DIM}{seen}",
                 from + slots * NEIGHBOUR_DIM,
                 r.defs[t].name
             );
