@@ -366,8 +366,8 @@ fn random_positions_give_the_known_dos_baselines() {
     use coevo::sim::space::Arena;
     // Uniform random positions in the 2 m torus: DoS ≈ 0.227 at 10 prey and ≈ 0.100 at 50.
     let torus = Arena { edge: 2.0, boundary: Boundary::Periodic };
-    let ten = coevo::run::train::random_dos(&torus, 10).unwrap();
-    let fifty = coevo::run::train::random_dos(&torus, 50).unwrap();
+    let ten = coevo::sim::metrics::random_dos(&torus, 10).unwrap();
+    let fifty = coevo::sim::metrics::random_dos(&torus, 50).unwrap();
     assert!((ten - 0.227).abs() < 0.005 && (fifty - 0.100).abs() < 0.003, "{ten} {fifty}");
-    assert_eq!(coevo::run::train::random_dos(&torus, 1), None);
+    assert_eq!(coevo::sim::metrics::random_dos(&torus, 1), None);
 }

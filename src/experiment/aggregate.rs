@@ -1,10 +1,13 @@
 //! From the runs' CSV files alone (never retraining): per-run summaries, means with 95 % confidence
 //! intervals over seeds, the figures, and the paper's claims checked against them.
 
-use super::claims::{quantity, values, verdict, window_mean, ClaimResult, EvalData, RunData, SETTLED_STEPS, WINDOW};
+use super::claims::{
+    chance_level, is_effect, quantity, values, verdict, window_mean, ClaimResult, EvalData, RunData, SETTLED_STEPS,
+    WINDOW,
+};
 use super::plot::{self, Curve, EstimatePanel, Panel, Row};
 use super::runner::{eval_file, stage, Stage};
-use super::stats::{difference, estimate, mean, running_mean};
+use super::stats::{difference, estimate, holm, mean, running_mean};
 use super::{slug, Experiment, Quantity};
 use crate::run::schema::{self, Table};
 use crate::run::RunDir;
@@ -59,6 +62,10 @@ pub fn load(exp: &Experiment) -> crate::error::Result<BTreeMap<usize, RunData>> 
                 })
                 .collect(),
             evals: BTreeMap::new(),
+            binaries: match RunDir::new(&run.dir).read_provenance()? {
+                Some(p) => p.binaries().into_iter().map(String::from).collect(),
+                None => vec!["unknown".into()],
+            },
         };
         for e in &exp.spec.evaluations {
             let path = eval_file(&run.dir, &e.name);
@@ -109,17 +116,13 @@ fn check_one_binary(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> crate:
     if exp.spec.mixed_binaries {
         return Ok(());
     }
-    let mut first: Option<(String, &std::path::Path)> = None;
-    for &i in data.keys() {
+    let mut first: Option<(&str, &std::path::Path)> = None;
+    for (&i, d) in data {
         let dir = &exp.runs[i].dir;
-        let binaries = match RunDir::new(dir).read_provenance()? {
-            Some(p) => p.binaries().into_iter().map(String::from).collect(),
-            None => vec!["unknown (no provenance.ron)".to_string()],
-        };
-        for b in binaries {
-            match &first {
+        for b in &d.binaries {
+            match first {
                 None => first = Some((b, dir)),
-                Some((a, other)) if *a != b => {
+                Some((a, other)) if a != b => {
                     return Err(format!(
                         "{}: runs of more than one binary ({} by {a}, {} by {b}); rerun them with one coevo or set mixed_binaries: true",
                         exp.file.display(),
@@ -135,14 +138,15 @@ fn check_one_binary(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> crate:
     Ok(())
 }
 
-/// Refuses to aggregate fewer runs than the experiment's `summary.csv` already holds: run folders are
-/// not committed, so in a fresh clone (or after runs were moved away) aggregating would replace the
-/// committed summaries, figures and REPRODUCTION.md rows with "not run yet". Nothing is written then.
+/// Refuses to aggregate fewer runs than the experiment's `summary.csv` already holds, unless there are
+/// none: run folders are not committed, so after some runs were moved away aggregating would replace the
+/// committed summaries and figures with fewer runs. Nothing is written then. With no run folder at all
+/// (a fresh clone) the committed summary.csv is read as it is and nothing of it is rewritten.
 pub fn check_complete(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> crate::error::Result<()> {
     let summary = exp.root.join("summary.csv");
     let Ok(text) = crate::io::read_text(&summary, crate::io::MAX_TEXT_BYTES) else { return Ok(()) };
     let held = text.lines().skip(1).filter(|l| !l.is_empty()).count();
-    if held > data.len() {
+    if held > data.len() && !data.is_empty() {
         return Err(format!(
             "{}: holds {held} runs but only {} of their run folders are here (run folders are not committed); nothing written: run `coevo --experiment {}` to rebuild them, or move the summary away",
             summary.display(),
@@ -156,7 +160,10 @@ pub fn check_complete(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> crat
 
 /// Checks an experiment's claims on the `data` of its finished runs ([`load`]) and, when there are any,
 /// writes its summaries and figures. Claims with no run yet say so.
-pub fn aggregate(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> crate::error::Result<Vec<ClaimResult>> {
+pub fn aggregate(
+    exp: &Experiment,
+    data: &BTreeMap<usize, RunData>,
+) -> crate::error::Result<(Vec<ClaimResult>, Summary)> {
     check_complete(exp, data)?;
     let written = !data.is_empty();
     let prey = headline(exp);
@@ -192,7 +199,7 @@ pub fn aggregate(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> crate::er
     for (name, _) in &quantities {
         write!(summary, ",{name}").unwrap();
     }
-    summary.push_str(",catches_first100,catches_last100,return_first100,return_last100,wall_seconds\n");
+    summary.push_str(",catches_first100,catches_last100,return_first100,return_last100,wall_seconds,binary\n");
     for (i, d) in data {
         let r = &exp.runs[*i];
         write!(summary, "{},{},{},{}", csv_text(&r.preset), csv_text(&r.variant), r.seed, d.dos.len()).unwrap();
@@ -207,9 +214,16 @@ pub fn aggregate(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> crate::er
             window_mean(&d.returns, true),
             window_mean(&d.returns, false),
         );
-        writeln!(summary, ",{c0},{c1},{r0},{r1},{}", d.wall_seconds).unwrap();
+        writeln!(summary, ",{c0},{c1},{r0},{r1},{},{}", d.wall_seconds, csv_text(&d.binaries.join(" "))).unwrap();
     }
 
+    // The claims are computed from the per-run values alone (summary.csv), so that a clone without run
+    // folders recomputes them from the committed summary exactly.
+    let table = if written {
+        Summary::parse(&summary, &exp.root.join("summary.csv"))?
+    } else {
+        Summary::read(&exp.root.join("summary.csv"))?.unwrap_or_default()
+    };
     let mut means = String::from("preset,variant,quantity,seeds,mean,ci95\n");
     let mut results = Vec::new();
     for preset in &exp.spec.presets {
@@ -230,28 +244,140 @@ pub fn aggregate(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> crate::er
             }
         }
         for claim in &exp.spec.claims {
-            let samples = |variant: &str| values(exp, &of_variant(variant), &claim.quantity);
+            let samples = |variant: &str| table.values(exp, preset, variant, &claim.quantity);
             let e = match &claim.versus {
                 Some(base) => difference(&samples(&claim.variant), &samples(base)),
                 None => estimate(&samples(&claim.variant)),
             };
+            let scene = exp.runs.iter().find(|r| r.preset == *preset && r.variant == claim.variant).map(|r| &r.scene);
             results.push(ClaimResult {
                 experiment: exp.name.clone(),
                 preset: preset.clone(),
                 claim: claim.clone(),
                 estimate: e,
-                verdict: verdict(claim, e),
+                p: e.filter(|_| is_effect(claim)).and_then(|e| e.p_value()),
+                p_holm: None,
+                baseline: chance_level(exp, claim, scene),
+                verdict: String::new(),
             });
         }
         if written {
             figures(exp, preset, &prey, &of_variant)?;
         }
     }
+    // One family per experiment: every effect's p-value, all presets, adjusted together (Holm).
+    let tested: Vec<usize> = (0..results.len()).filter(|&i| results[i].p.is_some()).collect();
+    let adjusted = holm(&tested.iter().map(|&i| results[i].p.unwrap_or(1.0)).collect::<Vec<_>>());
+    for (&i, p) in tested.iter().zip(adjusted) {
+        results[i].p_holm = Some(p);
+    }
+    for r in &mut results {
+        r.verdict = verdict(&r.claim, r.estimate, r.p_holm, r.baseline);
+    }
+    let results = (results, table);
     if written {
         crate::io::write_file(&exp.root.join("summary.csv"), crate::io::Existing::Replace, summary.as_bytes())?;
         crate::io::write_file(&exp.root.join("summary-mean.csv"), crate::io::Existing::Replace, means.as_bytes())?;
     }
     Ok(results)
+}
+
+/// An experiment's per-run values as `summary.csv` holds them: one row per run (preset, variant, seed,
+/// then one column per quantity), read with the `csv` crate (variant names may hold commas). The claims
+/// are computed from it alone.
+#[derive(Clone, Debug, Default)]
+pub struct Summary {
+    pub columns: Vec<String>,
+    pub rows: Vec<SummaryRow>,
+}
+
+#[derive(Clone, Debug)]
+pub struct SummaryRow {
+    pub preset: String,
+    pub variant: String,
+    pub seed: u64,
+    /// Every column's value (NaN where blank or not a number), in `columns` order.
+    pub values: Vec<f64>,
+    /// The executables that made the run (`binary` column; "unknown" for runs before provenance files).
+    pub binary: String,
+}
+
+impl Summary {
+    /// The committed summary of an experiment, None when it has none.
+    pub fn read(path: &Path) -> crate::error::Result<Option<Summary>> {
+        match crate::io::read_text(path, crate::io::MAX_TEXT_BYTES) {
+            Ok(text) => Ok(Some(Summary::parse(&text, path)?)),
+            Err(_) if !path.exists() => Ok(None),
+            Err(e) => Err(format!("{}: {e}", path.display()).into()),
+        }
+    }
+
+    pub fn parse(text: &str, path: &Path) -> crate::error::Result<Summary> {
+        let bad = |e: csv::Error| format!("{}: {e}", path.display());
+        let mut reader = csv::Reader::from_reader(text.as_bytes());
+        let columns: Vec<String> = reader.headers().map_err(bad)?.iter().map(str::to_string).collect();
+        let at = |name: &str| columns.iter().position(|c| c == name);
+        let (Some(preset), Some(variant), Some(seed)) = (at("preset"), at("variant"), at("seed")) else {
+            return Err(format!("{}: no preset, variant and seed columns", path.display()).into());
+        };
+        let binary = at("binary");
+        let mut rows = vec![];
+        for record in reader.records() {
+            let record = record.map_err(bad)?;
+            rows.push(SummaryRow {
+                preset: record[preset].to_string(),
+                variant: record[variant].to_string(),
+                seed: record[seed].parse().map_err(|_| format!("{}: seed {:?}", path.display(), &record[seed]))?,
+                values: record.iter().map(|c| c.parse().unwrap_or(f64::NAN)).collect(),
+                binary: binary.map_or("unknown", |b| &record[b]).to_string(),
+            });
+        }
+        Ok(Summary { columns, rows })
+    }
+
+    fn value(&self, row: &SummaryRow, column: &str) -> f64 {
+        self.columns.iter().position(|c| c == column).map_or(f64::NAN, |i| row.values[i])
+    }
+
+    /// A run's value of a quantity, from its row ([`super::claims::quantity`] computes the same from the
+    /// run's own files).
+    pub fn quantity(&self, exp: &Experiment, row: &SummaryRow, q: &Quantity) -> f64 {
+        let v = |c: &str| self.value(row, c);
+        let eval = |e: &str, what: &str| v(&format!("eval_{}_{what}", slug(e)));
+        match q {
+            Quantity::DosFirst => v("dos_first100"),
+            Quantity::DosLast => v("dos_last100"),
+            Quantity::DoaFirst => v("doa_first100"),
+            Quantity::DoaLast => v("doa_last100"),
+            Quantity::TrainingFirst(o) => v(&format!("{o}_first100")),
+            Quantity::TrainingLast(o) => v(&format!("{o}_last100")),
+            Quantity::DosChange => v("dos_last100") - v("dos_first100"),
+            Quantity::DoaChange => v("doa_last100") - v("doa_first100"),
+            Quantity::CatchesChange => v("catches_last100") - v("catches_first100"),
+            Quantity::CatchesLast => v("catches_last100"),
+            Quantity::EvalDos(e) => eval(e, "dos_settled"),
+            Quantity::EvalDoa(e) => eval(e, "doa_settled"),
+            Quantity::EvalOrder(e, o) => eval(e, o),
+            Quantity::InteractionDoa(e) => match super::seeing_partner(&exp.spec.evaluations, e) {
+                Some(seeing) => eval(&seeing.name, "doa_settled") - eval(e, "doa_settled"),
+                None => f64::NAN,
+            },
+            Quantity::Interaction(e, o) => match super::seeing_partner(&exp.spec.evaluations, e) {
+                Some(seeing) => eval(&seeing.name, o) - eval(e, o),
+                None => f64::NAN,
+            },
+        }
+    }
+
+    /// The finite values of a quantity over the runs of one preset and variant (one per seed).
+    pub fn values(&self, exp: &Experiment, preset: &str, variant: &str, q: &Quantity) -> Vec<f64> {
+        self.rows
+            .iter()
+            .filter(|r| r.preset == preset && r.variant == variant)
+            .map(|r| self.quantity(exp, r, q))
+            .filter(|x| x.is_finite())
+            .collect()
+    }
 }
 
 /// A name as one CSV field: quoted (RFC 4180) when it holds a comma or a quote, as variant names may

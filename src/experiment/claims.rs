@@ -18,6 +18,8 @@ pub struct RunData {
     /// runs) written before they were measured.
     pub orders: BTreeMap<String, Vec<f64>>,
     pub wall_seconds: f64,
+    /// The executables that made the run (`provenance.ron`; "unknown" before provenance files).
+    pub binaries: Vec<String>,
     /// Per evaluation, by name.
     pub evals: BTreeMap<String, EvalData>,
 }
@@ -105,33 +107,131 @@ pub struct ClaimResult {
     pub preset: String,
     pub claim: Claim,
     pub estimate: Option<Estimate>,
+    /// For an effect: the two-sided p-value of "no effect", and Holm's adjustment of it over every effect
+    /// of the experiment (all presets).
+    pub p: Option<f64>,
+    pub p_holm: Option<f64>,
+    /// For a level: the value chance alone gives ([`chance_level`]).
+    pub baseline: Option<f64>,
     pub verdict: String,
 }
 
-/// Whether a measured estimate bears out the paper's number.
-pub fn verdict(claim: &Claim, e: Option<Estimate>) -> String {
-    let Some(e) = e else { return "not run yet".into() };
-    let (paper, ci) = match (claim.paper, &claim.versus, e.ci) {
-        (None, None, _) => return "measured (the paper gives no number)".into(),
-        (_, _, None) => return "one seed: no interval".into(),
-        // A comparison of two variants without a number of the paper: is the difference outside its interval?
-        (None, Some(base), Some(ci)) if e.mean.abs() > ci => {
-            return format!("differs from `{base}`: the 95 % CI excludes 0")
-        }
-        (None, Some(base), Some(_)) => return format!("no difference from `{base}` detected"),
-        (Some(paper), _, Some(ci)) => (paper, ci),
+/// Significance level of every test, after Holm's adjustment.
+pub const ALPHA: f64 = 0.05;
+
+/// Whether a claim is about an effect (a change over training, what a control removes, or a difference
+/// of two variants) rather than a level.
+pub fn is_effect(claim: &Claim) -> bool {
+    claim.versus.is_some()
+        || matches!(
+            claim.quantity,
+            Quantity::DosChange
+                | Quantity::DoaChange
+                | Quantity::CatchesChange
+                | Quantity::InteractionDoa(_)
+                | Quantity::Interaction(..)
+        )
+}
+
+/// The value a level has by chance alone, which a level must be told apart from: the claim's `baseline`,
+/// else for DoA 2/π (independent uniform headings) and for DoS the DoS of uniform random positions at the
+/// density of `scene` (or of the evaluation's counts). None for other levels and for effects.
+pub fn chance_level(exp: &Experiment, claim: &Claim, scene: Option<&crate::scene::Scene>) -> Option<f64> {
+    if claim.baseline.is_some() || is_effect(claim) {
+        return claim.baseline;
+    }
+    let random_dos = |evaluation: Option<&str>| {
+        let scene = scene?;
+        let registry = crate::sim::species::SpeciesRegistry::from_scene(scene);
+        let prey = registry.headline();
+        let name = &registry.defs[prey].name;
+        let counts = evaluation.and_then(|e| exp.spec.evaluations.iter().find(|x| x.name == e));
+        let n = counts
+            .and_then(|e| e.counts.iter().find(|(s, _)| s == name).map(|(_, n)| *n))
+            .unwrap_or(registry.defs[prey].count);
+        let arena = crate::sim::space::Arena { edge: scene.world.arena_edge, boundary: scene.world.boundary };
+        crate::sim::metrics::random_dos(&arena, n)
     };
-    let change = matches!(claim.quantity, Quantity::DosChange | Quantity::DoaChange | Quantity::CatchesChange);
-    if (e.mean - paper).abs() <= ci {
-        "holds: the paper's value is inside the 95 % CI".into()
-    } else if change && e.mean.abs() <= ci {
-        "does not hold: no significant change".into()
-    } else if change && e.mean.signum() == paper.signum() {
-        "same direction, different size".into()
-    } else if change {
-        "does not hold: opposite direction".into()
+    match &claim.quantity {
+        Quantity::DoaFirst | Quantity::DoaLast | Quantity::EvalDoa(_) => Some(std::f64::consts::FRAC_2_PI),
+        Quantity::DosFirst | Quantity::DosLast => random_dos(None),
+        Quantity::EvalDos(e) => random_dos(Some(e)),
+        _ => None,
+    }
+}
+
+/// The verdict on a claim, defined in REPRODUCTION.md's preamble: *reproduced*, *not reproduced* or
+/// *inconclusive* for a claim of the paper; for a quantity the paper gives no number of, whether an effect
+/// was detected or a level differs from chance. An effect counts as detected only when its Holm-adjusted
+/// p-value is below [`ALPHA`]; an interval that contains zero is never called a result.
+pub fn verdict(claim: &Claim, e: Option<Estimate>, p_holm: Option<f64>, baseline: Option<f64>) -> String {
+    let Some(e) = e else { return "not run yet".into() };
+    let Some(ci) = e.ci else { return "one seed: no interval".into() };
+    let (lo, hi) = (e.mean - ci, e.mean + ci);
+    let inside = |x: f64| lo <= x && x <= hi;
+    let power = || match e.detectable() {
+        Some(d) => format!("80 % power only for |effect| ≥ {d:.3} with {} seeds", e.n),
+        None => String::new(),
+    };
+    if is_effect(claim) {
+        let detected = p_holm.is_some_and(|p| p < ALPHA);
+        let p_text = p_holm.map_or(String::new(), |p| format!("Holm p = {}", p_shown(p)));
+        if let Some(m) = claim.margin {
+            let (tlo, thi) = e.tost_interval().unwrap_or((lo, hi));
+            return if -m < tlo && thi < m {
+                format!("reproduced: no effect beyond ±{m} (TOST, 90 % CI [{tlo:.3}, {thi:.3}])")
+            } else if detected {
+                format!("not reproduced: an effect of {:+.3} ({p_text})", e.mean)
+            } else {
+                format!("inconclusive: neither an effect nor equivalence within ±{m}; {}", power())
+            };
+        }
+        match claim.paper {
+            Some(paper) if detected && e.mean.signum() == paper.signum() => {
+                format!("reproduced: detected in the paper's direction ({p_text})")
+            }
+            Some(_) if detected => format!("not reproduced: the effect goes the other way ({p_text})"),
+            Some(paper) if !inside(paper) => format!("not reproduced: the 95 % CI excludes the paper's {paper:+.3}"),
+            Some(paper) => {
+                let need = e.seeds_for(paper).map_or(String::new(), |n| {
+                    format!(
+                        "; the paper's {paper:+.3} needs ≈ {n} seeds{}",
+                        if e.two_groups { " per variant" } else { "" }
+                    )
+                });
+                format!("inconclusive: {}{need}", power())
+            }
+            None if detected => format!("effect detected: {:+.3} ({p_text})", e.mean),
+            None => format!("no effect detected (inconclusive): {}", power()),
+        }
     } else {
-        "does not hold: outside the 95 % CI".into()
+        let chance = baseline.map(|b| (b, inside(b)));
+        match (claim.paper, chance) {
+            (Some(paper), _) if !inside(paper) => {
+                format!("not reproduced: the 95 % CI excludes the paper's {paper:.3}")
+            }
+            (Some(_), Some((b, false))) => {
+                format!("reproduced: the paper's value is inside the 95 % CI, which excludes chance ({b:.3})")
+            }
+            (Some(_), Some((b, true))) => {
+                format!("inconclusive: the 95 % CI holds both the paper's value and chance ({b:.3})")
+            }
+            (Some(_), None) => {
+                "inconclusive: the paper's value is inside the 95 % CI; no chance level to tell it from".into()
+            }
+            (None, Some((b, false))) => format!("measured: differs from chance ({b:.3})"),
+            (None, Some((b, true))) => format!("measured: not told apart from chance ({b:.3})"),
+            (None, None) => "measured (the paper gives no number)".into(),
+        }
+    }
+}
+
+/// A p-value as reports show it.
+pub fn p_shown(p: f64) -> String {
+    if p < 0.001 {
+        "< 0.001".into()
+    } else {
+        format!("{p:.3}")
     }
 }
 
@@ -188,5 +288,65 @@ mod tests {
         {
             assert!((quantity(&exp, &d, &q) - expected).abs() < 1e-12, "{q:?}");
         }
+    }
+
+    fn claim(quantity: Quantity, paper: Option<f64>, margin: Option<f64>) -> Claim {
+        Claim { text: "t".into(), variant: "v".into(), quantity, paper, versus: None, margin, baseline: None }
+    }
+
+    /// The verdict on one effect claim of its own family (so Holm's adjustment is the p-value itself).
+    fn judged(c: &Claim, samples: &[f64]) -> String {
+        let e = crate::experiment::stats::estimate(samples);
+        verdict(c, e, e.and_then(|e| e.p_value()), None)
+    }
+
+    #[test]
+    fn verdicts_on_hand_made_samples() {
+        let rises = claim(Quantity::DoaChange, Some(0.17), None);
+        // A clear effect in the paper's direction.
+        let clear = [0.15, 0.18, 0.20, 0.16, 0.19];
+        assert!(
+            judged(&rises, &clear).starts_with("reproduced: detected in the paper's direction"),
+            "{}",
+            judged(&rises, &clear)
+        );
+        // The same effect the other way.
+        let opposite: Vec<f64> = clear.iter().map(|x| -x).collect();
+        assert!(judged(&rises, &opposite).starts_with("not reproduced: the effect goes the other way"));
+        // A wide interval holding both zero and the paper's value: inconclusive, with the power it had.
+        let wide = [0.4, -0.3, 0.25, -0.2, 0.1];
+        let v = judged(&rises, &wide);
+        assert!(v.starts_with("inconclusive: 80 % power only for |effect| ≥") && v.contains("needs ≈"), "{v}");
+        // Tight around zero, excluding the paper's +0.17: not reproduced.
+        let null = [0.01, -0.01, 0.0, 0.02, -0.02];
+        assert!(judged(&rises, &null).starts_with("not reproduced: the 95 % CI excludes the paper's +0.170"));
+        // A claim of no change with a margin: tight around zero is equivalent, the clear effect is not.
+        let flat = claim(Quantity::DosChange, None, Some(0.05));
+        assert!(judged(&flat, &null).starts_with("reproduced: no effect beyond ±0.05"), "{}", judged(&flat, &null));
+        assert!(judged(&flat, &clear).starts_with("not reproduced: an effect of +0.176"));
+        assert!(judged(&flat, &wide).starts_with("inconclusive: neither an effect nor equivalence"));
+        // No number from the paper: detected or not, never "holds".
+        let free = claim(Quantity::InteractionDoa("x".into()), None, None);
+        assert!(judged(&free, &clear).starts_with("effect detected: +0.176"));
+        assert!(judged(&free, &wide).starts_with("no effect detected (inconclusive)"));
+        // A detected effect that does not survive Holm's adjustment is not detected.
+        let e = crate::experiment::stats::estimate(&clear);
+        assert!(verdict(&free, e, Some(0.2), None).starts_with("no effect detected"));
+    }
+
+    #[test]
+    fn levels_are_told_apart_from_chance() {
+        let level = claim(Quantity::EvalDoa("x".into()), Some(0.82), None);
+        let e = |s: &[f64]| crate::experiment::stats::estimate(s);
+        let chance = Some(std::f64::consts::FRAC_2_PI);
+        let high = [0.80, 0.83, 0.84, 0.81, 0.82];
+        assert!(verdict(&level, e(&high), None, chance).starts_with("reproduced: the paper's value is inside"));
+        let wide = [0.95, 0.55, 0.85, 0.6, 0.9];
+        assert!(verdict(&level, e(&wide), None, chance).starts_with("inconclusive: the 95 % CI holds both"));
+        let low = [0.63, 0.64, 0.62, 0.64, 0.63];
+        assert!(verdict(&level, e(&low), None, chance)
+            .starts_with("not reproduced: the 95 % CI excludes the paper's 0.820"));
+        assert_eq!(verdict(&level, None, None, chance), "not run yet");
+        assert_eq!(verdict(&level, e(&[0.8]), None, chance), "one seed: no interval");
     }
 }

@@ -126,6 +126,14 @@ pub struct Claim {
     /// Welch's 95 % interval (e.g. an ablation variant against the base it changes one thing of).
     #[serde(default)]
     pub versus: Option<String>,
+    /// For a claim of no effect ("unchanged", "flat"): the margin m of the equivalence test (TOST): the
+    /// claim is reproduced when the effect's 90 % interval lies inside (−m, m).
+    #[serde(default)]
+    pub margin: Option<f64>,
+    /// For a level: the value that chance alone gives, which the level must be told apart from (DoA's
+    /// 2/π and DoS at random positions are filled in when not given).
+    #[serde(default)]
+    pub baseline: Option<f64>,
 }
 
 /// A number the aggregate computes per run (prey, or the experiment's headline species).

@@ -1,6 +1,9 @@
-//! The statistics of the paper's figures: 100-episode running means, and the mean over seeds with its
-//! 95 % confidence interval (Student t, n − 1 degrees of freedom); and the difference of two variants'
-//! means with Welch's interval (unequal variances), for comparing a variant with the one it changes.
+//! The statistics of the paper's figures and of the verdicts on its claims: 100-episode running means; the
+//! mean over seeds with its 95 % confidence interval (Student t, n − 1 degrees of freedom); the difference
+//! of two variants' means with Welch's interval (unequal variances); their two-sided p-values, Holm's
+//! adjustment for a family of comparisons, the 90 % interval of an equivalence test (TOST), and the power
+//! of a design (the smallest effect its seeds detect with 80 % power, the seeds an effect needs).
+//! Student t quantiles and distribution functions come from `statrs`.
 
 pub use crate::sim::metrics::running_mean;
 
@@ -9,35 +12,40 @@ pub fn mean(values: &[f64]) -> Option<f64> {
     (!values.is_empty()).then(|| values.iter().sum::<f64>() / values.len() as f64)
 }
 
-/// The two-sided 95 % quantile of Student's t with `df` degrees of freedom.
-pub fn t95(df: usize) -> f64 {
-    const TABLE: [f64; 30] = [
-        12.706, 4.303, 3.182, 2.776, 2.571, 2.447, 2.365, 2.306, 2.262, 2.228, 2.201, 2.179, 2.160, 2.145, 2.131,
-        2.120, 2.110, 2.101, 2.093, 2.086, 2.080, 2.074, 2.069, 2.064, 2.060, 2.056, 2.052, 2.048, 2.045, 2.042,
-    ];
-    match df {
-        0 => f64::NAN,
-        1..=30 => TABLE[df - 1],
-        31..=60 => 2.000,
-        61..=120 => 1.980,
-        _ => 1.960,
-    }
+/// The `p` quantile of Student's t with `df` degrees of freedom (NaN for df ≤ 0).
+pub fn t_quantile(p: f64, df: f64) -> f64 {
+    use statrs::distribution::{ContinuousCDF, StudentsT};
+    StudentsT::new(0.0, 1.0, df).map_or(f64::NAN, |t| t.inverse_cdf(p))
 }
 
-/// Mean and half-width of the 95 % confidence interval of the mean of independent samples (one per seed).
-/// The half-width is None with a single sample.
+/// The two-sided 95 % quantile of Student's t with `df` degrees of freedom.
+pub fn t95(df: usize) -> f64 {
+    t_quantile(0.975, df as f64)
+}
+
+/// Mean and half-width of the 95 % confidence interval of the mean of independent samples (one per seed),
+/// or of a difference of two variants' means (Welch). The interval, standard error and degrees of freedom
+/// are None with a single sample.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Estimate {
     pub mean: f64,
     pub ci: Option<f64>,
+    /// Samples: seeds, or for a difference the smaller of the two counts.
     pub n: usize,
+    /// Standard error of the mean (or of the difference) and its degrees of freedom.
+    pub se: Option<f64>,
+    pub df: Option<f64>,
+    /// Whether this is a difference of two independent groups (Welch) rather than one group's mean.
+    pub two_groups: bool,
 }
 
 pub fn estimate(samples: &[f64]) -> Option<Estimate> {
     let n = samples.len();
     let m = mean(samples)?;
-    let ci = (n >= 2).then(|| t95(n - 1) * (variance(samples, m) / n as f64).sqrt());
-    Some(Estimate { mean: m, ci, n })
+    let se = (n >= 2).then(|| (variance(samples, m) / n as f64).sqrt());
+    let df = (n >= 2).then(|| (n - 1) as f64);
+    let ci = se.map(|se| t95(n - 1) * se);
+    Some(Estimate { mean: m, ci, n, se, df, two_groups: false })
 }
 
 /// The sample variance (n − 1 in the denominator) about the samples' mean `m`.
@@ -51,15 +59,79 @@ fn variance(samples: &[f64], m: f64) -> f64 {
 pub fn difference(a: &[f64], b: &[f64]) -> Option<Estimate> {
     let (ma, mb) = (mean(a)?, mean(b)?);
     let n = a.len().min(b.len());
-    let ci = (n >= 2).then(|| {
+    let (se, df) = if n >= 2 {
         let (qa, qb) = (variance(a, ma) / a.len() as f64, variance(b, mb) / b.len() as f64);
         let se2 = qa + qb;
         let df = se2 * se2 / (qa * qa / (a.len() - 1) as f64 + qb * qb / (b.len() - 1) as f64);
         // Identical samples on both sides (no spread at all) leave df undefined: the interval is zero.
-        let df = if df.is_finite() { (df.floor() as usize).max(1) } else { a.len() + b.len() - 2 };
-        t95(df) * se2.sqrt()
-    });
-    Some(Estimate { mean: ma - mb, ci, n })
+        let df = if df.is_finite() { df.floor().max(1.0) } else { (a.len() + b.len() - 2) as f64 };
+        (Some(se2.sqrt()), Some(df))
+    } else {
+        (None, None)
+    };
+    let ci = se.zip(df).map(|(se, df)| t_quantile(0.975, df) * se);
+    Some(Estimate { mean: ma - mb, ci, n, se, df, two_groups: true })
+}
+
+impl Estimate {
+    /// Two-sided p-value of "the mean (or difference) is zero" (Student / Welch t test). None without an
+    /// interval; 1 when there is no spread and the mean is 0, 0 when there is no spread and it is not.
+    pub fn p_value(&self) -> Option<f64> {
+        use statrs::distribution::{ContinuousCDF, StudentsT};
+        let (se, df) = (self.se?, self.df?);
+        if se == 0.0 {
+            return Some(if self.mean == 0.0 { 1.0 } else { 0.0 });
+        }
+        let t = StudentsT::new(0.0, 1.0, df).ok()?;
+        Some((2.0 * (1.0 - t.cdf((self.mean / se).abs()))).clamp(0.0, 1.0))
+    }
+
+    /// The 90 % interval [lo, hi] of the two one-sided tests (TOST) at α = 0.05: equivalence within ±m
+    /// holds when it lies inside (−m, m).
+    pub fn tost_interval(&self) -> Option<(f64, f64)> {
+        let half = t_quantile(0.95, self.df?) * self.se?;
+        Some((self.mean - half, self.mean + half))
+    }
+
+    /// The smallest |effect| this design detects with 80 % power in a two-sided test at α = 0.05:
+    /// (t₀.₉₇₅ + t₀.₈₀) · standard error, the standard approximation of the noncentral t.
+    pub fn detectable(&self) -> Option<f64> {
+        let (se, df) = (self.se?, self.df?);
+        Some((t_quantile(0.975, df) + t_quantile(0.80, df)) * se)
+    }
+
+    /// Seeds (per group, for a difference) that detect `effect` with 80 % power at α = 0.05 given the
+    /// spread seen here: the smallest m with |effect|·√m / σ ≥ t₀.₉₇₅ + t₀.₈₀ at m − 1 degrees of freedom
+    /// (one group), or |effect|·√(m/2) / σ at 2m − 2 (two groups of m, σ the pooled SD). None without
+    /// spread or beyond 10 000.
+    pub fn seeds_for(&self, effect: f64) -> Option<usize> {
+        let se = self.se.filter(|&se| se > 0.0)?;
+        let (sigma, scale) = match self.two_groups {
+            // se² = (s²_a + s²_b) / n with n per group: the pooled σ² = se²·n/2.
+            true => (se * (self.n as f64 / 2.0).sqrt(), 0.5),
+            false => (se * (self.n as f64).sqrt(), 1.0),
+        };
+        (2..=10_000).find(|&m| {
+            let df = if self.two_groups { 2 * m - 2 } else { m - 1 } as f64;
+            effect.abs() * (scale * m as f64).sqrt() / sigma >= t_quantile(0.975, df) + t_quantile(0.80, df)
+        })
+    }
+}
+
+/// Holm's step-down adjustment of a family of p-values (same order as given): the k-th smallest becomes
+/// max over j ≤ k of min(1, (m − j + 1)·p₍ⱼ₎). Controls the family-wise error rate at α without assuming
+/// independence.
+pub fn holm(p: &[f64]) -> Vec<f64> {
+    let m = p.len();
+    let mut order: Vec<usize> = (0..m).collect();
+    order.sort_by(|&a, &b| p[a].total_cmp(&p[b]));
+    let mut adjusted = vec![0.0; m];
+    let mut running: f64 = 0.0;
+    for (k, &i) in order.iter().enumerate() {
+        running = running.max(((m - k) as f64 * p[i]).min(1.0));
+        adjusted[i] = running;
+    }
+    adjusted
 }
 
 #[cfg(test)]
@@ -72,10 +144,13 @@ mod tests {
         let e = estimate(&[1.0, 2.0, 3.0]).unwrap();
         assert_eq!(e.mean, 2.0);
         // s = 1, n = 3: 4.303 / √3.
-        assert!((e.ci.unwrap() - 4.303 / 3f64.sqrt()).abs() < 1e-12);
+        assert!((e.ci.unwrap() - 4.303 / 3f64.sqrt()).abs() < 1e-3);
         assert_eq!(estimate(&[5.0]).unwrap().ci, None);
         assert!(estimate(&[]).is_none());
-        assert_eq!(t95(1000), 1.96);
+        // Textbook quantiles: t₀.₉₇₅ at 1, 10 and 1000 degrees of freedom.
+        for (df, t) in [(1, 12.706), (10, 2.228), (1000, 1.962)] {
+            assert!((t95(df) - t).abs() < 1e-3, "df {df}: {}", t95(df));
+        }
     }
 
     #[test]
@@ -84,10 +159,64 @@ mod tests {
         // 2.94, rounded down to 2.
         let d = difference(&[1.0, 2.0, 3.0], &[4.0, 6.0, 8.0]).unwrap();
         assert_eq!(d.mean, -4.0);
-        assert!((d.ci.unwrap() - 4.303 * (5.0f64 / 3.0).sqrt()).abs() < 1e-12);
+        assert!((d.ci.unwrap() - 4.303 * (5.0f64 / 3.0).sqrt()).abs() < 1e-3);
         assert_eq!(d.n, 3);
         assert_eq!(difference(&[1.0, 2.0], &[3.0]).unwrap().ci, None);
         assert_eq!(difference(&[1.0, 1.0], &[1.0, 1.0]).unwrap().ci, Some(0.0));
         assert!(difference(&[], &[1.0]).is_none());
+    }
+
+    #[test]
+    fn p_values_of_known_data() {
+        // One sample 1, 2, 3: t = 2 / (1/√3) = 3.464 at 2 df, two-sided p = 0.0742.
+        let e = estimate(&[1.0, 2.0, 3.0]).unwrap();
+        assert!((e.p_value().unwrap() - 0.0742).abs() < 1e-4, "{:?}", e.p_value());
+        // A difference of −4 with se √(5/3) at 2 df: t = −3.098, p = 0.0903.
+        let d = difference(&[1.0, 2.0, 3.0], &[4.0, 6.0, 8.0]).unwrap();
+        assert!((d.p_value().unwrap() - 0.0903).abs() < 1e-4, "{:?}", d.p_value());
+        assert_eq!(estimate(&[2.0, 2.0]).unwrap().p_value(), Some(0.0));
+        assert_eq!(estimate(&[0.0, 0.0]).unwrap().p_value(), Some(1.0));
+    }
+
+    #[test]
+    fn holm_on_a_known_family() {
+        // m = 4, sorted p 0.01, 0.02, 0.03, 0.04: 0.04, 0.06, 0.06 (monotone), 0.06; in the given order.
+        let adjusted = holm(&[0.03, 0.01, 0.04, 0.02]);
+        let expected = [0.06, 0.04, 0.06, 0.06];
+        for (a, e) in adjusted.iter().zip(expected) {
+            assert!((a - e).abs() < 1e-12, "{adjusted:?}");
+        }
+        assert_eq!(holm(&[0.5, 0.9]), vec![1.0, 1.0]);
+        assert!(holm(&[]).is_empty());
+    }
+
+    #[test]
+    fn power_against_textbook_sample_sizes() {
+        // Cohen's d = 0.5, α = 0.05 two-sided, power 0.8: 34 for a one-sample (or paired) t test and 64
+        // per group for two independent groups (G*Power's and Cohen's tables).
+        let sd1 = |n: usize| Estimate {
+            mean: 0.0,
+            ci: None,
+            n,
+            se: Some(1.0 / (n as f64).sqrt()),
+            df: Some((n - 1) as f64),
+            two_groups: false,
+        };
+        assert_eq!(sd1(10).seeds_for(0.5), Some(34));
+        let sd2 = |n: usize| Estimate {
+            mean: 0.0,
+            ci: None,
+            n,
+            se: Some((2.0 / n as f64).sqrt()),
+            df: Some((2 * n - 2) as f64),
+            two_groups: true,
+        };
+        assert_eq!(sd2(10).seeds_for(0.5), Some(64));
+        // The detectable effect of 34 seeds at σ = 1 is about 0.5.
+        let d = sd1(34).detectable().unwrap();
+        assert!((d - 0.5).abs() < 0.01, "{d}");
+        // The TOST interval is the 90 % one: t₀.₉₅ at 9 df = 1.833.
+        let (lo, hi) = sd1(10).tost_interval().unwrap();
+        assert!((hi - lo - 2.0 * 1.833 / 10f64.sqrt()).abs() < 1e-3);
     }
 }

@@ -235,27 +235,6 @@ pub fn train(scene: Scene, opts: &TrainOptions) -> crate::error::Result<Vec<Epis
     Ok(summaries)
 }
 
-/// Uniform random positions, `n` of them in the arena, through the DoS formula (Eq. 2): the DoS a
-/// population has without any cohesion, at that density (a Monte Carlo estimate, fixed seed).
-pub fn random_dos(arena: &crate::sim::space::Arena, n: usize) -> Option<f64> {
-    use rand::{Rng, SeedableRng};
-    if n < 2 {
-        return None;
-    }
-    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(0);
-    let (samples, half) = (400, arena.half());
-    let mut sum = 0.0;
-    for _ in 0..samples {
-        let x: Vec<bevy::math::DVec2> =
-            (0..n).map(|_| bevy::math::DVec2::new(rng.gen_range(-half..half), rng.gen_range(-half..half))).collect();
-        for (i, a) in x.iter().enumerate() {
-            let nearest = x.iter().enumerate().filter(|(j, _)| *j != i).map(|(_, b)| arena.delta(*a, *b).length());
-            sum += nearest.fold(f64::INFINITY, f64::min);
-        }
-    }
-    Some(sum / (samples * n) as f64 / arena.max_distance())
-}
-
 /// What a finished `--train` says about its run: first → last DoS, DoA and catches with the baselines of
 /// no swarming at that density, overlapping windows named as such, and the next commands for this run.
 pub fn explain(run: &Path) -> crate::error::Result<String> {
@@ -286,8 +265,8 @@ pub fn explain(run: &Path) -> crate::error::Result<String> {
         out.push_str(&format!("  {what:<22} {} → {}{baseline}\n", shown(a, digits), shown(b, digits)));
     };
     out.push_str(&format!("  {name}, mean of the first → last {window} of {n} episodes (exploration noise on):\n"));
-    let random =
-        random_dos(&arena, count).map_or(String::new(), |r| format!("   (random positions, {count} {name}: {r:.3})"));
+    let random = crate::sim::metrics::random_dos(&arena, count)
+        .map_or(String::new(), |r| format!("   (random positions, {count} {name}: {r:.3})"));
     line(&mut out, "DoS", span(&dos), 3, random);
     line(&mut out, "DoA", span(&doa), 3, "   (random headings: 2/π = 0.637)".into());
     line(&mut out, "catches per episode", span(&catches), 1, String::new());

@@ -379,6 +379,27 @@ fn measure(
     e.steps += 1;
 }
 
+/// Uniform random positions, `n` of them in the arena, through the DoS formula (Eq. 2): the DoS a
+/// population has without any cohesion, at that density (a Monte Carlo estimate, fixed seed).
+pub fn random_dos(arena: &crate::sim::space::Arena, n: usize) -> Option<f64> {
+    use rand::{Rng, SeedableRng};
+    if n < 2 {
+        return None;
+    }
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(0);
+    let (samples, half) = (400, arena.half());
+    let mut sum = 0.0;
+    for _ in 0..samples {
+        let x: Vec<bevy::math::DVec2> =
+            (0..n).map(|_| bevy::math::DVec2::new(rng.gen_range(-half..half), rng.gen_range(-half..half))).collect();
+        for (i, a) in x.iter().enumerate() {
+            let nearest = x.iter().enumerate().filter(|(j, _)| *j != i).map(|(_, b)| arena.delta(*a, *b).length());
+            sum += nearest.fold(f64::INFINITY, f64::min);
+        }
+    }
+    Some(sum / (samples * n) as f64 / arena.max_distance())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
