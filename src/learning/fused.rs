@@ -150,11 +150,9 @@ impl Pass {
                         (inputs, 1),
                     );
                 }
-                below.iter_mut().zip(x).for_each(|(d, &x)| {
-                    if x <= 0.0 {
-                        *d = 0.0
-                    }
-                });
+                // A multiplication by 0 or 1, not a branch: the compiler vectorizes it (a branch here took a
+                // third of an update), and it is dfdx's own ReLU backward, bit for bit.
+                below.iter_mut().zip(x).for_each(|(d, &x)| *d *= if x > 0.0 { 1.0 } else { 0.0 });
                 std::mem::swap(&mut delta, &mut below);
             } else if let Some((columns, out)) = d_input.take() {
                 let n = columns.len();
