@@ -170,7 +170,7 @@ pub fn verdict(claim: &Claim, e: Option<Estimate>, p_holm: Option<f64>, baseline
     let (lo, hi) = (e.mean - ci, e.mean + ci);
     let inside = |x: f64| lo <= x && x <= hi;
     let power = || match e.detectable() {
-        Some(d) => format!("80 % power only for |effect| ≥ {d:.3} with {} seeds", e.n),
+        Some(d) => format!("80 % power only for effects of ±{d:.3} or more with {} seeds", e.n),
         None => String::new(),
     };
     if is_effect(claim) {
@@ -316,7 +316,7 @@ mod tests {
         // A wide interval holding both zero and the paper's value: inconclusive, with the power it had.
         let wide = [0.4, -0.3, 0.25, -0.2, 0.1];
         let v = judged(&rises, &wide);
-        assert!(v.starts_with("inconclusive: 80 % power only for |effect| ≥") && v.contains("needs ≈"), "{v}");
+        assert!(v.starts_with("inconclusive: 80 % power only for effects of ±") && v.contains("needs ≈"), "{v}");
         // Tight around zero, excluding the paper's +0.17: not reproduced.
         let null = [0.01, -0.01, 0.0, 0.02, -0.02];
         assert!(judged(&rises, &null).starts_with("not reproduced: the 95 % CI excludes the paper's +0.170"));

@@ -194,7 +194,7 @@ pub fn reproduction(experiments: &[Reported]) -> String {
          is inside the interval and chance is not (DoA by chance: 2/π ≈ 0.637; DoS by chance: uniform random positions at \
          the same density, e.g. 0.227 for 10 prey and 0.100 for 50 in the 2 m torus); **not reproduced** when the effect is \
          detected the other way or the interval excludes the paper's value; **inconclusive** when the data are compatible with \
-         both, with the smallest effect the seeds could detect (80 % power) and the seeds the paper's effect would need. A \
+         both, with the smallest effect the seeds could detect (80 % power at α = 0.05 before the adjustment) and the seeds the paper's effect would need. A \
          claim of no effect is tested for equivalence within the margin its experiment file states (TOST: the 90 % interval \
          inside ± margin). For a quantity the paper gives no number of, the verdict says whether an effect was detected or \
          the level differs from chance; *no effect detected* is not evidence of no effect.\n\n",
@@ -243,9 +243,9 @@ pub fn reproduction(experiments: &[Reported]) -> String {
                 md,
                 "| {} | {} | {} of {of} | {paper} | {ours} | {p} | {} |",
                 r.preset,
-                r.claim.text,
-                quantity_name(&r.claim.quantity),
-                r.verdict
+                cell(&r.claim.text),
+                cell(&quantity_name(&r.claim.quantity)),
+                cell(&r.verdict)
             )
             .unwrap();
         }
@@ -276,4 +276,9 @@ pub fn reproduction(experiments: &[Reported]) -> String {
     )
     .unwrap();
     md
+}
+
+/// Text as one Markdown table cell: a `|` would end the cell.
+fn cell(text: &str) -> String {
+    text.replace('|', "\\|")
 }
