@@ -101,8 +101,9 @@ fn experiment_files_expand_to_runs_and_bad_ones_are_one_line() {
 /// The summary without its wall-clock column.
 fn summary(dir: &Path) -> Vec<String> {
     let text = std::fs::read_to_string(dir.join("results/tiny/summary.csv")).unwrap();
-    // Every column but the last two: the wall clock, and the binary (the same here, but not a result).
-    text.lines().map(|l| l.rsplitn(3, ',').last().unwrap().to_string()).collect()
+    // Every column but the last three: the wall clock, the binary (the same here, but not a result) and
+    // shared_from.
+    text.lines().map(|l| l.rsplitn(4, ',').last().unwrap().to_string()).collect()
 }
 
 #[test]
@@ -351,5 +352,86 @@ fn the_preset_ablations_change_exactly_one_difference_per_variant() {
             presets_differ.remove(ignored);
         }
         assert_eq!(changed_in_total, presets_differ, "{file} walks every difference of the presets");
+    }
+}
+
+/// An experiment that shares tiny's 1:1 runs and trains an identical variant of its own.
+const SHARE: &str = r#"(
+    base: "scenes/paper.ron",
+    seeds: [1, 2],
+    episodes: 3,
+    variants: [
+        (name: "shared", shared_from: "tiny/1:1", patch: (episode_steps: 30, learning: (hidden: 16, batch_size: 32, warmup_transitions: 32, updates_per_episode: 3, checkpoint_every: 1))),
+        (name: "again", patch: (episode_steps: 30, learning: (hidden: 16, batch_size: 32, warmup_transitions: 32, updates_per_episode: 3, checkpoint_every: 1))),
+    ],
+    evaluations: [(name: "50 prey", counts: [("prey", 50)], episodes: 2, steps: 20)],
+    claims: [(text: "again against shared", variant: "again", versus: "shared", quantity: DosChange)],
+)"#;
+
+#[test]
+fn a_shared_variant_is_the_other_experiments_runs_trained_once_and_never_compared_with_itself() {
+    let dir = workspace();
+    std::fs::write(dir.path().join("experiments/share.ron"), SHARE).unwrap();
+    // Sharing first: the owner's runs are trained in the owner's folders, once.
+    let out = coevo(dir.path(), &["--experiment", "experiments/share.ron", "--jobs", "2"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(dir.path().join("results/tiny/paper/1-1/seed1/metrics.csv").exists(), "trained where tiny keeps it");
+    assert!(!dir.path().join("results/share/paper/shared").exists(), "no copy under the sharing experiment");
+    let owner_metrics =
+        std::fs::metadata(dir.path().join("results/tiny/paper/1-1/seed2/metrics.csv")).unwrap().modified().unwrap();
+    let out = coevo(dir.path(), &["--experiment", "experiments/tiny.ron", "--jobs", "2"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert_eq!(
+        std::fs::metadata(dir.path().join("results/tiny/paper/1-1/seed2/metrics.csv")).unwrap().modified().unwrap(),
+        owner_metrics,
+        "the owner finds its shared runs finished and does not train them again"
+    );
+    // The shared rows are tiny's rows (every column up to the wall clock), marked as shared.
+    let rows = |experiment: &str, variant: &str| -> Vec<String> {
+        let text = std::fs::read_to_string(dir.path().join(format!("results/{experiment}/summary.csv"))).unwrap();
+        text.lines()
+            .filter(|l| l.starts_with(&format!("paper,{variant},")))
+            .map(|l| l.splitn(3, ',').nth(2).unwrap().rsplitn(4, ',').last().unwrap().to_string())
+            .collect()
+    };
+    let share_summary = std::fs::read_to_string(dir.path().join("results/share/summary.csv")).unwrap();
+    assert!(share_summary.lines().next().unwrap().ends_with(",wall_seconds,binary,shared_from"));
+    assert_eq!(share_summary.lines().filter(|l| l.starts_with("paper,shared,") && l.ends_with(",tiny")).count(), 2);
+    // Only the columns both experiments have (share evaluates one of tiny's two evaluations) are compared:
+    // the training columns at the start of each row.
+    let training =
+        |v: Vec<String>| v.iter().map(|r| r.split(',').take(20).collect::<Vec<_>>().join(",")).collect::<Vec<_>>();
+    assert_eq!(training(rows("share", "shared")), training(rows("tiny", "1:1")));
+    // A variant that trains the same scene again is a deterministic re-run: no comparison, no p-value;
+    // the contents count the shared runs once (under tiny) and say so.
+    let md = std::fs::read_to_string(dir.path().join("REPRODUCTION.md")).unwrap();
+    assert!(md.contains("| – | not a comparison: the two variants' runs are identical"), "{md}");
+    assert!(md.contains("| 4 of 4 (2 shared) |"), "{md}");
+    // A shared reference to another scene, or two variants shared from the same runs, are refused.
+    for (text, says) in [
+        (
+            SHARE.replace(
+                "shared_from: \"tiny/1:1\", patch: (episode_steps: 30",
+                "shared_from: \"tiny/1:1\", patch: (episode_steps: 31",
+            ),
+            "shared_from: tiny/1:1 is another scene",
+        ),
+        (
+            SHARE.replace("(name: \"again\", patch:", "(name: \"again\", shared_from: \"tiny/1:1\", patch:"),
+            "compares runs with themselves",
+        ),
+        (SHARE.replace("tiny/1:1", "tiny/2:2"), "tiny has no variant \"2:2\""),
+        (
+            SHARE.replace(
+                "(name: \"50 prey\", counts: [(\"prey\", 50)], episodes: 2",
+                "(name: \"50 prey\", counts: [(\"prey\", 50)], episodes: 3",
+            ),
+            "differs from tiny's of the same name",
+        ),
+    ] {
+        std::fs::write(dir.path().join("experiments/bad.ron"), text).unwrap();
+        let out = coevo(dir.path(), &["--experiment", "experiments/bad.ron"]);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success() && stderr.lines().count() == 1 && stderr.contains(says), "{says}: {stderr}");
     }
 }

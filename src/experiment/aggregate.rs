@@ -199,7 +199,8 @@ pub fn aggregate(
     for (name, _) in &quantities {
         write!(summary, ",{name}").unwrap();
     }
-    summary.push_str(",catches_first100,catches_last100,return_first100,return_last100,wall_seconds,binary\n");
+    summary
+        .push_str(",catches_first100,catches_last100,return_first100,return_last100,wall_seconds,binary,shared_from\n");
     for (i, d) in data {
         let r = &exp.runs[*i];
         write!(summary, "{},{},{},{}", csv_text(&r.preset), csv_text(&r.variant), r.seed, d.dos.len()).unwrap();
@@ -214,7 +215,9 @@ pub fn aggregate(
             window_mean(&d.returns, true),
             window_mean(&d.returns, false),
         );
-        writeln!(summary, ",{c0},{c1},{r0},{r1},{},{}", d.wall_seconds, csv_text(&d.binaries.join(" "))).unwrap();
+        let shared = r.shared_from.as_deref().unwrap_or("");
+        writeln!(summary, ",{c0},{c1},{r0},{r1},{},{},{shared}", d.wall_seconds, csv_text(&d.binaries.join(" ")))
+            .unwrap();
     }
 
     // The claims are computed from the per-run values alone (summary.csv), so that a clone without run
@@ -245,9 +248,13 @@ pub fn aggregate(
         }
         for claim in &exp.spec.claims {
             let samples = |variant: &str| table.values(exp, preset, variant, &claim.quantity);
-            let e = match &claim.versus {
-                Some(base) => difference(&samples(&claim.variant), &samples(base)),
-                None => estimate(&samples(&claim.variant)),
+            let (ours, theirs) = (samples(&claim.variant), claim.versus.as_deref().map(samples));
+            // Two variants whose runs are identical (a deterministic re-run, e.g. a switch that never acts)
+            // are one sample, not two: no comparison, no p-value.
+            let identical = theirs.as_ref().is_some_and(|t| t.len() >= 2 && *t == ours);
+            let e = match &theirs {
+                Some(t) => difference(&ours, t),
+                None => estimate(&ours),
             };
             let scene = exp.runs.iter().find(|r| r.preset == *preset && r.variant == claim.variant).map(|r| &r.scene);
             results.push(ClaimResult {
@@ -255,10 +262,10 @@ pub fn aggregate(
                 preset: preset.clone(),
                 claim: claim.clone(),
                 estimate: e,
-                p: e.filter(|_| is_effect(claim)).and_then(|e| e.p_value()),
+                p: e.filter(|_| is_effect(claim) && !identical).and_then(|e| e.p_value()),
                 p_holm: None,
                 baseline: chance_level(exp, claim, scene),
-                verdict: String::new(),
+                verdict: if identical { IDENTICAL.into() } else { String::new() },
             });
         }
         if written {
@@ -271,7 +278,7 @@ pub fn aggregate(
     for (&i, p) in tested.iter().zip(adjusted) {
         results[i].p_holm = Some(p);
     }
-    for r in &mut results {
+    for r in results.iter_mut().filter(|r| r.verdict != IDENTICAL) {
         r.verdict = verdict(&r.claim, r.estimate, r.p_holm, r.baseline);
     }
     let results = (results, table);
@@ -300,6 +307,8 @@ pub struct SummaryRow {
     pub values: Vec<f64>,
     /// The executables that made the run (`binary` column; "unknown" for runs before provenance files).
     pub binary: String,
+    /// The experiment that trained the run, when this experiment shares it (`shared_from`); empty else.
+    pub shared_from: String,
 }
 
 impl Summary {
@@ -320,7 +329,7 @@ impl Summary {
         let (Some(preset), Some(variant), Some(seed)) = (at("preset"), at("variant"), at("seed")) else {
             return Err(format!("{}: no preset, variant and seed columns", path.display()).into());
         };
-        let binary = at("binary");
+        let (binary, shared) = (at("binary"), at("shared_from"));
         let mut rows = vec![];
         for record in reader.records() {
             let record = record.map_err(bad)?;
@@ -330,6 +339,7 @@ impl Summary {
                 seed: record[seed].parse().map_err(|_| format!("{}: seed {:?}", path.display(), &record[seed]))?,
                 values: record.iter().map(|c| c.parse().unwrap_or(f64::NAN)).collect(),
                 binary: binary.map_or("unknown", |b| &record[b]).to_string(),
+                shared_from: shared.map_or("", |c| &record[c]).to_string(),
             });
         }
         Ok(Summary { columns, rows })
@@ -379,6 +389,9 @@ impl Summary {
             .collect()
     }
 }
+
+/// The verdict on a comparison of two variants whose runs are identical.
+const IDENTICAL: &str = "not a comparison: the two variants' runs are identical (one training, run twice)";
 
 /// A name as one CSV field: quoted (RFC 4180) when it holds a comma or a quote, as variant names may
 /// ("body frame, no predators").

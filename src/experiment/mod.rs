@@ -70,6 +70,11 @@ pub struct VariantFile {
     pub name: String,
     #[serde(default)]
     pub patch: ScenePatch,
+    /// `"EXPERIMENT/VARIANT"`: this variant's runs are that experiment's runs (same preset and seed, the
+    /// same resolved scene, checked), not trained or copied again: a shared run is one training, counted
+    /// once, and never compared with itself.
+    #[serde(default)]
+    pub shared_from: Option<String>,
 }
 
 /// How the trained policies of every run are deployed (`coevo --eval`): species counts, episodes and
@@ -197,7 +202,10 @@ pub struct Run {
     pub seed: u64,
     /// The variant's resolved scene, seed applied.
     pub scene: Scene,
+    /// The run's folder: under this experiment's results, or the owner's for a shared run.
     pub dir: PathBuf,
+    /// The experiment whose run this is, for a variant with `shared_from`.
+    pub shared_from: Option<String>,
 }
 
 /// A loaded and validated experiment.
@@ -226,6 +234,49 @@ pub fn slug(name: &str) -> String {
     out.trim_end_matches('-').to_string()
 }
 
+/// The experiment and variant a `shared_from` names (`"EXPERIMENT/VARIANT"`, the experiment a file beside
+/// `file`), loaded without its own shared variants; its evaluations of the same name must be the same
+/// evaluations, since both experiments write them into the same run folders.
+fn shared_owner(
+    file: &Path,
+    results: &Path,
+    from: &str,
+    ours: &[Evaluation],
+) -> std::result::Result<(Experiment, String), String> {
+    let Some((experiment, variant)) = from.split_once('/') else {
+        return Err(format!("{from:?} is not EXPERIMENT/VARIANT"));
+    };
+    let owner_file = file.parent().unwrap_or(Path::new(".")).join(format!("{experiment}.ron"));
+    if !owner_file.is_file() {
+        return Err(format!("no experiment file {}", owner_file.display()));
+    }
+    let owner = Experiment::load_with(&owner_file, results, false).map_err(|e| e.to_string())?;
+    if !owner.spec.variants.iter().any(|v| v.name == variant) {
+        return Err(format!("{experiment} has no variant {variant:?}"));
+    }
+    for e in ours {
+        if let Some(theirs) = owner.spec.evaluations.iter().find(|t| slug(&t.name) == slug(&e.name)) {
+            if theirs != e {
+                return Err(format!(
+                    "evaluation {:?} differs from {experiment}'s of the same name, and both would write eval-{}.csv into the shared runs",
+                    e.name,
+                    slug(&e.name)
+                ));
+            }
+        }
+    }
+    Ok((owner, variant.to_string()))
+}
+
+/// The first line where two texts differ (trimmed), None when they are equal.
+fn first_difference(a: &str, b: &str) -> Option<String> {
+    if a == b {
+        return None;
+    }
+    let line = a.lines().zip(b.lines()).find(|(x, y)| x != y).map_or("length", |(x, _)| x.trim());
+    Some(line.to_string())
+}
+
 /// The first value that appears twice.
 fn first_repeat<T: PartialEq>(values: &[T]) -> Option<&T> {
     values.iter().enumerate().find(|(i, v)| values[..*i].contains(v)).map(|(_, v)| v)
@@ -235,6 +286,12 @@ impl Experiment {
     /// Loads an experiment file and resolves every run's scene; errors are one line naming the file and
     /// the field, as for scenes.
     pub fn load(file: &Path, results: &Path) -> Result<Experiment> {
+        Experiment::load_with(file, results, true)
+    }
+
+    /// [`Experiment::load`]; `share` resolves `shared_from` variants (an owner is loaded without, so a
+    /// variant shared from a shared variant is refused rather than followed).
+    fn load_with(file: &Path, results: &Path, share: bool) -> Result<Experiment> {
         let shown = file.display().to_string();
         let text = crate::io::read_text(file, crate::scene::MAX_SCENE_BYTES).map_err(|e| format!("{shown}: {e}"))?;
         let spec: ExperimentFile = parse_ron(&text, &shown)?;
@@ -307,6 +364,16 @@ impl Experiment {
             if c.versus.as_ref() == Some(&c.variant) {
                 return Err(err("claims", format!("{:?} is compared with itself (versus)", c.text)));
             }
+            if let Some(versus) = &c.versus {
+                let source =
+                    |name: &String| spec.variants.iter().find(|v| &v.name == name).and_then(|v| v.shared_from.clone());
+                if let Some(shared) = source(&c.variant).filter(|s| Some(s) == source(versus).as_ref()) {
+                    return Err(err(
+                        "claims",
+                        format!("{:?} compares runs with themselves: both variants are shared from {shared}", c.text),
+                    ));
+                }
+            }
             if let Quantity::EvalDos(e)
             | Quantity::EvalDoa(e)
             | Quantity::EvalOrder(e, _)
@@ -368,11 +435,50 @@ impl Experiment {
                         err(&format!("evaluations[{}].control", e.name), format!("variant {}: {m}", v.name))
                     })?;
                 }
+                let owner = match (&v.shared_from, share) {
+                    (Some(from), true) => Some(
+                        shared_owner(file, results, from, &spec.evaluations)
+                            .map_err(|m| err(&format!("variants[{}].shared_from", v.name), m))?,
+                    ),
+                    (Some(from), false) => {
+                        return Err(format!(
+                        "{shown}: variants[{}] is itself shared from {from}; share from the experiment that trains it",
+                        v.name
+                    )
+                        .into())
+                    }
+                    (None, _) => None,
+                };
                 for &seed in &spec.seeds {
                     let mut scene = scene.clone();
                     scene.seed = seed;
-                    let dir = root.join(preset).join(slug(&v.name)).join(format!("seed{seed}"));
-                    runs.push(Run { preset: preset.clone(), variant: v.name.clone(), seed, scene, dir });
+                    let (dir, shared_from) = match &owner {
+                        None => (root.join(preset).join(slug(&v.name)).join(format!("seed{seed}")), None),
+                        Some((exp, variant)) => {
+                            let field = format!("variants[{}].shared_from", v.name);
+                            let theirs = exp
+                                .runs
+                                .iter()
+                                .find(|r| r.preset == *preset && &r.variant == variant && r.seed == seed)
+                                .ok_or_else(|| {
+                                    err(
+                                        &field,
+                                        format!("{}/{variant} has no run of preset {preset} and seed {seed}", exp.name),
+                                    )
+                                })?;
+                            if let Some(line) = first_difference(&theirs.scene.to_ron(), &scene.to_ron()) {
+                                return Err(err(
+                                    &field,
+                                    format!(
+                                        "{}/{variant} is another scene (preset {preset}, first difference: {line}); a shared run must be the same run",
+                                        exp.name
+                                    ),
+                                ));
+                            }
+                            (theirs.dir.clone(), Some(exp.name.clone()))
+                        }
+                    };
+                    runs.push(Run { preset: preset.clone(), variant: v.name.clone(), seed, scene, dir, shared_from });
                 }
             }
         }

@@ -114,13 +114,15 @@ pub fn write_reproduction() -> crate::error::Result<()> {
         let (results, summary) = aggregate::aggregate(&exp, &data)?;
         let wall = summary.columns.iter().position(|c| c == "wall_seconds");
         // + 0.0: an empty f64 sum is −0.0, which would print as "-0.0 h".
-        let seconds: f64 =
-            summary.rows.iter().filter_map(|r| wall.map(|i| r.values[i])).filter(|x| x.is_finite()).sum::<f64>() + 0.0;
+        // Shared runs are another experiment's trainings: counted there.
+        let own = || summary.rows.iter().filter(|r| r.shared_from.is_empty());
+        let seconds: f64 = own().filter_map(|r| wall.map(|i| r.values[i])).filter(|x| x.is_finite()).sum::<f64>() + 0.0;
+        let shared = summary.rows.len() - own().count();
         let mut binaries: Vec<String> =
             summary.rows.iter().flat_map(|r| r.binary.split(' ').map(String::from)).collect();
         binaries.sort();
         binaries.dedup();
-        all.push(Reported { finished: summary.rows.len(), exp, results, seconds, binaries });
+        all.push(Reported { finished: summary.rows.len(), shared, exp, results, seconds, binaries });
     }
     crate::io::write_file(Path::new("REPRODUCTION.md"), Existing::Replace, reproduction(&all).as_bytes())?;
     eprintln!("coevo: wrote REPRODUCTION.md");
@@ -168,9 +170,11 @@ pub fn plot(dir: &Path) -> crate::error::Result<()> {
 pub struct Reported {
     pub exp: Experiment,
     pub results: Vec<ClaimResult>,
-    /// Training time summed over its runs, and how many runs finished.
+    /// Training time summed over its own runs, how many runs finished, and how many of those are shared
+    /// from another experiment (trained and timed there).
     pub seconds: f64,
     pub finished: usize,
+    pub shared: usize,
     /// The executables that made its runs (`unknown` for runs made before provenance files).
     pub binaries: Vec<String>,
 }
@@ -203,7 +207,7 @@ pub fn reproduction(experiments: &[Reported]) -> String {
     md.push_str(
         "| experiment | what | command | runs finished | training time (sum over runs) | binary |\n|---|---|---|---|---|---|\n",
     );
-    for Reported { exp, seconds, finished, binaries, .. } in experiments {
+    for Reported { exp, seconds, finished, shared, binaries, .. } in experiments {
         let command = format!("`coevo --experiment {} --jobs 2`", exp.file.display());
         let (name, runs, hours) = (&exp.name, exp.runs.len(), seconds / 3600.0);
         let binary = match &binaries[..] {
@@ -214,8 +218,9 @@ pub fn reproduction(experiments: &[Reported]) -> String {
         };
         writeln!(
             md,
-            "| [{name}](#{name}) | {} | {command} | {finished} of {runs} | {hours:.1} h | {binary} |",
-            exp.spec.description
+            "| [{name}](#{name}) | {} | {command} | {finished} of {runs}{} | {hours:.1} h | {binary} |",
+            exp.spec.description,
+            if *shared > 0 { format!(" ({shared} shared)") } else { String::new() }
         )
         .unwrap();
     }
@@ -264,14 +269,16 @@ pub fn reproduction(experiments: &[Reported]) -> String {
             }
         }
     }
-    let (seconds, finished, runs) =
-        experiments.iter().fold((0.0, 0, 0), |(s, f, r), e| (s + e.seconds, f + e.finished, r + e.exp.runs.len()));
+    let (seconds, finished, runs) = experiments.iter().fold((0.0, 0, 0), |(s, f, r), e| {
+        let own = e.exp.runs.iter().filter(|run| run.shared_from.is_none()).count();
+        (s + e.seconds, f + e.finished - e.shared, r + own)
+    });
     writeln!(
         md,
-        "\n## The whole suite\n\n`coevo --experiment all --jobs 2`: {finished} of {runs} runs finished, {:.1} h of training summed over \
-         runs, each timed by its own `metrics.csv` (`wall_seconds`, the run's own wall clock; runs copied between experiments \
-         count once per experiment). Two runs go side by side on a 2-core machine, so the suite takes about half that in wall \
-         time there.",
+        "\n## The whole suite\n\n`coevo --experiment all --jobs 2`: {finished} of {runs} trainings finished, {:.1} h of training summed over \
+         runs, each timed by its own `metrics.csv` (`wall_seconds`, the run's own wall clock). A run shared between \
+         experiments (`shared_from`) is one training, counted and timed once; runs copied by hand before shared runs existed \
+         still count once per experiment that holds a copy.",
         seconds / 3600.0
     )
     .unwrap();

@@ -172,6 +172,11 @@ fn prepare(exp: &Experiment) -> crate::error::Result<()> {
     }
     for run in exp.runs.iter().filter(|r| r.seed == exp.spec.seeds[0]) {
         let path = variant_scene(run);
+        // A shared run's folder is its owner's: its scene file is the owner's to write (the same scene),
+        // written here only when the owner has not run yet.
+        if run.shared_from.is_some() && path.exists() {
+            continue;
+        }
         std::fs::create_dir_all(path.parent().expect("in a folder")).map_err(|e| format!("{}: {e}", path.display()))?;
         crate::io::write_file(&path, crate::io::Existing::Replace, run.scene.to_ron().as_bytes())?;
     }
