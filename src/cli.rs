@@ -84,6 +84,10 @@ struct Cli {
     /// (NAME-confusion.csv) [default: the scene's confusion_radius, else the perception radius].
     #[arg(long, help_heading = "Training and evaluation", value_name = "M")]
     confusion_radius: Option<f64>,
+    /// --eval: deploy the run's actors as they were before training (initialised from the run's scene and
+    /// seed), the baseline of what training changed.
+    #[arg(long, help_heading = "Training and evaluation")]
+    untrained: bool,
 
     /// Run an experiment file (experiments/*.ron), or `all` of them: every preset × variant × seed as a
     /// run under results/, resuming killed runs and skipping finished ones, then evaluations, summaries,
@@ -169,7 +173,21 @@ struct Cli {
 const TAKES: [(&str, &[&str]); 10] = [
     ("train", &["scene", "seed", "episodes", "out", "overwrite", "quiet"]),
     ("resume", &["episodes", "quiet"]),
-    ("eval", &["episodes", "steps", "seed", "prey", "predators", "count", "eval_out", "control", "confusion_radius"]),
+    (
+        "eval",
+        &[
+            "episodes",
+            "steps",
+            "seed",
+            "prey",
+            "predators",
+            "count",
+            "eval_out",
+            "control",
+            "confusion_radius",
+            "untrained",
+        ],
+    ),
     ("record", &["run", "scene", "seed", "steps", "prey", "predators", "count", "overwrite"]),
     (
         "animate",
@@ -389,6 +407,9 @@ fn run(cli: Cli, call: Call) -> crate::error::Result<()> {
             Ok(())
         }
         Call::Eval(run) => {
+            if cli.untrained && cli.seed.is_some() {
+                return Err("--untrained: deploys the networks the run was initialised with, from the run's seed; --seed would initialise others".into());
+            }
             let opts = crate::run::evaluate::EvalOptions {
                 run,
                 out: cli.eval_out.clone(),
@@ -396,6 +417,7 @@ fn run(cli: Cli, call: Call) -> crate::error::Result<()> {
                     .map_err(|e| format!("--control: {e}"))?,
                 episodes: cli.episodes.unwrap_or(1),
                 overrides: Overrides { confusion_radius: cli.confusion_radius, ..overrides(&cli, true)? },
+                untrained: cli.untrained,
             };
             println!("{}", crate::run::evaluate::evaluate(&opts)?);
             Ok(())

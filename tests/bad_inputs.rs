@@ -243,6 +243,10 @@ fn cases() -> Vec<(Vec<&'static str>, &'static str)> {
         (vec!["--describe-scene", "perceive-zero.ron"], "species[prey].perception_of: must be"),
         (vec!["--eval", "run", "--control", "blinded"], "--control: \"blinded\" is not a control"),
         (
+            vec!["--eval", "run", "--untrained", "--seed", "3"],
+            "--untrained: deploys the networks the run was initialised with",
+        ),
+        (
             vec!["--eval", "run", "--control", "blind:prey:hawk"],
             "--control: blind:prey:hawk: no species named \"hawk\"",
         ),

@@ -122,7 +122,8 @@ fn a_tiny_experiment_runs_resumes_and_gives_the_same_summary_at_one_or_two_jobs(
             // a catch has no edge rank), never NaN.
             let optional =
                 (name.starts_with("eval_") && !name.ends_with("_settled") && !name.ends_with("_interaction"))
-                    || name.starts_with("edge_rank_");
+                    || name.starts_with("edge_rank_")
+                    || name.ends_with("_reach90");
             assert!(
                 cell.parse::<f64>().is_ok_and(f64::is_finite) || (optional && cell.is_empty()),
                 "{name} = {cell:?} in {row}"
@@ -434,4 +435,54 @@ fn a_shared_variant_is_the_other_experiments_runs_trained_once_and_never_compare
         let stderr = String::from_utf8_lossy(&out.stderr);
         assert!(!out.status.success() && stderr.lines().count() == 1 && stderr.contains(says), "{says}: {stderr}");
     }
+}
+
+#[test]
+fn untrained_actors_and_the_time_course_are_measured() {
+    let dir = workspace();
+    let text = TINY
+        .replace(
+            "(name: \"50 prey, blind\",",
+            "(name: \"50 prey, untrained\", counts: [(\"prey\", 50)], episodes: 2, steps: 20, untrained: true),\n        (name: \"50 prey, blind\",",
+        )
+        .replace(
+            "(text: \"catches\",",
+            "(text: \"what training changed\", variant: \"5:3\", quantity: Learned(\"50 prey\", \"doa\")),\n        (text: \"time course\", variant: \"5:3\", quantity: Reach90(\"doa\")),\n        (text: \"catches\",",
+        );
+    std::fs::write(dir.path().join("experiments/tiny.ron"), &text).unwrap();
+    let out = coevo(dir.path(), &["--experiment", "experiments/tiny.ron", "--jobs", "2"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let summary = std::fs::read_to_string(dir.path().join("results/tiny/summary.csv")).unwrap();
+    let header: Vec<&str> = summary.lines().next().unwrap().split(',').collect();
+    let at = |name: &str| header.iter().position(|h| *h == name).unwrap_or_else(|| panic!("no {name}"));
+    for row in summary.lines().skip(1).filter(|l| l.starts_with("paper,5:3,")) {
+        let cells: Vec<&str> = row.split(',').collect();
+        let (trained, untrained) = (
+            cells[at("eval_50-prey_doa_settled")].parse::<f64>().unwrap(),
+            cells[at("eval_50-prey-untrained_doa_settled")].parse::<f64>().unwrap(),
+        );
+        assert!(trained.is_finite() && untrained.is_finite() && trained != untrained, "{row}");
+    }
+    assert!(header.contains(&"doa_reach90"));
+    let md = std::fs::read_to_string(dir.path().join("REPRODUCTION.md")).unwrap();
+    assert!(
+        md.contains("DoA in evaluation \"50 prey\", trained minus untrained actors")
+            || md.contains("doa in evaluation \"50 prey\", trained minus untrained actors"),
+        "{md}"
+    );
+    // An untrained evaluation deploys the networks the run started from: the same as evaluating a run
+    // that never trained (its first checkpoint is after episode 1, so compare with a fresh evaluation).
+    let run = dir.path().join("results/tiny/paper/5-3/seed1");
+    let out = coevo(
+        dir.path(),
+        &["--eval", run.to_str().unwrap(), "--untrained", "--episodes", "1", "--steps", "5", "--eval-out", "u.csv"],
+    );
+    let line = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success() && line.contains("untrained actors"), "{line}");
+    // A Learned claim without an untrained partner is refused.
+    let bad = TINY.replace("quantity: DosChange, paper: -0.03", "quantity: Learned(\"50 prey\", \"doa\")");
+    std::fs::write(dir.path().join("experiments/bad.ron"), bad).unwrap();
+    let out = coevo(dir.path(), &["--experiment", "experiments/bad.ron"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && stderr.contains("needs an untrained partner"), "{stderr}");
 }

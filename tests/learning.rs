@@ -143,6 +143,7 @@ fn corrupt_missing_or_mismatched_checkpoints_are_refused_clearly() {
             control: Default::default(),
             episodes: 1,
             overrides: Overrides { counts, episode_steps: Some(5), ..Default::default() },
+            untrained: false,
         })
     };
     let corrupt = eval(vec![]).unwrap_err().to_string();
@@ -174,6 +175,7 @@ fn evaluation_deploys_on_fifty_prey_and_without_predators() {
             episode_steps: Some(30),
             ..Default::default()
         },
+        untrained: false,
     })
     .unwrap();
     assert!(line.contains("0 predator + 50 prey"), "{line}");
@@ -213,6 +215,7 @@ fn evaluation_deploys_on_fifty_prey_and_without_predators() {
             confusion_radius: Some(0.5),
             ..Default::default()
         },
+        untrained: false,
     })
     .unwrap();
     let confusion = std::fs::read_to_string(run.join("with-predators-confusion.csv")).unwrap();
@@ -231,6 +234,7 @@ fn evaluation_deploys_on_fifty_prey_and_without_predators() {
             control: Default::default(),
             episodes: 1,
             overrides: Overrides { counts, episode_steps: Some(1), ..Default::default() },
+            untrained: false,
         })
         .unwrap()
     };

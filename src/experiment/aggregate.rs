@@ -184,6 +184,8 @@ pub fn aggregate(
         quantities.push((format!("{order}_first100"), Quantity::TrainingFirst(order.into())));
         quantities.push((format!("{order}_last100"), Quantity::TrainingLast(order.into())));
     }
+    quantities.push(("dos_reach90".into(), Quantity::Reach90("dos".into())));
+    quantities.push(("doa_reach90".into(), Quantity::Reach90("doa".into())));
     for e in &evals {
         quantities.push((format!("eval_{}_dos_settled", slug(e)), Quantity::EvalDos(e.clone())));
         quantities.push((format!("eval_{}_doa_settled", slug(e)), Quantity::EvalDoa(e.clone())));
@@ -376,6 +378,17 @@ impl Summary {
                 Some(seeing) => eval(&seeing.name, o) - eval(e, o),
                 None => f64::NAN,
             },
+            Quantity::Learned(e, o) => match super::untrained_partner(&exp.spec.evaluations, e) {
+                Some(untrained) => {
+                    let column = |o: &str| match o {
+                        "dos" | "doa" => format!("{o}_settled"),
+                        _ => o.to_string(),
+                    };
+                    eval(e, &column(o)) - eval(&untrained.name, &column(o))
+                }
+                None => f64::NAN,
+            },
+            Quantity::Reach90(o) => v(&format!("{o}_reach90")),
         }
     }
 

@@ -87,6 +87,17 @@ pub fn quantity(exp: &Experiment, d: &RunData, q: &Quantity) -> f64 {
             Some(seeing) => eval(&seeing.name, "doa") - eval(e, "doa"),
             None => f64::NAN,
         },
+        Quantity::Learned(e, name) => match super::untrained_partner(&exp.spec.evaluations, e) {
+            Some(untrained) => {
+                let value = |e: &str| match name.as_str() {
+                    "edge_rank" => d.evals.get(e).map_or(f64::NAN, |x| x.edge_rank),
+                    _ => eval(e, name),
+                };
+                value(e) - value(&untrained.name)
+            }
+            None => f64::NAN,
+        },
+        Quantity::Reach90(name) => reach90(if name == "dos" { &d.dos } else { &d.doa }),
         Quantity::Interaction(e, name) => match super::seeing_partner(&exp.spec.evaluations, e) {
             Some(seeing) => {
                 let value = |e: &str| match name.as_str() {
@@ -98,6 +109,24 @@ pub fn quantity(exp: &Experiment, d: &RunData, q: &Quantity) -> f64 {
             None => f64::NAN,
         },
     }
+}
+
+/// The episode (from 1) at which the 100-episode running mean of `series` first completes 90 % of its
+/// change from the first 100 episodes to the last 100; NaN when there is no change to complete.
+pub fn reach90(series: &[f64]) -> f64 {
+    let (start, end) = (window_mean(series, true), window_mean(series, false));
+    if !(start.is_finite() && end.is_finite()) || start == end {
+        return f64::NAN;
+    }
+    let target = start + 0.9 * (end - start);
+    let running = super::stats::running_mean(series, WINDOW);
+    running
+        .iter()
+        .enumerate()
+        .skip(WINDOW.min(series.len()) - 1)
+        // A running sum carries rounding: within 1e-9 of the change counts as reached.
+        .find(|(_, m)| (**m - target) * (end - start).signum() >= -1e-9 * (end - start).abs())
+        .map_or(f64::NAN, |(t, _)| (t + 1) as f64)
 }
 
 /// A claim checked on one preset.
@@ -130,6 +159,7 @@ pub fn is_effect(claim: &Claim) -> bool {
                 | Quantity::CatchesChange
                 | Quantity::InteractionDoa(_)
                 | Quantity::Interaction(..)
+                | Quantity::Learned(..)
         )
 }
 
@@ -252,6 +282,8 @@ pub fn quantity_name(q: &Quantity) -> String {
         Quantity::EvalOrder(e, q) => format!("{q} in evaluation \"{e}\""),
         Quantity::InteractionDoa(e) => format!("DoA seeing minus \"{e}\" (interaction-driven alignment)"),
         Quantity::Interaction(e, q) => format!("{q} seeing minus \"{e}\""),
+        Quantity::Learned(e, q) => format!("{q} in evaluation \"{e}\", trained minus untrained actors"),
+        Quantity::Reach90(q) => format!("episode at which {q}'s running mean completes 90 % of its change"),
     }
 }
 
@@ -348,5 +380,16 @@ mod tests {
             .starts_with("not reproduced: the 95 % CI excludes the paper's 0.820"));
         assert_eq!(verdict(&level, None, None, chance), "not run yet");
         assert_eq!(verdict(&level, e(&[0.8]), None, chance), "one seed: no interval");
+    }
+
+    #[test]
+    fn the_episode_that_completes_ninety_percent_of_a_change() {
+        // 0 for 200 episodes, then 1 for 200: the 100-episode running mean at episode t (from 1) is
+        // (t − 200)/100 past 200, so it first reaches 0.9 at episode 290; the same falling.
+        let step: Vec<f64> = (0..400).map(|t| if t < 200 { 0.0 } else { 1.0 }).collect();
+        assert_eq!(reach90(&step), 290.0);
+        let falling: Vec<f64> = step.iter().map(|x| 1.0 - x).collect();
+        assert_eq!(reach90(&falling), 290.0);
+        assert!(reach90(&[0.5; 300]).is_nan(), "no change, no episode");
     }
 }

@@ -98,6 +98,10 @@ pub struct Evaluation {
     /// Radius (m) of "prey in view" for the confusion curve (default: the scene's).
     #[serde(default)]
     pub confusion_radius: Option<f64>,
+    /// Deploy the actors as initialised before training (`coevo --eval --untrained`): the start against
+    /// which [`Quantity::Learned`] measures what training changed.
+    #[serde(default)]
+    pub untrained: bool,
 }
 
 impl Evaluation {
@@ -173,11 +177,31 @@ pub enum Quantity {
     /// The same for another order parameter (as [`Quantity::EvalOrder`] names them), e.g.
     /// `Interaction("50 prey, blind to prey", "nn_correlation")`: seeing minus the control, per run.
     Interaction(String, String),
+    /// What training changed: an order parameter (`dos`, `doa` or as [`Quantity::EvalOrder`]) in an
+    /// evaluation of the trained actors minus the same evaluation of the untrained ones (same counts,
+    /// episodes, steps and control, `untrained: true`), per run.
+    Learned(String, String),
+    /// The episode at which the 100-episode running mean of `dos` or `doa` first completes 90 % of its
+    /// change from the first 100 episodes to the last 100 (the paper's time course, Fig. 3).
+    Reach90(String),
 }
 
 /// Order parameters an [`Quantity::EvalOrder`] may name.
 pub const EVAL_ORDER: [&str; 6] =
     ["polarization", "milling", "clusters", "largest_cluster", "nn_correlation", "edge_rank"];
+
+/// The untrained evaluation a trained evaluation `name` is compared with: same counts, episodes, steps
+/// and control, `untrained: true`.
+pub fn untrained_partner<'a>(evaluations: &'a [Evaluation], name: &str) -> Option<&'a Evaluation> {
+    let trained = evaluations.iter().find(|e| e.name == name && !e.untrained)?;
+    evaluations.iter().find(|e| {
+        e.untrained
+            && e.counts == trained.counts
+            && e.episodes == trained.episodes
+            && e.steps == trained.steps
+            && e.control == trained.control
+    })
+}
 
 /// The seeing evaluation a control evaluation `name` is compared with: same counts, episodes and steps.
 /// None when `name` is no control or has no such partner.
@@ -378,7 +402,8 @@ impl Experiment {
             | Quantity::EvalDoa(e)
             | Quantity::EvalOrder(e, _)
             | Quantity::InteractionDoa(e)
-            | Quantity::Interaction(e, _) = &c.quantity
+            | Quantity::Interaction(e, _)
+            | Quantity::Learned(e, _) = &c.quantity
             {
                 if !spec.evaluations.iter().any(|x| &x.name == e) {
                     return Err(err("claims", format!("no evaluation named {e:?}")));
@@ -394,6 +419,24 @@ impl Experiment {
                         "claims",
                         format!("no order parameter named {q:?} (one of {})", EVAL_ORDER.join(", ")),
                     ));
+                }
+            }
+            if let Quantity::Learned(e, _) = &c.quantity {
+                if untrained_partner(&spec.evaluations, e).is_none() {
+                    return Err(err("claims", format!("evaluation {e:?} needs an untrained partner (untrained: true, the same counts, episodes, steps and control)")));
+                }
+            }
+            if let Quantity::Learned(_, q) = &c.quantity {
+                if !["dos", "doa"].contains(&q.as_str()) && !EVAL_ORDER.contains(&q.as_str()) {
+                    return Err(err(
+                        "claims",
+                        format!("no order parameter named {q:?} (dos, doa or one of {})", EVAL_ORDER.join(", ")),
+                    ));
+                }
+            }
+            if let Quantity::Reach90(q) = &c.quantity {
+                if !["dos", "doa"].contains(&q.as_str()) {
+                    return Err(err("claims", format!("Reach90 takes \"dos\" or \"doa\" (got {q:?})")));
                 }
             }
             if let Quantity::InteractionDoa(e) | Quantity::Interaction(e, _) = &c.quantity {

@@ -140,6 +140,9 @@ pub fn complete_run(exp: &Experiment, run: &Run, exe: &Path, threads: usize) -> 
         for form in e.control.texts() {
             args.extend(["--control".into(), form]);
         }
+        if e.untrained {
+            args.push("--untrained".into());
+        }
         if let Some(r) = e.confusion_radius {
             args.extend(["--confusion-radius".into(), r.to_string()]);
         }

@@ -37,6 +37,9 @@ pub struct EvalOptions {
     pub episodes: usize,
     /// Counts, seed, steps per episode and confusion radius for the evaluation (default: the run's).
     pub overrides: Overrides,
+    /// Deploy the actors as initialised before training (from the run's scene and seed), not the trained
+    /// checkpoint: the baseline of what training changed.
+    pub untrained: bool,
 }
 
 /// What the evaluation accumulates over its steps, of the headline species.
@@ -190,7 +193,8 @@ pub fn evaluate(opts: &EvalOptions) -> crate::error::Result<String> {
     let scene_path = dir.scene();
     let mut scene = Scene::load(&scene_path)?;
     opts.overrides.apply(&mut scene, &scene_path)?;
-    let mut sim = crate::learning::simulation(scene.clone(), Mode::Evaluate, Some(&opts.run))?;
+    let trained = (!opts.untrained).then_some(opts.run.as_path());
+    let mut sim = crate::learning::simulation(scene.clone(), Mode::Evaluate, trained)?;
     let control = {
         let registry = sim.world().resource::<SpeciesRegistry>();
         opts.control.resolve(registry).map_err(|e| format!("--control: {e}"))?
@@ -231,8 +235,9 @@ pub fn evaluate(opts: &EvalOptions) -> crate::error::Result<String> {
     }
     let counts: Vec<String> = registry.defs.iter().map(|d| format!("{} {}", d.count, d.name)).collect();
     Ok(format!(
-        "eval {}{}: {} episodes × {} steps, {}: {}; per step in {}",
+        "eval {}{}{}: {} episodes × {} steps, {}: {}; per step in {}",
         opts.run.display(),
+        if opts.untrained { " (untrained actors, as initialised from the run's seed)" } else { "" },
         match opts.control.is_seeing() {
             true => String::new(),
             false => format!(" (control {}: {})", opts.control.texts().join(" + "), opts.control.describe()),
