@@ -44,8 +44,8 @@ impl EvalData {
     }
 }
 
-/// The paper's running-mean window, in episodes.
-pub const WINDOW: usize = 100;
+/// The paper's running-mean window, in episodes (owned by `sim::metrics`, beside the running mean).
+pub use crate::sim::metrics::WINDOW;
 
 /// Steps at the end of an evaluation episode averaged as its settled state.
 pub const SETTLED_STEPS: usize = 50;

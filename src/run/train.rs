@@ -238,7 +238,7 @@ pub fn train(scene: Scene, opts: &TrainOptions) -> crate::error::Result<Vec<Epis
 /// What a finished `--train` says about its run: first → last DoS, DoA and catches with the baselines of
 /// no swarming at that density, overlapping windows named as such, and the next commands for this run.
 pub fn explain(run: &Path) -> crate::error::Result<String> {
-    use crate::experiment::claims::WINDOW;
+    use crate::sim::metrics::WINDOW;
     let dir = RunDir::new(run);
     let scene = Scene::load(&dir.scene())?;
     let registry = SpeciesRegistry::from_scene(&scene);

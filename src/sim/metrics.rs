@@ -379,6 +379,9 @@ fn measure(
     e.steps += 1;
 }
 
+/// The paper's running-mean window, in episodes (its learning curves are 100-episode running means).
+pub const WINDOW: usize = 100;
+
 /// Uniform random positions, `n` of them in the arena, through the DoS formula (Eq. 2): the DoS a
 /// population has without any cohesion, at that density (a Monte Carlo estimate, fixed seed).
 pub fn random_dos(arena: &crate::sim::space::Arena, n: usize) -> Option<f64> {
