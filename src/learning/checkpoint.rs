@@ -14,6 +14,11 @@
 //!   population was spawned, each species), exploration σ/ε, Adam step counts, transitions stored,
 //!   metrics so far.
 //!
+//! Snapshots, in `RUN/snapshots/` (not part of the checkpoint: kept for the whole run):
+//!
+//! - `<species>-ep<NNNNN>.safetensors`: the species' actor after NNNNN episodes (00000: as initialised),
+//!   named as the checkpoint's actor, every `snapshot_every` episodes ([`save_snapshot`]).
+//!
 //! Everything a run's future depends on is here, so a run killed at any moment and resumed equals the
 //! uninterrupted run (every `metrics.csv` column but the wall clock, and the checkpoint bytes).
 //!
@@ -77,6 +82,62 @@ pub const STATE: &str = "state.ron";
 
 pub fn checkpoint_dir(run: &Path) -> PathBuf {
     run.join(CHECKPOINT)
+}
+
+/// The folder of a run's actor snapshots.
+pub const SNAPSHOTS: &str = "snapshots";
+
+fn snapshot_path(run: &Path, species: &str, episode: usize) -> PathBuf {
+    run.join(SNAPSHOTS).join(format!("{species}-ep{episode:05}.safetensors"))
+}
+
+/// Keeps `species`' actor as it is after `episode` episodes. Written whole or not at all; a resumed run
+/// writes the same bytes again for the episodes it replays, so snapshots survive kills unchanged.
+pub fn save_snapshot(run: &Path, species: &str, episode: usize, actor: &Mlp) -> std::io::Result<()> {
+    let path = snapshot_path(run, species, episode);
+    std::fs::create_dir_all(path.parent().expect("a snapshot lives in a folder"))?;
+    write_actor(&path, actor)
+}
+
+/// An actor as its own safetensors file, named as PyTorch's `nn.Sequential` (module docs).
+fn write_actor(path: &Path, actor: &Mlp) -> std::io::Result<()> {
+    let tensors = named("", actor.parameters(), actor);
+    crate::io::write_atomically(path, Existing::Replace, |w| std::io::Write::write_all(w, &serialize(&tensors)))
+}
+
+/// The episodes of `species`' snapshots in a run, ascending.
+pub fn snapshot_episodes(run: &Path, species: &str) -> Vec<usize> {
+    let prefix = format!("{species}-ep");
+    let mut found: Vec<usize> = std::fs::read_dir(run.join(SNAPSHOTS))
+        .into_iter()
+        .flatten()
+        .flatten()
+        .filter_map(|e| {
+            let name = e.file_name().to_string_lossy().into_owned();
+            let digits = name.strip_prefix(&prefix)?.strip_suffix(".safetensors")?;
+            digits.bytes().all(|b| b.is_ascii_digit()).then(|| digits.parse().ok()).flatten()
+        })
+        .collect();
+    found.sort_unstable();
+    found
+}
+
+/// Loads `species`' actor as it was after `episode` episodes into `like` (which fixes the shapes).
+pub fn load_snapshot(run: &Path, species: &str, episode: usize, like: &Mlp) -> crate::error::Result<Mlp> {
+    let path = snapshot_path(run, species, episode);
+    if !path.exists() {
+        let kept = snapshot_episodes(run, species);
+        return Err(format!(
+            "{}: no snapshot of {species} after {episode} episodes; the run keeps {}",
+            run.display(),
+            match kept.is_empty() {
+                true => format!("none of {species} (trained before snapshots, or snapshot_every: 0)"),
+                false => format!("episodes {}", kept.iter().map(usize::to_string).collect::<Vec<_>>().join(", ")),
+            }
+        )
+        .into());
+    }
+    load_mlp(&path, like)
 }
 
 /// A replay segment: transitions `from..to` of a species, in `path`.
@@ -305,11 +366,15 @@ fn parse<'a>(path: &Path, bytes: &'a [u8]) -> crate::error::Result<SafeTensors<'
 
 /// Loads a species' actor from a run folder into `like` (which fixes the expected shapes).
 pub fn load_actor(run: &Path, species: &str, like: &Mlp) -> crate::error::Result<Mlp> {
-    let path = checkpoint_dir(run).join(format!("{species}-actor.safetensors"));
-    let bytes = read_file(&path)?;
-    let st = parse(&path, &bytes)?;
+    load_mlp(&checkpoint_dir(run).join(format!("{species}-actor.safetensors")), like)
+}
+
+/// An actor file (as PyTorch names it) loaded into `like`.
+fn load_mlp(path: &Path, like: &Mlp) -> crate::error::Result<Mlp> {
+    let bytes = read_file(path)?;
+    let st = parse(path, &bytes)?;
     let mut net = like.clone();
-    net.set_parameters(&read_into(&path, &st, "", like)?);
+    net.set_parameters(&read_into(path, &st, "", like)?);
     Ok(net)
 }
 
@@ -357,10 +422,7 @@ fn write_checkpoint(
             save_replay(dir, tmp, name, &l.buffer)?;
         }
         let d = &l.ddpg;
-        let actor = named("", d.actor.parameters(), &d.actor);
-        crate::io::write_atomically(&tmp.join(format!("{name}-actor.safetensors")), Existing::Replace, |w| {
-            std::io::Write::write_all(w, &serialize(&actor))
-        })?;
+        write_actor(&tmp.join(format!("{name}-actor.safetensors")), &d.actor)?;
         let mut training = named("critic.", d.critic.parameters(), &d.critic);
         training.extend(named("target_actor.", d.target_actor.parameters(), &d.target_actor));
         training.extend(named("target_critic.", d.target_critic.parameters(), &d.target_critic));

@@ -6,6 +6,7 @@
 //!   provenance.ron     what made it: coevo's version and the species plugins the run needs
 //!   metrics.csv        one row per training episode
 //!   checkpoint/        networks, optimizer moments, RNG states, replay buffers (learning::checkpoint)
+//!   snapshots/         each learning species' actor every `snapshot_every` episodes (learning::checkpoint)
 //!   eval*.csv          evaluations (`--eval`), each with -nn, -correlation and -confusion files beside
 //!   coevo.lock         while a process trains or evaluates it: that process's PID
 //! ```
@@ -32,13 +33,14 @@ pub const METRICS: &str = "metrics.csv";
 pub const EVAL: &str = "eval.csv";
 pub const LOCK: &str = "coevo.lock";
 /// The checkpoint folders are the checkpoint's own (`learning::checkpoint`).
-pub use crate::learning::checkpoint::{CHECKPOINT, CHECKPOINT_OLD, CHECKPOINT_TMP};
+pub use crate::learning::checkpoint::{CHECKPOINT, CHECKPOINT_OLD, CHECKPOINT_TMP, SNAPSHOTS};
 /// The files an evaluation writes beside its per-step CSV (`OUT-nn.csv`, ...); the confusion curve last.
 pub const EVAL_BESIDE: [&str; 3] = ["nn", "correlation", "confusion"];
 
 /// The files and folders coevo writes in a run folder and owns.
 const RUN_FILES: [&str; 4] = [SCENE, PROVENANCE, METRICS, EVAL];
-const CHECKPOINT_DIRS: [&str; 3] = [CHECKPOINT, CHECKPOINT_TMP, CHECKPOINT_OLD];
+/// The folders of networks coevo writes in a run folder (safetensors and its state file only).
+const CHECKPOINT_DIRS: [&str; 4] = [CHECKPOINT, CHECKPOINT_TMP, CHECKPOINT_OLD, SNAPSHOTS];
 
 fn io_err(path: &Path) -> impl Fn(std::io::Error) -> String + '_ {
     move |e| format!("{}: {e}", path.display())
@@ -73,6 +75,10 @@ impl RunDir {
 
     pub fn provenance(&self) -> PathBuf {
         self.path.join(PROVENANCE)
+    }
+
+    pub fn snapshots(&self) -> PathBuf {
+        self.path.join(SNAPSHOTS)
     }
 
     /// The checkpoint's state (`learning::checkpoint::TrainingState`).
@@ -212,6 +218,7 @@ impl RunDir {
         let _ = std::fs::remove_dir_all(self.path.join(CHECKPOINT_TMP));
         crate::io::remove_stale_temporaries(&self.path, None);
         crate::io::remove_stale_temporaries(&self.checkpoint(), None);
+        crate::io::remove_stale_temporaries(&self.path.join(SNAPSHOTS), None);
     }
 
     /// Writes what made the run: the version and the species plugins its scene needs.

@@ -159,6 +159,23 @@ pub fn train(scene: Scene, opts: &TrainOptions) -> crate::error::Result<Vec<Epis
     let mut csv = std::fs::OpenOptions::new().append(true).open(&metrics_path).map_err(io_err(&metrics_path))?;
 
     let start_episode = sim.episode().index;
+    // Snapshots of every learning species' actor (cross-play, `super::crossplay`): as initialised, every
+    // `snapshot_every` episodes, and at the end; written before the checkpoint that follows them, so a run
+    // killed in between writes the same bytes again when it replays those episodes.
+    let snapshot_every = scene.learning.snapshot_every;
+    let snapshot = |sim: &Simulation, episode: usize| -> crate::error::Result<()> {
+        let learners = sim.world().resource::<Learners>();
+        for (l, name) in learners.species.iter().zip(&names) {
+            if let Some(l) = l.as_ref().filter(|l| !l.frozen) {
+                checkpoint::save_snapshot(run, name, episode, &l.ddpg.actor)
+                    .map_err(|e| format!("{}: cannot save snapshot: {e}", dir.snapshots().display()))?;
+            }
+        }
+        Ok(())
+    };
+    if snapshot_every > 0 && start_episode == 0 {
+        snapshot(&sim, 0)?;
+    }
     let every = scene.learning.checkpoint_every.max(1);
     let prey = registry.headline();
     let bar = if opts.progress { ProgressBar::new(total as u64) } else { ProgressBar::hidden() };
@@ -221,6 +238,9 @@ pub fn train(scene: Scene, opts: &TrainOptions) -> crate::error::Result<Vec<Epis
         metrics_text.push_str(&row);
         metrics_text.push('\n');
         let done = summary.episode + 1;
+        if snapshot_every > 0 && (done % snapshot_every == 0 || done == total) {
+            snapshot(&sim, done)?;
+        }
         if done % every == 0 || done == total {
             save(&sim, None, &metrics_text)?;
         }

@@ -216,7 +216,17 @@ patchable! {
         pub exploration_floor: f64,
         /// Save a checkpoint every this many episodes (and at the end).
         pub checkpoint_every: usize,
+        /// Keep each learning species' actor before training and every this many episodes (and at the end)
+        /// in `RUN/snapshots/`, for cross-play (`coevo --crossplay`); 0 keeps none. Not in the paper.
+        #[serde(default = "default_snapshot_every")]
+        pub snapshot_every: usize,
     }
+}
+
+/// Snapshots every 100 episodes: 21 actors of ~50 KB per species in a standard run. Also the value of a
+/// scene written before snapshots existed.
+pub fn default_snapshot_every() -> usize {
+    100
 }
 
 /// A fully resolved scene: what the simulation runs.

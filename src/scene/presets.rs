@@ -65,6 +65,7 @@ pub(super) fn paper() -> Scene {
             exploration_decay: 5e-5,
             exploration_floor: 0.05,
             checkpoint_every: 100,
+            snapshot_every: super::default_snapshot_every(),
         },
         observation_frame: ObservationFrame::World,
         cluster_link: default_cluster_link(),
