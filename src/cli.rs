@@ -19,7 +19,7 @@ use std::time::Duration;
 /// A flag the chosen mode does not use is refused, never ignored.
 #[derive(Parser, Debug, Clone)]
 #[command(name = "coevo", version, about, long_about = None, allow_negative_numbers = true)]
-#[command(group(ArgGroup::new("mode").args(["train", "resume", "eval", "record", "animate", "bench", "experiment", "plot", "describe_scene"]).multiple(false)))]
+#[command(group(ArgGroup::new("mode").args(["train", "resume", "eval", "crossplay", "record", "animate", "bench", "experiment", "plot", "describe_scene"]).multiple(false)))]
 struct Cli {
     /// Scene file to run [default: scenes/standard.ron].
     #[arg(long, help_heading = "Scene", value_name = "PATH")]
@@ -50,6 +50,11 @@ struct Cli {
     /// Evaluate a run's policies without noise; writes DIR/eval.csv (per-step DoS/DoA).
     #[arg(long, help_heading = "Modes", value_name = "DIR")]
     eval: Option<PathBuf>,
+    /// Play every prey snapshot of a run against every predator snapshot (noise off, the same seeds in
+    /// every cell; --episodes per cell, default 5); writes DIR/crossplay.csv, crossplay-readouts.csv and
+    /// heat maps in DIR/figures/.
+    #[arg(long, help_heading = "Modes", value_name = "DIR")]
+    crossplay: Option<PathBuf>,
     /// Number of prey (--eval, --record, viewer; the paper evaluates on 50).
     #[arg(long, help_heading = "Scene", value_name = "N")]
     prey: Option<usize>,
@@ -170,7 +175,7 @@ struct Cli {
 /// The flags each mode takes besides its own flag, `--threads` and `--kernels` (which every mode takes); the viewer is
 /// the call without a mode flag. clap enforces it ([`command`]): a flag conflicts with every mode that
 /// does not take it and, when the viewer does not take it either, requires one of the modes that do.
-const TAKES: [(&str, &[&str]); 10] = [
+const TAKES: [(&str, &[&str]); 11] = [
     ("train", &["scene", "seed", "episodes", "out", "overwrite", "quiet"]),
     ("resume", &["episodes", "quiet"]),
     (
@@ -188,6 +193,7 @@ const TAKES: [(&str, &[&str]); 10] = [
             "untrained",
         ],
     ),
+    ("crossplay", &["episodes", "steps", "seed", "prey", "predators", "count", "quiet"]),
     ("record", &["run", "scene", "seed", "steps", "prey", "predators", "count", "overwrite"]),
     (
         "animate",
@@ -272,6 +278,7 @@ enum Call {
     Train,
     Resume(PathBuf),
     Eval(PathBuf),
+    Crossplay(PathBuf),
     Record(PathBuf),
     Animate(PathBuf),
     Describe(PathBuf),
@@ -290,6 +297,7 @@ impl Call {
             _ => path(&cli.resume)
                 .map(Call::Resume)
                 .or_else(|| path(&cli.eval).map(Call::Eval))
+                .or_else(|| path(&cli.crossplay).map(Call::Crossplay))
                 .or_else(|| path(&cli.record).map(Call::Record))
                 .or_else(|| path(&cli.animate).map(Call::Animate))
                 .or_else(|| path(&cli.describe_scene).map(Call::Describe))
@@ -420,6 +428,35 @@ fn run(cli: Cli, call: Call) -> crate::error::Result<()> {
                 untrained: cli.untrained,
             };
             println!("{}", crate::run::evaluate::evaluate(&opts)?);
+            Ok(())
+        }
+        Call::Crossplay(run) => {
+            use crate::experiment::crossplay;
+            let opts = crossplay::CrossplayOptions {
+                run: run.clone(),
+                episodes: cli.episodes.unwrap_or(5),
+                overrides: overrides(&cli, true)?,
+                progress: !cli.quiet,
+            };
+            let (matrices, written) = crossplay::crossplay(&opts)?;
+            for m in &matrices {
+                println!(
+                    "cross-play {}: {} {} snapshots × {} {} snapshots, {} episodes per cell",
+                    run.display(),
+                    m.prey_episodes.len(),
+                    m.pair.prey_name,
+                    m.predator_episodes.len(),
+                    m.pair.predator_name,
+                    opts.episodes
+                );
+                for r in crossplay::readouts(m) {
+                    let value = r.value.map_or("–".to_string(), |v| format!("{v:+.3}"));
+                    println!("  {:<36} {value:>7}", r.name);
+                }
+            }
+            for line in written {
+                println!("wrote {line}");
+            }
             Ok(())
         }
         Call::Train | Call::Resume(_) => {

@@ -16,7 +16,8 @@ fn standard() -> PathBuf {
     std::fs::canonicalize("scenes/standard.ron").unwrap()
 }
 
-/// A small training scene with checkpoints every 2 episodes and replay buffers that wrap (1 000
+/// A small training scene with checkpoints every 2 episodes, snapshots every 5 (out of step with the
+/// checkpoints, so a kill can fall between a snapshot and the checkpoint after it) and replay buffers that wrap (1 000
 /// transitions; prey store 1 800 per episode, predators 450, so the predators' buffer spans two
 /// checkpoints' segments), under either update schedule.
 fn scene_text(per_step: bool) -> String {
@@ -33,7 +34,7 @@ fn scene_text(per_step: bool) -> String {
     episodes: 24,
     species: [(name: "prey", count: 12)],
     learning: (hidden: 16, batch_size: 32, warmup_transitions: 32, buffer_capacity: 1000,
-               {schedule}, checkpoint_every: 2),
+               {schedule}, checkpoint_every: 2, snapshot_every: 5),
 )"#
     )
 }
@@ -81,6 +82,19 @@ fn checkpoint(run: &Path) -> Vec<(String, Vec<u8>)> {
     files
 }
 
+/// Every snapshot file with its bytes.
+fn snapshots(run: &Path) -> Vec<(String, Vec<u8>)> {
+    let mut files: Vec<(String, Vec<u8>)> = std::fs::read_dir(run.join("snapshots"))
+        .unwrap()
+        .map(|e| {
+            let e = e.unwrap();
+            (e.file_name().to_string_lossy().into_owned(), std::fs::read(e.path()).unwrap())
+        })
+        .collect();
+    files.sort();
+    files
+}
+
 fn finish(child: Child) {
     let out = child.wait_with_output().unwrap();
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
@@ -95,6 +109,12 @@ fn a_run_killed_at_any_moment_and_resumed_equals_the_uninterrupted_run() {
         let whole = dir.path().join(format!("whole-{per_step}"));
         finish(train(&scene, &whole));
         assert_eq!(rows(&whole), 24);
+        let kept: Vec<String> = snapshots(&whole).into_iter().map(|(name, _)| name).collect();
+        let expected: Vec<String> = ["predator", "prey"]
+            .iter()
+            .flat_map(|s| [0, 5, 10, 15, 20, 24].map(|e| format!("{s}-ep{e:05}.safetensors")))
+            .collect();
+        assert_eq!(kept, expected);
         // Kill points spread over the run: before the buffer wraps, after, and near the end; each a
         // few milliseconds into an episode (or into a checkpoint being written).
         for (i, after) in [3usize, 11, 19].into_iter().enumerate() {
@@ -122,6 +142,10 @@ fn a_run_killed_at_any_moment_and_resumed_equals_the_uninterrupted_run() {
             assert!(
                 checkpoint(&run) == checkpoint(&whole),
                 "checkpoint after a kill at episode {after} (per step: {per_step})"
+            );
+            assert!(
+                snapshots(&run) == snapshots(&whole),
+                "snapshots after a kill at episode {after} (per step: {per_step})"
             );
             assert!(!run.join("coevo.lock").exists() && !run.join("checkpoint.tmp").exists());
         }

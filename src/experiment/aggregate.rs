@@ -606,7 +606,7 @@ pub fn plot_run(dir: &Path) -> crate::error::Result<std::path::PathBuf> {
             curves: curve(&schema::of("doa", &prey))?,
         },
     ];
-    let figures = dir.join("figures");
+    let figures = crate::run::RunDir::new(dir).figures();
     std::fs::create_dir_all(&figures).map_err(|e| format!("{}: {e}", figures.display()))?;
     plot::save(&figures.join("training"), &panels)?;
     Ok(figures.join("training.png"))

@@ -25,6 +25,7 @@
 
 pub mod aggregate;
 pub mod claims;
+pub mod crossplay;
 pub mod plot;
 pub mod report;
 pub mod runner;

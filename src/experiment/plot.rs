@@ -39,6 +39,22 @@ pub struct EstimatePanel {
     pub rows: Vec<Row>,
 }
 
+/// A matrix of values drawn as coloured cells (cross-play: rows the prey's snapshots, columns the
+/// predators'), row 0 at the bottom, on the viridis scale from its smallest value to its largest.
+pub struct Heatmap {
+    pub title: String,
+    pub x_label: String,
+    pub y_label: String,
+    /// The column labels (one per column) and the row labels (one per row).
+    pub x_ticks: Vec<usize>,
+    pub y_ticks: Vec<usize>,
+    /// `values[row][column]`.
+    pub values: Vec<Vec<f64>>,
+}
+
+/// Size in pixels of one heat map (panels side by side).
+pub const HEATMAP_SIZE: (u32, u32) = (560, 520);
+
 /// Size in pixels of one panel of curves (panels side by side).
 pub const PANEL_SIZE: (u32, u32) = (640, 420);
 /// Width in pixels of one estimates panel, and height per row (panels two to a row).
@@ -148,6 +164,88 @@ fn draw_estimates(panel: &EstimatePanel, area: &Area) -> crate::error::Result<()
     Ok(())
 }
 
+/// Viridis at `t` in [0, 1], interpolated between five of its colours (perceptually ordered, readable in
+/// grey and by colour-blind readers).
+fn viridis(t: f64) -> RGBColor {
+    const STOPS: [(f64, f64, f64); 5] =
+        [(68.0, 1.0, 84.0), (59.0, 82.0, 139.0), (33.0, 145.0, 140.0), (94.0, 201.0, 98.0), (253.0, 231.0, 37.0)];
+    let x = t.clamp(0.0, 1.0) * (STOPS.len() - 1) as f64;
+    let k = (x.floor() as usize).min(STOPS.len() - 2);
+    let f = x - k as f64;
+    let (a, b) = (STOPS[k], STOPS[k + 1]);
+    let mix = |p: f64, q: f64| (p + f * (q - p)).round() as u8;
+    RGBColor(mix(a.0, b.0), mix(a.1, b.1), mix(a.2, b.2))
+}
+
+fn draw_heatmap(map: &Heatmap, area: &Area) -> crate::error::Result<()> {
+    use plotters::coord::ranged1d::SegmentValue;
+    let (rows, columns) = (map.values.len(), map.values.first().map_or(0, Vec::len));
+    let finite = map.values.iter().flatten().copied().filter(|v| v.is_finite());
+    let (lo, hi) = finite.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)));
+    let title = match lo.is_finite() {
+        true => format!(
+            "{}: {} (dark) to {} (bright)",
+            map.title,
+            tick(&((lo * 1e3).round() / 1e3)),
+            tick(&((hi * 1e3).round() / 1e3))
+        ),
+        false => format!("{}: no values", map.title),
+    };
+    // Labels on about eight rows and columns, whatever the matrix' size.
+    let every = |n: usize| n.div_ceil(8).max(1);
+    let label = |ticks: &[usize], n: usize| {
+        let ticks = ticks.to_vec();
+        move |v: &SegmentValue<i32>| match v {
+            SegmentValue::CenterOf(k) if (*k as usize) < n && *k as usize % every(n) == 0 => {
+                ticks[*k as usize].to_string()
+            }
+            _ => String::new(),
+        }
+    };
+    let mut chart = ChartBuilder::on(area)
+        .caption(title, ("sans-serif", 16))
+        .margin(12)
+        .x_label_area_size(44)
+        .y_label_area_size(56)
+        .build_cartesian_2d(
+            (0..(columns as i32 - 1).max(0)).into_segmented(),
+            (0..(rows as i32 - 1).max(0)).into_segmented(),
+        )
+        .map_err(draw_err)?;
+    chart
+        .configure_mesh()
+        .x_desc(&map.x_label)
+        .y_desc(&map.y_label)
+        .label_style(("sans-serif", 12))
+        .x_labels(columns)
+        .y_labels(rows)
+        .x_label_formatter(&label(&map.x_ticks, columns))
+        .y_label_formatter(&label(&map.y_ticks, rows))
+        .disable_mesh()
+        .draw()
+        .map_err(draw_err)?;
+    let edge = |k: usize, n: usize| if k >= n { SegmentValue::Last } else { SegmentValue::Exact(k as i32) };
+    let cells = map.values.iter().enumerate().flat_map(|(i, row)| {
+        row.iter().enumerate().map(move |(j, &v)| {
+            let colour = match v.is_finite() {
+                true => viridis(if hi > lo { (v - lo) / (hi - lo) } else { 0.5 }),
+                false => RGBColor(200, 200, 200),
+            };
+            Rectangle::new(
+                [(edge(j, columns), edge(i, rows)), (edge(j + 1, columns), edge(i + 1, rows))],
+                colour.filled(),
+            )
+        })
+    });
+    chart.draw_series(cells).map_err(draw_err)?;
+    Ok(())
+}
+
+/// Writes heat maps side by side as `stem.svg` and `stem.png` (atomically, replacing earlier figures).
+pub fn save_heatmaps(stem: &Path, maps: &[Heatmap]) -> crate::error::Result<()> {
+    write(stem, figure(maps, maps.len(), HEATMAP_SIZE, &draw_heatmap)?)
+}
+
 /// A tick value as plotters would print it, without the "-0.0" of a rounding error.
 fn tick(x: &f64) -> String {
     let v = (x * 1e9).round() / 1e9;
@@ -241,6 +339,47 @@ fn write(stem: &Path, text: String) -> crate::error::Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Runs of one colour along a line of pixels, ignoring white and the grey of axes and text.
+    fn coloured_runs(pixels: impl Iterator<Item = [u8; 3]>) -> usize {
+        let (mut runs, mut last) = (0, None);
+        for p in pixels {
+            let grey = p[0].abs_diff(p[1]) < 8 && p[1].abs_diff(p[2]) < 8;
+            let current = (!grey).then_some(p);
+            if current.is_some() && current != last {
+                runs += 1;
+            }
+            last = current;
+        }
+        runs
+    }
+
+    #[test]
+    fn a_heat_map_draws_one_cell_per_value() {
+        let (rows, columns) = (3, 4);
+        let map = Heatmap {
+            title: "test".into(),
+            x_label: "column".into(),
+            y_label: "row".into(),
+            x_ticks: (0..columns).map(|j| 100 * j).collect(),
+            y_ticks: (0..rows).map(|i| 100 * i).collect(),
+            values: (0..rows).map(|i| (0..columns).map(|j| (i * columns + j) as f64).collect()).collect(),
+        };
+        let dir = tempfile::tempdir().unwrap();
+        let stem = dir.path().join("map");
+        save_heatmaps(&stem, &[map]).unwrap();
+        let png = resvg::tiny_skia::Pixmap::decode_png(&std::fs::read(stem.with_extension("png")).unwrap()).unwrap();
+        assert_eq!((png.width(), png.height()), HEATMAP_SIZE);
+        let pixel = |x: u32, y: u32| {
+            let p = png.pixel(x, y).unwrap();
+            [p.red(), p.green(), p.blue()]
+        };
+        // Through the middle of the plot area: one run of colour per column, one per row.
+        let (w, h) = HEATMAP_SIZE;
+        assert_eq!(coloured_runs((0..w).map(|x| pixel(x, h / 2))), columns);
+        assert_eq!(coloured_runs((0..h).map(|y| pixel(w / 2 + 20, y))), rows);
+        assert!(std::fs::read_to_string(stem.with_extension("svg")).unwrap().contains("test: 0 (dark) to 11 (bright)"));
+    }
 
     #[test]
     fn ticks_read_as_written_without_a_negative_zero() {

@@ -139,6 +139,23 @@ mod tests {
     use super::*;
 
     #[test]
+    fn kendall_tau_of_known_orders() {
+        let x = [0.0, 1.0, 2.0, 3.0];
+        assert_eq!(kendall_tau(&x, &[1.0, 2.0, 3.0, 9.0]), Some(1.0));
+        assert_eq!(kendall_tau(&x, &[9.0, 3.0, 2.0, 1.0]), Some(-1.0));
+        // 5 concordant, 1 discordant of 6 pairs: (5 - 1) / 6.
+        let tau = kendall_tau(&x, &[1.0, 3.0, 2.0, 4.0]).unwrap();
+        assert!((tau - 4.0 / 6.0).abs() < 1e-12, "{tau}");
+        // τ_b with a tie in y: 4 concordant, 1 discordant, 1 tied in y: 3 / sqrt(6 * 5).
+        let tau = kendall_tau(&x, &[1.0, 2.0, 2.0, 0.5]).unwrap();
+        let expected = (2.0 - 3.0) / (6.0f64 * 5.0).sqrt();
+        assert!((tau - expected).abs() < 1e-12, "{tau} vs {expected}");
+        assert_eq!(kendall_tau(&x, &[2.0; 4]), None, "no order in y");
+        assert_eq!(kendall_tau(&x[..1], &[1.0]), None);
+        assert_eq!(kendall_tau(&x, &[1.0, f64::NAN, 2.0, 3.0]), None);
+    }
+
+    #[test]
     fn running_means_and_intervals_of_known_data() {
         assert_eq!(running_mean(&[1.0, 3.0, 5.0, 7.0], 2), vec![1.0, 2.0, 4.0, 6.0]);
         let e = estimate(&[1.0, 2.0, 3.0]).unwrap();
@@ -219,4 +236,24 @@ mod tests {
         let (lo, hi) = sd1(10).tost_interval().unwrap();
         assert!((hi - lo - 2.0 * 1.833 / 10f64.sqrt()).abs() < 1e-3);
     }
+}
+
+/// Kendall's rank correlation τ_b of paired values (ties counted as in τ_b): +1 when `y` rises with `x`
+/// in every pair, −1 when it always falls. None with fewer than two pairs, a non-finite value, or no
+/// untied pair in `x` or in `y`.
+pub fn kendall_tau(x: &[f64], y: &[f64]) -> Option<f64> {
+    let n = x.len().min(y.len());
+    if n < 2 || x[..n].iter().chain(&y[..n]).any(|v| !v.is_finite()) {
+        return None;
+    }
+    let (mut score, mut untied_x, mut untied_y) = (0.0, 0.0, 0.0);
+    for i in 0..n {
+        for j in i + 1..n {
+            let (dx, dy) = (x[j] - x[i], y[j] - y[i]);
+            score += (dx.signum() * dy.signum()) * f64::from(u8::from(dx != 0.0 && dy != 0.0));
+            untied_x += f64::from(u8::from(dx != 0.0));
+            untied_y += f64::from(u8::from(dy != 0.0));
+        }
+    }
+    (untied_x > 0.0 && untied_y > 0.0).then(|| score / (untied_x * untied_y).sqrt())
 }

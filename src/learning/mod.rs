@@ -212,6 +212,17 @@ pub fn simulation_with(
 ) -> crate::error::Result<Simulation> {
     let mut learners = Learners::new(&scene, mode);
     learners.load_actors(&scene, eval_run)?;
+    simulation_of(scene, learners, extra)
+}
+
+/// A simulation with the learning plugin driven by `learners` as given (actors chosen by the caller:
+/// cross-play deploys snapshots), more plugins added by `extra`.
+pub fn simulation_of(
+    scene: Scene,
+    learners: Learners,
+    extra: impl FnOnce(&mut App),
+) -> crate::error::Result<Simulation> {
+    let mode = learners.mode;
     Simulation::try_with_plugins(scene, |app| {
         app.insert_resource(learners);
         app.add_plugins(LearningPlugin { mode });

@@ -32,6 +32,10 @@ pub const METRICS: &str = "metrics.csv";
 /// The default evaluation output.
 pub const EVAL: &str = "eval.csv";
 pub const LOCK: &str = "coevo.lock";
+/// The run's figures folder.
+pub const FIGURES: &str = "figures";
+/// The stem every cross-play output begins with.
+pub const CROSSPLAY: &str = "crossplay";
 /// The checkpoint folders are the checkpoint's own (`learning::checkpoint`).
 pub use crate::learning::checkpoint::{CHECKPOINT, CHECKPOINT_OLD, CHECKPOINT_TMP, SNAPSHOTS};
 /// The files an evaluation writes beside its per-step CSV (`OUT-nn.csv`, ...); the confusion curve last.
@@ -77,6 +81,17 @@ impl RunDir {
         self.path.join(PROVENANCE)
     }
 
+    /// Figures of the run (`--plot RUN`, `--crossplay RUN`).
+    pub fn figures(&self) -> PathBuf {
+        self.path.join(FIGURES)
+    }
+
+    /// A cross-play output, `<stem>.csv` (`experiment::crossplay`); stems begin with `crossplay`.
+    pub fn crossplay(&self, stem: &str) -> PathBuf {
+        debug_assert!(stem.starts_with(CROSSPLAY));
+        self.path.join(format!("{stem}.csv"))
+    }
+
     pub fn snapshots(&self) -> PathBuf {
         self.path.join(SNAPSHOTS)
     }
@@ -114,6 +129,9 @@ impl RunDir {
         let reserved = RUN_FILES.iter().chain(&CHECKPOINT_DIRS).chain(&[LOCK]).filter(|f| **f != EVAL);
         if reserved.map(|f| stem_of(f)).any(|s| s == stem) {
             return refuse("is one of the run's own files; choose another name");
+        }
+        if stem.starts_with(CROSSPLAY) {
+            return refuse("begins with crossplay, the name of the cross-play files; choose another name");
         }
         if let Some(suffix) = EVAL_BESIDE.iter().find(|s| stem.ends_with(&format!("-{s}"))) {
             return refuse(&format!(
