@@ -2,7 +2,7 @@
 //! itself with identical snapshots gives identical cells; predators that never move catch only what the
 //! prey's own motion brings them; bad requests are one line.
 
-use coevo::experiment::crossplay::{crossplay, readouts, CrossplayOptions, Matrix};
+use coevo::experiment::crossplay::{crossplay, readouts, CrossplayOptions, Matrix, READOUTS};
 use coevo::learning::checkpoint::{load_snapshot, save_snapshot, snapshot_episodes};
 use coevo::learning::nets::Mlp;
 use coevo::learning::{Learners, Mode};
@@ -91,6 +91,7 @@ fn a_run_against_itself_with_identical_snapshots_gives_identical_cells() {
     let first = m.cells[0][0];
     assert!(first.catches > 0.0 && first.doa > 0.0, "{first:?}");
     assert!(m.cells.iter().flatten().all(|c| *c == first), "{:?}", m.cells);
+    assert_eq!(readouts(&m).iter().map(|r| r.name).collect::<Vec<_>>(), READOUTS);
     // Nothing changes, so no read-out finds an order, and no part of a change.
     for r in readouts(&m) {
         assert!(r.value.is_none_or(|v| v == 0.0), "{} = {:?}", r.name, r.value);

@@ -2,8 +2,8 @@
 //! intervals over seeds, the figures, and the paper's claims checked against them.
 
 use super::claims::{
-    chance_level, is_effect, quantity, values, verdict, window_mean, ClaimResult, EvalData, RunData, SETTLED_STEPS,
-    WINDOW,
+    chance_level, column, derive, is_effect, quantity, values, verdict, window_mean, ClaimResult, EvalData, RunData,
+    SETTLED_STEPS, WINDOW,
 };
 use super::plot::{self, Curve, EstimatePanel, Panel, Row};
 use super::runner::{eval_file, stage, Stage};
@@ -62,6 +62,7 @@ pub fn load(exp: &Experiment) -> crate::error::Result<BTreeMap<usize, RunData>> 
                 })
                 .collect(),
             evals: BTreeMap::new(),
+            crossplay: super::crossplay::read_readouts(&run.dir, &prey)?,
             binaries: match RunDir::new(&run.dir).read_provenance()? {
                 Some(p) => p.binaries().into_iter().map(String::from).collect(),
                 None => vec!["unknown".into()],
@@ -174,35 +175,35 @@ pub fn aggregate(
         std::fs::create_dir_all(exp.root.join("figures")).map_err(io(&exp.root))?;
     }
     let evals: Vec<String> = exp.spec.evaluations.iter().map(|e| e.name.clone()).collect();
-    let mut quantities: Vec<(String, Quantity)> = vec![
-        ("dos_first100".into(), Quantity::DosFirst),
-        ("dos_last100".into(), Quantity::DosLast),
-        ("doa_first100".into(), Quantity::DoaFirst),
-        ("doa_last100".into(), Quantity::DoaLast),
-    ];
+    // One column per primitive quantity (named by `claims::column`), and beside every control how much
+    // of the seeing actors' alignment it removes (derived, for reading).
+    let mut primitives = vec![Quantity::DosFirst, Quantity::DosLast, Quantity::DoaFirst, Quantity::DoaLast];
     for order in super::EVAL_ORDER {
-        quantities.push((format!("{order}_first100"), Quantity::TrainingFirst(order.into())));
-        quantities.push((format!("{order}_last100"), Quantity::TrainingLast(order.into())));
+        primitives.push(Quantity::TrainingFirst(order.into()));
+        primitives.push(Quantity::TrainingLast(order.into()));
     }
-    quantities.push(("dos_reach90".into(), Quantity::Reach90("dos".into())));
-    quantities.push(("doa_reach90".into(), Quantity::Reach90("doa".into())));
+    primitives.push(Quantity::Reach90("dos".into()));
+    primitives.push(Quantity::Reach90("doa".into()));
+    let named = |q: Quantity| (column(&q).expect("a primitive quantity has a column"), q);
+    let mut quantities: Vec<(String, Quantity)> = primitives.into_iter().map(named).collect();
     for e in &evals {
-        quantities.push((format!("eval_{}_dos_settled", slug(e)), Quantity::EvalDos(e.clone())));
-        quantities.push((format!("eval_{}_doa_settled", slug(e)), Quantity::EvalDoa(e.clone())));
-        for order in super::EVAL_ORDER {
-            quantities.push((format!("eval_{}_{order}", slug(e)), Quantity::EvalOrder(e.clone(), order.into())));
-        }
-        // Beside every control: how much of the seeing actors' alignment it removes.
+        quantities.push(named(Quantity::EvalDos(e.clone())));
+        quantities.push(named(Quantity::EvalDoa(e.clone())));
+        quantities.extend(super::EVAL_ORDER.iter().map(|o| named(Quantity::EvalOrder(e.clone(), o.to_string()))));
         if super::seeing_partner(&exp.spec.evaluations, e).is_some() {
             quantities.push((format!("eval_{}_doa_interaction", slug(e)), Quantity::InteractionDoa(e.clone())));
         }
     }
+    if exp.spec.crossplay.is_some() {
+        quantities.extend(super::crossplay::READOUTS.iter().map(|r| named(Quantity::Crossplay(r.to_string()))));
+    }
+    quantities.extend([named(Quantity::CatchesFirst), named(Quantity::CatchesLast)]);
     let mut summary = String::from("preset,variant,seed,episodes");
     for (name, _) in &quantities {
         write!(summary, ",{name}").unwrap();
     }
     summary
-        .push_str(",catches_first100,catches_last100,return_first100,return_last100,wall_seconds,binary,shared_from\n");
+        .push_str(",return_first100,return_last100,wall_seconds,binary,shared_from\n");
     for (i, d) in data {
         let r = &exp.runs[*i];
         write!(summary, "{},{},{},{}", csv_text(&r.preset), csv_text(&r.variant), r.seed, d.dos.len()).unwrap();
@@ -211,14 +212,9 @@ pub fn aggregate(
             let v = quantity(exp, d, q);
             write!(summary, ",{}", if v.is_finite() { v.to_string() } else { String::new() }).unwrap();
         }
-        let (c0, c1, r0, r1) = (
-            window_mean(&d.catches, true),
-            window_mean(&d.catches, false),
-            window_mean(&d.returns, true),
-            window_mean(&d.returns, false),
-        );
+        let (r0, r1) = (window_mean(&d.returns, true), window_mean(&d.returns, false));
         let shared = r.shared_from.as_deref().unwrap_or("");
-        writeln!(summary, ",{c0},{c1},{r0},{r1},{},{},{shared}", d.wall_seconds, csv_text(&d.binaries.join(" ")))
+        writeln!(summary, ",{r0},{r1},{},{},{shared}", d.wall_seconds, csv_text(&d.binaries.join(" ")))
             .unwrap();
     }
 
@@ -352,44 +348,9 @@ impl Summary {
     }
 
     /// A run's value of a quantity, from its row ([`super::claims::quantity`] computes the same from the
-    /// run's own files).
+    /// run's own files; both through [`derive`]).
     pub fn quantity(&self, exp: &Experiment, row: &SummaryRow, q: &Quantity) -> f64 {
-        let v = |c: &str| self.value(row, c);
-        let eval = |e: &str, what: &str| v(&format!("eval_{}_{what}", slug(e)));
-        match q {
-            Quantity::DosFirst => v("dos_first100"),
-            Quantity::DosLast => v("dos_last100"),
-            Quantity::DoaFirst => v("doa_first100"),
-            Quantity::DoaLast => v("doa_last100"),
-            Quantity::TrainingFirst(o) => v(&format!("{o}_first100")),
-            Quantity::TrainingLast(o) => v(&format!("{o}_last100")),
-            Quantity::DosChange => v("dos_last100") - v("dos_first100"),
-            Quantity::DoaChange => v("doa_last100") - v("doa_first100"),
-            Quantity::CatchesChange => v("catches_last100") - v("catches_first100"),
-            Quantity::CatchesLast => v("catches_last100"),
-            Quantity::EvalDos(e) => eval(e, "dos_settled"),
-            Quantity::EvalDoa(e) => eval(e, "doa_settled"),
-            Quantity::EvalOrder(e, o) => eval(e, o),
-            Quantity::InteractionDoa(e) => match super::seeing_partner(&exp.spec.evaluations, e) {
-                Some(seeing) => eval(&seeing.name, "doa_settled") - eval(e, "doa_settled"),
-                None => f64::NAN,
-            },
-            Quantity::Interaction(e, o) => match super::seeing_partner(&exp.spec.evaluations, e) {
-                Some(seeing) => eval(&seeing.name, o) - eval(e, o),
-                None => f64::NAN,
-            },
-            Quantity::Learned(e, o) => match super::untrained_partner(&exp.spec.evaluations, e) {
-                Some(untrained) => {
-                    let column = |o: &str| match o {
-                        "dos" | "doa" => format!("{o}_settled"),
-                        _ => o.to_string(),
-                    };
-                    eval(e, &column(o)) - eval(&untrained.name, &column(o))
-                }
-                None => f64::NAN,
-            },
-            Quantity::Reach90(o) => v(&format!("{o}_reach90")),
-        }
+        derive(exp, q, &|p| column(p).map_or(f64::NAN, |c| self.value(row, &c)))
     }
 
     /// The finite values of a quantity over the runs of one preset and variant (one per seed).

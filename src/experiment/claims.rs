@@ -22,6 +22,8 @@ pub struct RunData {
     pub binaries: Vec<String>,
     /// Per evaluation, by name.
     pub evals: BTreeMap<String, EvalData>,
+    /// The read-outs of the run's cross-play (`crossplay-readouts.csv`) by name, when it has one.
+    pub crossplay: BTreeMap<String, f64>,
 }
 
 /// One evaluation of a run.
@@ -61,8 +63,13 @@ pub fn values(exp: &Experiment, runs: &[&RunData], q: &Quantity) -> Vec<f64> {
     runs.iter().map(|d| quantity(exp, d, q)).filter(|x| x.is_finite()).collect()
 }
 
-/// A run's value of a quantity.
+/// A run's value of a quantity, from its own files ([`RunData`]).
 pub fn quantity(exp: &Experiment, d: &RunData, q: &Quantity) -> f64 {
+    derive(exp, q, &|p| primitive(d, p))
+}
+
+/// The value of a primitive quantity (one with a [`column`] of its own) from a run's files.
+fn primitive(d: &RunData, q: &Quantity) -> f64 {
     let settled = |v: &[f64]| {
         mean(&v[v.len().saturating_sub(SETTLED_STEPS)..].iter().copied().filter(|x| x.is_finite()).collect::<Vec<_>>())
             .unwrap_or(f64::NAN)
@@ -70,44 +77,65 @@ pub fn quantity(exp: &Experiment, d: &RunData, q: &Quantity) -> f64 {
     let eval = |e: &str, name: &str| d.evals.get(e).map_or(f64::NAN, |x| settled(x.series(name)));
     match q {
         Quantity::DosFirst => window_mean(&d.dos, true),
-        Quantity::TrainingFirst(q) => d.orders.get(q).map_or(f64::NAN, |v| window_mean(v, true)),
-        Quantity::TrainingLast(q) => d.orders.get(q).map_or(f64::NAN, |v| window_mean(v, false)),
         Quantity::DosLast => window_mean(&d.dos, false),
         Quantity::DoaFirst => window_mean(&d.doa, true),
         Quantity::DoaLast => window_mean(&d.doa, false),
-        Quantity::DosChange => window_mean(&d.dos, false) - window_mean(&d.dos, true),
-        Quantity::DoaChange => window_mean(&d.doa, false) - window_mean(&d.doa, true),
-        Quantity::CatchesChange => window_mean(&d.catches, false) - window_mean(&d.catches, true),
+        Quantity::CatchesFirst => window_mean(&d.catches, true),
         Quantity::CatchesLast => window_mean(&d.catches, false),
+        Quantity::TrainingFirst(q) => d.orders.get(q).map_or(f64::NAN, |v| window_mean(v, true)),
+        Quantity::TrainingLast(q) => d.orders.get(q).map_or(f64::NAN, |v| window_mean(v, false)),
         Quantity::EvalDos(e) => eval(e, "dos"),
         Quantity::EvalDoa(e) => eval(e, "doa"),
         Quantity::EvalOrder(e, name) if name == "edge_rank" => d.evals.get(e).map_or(f64::NAN, |x| x.edge_rank),
         Quantity::EvalOrder(e, name) => eval(e, name),
-        Quantity::InteractionDoa(e) => match super::seeing_partner(&exp.spec.evaluations, e) {
-            Some(seeing) => eval(&seeing.name, "doa") - eval(e, "doa"),
-            None => f64::NAN,
-        },
-        Quantity::Learned(e, name) => match super::untrained_partner(&exp.spec.evaluations, e) {
-            Some(untrained) => {
-                let value = |e: &str| match name.as_str() {
-                    "edge_rank" => d.evals.get(e).map_or(f64::NAN, |x| x.edge_rank),
-                    _ => eval(e, name),
-                };
-                value(e) - value(&untrained.name)
-            }
-            None => f64::NAN,
-        },
         Quantity::Reach90(name) => reach90(if name == "dos" { &d.dos } else { &d.doa }),
-        Quantity::Interaction(e, name) => match super::seeing_partner(&exp.spec.evaluations, e) {
-            Some(seeing) => {
-                let value = |e: &str| match name.as_str() {
-                    "edge_rank" => d.evals.get(e).map_or(f64::NAN, |x| x.edge_rank),
-                    _ => eval(e, name),
-                };
-                value(&seeing.name) - value(e)
-            }
+        Quantity::Crossplay(name) => d.crossplay.get(name).copied().unwrap_or(f64::NAN),
+        _ => f64::NAN,
+    }
+}
+
+/// The summary.csv column of a primitive quantity, None for a derived one ([`derive`]): the one place
+/// these names are made.
+pub fn column(q: &Quantity) -> Option<String> {
+    Some(match q {
+        Quantity::DosFirst => "dos_first100".into(),
+        Quantity::DosLast => "dos_last100".into(),
+        Quantity::DoaFirst => "doa_first100".into(),
+        Quantity::DoaLast => "doa_last100".into(),
+        Quantity::CatchesFirst => "catches_first100".into(),
+        Quantity::CatchesLast => "catches_last100".into(),
+        Quantity::TrainingFirst(o) => format!("{o}_first100"),
+        Quantity::TrainingLast(o) => format!("{o}_last100"),
+        Quantity::Reach90(o) => format!("{o}_reach90"),
+        Quantity::EvalDos(e) => format!("eval_{}_dos_settled", super::slug(e)),
+        Quantity::EvalDoa(e) => format!("eval_{}_doa_settled", super::slug(e)),
+        Quantity::EvalOrder(e, o) => format!("eval_{}_{o}", super::slug(e)),
+        Quantity::Crossplay(name) => format!("crossplay_{name}"),
+        _ => return None,
+    })
+}
+
+/// Every quantity from primitive ones (`primitive` gives those): the one definition of each derived
+/// quantity, for a run's files ([`quantity`]) and for summary.csv (`aggregate::Summary::quantity`) alike.
+pub fn derive(exp: &Experiment, q: &Quantity, primitive: &dyn Fn(&Quantity) -> f64) -> f64 {
+    // An order parameter of an evaluation: DoS and DoA settled, the others as EvalOrder has them.
+    let of_eval = |e: &str, o: &str| match o {
+        "dos" => primitive(&Quantity::EvalDos(e.into())),
+        "doa" => primitive(&Quantity::EvalDoa(e.into())),
+        _ => primitive(&Quantity::EvalOrder(e.into(), o.into())),
+    };
+    let seeing = |e: &str| super::seeing_partner(&exp.spec.evaluations, e).map(|s| s.name.clone());
+    match q {
+        Quantity::DosChange => primitive(&Quantity::DosLast) - primitive(&Quantity::DosFirst),
+        Quantity::DoaChange => primitive(&Quantity::DoaLast) - primitive(&Quantity::DoaFirst),
+        Quantity::CatchesChange => primitive(&Quantity::CatchesLast) - primitive(&Quantity::CatchesFirst),
+        Quantity::InteractionDoa(e) => seeing(e).map_or(f64::NAN, |s| of_eval(&s, "doa") - of_eval(e, "doa")),
+        Quantity::Interaction(e, o) => seeing(e).map_or(f64::NAN, |s| of_eval(&s, o) - of_eval(e, o)),
+        Quantity::Learned(e, o) => match super::untrained_partner(&exp.spec.evaluations, e) {
+            Some(untrained) => of_eval(e, o) - of_eval(&untrained.name, o),
             None => f64::NAN,
         },
+        _ => primitive(q),
     }
 }
 
@@ -276,7 +304,9 @@ pub fn quantity_name(q: &Quantity) -> String {
         Quantity::DosChange => "DoS change, last − first 100".into(),
         Quantity::DoaChange => "DoA change, last − first 100".into(),
         Quantity::CatchesChange => "catches per episode, change, last − first 100".into(),
+        Quantity::CatchesFirst => "catches per episode, first 100".into(),
         Quantity::CatchesLast => "catches per episode, last 100".into(),
+        Quantity::Crossplay(r) => format!("cross-play read-out {r}"),
         Quantity::EvalDos(e) => format!("DoS settled in evaluation \"{e}\""),
         Quantity::EvalDoa(e) => format!("DoA settled in evaluation \"{e}\""),
         Quantity::EvalOrder(e, q) => format!("{q} in evaluation \"{e}\""),

@@ -258,6 +258,47 @@ fn decompose(q: impl Fn(usize, usize) -> f64, a: usize, b: usize) -> [f64; 3] {
     [q(b, b) - q(a, a), prey, predator]
 }
 
+/// The names of [`readouts`], in order (summary.csv has a column `crossplay_<name>` for each).
+pub const READOUTS: [&str; 14] = [
+    "predator_progress_vs_fixed_prey",
+    "prey_progress_vs_fixed_predators",
+    "catches_vs_current",
+    "predator_progress_vs_past_prey",
+    "prey_progress_vs_past_predators",
+    "prey_regress_vs_early_predators",
+    "predator_regress_vs_early_prey",
+    "doa_prey_trend_vs_fixed_predators",
+    "doa_rise",
+    "doa_rise_prey_part",
+    "doa_rise_predator_part",
+    "doa_late",
+    "doa_late_prey_part",
+    "doa_late_predator_part",
+];
+
+/// The read-outs of a run, as written in `crossplay-readouts.csv` ([`readouts_csv`]), of the pair whose
+/// prey is `prey` (its first predator species); empty without the file.
+pub fn read_readouts(run: &std::path::Path, prey: &str) -> crate::error::Result<std::collections::BTreeMap<String, f64>> {
+    let path = RunDir::new(run).crossplay(READOUTS_STEM);
+    let mut out = std::collections::BTreeMap::new();
+    let Ok(text) = crate::io::read_text(&path, crate::io::MAX_TEXT_BYTES) else { return Ok(out) };
+    let bad = |e: csv::Error| format!("{}: {e}", path.display());
+    let mut reader = csv::Reader::from_reader(text.as_bytes());
+    let mut predator: Option<String> = None;
+    for record in reader.records() {
+        let record = record.map_err(bad)?;
+        if record.len() < 4 || &record[0] != prey || predator.as_deref().is_some_and(|p| p != &record[1]) {
+            continue;
+        }
+        predator = Some(record[1].to_string());
+        out.insert(record[2].to_string(), record[3].parse().unwrap_or(f64::NAN));
+    }
+    Ok(out)
+}
+
+/// The read-outs file's stem.
+pub const READOUTS_STEM: &str = "crossplay-readouts";
+
 /// The read-outs of a matrix. Generations are the snapshot episodes both species have (the diagonal and
 /// CIAO need them paired); "early" opponents of generation k are generations 0..=k.
 pub fn readouts(m: &Matrix) -> Vec<Readout> {
@@ -408,7 +449,7 @@ fn write(run: &std::path::Path, matrices: &[Matrix]) -> crate::error::Result<Vec
         written.push(csv.display().to_string());
         written.push(figure.with_extension("png").display().to_string());
     }
-    let readouts = dir.crossplay("crossplay-readouts");
+    let readouts = dir.crossplay(READOUTS_STEM);
     crate::io::write_file(&readouts, Existing::Replace, readouts_csv(matrices).as_bytes())?;
     written.push(readouts.display().to_string());
     Ok(written)

@@ -58,6 +58,23 @@ pub struct ExperimentFile {
     /// default: every number of an experiment comes from one binary, and aggregation refuses otherwise.
     #[serde(default)]
     pub mixed_binaries: bool,
+    /// Cross-play every run's snapshots (`coevo --crossplay`) after its evaluations, so claims can name
+    /// its read-outs (`Crossplay("...")`).
+    #[serde(default)]
+    pub crossplay: Option<CrossplaySpec>,
+}
+
+/// How an experiment cross-plays its runs.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct CrossplaySpec {
+    /// Episodes per cell.
+    #[serde(default = "five")]
+    pub episodes: usize,
+}
+
+fn five() -> usize {
+    5
 }
 
 fn default_presets() -> Vec<String> {
@@ -160,7 +177,8 @@ pub enum Quantity {
     /// Catches per episode (every predator–prey contact that began), last 100 minus first 100: whether
     /// the prey learned to escape faster than the predators learned to catch.
     CatchesChange,
-    /// Catches per episode over the last 100 episodes of training: how well the prey survive.
+    /// Catches per episode over the first / last 100 episodes of training: how well the prey survive.
+    CatchesFirst,
     CatchesLast,
     /// Another per-episode order parameter of training (`polarization`, `milling`, `clusters`,
     /// `largest_cluster`, `nn_correlation`, `edge_rank`): mean of the first / last 100 episodes.
@@ -185,6 +203,9 @@ pub enum Quantity {
     /// The episode at which the 100-episode running mean of `dos` or `doa` first completes 90 % of its
     /// change from the first 100 episodes to the last 100 (the paper's time course, Fig. 3).
     Reach90(String),
+    /// A read-out of the run's cross-play matrix (`crossplay::readouts`, the headline species against its
+    /// first predator species), e.g. `Crossplay("doa_late_prey_part")`; needs `crossplay:` in the file.
+    Crossplay(String),
 }
 
 /// Order parameters an [`Quantity::EvalOrder`] may name.

@@ -154,12 +154,23 @@ pub fn complete_run(exp: &Experiment, run: &Run, exe: &Path, threads: usize) -> 
         ]);
         child(exe, &args).map_err(|err| format!("{dir}: evaluation {}: {err}", e.name))?;
     }
+    if let Some(c) = exp.spec.crossplay.as_ref().filter(|_| !crossplayed(run)) {
+        let args = ["--crossplay".into(), dir.clone(), "--episodes".into(), c.episodes.to_string()];
+        child(exe, &[args.as_slice(), &common].concat()).map_err(|err| format!("{dir}: cross-play: {err}"))?;
+    }
     Ok(())
 }
 
-/// Whether a run is trained and has every evaluation.
+/// Whether a run's cross-play is complete (its read-outs are written last).
+fn crossplayed(run: &Run) -> bool {
+    crate::run::RunDir::new(&run.dir).crossplay(super::crossplay::READOUTS_STEM).exists()
+}
+
+/// Whether a run is trained and has every evaluation (and its cross-play, when asked).
 fn finished(exp: &Experiment, run: &Run) -> bool {
-    stage(run) == Ok(Stage::Trained) && exp.spec.evaluations.iter().all(|e| evaluated(&eval_file(&run.dir, &e.name)))
+    stage(run) == Ok(Stage::Trained)
+        && exp.spec.evaluations.iter().all(|e| evaluated(&eval_file(&run.dir, &e.name)))
+        && (exp.spec.crossplay.is_none() || crossplayed(run))
 }
 
 /// Whether an evaluation's files are complete: its per-step CSV and, written last, its confusion curve
