@@ -202,8 +202,7 @@ pub fn aggregate(
     for (name, _) in &quantities {
         write!(summary, ",{name}").unwrap();
     }
-    summary
-        .push_str(",return_first100,return_last100,wall_seconds,binary,shared_from\n");
+    summary.push_str(",return_first100,return_last100,wall_seconds,binary,shared_from\n");
     for (i, d) in data {
         let r = &exp.runs[*i];
         write!(summary, "{},{},{},{}", csv_text(&r.preset), csv_text(&r.variant), r.seed, d.dos.len()).unwrap();
@@ -214,8 +213,7 @@ pub fn aggregate(
         }
         let (r0, r1) = (window_mean(&d.returns, true), window_mean(&d.returns, false));
         let shared = r.shared_from.as_deref().unwrap_or("");
-        writeln!(summary, ",{r0},{r1},{},{},{shared}", d.wall_seconds, csv_text(&d.binaries.join(" ")))
-            .unwrap();
+        writeln!(summary, ",{r0},{r1},{},{},{shared}", d.wall_seconds, csv_text(&d.binaries.join(" "))).unwrap();
     }
 
     // The claims are computed from the per-run values alone (summary.csv), so that a clone without run

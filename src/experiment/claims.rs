@@ -189,6 +189,7 @@ pub fn is_effect(claim: &Claim) -> bool {
                 | Quantity::Interaction(..)
                 | Quantity::Learned(..)
         )
+        || matches!(&claim.quantity, Quantity::Crossplay(r) if super::crossplay::chance(r).is_none())
 }
 
 /// The value a level has by chance alone, which a level must be told apart from: the claim's `baseline`,
@@ -214,6 +215,7 @@ pub fn chance_level(exp: &Experiment, claim: &Claim, scene: Option<&crate::scene
         Quantity::DoaFirst | Quantity::DoaLast | Quantity::EvalDoa(_) => Some(std::f64::consts::FRAC_2_PI),
         Quantity::DosFirst | Quantity::DosLast => random_dos(None),
         Quantity::EvalDos(e) => random_dos(Some(e)),
+        Quantity::Crossplay(r) => super::crossplay::chance(r),
         _ => None,
     }
 }

@@ -276,9 +276,18 @@ pub const READOUTS: [&str; 14] = [
     "doa_late_predator_part",
 ];
 
+/// The value a read-out that is a share takes without any order (0.5 for the regress shares): in claims
+/// it is a level told apart from that chance; every other read-out is an effect tested against zero.
+pub fn chance(readout: &str) -> Option<f64> {
+    readout.contains("_regress_").then_some(0.5)
+}
+
 /// The read-outs of a run, as written in `crossplay-readouts.csv` ([`readouts_csv`]), of the pair whose
 /// prey is `prey` (its first predator species); empty without the file.
-pub fn read_readouts(run: &std::path::Path, prey: &str) -> crate::error::Result<std::collections::BTreeMap<String, f64>> {
+pub fn read_readouts(
+    run: &std::path::Path,
+    prey: &str,
+) -> crate::error::Result<std::collections::BTreeMap<String, f64>> {
     let path = RunDir::new(run).crossplay(READOUTS_STEM);
     let mut out = std::collections::BTreeMap::new();
     let Ok(text) = crate::io::read_text(&path, crate::io::MAX_TEXT_BYTES) else { return Ok(out) };
