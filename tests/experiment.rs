@@ -74,6 +74,14 @@ fn experiment_files_expand_to_runs_and_bad_ones_are_one_line() {
         (TINY.replace("(\"prey\", 50)", "(\"hawk\", 50)"), "evaluations[50 prey]: no species named \"hawk\""),
         (TINY.replace("scenes/paper.ron", "scenes/none.ron"), "bad.ron: base: scenes/none.ron: cannot read"),
         (
+            TINY.replace("quantity: CatchesChange", "quantity: Crossplay(\"doa_late\")"),
+            "bad.ron: claims: Crossplay(\"doa_late\") needs crossplay: (episodes: N) in the file",
+        ),
+        (
+            TINY.replace("quantity: CatchesChange", "quantity: Crossplay(\"doa_later\")"),
+            "bad.ron: claims: no cross-play read-out named \"doa_later\"",
+        ),
+        (
             TINY.replace("quantity: DosChange", "quantity: InteractionDoa(\"50 prey\")"),
             "evaluation \"50 prey\" needs a control (Blind, Shuffled or a block form)",
         ),
@@ -485,4 +493,33 @@ fn untrained_actors_and_the_time_course_are_measured() {
     let out = coevo(dir.path(), &["--experiment", "experiments/bad.ron"]);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && stderr.contains("needs an untrained partner"), "{stderr}");
+}
+
+#[test]
+fn an_experiment_cross_plays_its_runs_and_judges_the_read_outs() {
+    let dir = workspace();
+    let text = TINY
+        .replace("checkpoint_every: 1", "checkpoint_every: 1, snapshot_every: 1")
+        .replace("    evaluations: [", "    crossplay: (episodes: 1),\n    evaluations: [")
+        .replace(
+            "(text: \"catches\",",
+            "(text: \"prey part\", variant: \"5:3\", quantity: Crossplay(\"doa_late_prey_part\")),\n        (text: \"regress\", variant: \"5:3\", quantity: Crossplay(\"prey_regress_vs_early_predators\")),\n        (text: \"catches\",",
+        );
+    std::fs::write(dir.path().join("experiments/tiny.ron"), &text).unwrap();
+    let out = coevo(dir.path(), &["--experiment", "experiments/tiny.ron", "--jobs", "2"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let run = dir.path().join("results/tiny/paper/5-3/seed2");
+    let cells = std::fs::read_to_string(run.join("crossplay.csv")).unwrap();
+    assert_eq!(cells.lines().count(), 1 + 4 * 4, "snapshots 0..=3 of each side: {cells}");
+    let summary = std::fs::read_to_string(dir.path().join("results/tiny/summary.csv")).unwrap();
+    let header: Vec<&str> = summary.lines().next().unwrap().split(',').collect();
+    let at = header.iter().position(|h| *h == "crossplay_doa_late_prey_part").expect("a read-out column");
+    let readouts = std::fs::read_to_string(run.join("crossplay-readouts.csv")).unwrap();
+    let written = readouts.lines().find(|l| l.contains(",doa_late_prey_part,")).unwrap().split(',').nth(3).unwrap();
+    let row = summary.lines().find(|l| l.starts_with("paper,5:3,2,")).unwrap();
+    assert_eq!(row.split(',').nth(at).unwrap(), written, "the summary holds the run's read-out");
+    let md = std::fs::read_to_string(dir.path().join("REPRODUCTION.md")).unwrap();
+    assert!(md.contains("cross-play read-out doa_late_prey_part"), "{md}");
+    // The share is a level against 0.5, not an effect against zero.
+    assert!(md.contains("cross-play read-out prey_regress_vs_early_predators"), "{md}");
 }

@@ -461,6 +461,20 @@ impl Experiment {
                     return Err(err("claims", format!("Reach90 takes \"dos\" or \"doa\" (got {q:?})")));
                 }
             }
+            if let Quantity::Crossplay(r) = &c.quantity {
+                if !crossplay::READOUTS.contains(&r.as_str()) {
+                    return Err(err(
+                        "claims",
+                        format!("no cross-play read-out named {r:?} (one of {})", crossplay::READOUTS.join(", ")),
+                    ));
+                }
+                if spec.crossplay.is_none() {
+                    return Err(err("claims", format!("Crossplay({r:?}) needs crossplay: (episodes: N) in the file")));
+                }
+            }
+            if let Some(c) = spec.crossplay.as_ref().filter(|c| c.episodes == 0) {
+                return Err(err("crossplay.episodes", format!("must be ≥ 1 (got {})", c.episodes)));
+            }
             if let Quantity::InteractionDoa(e) | Quantity::Interaction(e, _) = &c.quantity {
                 if seeing_partner(&spec.evaluations, e).is_none() {
                     return Err(err("claims", format!("evaluation {e:?} needs a control (Blind, Shuffled or a block form) and a seeing evaluation with the same counts, episodes and steps")));
