@@ -55,6 +55,10 @@ struct Cli {
     /// heat maps in DIR/figures/.
     #[arg(long, help_heading = "Modes", value_name = "DIR")]
     crossplay: Option<PathBuf>,
+    /// Deploy a species' snapshot instead of its trained actor, as NAME=EPISODE (repeatable; --eval,
+    /// --record and --animate with --run, viewer with --watch), e.g. --snapshot prey=300.
+    #[arg(long, help_heading = "Training and evaluation", value_name = "NAME=EPISODE")]
+    snapshot: Vec<String>,
     /// Number of prey (--eval, --record, viewer; the paper evaluates on 50).
     #[arg(long, help_heading = "Scene", value_name = "N")]
     prey: Option<usize>,
@@ -191,10 +195,11 @@ const TAKES: [(&str, &[&str]); 11] = [
             "control",
             "confusion_radius",
             "untrained",
+            "snapshot",
         ],
     ),
     ("crossplay", &["episodes", "steps", "seed", "prey", "predators", "count", "quiet"]),
-    ("record", &["run", "scene", "seed", "steps", "prey", "predators", "count", "overwrite"]),
+    ("record", &["run", "scene", "seed", "steps", "prey", "predators", "count", "overwrite", "snapshot"]),
     (
         "animate",
         &[
@@ -210,6 +215,7 @@ const TAKES: [(&str, &[&str]); 11] = [
             "steps_per_frame",
             "size",
             "quiet",
+            "snapshot",
         ],
     ),
     ("bench", &["bench_seconds"]),
@@ -235,6 +241,7 @@ const TAKES: [(&str, &[&str]); 11] = [
             "trails",
             "select",
             "overwrite",
+            "snapshot",
         ],
     ),
 ];
@@ -374,6 +381,24 @@ fn overrides(cli: &Cli, steps: bool) -> crate::error::Result<Overrides> {
     })
 }
 
+/// The --snapshot requests (NAME=EPISODE); they need a run whose snapshots to deploy (`run`).
+fn snapshots(cli: &Cli, run: Option<&Path>, what: &str) -> crate::error::Result<Vec<(String, usize)>> {
+    if !cli.snapshot.is_empty() && run.is_none() {
+        return Err(format!("--snapshot: deploys a run's snapshots; give the run with {what}").into());
+    }
+    cli.snapshot
+        .iter()
+        .map(|text| {
+            let (name, episode) = text
+                .split_once('=')
+                .ok_or_else(|| format!("--snapshot {text}: expected NAME=EPISODE, e.g. prey=300"))?;
+            let episode =
+                episode.parse().map_err(|_| format!("--snapshot {text}: {episode:?} is not a number of episodes"))?;
+            Ok((name.to_string(), episode))
+        })
+        .collect()
+}
+
 /// The scene file of the call (--scene, else `default`) with the call's overrides applied and validated.
 fn load_scene(cli: &Cli, default: &Path, overrides: &Overrides) -> crate::error::Result<(Scene, PathBuf)> {
     let path = cli.scene.clone().unwrap_or_else(|| default.to_path_buf());
@@ -419,14 +444,18 @@ fn run(cli: Cli, call: Call) -> crate::error::Result<()> {
                 return Err("--untrained: deploys the networks the run was initialised with, from the run's seed; --seed would initialise others".into());
             }
             let opts = crate::run::evaluate::EvalOptions {
-                run,
+                run: run.clone(),
                 out: cli.eval_out.clone(),
                 control: crate::learning::control::ObservationControl::parse(&cli.control)
                     .map_err(|e| format!("--control: {e}"))?,
                 episodes: cli.episodes.unwrap_or(1),
                 overrides: Overrides { confusion_radius: cli.confusion_radius, ..overrides(&cli, true)? },
                 untrained: cli.untrained,
+                snapshots: snapshots(&cli, Some(&run), "--eval")?,
             };
+            if cli.untrained && !opts.snapshots.is_empty() {
+                return Err("--untrained: deploys the networks the run was initialised with; --snapshot deploys others (the initial ones are --snapshot NAME=0)".into());
+            }
             println!("{}", crate::run::evaluate::evaluate(&opts)?);
             Ok(())
         }
@@ -558,12 +587,21 @@ fn deployed(cli: &Cli, standard: &Path) -> crate::error::Result<(crate::sim::Sim
     let (mut scene, _) = load_scene(cli, &default, &overrides(cli, false)?)?;
     let steps = cli.steps.unwrap_or(scene.episode_steps);
     scene.episode_steps = steps;
-    let sim = crate::learning::simulation(scene.clone(), Mode::Evaluate, cli.run.as_deref())?;
+    let wanted = snapshots(cli, cli.run.as_deref(), "--run")?;
+    let mut learners = crate::learning::Learners::new(&scene, Mode::Evaluate);
+    learners.load_actors(&scene, cli.run.as_deref())?;
+    if let Some(run) = &cli.run {
+        learners.load_snapshots(&scene, run, &wanted)?;
+    }
+    let sim = crate::learning::simulation_of(scene.clone(), learners, |_| {})?;
     let actors: Vec<String> = scene
         .species
         .iter()
         .filter_map(|def| match (&def.policy, &cli.run) {
-            (Policy::Learned, Some(run)) => Some(format!("{}: trained actor of {}", def.name, run.display())),
+            (Policy::Learned, Some(run)) => Some(match wanted.iter().find(|(s, _)| s == &def.name) {
+                Some((_, e)) => format!("{}: snapshot after {e} episodes of {}", def.name, run.display()),
+                None => format!("{}: trained actor of {}", def.name, run.display()),
+            }),
             (Policy::Learned, None) => Some(format!(
                 "{}: freshly initialized actor of seed {} (untrained: no --run given)",
                 def.name, scene.seed
@@ -612,8 +650,9 @@ fn viewer(cli: &Cli) -> crate::error::Result<()> {
         let existing = if cli.overwrite { Existing::Replace } else { Existing::Refuse };
         crate::io::check_target(path, existing).map_err(|e| format!("--screenshot {}: {e}", path.display()))?;
     }
+    let snapshots = snapshots(cli, cli.watch.as_deref(), "--watch")?;
     crate::viewer::run(ViewerOptions {
-        setup: Setup { scene, source, mode },
+        setup: Setup { scene, source, mode, snapshots },
         window,
         steps_per_frame: cli.steps_per_frame.unwrap_or(1),
         paused: cli.paused,

@@ -121,3 +121,40 @@ fn predators_that_never_move_catch_only_what_the_prey_bring_them() {
     let predator_progress = readouts(&m).into_iter().find(|r| r.name == "predator_progress_vs_fixed_prey").unwrap();
     assert_eq!(predator_progress.value, None, "no predator generation differs from another");
 }
+
+#[test]
+fn an_evaluation_deploys_the_snapshots_it_is_asked_for() {
+    let dir = tempfile::tempdir().unwrap();
+    let (_, run) = trained(dir.path());
+    let eval = |extra: &[&str], out: &str| {
+        let mut args = vec!["--eval", run.to_str().unwrap(), "--episodes", "1", "--steps", "20", "--eval-out", out];
+        args.extend_from_slice(extra);
+        std::process::Command::new(env!("CARGO_BIN_EXE_coevo")).args(&args).output().unwrap()
+    };
+    let read = |out: &str| std::fs::read_to_string(run.join(out)).unwrap();
+    // The last snapshot is the trained actor: the same evaluation, to the last digit.
+    let out = eval(&[], "trained.csv");
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let out = eval(&["--snapshot", "prey=5", "--snapshot", "predator=5"], "last.csv");
+    assert!(
+        String::from_utf8_lossy(&out.stdout).contains("snapshots: prey after 5 episodes, predator after 5 episodes")
+    );
+    assert_eq!(read("trained.csv"), read("last.csv"));
+    // An earlier snapshot is another actor.
+    assert!(eval(&["--snapshot", "prey=0"], "first.csv").status.success());
+    assert_ne!(read("trained.csv"), read("first.csv"));
+    for (args, says) in [
+        (vec!["--snapshot", "prey=3"], "no snapshot of prey after 3 episodes"),
+        (vec!["--snapshot", "hawk=2"], "--snapshot hawk=2: no learning species named \"hawk\""),
+        (vec!["--snapshot", "prey"], "--snapshot prey: expected NAME=EPISODE"),
+        (vec!["--snapshot", "prey=2", "--untrained"], "--untrained: deploys the networks"),
+    ] {
+        let out = eval(&args, "bad.csv");
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            !out.status.success() && stderr.trim().lines().count() == 1 && stderr.contains(says),
+            "{says}: {stderr}"
+        );
+        assert!(!run.join("bad.csv").exists());
+    }
+}

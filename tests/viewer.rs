@@ -182,8 +182,9 @@ fn watching_a_run_loads_its_actors_and_refuses_a_scene_they_do_not_fit() {
     let dir = tempfile::tempdir().unwrap();
     let run = tiny_run(dir.path());
     let scene = Scene::load(&run.join("scene.ron")).unwrap();
-    let watch =
-        |scene: Scene| Setup { scene, source: run.join("scene.ron"), mode: RunMode::Watch(run.clone()) }.prepare();
+    let watch = |scene: Scene| {
+        Setup { scene, source: run.join("scene.ron"), mode: RunMode::Watch(run.clone()), snapshots: vec![] }.prepare()
+    };
 
     let (_, learners) = watch(scene.clone()).expect("the run's own scene fits its checkpoint");
     assert_eq!(learners.mode, Mode::Evaluate);
@@ -232,7 +233,9 @@ fn watching_a_run_in_the_window_deploys_it_on_fifty_prey_without_predators() {
 fn rule_based_mode_replaces_learned_species_by_chase_and_flee() {
     let scene = Scene::load(Path::new("scenes/paper.ron")).unwrap();
     let (scene, learners) =
-        Setup { scene, source: "scenes/paper.ron".into(), mode: RunMode::RuleBased }.prepare().unwrap();
+        Setup { scene, source: "scenes/paper.ron".into(), mode: RunMode::RuleBased, snapshots: vec![] }
+            .prepare()
+            .unwrap();
     use coevo::scene::Policy;
     assert_eq!(scene.species[0].policy, Policy::ChaseNearest);
     assert_eq!(scene.species[1].policy, Policy::FleeNearest);
@@ -245,8 +248,9 @@ fn the_shipped_trained_run_is_first_in_the_run_list_and_loads() {
     assert_eq!(runs.first().map(PathBuf::as_path), Some(Path::new(coevo::viewer::SHIPPED_RUN)));
     let run = PathBuf::from(coevo::viewer::SHIPPED_RUN);
     let scene = Scene::load(&run.join("scene.ron")).unwrap();
-    let (_, learners) = Setup { scene, source: run.join("scene.ron"), mode: RunMode::Watch(run.clone()) }
-        .prepare()
-        .expect("the shipped actors fit their scene");
+    let (_, learners) =
+        Setup { scene, source: run.join("scene.ron"), mode: RunMode::Watch(run.clone()), snapshots: vec![] }
+            .prepare()
+            .expect("the shipped actors fit their scene");
     assert!(learners.species.iter().flatten().all(|l| l.frozen));
 }

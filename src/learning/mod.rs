@@ -185,6 +185,37 @@ impl Learners {
     }
 }
 
+impl Learners {
+    /// Replaces the actors of the named learning species by their snapshots of `run` after the given
+    /// episodes (`--snapshot prey=300`; cross-play deploys the same files). Fails, changing nothing, on a
+    /// species that is not learned in the scene or an episode the run kept no snapshot of.
+    pub fn load_snapshots(
+        &mut self,
+        scene: &Scene,
+        run: &Path,
+        wanted: &[(String, usize)],
+    ) -> crate::error::Result<()> {
+        let mut loaded = Vec::new();
+        for (name, episode) in wanted {
+            let s =
+                scene.species.iter().position(|d| &d.name == name && d.policy == Policy::Learned).ok_or_else(|| {
+                    let learned: Vec<&str> =
+                        scene.species.iter().filter(|d| d.policy == Policy::Learned).map(|d| d.name.as_str()).collect();
+                    format!(
+                        "--snapshot {name}={episode}: no learning species named {name:?} (learned: {})",
+                        learned.join(", ")
+                    )
+                })?;
+            let like = &self.species[s].as_ref().expect("learned species have learners").ddpg.actor;
+            loaded.push((s, checkpoint::load_snapshot(run, name, *episode, like)?));
+        }
+        for (s, actor) in loaded {
+            self.species[s].as_mut().expect("checked above").ddpg.actor = actor;
+        }
+        Ok(())
+    }
+}
+
 impl Plugin for LearningPlugin {
     fn build(&self, app: &mut App) {
         // Learners inserted beforehand (with trained actors loaded, see [`simulation`]) are

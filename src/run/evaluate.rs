@@ -40,6 +40,8 @@ pub struct EvalOptions {
     /// Deploy the actors as initialised before training (from the run's scene and seed), not the trained
     /// checkpoint: the baseline of what training changed.
     pub untrained: bool,
+    /// Deploy these species' snapshots (`NAME`, episodes trained) instead of the trained checkpoint.
+    pub snapshots: Vec<(String, usize)>,
 }
 
 /// What the evaluation accumulates over its steps, of the headline species.
@@ -194,7 +196,10 @@ pub fn evaluate(opts: &EvalOptions) -> crate::error::Result<String> {
     let mut scene = Scene::load(&scene_path)?;
     opts.overrides.apply(&mut scene, &scene_path)?;
     let trained = (!opts.untrained).then_some(opts.run.as_path());
-    let mut sim = crate::learning::simulation(scene.clone(), Mode::Evaluate, trained)?;
+    let mut learners = crate::learning::Learners::new(&scene, Mode::Evaluate);
+    learners.load_actors(&scene, trained)?;
+    learners.load_snapshots(&scene, &opts.run, &opts.snapshots)?;
+    let mut sim = crate::learning::simulation_of(scene.clone(), learners, |_| {})?;
     let control = {
         let registry = sim.world().resource::<SpeciesRegistry>();
         opts.control.resolve(registry).map_err(|e| format!("--control: {e}"))?
@@ -237,7 +242,11 @@ pub fn evaluate(opts: &EvalOptions) -> crate::error::Result<String> {
     Ok(format!(
         "eval {}{}{}: {} episodes × {} steps, {}: {}; per step in {}",
         opts.run.display(),
-        if opts.untrained { " (untrained actors, as initialised from the run's seed)" } else { "" },
+        if opts.untrained {
+            " (untrained actors, as initialised from the run's seed)".to_string()
+        } else {
+            snapshots_shown(&opts.snapshots)
+        },
         match opts.control.is_seeing() {
             true => String::new(),
             false => format!(" (control {}: {})", opts.control.texts().join(" + "), opts.control.describe()),
@@ -248,4 +257,15 @@ pub fn evaluate(opts: &EvalOptions) -> crate::error::Result<String> {
         acc.summary(name, correlation_length),
         path.display()
     ))
+}
+
+/// The snapshots an evaluation deploys, as its summary line names them.
+pub fn snapshots_shown(snapshots: &[(String, usize)]) -> String {
+    match snapshots.is_empty() {
+        true => String::new(),
+        false => {
+            let each: Vec<String> = snapshots.iter().map(|(s, e)| format!("{s} after {e} episodes")).collect();
+            format!(" (snapshots: {})", each.join(", "))
+        }
+    }
 }

@@ -69,6 +69,8 @@ pub struct Setup {
     pub scene: Scene,
     pub source: PathBuf,
     pub mode: RunMode,
+    /// In watch mode, these species' snapshots (`NAME`, episodes) instead of their trained actors.
+    pub snapshots: Vec<(String, usize)>,
 }
 
 impl Setup {
@@ -101,6 +103,9 @@ impl Setup {
         };
         let mut learners = Learners::new(&scene, mode);
         learners.load_actors(&scene, run).map_err(|e| format!("checkpoint refused: {e}"))?;
+        if let Some(run) = run {
+            learners.load_snapshots(&scene, run, &self.snapshots).map_err(|e| format!("snapshot refused: {e}"))?;
+        }
         Ok((scene, learners))
     }
 }

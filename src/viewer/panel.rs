@@ -105,7 +105,12 @@ fn controls(
 }
 
 fn status(ui: &mut egui::Ui, c: &Control, playback: &Playback, w: &Status) {
-    ui.label(format!("{}  ·  {}", c.current.source.display(), c.current.mode.label()));
+    ui.label(format!(
+        "{}  ·  {}{}",
+        c.current.source.display(),
+        c.current.mode.label(),
+        crate::run::evaluate::snapshots_shown(&c.current.snapshots)
+    ));
     ui.label(format!(
         "episode {}  ·  step {} / {}  ·  {} agents",
         w.episode.index,
@@ -130,8 +135,40 @@ fn status(ui: &mut egui::Ui, c: &Control, playback: &Playback, w: &Status) {
     }
 }
 
+/// Restarts in `mode`; the snapshots chosen stay while the same run is watched.
 fn restart_as(c: &mut Control, scene: Scene, source: PathBuf, mode: RunMode) {
-    c.restart = Some(Setup { scene, source, mode });
+    let snapshots = if mode == c.current.mode { c.current.snapshots.clone() } else { vec![] };
+    c.restart = Some(Setup { scene, source, mode, snapshots });
+}
+
+/// While watching a run: which actor each learning species deploys, its trained one or one of its
+/// snapshots (issue 26: the arms race seen, not only plotted in cross-play).
+fn snapshot_picker(ui: &mut egui::Ui, c: &mut Control) {
+    let RunMode::Watch(run) = c.current.mode.clone() else { return };
+    for def in c.current.scene.species.iter().filter(|d| d.policy == crate::scene::Policy::Learned) {
+        let kept = crate::learning::checkpoint::snapshot_episodes(&run, &def.name);
+        if kept.is_empty() {
+            continue;
+        }
+        let chosen = c.current.snapshots.iter().find(|(s, _)| s == &def.name).map(|(_, e)| *e);
+        let shown =
+            |e: Option<usize>| e.map_or("trained (last checkpoint)".to_string(), |e| format!("after {e} episodes"));
+        let mut pick = None;
+        egui::ComboBox::from_label(format!("{} actor", def.name)).selected_text(shown(chosen)).show_ui(ui, |ui| {
+            for e in std::iter::once(None).chain(kept.iter().copied().map(Some)) {
+                if ui.selectable_label(e == chosen, shown(e)).clicked() && e != chosen {
+                    pick = Some(e);
+                }
+            }
+        });
+        if let Some(e) = pick {
+            let mut snapshots: Vec<(String, usize)> =
+                c.current.snapshots.iter().filter(|(s, _)| s != &def.name).cloned().collect();
+            snapshots.extend(e.map(|e| (def.name.clone(), e)));
+            c.restart = Some(Setup { snapshots, ..c.current.clone() });
+            return;
+        }
+    }
 }
 
 fn mode_and_files(ui: &mut egui::Ui, c: &mut Control, draft: &mut Scene) {
@@ -171,6 +208,7 @@ fn mode_and_files(ui: &mut egui::Ui, c: &mut Control, draft: &mut Scene) {
                 }
             }
         });
+    snapshot_picker(ui, c);
     ui.horizontal(|ui| {
         egui::ComboBox::from_label("scene").selected_text(file_name(&c.current.source)).show_ui(ui, |ui| {
             for path in scene_files() {
