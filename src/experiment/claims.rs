@@ -251,6 +251,7 @@ pub fn verdict(claim: &Claim, e: Option<Estimate>, p_holm: Option<f64>, baseline
                 format!("reproduced: detected in the paper's direction ({p_text})")
             }
             Some(_) if detected => format!("not reproduced: the effect goes the other way ({p_text})"),
+            Some(_) if claim.direction_only => format!("inconclusive: no effect detected; {}", power()),
             Some(paper) if !inside(paper) => format!("not reproduced: the 95 % CI excludes the paper's {paper:+.3}"),
             Some(paper) => {
                 let need = e.seeds_for(paper).map_or(String::new(), |n| {
@@ -355,7 +356,16 @@ mod tests {
     }
 
     fn claim(quantity: Quantity, paper: Option<f64>, margin: Option<f64>) -> Claim {
-        Claim { text: "t".into(), variant: "v".into(), quantity, paper, versus: None, margin, baseline: None }
+        Claim {
+            text: "t".into(),
+            variant: "v".into(),
+            quantity,
+            paper,
+            versus: None,
+            margin,
+            baseline: None,
+            direction_only: false,
+        }
     }
 
     /// The verdict on one effect claim of its own family (so Holm's adjustment is the p-value itself).
@@ -393,6 +403,15 @@ mod tests {
         let free = claim(Quantity::InteractionDoa("x".into()), None, None);
         assert!(judged(&free, &clear).starts_with("effect detected: +0.176"));
         assert!(judged(&free, &wide).starts_with("no effect detected (inconclusive)"));
+        // A direction only (the paper's "faster"): the sign decides; a size is never excluded.
+        let faster = Claim {
+            direction_only: true,
+            versus: Some("w".into()),
+            ..claim(Quantity::Reach90("doa".into()), Some(-1.0), None)
+        };
+        assert!(judged(&faster, &opposite).starts_with("reproduced: detected in the paper's direction"));
+        assert!(judged(&faster, &clear).starts_with("not reproduced: the effect goes the other way"));
+        assert!(judged(&faster, &null).starts_with("inconclusive: no effect detected"), "{}", judged(&faster, &null));
         // A detected effect that does not survive Holm's adjustment is not detected.
         let e = crate::experiment::stats::estimate(&clear);
         assert!(verdict(&free, e, Some(0.2), None).starts_with("no effect detected"));

@@ -161,6 +161,10 @@ pub struct Claim {
     /// 2/π and DoS at random positions are filled in when not given).
     #[serde(default)]
     pub baseline: Option<f64>,
+    /// The paper states only the direction of this effect (e.g. "faster convergence"): `paper` then gives
+    /// its sign (+1 or −1), never a size the interval could exclude.
+    #[serde(default)]
+    pub direction_only: bool,
 }
 
 /// A number the aggregate computes per run (prey, or the experiment's headline species).
