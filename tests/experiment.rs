@@ -430,6 +430,8 @@ fn a_shared_variant_is_the_other_experiments_runs_trained_once_and_never_compare
             "compares runs with themselves",
         ),
         (SHARE.replace("tiny/1:1", "tiny/2:2"), "tiny has no variant \"2:2\""),
+        // share.ron's own shared variant, shared again: refused; its other variants may be shared.
+        (SHARE.replace("tiny/1:1", "share/shared"), "share/shared is itself shared from tiny/1:1"),
         (
             SHARE.replace(
                 "(name: \"50 prey\", counts: [(\"prey\", 50)], episodes: 2",

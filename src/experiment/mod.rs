@@ -285,7 +285,7 @@ pub fn slug(name: &str) -> String {
 }
 
 /// The experiment and variant a `shared_from` names (`"EXPERIMENT/VARIANT"`, the experiment a file beside
-/// `file`), loaded without its own shared variants; its evaluations of the same name must be the same
+/// `file`), loaded without its own shared variants (a variant it shares itself is refused); its evaluations of the same name must be the same
 /// evaluations, since both experiments write them into the same run folders.
 fn shared_owner(
     file: &Path,
@@ -301,8 +301,15 @@ fn shared_owner(
         return Err(format!("no experiment file {}", owner_file.display()));
     }
     let owner = Experiment::load_with(&owner_file, results, false).map_err(|e| e.to_string())?;
-    if !owner.spec.variants.iter().any(|v| v.name == variant) {
-        return Err(format!("{experiment} has no variant {variant:?}"));
+    match owner.spec.variants.iter().find(|v| v.name == variant) {
+        None => return Err(format!("{experiment} has no variant {variant:?}")),
+        Some(v) if v.shared_from.is_some() => {
+            return Err(format!(
+                "{experiment}/{variant} is itself shared from {}; share from the experiment that trains it",
+                v.shared_from.as_deref().unwrap_or_default()
+            ))
+        }
+        Some(_) => {}
     }
     for e in ours {
         if let Some(theirs) = owner.spec.evaluations.iter().find(|t| slug(&t.name) == slug(&e.name)) {
@@ -523,13 +530,9 @@ impl Experiment {
                         shared_owner(file, results, from, &spec.evaluations)
                             .map_err(|m| err(&format!("variants[{}].shared_from", v.name), m))?,
                     ),
-                    (Some(from), false) => {
-                        return Err(format!(
-                        "{shown}: variants[{}] is itself shared from {from}; share from the experiment that trains it",
-                        v.name
-                    )
-                        .into())
-                    }
+                    // Loaded as another experiment's owner: its own shared variants are not its runs
+                    // (`shared_owner` refuses sharing one of them).
+                    (Some(_), false) => continue,
                     (None, _) => None,
                 };
                 for &seed in &spec.seeds {
