@@ -75,19 +75,26 @@ impl Ddpg {
         self.actor.input_width()
     }
 
-    /// μ(o) for a batch of `n` observations in one forward pass: `[n × 2]` actions in [−1, 1].
+    /// μ(o) for a batch of `n` observations in one forward pass on dfdx: `[n × 2]` actions in [−1, 1]. The
+    /// reference [`Ddpg::act_into`] is tested against.
     pub fn act(&self, dev: &Dev, observations: &[f32], n: usize) -> Vec<f32> {
         self.actor.forward(matrix(dev, observations.to_vec(), n, self.obs_dim())).as_vec()
     }
 
     /// μ(o) into `actions` (`[n × 2]`): one forward pass per [`ACT_CHUNK`] rows, the chunks on all
     /// worker threads. The chunking depends only on n, so the result never depends on the thread count.
-    pub fn act_into(&self, dev: &Dev, observations: &[f32], actions: &mut [f32]) {
+    /// The forward pass is `fused.rs`'s (bias in the product's epilogue, activations in place, buffers
+    /// kept per thread): the same products and sums as dfdx's, so the same actions to the bit, without
+    /// dfdx's per-op allocations and broadcast kernels (which took half of a 10 000-agent step).
+    pub fn act_into(&self, _dev: &Dev, observations: &[f32], actions: &mut [f32]) {
         let d = self.obs_dim();
         crate::parallel::for_each_chunk(actions, ACT_CHUNK * ACTION_DIM, |i, out| {
             let rows = out.len() / ACTION_DIM;
             let obs = &observations[i * ACT_CHUNK * d..(i * ACT_CHUNK + rows) * d];
-            self.actor.forward(matrix(dev, obs.to_vec(), rows, d)).copy_into(out);
+            super::fused::with_pass(|pass| {
+                pass.forward(&self.actor, rows, obs, &[]);
+                out.copy_from_slice(pass.output());
+            });
         });
     }
 
@@ -183,6 +190,29 @@ mod tests {
     fn fixed_batch(n: usize, d: usize, rng: &mut ChaCha8Rng) -> Batch {
         let mut draw = |k: usize| (0..k).map(|_| rng.gen_range(-1.0f32..1.0)).collect::<Vec<f32>>();
         Batch { n, obs: draw(n * d), actions: draw(n * ACTION_DIM), rewards: draw(n), next_obs: draw(n * d) }
+    }
+
+    #[test]
+    fn batched_inference_gives_dfdx_s_actions_to_the_bit() {
+        let dev = Dev::default();
+        let mut rng = ChaCha8Rng::seed_from_u64(5);
+        let mut ddpg = Ddpg::new(&dev, 54, &Scene::preset("paper").unwrap().learning, &mut rng);
+        // A few updates, so the biases are not the initial ones.
+        let batch = fixed_batch(64, 54, &mut rng);
+        for _ in 0..5 {
+            ddpg.update(&batch);
+        }
+        // More rows than one chunk, and a short last chunk.
+        let n = 2 * ACT_CHUNK + 37;
+        let obs: Vec<f32> = (0..n * 54).map(|_| rng.gen_range(-2.0f32..2.0)).collect();
+        let mut fast = vec![0.0; n * ACTION_DIM];
+        ddpg.act_into(&dev, &obs, &mut fast);
+        // dfdx on the same chunks (gemm may sum a chunk's last rows in another kernel than a whole batch's).
+        let slow: Vec<f32> =
+            obs.chunks(ACT_CHUNK * 54).flat_map(|chunk| ddpg.act(&dev, chunk, chunk.len() / 54)).collect();
+        let worst = fast.iter().zip(&slow).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
+        let differ = fast.iter().zip(&slow).filter(|(a, b)| a != b).count();
+        assert_eq!(fast, slow, "{differ} of {} differ, by at most {worst}", fast.len());
     }
 
     #[test]

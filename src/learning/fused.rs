@@ -24,6 +24,16 @@ pub struct Pass {
     below: Vec<f32>,
 }
 
+thread_local! {
+    /// A forward pass per thread for batched inference ([`with_pass`]), its buffers reused step after step.
+    static INFERENCE: std::cell::RefCell<Pass> = std::cell::RefCell::new(Pass::default());
+}
+
+/// Runs `f` with this thread's inference pass.
+pub fn with_pass<R>(f: impl FnOnce(&mut Pass) -> R) -> R {
+    INFERENCE.with(|pass| f(&mut pass.borrow_mut()))
+}
+
 impl Pass {
     /// Sizes the buffers for `rows` rows of `net` (allocates only the first time or when shapes grow).
     fn shape_for(&mut self, net: &Mlp, rows: usize) {
