@@ -176,11 +176,16 @@ fn a_tiny_experiment_runs_resumes_and_gives_the_same_summary_at_one_or_two_jobs(
         change("5:3") - change("1:1")
     );
     assert!(md.contains(&expected), "{expected} not in {md}");
-    // Catches per episode, last − first 100 (here all 3 episodes in both windows: no change).
+    // Catches per episode, last − first 100: here all 3 episodes are in both windows, so no change is
+    // measured, and the verdict says why instead of reporting a zero.
     assert!(
         md.contains(
             "| paper | catches | catches per episode, change, last − first 100 of `5:3` | – | 0.000 ± 0.000 (2) |"
         ),
+        "{md}"
+    );
+    assert!(
+        md.contains("| not measured: runs shorter than 200 episodes, so the first and last 100 episodes overlap |"),
         "{md}"
     );
     // The variants compared: one row per variant (with its seed count) in each panel, the interaction
@@ -374,7 +379,7 @@ const SHARE: &str = r#"(
         (name: "again", patch: (episode_steps: 30, learning: (hidden: 16, batch_size: 32, warmup_transitions: 32, updates_per_episode: 3, checkpoint_every: 1))),
     ],
     evaluations: [(name: "50 prey", counts: [("prey", 50)], episodes: 2, steps: 20)],
-    claims: [(text: "again against shared", variant: "again", versus: "shared", quantity: DosChange)],
+    claims: [(text: "again against shared", variant: "again", versus: "shared", quantity: DosLast)],
 )"#;
 
 #[test]

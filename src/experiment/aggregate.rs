@@ -248,6 +248,12 @@ pub fn aggregate(
             // Two variants whose runs are identical (a deterministic re-run, e.g. a switch that never acts)
             // are one sample, not two: no comparison, no p-value.
             let identical = theirs.as_ref().is_some_and(|t| t.len() >= 2 && *t == ours);
+            // A change over training needs a first and a last window that do not overlap.
+            let overlap = super::claims::compares_windows(&claim.quantity)
+                && std::iter::once(&claim.variant)
+                    .chain(&claim.versus)
+                    .any(|v| table.episodes(preset, v).is_some_and(|n| n < 2 * WINDOW));
+            let identical = identical || overlap;
             let e = match &theirs {
                 Some(t) => difference(&ours, t),
                 None => estimate(&ours),
@@ -261,7 +267,11 @@ pub fn aggregate(
                 p: e.filter(|_| is_effect(claim) && !identical).and_then(|e| e.p_value()),
                 p_holm: None,
                 baseline: chance_level(exp, claim, scene),
-                verdict: if identical { IDENTICAL.into() } else { String::new() },
+                verdict: match (overlap, identical) {
+                    (true, _) => OVERLAP.into(),
+                    (false, true) => IDENTICAL.into(),
+                    _ => String::new(),
+                },
             });
         }
         if written {
@@ -274,7 +284,7 @@ pub fn aggregate(
     for (&i, p) in tested.iter().zip(adjusted) {
         results[i].p_holm = Some(p);
     }
-    for r in results.iter_mut().filter(|r| r.verdict != IDENTICAL) {
+    for r in results.iter_mut().filter(|r| r.verdict != IDENTICAL && r.verdict != OVERLAP) {
         r.verdict = verdict(&r.claim, r.estimate, r.p_holm, r.baseline);
     }
     let results = (results, table);
@@ -351,6 +361,17 @@ impl Summary {
         derive(exp, q, &|p| column(p).map_or(f64::NAN, |c| self.value(row, &c)))
     }
 
+    /// The fewest episodes any run of one preset and variant trained, None without a run.
+    pub fn episodes(&self, preset: &str, variant: &str) -> Option<usize> {
+        self.rows
+            .iter()
+            .filter(|r| r.preset == preset && r.variant == variant)
+            .map(|r| self.value(r, "episodes"))
+            .filter(|x| x.is_finite())
+            .map(|x| x as usize)
+            .min()
+    }
+
     /// The finite values of a quantity over the runs of one preset and variant (one per seed).
     pub fn values(&self, exp: &Experiment, preset: &str, variant: &str, q: &Quantity) -> Vec<f64> {
         self.rows
@@ -361,6 +382,9 @@ impl Summary {
             .collect()
     }
 }
+
+/// The verdict on a change over training of runs shorter than two windows.
+const OVERLAP: &str = "not measured: runs shorter than 200 episodes, so the first and last 100 episodes overlap";
 
 /// The verdict on a comparison of two variants whose runs are identical.
 const IDENTICAL: &str = "not a comparison: the two variants' runs are identical (one training, run twice)";

@@ -192,6 +192,11 @@ pub fn is_effect(claim: &Claim) -> bool {
         || matches!(&claim.quantity, Quantity::Crossplay(r) if super::crossplay::chance(r).is_none())
 }
 
+/// Whether a quantity compares the first and last 100 training episodes (meaningless when they overlap).
+pub fn compares_windows(q: &Quantity) -> bool {
+    matches!(q, Quantity::DosChange | Quantity::DoaChange | Quantity::CatchesChange | Quantity::Reach90(_))
+}
+
 /// The value a level has by chance alone, which a level must be told apart from: the claim's `baseline`,
 /// else for DoA 2/π (independent uniform headings) and for DoS the DoS of uniform random positions at the
 /// density of `scene` (or of the evaluation's counts). None for other levels and for effects.
