@@ -144,6 +144,7 @@ fn corrupt_missing_or_mismatched_checkpoints_are_refused_clearly() {
             episodes: 1,
             overrides: Overrides { counts, episode_steps: Some(5), ..Default::default() },
             untrained: false,
+            snapshots: vec![],
         })
     };
     let corrupt = eval(vec![]).unwrap_err().to_string();
@@ -176,6 +177,7 @@ fn evaluation_deploys_on_fifty_prey_and_without_predators() {
             ..Default::default()
         },
         untrained: false,
+        snapshots: vec![],
     })
     .unwrap();
     assert!(line.contains("0 predator + 50 prey"), "{line}");
@@ -216,6 +218,7 @@ fn evaluation_deploys_on_fifty_prey_and_without_predators() {
             ..Default::default()
         },
         untrained: false,
+        snapshots: vec![],
     })
     .unwrap();
     let confusion = std::fs::read_to_string(run.join("with-predators-confusion.csv")).unwrap();
@@ -235,6 +238,7 @@ fn evaluation_deploys_on_fifty_prey_and_without_predators() {
             episodes: 1,
             overrides: Overrides { counts, episode_steps: Some(1), ..Default::default() },
             untrained: false,
+            snapshots: vec![],
         })
         .unwrap()
     };

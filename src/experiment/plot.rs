@@ -196,7 +196,7 @@ fn draw_heatmap(map: &Heatmap, area: &Area) -> crate::error::Result<()> {
     let label = |ticks: &[usize], n: usize| {
         let ticks = ticks.to_vec();
         move |v: &SegmentValue<i32>| match v {
-            SegmentValue::CenterOf(k) if (*k as usize) < n && *k as usize % every(n) == 0 => {
+            SegmentValue::CenterOf(k) if (*k as usize) < n && (*k as usize).is_multiple_of(every(n)) => {
                 ticks[*k as usize].to_string()
             }
             _ => String::new(),

@@ -134,6 +134,26 @@ pub fn holm(p: &[f64]) -> Vec<f64> {
     adjusted
 }
 
+/// Kendall's rank correlation τ_b of paired values (ties counted as in τ_b): +1 when `y` rises with `x`
+/// in every pair, −1 when it always falls. None with fewer than two pairs, a non-finite value, or no
+/// untied pair in `x` or in `y`.
+pub fn kendall_tau(x: &[f64], y: &[f64]) -> Option<f64> {
+    let n = x.len().min(y.len());
+    if n < 2 || x[..n].iter().chain(&y[..n]).any(|v| !v.is_finite()) {
+        return None;
+    }
+    let (mut score, mut untied_x, mut untied_y) = (0.0, 0.0, 0.0);
+    for i in 0..n {
+        for j in i + 1..n {
+            let (dx, dy) = (x[j] - x[i], y[j] - y[i]);
+            score += (dx.signum() * dy.signum()) * f64::from(u8::from(dx != 0.0 && dy != 0.0));
+            untied_x += f64::from(u8::from(dx != 0.0));
+            untied_y += f64::from(u8::from(dy != 0.0));
+        }
+    }
+    (untied_x > 0.0 && untied_y > 0.0).then(|| score / (untied_x * untied_y).sqrt())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -236,24 +256,4 @@ mod tests {
         let (lo, hi) = sd1(10).tost_interval().unwrap();
         assert!((hi - lo - 2.0 * 1.833 / 10f64.sqrt()).abs() < 1e-3);
     }
-}
-
-/// Kendall's rank correlation τ_b of paired values (ties counted as in τ_b): +1 when `y` rises with `x`
-/// in every pair, −1 when it always falls. None with fewer than two pairs, a non-finite value, or no
-/// untied pair in `x` or in `y`.
-pub fn kendall_tau(x: &[f64], y: &[f64]) -> Option<f64> {
-    let n = x.len().min(y.len());
-    if n < 2 || x[..n].iter().chain(&y[..n]).any(|v| !v.is_finite()) {
-        return None;
-    }
-    let (mut score, mut untied_x, mut untied_y) = (0.0, 0.0, 0.0);
-    for i in 0..n {
-        for j in i + 1..n {
-            let (dx, dy) = (x[j] - x[i], y[j] - y[i]);
-            score += (dx.signum() * dy.signum()) * f64::from(u8::from(dx != 0.0 && dy != 0.0));
-            untied_x += f64::from(u8::from(dx != 0.0));
-            untied_y += f64::from(u8::from(dy != 0.0));
-        }
-    }
-    (untied_x > 0.0 && untied_y > 0.0).then(|| score / (untied_x * untied_y).sqrt())
 }
