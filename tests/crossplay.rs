@@ -88,6 +88,11 @@ fn a_run_against_itself_with_identical_snapshots_gives_identical_cells() {
     }
     let m = play(&run);
     assert_eq!((m.prey_episodes.clone(), m.predator_episodes.clone()), (vec![0, 2, 4, 5], vec![0, 2, 4, 5]));
+    // crossplay.csv reads back as the matrix, to the last digit; the mean of two equal matrices is it.
+    let read = coevo::experiment::crossplay::read_matrix(&run, &m.pair).unwrap().unwrap();
+    assert_eq!((&read.prey_episodes, &read.cells), (&m.prey_episodes, &m.cells));
+    let mean = coevo::experiment::crossplay::mean_matrix(&[read.clone(), read]).unwrap();
+    assert_eq!(mean.cells, m.cells);
     let first = m.cells[0][0];
     assert!(first.catches > 0.0 && first.doa > 0.0, "{first:?}");
     assert!(m.cells.iter().flatten().all(|c| *c == first), "{:?}", m.cells);

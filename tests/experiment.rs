@@ -528,6 +528,7 @@ fn an_experiment_cross_plays_its_runs_and_judges_the_read_outs() {
     let written = readouts.lines().find(|l| l.contains(",doa_late_prey_part,")).unwrap().split(',').nth(3).unwrap();
     let row = summary.lines().find(|l| l.starts_with("paper,5:3,2,")).unwrap();
     assert_eq!(row.split(',').nth(at).unwrap(), written, "the summary holds the run's read-out");
+    assert!(dir.path().join("results/tiny/figures/paper-5-3-crossplay.png").exists(), "the mean matrix over seeds");
     let md = std::fs::read_to_string(dir.path().join("REPRODUCTION.md")).unwrap();
     assert!(md.contains("cross-play read-out doa_late_prey_part"), "{md}");
     // The share is a level against 0.5, not an effect against zero.

@@ -276,6 +276,9 @@ pub fn aggregate(
         }
         if written {
             figures(exp, preset, &prey, &of_variant)?;
+            if exp.spec.crossplay.is_some() {
+                crossplay_figures(exp, preset, data)?;
+            }
         }
     }
     // One family per experiment: every effect's p-value, all presets, adjusted together (Holm).
@@ -413,6 +416,26 @@ fn band(series: &[Vec<f64>], label: &str, x0: f64) -> Option<Curve> {
     let seeds = series.len();
     let label = format!("{label} ({seeds} seed{})", if seeds == 1 { "" } else { "s" });
     Some(Curve { label, x: (0..len).map(|t| x0 + t as f64).collect(), mean: m, band: (seeds > 1).then_some((lo, hi)) })
+}
+
+/// Per variant, the cross-play matrix averaged over its seeds, as heat maps
+/// (`figures/<preset>-<variant>-crossplay.png`).
+fn crossplay_figures(exp: &Experiment, preset: &str, data: &BTreeMap<usize, RunData>) -> crate::error::Result<()> {
+    for v in &exp.spec.variants {
+        let runs: Vec<&super::Run> =
+            data.keys().map(|&i| &exp.runs[i]).filter(|r| r.preset == preset && r.variant == v.name).collect();
+        let Some(pair) = runs.first().and_then(|r| super::crossplay::only_pair(&r.scene)) else { continue };
+        let mut matrices = vec![];
+        for r in &runs {
+            matrices.extend(super::crossplay::read_matrix(&r.dir, &pair)?);
+        }
+        if let Some(mean) = super::crossplay::mean_matrix(&matrices) {
+            let what = format!("{} {preset}, mean of {} seeds: ", v.name, matrices.len());
+            let stem = exp.root.join("figures").join(format!("{preset}-{}-crossplay", slug(&v.name)));
+            plot::save_heatmaps(&stem, &super::crossplay::heatmaps(&mean, &what))?;
+        }
+    }
+    Ok(())
 }
 
 fn figures<'a>(

@@ -417,6 +417,69 @@ pub fn readouts_csv(matrices: &[Matrix]) -> String {
     out
 }
 
+/// A run's cross-play matrix as written in `crossplay.csv` (the scene's only pair), None without one.
+pub fn read_matrix(run: &std::path::Path, pair: &Pair) -> crate::error::Result<Option<Matrix>> {
+    let path = RunDir::new(run).crossplay("crossplay");
+    let Ok(text) = crate::io::read_text(&path, crate::io::MAX_TEXT_BYTES) else { return Ok(None) };
+    let bad = |e: csv::Error| format!("{}: {e}", path.display());
+    let mut reader = csv::Reader::from_reader(text.as_bytes());
+    let mut rows: Vec<(usize, usize, Cell)> = vec![];
+    for record in reader.records() {
+        let record = record.map_err(bad)?;
+        let number = |i: usize| record.get(i).and_then(|c| c.parse::<f64>().ok()).unwrap_or(f64::NAN);
+        let (i, j) = (number(0) as usize, number(1) as usize);
+        let cell = Cell {
+            catches: number(2),
+            dos: number(3),
+            doa: number(4),
+            nn_correlation: number(5),
+            polarization: number(6),
+        };
+        rows.push((i, j, cell));
+    }
+    let mut prey_episodes: Vec<usize> = rows.iter().map(|r| r.0).collect();
+    let mut predator_episodes: Vec<usize> = rows.iter().map(|r| r.1).collect();
+    for v in [&mut prey_episodes, &mut predator_episodes] {
+        v.sort_unstable();
+        v.dedup();
+    }
+    let mut cells =
+        vec![vec![Cell { catches: f64::NAN, ..Cell::default() }; predator_episodes.len()]; prey_episodes.len()];
+    for (i, j, cell) in rows {
+        let (a, b) = (prey_episodes.binary_search(&i), predator_episodes.binary_search(&j));
+        if let (Ok(a), Ok(b)) = (a, b) {
+            cells[a][b] = cell;
+        }
+    }
+    Ok(Some(Matrix { pair: pair.clone(), prey_episodes, predator_episodes, cells }))
+}
+
+/// The cell-by-cell mean of matrices over the same snapshots (seeds of one variant), None when there are
+/// none or their snapshots differ.
+pub fn mean_matrix(matrices: &[Matrix]) -> Option<Matrix> {
+    let first = matrices.first()?;
+    let same = |m: &Matrix| m.prey_episodes == first.prey_episodes && m.predator_episodes == first.predator_episodes;
+    if !matrices.iter().all(same) {
+        return None;
+    }
+    let mut mean = first.clone();
+    for (i, row) in mean.cells.iter_mut().enumerate() {
+        for (j, cell) in row.iter_mut().enumerate() {
+            let values: Vec<[f64; 5]> = matrices.iter().map(|m| m.cells[i][j].values()).collect();
+            let [catches, dos, doa, nn_correlation, polarization] =
+                std::array::from_fn(|k| values.iter().map(|v| v[k]).sum::<f64>() / values.len() as f64);
+            *cell = Cell { catches, dos, doa, nn_correlation, polarization };
+        }
+    }
+    Some(mean)
+}
+
+/// The pair a scene's cross-play is of, when it has exactly one.
+pub fn only_pair(scene: &Scene) -> Option<Pair> {
+    let found = pairs(&SpeciesRegistry::from_scene(scene));
+    (found.len() == 1).then(|| found[0].clone())
+}
+
 /// File stem of a pair's outputs: `crossplay` when it is the scene's only pair.
 fn stem(m: &Matrix, only: bool) -> String {
     match only {
@@ -426,7 +489,7 @@ fn stem(m: &Matrix, only: bool) -> String {
 }
 
 /// The heat maps of a matrix (catches and the prey's DoA over prey × predator snapshots).
-pub fn heatmaps(m: &Matrix) -> Vec<plot::Heatmap> {
+pub fn heatmaps(m: &Matrix, what: &str) -> Vec<plot::Heatmap> {
     let grid = |f: fn(&Cell) -> f64| m.cells.iter().map(|r| r.iter().map(f).collect()).collect();
     let map = |title: String, values: Vec<Vec<f64>>| plot::Heatmap {
         title,
@@ -437,8 +500,8 @@ pub fn heatmaps(m: &Matrix) -> Vec<plot::Heatmap> {
         values,
     };
     vec![
-        map(format!("catches of {} per episode", m.pair.prey_name), grid(|c| c.catches)),
-        map(format!("DoA of {}", m.pair.prey_name), grid(|c| c.doa)),
+        map(format!("{what}catches of {} per episode", m.pair.prey_name), grid(|c| c.catches)),
+        map(format!("{what}DoA of {}", m.pair.prey_name), grid(|c| c.doa)),
     ]
 }
 
@@ -454,7 +517,7 @@ fn write(run: &std::path::Path, matrices: &[Matrix]) -> crate::error::Result<Vec
         let csv = dir.crossplay(&stem(m, only));
         crate::io::write_file(&csv, Existing::Replace, cells_csv(m).as_bytes())?;
         let figure = figures.join(stem(m, only));
-        plot::save_heatmaps(&figure, &heatmaps(m))?;
+        plot::save_heatmaps(&figure, &heatmaps(m, ""))?;
         written.push(csv.display().to_string());
         written.push(figure.with_extension("png").display().to_string());
     }
