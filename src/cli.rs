@@ -86,6 +86,14 @@ struct Cli {
     /// predators; the predators untouched). Block forms repeat: --control blind:prey:prey --control ...
     #[arg(long, help_heading = "Training and evaluation", value_name = "CONTROL")]
     control: Vec<String>,
+    /// --eval: also run a twin world in which one prey is turned by this many radians, and write how the
+    /// other prey's headings respond, by topological rank and lag, to NAME-perturbation.csv (information
+    /// transfer; not in the paper).
+    #[arg(long, help_heading = "Training and evaluation", value_name = "RADIANS")]
+    perturb: Option<f64>,
+    /// --eval --perturb: the step of each episode after which the prey is turned [default: half the episode].
+    #[arg(long, help_heading = "Training and evaluation", value_name = "N")]
+    perturb_step: Option<usize>,
     /// --eval: the file name of the per-step CSV inside the run folder [default: eval.csv].
     #[arg(long, help_heading = "Training and evaluation", value_name = "NAME.csv")]
     eval_out: Option<String>,
@@ -196,6 +204,8 @@ const TAKES: [(&str, &[&str]); 11] = [
             "confusion_radius",
             "untrained",
             "snapshot",
+            "perturb",
+            "perturb_step",
         ],
     ),
     ("crossplay", &["episodes", "steps", "seed", "prey", "predators", "count", "quiet"]),
@@ -452,6 +462,17 @@ fn run(cli: Cli, call: Call) -> crate::error::Result<()> {
                 overrides: Overrides { confusion_radius: cli.confusion_radius, ..overrides(&cli, true)? },
                 untrained: cli.untrained,
                 snapshots: snapshots(&cli, Some(&run), "--eval")?,
+                perturb: match (cli.perturb, cli.perturb_step) {
+                    (None, Some(_)) => return Err("--perturb-step: needs --perturb RADIANS".into()),
+                    (None, None) => None,
+                    (Some(angle), step) => {
+                        let steps = match cli.steps {
+                            Some(n) => n,
+                            None => Scene::load(&crate::run::RunDir::new(&run).scene())?.episode_steps,
+                        };
+                        Some(crate::run::perturb::Perturbation { angle, step: step.unwrap_or(steps / 2) })
+                    }
+                },
             };
             if cli.untrained && !opts.snapshots.is_empty() {
                 return Err("--untrained: deploys the networks the run was initialised with; --snapshot deploys others (the initial ones are --snapshot NAME=0)".into());

@@ -145,6 +145,7 @@ fn corrupt_missing_or_mismatched_checkpoints_are_refused_clearly() {
             overrides: Overrides { counts, episode_steps: Some(5), ..Default::default() },
             untrained: false,
             snapshots: vec![],
+            perturb: None,
         })
     };
     let corrupt = eval(vec![]).unwrap_err().to_string();
@@ -178,6 +179,7 @@ fn evaluation_deploys_on_fifty_prey_and_without_predators() {
         },
         untrained: false,
         snapshots: vec![],
+        perturb: None,
     })
     .unwrap();
     assert!(line.contains("0 predator + 50 prey"), "{line}");
@@ -219,6 +221,7 @@ fn evaluation_deploys_on_fifty_prey_and_without_predators() {
         },
         untrained: false,
         snapshots: vec![],
+        perturb: None,
     })
     .unwrap();
     let confusion = std::fs::read_to_string(run.join("with-predators-confusion.csv")).unwrap();
@@ -239,6 +242,7 @@ fn evaluation_deploys_on_fifty_prey_and_without_predators() {
             overrides: Overrides { counts, episode_steps: Some(1), ..Default::default() },
             untrained: false,
             snapshots: vec![],
+            perturb: None,
         })
         .unwrap()
     };

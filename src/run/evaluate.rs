@@ -42,6 +42,9 @@ pub struct EvalOptions {
     pub untrained: bool,
     /// Deploy these species' snapshots (`NAME`, episodes trained) instead of the trained checkpoint.
     pub snapshots: Vec<(String, usize)>,
+    /// Also run a twin world in which one prey is turned, and write the others' response
+    /// ([`super::perturb`]).
+    pub perturb: Option<super::perturb::Perturbation>,
 }
 
 /// What the evaluation accumulates over its steps, of the headline species.
@@ -196,10 +199,28 @@ pub fn evaluate(opts: &EvalOptions) -> crate::error::Result<String> {
     let mut scene = Scene::load(&scene_path)?;
     opts.overrides.apply(&mut scene, &scene_path)?;
     let trained = (!opts.untrained).then_some(opts.run.as_path());
-    let mut learners = crate::learning::Learners::new(&scene, Mode::Evaluate);
-    learners.load_actors(&scene, trained)?;
-    learners.load_snapshots(&scene, &opts.run, &opts.snapshots)?;
-    let mut sim = crate::learning::simulation_of(scene.clone(), learners, |_| {})?;
+    let build = || -> crate::error::Result<Simulation> {
+        let mut learners = crate::learning::Learners::new(&scene, Mode::Evaluate);
+        learners.load_actors(&scene, trained)?;
+        learners.load_snapshots(&scene, &opts.run, &opts.snapshots)?;
+        crate::learning::simulation_of(scene.clone(), learners, |_| {})
+    };
+    let mut sim = build()?;
+    let mut twin = match opts.perturb {
+        Some(p) if p.step == 0 || p.step >= scene.episode_steps => {
+            return Err(format!(
+                "--perturb-step {}: must be between 1 and the episode's steps − 1 ({})",
+                p.step,
+                scene.episode_steps - 1
+            )
+            .into())
+        }
+        Some(p) if !p.angle.is_finite() || p.angle == 0.0 => {
+            return Err(format!("--perturb {}: must be a finite, non-zero angle in radians", p.angle).into())
+        }
+        Some(p) => Some((build()?, super::perturb::Response::new(p, 0))),
+        None => None,
+    };
     let control = {
         let registry = sim.world().resource::<SpeciesRegistry>();
         opts.control.resolve(registry).map_err(|e| format!("--control: {e}"))?
@@ -210,11 +231,16 @@ pub fn evaluate(opts: &EvalOptions) -> crate::error::Result<String> {
         // Its numbers become part of the run's: the run records the evaluating executable.
         dir.note_binary()?;
     }
-    sim.world_mut().insert_resource(control);
+    sim.world_mut().insert_resource(control.clone());
     // Each episode's last step is read before the next population is spawned.
     sim.world_mut().resource_mut::<Episode>().auto_reset = false;
     let registry = sim.world().resource::<SpeciesRegistry>().clone();
     let prey = registry.headline();
+    if let Some((twin, response)) = &mut twin {
+        twin.world_mut().insert_resource(control);
+        twin.world_mut().resource_mut::<Episode>().auto_reset = false;
+        *response = super::perturb::Response::new(response.perturbation, prey);
+    }
     let name = &registry.defs[prey].name;
     let catchers = schema::split_catchers(&registry);
     let write_err = |e: std::io::Error| format!("{}: {e}", path.display());
@@ -224,10 +250,18 @@ pub fn evaluate(opts: &EvalOptions) -> crate::error::Result<String> {
     for episode in 0..opts.episodes {
         if episode > 0 {
             crate::sim::episode::next_episode(sim.world_mut());
+            if let Some((twin, _)) = &mut twin {
+                crate::sim::episode::next_episode(twin.world_mut());
+            }
         }
         for step in 1..=scene.episode_steps {
             sim.step();
             sim.check()?;
+            if let Some((twin, response)) = &mut twin {
+                twin.step();
+                twin.check()?;
+                response.step(&sim, twin, step)?;
+            }
             let row = acc.step(&sim, prey, &catchers, episode, step);
             writeln!(file.writer(), "{row}").map_err(write_err)?;
         }
@@ -235,6 +269,10 @@ pub fn evaluate(opts: &EvalOptions) -> crate::error::Result<String> {
     let (files, correlation_length) = acc.distributions(&sim, &registry);
     file.commit().map_err(write_err)?;
     // The confusion curve last: the experiment runner takes its presence for a complete evaluation.
+    if let Some((_, response)) = &twin {
+        let out = crate::io::beside(&path, super::PERTURBATION);
+        crate::io::write_file(&out, Existing::Replace, response.csv().as_bytes())?;
+    }
     for (what, text) in super::EVAL_BESIDE.iter().zip(files) {
         crate::io::write_file(&crate::io::beside(&path, what), Existing::Replace, text.as_bytes())?;
     }
@@ -256,7 +294,7 @@ pub fn evaluate(opts: &EvalOptions) -> crate::error::Result<String> {
         counts.join(" + "),
         acc.summary(name, correlation_length),
         path.display()
-    ))
+    ) + &twin.map_or(String::new(), |(_, r)| format!("; {}", r.summary())))
 }
 
 /// The snapshots an evaluation deploys, as its summary line names them.

@@ -17,6 +17,7 @@
 pub mod animate;
 pub mod bench;
 pub mod evaluate;
+pub mod perturb;
 pub mod record;
 pub mod schema;
 pub mod train;
@@ -40,6 +41,8 @@ pub const CROSSPLAY: &str = "crossplay";
 pub use crate::learning::checkpoint::{CHECKPOINT, CHECKPOINT_OLD, CHECKPOINT_TMP, SNAPSHOTS};
 /// The files an evaluation writes beside its per-step CSV (`OUT-nn.csv`, ...); the confusion curve last.
 pub const EVAL_BESIDE: [&str; 3] = ["nn", "correlation", "confusion"];
+/// The file a perturbed evaluation writes beside the others (`OUT-perturbation.csv`, [`perturb`]).
+pub const PERTURBATION: &str = "perturbation";
 
 /// The files and folders coevo writes in a run folder and owns.
 const RUN_FILES: [&str; 4] = [SCENE, PROVENANCE, METRICS, EVAL];
@@ -133,7 +136,7 @@ impl RunDir {
         if stem.starts_with(CROSSPLAY) {
             return refuse("begins with crossplay, the name of the cross-play files; choose another name");
         }
-        if let Some(suffix) = EVAL_BESIDE.iter().find(|s| stem.ends_with(&format!("-{s}"))) {
+        if let Some(suffix) = EVAL_BESIDE.iter().chain(&[PERTURBATION]).find(|s| stem.ends_with(&format!("-{s}"))) {
             return refuse(&format!(
                 "ends in -{suffix}, the name of another evaluation's {suffix} file; choose another name"
             ));
