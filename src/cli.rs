@@ -170,7 +170,8 @@ struct Cli {
     /// Viewer: fixed steps per rendered frame [default: 1].
     #[arg(long, help_heading = "Viewer", value_name = "N")]
     steps_per_frame: Option<usize>,
-    /// Viewer: step as fast as possible (for live training), still drawing every frame.
+    /// Viewer: step as fast as possible, still drawing every frame (the default of live training unless
+    /// --steps-per-frame or --paused is given; the panel switches it off for real-time watching).
     #[arg(long, help_heading = "Viewer")]
     fast: bool,
     /// Viewer: start paused.
@@ -677,7 +678,10 @@ fn viewer(cli: &Cli) -> crate::error::Result<()> {
         window,
         steps_per_frame: cli.steps_per_frame.unwrap_or(1),
         paused: cli.paused,
-        fast: cli.fast,
+        // Live training starts fast, so its curves move within the first minute (an episode takes ~20 s
+        // at one step per frame); watching a run or rule-based agents starts at one step per frame.
+        fast: cli.fast
+            || (cli.watch.is_none() && !cli.rules && cli.steps_per_frame.is_none() && !cli.paused),
         trails: cli.trails,
         select: cli.select,
         screenshot: cli.screenshot.clone().map(|path| ScreenshotRequest { path, frames: cli.frames.unwrap_or(60) }),
