@@ -680,8 +680,7 @@ fn viewer(cli: &Cli) -> crate::error::Result<()> {
         paused: cli.paused,
         // Live training starts fast, so its curves move within the first minute (an episode takes ~20 s
         // at one step per frame); watching a run or rule-based agents starts at one step per frame.
-        fast: cli.fast
-            || (cli.watch.is_none() && !cli.rules && cli.steps_per_frame.is_none() && !cli.paused),
+        fast: cli.fast || (cli.watch.is_none() && !cli.rules && cli.steps_per_frame.is_none() && !cli.paused),
         trails: cli.trails,
         select: cli.select,
         screenshot: cli.screenshot.clone().map(|path| ScreenshotRequest { path, frames: cli.frames.unwrap_or(60) }),

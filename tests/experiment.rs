@@ -534,3 +534,37 @@ fn an_experiment_cross_plays_its_runs_and_judges_the_read_outs() {
     // The share is a level against 0.5, not an effect against zero.
     assert!(md.contains("cross-play read-out prey_regress_vs_early_predators"), "{md}");
 }
+
+#[test]
+fn an_evaluation_with_a_perturbation_gives_the_response_columns_and_claims() {
+    let dir = workspace();
+    let text = TINY
+        .replace(
+            "(name: \"50 prey, blind\",",
+            "(name: \"50 prey, turned\", counts: [(\"prey\", 50)], episodes: 2, steps: 20, perturb: 1.0, perturb_step: 5),\n        (name: \"50 prey, blind\",",
+        )
+        .replace(
+            "(text: \"catches\",",
+            "(text: \"near response\", variant: \"5:3\", quantity: Response(\"50 prey, turned\", \"near\")),\n        (text: \"catches\",",
+        );
+    std::fs::write(dir.path().join("experiments/tiny.ron"), &text).unwrap();
+    let out = coevo(dir.path(), &["--experiment", "experiments/tiny.ron", "--jobs", "2"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let run = dir.path().join("results/tiny/paper/5-3/seed1");
+    assert!(run.join("eval-50-prey-turned-perturbation.csv").exists());
+    let summary = std::fs::read_to_string(dir.path().join("results/tiny/summary.csv")).unwrap();
+    let header: Vec<&str> = summary.lines().next().unwrap().split(',').collect();
+    let at = header.iter().position(|h| *h == "eval_50-prey-turned_response_near").expect("a response column");
+    for row in summary.lines().skip(1) {
+        let near: f64 = row.split(',').nth(at).unwrap().parse().unwrap();
+        assert!(near.is_finite() && near > 0.0, "the neighbours of the turned prey respond: {row}");
+    }
+    let md = std::fs::read_to_string(dir.path().join("REPRODUCTION.md")).unwrap();
+    assert!(md.contains("near response to one prey turned, in evaluation \"50 prey, turned\""), "{md}");
+    // A Response claim needs a perturbed evaluation of that name.
+    let bad = text.replace("perturb: 1.0, perturb_step: 5", "perturb_step: 5");
+    std::fs::write(dir.path().join("experiments/bad.ron"), bad).unwrap();
+    let out = coevo(dir.path(), &["--experiment", "experiments/bad.ron"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && stderr.contains("with perturb: RADIANS"), "{stderr}");
+}

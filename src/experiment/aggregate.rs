@@ -31,6 +31,34 @@ fn read_confusion(path: &Path) -> crate::error::Result<Vec<[f64; 3]>> {
     Ok(rows.iter().filter(|r| r[0] == first).map(|r| [cell(r[3]), cell(r[4]), cell(r[5])]).collect())
 }
 
+/// The near and far responses of a perturbation file (`run::perturb`): the sample-weighted mean
+/// |Δheading| of ranks 1–6 over lags 1–10, and of ranks 25+ over the same lags; NaN without the file.
+fn read_response(path: &Path) -> crate::error::Result<[f64; 2]> {
+    if !path.exists() {
+        return Ok([f64::NAN; 2]);
+    }
+    let text = crate::io::read_text(path, crate::io::MAX_TEXT_BYTES).map_err(|e| format!("{}: {e}", path.display()))?;
+    let (mut near, mut far) = ((0.0, 0.0), (0.0, 0.0));
+    for row in text.lines().skip(1) {
+        let c: Vec<f64> = row.split(',').map(|x| x.parse().unwrap_or(f64::NAN)).collect();
+        let [lag, from, _, mean, n] = c[..] else { continue };
+        if !(1.0..=10.0).contains(&lag) || !mean.is_finite() {
+            continue;
+        }
+        let into = if from <= 6.0 {
+            &mut near
+        } else if from >= 25.0 {
+            &mut far
+        } else {
+            continue;
+        };
+        into.0 += mean * n;
+        into.1 += n;
+    }
+    let mean = |(s, n): (f64, f64)| if n > 0.0 { s / n } else { f64::NAN };
+    Ok([mean(near), mean(far)])
+}
+
 /// The species whose DoS/DoA an experiment reports (prey in the paper's scenes).
 fn headline(exp: &Experiment) -> String {
     let scene = &exp.runs[0].scene;
@@ -103,7 +131,8 @@ pub fn load(exp: &Experiment) -> crate::error::Result<BTreeMap<usize, RunData>> 
             let ranks = table.column(&schema::of(schema::EDGE_RANK, &prey)).unwrap_or_default();
             let edge_rank = mean(&ranks.into_iter().filter(|x| x.is_finite()).collect::<Vec<_>>()).unwrap_or(f64::NAN);
             let confusion = read_confusion(&crate::io::beside(&path, "confusion"))?;
-            d.evals.insert(e.name.clone(), EvalData { per_step, edge_rank, confusion });
+            let response = read_response(&crate::io::beside(&path, crate::run::PERTURBATION))?;
+            d.evals.insert(e.name.clone(), EvalData { per_step, edge_rank, confusion, response });
         }
         data.insert(i, d);
     }
@@ -192,6 +221,11 @@ pub fn aggregate(
         quantities.extend(super::EVAL_ORDER.iter().map(|o| named(Quantity::EvalOrder(e.clone(), o.to_string()))));
         if super::seeing_partner(&exp.spec.evaluations, e).is_some() {
             quantities.push((format!("eval_{}_doa_interaction", slug(e)), Quantity::InteractionDoa(e.clone())));
+        }
+    }
+    for e in exp.spec.evaluations.iter().filter(|e| e.perturb.is_some()) {
+        for which in ["near", "far"] {
+            quantities.push(named(Quantity::Response(e.name.clone(), which.into())));
         }
     }
     if exp.spec.crossplay.is_some() {

@@ -38,6 +38,8 @@ pub struct EvalData {
     /// view: mean |turn command|, mean speed / max speed, catches per predator-step (NaN for empty bins;
     /// empty when the file is absent).
     pub confusion: Vec<[f64; 3]>,
+    /// With a perturbation: the near and far responses ([`Quantity::Response`]); NaN otherwise.
+    pub response: [f64; 2],
 }
 
 impl EvalData {
@@ -90,6 +92,7 @@ fn primitive(d: &RunData, q: &Quantity) -> f64 {
         Quantity::EvalOrder(e, name) => eval(e, name),
         Quantity::Reach90(name) => reach90(if name == "dos" { &d.dos } else { &d.doa }),
         Quantity::Crossplay(name) => d.crossplay.get(name).copied().unwrap_or(f64::NAN),
+        Quantity::Response(e, which) => d.evals.get(e).map_or(f64::NAN, |x| x.response[usize::from(which == "far")]),
         _ => f64::NAN,
     }
 }
@@ -111,6 +114,7 @@ pub fn column(q: &Quantity) -> Option<String> {
         Quantity::EvalDoa(e) => format!("eval_{}_doa_settled", super::slug(e)),
         Quantity::EvalOrder(e, o) => format!("eval_{}_{o}", super::slug(e)),
         Quantity::Crossplay(name) => format!("crossplay_{name}"),
+        Quantity::Response(e, which) => format!("eval_{}_response_{which}", super::slug(e)),
         _ => return None,
     })
 }
@@ -315,6 +319,7 @@ pub fn quantity_name(q: &Quantity) -> String {
         Quantity::CatchesFirst => "catches per episode, first 100".into(),
         Quantity::CatchesLast => "catches per episode, last 100".into(),
         Quantity::Crossplay(r) => format!("cross-play read-out {r}"),
+        Quantity::Response(e, w) => format!("{w} response to one prey turned, in evaluation \"{e}\" (rad)"),
         Quantity::EvalDos(e) => format!("DoS settled in evaluation \"{e}\""),
         Quantity::EvalDoa(e) => format!("DoA settled in evaluation \"{e}\""),
         Quantity::EvalOrder(e, q) => format!("{q} in evaluation \"{e}\""),

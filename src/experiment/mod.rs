@@ -120,6 +120,12 @@ pub struct Evaluation {
     /// which [`Quantity::Learned`] measures what training changed.
     #[serde(default)]
     pub untrained: bool,
+    /// Also turn one prey of a twin world by this many radians (`coevo --eval --perturb`) after
+    /// `perturb_step` (default: half the episode), for [`Quantity::Response`].
+    #[serde(default)]
+    pub perturb: Option<f64>,
+    #[serde(default)]
+    pub perturb_step: Option<usize>,
 }
 
 impl Evaluation {
@@ -207,6 +213,10 @@ pub enum Quantity {
     /// The episode at which the 100-episode running mean of `dos` or `doa` first completes 90 % of its
     /// change from the first 100 episodes to the last 100 (the paper's time course, Fig. 3).
     Reach90(String),
+    /// The information-transfer response of an evaluation with `perturb:`: `"near"`, the mean |Δheading|
+    /// of the turned prey's 6 nearest over the 10 steps after the turn, or `"far"`, the same for ranks 25
+    /// and beyond (radians).
+    Response(String, String),
     /// A read-out of the run's cross-play matrix (`crossplay::readouts`, the headline species against its
     /// first predator species), e.g. `Crossplay("doa_late_prey_part")`; needs `crossplay:` in the file.
     Crossplay(String),
@@ -470,6 +480,17 @@ impl Experiment {
             if let Quantity::Reach90(q) = &c.quantity {
                 if !["dos", "doa"].contains(&q.as_str()) {
                     return Err(err("claims", format!("Reach90 takes \"dos\" or \"doa\" (got {q:?})")));
+                }
+            }
+            if let Quantity::Response(e, which) = &c.quantity {
+                if !["near", "far"].contains(&which.as_str()) {
+                    return Err(err("claims", format!("Response takes \"near\" or \"far\" (got {which:?})")));
+                }
+                if !spec.evaluations.iter().any(|x| &x.name == e && x.perturb.is_some()) {
+                    return Err(err(
+                        "claims",
+                        format!("Response({e:?}, ..) needs an evaluation {e:?} with perturb: RADIANS"),
+                    ));
                 }
             }
             if let Quantity::Crossplay(r) = &c.quantity {

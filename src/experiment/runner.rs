@@ -127,7 +127,7 @@ pub fn complete_run(exp: &Experiment, run: &Run, exe: &Path, threads: usize) -> 
     }
     for e in &exp.spec.evaluations {
         let out = eval_file(&run.dir, &e.name);
-        if evaluated(&out) {
+        if evaluated_as(&out, e) {
             continue;
         }
         let mut args = vec!["--eval".into(), dir.clone(), "--episodes".into(), e.episodes.to_string()];
@@ -142,6 +142,12 @@ pub fn complete_run(exp: &Experiment, run: &Run, exe: &Path, threads: usize) -> 
         }
         if e.untrained {
             args.push("--untrained".into());
+        }
+        if let Some(angle) = e.perturb {
+            args.extend(["--perturb".into(), angle.to_string()]);
+        }
+        if let Some(step) = e.perturb_step {
+            args.extend(["--perturb-step".into(), step.to_string()]);
         }
         if let Some(r) = e.confusion_radius {
             args.extend(["--confusion-radius".into(), r.to_string()]);
@@ -169,7 +175,7 @@ fn crossplayed(run: &Run) -> bool {
 /// Whether a run is trained and has every evaluation (and its cross-play, when asked).
 fn finished(exp: &Experiment, run: &Run) -> bool {
     stage(run) == Ok(Stage::Trained)
-        && exp.spec.evaluations.iter().all(|e| evaluated(&eval_file(&run.dir, &e.name)))
+        && exp.spec.evaluations.iter().all(|e| evaluated_as(&eval_file(&run.dir, &e.name), e))
         && (exp.spec.crossplay.is_none() || crossplayed(run))
 }
 
@@ -177,6 +183,11 @@ fn finished(exp: &Experiment, run: &Run) -> bool {
 /// (evaluations by a coevo without the collective measures lack it and are run again).
 fn evaluated(eval_csv: &Path) -> bool {
     eval_csv.exists() && crate::io::beside(eval_csv, "confusion").exists()
+}
+
+/// Whether an evaluation is complete, with its perturbation response when it asks for one.
+fn evaluated_as(eval_csv: &Path, e: &super::Evaluation) -> bool {
+    evaluated(eval_csv) && (e.perturb.is_none() || crate::io::beside(eval_csv, crate::run::PERTURBATION).exists())
 }
 
 /// Writes every variant's resolved scene (the seed is set per run), refusing runs of other scenes first.
