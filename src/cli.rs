@@ -448,6 +448,7 @@ fn run(cli: Cli, call: Call) -> crate::error::Result<()> {
             );
             crate::run::bench::print(&crate::run::bench::environment(budget));
             crate::run::bench::print(&crate::run::bench::learning(budget));
+            crate::run::bench::print(&crate::run::bench::external(budget));
             Ok(())
         }
         Call::Eval(run) => {

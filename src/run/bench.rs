@@ -61,6 +61,44 @@ pub fn environment(budget: Duration) -> Vec<Figure> {
         .collect()
 }
 
+/// Stepping from outside (`run::env`, what the Python package drives): one world of the standard scene,
+/// and 64 worlds stepped together, constant actions; world steps per second summed over worlds.
+pub fn external(budget: Duration) -> Vec<Figure> {
+    use crate::run::env::{Env, VecEnv};
+    let scene = || {
+        Scene::load(std::path::Path::new("scenes/standard.ron")).unwrap_or_else(|_| {
+            let mut s = Scene::preset("gym-pps").expect("gym-pps preset exists");
+            s.observation_frame = crate::scene::ObservationFrame::Body;
+            s
+        })
+    };
+    let mut figures = vec![];
+    if let Ok(mut env) = Env::new(scene()) {
+        let actions = vec![0.5; env.agents().len() * 2];
+        figures.push(Figure {
+            label: "external env step, 3+10 agents (run::env::Env)".into(),
+            per_second: per_second(budget, 20, || {
+                if env.step(&actions).is_ok_and(|r| r.truncated) {
+                    let _ = env.reset(None);
+                }
+            }),
+            unit: "steps/s",
+        });
+    }
+    if let Ok(mut worlds) = VecEnv::new(scene(), 64, 1) {
+        let actions = vec![0.5; worlds.worlds() * worlds.agents() * 2];
+        let n = worlds.worlds() as f64;
+        figures.push(Figure {
+            label: "external VecEnv, 64 worlds of 3+10 (world steps summed)".into(),
+            per_second: n * per_second(budget, 5, || {
+                let _ = worlds.step(&actions);
+            }),
+            unit: "steps/s",
+        });
+    }
+    figures
+}
+
 pub fn print(figures: &[Figure]) {
     for f in figures {
         println!("{:<72} {:>12.0} {}", f.label, f.per_second, f.unit);

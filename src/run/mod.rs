@@ -16,6 +16,7 @@
 
 pub mod animate;
 pub mod bench;
+pub mod env;
 pub mod evaluate;
 pub mod perturb;
 pub mod record;

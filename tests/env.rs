@@ -1,0 +1,120 @@
+//! coevo driven from outside (`run::env`, the Rust side of the Python package): the same trajectory as
+//! `coevo --record` when given the actions coevo's own actors would take, many worlds stepped together
+//! exactly as each alone, and one-line refusals.
+
+use coevo::learning::{Learners, Mode};
+use coevo::run::env::{Env, VecEnv};
+use coevo::scene::Scene;
+use coevo::sim::perception::Population;
+use std::collections::BTreeMap;
+
+fn standard(seed: u64) -> Scene {
+    let mut scene = Scene::load(std::path::Path::new("scenes/standard.ron")).unwrap();
+    scene.seed = seed;
+    scene
+}
+
+/// Positions by agent id after every step, from a `--record` CSV.
+fn recorded(path: &std::path::Path) -> BTreeMap<(usize, u32), [f64; 2]> {
+    let text = std::fs::read_to_string(path).unwrap();
+    text.lines()
+        .skip(1)
+        .map(|l| l.split(',').collect::<Vec<_>>())
+        .map(|c| ((c[0].parse().unwrap(), c[1].parse().unwrap()), [c[3].parse().unwrap(), c[4].parse().unwrap()]))
+        .collect()
+}
+
+#[test]
+fn given_coevo_s_own_actions_the_outside_world_is_the_recorded_one_to_the_bit() {
+    let (seed, steps) = (7, 40);
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("record.csv");
+    let status = std::process::Command::new(env!("CARGO_BIN_EXE_coevo"))
+        .args(["--record", out.to_str().unwrap(), "--scene", "scenes/standard.ron", "--seed", "7", "--steps", "40"])
+        .output()
+        .unwrap();
+    assert!(status.status.success(), "{}", String::from_utf8_lossy(&status.stderr));
+    let record = recorded(&out);
+
+    let scene = standard(seed);
+    // The actors `--record` deploys without --run: the networks initialised from the scene's seed.
+    let learners = Learners::new(&scene, Mode::Evaluate);
+    let mut env = Env::new(scene).unwrap();
+    assert_eq!(env.agents()[0], "predator_0");
+    assert_eq!(env.agents().len(), 13);
+    let mut observations = env.reset(Some(seed)).unwrap();
+    for t in 1..=steps {
+        // Each species' rows through its own actor, in the env's agent order.
+        let mut actions = vec![];
+        let mut row = 0;
+        for (s, l) in learners.species.iter().enumerate() {
+            let Some(l) = l else { continue };
+            let count = env.scene().species[s].count;
+            let obs = &observations[row * env.obs_dim()..(row + count) * env.obs_dim()];
+            let mut a = vec![0.0; count * 2];
+            l.ddpg.act_into(&l.dev, obs, &mut a);
+            actions.extend(a);
+            row += count;
+        }
+        let step = env.step(&actions).unwrap();
+        assert_eq!((step.rewards.len(), step.truncated), (13, false));
+        observations = step.observations;
+        let pop = env.world().resource::<Population>();
+        for (id, p) in pop.id.iter().zip(&pop.position) {
+            assert_eq!(record[&(t, id.0)], [p.x, p.y], "agent {} at step {t}", id.0);
+        }
+    }
+}
+
+#[test]
+fn many_worlds_step_as_each_alone_and_start_their_next_episode() {
+    let mut scene = standard(1);
+    scene.episode_steps = 5;
+    let mut worlds = VecEnv::new(scene.clone(), 3, 20).unwrap();
+    let (agents, d) = (worlds.agents(), worlds.obs_dim());
+    assert_eq!(worlds.observations().len(), 3 * agents * d);
+    let mut alone: Vec<Env> = (0..3)
+        .map(|i| {
+            let mut s = scene.clone();
+            s.seed = 20 + i;
+            Env::new(s).unwrap()
+        })
+        .collect();
+    let actions: Vec<f32> = (0..3 * agents * 2).map(|i| ((i * 7919) % 200) as f32 / 100.0 - 1.0).collect();
+    for t in 1..=7 {
+        let step = worlds.step(&actions).unwrap();
+        assert_eq!(step.truncated, vec![t == 5; 3], "step {t}");
+        for (i, env) in alone.iter_mut().enumerate() {
+            let mine = &actions[i * agents * 2..(i + 1) * agents * 2];
+            let r = env.step(mine).unwrap();
+            assert_eq!(&step.rewards[i * agents..(i + 1) * agents], r.rewards.as_slice(), "world {i}, step {t}");
+            let observed = &step.observations[i * agents * d..(i + 1) * agents * d];
+            if r.truncated {
+                assert_eq!(step.final_observations[i].as_deref(), Some(r.observations.as_slice()));
+                assert_eq!(observed, env.reset(None).unwrap().as_slice(), "the next episode's first state");
+            } else {
+                assert_eq!(observed, r.observations.as_slice());
+                assert!(step.final_observations[i].is_none());
+            }
+        }
+    }
+}
+
+#[test]
+fn bad_actions_and_scenes_are_one_line() {
+    let mut scene = standard(1);
+    scene.episode_steps = 2;
+    let mut env = Env::new(scene.clone()).unwrap();
+    let e = env.step(&[0.0; 3]).unwrap_err().to_string();
+    assert!(e.contains("actions: expected 26 values (13 agents × 2), got 3"), "{e}");
+    let mut nan = vec![0.0; 26];
+    nan[4] = f32::NAN;
+    assert!(env.step(&nan).unwrap_err().to_string().contains("actions[4]: NaN is not a finite number"));
+    assert!(env.step(&[0.0; 26]).is_ok() && env.step(&[0.0; 26]).unwrap().truncated);
+    assert!(env.step(&[0.0; 26]).unwrap_err().to_string().contains("the episode is over"));
+    for s in &mut scene.species {
+        s.policy = coevo::scene::Policy::Random;
+    }
+    assert!(Env::new(scene).err().unwrap().to_string().contains("no Learned species"));
+    assert!(VecEnv::new(standard(1), 0, 1).err().unwrap().to_string().contains("num_envs: must be ≥ 1"));
+}
