@@ -214,6 +214,9 @@ pub struct VecStep {
     pub final_observations: Vec<Option<Vec<f32>>>,
 }
 
+/// One world's step in a [`VecEnv`]: its result and, when its episode ended, its last observations.
+type WorldStep = crate::error::Result<(StepResult, Option<Vec<f32>>)>;
+
 impl VecEnv {
     pub fn new(scene: Scene, worlds: usize, seed: u64) -> crate::error::Result<VecEnv> {
         if worlds == 0 {
@@ -242,6 +245,19 @@ impl VecEnv {
         self.envs[0].obs_dim()
     }
 
+    /// The agents' names (the same in every world).
+    pub fn agent_names(&self) -> Vec<String> {
+        self.envs[0].agents()
+    }
+
+    /// Starts the next episode in every world; returns the observations.
+    pub fn reset(&mut self) -> crate::error::Result<Vec<f32>> {
+        for env in &mut self.envs {
+            env.reset(None)?;
+        }
+        Ok(self.observations())
+    }
+
     /// Every world's current observations, `[worlds × agents × d_o]`.
     pub fn observations(&self) -> Vec<f32> {
         self.envs.iter().flat_map(Env::observations).collect()
@@ -261,7 +277,7 @@ impl VecEnv {
             )
             .into());
         }
-        let mut work: Vec<(&mut Env, &[f32], Option<crate::error::Result<(StepResult, Option<Vec<f32>>)>>)> =
+        let mut work: Vec<(&mut Env, &[f32], Option<WorldStep>)> =
             self.envs.iter_mut().zip(actions.chunks(per)).map(|(e, a)| (e, a, None)).collect();
         crate::parallel::for_each_mut(&mut work, |(env, a, out)| {
             *out = Some(env.step(a).and_then(|mut r| {

@@ -1,0 +1,112 @@
+"""coevo from Python: predators and prey that learn together, on coevo's Rust core.
+
+``parallel_env(...)`` is a PettingZoo ``ParallelEnv``: one agent per individual of every species the
+scene trains (``Learned``), named ``predator_0 ... prey_9``, each observing coevo's observation vector
+(the scene's frame and layout) and acting with two numbers in [-1, 1] (thrust, turn: thrust =
+(u0 + 1) / 2 * max_thrust, turn rate = u1 * max_turn_rate), rewarded exactly as coevo's learners are.
+Species with another policy (rule-based, a frozen run, a plugin) keep acting inside Rust. Episodes are
+truncated at the scene's ``episode_steps``; nobody terminates early (caught prey stay in the world).
+
+``VecEnv(...)`` steps many worlds per call on numpy arrays ``[num_envs, agents, d_o]`` / ``[num_envs,
+agents, 2]``, on all cores, each world starting its next episode by itself (world i from seed + i).
+
+Both step the very schedule ``coevo --train`` steps: no second implementation.
+"""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+from gymnasium import spaces
+from pettingzoo import ParallelEnv as _ParallelEnv
+
+from ._coevo import Env as _Env
+from ._coevo import VecEnv as _VecEnv
+
+__all__ = ["parallel_env", "CoevoParallelEnv", "VecEnv"]
+
+
+def _counts(counts: dict[str, int] | None) -> list[tuple[str, int]] | None:
+    return None if counts is None else [(str(k), int(v)) for k, v in counts.items()]
+
+
+class CoevoParallelEnv(_ParallelEnv):
+    """A coevo scene as a PettingZoo ``ParallelEnv`` (see the module's docstring)."""
+
+    metadata = {"name": "coevo_v0", "render_modes": [], "is_parallelizable": True}
+
+    def __init__(self, scene: str = "scenes/standard.ron", seed: int | None = None,
+                 counts: dict[str, int] | None = None, episode_steps: int | None = None):
+        self._env = _Env(scene, seed, _counts(counts), episode_steps)
+        self.possible_agents = list(self._env.agents())
+        self.agents: list[str] = []
+        self._seeded = False
+        self.render_mode = None
+
+    @functools.lru_cache(maxsize=None)
+    def observation_space(self, agent: str) -> spaces.Box:
+        return spaces.Box(-np.inf, np.inf, (self._env.obs_dim,), np.float32)
+
+    @functools.lru_cache(maxsize=None)
+    def action_space(self, agent: str) -> spaces.Box:
+        return spaces.Box(-1.0, 1.0, (2,), np.float32)
+
+    @property
+    def episode_steps(self) -> int:
+        return self._env.episode_steps
+
+    def reset(self, seed: int | None = None, options: dict | None = None):
+        # The first reset starts from the scene's seed (as `coevo --train` does); a seed starts afresh.
+        if seed is None and not self._seeded:
+            seed = self._env.seed
+        obs = self._env.reset(seed)
+        self._seeded = True
+        self.agents = list(self.possible_agents)
+        observations = {a: obs[i] for i, a in enumerate(self.agents)}
+        return observations, {a: {} for a in self.agents}
+
+    def step(self, actions: dict[str, np.ndarray]):
+        if not self.agents:
+            raise ValueError("step: the episode is over; reset first")
+        missing = [a for a in self.agents if a not in actions]
+        if missing:
+            raise ValueError(f"actions: no action for {missing[0]} ({len(missing)} agents missing)")
+        batch = np.stack([np.asarray(actions[a], dtype=np.float32).reshape(2) for a in self.agents])
+        obs, rewards, truncated, info = self._env.step(batch)
+        agents = self.agents
+        observations = {a: obs[i] for i, a in enumerate(agents)}
+        reward = {a: float(rewards[i]) for i, a in enumerate(agents)}
+        terminations = {a: False for a in agents}
+        truncations = {a: bool(truncated) for a in agents}
+        infos = {a: dict(info) for a in agents}
+        if truncated:
+            self.agents = []
+        return observations, reward, terminations, truncations, infos
+
+    def close(self):
+        pass
+
+
+def parallel_env(scene: str = "scenes/standard.ron", seed: int | None = None, **overrides) -> CoevoParallelEnv:
+    """A scene file as a PettingZoo ``ParallelEnv``; ``counts={"prey": 50}``, ``episode_steps=N``."""
+    return CoevoParallelEnv(scene, seed, **overrides)
+
+
+class VecEnv:
+    """Many worlds of one scene on arrays (see the module's docstring)."""
+
+    def __init__(self, scene: str = "scenes/standard.ron", num_envs: int = 64, seed: int = 0,
+                 counts: dict[str, int] | None = None, episode_steps: int | None = None):
+        self._env = _VecEnv(scene, num_envs, seed, _counts(counts), episode_steps)
+        self.num_envs = self._env.num_envs
+        self.agents = list(self._env.agents())
+        self.obs_dim = self._env.obs_dim
+
+    def reset(self) -> np.ndarray:
+        """The next episode in every world: observations ``[num_envs, agents, d_o]``."""
+        return self._env.reset()
+
+    def step(self, actions: np.ndarray):
+        """(observations, rewards ``[num_envs, agents]``, truncated ``[num_envs]``)."""
+        return self._env.step(np.ascontiguousarray(actions, dtype=np.float32))

@@ -1,0 +1,166 @@
+//! `coevo._coevo`: the Rust core behind the Python package (`python/coevo/__init__.py` wraps it as a
+//! PettingZoo `ParallelEnv`). Nothing is simulated here: `Env` and `VecEnv` hold coevo's own
+//! [`coevo::run::env`] worlds, which step the very schedule `coevo --train` steps.
+
+use coevo::scene::{Overrides, Scene};
+use numpy::{IntoPyArray, PyArray1, PyArray2, PyArray3, PyArrayMethods, PyReadonlyArray2, PyReadonlyArray3};
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+use std::path::Path;
+
+/// coevo's one-line errors as Python's ValueError.
+fn err(e: impl std::fmt::Display) -> PyErr {
+    PyValueError::new_err(e.to_string())
+}
+
+/// A scene file with the counts, seed and episode length given from Python, validated.
+fn scene(path: &str, seed: Option<u64>, counts: Option<Vec<(String, usize)>>, steps: Option<usize>) -> PyResult<Scene> {
+    let path = Path::new(path);
+    let mut scene = Scene::load(path).map_err(err)?;
+    let overrides =
+        Overrides { counts: counts.unwrap_or_default(), seed, episode_steps: steps, confusion_radius: None };
+    overrides.apply(&mut scene, path).map_err(err)?;
+    Ok(scene)
+}
+
+/// One world whose learning species are decided from Python.
+#[pyclass(module = "coevo._coevo")]
+struct Env {
+    inner: coevo::run::env::Env,
+}
+
+#[pymethods]
+impl Env {
+    #[new]
+    #[pyo3(signature = (scene_path, seed=None, counts=None, episode_steps=None))]
+    fn new(
+        scene_path: &str,
+        seed: Option<u64>,
+        counts: Option<Vec<(String, usize)>>,
+        episode_steps: Option<usize>,
+    ) -> PyResult<Self> {
+        let scene = scene(scene_path, seed, counts, episode_steps)?;
+        Ok(Env { inner: coevo::run::env::Env::new(scene).map_err(err)? })
+    }
+
+    /// The agents' names, `<species>_<k>`, in the order of every array.
+    fn agents(&self) -> Vec<String> {
+        self.inner.agents()
+    }
+
+    #[getter]
+    fn obs_dim(&self) -> usize {
+        self.inner.obs_dim()
+    }
+
+    #[getter]
+    fn episode_steps(&self) -> usize {
+        self.inner.episode_steps()
+    }
+
+    #[getter]
+    fn seed(&self) -> u64 {
+        self.inner.scene().seed
+    }
+
+    /// A new episode (from `seed` afresh, else the next of the same stream): observations `[agents, d_o]`.
+    #[pyo3(signature = (seed=None))]
+    fn reset<'py>(&mut self, py: Python<'py>, seed: Option<u64>) -> PyResult<Bound<'py, PyArray2<f32>>> {
+        let obs = self.inner.reset(seed).map_err(err)?;
+        let shape = [self.inner.agents().len(), self.inner.obs_dim()];
+        obs.into_pyarray(py).reshape(shape)
+    }
+
+    /// One step with `actions` `[agents, 2]` in [−1, 1]: (observations `[agents, d_o]`, rewards `[agents]`,
+    /// truncated, {"dos", "doa", "catches"}).
+    #[allow(clippy::type_complexity)]
+    fn step<'py>(
+        &mut self,
+        py: Python<'py>,
+        actions: PyReadonlyArray2<'py, f32>,
+    ) -> PyResult<(Bound<'py, PyArray2<f32>>, Bound<'py, PyArray1<f32>>, bool, Bound<'py, PyDict>)> {
+        let flat: Vec<f32> = actions.as_array().iter().copied().collect();
+        let r = self.inner.step(&flat).map_err(err)?;
+        let shape = [self.inner.agents().len(), self.inner.obs_dim()];
+        let info = PyDict::new(py);
+        info.set_item("dos", r.dos)?;
+        info.set_item("doa", r.doa)?;
+        info.set_item("catches", r.catches)?;
+        Ok((r.observations.into_pyarray(py).reshape(shape)?, r.rewards.into_pyarray(py), r.truncated, info))
+    }
+}
+
+/// Many worlds of one scene (world i from seed + i) stepped together on arrays, on all cores, each
+/// starting its next episode by itself.
+#[pyclass(module = "coevo._coevo")]
+struct VecEnv {
+    inner: coevo::run::env::VecEnv,
+}
+
+#[pymethods]
+impl VecEnv {
+    #[new]
+    #[pyo3(signature = (scene_path, num_envs, seed=0, counts=None, episode_steps=None))]
+    fn new(
+        scene_path: &str,
+        num_envs: usize,
+        seed: u64,
+        counts: Option<Vec<(String, usize)>>,
+        episode_steps: Option<usize>,
+    ) -> PyResult<Self> {
+        let scene = scene(scene_path, None, counts, episode_steps)?;
+        Ok(VecEnv { inner: coevo::run::env::VecEnv::new(scene, num_envs, seed).map_err(err)? })
+    }
+
+    #[getter]
+    fn num_envs(&self) -> usize {
+        self.inner.worlds()
+    }
+
+    #[getter]
+    fn obs_dim(&self) -> usize {
+        self.inner.obs_dim()
+    }
+
+    fn agents(&self) -> Vec<String> {
+        self.inner.agent_names()
+    }
+
+    fn shape(&self) -> [usize; 3] {
+        [self.inner.worlds(), self.inner.agents(), self.inner.obs_dim()]
+    }
+
+    /// The next episode in every world: observations `[num_envs, agents, d_o]`.
+    fn reset<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyArray3<f32>>> {
+        let obs = self.inner.reset().map_err(err)?;
+        obs.into_pyarray(py).reshape(self.shape())
+    }
+
+    /// One step of every world with `actions` `[num_envs, agents, 2]`: (observations, rewards
+    /// `[num_envs, agents]`, truncated `[num_envs]`); a truncated world's observations are its next
+    /// episode's first.
+    #[allow(clippy::type_complexity)]
+    fn step<'py>(
+        &mut self,
+        py: Python<'py>,
+        actions: PyReadonlyArray3<'py, f32>,
+    ) -> PyResult<(Bound<'py, PyArray3<f32>>, Bound<'py, PyArray2<f32>>, Bound<'py, PyArray1<bool>>)> {
+        let flat: Vec<f32> = actions.as_array().iter().copied().collect();
+        let inner = &mut self.inner;
+        let r = py.allow_threads(|| inner.step(&flat)).map_err(err)?;
+        let [n, a, _] = self.shape();
+        Ok((
+            r.observations.into_pyarray(py).reshape(self.shape())?,
+            r.rewards.into_pyarray(py).reshape([n, a])?,
+            r.truncated.into_pyarray(py),
+        ))
+    }
+}
+
+#[pymodule]
+fn _coevo(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<Env>()?;
+    m.add_class::<VecEnv>()?;
+    Ok(())
+}
