@@ -464,7 +464,7 @@ fn crossplay_figures(exp: &Experiment, preset: &str, data: &BTreeMap<usize, RunD
             matrices.extend(super::crossplay::read_matrix(&r.dir, &pair)?);
         }
         if let Some(mean) = super::crossplay::mean_matrix(&matrices) {
-            let what = format!("{} {preset}, mean of {} seeds: ", v.name, matrices.len());
+            let what = format!("{}, {preset}, {} seeds: ", v.name, matrices.len());
             let stem = exp.root.join("figures").join(format!("{preset}-{}-crossplay", slug(&v.name)));
             plot::save_heatmaps(&stem, &super::crossplay::heatmaps(&mean, &what))?;
         }

@@ -491,17 +491,18 @@ fn stem(m: &Matrix, only: bool) -> String {
 /// The heat maps of a matrix (catches and the prey's DoA over prey × predator snapshots).
 pub fn heatmaps(m: &Matrix, what: &str) -> Vec<plot::Heatmap> {
     let grid = |f: fn(&Cell) -> f64| m.cells.iter().map(|r| r.iter().map(f).collect()).collect();
-    let map = |title: String, values: Vec<Vec<f64>>| plot::Heatmap {
+    let map = |title: String, values: Vec<Vec<f64>>, log: bool| plot::Heatmap {
         title,
         x_label: format!("{} snapshot (episode)", m.pair.predator_name),
         y_label: format!("{} snapshot (episode)", m.pair.prey_name),
         x_ticks: m.predator_episodes.clone(),
         y_ticks: m.prey_episodes.clone(),
         values,
+        log,
     };
     vec![
-        map(format!("{what}catches of {} per episode", m.pair.prey_name), grid(|c| c.catches)),
-        map(format!("{what}DoA of {}", m.pair.prey_name), grid(|c| c.doa)),
+        map(format!("{what}catches per episode"), grid(|c| c.catches), true),
+        map(format!("{what}DoA of {}", m.pair.prey_name), grid(|c| c.doa), false),
     ]
 }
 

@@ -50,6 +50,8 @@ pub struct Heatmap {
     pub y_ticks: Vec<usize>,
     /// `values[row][column]`.
     pub values: Vec<Vec<f64>>,
+    /// Colour by log(1 + value) (counts spanning orders of magnitude, as catches against untrained prey).
+    pub log: bool,
 }
 
 /// Size in pixels of one heat map (panels side by side).
@@ -182,15 +184,18 @@ fn draw_heatmap(map: &Heatmap, area: &Area) -> crate::error::Result<()> {
     let (rows, columns) = (map.values.len(), map.values.first().map_or(0, Vec::len));
     let finite = map.values.iter().flatten().copied().filter(|v| v.is_finite());
     let (lo, hi) = finite.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)));
+    let scale = if map.log { ", log colour" } else { "" };
     let title = match lo.is_finite() {
         true => format!(
-            "{}: {} (dark) to {} (bright)",
+            "{}: {} (dark) to {}{scale}",
             map.title,
             tick(&((lo * 1e3).round() / 1e3)),
             tick(&((hi * 1e3).round() / 1e3))
         ),
         false => format!("{}: no values", map.title),
     };
+    let shade = |v: f64| if map.log { v.max(0.0).ln_1p() } else { v };
+    let (lo, hi) = (shade(lo), shade(hi));
     // Labels on about eight rows and columns, whatever the matrix' size.
     let every = |n: usize| n.div_ceil(8).max(1);
     let label = |ticks: &[usize], n: usize| {
@@ -203,7 +208,7 @@ fn draw_heatmap(map: &Heatmap, area: &Area) -> crate::error::Result<()> {
         }
     };
     let mut chart = ChartBuilder::on(area)
-        .caption(title, ("sans-serif", 16))
+        .caption(title, ("sans-serif", 14))
         .margin(12)
         .x_label_area_size(44)
         .y_label_area_size(56)
@@ -228,7 +233,7 @@ fn draw_heatmap(map: &Heatmap, area: &Area) -> crate::error::Result<()> {
     let cells = map.values.iter().enumerate().flat_map(|(i, row)| {
         row.iter().enumerate().map(move |(j, &v)| {
             let colour = match v.is_finite() {
-                true => viridis(if hi > lo { (v - lo) / (hi - lo) } else { 0.5 }),
+                true => viridis(if hi > lo { (shade(v) - lo) / (hi - lo) } else { 0.5 }),
                 false => RGBColor(200, 200, 200),
             };
             Rectangle::new(
@@ -364,6 +369,7 @@ mod tests {
             x_ticks: (0..columns).map(|j| 100 * j).collect(),
             y_ticks: (0..rows).map(|i| 100 * i).collect(),
             values: (0..rows).map(|i| (0..columns).map(|j| (i * columns + j) as f64).collect()).collect(),
+            log: false,
         };
         let dir = tempfile::tempdir().unwrap();
         let stem = dir.path().join("map");
@@ -378,7 +384,7 @@ mod tests {
         let (w, h) = HEATMAP_SIZE;
         assert_eq!(coloured_runs((0..w).map(|x| pixel(x, h / 2))), columns);
         assert_eq!(coloured_runs((0..h).map(|y| pixel(w / 2 + 20, y))), rows);
-        assert!(std::fs::read_to_string(stem.with_extension("svg")).unwrap().contains("test: 0 (dark) to 11 (bright)"));
+        assert!(std::fs::read_to_string(stem.with_extension("svg")).unwrap().contains("test: 0 (dark) to 11"));
     }
 
     #[test]
