@@ -34,15 +34,19 @@ def _counts(counts: dict[str, int] | None) -> list[tuple[str, int]] | None:
 class CoevoParallelEnv(_ParallelEnv):
     """A coevo scene as a PettingZoo ``ParallelEnv`` (see the module's docstring)."""
 
-    metadata = {"name": "coevo_v0", "render_modes": [], "is_parallelizable": True}
+    metadata = {"name": "coevo_v0", "render_modes": ["rgb_array"], "is_parallelizable": True}
 
     def __init__(self, scene: str = "scenes/standard.ron", seed: int | None = None,
-                 counts: dict[str, int] | None = None, episode_steps: int | None = None):
+                 counts: dict[str, int] | None = None, episode_steps: int | None = None,
+                 render_mode: str | None = None, render_size: int = 480):
+        if render_mode not in (None, "rgb_array"):
+            raise ValueError(f"render_mode: {render_mode!r} is not one of None, 'rgb_array'")
         self._env = _Env(scene, seed, _counts(counts), episode_steps)
         self.possible_agents = list(self._env.agents())
         self.agents: list[str] = []
         self._seeded = False
-        self.render_mode = None
+        self.render_mode = render_mode
+        self._render_size = render_size
 
     @functools.lru_cache(maxsize=None)
     def observation_space(self, agent: str) -> spaces.Box:
@@ -83,6 +87,13 @@ class CoevoParallelEnv(_ParallelEnv):
         if truncated:
             self.agents = []
         return observations, reward, terminations, truncations, infos
+
+    def render(self):
+        """The current state as an RGB array ``[height, width, 3]``, drawn as ``coevo --animate`` draws
+        (``render_mode="rgb_array"``); None in any other mode."""
+        if self.render_mode != "rgb_array":
+            return None
+        return self._env.render(self._render_size)
 
     def close(self):
         pass

@@ -72,6 +72,14 @@ impl Env {
         obs.into_pyarray(py).reshape(shape)
     }
 
+    /// The current state as an RGB image `[height, width, 3]` (uint8), drawn as `coevo --animate` draws.
+    #[pyo3(signature = (size=480))]
+    fn render<'py>(&mut self, py: Python<'py>, size: u32) -> PyResult<Bound<'py, PyArray3<u8>>> {
+        let (w, h, rgba) = self.inner.render(size).map_err(err)?;
+        let rgb: Vec<u8> = rgba.chunks_exact(4).flat_map(|p| [p[0], p[1], p[2]]).collect();
+        rgb.into_pyarray(py).reshape([h as usize, w as usize, 3])
+    }
+
     /// One step with `actions` `[agents, 2]` in [−1, 1]: (observations `[agents, d_o]`, rewards `[agents]`,
     /// truncated, {"dos", "doa", "catches"}).
     #[allow(clippy::type_complexity)]

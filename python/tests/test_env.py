@@ -75,3 +75,15 @@ def test_bad_input_is_one_line():
     env.reset(None)
     with pytest.raises(ValueError, match="actions: expected 26 values"):
         env.step(np.zeros((3, 2), np.float32))
+
+
+def test_render_gives_the_animation_frame():
+    env = coevo.parallel_env(STANDARD, render_mode="rgb_array", render_size=200)
+    env.reset()
+    image = env.render()
+    assert image.dtype == np.uint8 and image.shape == (200 + 38, 200, 3)
+    # The prey's and the predators' colours are in it, not only the floor.
+    assert len(np.unique(image.reshape(-1, 3), axis=0)) > 10
+    assert coevo.parallel_env(STANDARD).render() is None
+    with pytest.raises(ValueError, match="render_mode"):
+        coevo.parallel_env(STANDARD, render_mode="human")

@@ -120,7 +120,7 @@ pub fn animate(
         if step % opts.steps_per_frame != 0 {
             continue;
         }
-        let svg = frame_svg(sim, &arena, &colours, &trails, opts, step, prey);
+        let svg = frame_svg(sim.world_mut(), &arena, &colours, &trails, opts, step, prey);
         let pixels = crate::svg::rasterize(&svg, &svg_options)?;
         let indices = palette.index(pixels.data());
         // Unchanged pixels are transparent: the previous frame shows through (disposal Keep).
@@ -153,13 +153,35 @@ pub fn animate(
     Ok(summary)
 }
 
+/// The current state of a world drawn as an animation frame (`size` pixels square plus the caption),
+/// as RGBA bytes, row by row: what the Python package's `render()` returns.
+pub fn render_rgba(
+    world: &mut bevy::prelude::World,
+    size: u32,
+    title: &str,
+) -> crate::error::Result<(u32, u32, Vec<u8>)> {
+    if !(64..=2048).contains(&size) {
+        return Err(format!("render: the size must be within 64..=2048 pixels (got {size})").into());
+    }
+    let registry = world.resource::<SpeciesRegistry>().clone();
+    let arena = *world.resource::<Arena>();
+    let colours: Vec<[u8; 3]> =
+        registry.defs.iter().map(|d| d.colour.map(|c| (c.clamp(0.0, 1.0) * 255.0).round() as u8)).collect();
+    let opts =
+        AnimateOptions { steps: 0, steps_per_frame: 1, trails: false, size, title: title.into(), progress: false };
+    let step = world.resource::<Episode>().step;
+    let svg = frame_svg(world, &arena, &colours, &HashMap::new(), &opts, step, registry.headline());
+    let pixels = crate::svg::rasterize(&svg, &crate::svg::options())?;
+    Ok((pixels.width(), pixels.height(), pixels.data().to_vec()))
+}
+
 fn hex(c: [u8; 3]) -> String {
     format!("#{:02x}{:02x}{:02x}", c[0], c[1], c[2])
 }
 
 /// One frame: the arena (clipped to itself), then the caption strip below it.
 fn frame_svg(
-    sim: &mut Simulation,
+    world: &mut bevy::prelude::World,
     arena: &Arena,
     colours: &[[u8; 3]],
     trails: &HashMap<AgentId, VecDeque<DVec2>>,
@@ -208,7 +230,6 @@ fn frame_svg(
         }
         out
     };
-    let world = sim.world_mut();
     let mut agents: Vec<(AgentId, usize, DVec2, f64, f64, u32)> = world
         .query::<(&AgentId, &SpeciesId, &Position, &Heading, &Body, &Contacts)>()
         .iter(world)

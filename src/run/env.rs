@@ -191,6 +191,13 @@ impl Env {
         })
     }
 
+    /// The current state drawn as the headless animations draw it (`size` pixels square plus a caption):
+    /// (width, height, RGBA bytes row by row).
+    pub fn render(&mut self, size: u32) -> crate::error::Result<(u32, u32, Vec<u8>)> {
+        let title = format!("coevo, seed {}", self.scene.seed);
+        crate::run::animate::render_rgba(&mut self.world, size, &title)
+    }
+
     /// Every agent's position (x, y), in coevo's agent order (all species).
     pub fn positions(&self) -> Vec<[f64; 2]> {
         self.world.resource::<Population>().position.iter().map(|p| [p.x, p.y]).collect()
