@@ -163,3 +163,34 @@ fn an_evaluation_deploys_the_snapshots_it_is_asked_for() {
         assert!(!run.join("bad.csv").exists());
     }
 }
+
+#[test]
+fn each_predator_prey_pair_of_learning_species_gets_its_own_matrix() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut scene = Scene::preset("paper").unwrap();
+    scene.episode_steps = 30;
+    scene.learning.hidden = 16;
+    scene.learning.batch_size = 32;
+    scene.learning.warmup_transitions = 32;
+    scene.learning.snapshot_every = 1;
+    scene.species[0].count = 1;
+    scene.species[1].count = 5;
+    // A second predator species, "hawk", that also catches the prey.
+    let mut hawk = scene.species[0].clone();
+    hawk.name = "hawk".into();
+    scene.species.push(hawk);
+    let run = dir.path().join("run");
+    train(scene, &TrainOptions::new(&run, Some(2))).unwrap();
+    let opts = CrossplayOptions { run: run.clone(), episodes: 1, overrides: Overrides::default(), progress: false };
+    let (matrices, _) = crossplay(&opts).unwrap();
+    let pairs: Vec<(String, String)> =
+        matrices.iter().map(|m| (m.pair.prey_name.clone(), m.pair.predator_name.clone())).collect();
+    assert_eq!(pairs, [("prey".to_string(), "predator".to_string()), ("prey".to_string(), "hawk".to_string())]);
+    for stem in ["crossplay-prey-predator", "crossplay-prey-hawk"] {
+        let cells = std::fs::read_to_string(run.join(format!("{stem}.csv"))).unwrap();
+        assert_eq!(cells.lines().count(), 1 + 3 * 3, "{stem}: snapshots 0, 1, 2 of each side");
+        assert!(run.join(format!("figures/{stem}.png")).exists());
+    }
+    let readouts = std::fs::read_to_string(run.join("crossplay-readouts.csv")).unwrap();
+    assert!(readouts.lines().any(|l| l.starts_with("prey,hawk,")) && readouts.lines().any(|l| l.starts_with("prey,predator,")));
+}
