@@ -559,6 +559,7 @@ fn an_evaluation_with_a_perturbation_gives_the_response_columns_and_claims() {
         let near: f64 = row.split(',').nth(at).unwrap().parse().unwrap();
         assert!(near.is_finite() && near > 0.0, "the neighbours of the turned prey respond: {row}");
     }
+    assert!(dir.path().join("results/tiny/figures/paper-perturbation-50-prey-turned.png").exists());
     let md = std::fs::read_to_string(dir.path().join("REPRODUCTION.md")).unwrap();
     assert!(md.contains("near response to one prey turned, in evaluation \"50 prey, turned\""), "{md}");
     // A Response claim needs a perturbed evaluation of that name.

@@ -254,3 +254,24 @@ fn the_shipped_trained_run_is_first_in_the_run_list_and_loads() {
             .expect("the shipped actors fit their scene");
     assert!(learners.species.iter().flatten().all(|l| l.frozen));
 }
+
+#[test]
+fn watching_a_run_deploys_the_snapshots_asked_for() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = tiny_run(dir.path());
+    let scene = Scene::load(&run.join("scene.ron")).unwrap();
+    let setup = |snapshots: Vec<(String, usize)>| Setup {
+        scene: scene.clone(),
+        source: run.join("scene.ron"),
+        mode: RunMode::Watch(run.clone()),
+        snapshots,
+    };
+    let (_, learners) = setup(vec![("prey".into(), 0)]).prepare().unwrap();
+    let like = learners.species[1].as_ref().unwrap().ddpg.actor.clone();
+    let initial = coevo::learning::checkpoint::load_snapshot(&run, "prey", 0, &like).unwrap();
+    assert_eq!(learners.species[1].as_ref().unwrap().ddpg.actor.parameters(), initial.parameters());
+    let (_, trained) = setup(vec![]).prepare().unwrap();
+    assert_ne!(trained.species[1].as_ref().unwrap().ddpg.actor.parameters(), initial.parameters());
+    let err = setup(vec![("prey".into(), 7)]).prepare().err().unwrap().to_string();
+    assert!(err.starts_with("snapshot refused:") && err.contains("no snapshot of prey after 7 episodes"), "{err}");
+}

@@ -313,6 +313,7 @@ pub fn aggregate(
             if exp.spec.crossplay.is_some() {
                 crossplay_figures(exp, preset, data)?;
             }
+            perturbation_figures(exp, preset, data)?;
         }
     }
     // One family per experiment: every effect's p-value, all presets, adjusted together (Holm).
@@ -450,6 +451,58 @@ fn band(series: &[Vec<f64>], label: &str, x0: f64) -> Option<Curve> {
     let seeds = series.len();
     let label = format!("{label} ({seeds} seed{})", if seeds == 1 { "" } else { "s" });
     Some(Curve { label, x: (0..len).map(|t| x0 + t as f64).collect(), mean: m, band: (seeds > 1).then_some((lo, hi)) })
+}
+
+/// Per evaluation with `perturb:`, the response of the other prey to the turned one against the lag,
+/// nearest six and ranks 25+, each variant's mean over its seeds with the 95 % band
+/// (`figures/<preset>-perturbation-<evaluation>.png`).
+fn perturbation_figures(exp: &Experiment, preset: &str, data: &BTreeMap<usize, RunData>) -> crate::error::Result<()> {
+    for e in exp.spec.evaluations.iter().filter(|e| e.perturb.is_some()) {
+        let mut panels = vec![];
+        for (which, ranks) in [("ranks 1–6", 1.0..=6.0), ("ranks 25+", 25.0..=f64::INFINITY)] {
+            let mut curves = vec![];
+            for v in &exp.spec.variants {
+                let mut series = vec![];
+                for r in data.keys().map(|&i| &exp.runs[i]).filter(|r| r.preset == preset && r.variant == v.name) {
+                    let path = crate::io::beside(&eval_file(&r.dir, &e.name), crate::run::PERTURBATION);
+                    if let Some(s) = read_response_by_lag(&path, &ranks)? {
+                        series.push(s);
+                    }
+                }
+                curves.extend(band(&series, &v.name, 1.0));
+            }
+            panels.push(Panel {
+                title: format!("{}, {preset}: {}, response of {which}", exp.name, e.name),
+                x_label: "steps after the turn".into(),
+                y_label: "mean |Δheading| (rad)".into(),
+                curves,
+            });
+        }
+        if panels.iter().any(|p| !p.curves.is_empty()) {
+            plot::save(&exp.root.join("figures").join(format!("{preset}-perturbation-{}", slug(&e.name))), &panels)?;
+        }
+    }
+    Ok(())
+}
+
+/// The sample-weighted mean |Δheading| per lag over the rank bins whose first rank lies in `ranks`, from a
+/// perturbation file; None without the file.
+fn read_response_by_lag(path: &Path, ranks: &std::ops::RangeInclusive<f64>) -> crate::error::Result<Option<Vec<f64>>> {
+    if !path.exists() {
+        return Ok(None);
+    }
+    let text = crate::io::read_text(path, crate::io::MAX_TEXT_BYTES).map_err(|e| format!("{}: {e}", path.display()))?;
+    let mut sums: BTreeMap<usize, (f64, f64)> = BTreeMap::new();
+    for row in text.lines().skip(1) {
+        let c: Vec<f64> = row.split(',').map(|x| x.parse().unwrap_or(f64::NAN)).collect();
+        let [lag, from, _, mean, n] = c[..] else { continue };
+        if ranks.contains(&from) && mean.is_finite() {
+            let s = sums.entry(lag as usize).or_default();
+            s.0 += mean * n;
+            s.1 += n;
+        }
+    }
+    Ok(Some(sums.values().map(|(s, n)| if *n > 0.0 { s / n } else { f64::NAN }).collect()))
 }
 
 /// Per variant, the cross-play matrix averaged over its seeds, as heat maps
