@@ -192,5 +192,8 @@ fn each_predator_prey_pair_of_learning_species_gets_its_own_matrix() {
         assert!(run.join(format!("figures/{stem}.png")).exists());
     }
     let readouts = std::fs::read_to_string(run.join("crossplay-readouts.csv")).unwrap();
-    assert!(readouts.lines().any(|l| l.starts_with("prey,hawk,")) && readouts.lines().any(|l| l.starts_with("prey,predator,")));
+    assert!(
+        readouts.lines().any(|l| l.starts_with("prey,hawk,"))
+            && readouts.lines().any(|l| l.starts_with("prey,predator,"))
+    );
 }
