@@ -266,12 +266,15 @@ fn watching_a_run_deploys_the_snapshots_asked_for() {
         mode: RunMode::Watch(run.clone()),
         snapshots,
     };
-    let (_, learners) = setup(vec![("prey".into(), 0)]).prepare().unwrap();
-    let like = learners.species[1].as_ref().unwrap().ddpg.actor.clone();
-    let initial = coevo::learning::checkpoint::load_snapshot(&run, "prey", 0, &like).unwrap();
-    assert_eq!(learners.species[1].as_ref().unwrap().ddpg.actor.parameters(), initial.parameters());
+    // A snapshot unlike the trained actor (the tiny run makes no update), so deploying it shows.
     let (_, trained) = setup(vec![]).prepare().unwrap();
-    assert_ne!(trained.species[1].as_ref().unwrap().ddpg.actor.parameters(), initial.parameters());
+    let mut other = trained.species[1].as_ref().unwrap().ddpg.actor.clone();
+    let shifted: Vec<Vec<f32>> = other.parameters().iter().map(|p| p.iter().map(|x| x + 0.5).collect()).collect();
+    other.set_parameters(&shifted);
+    coevo::learning::checkpoint::save_snapshot(&run, "prey", 0, &other).unwrap();
+    let (_, learners) = setup(vec![("prey".into(), 0)]).prepare().unwrap();
+    assert_eq!(learners.species[1].as_ref().unwrap().ddpg.actor.parameters(), other.parameters());
+    assert_ne!(trained.species[1].as_ref().unwrap().ddpg.actor.parameters(), other.parameters());
     let err = setup(vec![("prey".into(), 7)]).prepare().err().unwrap().to_string();
     assert!(err.starts_with("snapshot refused:") && err.contains("no snapshot of prey after 7 episodes"), "{err}");
 }
