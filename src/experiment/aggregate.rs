@@ -34,29 +34,13 @@ fn read_confusion(path: &Path) -> crate::error::Result<Vec<[f64; 3]>> {
 /// The near and far responses of a perturbation file (`run::perturb`): the sample-weighted mean
 /// |Δheading| of ranks 1–6 over lags 1–10, and of ranks 25+ over the same lags; NaN without the file.
 fn read_response(path: &Path) -> crate::error::Result<[f64; 2]> {
-    if !path.exists() {
-        return Ok([f64::NAN; 2]);
-    }
-    let text = crate::io::read_text(path, crate::io::MAX_TEXT_BYTES).map_err(|e| format!("{}: {e}", path.display()))?;
-    let (mut near, mut far) = ((0.0, 0.0), (0.0, 0.0));
-    for row in text.lines().skip(1) {
-        let c: Vec<f64> = row.split(',').map(|x| x.parse().unwrap_or(f64::NAN)).collect();
-        let [lag, from, _, mean, n] = c[..] else { continue };
-        if !(1.0..=10.0).contains(&lag) || !mean.is_finite() {
-            continue;
+    use crate::run::perturb::{read_rows, weighted_mean};
+    Ok(match read_rows(path)? {
+        Some(rows) => {
+            [weighted_mean(&rows, 1.0..=10.0, 1.0..=6.0), weighted_mean(&rows, 1.0..=10.0, 25.0..=f64::INFINITY)]
         }
-        let into = if from <= 6.0 {
-            &mut near
-        } else if from >= 25.0 {
-            &mut far
-        } else {
-            continue;
-        };
-        into.0 += mean * n;
-        into.1 += n;
-    }
-    let mean = |(s, n): (f64, f64)| if n > 0.0 { s / n } else { f64::NAN };
-    Ok([mean(near), mean(far)])
+        None => [f64::NAN; 2],
+    })
 }
 
 /// The species whose DoS/DoA an experiment reports (prey in the paper's scenes).
@@ -485,24 +469,12 @@ fn perturbation_figures(exp: &Experiment, preset: &str, data: &BTreeMap<usize, R
     Ok(())
 }
 
-/// The sample-weighted mean |Δheading| per lag over the rank bins whose first rank lies in `ranks`, from a
-/// perturbation file; None without the file.
+/// The sample-weighted mean |Δheading| per lag (1, 2, ...) over the rank bins whose first rank lies in
+/// `ranks`, from a perturbation file; None without the file.
 fn read_response_by_lag(path: &Path, ranks: &std::ops::RangeInclusive<f64>) -> crate::error::Result<Option<Vec<f64>>> {
-    if !path.exists() {
-        return Ok(None);
-    }
-    let text = crate::io::read_text(path, crate::io::MAX_TEXT_BYTES).map_err(|e| format!("{}: {e}", path.display()))?;
-    let mut sums: BTreeMap<usize, (f64, f64)> = BTreeMap::new();
-    for row in text.lines().skip(1) {
-        let c: Vec<f64> = row.split(',').map(|x| x.parse().unwrap_or(f64::NAN)).collect();
-        let [lag, from, _, mean, n] = c[..] else { continue };
-        if ranks.contains(&from) && mean.is_finite() {
-            let s = sums.entry(lag as usize).or_default();
-            s.0 += mean * n;
-            s.1 += n;
-        }
-    }
-    Ok(Some(sums.values().map(|(s, n)| if *n > 0.0 { s / n } else { f64::NAN }).collect()))
+    use crate::run::perturb::{read_rows, weighted_mean, LAGS};
+    Ok(read_rows(path)?
+        .map(|rows| (1..=LAGS).map(|lag| weighted_mean(&rows, lag as f64..=lag as f64, ranks.clone())).collect()))
 }
 
 /// Per variant, the cross-play matrix averaged over its seeds, as heat maps

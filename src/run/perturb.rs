@@ -26,6 +26,39 @@ pub struct Perturbation {
     pub step: usize,
 }
 
+/// The rows of a perturbation file ([`Response::csv`]) as (lag, first rank of the bin, mean |Δheading|,
+/// samples); None without the file.
+pub fn read_rows(path: &std::path::Path) -> crate::error::Result<Option<Vec<[f64; 4]>>> {
+    if !path.exists() {
+        return Ok(None);
+    }
+    let text = crate::io::read_text(path, crate::io::MAX_TEXT_BYTES).map_err(|e| format!("{}: {e}", path.display()))?;
+    let rows = text.lines().skip(1).filter_map(|row| {
+        let c: Vec<f64> = row.split(',').map(|x| x.parse().unwrap_or(f64::NAN)).collect();
+        let [lag, from, _, mean, n] = c[..] else { return None };
+        Some([lag, from, mean, n])
+    });
+    Ok(Some(rows.collect()))
+}
+
+/// The sample-weighted mean |Δheading| of the rows whose lag lies in `lags` and whose rank bin starts in
+/// `ranks` (NaN without samples).
+pub fn weighted_mean(
+    rows: &[[f64; 4]],
+    lags: std::ops::RangeInclusive<f64>,
+    ranks: std::ops::RangeInclusive<f64>,
+) -> f64 {
+    let (sum, n) = rows
+        .iter()
+        .filter(|[lag, from, mean, _]| lags.contains(lag) && ranks.contains(from) && mean.is_finite())
+        .fold((0.0, 0.0), |(s, c), [_, _, mean, n]| (s + mean * n, c + n));
+    if n > 0.0 {
+        sum / n
+    } else {
+        f64::NAN
+    }
+}
+
 /// The response accumulated over episodes: Σ |Δheading| and samples per lag (1..=LAGS) and rank bin.
 pub struct Response {
     pub perturbation: Perturbation,
