@@ -64,17 +64,19 @@ pub struct Env {
 impl Env {
     /// A world of `scene` whose `Learned` species are decided from outside. Err when none is, when their
     /// observation sizes differ (one flat array needs one size), or when the scene is refused.
-    pub fn new(mut scene: Scene) -> crate::error::Result<Env> {
+    pub fn new(scene: Scene) -> crate::error::Result<Env> {
         scene.validate()?;
         let learned: Vec<usize> =
             (0..scene.species.len()).filter(|&s| scene.species[s].policy == Policy::Learned).collect();
         if learned.is_empty() {
             return Err("the scene has no Learned species to decide from outside".into());
         }
+        // The world runs the scene with its learned species decided from outside; `scene` is kept as given.
+        let mut decided = scene.clone();
         for &s in &learned {
-            scene.species[s].policy = Policy::Plugin(EXTERNAL.into());
+            decided.species[s].policy = Policy::Plugin(EXTERNAL.into());
         }
-        let mut sim = crate::learning::simulation_with(scene.clone(), Mode::Evaluate, None, |app| {
+        let mut sim = crate::learning::simulation_with(decided, Mode::Evaluate, None, |app| {
             crate::sim::policy::PolicyPlugins::register(app, EXTERNAL);
             app.init_resource::<ExternalActions>();
             app.add_systems(FixedUpdate, apply_external.in_set(SimSet::Decide));
@@ -127,19 +129,11 @@ impl Env {
             Some(seed) => {
                 let mut scene = self.scene.clone();
                 scene.seed = seed;
-                *self = Env::new_with_policies(scene, &self.external)?;
+                *self = Env::new(scene)?;
             }
             None => crate::sim::episode::next_episode(&mut self.world),
         }
         Ok(self.observations())
-    }
-
-    /// [`Env::new`] of a scene whose external species are already `Plugin(EXTERNAL)`.
-    fn new_with_policies(mut scene: Scene, external: &[(usize, usize)]) -> crate::error::Result<Env> {
-        for &(s, _) in external {
-            scene.species[s].policy = Policy::Learned;
-        }
-        Env::new(scene)
     }
 
     fn observations(&self) -> Vec<f32> {
