@@ -413,9 +413,7 @@ fn snapshots(cli: &Cli, run: Option<&Path>, what: &str) -> crate::error::Result<
 /// The scene file of the call (--scene, else `default`) with the call's overrides applied and validated.
 fn load_scene(cli: &Cli, default: &Path, overrides: &Overrides) -> crate::error::Result<(Scene, PathBuf)> {
     let path = cli.scene.clone().unwrap_or_else(|| default.to_path_buf());
-    let mut scene = Scene::load(&path)?;
-    overrides.apply(&mut scene, &path)?;
-    Ok((scene, path))
+    Ok((overrides.load(&path)?, path))
 }
 
 fn run(cli: Cli, call: Call) -> crate::error::Result<()> {

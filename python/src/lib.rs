@@ -16,12 +16,9 @@ fn err(e: impl std::fmt::Display) -> PyErr {
 
 /// A scene file with the counts, seed and episode length given from Python, validated.
 fn scene(path: &str, seed: Option<u64>, counts: Option<Vec<(String, usize)>>, steps: Option<usize>) -> PyResult<Scene> {
-    let path = Path::new(path);
-    let mut scene = Scene::load(path).map_err(err)?;
     let overrides =
         Overrides { counts: counts.unwrap_or_default(), seed, episode_steps: steps, confusion_radius: None };
-    overrides.apply(&mut scene, path).map_err(err)?;
-    Ok(scene)
+    overrides.load(Path::new(path)).map_err(err)
 }
 
 /// One world whose learning species are decided from Python.

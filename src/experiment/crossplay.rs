@@ -128,8 +128,7 @@ pub fn crossplay(opts: &CrossplayOptions) -> crate::error::Result<(Vec<Matrix>, 
         return Err("--episodes: must be ≥ 1".into());
     }
     let scene_path = dir.scene();
-    let mut scene = Scene::load(&scene_path)?;
-    opts.overrides.apply(&mut scene, &scene_path)?;
+    let scene = opts.overrides.load(&scene_path)?;
     let registry = SpeciesRegistry::from_scene(&scene);
     let pairs = pairs(&registry);
     if pairs.is_empty() {

@@ -12,7 +12,7 @@ use super::RunDir;
 use crate::io::{AtomicFile, Existing};
 use crate::learning::control::ObservationControl;
 use crate::learning::Mode;
-use crate::scene::{Overrides, Scene};
+use crate::scene::Overrides;
 use crate::sim::clock::Episode;
 use crate::sim::collective::{add_heading_correlation, confusion_bin_label, heading_correlation};
 use crate::sim::metrics::{Confusion, SwarmMetrics};
@@ -195,9 +195,7 @@ pub fn evaluate(opts: &EvalOptions) -> crate::error::Result<String> {
     if opts.episodes == 0 {
         return Err("--episodes: must be ≥ 1".into());
     }
-    let scene_path = dir.scene();
-    let mut scene = Scene::load(&scene_path)?;
-    opts.overrides.apply(&mut scene, &scene_path)?;
+    let scene = opts.overrides.load(&dir.scene())?;
     let trained = (!opts.untrained).then_some(opts.run.as_path());
     let build = || -> crate::error::Result<Simulation> {
         let mut learners = crate::learning::Learners::new(&scene, Mode::Evaluate);

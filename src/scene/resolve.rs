@@ -170,6 +170,13 @@ pub struct Overrides {
 }
 
 impl Overrides {
+    /// The scene file at `path` with the overrides applied and validated.
+    pub fn load(&self, path: &Path) -> Result<Scene> {
+        let mut scene = Scene::load(path)?;
+        self.apply(&mut scene, path)?;
+        Ok(scene)
+    }
+
     /// Applies the overrides to `scene` (read from `source`, which errors name) and validates the result.
     pub fn apply(&self, scene: &mut Scene, source: &Path) -> Result<()> {
         for (name, n) in &self.counts {
