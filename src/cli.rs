@@ -68,6 +68,11 @@ struct Cli {
     /// Any species' count, as NAME=N (repeatable; --eval, --record, viewer).
     #[arg(long, help_heading = "Scene", value_name = "NAME=N")]
     count: Vec<String>,
+    /// A species' policy, as NAME=POLICY with POLICY as a scene file writes it: ChaseNearest, FleeNearest,
+    /// Random, Still, Frozen("RUN") (repeatable; --eval, --record, --animate, --describe-scene), e.g.
+    /// --policy predator=ChaseNearest evaluates trained prey against the paper's rule-based predators.
+    #[arg(long, help_heading = "Scene", value_name = "NAME=POLICY")]
+    policy: Vec<String>,
     /// No progress bar (--train, --resume).
     #[arg(long, help_heading = "Training and evaluation")]
     quiet: bool,
@@ -207,10 +212,11 @@ const TAKES: [(&str, &[&str]); 11] = [
             "snapshot",
             "perturb",
             "perturb_step",
+            "policy",
         ],
     ),
     ("crossplay", &["episodes", "steps", "seed", "prey", "predators", "count", "quiet"]),
-    ("record", &["run", "scene", "seed", "steps", "prey", "predators", "count", "overwrite", "snapshot"]),
+    ("record", &["run", "scene", "seed", "steps", "prey", "predators", "count", "policy", "overwrite", "snapshot"]),
     (
         "animate",
         &[
@@ -221,6 +227,7 @@ const TAKES: [(&str, &[&str]); 11] = [
             "prey",
             "predators",
             "count",
+            "policy",
             "overwrite",
             "trails",
             "steps_per_frame",
@@ -230,7 +237,7 @@ const TAKES: [(&str, &[&str]); 11] = [
         ],
     ),
     ("bench", &["bench_seconds"]),
-    ("describe_scene", &["seed", "prey", "predators", "count"]),
+    ("describe_scene", &["seed", "prey", "predators", "count", "policy"]),
     ("experiment", &["jobs", "task", "emit_slurm", "quiet"]),
     ("plot", &[]),
     (
@@ -384,8 +391,17 @@ fn overrides(cli: &Cli, steps: bool) -> crate::error::Result<Overrides> {
         let (name, n) = c.split_once('=').ok_or_else(|| format!("--count {c}: expected NAME=N"))?;
         counts.push((name.to_string(), n.parse().map_err(|_| format!("--count {c}: {n} is not a count"))?));
     }
+    let mut policies = vec![];
+    for p in &cli.policy {
+        let (name, policy) = p.split_once('=').ok_or_else(|| format!("--policy {p}: expected NAME=POLICY"))?;
+        let policy = ron::from_str(policy).map_err(|_| {
+            format!("--policy {p}: {policy} is not a policy (ChaseNearest, FleeNearest, Random, Still, Frozen(\"RUN\"), Learned)")
+        })?;
+        policies.push((name.to_string(), policy));
+    }
     Ok(Overrides {
         counts,
+        policies,
         seed: cli.seed,
         episode_steps: if steps { cli.steps } else { None },
         confusion_radius: None,

@@ -242,6 +242,10 @@ fn cases() -> Vec<(Vec<&'static str>, &'static str)> {
         (vec!["--describe-scene", "perceive-twice.ron"], "species[prey].perception_of: \"predator\" is named twice"),
         (vec!["--describe-scene", "perceive-zero.ron"], "species[prey].perception_of: must be"),
         (vec!["--eval", "run", "--control", "blinded"], "--control: \"blinded\" is not a control"),
+        (vec!["--eval", "run", "--policy", "predator=Chase"], "--policy predator=Chase: Chase is not a policy"),
+        (vec!["--eval", "run", "--policy", "predator"], "--policy predator: expected NAME=POLICY"),
+        (vec!["--eval", "run", "--policy", "hawk=Still"], "scene.ron: no species named \"hawk\""),
+        (vec!["--train", "--policy", "predator=Still"], "'--train' cannot be used with '--policy"),
         (
             vec!["--eval", "run", "--untrained", "--seed", "3"],
             "--untrained: deploys the networks the run was initialised with",

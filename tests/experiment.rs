@@ -72,6 +72,10 @@ fn experiment_files_expand_to_runs_and_bad_ones_are_one_line() {
             "bad.ron: claims: \"5:3 against 1:1\" is compared with itself",
         ),
         (TINY.replace("(\"prey\", 50)", "(\"hawk\", 50)"), "evaluations[50 prey]: no species named \"hawk\""),
+        (
+            TINY.replace("counts: [(\"prey\", 50)],", "counts: [(\"prey\", 50)], policies: [(\"hawk\", Still)],"),
+            "evaluations[50 prey]: no species named \"hawk\"",
+        ),
         (TINY.replace("scenes/paper.ron", "scenes/none.ron"), "bad.ron: base: scenes/none.ron: cannot read"),
         (
             TINY.replace("quantity: CatchesChange", "quantity: Crossplay(\"doa_late\")"),

@@ -26,6 +26,23 @@ fn same_scene_and_seed_give_byte_identical_records() {
 }
 
 #[test]
+fn a_policy_override_is_the_scene_file_that_sets_that_policy() {
+    let dir = tempfile::tempdir().unwrap();
+    // confined.ron's predators chase; a copy of the file with fleeing predators, and the override.
+    let text = std::fs::read_to_string("scenes/confined.ron").unwrap();
+    assert!(text.contains("policy: ChaseNearest"));
+    let fleeing = dir.path().join("fleeing.ron");
+    std::fs::write(&fleeing, text.replace("policy: ChaseNearest", "policy: FleeNearest")).unwrap();
+    let by_file = record(dir.path(), "file.csv", fleeing.to_str().unwrap(), "4", "40");
+    let out = dir.path().join("flag.csv");
+    let args = ["--record", out.to_str().unwrap(), "--scene", "scenes/confined.ron", "--steps", "40", "--seed", "4"];
+    let o = coevo(&[&args[..], &["--policy", "predator=FleeNearest"]].concat());
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(std::fs::read_to_string(&out).unwrap(), by_file);
+    assert_ne!(record(dir.path(), "chase.csv", "scenes/confined.ron", "4", "40"), by_file, "the policy acts");
+}
+
+#[test]
 fn record_rows_hold_state_action_and_reward_in_physical_units() {
     let dir = tempfile::tempdir().unwrap();
     let text = record(dir.path(), "r.csv", "scenes/confined.ron", "3", "20");

@@ -126,6 +126,10 @@ pub struct Evaluation {
     pub perturb: Option<f64>,
     #[serde(default)]
     pub perturb_step: Option<usize>,
+    /// Species whose policy the evaluation replaces, e.g. `[("predator", ChaseNearest)]`: trained prey
+    /// against the paper's rule-based predators (`coevo --eval --policy`).
+    #[serde(default)]
+    pub policies: Vec<(String, crate::scene::Policy)>,
 }
 
 impl Evaluation {
@@ -133,6 +137,7 @@ impl Evaluation {
     pub fn overrides(&self) -> Overrides {
         Overrides {
             counts: self.counts.clone(),
+            policies: self.policies.clone(),
             seed: None,
             episode_steps: self.steps,
             confusion_radius: self.confusion_radius,
@@ -226,8 +231,8 @@ pub enum Quantity {
 pub const EVAL_ORDER: [&str; 6] =
     ["polarization", "milling", "clusters", "largest_cluster", "nn_correlation", "edge_rank"];
 
-/// The untrained evaluation a trained evaluation `name` is compared with: same counts, episodes, steps
-/// and control, `untrained: true`.
+/// The untrained evaluation a trained evaluation `name` is compared with: same counts, policies, episodes,
+/// steps and control, `untrained: true`.
 pub fn untrained_partner<'a>(evaluations: &'a [Evaluation], name: &str) -> Option<&'a Evaluation> {
     let trained = evaluations.iter().find(|e| e.name == name && !e.untrained)?;
     evaluations.iter().find(|e| {
@@ -236,10 +241,12 @@ pub fn untrained_partner<'a>(evaluations: &'a [Evaluation], name: &str) -> Optio
             && e.episodes == trained.episodes
             && e.steps == trained.steps
             && e.control == trained.control
+            && e.policies == trained.policies
     })
 }
 
-/// The seeing evaluation a control evaluation `name` is compared with: same counts, episodes and steps.
+/// The seeing evaluation a control evaluation `name` is compared with: same counts, policies, episodes,
+/// steps and training state.
 /// None when `name` is no control or has no such partner.
 pub fn seeing_partner<'a>(evaluations: &'a [Evaluation], name: &str) -> Option<&'a Evaluation> {
     let control = evaluations.iter().find(|e| e.name == name)?;
@@ -251,6 +258,8 @@ pub fn seeing_partner<'a>(evaluations: &'a [Evaluation], name: &str) -> Option<&
             && e.counts == control.counts
             && e.episodes == control.episodes
             && e.steps == control.steps
+            && e.policies == control.policies
+            && e.untrained == control.untrained
     })
 }
 
@@ -509,7 +518,7 @@ impl Experiment {
             }
             if let Quantity::InteractionDoa(e) | Quantity::Interaction(e, _) = &c.quantity {
                 if seeing_partner(&spec.evaluations, e).is_none() {
-                    return Err(err("claims", format!("evaluation {e:?} needs a control (Blind, Shuffled or a block form) and a seeing evaluation with the same counts, episodes and steps")));
+                    return Err(err("claims", format!("evaluation {e:?} needs a control (Blind, Shuffled or a block form) and a seeing evaluation with the same counts, policies, episodes and steps")));
                 }
             }
         }

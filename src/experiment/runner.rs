@@ -137,6 +137,10 @@ pub fn complete_run(exp: &Experiment, run: &Run, exe: &Path, threads: usize) -> 
         for (species, n) in &e.counts {
             args.extend(["--count".into(), format!("{species}={n}")]);
         }
+        for (species, policy) in &e.policies {
+            let policy = ron::to_string(policy).expect("a policy always serializes");
+            args.extend(["--policy".into(), format!("{species}={policy}")]);
+        }
         for form in e.control.texts() {
             args.extend(["--control".into(), form]);
         }

@@ -274,7 +274,15 @@ pub fn evaluate(opts: &EvalOptions) -> crate::error::Result<String> {
     for (what, text) in super::EVAL_BESIDE.iter().zip(files) {
         crate::io::write_file(&crate::io::beside(&path, what), Existing::Replace, text.as_bytes())?;
     }
-    let counts: Vec<String> = registry.defs.iter().map(|d| format!("{} {}", d.count, d.name)).collect();
+    // A replaced policy is named beside its species: "3 predator (ChaseNearest) + 50 prey".
+    let counts: Vec<String> = registry
+        .defs
+        .iter()
+        .map(|d| match opts.overrides.policies.iter().any(|(name, _)| *name == d.name) {
+            true => format!("{} {} ({:?})", d.count, d.name, d.policy),
+            false => format!("{} {}", d.count, d.name),
+        })
+        .collect();
     Ok(format!(
         "eval {}{}{}: {} episodes × {} steps, {}: {}; per step in {}",
         opts.run.display(),

@@ -344,9 +344,19 @@ impl Scene {
 
     /// Sets the count of a named species (for `--prey 50`-style overrides).
     pub fn set_count(&mut self, name: &str, count: usize) -> crate::error::Result<()> {
-        let s = self.species.iter_mut().find(|s| s.name == name).ok_or_else(|| format!("no species named {name:?}"))?;
-        s.count = count;
+        self.species_mut(name)?.count = count;
         Ok(())
+    }
+
+    /// Replaces a species' policy, e.g. learned predators by the paper's rule-based chase-nearest ones for
+    /// an evaluation of prey against opponents they never trained with.
+    pub fn set_policy(&mut self, name: &str, policy: Policy) -> crate::error::Result<()> {
+        self.species_mut(name)?.policy = policy;
+        Ok(())
+    }
+
+    fn species_mut(&mut self, name: &str) -> crate::error::Result<&mut SpeciesDef> {
+        Ok(self.species.iter_mut().find(|s| s.name == name).ok_or_else(|| format!("no species named {name:?}"))?)
     }
 
     /// The resolved scene as RON, loadable again as a scene file.

@@ -159,11 +159,13 @@ impl Scene {
 }
 
 /// What a call changes of a scene it loads: species counts (`--prey`, `--predators`, `--count`, an
-/// evaluation's `counts`), the seed, the steps per episode, the confusion radius. The one place where
-/// overrides are applied; the scene is validated again after them.
+/// evaluation's `counts`), species policies (`--policy`, an evaluation's `policies`), the seed, the steps
+/// per episode, the confusion radius. The one place where overrides are applied; the scene is validated
+/// again after them.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Overrides {
     pub counts: Vec<(String, usize)>,
+    pub policies: Vec<(String, super::Policy)>,
     pub seed: Option<u64>,
     pub episode_steps: Option<usize>,
     pub confusion_radius: Option<f64>,
@@ -181,6 +183,9 @@ impl Overrides {
     pub fn apply(&self, scene: &mut Scene, source: &Path) -> Result<()> {
         for (name, n) in &self.counts {
             scene.set_count(name, *n).map_err(|e| format!("{}: {e}", source.display()))?;
+        }
+        for (name, policy) in &self.policies {
+            scene.set_policy(name, policy.clone()).map_err(|e| format!("{}: {e}", source.display()))?;
         }
         if let Some(seed) = self.seed {
             scene.seed = seed;
