@@ -13,6 +13,11 @@
 //! | `cli.rs` | the command line (`main.rs` and examples call [`cli::main`]) |
 //! | `error.rs`, `io.rs`, `parallel.rs`, `svg.rs` | the one error type, files written safely, threads that never change a result, SVG to pixels |
 
+/// The crate's version (`provenance.ron`'s `coevo_version`; the Python package's `__version__`).
+pub const VERSION: &str = env!("CARGO_PKG_VERSION");
+/// The commit this build was made from (`git describe --always --dirty`, `build.rs`).
+pub const GIT_COMMIT: &str = env!("COEVO_GIT_COMMIT");
+
 pub mod cli;
 pub mod error;
 pub mod experiment;

@@ -10,6 +10,9 @@ truncated at the scene's ``episode_steps``; nobody terminates early (caught prey
 ``VecEnv(...)`` steps many worlds per call on numpy arrays ``[num_envs, agents, d_o]`` / ``[num_envs,
 agents, 2]``, on all cores, each world starting its next episode by itself (world i from seed + i).
 
+``control="blind:prey:prey"`` (or a list of such forms, as ``coevo --eval --control``) hands out the
+observations altered exactly as coevo alters what its own actors see in the flocking/herding controls.
+
 Both step the very schedule ``coevo --train`` steps: no second implementation.
 """
 
@@ -23,12 +26,17 @@ from pettingzoo import ParallelEnv as _ParallelEnv
 
 from ._coevo import Env as _Env
 from ._coevo import VecEnv as _VecEnv
+from ._coevo import __version__, git_commit
 
-__all__ = ["parallel_env", "CoevoParallelEnv", "VecEnv"]
+__all__ = ["parallel_env", "CoevoParallelEnv", "VecEnv", "__version__", "git_commit"]
 
 
 def _counts(counts: dict[str, int] | None) -> list[tuple[str, int]] | None:
     return None if counts is None else [(str(k), int(v)) for k, v in counts.items()]
+
+
+def _control(control: str | list[str] | None) -> list[str] | None:
+    return [control] if isinstance(control, str) else control
 
 
 class CoevoParallelEnv(_ParallelEnv):
@@ -38,10 +46,11 @@ class CoevoParallelEnv(_ParallelEnv):
 
     def __init__(self, scene: str = "scenes/standard.ron", seed: int | None = None,
                  counts: dict[str, int] | None = None, episode_steps: int | None = None,
-                 render_mode: str | None = None, render_size: int = 480):
+                 render_mode: str | None = None, render_size: int = 480,
+                 control: str | list[str] | None = None):
         if render_mode not in (None, "rgb_array"):
             raise ValueError(f"render_mode: {render_mode!r} is not one of None, 'rgb_array'")
-        self._env = _Env(scene, seed, _counts(counts), episode_steps)
+        self._env = _Env(scene, seed, _counts(counts), episode_steps, _control(control))
         self.possible_agents = list(self._env.agents())
         self.agents: list[str] = []
         self._seeded = False
@@ -59,6 +68,15 @@ class CoevoParallelEnv(_ParallelEnv):
     @property
     def episode_steps(self) -> int:
         return self._env.episode_steps
+
+    def positions(self) -> np.ndarray:
+        """Every agent's position ``[agents of all species, 2]`` (m), by coevo's agent id (the ``id``
+        column of ``coevo --record``), rule-based species included."""
+        return self._env.positions()
+
+    def scene_ron(self) -> str:
+        """The scene as this env runs it (counts, episode length applied): a loadable scene file."""
+        return self._env.scene_ron()
 
     def reset(self, seed: int | None = None, options: dict | None = None):
         # The first reset starts from the scene's seed (as `coevo --train` does); a seed starts afresh.
@@ -100,7 +118,8 @@ class CoevoParallelEnv(_ParallelEnv):
 
 
 def parallel_env(scene: str = "scenes/standard.ron", seed: int | None = None, **overrides) -> CoevoParallelEnv:
-    """A scene file as a PettingZoo ``ParallelEnv``; ``counts={"prey": 50}``, ``episode_steps=N``."""
+    """A scene file as a PettingZoo ``ParallelEnv``; ``counts={"prey": 50}``, ``episode_steps=N``,
+    ``control="blind:prey:prey"``, ``render_mode="rgb_array"``."""
     return CoevoParallelEnv(scene, seed, **overrides)
 
 
@@ -108,8 +127,9 @@ class VecEnv:
     """Many worlds of one scene on arrays (see the module's docstring)."""
 
     def __init__(self, scene: str = "scenes/standard.ron", num_envs: int = 64, seed: int = 0,
-                 counts: dict[str, int] | None = None, episode_steps: int | None = None):
-        self._env = _VecEnv(scene, num_envs, seed, _counts(counts), episode_steps)
+                 counts: dict[str, int] | None = None, episode_steps: int | None = None,
+                 control: str | list[str] | None = None):
+        self._env = _VecEnv(scene, num_envs, seed, _counts(counts), episode_steps, _control(control))
         self.num_envs = self._env.num_envs
         self.agents = list(self._env.agents())
         self.obs_dim = self._env.obs_dim
@@ -119,5 +139,18 @@ class VecEnv:
         return self._env.reset()
 
     def step(self, actions: np.ndarray):
-        """(observations, rewards ``[num_envs, agents]``, truncated ``[num_envs]``)."""
+        """(observations, rewards ``[num_envs, agents]``, truncated ``[num_envs]``, infos): infos holds the
+        step's ``dos``, ``doa`` (headline species) and ``catches``, each ``[num_envs]``. A truncated world's
+        observations are already its next episode's first."""
         return self._env.step(np.ascontiguousarray(actions, dtype=np.float32))
+
+    def metrics_header(self) -> str:
+        """``metrics.csv``'s header (as ``coevo --train`` writes it) with the Python-decided species as the
+        learning ones: the episode's columns, then per learning species ``critic_loss``, ``actor_loss``,
+        ``noise_std``, ``epsilon``, then ``wall_seconds``."""
+        return self._env.metrics_header()
+
+    def take_episode_rows(self) -> list[str]:
+        """The episodes finished since the last call as the first cells of ``metrics.csv`` rows (up to the
+        returns), numbered in the order they finished; append your learner's cells and the wall time."""
+        return self._env.take_episode_rows()

@@ -2,6 +2,7 @@
 //! PettingZoo `ParallelEnv`). Nothing is simulated here: `Env` and `VecEnv` hold coevo's own
 //! [`coevo::run::env`] worlds, which step the very schedule `coevo --train` steps.
 
+use coevo::learning::control::ObservationControl;
 use coevo::scene::{Overrides, Scene};
 use numpy::{IntoPyArray, PyArray1, PyArray2, PyArray3, PyArrayMethods, PyReadonlyArray2, PyReadonlyArray3};
 use pyo3::exceptions::PyValueError;
@@ -16,9 +17,13 @@ fn err(e: impl std::fmt::Display) -> PyErr {
 
 /// A scene file with the counts, seed and episode length given from Python, validated.
 fn scene(path: &str, seed: Option<u64>, counts: Option<Vec<(String, usize)>>, steps: Option<usize>) -> PyResult<Scene> {
-    let overrides =
-        Overrides { counts: counts.unwrap_or_default(), seed, episode_steps: steps, confusion_radius: None };
+    let overrides = Overrides { counts: counts.unwrap_or_default(), seed, episode_steps: steps, ..Default::default() };
     overrides.load(Path::new(path)).map_err(err)
+}
+
+/// `--control`'s forms (`"blind:prey:prey"`, …; none: everything seen).
+fn control(forms: Option<Vec<String>>) -> PyResult<ObservationControl> {
+    ObservationControl::parse(&forms.unwrap_or_default()).map_err(|e| err(format!("control: {e}")))
 }
 
 /// One world whose learning species are decided from Python.
@@ -30,15 +35,21 @@ struct Env {
 #[pymethods]
 impl Env {
     #[new]
-    #[pyo3(signature = (scene_path, seed=None, counts=None, episode_steps=None))]
+    #[pyo3(signature = (scene_path, seed=None, counts=None, episode_steps=None, control=None))]
     fn new(
         scene_path: &str,
         seed: Option<u64>,
         counts: Option<Vec<(String, usize)>>,
         episode_steps: Option<usize>,
+        control: Option<Vec<String>>,
     ) -> PyResult<Self> {
         let scene = scene(scene_path, seed, counts, episode_steps)?;
-        Ok(Env { inner: coevo::run::env::Env::new(scene).map_err(err)? })
+        Ok(Env { inner: coevo::run::env::Env::with_control(scene, self::control(control)?).map_err(err)? })
+    }
+
+    /// The scene as the world runs it (counts and episode length applied), as a loadable scene file.
+    fn scene_ron(&self) -> String {
+        self.inner.scene().to_ron()
     }
 
     /// The agents' names, `<species>_<k>`, in the order of every array.
@@ -67,6 +78,14 @@ impl Env {
         let obs = self.inner.reset(seed).map_err(err)?;
         let shape = [self.inner.agents().len(), self.inner.obs_dim()];
         obs.into_pyarray(py).reshape(shape)
+    }
+
+    /// Every agent's position `[agents of all species, 2]` (m), ordered by coevo's agent id (the `id`
+    /// column of `coevo --record`).
+    fn positions<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let flat: Vec<f64> = self.inner.positions().into_iter().flatten().collect();
+        let n = flat.len() / 2;
+        flat.into_pyarray(py).reshape([n, 2])
     }
 
     /// The current state as an RGB image `[height, width, 3]` (uint8), drawn as `coevo --animate` draws.
@@ -106,16 +125,29 @@ struct VecEnv {
 #[pymethods]
 impl VecEnv {
     #[new]
-    #[pyo3(signature = (scene_path, num_envs, seed=0, counts=None, episode_steps=None))]
+    #[pyo3(signature = (scene_path, num_envs, seed=0, counts=None, episode_steps=None, control=None))]
     fn new(
         scene_path: &str,
         num_envs: usize,
         seed: u64,
         counts: Option<Vec<(String, usize)>>,
         episode_steps: Option<usize>,
+        control: Option<Vec<String>>,
     ) -> PyResult<Self> {
         let scene = scene(scene_path, None, counts, episode_steps)?;
-        Ok(VecEnv { inner: coevo::run::env::VecEnv::new(scene, num_envs, seed).map_err(err)? })
+        let control = self::control(control)?;
+        Ok(VecEnv { inner: coevo::run::env::VecEnv::with_control(scene, num_envs, seed, control).map_err(err)? })
+    }
+
+    /// `metrics.csv`'s header, with the species decided from Python as the learning ones.
+    fn metrics_header(&self) -> String {
+        self.inner.metrics_header()
+    }
+
+    /// The episodes finished since the last call, as the first cells of `metrics.csv` rows (up to the
+    /// returns), numbered in the order they finished.
+    fn take_episode_rows(&mut self) -> Vec<String> {
+        self.inner.take_episode_rows()
     }
 
     #[getter]
@@ -143,28 +175,36 @@ impl VecEnv {
     }
 
     /// One step of every world with `actions` `[num_envs, agents, 2]`: (observations, rewards
-    /// `[num_envs, agents]`, truncated `[num_envs]`); a truncated world's observations are its next
-    /// episode's first.
+    /// `[num_envs, agents]`, truncated `[num_envs]`, {"dos", "doa", "catches"} each `[num_envs]`); a
+    /// truncated world's observations are its next episode's first.
     #[allow(clippy::type_complexity)]
     fn step<'py>(
         &mut self,
         py: Python<'py>,
         actions: PyReadonlyArray3<'py, f32>,
-    ) -> PyResult<(Bound<'py, PyArray3<f32>>, Bound<'py, PyArray2<f32>>, Bound<'py, PyArray1<bool>>)> {
+    ) -> PyResult<(Bound<'py, PyArray3<f32>>, Bound<'py, PyArray2<f32>>, Bound<'py, PyArray1<bool>>, Bound<'py, PyDict>)>
+    {
         let flat: Vec<f32> = actions.as_array().iter().copied().collect();
         let inner = &mut self.inner;
         let r = py.allow_threads(|| inner.step(&flat)).map_err(err)?;
         let [n, a, _] = self.shape();
+        let info = PyDict::new(py);
+        info.set_item("dos", r.dos.into_pyarray(py))?;
+        info.set_item("doa", r.doa.into_pyarray(py))?;
+        info.set_item("catches", r.catches.into_pyarray(py))?;
         Ok((
             r.observations.into_pyarray(py).reshape(self.shape())?,
             r.rewards.into_pyarray(py).reshape([n, a])?,
             r.truncated.into_pyarray(py),
+            info,
         ))
     }
 }
 
 #[pymodule]
 fn _coevo(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add("__version__", coevo::VERSION)?;
+    m.add("git_commit", coevo::GIT_COMMIT)?;
     m.add_class::<Env>()?;
     m.add_class::<VecEnv>()?;
     Ok(())

@@ -55,7 +55,7 @@ def test_vecenv_worlds_are_the_single_envs():
     rng = np.random.default_rng(1)
     for t in range(8):
         actions = rng.uniform(-1, 1, (4, 13, 2)).astype(np.float32)
-        obs, rewards, truncated = vec.step(actions)
+        obs, rewards, truncated, infos = vec.step(actions)
         assert obs.shape == (4, 13, vec.obs_dim) and rewards.shape == (4, 13) and truncated.dtype == bool
         for i, s in enumerate(single):
             o, r, tr, _ = s.step(actions[i])
@@ -87,3 +87,112 @@ def test_render_gives_the_animation_frame():
     assert coevo.parallel_env(STANDARD).render() is None
     with pytest.raises(ValueError, match="render_mode"):
         coevo.parallel_env(STANDARD, render_mode="human")
+
+
+def test_vecenv_infos_and_metrics_rows():
+    vec = coevo.VecEnv(STANDARD, num_envs=3, seed=2, episode_steps=5)
+    header = vec.metrics_header().split(",")
+    assert header[:2] == ["episode", "steps"] and header[-1] == "wall_seconds"
+    learner = [c for c in header if c.startswith(("critic_loss_", "actor_loss_", "noise_std_", "epsilon_"))]
+    assert len(learner) == 8  # both species learn, four columns each
+    vec.reset()
+    single = [coevo._coevo.Env(STANDARD, 2 + i, None, 5) for i in range(3)]
+    for s in single:
+        s.reset(None)
+    actions = np.full((3, 13, 2), 0.3, np.float32)
+    rows = []
+    for t in range(5):
+        _, _, truncated, infos = vec.step(actions)
+        assert set(infos) == {"dos", "doa", "catches"} and infos["doa"].shape == (3,)
+        for i, s in enumerate(single):
+            _, _, _, info = s.step(actions[i])
+            assert infos["doa"][i] == info["doa"] and infos["catches"][i] == info["catches"]
+        rows += vec.take_episode_rows()
+        assert len(rows) == (3 if t == 4 else 0)
+    # One row per finished episode, numbered in the order they finished, with the episode's columns.
+    assert [r.split(",")[0] for r in rows] == ["0", "1", "2"]
+    assert all(len(r.split(",")) == len(header) - len(learner) - 1 for r in rows)
+    assert all(r.split(",")[1] == "5" for r in rows)
+    assert vec.take_episode_rows() == []
+
+
+def test_a_control_alters_exactly_its_block():
+    seeing = coevo.parallel_env(STANDARD, seed=7)
+    blind = coevo.parallel_env(STANDARD, seed=7, control="blind:prey:prey")
+    (o_seeing, _), (o_blind, _) = seeing.reset(), blind.reset()
+    for a in seeing.agents:
+        if a.startswith("predator"):
+            assert np.array_equal(o_seeing[a], o_blind[a]), a  # the predators' view is untouched
+        else:
+            changed = o_seeing[a] != o_blind[a]
+            assert changed.any(), a  # the prey saw other prey, and no longer do
+            assert (o_blind[a][changed] == 0).all(), a  # zeroed, nothing else altered
+    # The controlled observations are handed out; the world is the same: the same actions move it alike.
+    act = {a: np.full(2, 0.5, np.float32) for a in seeing.agents}
+    seeing.step(act), blind.step(act)
+    assert np.array_equal(seeing.positions(), blind.positions())
+    with pytest.raises(ValueError, match="control: blind:prey:hawk"):
+        coevo.parallel_env(STANDARD, control="blind:prey:hawk")
+
+
+def _coevo_binary() -> str:
+    for path in (os.environ.get("COEVO_BIN", ""), os.path.join(ROOT, "target", "debug", "coevo"),
+                 os.path.join(ROOT, "target", "release", "coevo")):
+        if path and os.path.exists(path):
+            return path
+    pytest.fail("no coevo binary: build it first (cargo build), or set COEVO_BIN")
+
+
+def _actor(path: str):
+    """A coevo actor file as a numpy function: Linear-ReLU ×3, Linear, tanh (PyTorch's layout)."""
+    from safetensors.numpy import load_file
+
+    t = load_file(path)
+    layers = [(t[f"{i}.weight"], t[f"{i}.bias"]) for i in (0, 2, 4, 6)]
+
+    def act(x: np.ndarray) -> np.ndarray:
+        for k, (w, b) in enumerate(layers):
+            x = x @ w.T + b
+            x = np.maximum(x, 0.0) if k < 3 else np.tanh(x)
+        return x
+
+    return act
+
+
+def test_trained_actors_outside_coevo_retrace_coevos_record(tmp_path):
+    """coevo's shipped actors, read from their safetensors files and run in numpy, drive the Python env on
+    50 prey along coevo --record's trajectory of the same run and seed (to float rounding)."""
+    import shutil
+    import subprocess
+
+    run = tmp_path / "run"
+    shutil.copytree(os.path.join(ROOT, "assets", "trained-standard"), run)
+    out = tmp_path / "record.csv"
+    steps = 30
+    subprocess.run([_coevo_binary(), "--record", str(out), "--run", str(run), "--prey", "50", "--steps",
+                    str(steps), "--seed", "4"], check=True, capture_output=True)
+    recorded: dict[int, np.ndarray] = {}
+    with open(out) as f:
+        next(f)
+        for line in f:
+            step, agent, _, x, y = line.split(",")[:5]
+            recorded.setdefault(int(step), []).append((int(agent), float(x), float(y)))
+    env = coevo.parallel_env(str(run / "scene.ron"), seed=4, counts={"prey": 50})
+    actors = {s: _actor(str(run / "checkpoint" / f"{s}-actor.safetensors")) for s in ("predator", "prey")}
+    obs, _ = env.reset()
+    for t in range(steps + 1):
+        want = np.array([p[1:] for p in sorted(recorded[t])])
+        assert np.allclose(env.positions(), want, atol=1e-4, rtol=0), f"step {t}"
+        if t == steps:
+            break
+        actions = {a: actors[a.rsplit("_", 1)[0]](obs[a]) for a in env.agents}
+        obs, *_ = env.step(actions)
+
+
+def test_version_is_the_crates():
+    import re
+
+    with open(os.path.join(ROOT, "Cargo.toml")) as f:
+        version = re.search(r'^version = "([^"]+)"', f.read(), re.M).group(1)
+    assert coevo.__version__ == version
+    assert coevo.git_commit  # the commit the extension was built from ("unknown" outside git)

@@ -10,15 +10,29 @@
 //!
 //! Agents are ordered by species (the scene's order) and, within a species, as coevo numbers them; they
 //! are named `<species>_<k>`.
+//!
+//! An [`ObservationControl`] (`blind:prey:prey`, …, as `coevo --eval --control`) alters the observations
+//! handed out exactly as it alters what coevo's actors are given, so an outside learner's policies can be
+//! put through the flocking/herding controls. Finished episodes are summarised as `metrics.csv` rows
+//! ([`VecEnv::take_episode_rows`]), so an outside learner writes the run files `coevo --plot` reads.
 
+use crate::learning::control::{ObservationControl, ResolvedControl};
 use crate::learning::Mode;
 use crate::scene::{Policy, Scene};
 use crate::sim::clock::Episode;
-use crate::sim::metrics::SwarmMetrics;
+use crate::sim::episode::SimRng;
+use crate::sim::metrics::{EpisodeLog, EpisodeSummary, SwarmMetrics};
 use crate::sim::perception::{Batches, Population};
 use crate::sim::species::{SpeciesRegistry, ACTION_DIM};
 use crate::sim::SimSet;
 use bevy::prelude::*;
+use rand_chacha::ChaCha8Rng;
+
+/// The first random stream of the shuffled controls: the permutations of step t of episode e come from
+/// stream CONTROL_STREAM + e·(episode_steps + 1) + t of the world's seed, so the observations are a function
+/// of the state however often they are read (the simulation draws from stream 0, network initialisation
+/// from 1, coevo's learners from 16 + species).
+const CONTROL_STREAM: u64 = 1 << 32;
 
 /// The policy name the externally decided species get (`Plugin("external")`).
 pub const EXTERNAL: &str = "external";
@@ -55,6 +69,9 @@ pub struct StepResult {
 pub struct Env {
     world: World,
     scene: Scene,
+    /// What the outside learner is given of the observations (default: everything).
+    control: ObservationControl,
+    resolved: ResolvedControl,
     /// The externally decided species (registry indices) and their agent counts.
     external: Vec<(usize, usize)>,
     obs_dim: usize,
@@ -65,7 +82,14 @@ impl Env {
     /// A world of `scene` whose `Learned` species are decided from outside. Err when none is, when their
     /// observation sizes differ (one flat array needs one size), or when the scene is refused.
     pub fn new(scene: Scene) -> crate::error::Result<Env> {
+        Env::with_control(scene, ObservationControl::default())
+    }
+
+    /// As [`Env::new`], the observations handed out altered by `control` (resolved against the scene: an
+    /// unknown species or an observer that is not decided from outside is an Err naming the form).
+    pub fn with_control(scene: Scene, control: ObservationControl) -> crate::error::Result<Env> {
         scene.validate()?;
+        let resolved = control.resolve(&SpeciesRegistry::from_scene(&scene)).map_err(|e| format!("control: {e}"))?;
         let learned: Vec<usize> =
             (0..scene.species.len()).filter(|&s| scene.species[s].policy == Policy::Learned).collect();
         if learned.is_empty() {
@@ -92,7 +116,8 @@ impl Env {
             .into());
         }
         let external = learned.iter().map(|&s| (s, registry.defs[s].count)).collect();
-        let mut env = Env { world, scene, external, obs_dim: dims[0], headline: registry.headline() };
+        let mut env =
+            Env { world, scene, control, resolved, external, obs_dim: dims[0], headline: registry.headline() };
         env.world.resource_mut::<Episode>().auto_reset = false;
         Ok(env)
     }
@@ -129,7 +154,7 @@ impl Env {
             Some(seed) => {
                 let mut scene = self.scene.clone();
                 scene.seed = seed;
-                *self = Env::new(scene)?;
+                *self = Env::with_control(scene, self.control.clone())?;
             }
             None => crate::sim::episode::next_episode(&mut self.world),
         }
@@ -138,7 +163,30 @@ impl Env {
 
     fn observations(&self) -> Vec<f32> {
         let batches = self.world.resource::<Batches>();
-        self.external.iter().flat_map(|&(s, _)| batches.species[s].observations.iter().copied()).collect()
+        let e = self.world.resource::<Episode>();
+        let stream = CONTROL_STREAM + (e.index * (self.scene.episode_steps + 1) + e.step) as u64;
+        let mut rng: ChaCha8Rng = SimRng::stream(self.scene.seed, stream);
+        let mut out = Vec::new();
+        for &(s, _) in &self.external {
+            let b = &batches.species[s];
+            match self.resolved.touches(s) {
+                true => out.extend(self.resolved.apply(s, &b.observations, b.n, &mut rng)),
+                false => out.extend_from_slice(&b.observations),
+            }
+        }
+        out
+    }
+
+    /// The summaries of the episodes finished since the last call (time averages, catches, returns: what a
+    /// `metrics.csv` row holds), numbered by this world.
+    pub fn take_episodes(&mut self) -> Vec<EpisodeSummary> {
+        std::mem::take(&mut self.world.resource_mut::<EpisodeLog>().episodes)
+    }
+
+    /// `metrics.csv`'s header for this scene with its outside-decided species as the learning ones.
+    pub fn metrics_header(&self) -> String {
+        let learning: Vec<usize> = self.external.iter().map(|&(s, _)| s).collect();
+        super::schema::metrics_header_for(self.world.resource::<SpeciesRegistry>(), &learning)
     }
 
     /// One step t → t+1 with `actions` (`[agents × 2]`, normalized, clamped to [−1, 1]). Err on a wrong
@@ -175,14 +223,10 @@ impl Env {
         let rewards = self.external.iter().flat_map(|&(s, _)| batches.species[s].rewards.iter().copied()).collect();
         let metrics = world.resource::<SwarmMetrics>();
         let now = metrics.now.get(self.headline).copied().flatten();
-        Ok(StepResult {
-            observations: self.observations(),
-            rewards,
-            truncated: world.resource::<Episode>().step >= self.scene.episode_steps,
-            dos: now.map_or(f64::NAN, |m| m.dos),
-            doa: now.map_or(f64::NAN, |m| m.doa),
-            catches: metrics.catches_now,
-        })
+        let (dos, doa, catches) =
+            (now.map_or(f64::NAN, |m| m.dos), now.map_or(f64::NAN, |m| m.doa), metrics.catches_now);
+        let truncated = world.resource::<Episode>().step >= self.scene.episode_steps;
+        Ok(StepResult { observations: self.observations(), rewards, truncated, dos, doa, catches })
     }
 
     /// The current state drawn as the headless animations draw it (`size` pixels square plus a caption):
@@ -192,9 +236,13 @@ impl Env {
         crate::run::animate::render_rgba(&mut self.world, size, &title)
     }
 
-    /// Every agent's position (x, y), in coevo's agent order (all species).
+    /// Every agent's position (x, y), all species, ordered by agent id (`coevo --record`'s `id`).
     pub fn positions(&self) -> Vec<[f64; 2]> {
-        self.world.resource::<Population>().position.iter().map(|p| [p.x, p.y]).collect()
+        let pop = self.world.resource::<Population>();
+        let mut by_id: Vec<(u32, [f64; 2])> =
+            pop.id.iter().zip(&pop.position).map(|(id, p)| (id.0, [p.x, p.y])).collect();
+        by_id.sort_by_key(|&(id, _)| id);
+        by_id.into_iter().map(|(_, p)| p).collect()
     }
 }
 
@@ -202,6 +250,10 @@ impl Env {
 pub struct VecEnv {
     envs: Vec<Env>,
     agents: usize,
+    /// Finished episodes not yet taken, in the order they finished (by step, then by world).
+    finished: Vec<EpisodeSummary>,
+    /// Episodes finished so far in all worlds: the next finished episode's number in `metrics.csv`.
+    numbered: usize,
 }
 
 /// What a [`VecEnv`] step returned: `[worlds × agents × d_o]` observations (of the next episode's first
@@ -213,13 +265,27 @@ pub struct VecStep {
     pub rewards: Vec<f32>,
     pub truncated: Vec<bool>,
     pub final_observations: Vec<Option<Vec<f32>>>,
+    /// Per world, as [`StepResult`]: DoS and DoA of the headline species, catches at the new state.
+    pub dos: Vec<f64>,
+    pub doa: Vec<f64>,
+    pub catches: Vec<u32>,
 }
 
 /// One world's step in a [`VecEnv`]: its result and, when its episode ended, its last observations.
-type WorldStep = crate::error::Result<(StepResult, Option<Vec<f32>>)>;
+type WorldStep = crate::error::Result<(StepResult, Option<Vec<f32>>, Vec<EpisodeSummary>)>;
 
 impl VecEnv {
     pub fn new(scene: Scene, worlds: usize, seed: u64) -> crate::error::Result<VecEnv> {
+        VecEnv::with_control(scene, worlds, seed, ObservationControl::default())
+    }
+
+    /// As [`VecEnv::new`], every world's observations altered by `control` ([`Env::with_control`]).
+    pub fn with_control(
+        scene: Scene,
+        worlds: usize,
+        seed: u64,
+        control: ObservationControl,
+    ) -> crate::error::Result<VecEnv> {
         if worlds == 0 {
             return Err("num_envs: must be ≥ 1".into());
         }
@@ -227,11 +293,32 @@ impl VecEnv {
             .map(|i| {
                 let mut s = scene.clone();
                 s.seed = seed.wrapping_add(i);
-                Env::new(s)
+                Env::with_control(s, control.clone())
             })
             .collect::<crate::error::Result<Vec<_>>>()?;
         let agents = envs[0].agents().len();
-        Ok(VecEnv { envs, agents })
+        Ok(VecEnv { envs, agents, finished: vec![], numbered: 0 })
+    }
+
+    /// `metrics.csv`'s header ([`Env::metrics_header`]).
+    pub fn metrics_header(&self) -> String {
+        self.envs[0].metrics_header()
+    }
+
+    /// The episodes finished since the last call as the first cells of `metrics.csv` rows (up to the
+    /// returns, [`super::schema::episode_cells`]), numbered in the order they finished across all worlds
+    /// (by step, then by world), so the file does not depend on how often this is called.
+    pub fn take_episode_rows(&mut self) -> Vec<String> {
+        let registry = self.envs[0].world.resource::<SpeciesRegistry>().clone();
+        let finished = std::mem::take(&mut self.finished);
+        finished
+            .into_iter()
+            .map(|mut e| {
+                e.episode = self.numbered;
+                self.numbered += 1;
+                super::schema::episode_cells(&e, &registry).join(",")
+            })
+            .collect()
     }
 
     pub fn worlds(&self) -> usize {
@@ -283,19 +370,24 @@ impl VecEnv {
         crate::parallel::for_each_mut(&mut work, |(env, a, out)| {
             *out = Some(env.step(a).and_then(|mut r| {
                 if !r.truncated {
-                    return Ok((r, None));
+                    return Ok((r, None, vec![]));
                 }
+                let finished = env.take_episodes();
                 let last = std::mem::replace(&mut r.observations, env.reset(None)?);
-                Ok((r, Some(last)))
+                Ok((r, Some(last), finished))
             }));
         });
         let mut step = VecStep::default();
         for (_, _, out) in work {
-            let (r, last) = out.expect("every world stepped")?;
+            let (r, last, finished) = out.expect("every world stepped")?;
             step.observations.extend(r.observations);
             step.rewards.extend(r.rewards);
             step.truncated.push(r.truncated);
             step.final_observations.push(last);
+            step.dos.push(r.dos);
+            step.doa.push(r.doa);
+            step.catches.push(r.catches);
+            self.finished.extend(finished);
         }
         Ok(step)
     }

@@ -359,8 +359,8 @@ impl Provenance {
         Provenance {
             binary: binary().to_string(),
             also_by: vec![],
-            coevo_version: env!("CARGO_PKG_VERSION").to_string(),
-            git_commit: env!("COEVO_GIT_COMMIT").to_string(),
+            coevo_version: crate::VERSION.to_string(),
+            git_commit: crate::GIT_COMMIT.to_string(),
             kernels: crate::learning::nets::kernels().to_string(),
             threads: crate::parallel::threads(),
             plugins: scene

@@ -55,6 +55,16 @@ fn species_cells(swarming: Option<Swarming>, edge_rank: Option<f64>) -> impl Ite
 
 /// `metrics.csv`'s header.
 pub fn metrics_header(registry: &SpeciesRegistry, learners: &Learners) -> String {
+    let learning: Vec<usize> =
+        (0..learners.species.len()).filter(|&s| learners.species[s].as_ref().is_some_and(|l| !l.frozen)).collect();
+    metrics_header_for(registry, &learning)
+}
+
+/// `metrics.csv`'s header when the species `learning` (registry indices) learn, by coevo's learners or by
+/// a learner outside coevo (the Python package's `VecEnv.metrics_header`): the episode's columns
+/// ([`episode_cells`]), then per learning species `critic_loss`, `actor_loss`, `noise_std`, `epsilon`,
+/// then `wall_seconds`.
+pub fn metrics_header_for(registry: &SpeciesRegistry, learning: &[usize]) -> String {
     let mut cols = vec![EPISODE.to_string(), STEPS.into()];
     for d in &registry.defs {
         cols.extend(species_columns(&d.name));
@@ -64,11 +74,9 @@ pub fn metrics_header(registry: &SpeciesRegistry, learners: &Learners) -> String
     for d in &registry.defs {
         cols.push(of("return", &d.name));
     }
-    for (s, l) in learners.species.iter().enumerate() {
-        if l.as_ref().is_some_and(|l| !l.frozen) {
-            let n = &registry.defs[s].name;
-            cols.extend(["critic_loss", "actor_loss", "noise_std", "epsilon"].map(|q| of(q, n)));
-        }
+    for &s in learning {
+        let n = &registry.defs[s].name;
+        cols.extend(["critic_loss", "actor_loss", "noise_std", "epsilon"].map(|q| of(q, n)));
     }
     cols.push(WALL_SECONDS.into());
     cols.join(",")
@@ -81,13 +89,7 @@ pub fn metrics_row(
     learners: &mut Learners,
     wall_seconds: f64,
 ) -> String {
-    let mut cols = vec![e.episode.to_string(), e.steps.to_string()];
-    for (s, edge_rank) in e.swarming.iter().zip(&e.edge_rank) {
-        cols.extend(species_cells(*s, *edge_rank));
-    }
-    cols.push(e.catches.to_string());
-    cols.extend(split_catchers(registry).iter().map(|&s| e.catches_by.get(s).copied().unwrap_or(0).to_string()));
-    cols.extend(e.mean_return.iter().map(|r| r.to_string()));
+    let mut cols = episode_cells(e, registry);
     let losses = learners.take_losses();
     for (l, loss) in learners.species.iter().zip(losses) {
         if let Some(l) = l.as_ref().filter(|l| !l.frozen) {
@@ -99,6 +101,19 @@ pub fn metrics_row(
     }
     cols.push(format!("{wall_seconds:.3}"));
     cols.join(",")
+}
+
+/// The cells of `metrics.csv` that the episode alone decides (up to the returns): what a learner outside
+/// coevo writes before its own loss columns.
+pub fn episode_cells(e: &EpisodeSummary, registry: &SpeciesRegistry) -> Vec<String> {
+    let mut cols = vec![e.episode.to_string(), e.steps.to_string()];
+    for (s, edge_rank) in e.swarming.iter().zip(&e.edge_rank) {
+        cols.extend(species_cells(*s, *edge_rank));
+    }
+    cols.push(e.catches.to_string());
+    cols.extend(split_catchers(registry).iter().map(|&s| e.catches_by.get(s).copied().unwrap_or(0).to_string()));
+    cols.extend(e.mean_return.iter().map(|r| r.to_string()));
+    cols
 }
 
 /// An evaluation's per-step header: the headline species' order parameters and the catches.
