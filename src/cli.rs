@@ -15,7 +15,7 @@ use std::time::Duration;
 ///
 /// One mode per call: --train, --resume RUN, --eval RUN, --record OUT.csv or --bench run headless,
 /// driving the fixed-step schedule as fast as it goes. Built with `--features viewer` and given no
-/// headless mode, it opens the window. Scenes are RON files under scenes/ (see README, "Scenes").
+/// headless mode, it opens the window. Scenes are RON files under scenes/ (see docs/src/guide/scenes.md).
 /// A flag the chosen mode does not use is refused, never ignored.
 #[derive(Parser, Debug, Clone)]
 #[command(name = "coevo", version, about, long_about = None, allow_negative_numbers = true)]
@@ -338,6 +338,19 @@ fn one_line(e: &clap::Error) -> String {
     let text = e.to_string();
     let message = text.split("\n\nUsage:").next().unwrap_or("").split("\n\nFor more information").next().unwrap_or("");
     message.split_whitespace().collect::<Vec<_>>().join(" ").trim_start_matches("error: ").to_string()
+}
+
+/// Whether `args` (without the program name) is a command line coevo accepts, without running it: the
+/// one line it would fail with otherwise. The book's and the README's examples are checked with it.
+pub fn check_args<I: IntoIterator<Item = String>>(args: I) -> Result<(), String> {
+    let argv = std::iter::once("coevo".to_string()).chain(args);
+    let matches = command().try_get_matches_from(argv).map_err(|e| one_line(&e))?;
+    Cli::from_arg_matches(&matches).map(|_| ()).map_err(|e| one_line(&e))
+}
+
+/// `coevo --help`, as the book's reference prints it.
+pub fn help() -> String {
+    command().render_help().to_string()
 }
 
 /// Runs the command line with `species` registered (none for plain `coevo`): one line on stderr and a

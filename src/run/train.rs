@@ -297,7 +297,7 @@ pub fn explain(run: &Path) -> crate::error::Result<String> {
             2 * WINDOW
         ));
     }
-    out.push_str("  one run is one sample: seeds of the same scene differ widely; compare seeds with an experiment file (README, \"Experiments\")\n");
+    out.push_str("  one run is one sample: seeds of the same scene differ widely; compare seeds with an experiment file (docs/src/guide/experiments.md)\n");
     let r = run.display();
     out.push_str(&format!(
         "next:\n  coevo --eval {r} --prey 50 --episodes 10                                  # the trained actors, no noise, on 50 {name}\n  \

@@ -1,7 +1,7 @@
 //! Scenes: the whole configuration of a run, as RON files under `scenes/`.
 //!
 //! A scene names a **preset** (`paper` or `gym-pps`, see `../shared/reference/parameters.md` and the
-//! README) and overrides any field of it. Every struct here exists twice: the resolved value the simulation
+//! book, docs/src/guide/scenes.md) and overrides any field of it. Every struct here exists twice: the resolved value the simulation
 //! reads ([`Scene`], [`WorldParams`], [`RewardParams`], [`SpeciesDef`], [`LearningParams`]) and a patch with every field
 //! optional, which is what a scene file holds. Species are patched by `name`; a name the preset does not
 //! know adds a new species and must then give every field.
@@ -290,7 +290,7 @@ pub enum ObservationFrame {
     /// Everything relative to the observer and rotated into its frame (forward, left): own forward and
     /// lateral speed, its last turn command, the nearest wall point; neighbours' displacements and
     /// headings. Nothing absolute, so no actor can steer every agent to one absolute heading: any
-    /// alignment must come from interaction (not in the paper; see README "Observation frames").
+    /// alignment must come from interaction (not in the paper; see docs/src/results/observation-frames.md).
     Body,
 }
 
