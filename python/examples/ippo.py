@@ -47,6 +47,7 @@ class Args:
     scene: str = "scenes/standard.ron"
     seed: int = 1
     out: str = "runs/ippo-seed1"
+    counts: str = ""  # species counts for training, e.g. "predator=0" (the control without predators)
     num_envs: int = 32  # worlds stepped together (world i from seed + i)
     num_steps: int = 128  # rollout length per world and update
     total_world_steps: int = 2_000_000  # summed over worlds: 4000 episodes of 500 steps (DDPG: 2000)
@@ -107,18 +108,22 @@ def main(args: Args) -> None:
     torch.set_num_threads(args.torch_threads)
     rng = np.random.default_rng(args.seed)
     os.makedirs(os.path.join(args.out, "checkpoint"), exist_ok=False)
-    env = coevo.VecEnv(args.scene, num_envs=args.num_envs, seed=args.seed)
+    counts = {k: int(v) for k, v in (c.split("=") for c in args.counts.split(",") if c)}
+    env = coevo.VecEnv(args.scene, num_envs=args.num_envs, seed=args.seed, counts=counts)
     with open(os.path.join(args.out, "scene.ron"), "w") as f:
-        f.write(coevo.parallel_env(args.scene, seed=args.seed).scene_ron())
+        f.write(coevo.parallel_env(args.scene, seed=args.seed, counts=counts).scene_ron())
     with open(coevo._coevo.__file__, "rb") as f:
         extension = hashlib.sha256(f.read()).hexdigest()[:16]
     with open(os.path.join(args.out, "ippo.json"), "w") as f:
         json.dump({"algorithm": "ippo", "args": asdict(args), "coevo_version": coevo.__version__,
                    "coevo_git_commit": coevo.git_commit, "coevo_extension_sha256": extension,
                    "torch": torch.__version__}, f, indent=1)
-    species = sorted({a.rsplit("_", 1)[0] for a in env.agents}, key=[a.rsplit("_", 1)[0] for a in env.agents].index)
+    # The learning species in metrics.csv's order (a species may have no agents: "predator=0").
+    header = env.metrics_header()
+    learning = [c[len("critic_loss_"):] for c in header.split(",") if c.startswith("critic_loss_")]
+    species = [s for s in learning if any(a.rsplit("_", 1)[0] == s for a in env.agents)]
     rows_of = {s: np.array([i for i, a in enumerate(env.agents) if a.rsplit("_", 1)[0] == s]) for s in species}
-    agents = {s: Agent(env.obs_dim, args) for s in species}
+    agents = {s: Agent(env.obs_dim, args) for s in learning}  # one without agents stays as initialised
     optims = {s: torch.optim.Adam(agents[s].parameters(), lr=args.learning_rate, eps=1e-5) for s in species}
 
     n_agents, d = len(env.agents), env.obs_dim
@@ -129,8 +134,8 @@ def main(args: Args) -> None:
     done_buf = np.zeros(shape[:2], np.float32)
 
     metrics = open(os.path.join(args.out, "metrics.csv"), "w")
-    metrics.write(env.metrics_header() + "\n")
-    losses = {s: ("", "", "") for s in species}  # value loss, policy loss, std of the latest update
+    metrics.write(header + "\n")
+    losses = {s: ("", "", "") for s in learning}  # value loss, policy loss, std of the latest update
     started = time.time()
 
     obs = env.reset()
@@ -155,7 +160,7 @@ def main(args: Args) -> None:
             rew_buf[t], done = rewards, truncated.astype(np.float32)
             for row in env.take_episode_rows():
                 cells = [row]
-                for s in species:
+                for s in learning:
                     v_loss, p_loss, std = losses[s]
                     cells.append(f"{v_loss},{p_loss},{std},0")
                 metrics.write(",".join(cells) + f",{time.time() - started:.3f}\n")
@@ -200,7 +205,7 @@ def main(args: Args) -> None:
                     optims[s].step()
             losses[s] = (f"{v_loss.item()}", f"{pg_loss.item()}", f"{agents[s].actor_log_std.exp().mean().item()}")
         if (it + 1) % 50 == 0 or it + 1 == iterations:
-            for s in species:
+            for s in learning:
                 save_actor(agents[s], os.path.join(args.out, "checkpoint", f"{s}-actor.safetensors"))
             print(f"iteration {it + 1}/{iterations}, {(it + 1) * args.num_envs * args.num_steps} world steps, "
                   f"{time.time() - started:.0f} s", flush=True)

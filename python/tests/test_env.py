@@ -4,7 +4,7 @@ import os
 
 import numpy as np
 import pytest
-from pettingzoo.test import parallel_api_test
+from pettingzoo.test import parallel_api_test, parallel_seed_test
 
 import coevo
 
@@ -14,7 +14,11 @@ STANDARD = os.path.join(ROOT, "scenes", "standard.ron")
 
 def test_pettingzoo_parallel_api():
     env = coevo.parallel_env(STANDARD, episode_steps=30)
-    parallel_api_test(env, num_cycles=80)
+    parallel_api_test(env, num_cycles=1000)
+
+
+def test_pettingzoo_parallel_seed():
+    parallel_seed_test(lambda: coevo.parallel_env(STANDARD, episode_steps=30))
 
 
 def test_agents_spaces_and_truncation():

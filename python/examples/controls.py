@@ -1,0 +1,119 @@
+"""The flocking/herding controls on any runs coevo can evaluate (e.g. IPPO runs of ``ippo.py``).
+
+For each run: ``coevo --eval`` on 50 prey (noise off) seeing, with the prey blind to / shuffled among each
+other, with the predators hidden from the prey, and with the predators removed; the DoA and C_nn settled
+over each episode's last 50 steps. Across runs: mean ± 95 % t interval of each level and of each
+"seeing minus control" difference (computed run by run), with a two-sided one-sample t test of the
+difference (no correction for multiple comparisons: the p-values are per row). ``--versus RUN...`` adds
+a second group (e.g. runs trained without predators) and its Welch difference from the first. Each
+evaluation is written into its run folder as ``eval-<name>.csv``.
+
+    python python/examples/controls.py runs/ippo-seed1 runs/ippo-seed2 runs/ippo-seed3 \\
+        --versus runs/ippo-nopred-seed1 runs/ippo-nopred-seed2 runs/ippo-nopred-seed3
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import math
+import os
+import subprocess
+
+import numpy as np
+from scipy import stats
+
+EVALUATIONS = {  # name: extra coevo --eval flags
+    "seeing": [],
+    "prey blind to prey": ["--control", "blind:prey:prey"],
+    "prey shuffled": ["--control", "shuffled:prey:prey"],
+    "predators hidden from prey": ["--control", "blind:prey:predator"],
+    "predators removed": ["--predators", "0"],
+}
+
+
+def settled(path: str, column: str, last: int = 50) -> float:
+    per_episode: dict[int, list[float]] = {}
+    with open(path) as f:
+        for row in csv.DictReader(f):
+            if row[column]:
+                per_episode.setdefault(int(row["episode"]), []).append(float(row[column]))
+    return float(np.mean([np.mean(v[-last:]) for v in per_episode.values()]))
+
+
+def window(run: str, column: str, first: bool, n: int = 100) -> float:
+    with open(os.path.join(run, "metrics.csv")) as f:
+        values = [float(r[column]) for r in csv.DictReader(f) if r[column]]
+    return float(np.mean(values[:n] if first else values[-n:]))
+
+
+def evaluate(coevo: str, run: str, episodes: int, steps: int) -> dict[str, dict[str, float]]:
+    out = {}
+    for name, flags in EVALUATIONS.items():
+        file = "eval-" + name.replace(" ", "-") + ".csv"
+        path = os.path.join(run, file)
+        if not os.path.exists(path):
+            subprocess.run([coevo, "--eval", run, "--prey", "50", "--episodes", str(episodes), "--steps", str(steps),
+                            "--eval-out", file, *flags], check=True, capture_output=True)
+        out[name] = {"doa": settled(path, "doa_prey"), "nn_correlation": settled(path, "nn_correlation_prey")}
+    out["training"] = {"doa_first": window(run, "doa_prey", True), "doa_last": window(run, "doa_prey", False),
+                       "catches_last": window(run, "catches", False)}
+    return out
+
+
+def interval(x: list[float]) -> tuple[float, float, float]:
+    """Mean, 95 % t half-width, two-sided p of mean 0."""
+    x = np.asarray(x, float)
+    if len(x) < 2:
+        return float(x.mean()), math.nan, math.nan
+    se = x.std(ddof=1) / math.sqrt(len(x))
+    t = stats.t.ppf(0.975, len(x) - 1)
+    p = float(stats.ttest_1samp(x, 0.0).pvalue) if se > 0 else math.nan
+    return float(x.mean()), float(t * se), p
+
+
+def show(label: str, x: list[float], against: float | None = 0.0) -> None:
+    """One row: mean ± 95 % t half-width, and the t test against `against` (None: a level, not tested)."""
+    m, h, p = interval([v - (against or 0.0) for v in x])
+    text = f"{m + (against or 0.0):+.3f} ± {h:.3f}"
+    if against is not None:
+        text += f"   p = {p:.3g} against {against:+.3f}"
+    print(f"  {label:52s} {text}")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("runs", nargs="+")
+    ap.add_argument("--versus", nargs="*", default=[])
+    ap.add_argument("--episodes", type=int, default=20)
+    ap.add_argument("--steps", type=int, default=500)
+    ap.add_argument("--coevo", default=os.environ.get("COEVO_BIN", "target/release/coevo"))
+    a = ap.parse_args()
+    chance = 2 / math.pi
+    groups = {"runs": a.runs, "versus": a.versus}
+    results = {g: [evaluate(a.coevo, r, a.episodes, a.steps) for r in runs] for g, runs in groups.items() if runs}
+    for g, res in results.items():
+        print(f"{g}: {len(res)} runs, 50 prey, {a.episodes} episodes × {a.steps} steps, last 50 steps; mean ± 95 % t CI")
+        show("training: DoA first 100 episodes", [r["training"]["doa_first"] for r in res], None)
+        show("training: DoA last 100 episodes", [r["training"]["doa_last"] for r in res], None)
+        show("training: catches per episode, last 100", [r["training"]["catches_last"] for r in res], None)
+        show("training: DoA change, last minus first 100",
+             [r["training"]["doa_last"] - r["training"]["doa_first"] for r in res])
+        show("DoA seeing (against chance 2/π)", [r["seeing"]["doa"] for r in res], chance)
+        show("C_nn seeing", [r["seeing"]["nn_correlation"] for r in res])
+        for name in list(EVALUATIONS)[1:]:
+            show(f"DoA seeing minus {name}", [r["seeing"]["doa"] - r[name]["doa"] for r in res])
+        for name in list(EVALUATIONS)[1:3]:
+            show(f"C_nn seeing minus {name}",
+                 [r["seeing"]["nn_correlation"] - r[name]["nn_correlation"] for r in res])
+    if "versus" in results:
+        x = [r["seeing"]["doa"] for r in results["runs"]]
+        y = [r["seeing"]["doa"] for r in results["versus"]]
+        w = stats.ttest_ind(x, y, equal_var=False)
+        ci = w.confidence_interval(0.95)
+        print(f"runs minus versus, DoA seeing (Welch): {np.mean(x) - np.mean(y):+.3f} "
+              f"[{ci.low:+.3f}, {ci.high:+.3f}] (p = {w.pvalue:.3g})")
+
+
+if __name__ == "__main__":
+    main()
