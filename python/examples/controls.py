@@ -1,7 +1,8 @@
 """The flocking/herding controls on any runs coevo can evaluate (e.g. IPPO runs of ``ippo.py``).
 
 For each run: ``coevo --eval`` on 50 prey (noise off) seeing, with the prey blind to / shuffled among each
-other, with the predators hidden from the prey, and with the predators removed; the DoA and C_nn settled
+other, with the predators hidden from the prey, with the predators removed (and the prey also blind to
+each other then: what alignment without predators owes to seeing each other); the DoA and C_nn settled
 over each episode's last 50 steps. Across runs: mean ± 95 % t interval of each level and of each
 "seeing minus control" difference (computed run by run), with a two-sided one-sample t test of the
 difference (no correction for multiple comparisons: the p-values are per row). ``--versus RUN...`` adds
@@ -29,6 +30,7 @@ EVALUATIONS = {  # name: extra coevo --eval flags
     "prey shuffled": ["--control", "shuffled:prey:prey"],
     "predators hidden from prey": ["--control", "blind:prey:predator"],
     "predators removed": ["--predators", "0"],
+    "predators removed, prey blind to prey": ["--predators", "0", "--control", "blind:prey:prey"],
 }
 
 
@@ -42,6 +44,9 @@ def settled(path: str, column: str, last: int = 50) -> float:
 
 
 def window(run: str, column: str, first: bool, n: int = 100) -> float:
+    """The mean of the first or last `n` episodes of training; NaN for a run without `metrics.csv`."""
+    if not os.path.exists(os.path.join(run, "metrics.csv")):
+        return math.nan
     with open(os.path.join(run, "metrics.csv")) as f:
         values = [float(r[column]) for r in csv.DictReader(f) if r[column]]
     return float(np.mean(values[:n] if first else values[-n:]))
@@ -50,7 +55,7 @@ def window(run: str, column: str, first: bool, n: int = 100) -> float:
 def evaluate(coevo: str, run: str, episodes: int, steps: int) -> dict[str, dict[str, float]]:
     out = {}
     for name, flags in EVALUATIONS.items():
-        file = "eval-" + name.replace(" ", "-") + ".csv"
+        file = "eval-" + name.replace(", ", "-").replace(" ", "-") + ".csv"
         path = os.path.join(run, file)
         if not os.path.exists(path):
             subprocess.run([coevo, "--eval", run, "--prey", "50", "--episodes", str(episodes), "--steps", str(steps),
@@ -101,8 +106,11 @@ def main() -> None:
              [r["training"]["doa_last"] - r["training"]["doa_first"] for r in res])
         show("DoA seeing (against chance 2/π)", [r["seeing"]["doa"] for r in res], chance)
         show("C_nn seeing", [r["seeing"]["nn_correlation"] for r in res])
-        for name in list(EVALUATIONS)[1:]:
+        for name in list(EVALUATIONS)[1:5]:
             show(f"DoA seeing minus {name}", [r["seeing"]["doa"] - r[name]["doa"] for r in res])
+        show("DoA predators removed (against chance 2/π)", [r["predators removed"]["doa"] for r in res], chance)
+        show("DoA predators removed minus also blind to prey",
+             [r["predators removed"]["doa"] - r["predators removed, prey blind to prey"]["doa"] for r in res])
         for name in list(EVALUATIONS)[1:3]:
             show(f"C_nn seeing minus {name}",
                  [r["seeing"]["nn_correlation"] - r[name]["nn_correlation"] for r in res])
