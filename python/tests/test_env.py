@@ -79,6 +79,16 @@ def test_bad_input_is_one_line():
     env.reset(None)
     with pytest.raises(ValueError, match="actions: expected 26 values"):
         env.step(np.zeros((3, 2), np.float32))
+    nan = np.zeros((13, 2), np.float32)
+    nan[4, 1] = np.nan
+    with pytest.raises(ValueError, match=r"actions\[9\]: NaN is not a finite number"):
+        env.step(nan)
+    vec = coevo.VecEnv(STANDARD, num_envs=2, episode_steps=5)
+    vec.reset()
+    with pytest.raises(ValueError, match="actions: expected 52 values"):
+        vec.step(np.zeros((2, 12, 2), np.float32))
+    with pytest.raises(ValueError, match="num_envs: must be"):
+        coevo.VecEnv(STANDARD, num_envs=0)
 
 
 def test_render_gives_the_animation_frame():
