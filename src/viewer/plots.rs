@@ -7,7 +7,7 @@ use crate::sim::metrics::{EpisodeLog, SwarmMetrics};
 use crate::sim::species::SpeciesRegistry;
 use bevy::prelude::*;
 use bevy_egui::egui;
-use egui_plot::{Legend, Line, Plot, PlotPoints};
+use egui_plot::{Line, Plot, PlotPoints};
 
 /// The paper's smoothing window for learning curves (Fig. 3: running mean over 100 episodes).
 const RUNNING_MEAN: usize = 100;
@@ -92,28 +92,68 @@ fn line(name: &str, points: &[[f64; 2]], colour: egui::Color32, width: f32) -> L
     Line::new(name, PlotPoints::from(points.to_vec())).color(colour).width(width)
 }
 
-/// The three plots, stacked.
+/// The curves' names in their colours, on one wrapping row above a plot: a legend that never covers a
+/// curve (egui_plot draws its legend inside the plot area).
+fn key(ui: &mut egui::Ui, entries: &[(&str, egui::Color32)]) {
+    ui.horizontal_wrapped(|ui| {
+        for (name, colour) in entries {
+            ui.label(egui::RichText::new(format!("— {name}")).color(*colour).small());
+        }
+    });
+}
+
+const POLARIZATION: egui::Color32 = egui::Color32::from_rgb(60, 160, 90);
+const MILLING: egui::Color32 = egui::Color32::from_rgb(150, 90, 200);
+const CLUSTER: egui::Color32 = egui::Color32::from_rgb(120, 120, 120);
+const C_NN: egui::Color32 = egui::Color32::from_rgb(200, 60, 140);
+const CATCHES: egui::Color32 = egui::Color32::from_rgb(200, 40, 40);
+
+/// The three plots, stacked, each with labelled axes and its key above it.
 pub fn show(ui: &mut egui::Ui, h: &History, species: &str) {
-    let height = ((ui.available_height() - 60.0) / 3.0).clamp(90.0, 220.0);
+    let height = ((ui.available_height() - 120.0) / 3.0).clamp(90.0, 220.0);
     ui.label(format!("{species}: per episode (thin) and {RUNNING_MEAN}-episode running mean"));
-    Plot::new("per_episode").height(height).legend(Legend::default()).include_y(0.0).include_y(1.0).show(ui, |p| {
-        p.line(line("DoS", &h.dos, DOS.gamma_multiply(0.45), 1.0));
-        p.line(line("DoA", &h.doa, DOA.gamma_multiply(0.45), 1.0));
-        p.line(line("DoS mean", &running_mean(&h.dos, RUNNING_MEAN), DOS, 2.0));
-        p.line(line("DoA mean", &running_mean(&h.doa, RUNNING_MEAN), DOA, 2.0));
-    });
+    key(ui, &[("DoS", DOS), ("DoA", DOA)]);
+    Plot::new("per_episode")
+        .height(height)
+        .x_axis_label("episode")
+        .y_axis_label("DoS, DoA")
+        .include_y(0.0)
+        .include_y(1.0)
+        .show(ui, |p| {
+            p.line(line("DoS", &h.dos, DOS.gamma_multiply(0.45), 1.0));
+            p.line(line("DoA", &h.doa, DOA.gamma_multiply(0.45), 1.0));
+            p.line(line("DoS mean", &running_mean(&h.dos, RUNNING_MEAN), DOS, 2.0));
+            p.line(line("DoA mean", &running_mean(&h.doa, RUNNING_MEAN), DOA, 2.0));
+        });
     ui.label("this episode, step by step");
-    Plot::new("per_step").height(height).legend(Legend::default()).include_y(0.0).include_y(1.0).show(ui, |p| {
-        p.line(line("DoS", &h.step_dos, DOS, 1.5));
-        p.line(line("DoA", &h.step_doa, DOA, 1.5));
-        p.line(line("polarization", &h.step_polarization, egui::Color32::from_rgb(60, 160, 90), 1.0));
-        p.line(line("milling", &h.step_milling, egui::Color32::from_rgb(150, 90, 200), 1.0));
-        p.line(line("largest cluster / N", &h.step_largest_cluster, egui::Color32::from_rgb(120, 120, 120), 1.0));
-        p.line(line("C_nn (local order)", &h.step_nn_correlation, egui::Color32::from_rgb(200, 60, 140), 1.0));
-    });
+    key(
+        ui,
+        &[
+            ("DoS", DOS),
+            ("DoA", DOA),
+            ("polarization", POLARIZATION),
+            ("milling", MILLING),
+            ("largest cluster / N", CLUSTER),
+            ("C_nn (local order)", C_NN),
+        ],
+    );
+    Plot::new("per_step")
+        .height(height)
+        .x_axis_label("step")
+        .y_axis_label("order parameter")
+        .include_y(0.0)
+        .include_y(1.0)
+        .show(ui, |p| {
+            p.line(line("DoS", &h.step_dos, DOS, 1.5));
+            p.line(line("DoA", &h.step_doa, DOA, 1.5));
+            p.line(line("polarization", &h.step_polarization, POLARIZATION, 1.0));
+            p.line(line("milling", &h.step_milling, MILLING, 1.0));
+            p.line(line("largest cluster / N", &h.step_largest_cluster, CLUSTER, 1.0));
+            p.line(line("C_nn (local order)", &h.step_nn_correlation, C_NN, 1.0));
+        });
     ui.label("catches per episode");
-    Plot::new("catches").height(height).include_y(0.0).show(ui, |p| {
-        p.line(line("catches", &h.catches, egui::Color32::from_rgb(200, 40, 40), 1.5));
+    Plot::new("catches").height(height).x_axis_label("episode").y_axis_label("catches").include_y(0.0).show(ui, |p| {
+        p.line(line("catches", &h.catches, CATCHES, 1.5));
     });
 }
 
