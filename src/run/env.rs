@@ -163,15 +163,18 @@ impl Env {
 
     fn observations(&self) -> Vec<f32> {
         let batches = self.world.resource::<Batches>();
-        let e = self.world.resource::<Episode>();
-        let stream = CONTROL_STREAM + (e.index * (self.scene.episode_steps + 1) + e.step) as u64;
-        let mut rng: ChaCha8Rng = SimRng::stream(self.scene.seed, stream);
+        // The step's random stream, made only when a control needs it (most calls have none).
+        let rng = || -> ChaCha8Rng {
+            let e = self.world.resource::<Episode>();
+            SimRng::stream(self.scene.seed, CONTROL_STREAM + (e.index * (self.scene.episode_steps + 1) + e.step) as u64)
+        };
+        let mut rng = self.external.iter().any(|&(s, _)| self.resolved.touches(s)).then(rng);
         let mut out = Vec::new();
         for &(s, _) in &self.external {
             let b = &batches.species[s];
-            match self.resolved.touches(s) {
-                true => out.extend(self.resolved.apply(s, &b.observations, b.n, &mut rng)),
-                false => out.extend_from_slice(&b.observations),
+            match rng.as_mut().filter(|_| self.resolved.touches(s)) {
+                Some(rng) => out.extend(self.resolved.apply(s, &b.observations, b.n, rng)),
+                None => out.extend_from_slice(&b.observations),
             }
         }
         out
