@@ -163,19 +163,21 @@ impl Env {
 
     fn observations(&self) -> Vec<f32> {
         let batches = self.world.resource::<Batches>();
-        // The step's random stream, made only when a control needs it (most calls have none).
-        let rng = || -> ChaCha8Rng {
-            let e = self.world.resource::<Episode>();
-            SimRng::stream(self.scene.seed, CONTROL_STREAM + (e.index * (self.scene.episode_steps + 1) + e.step) as u64)
-        };
-        let mut rng = self.external.iter().any(|&(s, _)| self.resolved.touches(s)).then(rng);
+        // The step's random stream, made the first time a control needs it (most calls have none).
+        let mut rng: Option<ChaCha8Rng> = None;
         let mut out = Vec::new();
         for &(s, _) in &self.external {
             let b = &batches.species[s];
-            match rng.as_mut().filter(|_| self.resolved.touches(s)) {
-                Some(rng) => out.extend(self.resolved.apply(s, &b.observations, b.n, rng)),
-                None => out.extend_from_slice(&b.observations),
+            if !self.resolved.touches(s) {
+                out.extend_from_slice(&b.observations);
+                continue;
             }
+            let rng = rng.get_or_insert_with(|| {
+                let e = self.world.resource::<Episode>();
+                let t = (e.index * (self.scene.episode_steps + 1) + e.step) as u64;
+                SimRng::stream(self.scene.seed, CONTROL_STREAM + t)
+            });
+            out.extend(self.resolved.apply(s, &b.observations, b.n, rng));
         }
         out
     }
@@ -312,16 +314,19 @@ impl VecEnv {
     /// returns, [`super::schema::episode_cells`]), numbered in the order they finished across all worlds
     /// (by step, then by world), so the file does not depend on how often this is called.
     pub fn take_episode_rows(&mut self) -> Vec<String> {
-        let registry = self.envs[0].world.resource::<SpeciesRegistry>().clone();
-        let finished = std::mem::take(&mut self.finished);
-        finished
-            .into_iter()
-            .map(|mut e| {
-                e.episode = self.numbered;
-                self.numbered += 1;
-                super::schema::episode_cells(&e, &registry).join(",")
+        let registry = self.envs[0].world.resource::<SpeciesRegistry>();
+        let first = self.numbered;
+        let rows: Vec<String> = self
+            .finished
+            .drain(..)
+            .enumerate()
+            .map(|(k, mut e)| {
+                e.episode = first + k;
+                super::schema::episode_cells(&e, registry).join(",")
             })
-            .collect()
+            .collect();
+        self.numbered += rows.len();
+        rows
     }
 
     pub fn worlds(&self) -> usize {

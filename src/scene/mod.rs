@@ -356,7 +356,7 @@ impl Scene {
     }
 
     fn species_mut(&mut self, name: &str) -> crate::error::Result<&mut SpeciesDef> {
-        Ok(self.species.iter_mut().find(|s| s.name == name).ok_or_else(|| format!("no species named {name:?}"))?)
+        self.species.iter_mut().find(|s| s.name == name).ok_or_else(|| format!("no species named {name:?}").into())
     }
 
     /// The resolved scene as RON, loadable again as a scene file.
