@@ -113,7 +113,7 @@ struct Cli {
 
     /// Run an experiment file (experiments/*.ron), or `all` of them: every preset × variant × seed as a
     /// run under results/, resuming killed runs and skipping finished ones, then evaluations, summaries,
-    /// figures and REPRODUCTION.md.
+    /// figures and results/NAME/REPORT.md (claims and verdicts); `all` also rewrites REPRODUCTION.md.
     #[arg(long, help_heading = "Modes", value_name = "FILE|all")]
     experiment: Option<String>,
     /// --experiment: runs at a time, sharing the cores (--threads / J each) [default: 2].
@@ -125,9 +125,9 @@ struct Cli {
     /// --experiment: write a Slurm job array and a dependent aggregate job instead of running.
     #[arg(long, help_heading = "Experiments")]
     emit_slurm: bool,
-    /// Regenerate summaries and figures from CSV files alone: an experiment's results folder
+    /// Regenerate summaries, figures and REPORT.md from CSV files alone: an experiment's results folder
     /// (results/NAME, with experiments/NAME.ron), one run folder, or `all` (every experiment, and
-    /// REPRODUCTION.md).
+    /// REPRODUCTION.md; an experiment whose run folders are not all here keeps its summaries and figures).
     #[arg(long, help_heading = "Modes", value_name = "DIR")]
     plot: Option<PathBuf>,
 

@@ -36,6 +36,22 @@ fn workspace() -> tempfile::TempDir {
     dir
 }
 
+/// Every file under `dir` with its bytes.
+fn files_under(dir: &Path) -> std::collections::BTreeMap<std::path::PathBuf, Vec<u8>> {
+    let mut files = std::collections::BTreeMap::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for path in std::fs::read_dir(&d).unwrap().map(|e| e.unwrap().path()) {
+            if path.is_dir() {
+                stack.push(path);
+            } else {
+                files.insert(path.strip_prefix(dir).unwrap().to_path_buf(), std::fs::read(&path).unwrap());
+            }
+        }
+    }
+    files
+}
+
 fn coevo(dir: &Path, args: &[&str]) -> std::process::Output {
     Command::new(env!("CARGO_BIN_EXE_coevo")).args(args).current_dir(dir).output().unwrap()
 }
@@ -122,7 +138,21 @@ fn summary(dir: &Path) -> Vec<String> {
 fn a_tiny_experiment_runs_resumes_and_gives_the_same_summary_at_one_or_two_jobs() {
     let two = workspace();
     let out = coevo(two.path(), &["--experiment", "experiments/tiny.ron", "--jobs", "2"]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    // One experiment writes only under its own results folder (REPRODUCTION.md is written when asked for,
+    // by `all`), and says exactly what it wrote.
+    let outside: Vec<_> = files_under(two.path())
+        .into_keys()
+        .filter(|f| !["results/tiny", "scenes", "experiments"].iter().any(|d| f.starts_with(d)))
+        .collect();
+    assert!(outside.is_empty(), "{outside:?}");
+    let figures = std::fs::read_dir(two.path().join("results/tiny/figures")).unwrap().count();
+    let said = format!(
+        "coevo: wrote results/tiny/summary.csv, results/tiny/summary-mean.csv, results/tiny/REPORT.md and {} figures (.svg and .png) in results/tiny/figures/",
+        figures / 2
+    );
+    assert!(stderr.contains(&said), "{said} not in {stderr}");
     let rows = summary(two.path());
     assert_eq!(rows.len(), 5, "header and four runs: {rows:?}");
     assert!(rows[0].starts_with("preset,variant,seed,episodes,dos_first100,dos_last100,doa_first100,doa_last100,polarization_first100,polarization_last100,milling_first100"), "{}", rows[0]);
@@ -156,15 +186,12 @@ fn a_tiny_experiment_runs_resumes_and_gives_the_same_summary_at_one_or_two_jobs(
     }
     let means = std::fs::read_to_string(two.path().join("results/tiny/summary-mean.csv")).unwrap();
     assert!(means.lines().any(|l| l.starts_with("paper,5:3,dos_last100,2,")), "{means}");
-    let md = std::fs::read_to_string(two.path().join("REPRODUCTION.md")).unwrap();
+    let md = std::fs::read_to_string(two.path().join("results/tiny/REPORT.md")).unwrap();
     assert!(
         md.contains("| [tiny](#tiny) | a tiny sweep | `coevo --experiment experiments/tiny.ron --jobs 2` | 4 of 4 |"),
         "{md}"
     );
-    assert!(
-        md.contains("\n## tiny\n") && md.contains("![paper-variants](results/tiny/figures/paper-variants.png)"),
-        "{md}"
-    );
+    assert!(md.contains("\n## tiny\n") && md.contains("![paper-variants](figures/paper-variants.png)"), "{md}");
     assert!(md.contains("| paper | DoS falls | DoS change, last − first 100 of `5:3` | -0.030 |"), "{md}");
     // A comparison of two variants: the difference of their seed means (Welch's interval beside it).
     let change = |variant: &str| {
@@ -280,11 +307,17 @@ fn a_tiny_experiment_runs_resumes_and_gives_the_same_summary_at_one_or_two_jobs(
     // summary.csv alone, byte for byte the same, and nothing committed is rewritten.
     let committed = |p: &str| std::fs::read(one.path().join(p)).unwrap();
     assert!(coevo(one.path(), &["--plot", "all"]).status.success());
-    let before = (committed("REPRODUCTION.md"), committed("results/tiny/summary.csv"));
+    let before =
+        (committed("REPRODUCTION.md"), committed("results/tiny/summary.csv"), committed("results/tiny/REPORT.md"));
     std::fs::rename(one.path().join("results/tiny/paper"), one.path().join("elsewhere")).unwrap();
+    let results = files_under(&one.path().join("results"));
     let out = coevo(one.path(), &["--plot", "all"]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    assert_eq!((committed("REPRODUCTION.md"), committed("results/tiny/summary.csv")), before);
+    assert_eq!(
+        (committed("REPRODUCTION.md"), committed("results/tiny/summary.csv"), committed("results/tiny/REPORT.md")),
+        before
+    );
+    assert!(files_under(&one.path().join("results")) == results, "every file under results/ as it was");
     // One experiment's folder alone has nothing to redraw; Slurm scripts aggregate nothing.
     let out = coevo(one.path(), &["--plot", "results/tiny"]);
     let stderr = String::from_utf8_lossy(&out.stderr);
@@ -302,7 +335,10 @@ fn a_tiny_experiment_runs_resumes_and_gives_the_same_summary_at_one_or_two_jobs(
     let out = coevo(one.path(), &["--plot", "all"]);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success() && stderr.contains("(reported from the committed summary)"), "{stderr}");
-    assert_eq!((committed("REPRODUCTION.md"), committed("results/tiny/summary.csv")), before);
+    assert_eq!(
+        (committed("REPRODUCTION.md"), committed("results/tiny/summary.csv"), committed("results/tiny/REPORT.md")),
+        before
+    );
 }
 
 #[test]
@@ -425,7 +461,7 @@ fn a_shared_variant_is_the_other_experiments_runs_trained_once_and_never_compare
     assert_eq!(training(rows("share", "shared")), training(rows("tiny", "1:1")));
     // A variant that trains the same scene again is a deterministic re-run: no comparison, no p-value;
     // the contents count the shared runs once (under tiny) and say so.
-    let md = std::fs::read_to_string(dir.path().join("REPRODUCTION.md")).unwrap();
+    let md = std::fs::read_to_string(dir.path().join("results/share/REPORT.md")).unwrap();
     assert!(md.contains("| – | not a comparison: the two variants' runs are identical"), "{md}");
     assert!(md.contains("| 4 of 4 (2 shared) |"), "{md}");
     // A shared reference to another scene, or two variants shared from the same runs, are refused.
@@ -486,7 +522,7 @@ fn untrained_actors_and_the_time_course_are_measured() {
         assert!(trained.is_finite() && untrained.is_finite() && trained != untrained, "{row}");
     }
     assert!(header.contains(&"doa_reach90"));
-    let md = std::fs::read_to_string(dir.path().join("REPRODUCTION.md")).unwrap();
+    let md = std::fs::read_to_string(dir.path().join("results/tiny/REPORT.md")).unwrap();
     assert!(
         md.contains("DoA in evaluation \"50 prey\", trained minus untrained actors")
             || md.contains("doa in evaluation \"50 prey\", trained minus untrained actors"),
@@ -533,7 +569,7 @@ fn an_experiment_cross_plays_its_runs_and_judges_the_read_outs() {
     let row = summary.lines().find(|l| l.starts_with("paper,5:3,2,")).unwrap();
     assert_eq!(row.split(',').nth(at).unwrap(), written, "the summary holds the run's read-out");
     assert!(dir.path().join("results/tiny/figures/paper-5-3-crossplay.png").exists(), "the mean matrix over seeds");
-    let md = std::fs::read_to_string(dir.path().join("REPRODUCTION.md")).unwrap();
+    let md = std::fs::read_to_string(dir.path().join("results/tiny/REPORT.md")).unwrap();
     assert!(md.contains("cross-play read-out doa_late_prey_part"), "{md}");
     // The share is a level against 0.5, not an effect against zero.
     assert!(md.contains("cross-play read-out prey_regress_vs_early_predators"), "{md}");
@@ -564,7 +600,7 @@ fn an_evaluation_with_a_perturbation_gives_the_response_columns_and_claims() {
         assert!(near.is_finite() && near > 0.0, "the neighbours of the turned prey respond: {row}");
     }
     assert!(dir.path().join("results/tiny/figures/paper-perturbation-50-prey-turned.png").exists());
-    let md = std::fs::read_to_string(dir.path().join("REPRODUCTION.md")).unwrap();
+    let md = std::fs::read_to_string(dir.path().join("results/tiny/REPORT.md")).unwrap();
     assert!(md.contains("near response to one prey turned, in evaluation \"50 prey, turned\""), "{md}");
     // A Response claim needs a perturbed evaluation of that name.
     let bad = text.replace("perturb: 1.0, perturb_step: 5", "perturb_step: 5");

@@ -174,10 +174,7 @@ pub fn check_complete(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> crat
 
 /// Checks an experiment's claims on the `data` of its finished runs ([`load`]) and, when there are any,
 /// writes its summaries and figures. Claims with no run yet say so.
-pub fn aggregate(
-    exp: &Experiment,
-    data: &BTreeMap<usize, RunData>,
-) -> crate::error::Result<(Vec<ClaimResult>, Summary)> {
+pub fn aggregate(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> crate::error::Result<Aggregated> {
     check_complete(exp, data)?;
     let written = !data.is_empty();
     let prey = headline(exp);
@@ -243,6 +240,7 @@ pub fn aggregate(
     };
     let mut means = String::from("preset,variant,quantity,seeds,mean,ci95\n");
     let mut results = Vec::new();
+    let mut saved = 0;
     for preset in &exp.spec.presets {
         let of_variant = |variant: &str| -> Vec<&RunData> {
             data.iter()
@@ -293,11 +291,11 @@ pub fn aggregate(
             });
         }
         if written {
-            figures(exp, preset, &prey, &of_variant)?;
+            figures(exp, preset, &prey, &of_variant, &mut saved)?;
             if exp.spec.crossplay.is_some() {
-                crossplay_figures(exp, preset, data)?;
+                crossplay_figures(exp, preset, data, &mut saved)?;
             }
-            perturbation_figures(exp, preset, data)?;
+            perturbation_figures(exp, preset, data, &mut saved)?;
         }
     }
     // One family per experiment: every effect's p-value, all presets, adjusted together (Holm).
@@ -309,12 +307,21 @@ pub fn aggregate(
     for r in results.iter_mut().filter(|r| r.verdict != IDENTICAL && r.verdict != OVERLAP) {
         r.verdict = verdict(&r.claim, r.estimate, r.p_holm, r.baseline);
     }
-    let results = (results, table);
     if written {
         crate::io::write_file(&exp.root.join("summary.csv"), crate::io::Existing::Replace, summary.as_bytes())?;
         crate::io::write_file(&exp.root.join("summary-mean.csv"), crate::io::Existing::Replace, means.as_bytes())?;
     }
-    Ok(results)
+    Ok(Aggregated { results, summary: table, figures: written.then_some(saved) })
+}
+
+/// What [`aggregate`] found, and what it wrote.
+pub struct Aggregated {
+    pub results: Vec<ClaimResult>,
+    /// The per-run values the claims were computed from (written now, or the committed summary.csv).
+    pub summary: Summary,
+    /// With run folders here: how many figures it wrote (each as .svg and .png) beside summary.csv and
+    /// summary-mean.csv. None when it wrote nothing (no run folder here: a fresh clone).
+    pub figures: Option<usize>,
 }
 
 /// An experiment's per-run values as `summary.csv` holds them: one row per run (preset, variant, seed,
@@ -440,7 +447,12 @@ fn band(series: &[Vec<f64>], label: &str, x0: f64) -> Option<Curve> {
 /// Per evaluation with `perturb:`, the response of the other prey to the turned one against the lag,
 /// nearest six and ranks 25+, each variant's mean over its seeds with the 95 % band
 /// (`figures/<preset>-perturbation-<evaluation>.png`).
-fn perturbation_figures(exp: &Experiment, preset: &str, data: &BTreeMap<usize, RunData>) -> crate::error::Result<()> {
+fn perturbation_figures(
+    exp: &Experiment,
+    preset: &str,
+    data: &BTreeMap<usize, RunData>,
+    saved: &mut usize,
+) -> crate::error::Result<()> {
     for e in exp.spec.evaluations.iter().filter(|e| e.perturb.is_some()) {
         let mut panels = vec![];
         for (which, ranks) in [("ranks 1–6", 1.0..=6.0), ("ranks 25+", 25.0..=f64::INFINITY)] {
@@ -464,6 +476,7 @@ fn perturbation_figures(exp: &Experiment, preset: &str, data: &BTreeMap<usize, R
         }
         if panels.iter().any(|p| !p.curves.is_empty()) {
             plot::save(&exp.root.join("figures").join(format!("{preset}-perturbation-{}", slug(&e.name))), &panels)?;
+            *saved += 1;
         }
     }
     Ok(())
@@ -479,7 +492,12 @@ fn read_response_by_lag(path: &Path, ranks: &std::ops::RangeInclusive<f64>) -> c
 
 /// Per variant, the cross-play matrix averaged over its seeds, as heat maps
 /// (`figures/<preset>-<variant>-crossplay.png`).
-fn crossplay_figures(exp: &Experiment, preset: &str, data: &BTreeMap<usize, RunData>) -> crate::error::Result<()> {
+fn crossplay_figures(
+    exp: &Experiment,
+    preset: &str,
+    data: &BTreeMap<usize, RunData>,
+    saved: &mut usize,
+) -> crate::error::Result<()> {
     for v in &exp.spec.variants {
         let runs: Vec<&super::Run> =
             data.keys().map(|&i| &exp.runs[i]).filter(|r| r.preset == preset && r.variant == v.name).collect();
@@ -492,6 +510,7 @@ fn crossplay_figures(exp: &Experiment, preset: &str, data: &BTreeMap<usize, RunD
             let what = format!("{}, {preset}, {} seeds: ", v.name, matrices.len());
             let stem = exp.root.join("figures").join(format!("{preset}-{}-crossplay", slug(&v.name)));
             plot::save_heatmaps(&stem, &super::crossplay::heatmaps(&mean, &what))?;
+            *saved += 1;
         }
     }
     Ok(())
@@ -502,6 +521,7 @@ fn figures<'a>(
     preset: &str,
     prey: &str,
     of_variant: &dyn Fn(&str) -> Vec<&'a RunData>,
+    saved: &mut usize,
 ) -> crate::error::Result<()> {
     let dir = exp.root.join("figures");
     let curves = |pick: &dyn Fn(&RunData) -> Vec<f64>, x0: f64| -> Vec<Curve> {
@@ -536,6 +556,7 @@ fn figures<'a>(
         return Ok(());
     }
     plot::save(&dir.join(format!("{preset}-training")), &training)?;
+    *saved += 1;
     // Variants side by side: what each change does to the learning and to the interaction-driven part of
     // the alignment (seeing minus each control), mean over seeds with its 95 % CI; the ablations' answer to
     // "which differences decide".
@@ -579,6 +600,7 @@ fn figures<'a>(
             })
             .collect();
         plot::save_estimates(&dir.join(format!("{preset}-variants")), &panels)?;
+        *saved += 1;
     }
     let catches = [Panel {
         title: title("catches per episode"),
@@ -587,6 +609,7 @@ fn figures<'a>(
         curves: curves(&|d| running_mean(&d.catches, WINDOW), 1.0),
     }];
     plot::save(&dir.join(format!("{preset}-catches")), &catches)?;
+    *saved += 1;
     for e in &exp.spec.evaluations {
         let panels = [
             Panel {
@@ -604,6 +627,7 @@ fn figures<'a>(
         ];
         if panels.iter().any(|p| !p.curves.is_empty()) {
             plot::save(&dir.join(format!("{preset}-eval-{}", slug(&e.name))), &panels)?;
+            *saved += 1;
         }
         // The confusion curve: what a predator does, and catches, against the prey it has in view.
         let bins = (0..crate::sim::collective::CONFUSION_BINS.len())
@@ -636,6 +660,7 @@ fn figures<'a>(
         ];
         if panels.iter().any(|p| p.curves.iter().any(|c| c.mean.iter().any(|v| v.is_finite()))) {
             plot::save(&dir.join(format!("{preset}-confusion-{}", slug(&e.name))), &panels)?;
+            *saved += 1;
         }
     }
     Ok(())

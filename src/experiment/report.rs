@@ -5,6 +5,7 @@ use super::aggregate;
 use super::claims::{p_shown, quantity_name, ClaimResult};
 use super::{runner, Experiment};
 use crate::io::Existing;
+use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
@@ -75,30 +76,19 @@ pub fn experiment(request: &Request) -> crate::error::Result<()> {
     if request.task.is_some() {
         return Ok(());
     }
-    // REPRODUCTION.md covers the project's experiment files; another file's experiment reports alone.
-    if which == "all" || experiments.iter().all(|e| in_experiments_folder(&e.file)) {
+    // REPRODUCTION.md is the suite's: written when asked for `all`; one experiment reports alone.
+    if which == "all" {
         return write_reproduction();
     }
-    for exp in &experiments {
-        let claims = aggregate::aggregate(exp, &aggregate::load(exp)?)?;
-        eprintln!(
-            "coevo: wrote {}/summary.csv, summary-mean.csv and figures/ ({} claims checked)",
-            exp.root.display(),
-            claims.0.len()
-        );
+    for exp in experiments {
+        let data = aggregate::load(&exp)?;
+        report(exp, &data)?;
     }
     Ok(())
 }
 
-/// Whether an experiment file is one of the project's (in ./experiments), whose results REPRODUCTION.md
-/// gathers.
-fn in_experiments_folder(file: &Path) -> bool {
-    let folder = |p: &Path| std::fs::canonicalize(p).ok();
-    let parent = file.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
-    folder(parent).is_some_and(|p| Some(p) == folder(Path::new(EXPERIMENTS)))
-}
-
-/// Summaries and figures of every experiment with finished runs, and REPRODUCTION.md over all of them.
+/// Summaries, figures and REPORT.md of every experiment of `experiments/`, and REPRODUCTION.md over all of
+/// them.
 pub fn write_reproduction() -> crate::error::Result<()> {
     // Everything loaded and checked before anything is written.
     let mut loaded = Vec::new();
@@ -115,33 +105,55 @@ pub fn write_reproduction() -> crate::error::Result<()> {
     }
     let mut all = Vec::new();
     for (exp, data) in loaded {
-        // From the run folders, or in a clone without them from the committed summary.csv.
-        let (results, summary) = aggregate::aggregate(&exp, &data)?;
-        let wall = summary.columns.iter().position(|c| c == "wall_seconds");
-        // + 0.0: an empty f64 sum is −0.0, which would print as "-0.0 h".
-        // Shared runs are another experiment's trainings: counted there.
-        let own = || summary.rows.iter().filter(|r| r.shared_from.is_empty());
-        let seconds: f64 = own().filter_map(|r| wall.map(|i| r.values[i])).filter(|x| x.is_finite()).sum::<f64>() + 0.0;
-        let shared = summary.rows.len() - own().count();
-        let mut binaries: Vec<String> =
-            summary.rows.iter().flat_map(|r| r.binary.split(' ').map(String::from)).collect();
-        binaries.sort();
-        binaries.dedup();
-        all.push(Reported { finished: summary.rows.len(), shared, exp, results, seconds, binaries });
+        all.push(report(exp, &data)?);
     }
     crate::io::write_file(Path::new("REPRODUCTION.md"), Existing::Replace, reproduction(&all).as_bytes())?;
     eprintln!("coevo: wrote REPRODUCTION.md");
     Ok(())
 }
 
-/// `--plot DIR`: an experiment's summaries and figures, or one run's learning curves, from CSVs alone.
+/// One experiment's claims checked, from its run folders (writing its summaries and figures) or, in a
+/// clone without them, from its committed summary.csv; then its REPORT.md, which holds only what the
+/// summary holds, so a clone regenerates it byte for byte. Says on stderr exactly what it wrote.
+fn report(exp: Experiment, data: &BTreeMap<usize, super::claims::RunData>) -> crate::error::Result<Reported> {
+    let aggregate::Aggregated { results, summary, figures } = aggregate::aggregate(&exp, data)?;
+    let wall = summary.columns.iter().position(|c| c == "wall_seconds");
+    // + 0.0: an empty f64 sum is −0.0, which would print as "-0.0 h".
+    // Shared runs are another experiment's trainings: counted there.
+    let own = || summary.rows.iter().filter(|r| r.shared_from.is_empty());
+    let seconds: f64 = own().filter_map(|r| wall.map(|i| r.values[i])).filter(|x| x.is_finite()).sum::<f64>() + 0.0;
+    let shared = summary.rows.len() - own().count();
+    let mut binaries: Vec<String> = summary.rows.iter().flat_map(|r| r.binary.split(' ').map(String::from)).collect();
+    binaries.sort();
+    binaries.dedup();
+    let reported = Reported { finished: summary.rows.len(), shared, exp, results, seconds, binaries };
+    let root = &reported.exp.root;
+    let path = root.join(REPORT);
+    crate::io::write_file(&path, Existing::Replace, experiment_report(&reported).as_bytes())?;
+    match figures {
+        Some(n) => eprintln!(
+            "coevo: wrote {0}/summary.csv, {0}/summary-mean.csv, {0}/{REPORT} and {n} figure{1} (.svg and .png) in {0}/figures/ ({2} claims checked)",
+            root.display(),
+            if n == 1 { "" } else { "s" },
+            reported.results.len()
+        ),
+        None => eprintln!(
+            "coevo: wrote {} from the committed summary.csv (its runs' folders are not all here: summaries and figures left as they are)",
+            path.display()
+        ),
+    }
+    Ok(reported)
+}
+
+/// `--plot DIR`: an experiment's summaries, figures and REPORT.md, or one run's learning curves, from CSVs
+/// alone.
 pub fn plot(dir: &Path) -> crate::error::Result<()> {
     if dir == Path::new("all") {
         return write_reproduction();
     }
     if crate::run::is_run(dir) {
         let path = aggregate::plot_run(dir)?;
-        eprintln!("coevo: wrote {}", path.display());
+        eprintln!("coevo: wrote {} and its .svg", path.display());
         return Ok(());
     }
     let name = dir.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
@@ -162,14 +174,12 @@ pub fn plot(dir: &Path) -> crate::error::Result<()> {
             format!("--plot {}: no finished run of {} there; nothing written", dir.display(), file.display()).into()
         );
     }
-    let claims = aggregate::aggregate(&exp, &data)?;
-    eprintln!(
-        "coevo: wrote {}/summary.csv, summary-mean.csv and figures/ ({} claims checked)",
-        exp.root.display(),
-        claims.0.len()
-    );
+    report(exp, &data)?;
     Ok(())
 }
+
+/// An experiment's own report, beside its summaries.
+pub const REPORT: &str = "REPORT.md";
 
 /// One experiment as REPRODUCTION.md reports it.
 pub struct Reported {
@@ -184,95 +194,47 @@ pub struct Reported {
     pub binaries: Vec<String>,
 }
 
+/// How every number of a report is computed and what its verdicts mean (REPRODUCTION.md's preamble, and
+/// each REPORT.md's).
+const METHOD: &str = "Each number is the mean over seeds of the prey's 100-episode means (first or last 100 \
+     episodes of training; measured with exploration noise on) or of an evaluation's last 50 steps, ± the half-width of its \
+     95 % confidence interval (Student t over seeds). A quantity *of `X` minus `Y` (Welch)* is the difference of two \
+     variants' means with Welch's 95 % interval (seeds: the smaller count). *Seeing minus* a control is the part of the \
+     trained actors' alignment that the control removes, computed run by run. Nothing in the metrics, rewards or physics \
+     was tuned toward a claim.\n\n\
+     **Verdicts.** An *effect* (a change over training, what a control removes, a difference of two variants) is \
+     *detected* when its two-sided t test gives p < 0.05 after Holm's adjustment over every effect of its experiment \
+     (both presets; the column *p (Holm)*), which implies that its 95 % interval excludes 0. A claim of the paper is \
+     **reproduced** when the claimed effect is detected in the claimed direction, or, for a level, when the paper's value \
+     is inside the interval and chance is not (DoA by chance: 2/π ≈ 0.637; DoS by chance: uniform random positions at \
+     the same density, e.g. 0.227 for 10 prey and 0.100 for 50 in the 2 m torus); **not reproduced** when the effect is \
+     detected the other way or the interval excludes the paper's value; **inconclusive** when the data are compatible with \
+     both, with the smallest effect the seeds could detect (80 % power at α = 0.05 before the adjustment) and the seeds the paper's effect would need. A \
+     claim of no effect is tested for equivalence within the margin its experiment file states (TOST: the 90 % interval \
+     inside ± margin). For a quantity the paper gives no number of, the verdict says whether an effect was detected or \
+     the level differs from chance; *no effect detected* is not evidence of no effect.\n\n";
+
+/// The head of the contents table of experiments ([`contents_row`]).
+const CONTENTS: &str =
+    "| experiment | what | command | runs finished | training time (sum over runs) | binary |\n|---|---|---|---|---|---|\n";
+
 /// REPRODUCTION.md: every claim of the experiments, the paper's number, ours with its interval, the
 /// command that produced it and the verdict.
 pub fn reproduction(experiments: &[Reported]) -> String {
     let mut md = String::from(
         "# Reproduction of Li, Li & Zhao (NJP 2023)\n\n\
-         Generated by `coevo --experiment all` (or `coevo --plot results/<experiment>` for one) from the runs' CSV files under \
-         `results/`; do not edit by hand. Each number is the mean over seeds of the prey's 100-episode means (first or last 100 \
-         episodes of training; measured with exploration noise on) or of an evaluation's last 50 steps, ± the half-width of its \
-         95 % confidence interval (Student t over seeds). A quantity *of `X` minus `Y` (Welch)* is the difference of two \
-         variants' means with Welch's 95 % interval (seeds: the smaller count). *Seeing minus* a control is the part of the \
-         trained actors' alignment that the control removes, computed run by run. Nothing in the metrics, rewards or physics \
-         was tuned toward a claim.\n\n\
-         **Verdicts.** An *effect* (a change over training, what a control removes, a difference of two variants) is \
-         *detected* when its two-sided t test gives p < 0.05 after Holm's adjustment over every effect of its experiment \
-         (both presets; the column *p (Holm)*), which implies that its 95 % interval excludes 0. A claim of the paper is \
-         **reproduced** when the claimed effect is detected in the claimed direction, or, for a level, when the paper's value \
-         is inside the interval and chance is not (DoA by chance: 2/π ≈ 0.637; DoS by chance: uniform random positions at \
-         the same density, e.g. 0.227 for 10 prey and 0.100 for 50 in the 2 m torus); **not reproduced** when the effect is \
-         detected the other way or the interval excludes the paper's value; **inconclusive** when the data are compatible with \
-         both, with the smallest effect the seeds could detect (80 % power at α = 0.05 before the adjustment) and the seeds the paper's effect would need. A \
-         claim of no effect is tested for equivalence within the margin its experiment file states (TOST: the 90 % interval \
-         inside ± margin). For a quantity the paper gives no number of, the verdict says whether an effect was detected or \
-         the level differs from chance; *no effect detected* is not evidence of no effect.\n\n",
+         Generated by `coevo --experiment all` or `coevo --plot all` from the runs' CSV files under `results/` (each \
+         experiment's section is also its `results/<experiment>/REPORT.md`); do not edit by hand. ",
     );
+    md.push_str(METHOD);
     // Contents first: each experiment, what it tests, how far it got and the command that continues it.
-    md.push_str(
-        "| experiment | what | command | runs finished | training time (sum over runs) | binary |\n|---|---|---|---|---|---|\n",
-    );
-    for Reported { exp, seconds, finished, shared, binaries, .. } in experiments {
-        let command = format!("`coevo --experiment {} --jobs 2`", exp.file.display());
-        let (name, runs, hours) = (&exp.name, exp.runs.len(), seconds / 3600.0);
-        let binary = match &binaries[..] {
-            [] => "–".to_string(),
-            [one] if one == "unknown" => "before provenance files".to_string(),
-            [one] => format!("`{one}`"),
-            many => format!("{} binaries", many.len()),
-        };
-        writeln!(
-            md,
-            "| [{name}](#{name}) | {} | {command} | {finished} of {runs}{} | {hours:.1} h | {binary} |",
-            exp.spec.description,
-            if *shared > 0 { format!(" ({shared} shared)") } else { String::new() }
-        )
-        .unwrap();
+    md.push_str(CONTENTS);
+    for r in experiments {
+        contents_row(&mut md, r);
     }
-    // Then per experiment: its claims, and its figures (the comparison of variants and the learning curves
-    // shown, the rest linked).
-    for Reported { exp, results, .. } in experiments {
-        let what = if exp.spec.description.is_empty() { String::new() } else { format!("{}. ", exp.spec.description) };
-        writeln!(md, "\n## {}\n\n{what}`{}`, results in `{}/`.\n", exp.name, exp.file.display(), exp.root.display())
-            .unwrap();
-        if !results.is_empty() {
-            md.push_str("| preset | claim (the paper) | quantity | paper | coevo (mean ± 95 % CI, seeds) | p (Holm) | verdict |\n|---|---|---|---|---|---|---|\n");
-        }
-        for r in results {
-            let ours = match r.estimate {
-                Some(e) => format!("{:.3}{} ({})", e.mean, e.ci.map_or(String::new(), |c| format!(" ± {c:.3}")), e.n),
-                None => "–".into(),
-            };
-            let paper = r.claim.paper.map_or("–".into(), |p| format!("{p:.3}"));
-            let of = match &r.claim.versus {
-                Some(base) => format!("`{}` minus `{base}` (Welch)", r.claim.variant),
-                None => format!("`{}`", r.claim.variant),
-            };
-            let p = r.p_holm.map_or("–".into(), p_shown);
-            writeln!(
-                md,
-                "| {} | {} | {} of {of} | {paper} | {ours} | {p} | {} |",
-                r.preset,
-                cell(&r.claim.text),
-                cell(&quantity_name(&r.claim.quantity)),
-                cell(&r.verdict)
-            )
-            .unwrap();
-        }
-        let dir = exp.root.join("figures");
-        for preset in &exp.spec.presets {
-            let shown: Vec<String> = ["variants", "training"]
-                .iter()
-                .map(|what| dir.join(format!("{preset}-{what}.png")))
-                .filter(|path| path.exists())
-                .map(|path| {
-                    format!("![{}]({})", path.file_stem().unwrap_or_default().to_string_lossy(), path.display())
-                })
-                .collect();
-            if !shown.is_empty() {
-                writeln!(md, "\n{}\n", shown.join("\n")).unwrap();
-            }
-        }
+    // Then per experiment: its claims, and its figures.
+    for r in experiments {
+        section(&mut md, r, &r.exp.root.join("figures"));
     }
     let (seconds, finished, runs) = experiments.iter().fold((0.0, 0, 0), |(s, f, r), e| {
         let own = e.exp.runs.iter().filter(|run| run.shared_from.is_none()).count();
@@ -288,6 +250,86 @@ pub fn reproduction(experiments: &[Reported]) -> String {
     )
     .unwrap();
     md
+}
+
+/// `results/<experiment>/REPORT.md`: one experiment's claims and verdicts, as REPRODUCTION.md gives them,
+/// with its figures linked from beside them.
+pub fn experiment_report(r: &Reported) -> String {
+    let mut md = format!(
+        "# {}\n\nGenerated by `coevo --experiment {}` (finished runs are not run again) from the runs' CSV files under `{}/`; \
+         do not edit by hand. ",
+        r.exp.name,
+        r.exp.file.display(),
+        r.exp.root.display()
+    );
+    md.push_str(METHOD);
+    md.push_str(CONTENTS);
+    contents_row(&mut md, r);
+    section(&mut md, r, Path::new("figures"));
+    md
+}
+
+/// One experiment's line of the contents: what it tests, how far it got and the command that continues it.
+fn contents_row(md: &mut String, Reported { exp, seconds, finished, shared, binaries, .. }: &Reported) {
+    let command = format!("`coevo --experiment {} --jobs 2`", exp.file.display());
+    let (name, runs, hours) = (&exp.name, exp.runs.len(), seconds / 3600.0);
+    let binary = match &binaries[..] {
+        [] => "–".to_string(),
+        [one] if one == "unknown" => "before provenance files".to_string(),
+        [one] => format!("`{one}`"),
+        many => format!("{} binaries", many.len()),
+    };
+    writeln!(
+        md,
+        "| [{name}](#{name}) | {} | {command} | {finished} of {runs}{} | {hours:.1} h | {binary} |",
+        exp.spec.description,
+        if *shared > 0 { format!(" ({shared} shared)") } else { String::new() }
+    )
+    .unwrap();
+}
+
+/// One experiment's section: its claims, and its figures (the comparison of variants and the learning
+/// curves shown, the rest linked), the figures' links under `figures` (they are looked up in the
+/// experiment's own figures folder).
+fn section(md: &mut String, Reported { exp, results, .. }: &Reported, figures: &Path) {
+    let what = if exp.spec.description.is_empty() { String::new() } else { format!("{}. ", exp.spec.description) };
+    writeln!(md, "\n## {}\n\n{what}`{}`, results in `{}/`.\n", exp.name, exp.file.display(), exp.root.display())
+        .unwrap();
+    if !results.is_empty() {
+        md.push_str("| preset | claim (the paper) | quantity | paper | coevo (mean ± 95 % CI, seeds) | p (Holm) | verdict |\n|---|---|---|---|---|---|---|\n");
+    }
+    for r in results {
+        let ours = match r.estimate {
+            Some(e) => format!("{:.3}{} ({})", e.mean, e.ci.map_or(String::new(), |c| format!(" ± {c:.3}")), e.n),
+            None => "–".into(),
+        };
+        let paper = r.claim.paper.map_or("–".into(), |p| format!("{p:.3}"));
+        let of = match &r.claim.versus {
+            Some(base) => format!("`{}` minus `{base}` (Welch)", r.claim.variant),
+            None => format!("`{}`", r.claim.variant),
+        };
+        let p = r.p_holm.map_or("–".into(), p_shown);
+        writeln!(
+            md,
+            "| {} | {} | {} of {of} | {paper} | {ours} | {p} | {} |",
+            r.preset,
+            cell(&r.claim.text),
+            cell(&quantity_name(&r.claim.quantity)),
+            cell(&r.verdict)
+        )
+        .unwrap();
+    }
+    for preset in &exp.spec.presets {
+        let shown: Vec<String> = ["variants", "training"]
+            .iter()
+            .map(|what| format!("{preset}-{what}.png"))
+            .filter(|file| exp.root.join("figures").join(file).exists())
+            .map(|file| format!("![{}]({})", file.trim_end_matches(".png"), figures.join(&file).display()))
+            .collect();
+        if !shown.is_empty() {
+            writeln!(md, "\n{}\n", shown.join("\n")).unwrap();
+        }
+    }
 }
 
 /// Text as one Markdown table cell: a `|` would end the cell.
