@@ -166,6 +166,10 @@ struct Cli {
     /// Viewer: render --frames frames, save a PNG here and exit.
     #[arg(long, help_heading = "Viewer", value_name = "PATH.png")]
     screenshot: Option<PathBuf>,
+    /// Viewer, live training: save the run into this new folder when its current episode ends (what the
+    /// panel's "Save this run" does): a run folder that --resume, --eval and --watch take.
+    #[arg(long, help_heading = "Viewer", value_name = "DIR")]
+    save_run: Option<PathBuf>,
     /// Viewer: frames to render before --screenshot [default: 60].
     #[arg(long, help_heading = "Viewer", value_name = "N")]
     frames: Option<usize>,
@@ -251,6 +255,7 @@ const TAKES: [(&str, &[&str]); 11] = [
             "watch",
             "rules",
             "screenshot",
+            "save_run",
             "frames",
             "window",
             "steps_per_frame",
@@ -701,6 +706,14 @@ fn viewer(cli: &Cli) -> crate::error::Result<()> {
         crate::io::check_target(path, existing).map_err(|e| format!("--screenshot {}: {e}", path.display()))?;
     }
     let snapshots = snapshots(cli, cli.watch.as_deref(), "--watch")?;
+    if let Some(dir) = &cli.save_run {
+        if cli.watch.is_some() || cli.rules {
+            return Err(
+                format!("--save-run {}: saves live training; not with --watch or --rules", dir.display()).into()
+            );
+        }
+        crate::run::RunDir::new(dir).check_new(false).map_err(|e| format!("--save-run {e}"))?;
+    }
     crate::viewer::run(ViewerOptions {
         setup: Setup { scene, source, mode, snapshots },
         window,
@@ -712,5 +725,6 @@ fn viewer(cli: &Cli) -> crate::error::Result<()> {
         trails: cli.trails,
         select: cli.select,
         screenshot: cli.screenshot.clone().map(|path| ScreenshotRequest { path, frames: cli.frames.unwrap_or(60) }),
+        save_run: cli.save_run.clone(),
     })
 }

@@ -373,3 +373,51 @@ fn a_run_names_every_executable_that_trained_or_evaluated_it() {
     let named = after.lines().skip_while(|l| !l.contains("also_by")).take_while(|l| !l.contains(']')).count();
     assert_eq!(named, 2, "also_by and one executable: {after}");
 }
+
+#[test]
+fn a_live_run_saved_between_episodes_resumes_to_the_train_run() {
+    use coevo::run::live::LiveRun;
+    let dir = tempfile::tempdir().unwrap();
+    let scene_path = dir.path().join("scene.ron");
+    std::fs::write(&scene_path, scene_text(false)).unwrap();
+    let whole = dir.path().join("whole");
+    finish(train(&scene_path, &whole));
+    // The world stepped as the viewer's live training steps it, its episodes recorded (and then taken by
+    // someone else, as the viewer's plots take them), saved after 7 of its 24 episodes.
+    let scene = coevo::scene::Scene::load(&scene_path).unwrap();
+    let mut sim = coevo::learning::simulation(scene, coevo::learning::Mode::Train, None).unwrap();
+    let live = LiveRun::new(sim.world());
+    sim.world_mut().insert_resource(live);
+    let saved = dir.path().join("saved");
+    let save = |sim: &coevo::sim::Simulation, to: &Path| sim.world().resource::<LiveRun>().save(sim.world(), to);
+    while sim.episode().index < 7 {
+        sim.step();
+        LiveRun::record(sim.world_mut());
+        sim.world_mut().resource_mut::<coevo::sim::metrics::EpisodeLog>().episodes.clear();
+        if sim.episode().index == 3 && sim.episode().step == 10 {
+            let e = save(&sim, &saved).unwrap_err().to_string();
+            assert!(e.contains("runs are saved between episodes"), "{e}");
+            assert!(!saved.exists(), "a refused save writes nothing");
+        }
+    }
+    assert_eq!(sim.world().resource::<LiveRun>().episodes(), 7);
+    save(&sim, &saved).unwrap();
+    assert_eq!(rows(&saved), 7);
+    // Never over another run.
+    let e = save(&sim, &saved).unwrap_err().to_string();
+    assert!(e.contains("already holds a run"), "{e}");
+    // `--resume` continues it exactly as the uninterrupted `--train` run.
+    let resumed = coevo().arg("--resume").arg(&saved).args(["--quiet", "--threads", "1"]).output().unwrap();
+    assert!(resumed.status.success(), "{}", String::from_utf8_lossy(&resumed.stderr));
+    assert!(!String::from_utf8_lossy(&resumed.stderr).contains("lacks replay buffers"));
+    assert_eq!(metrics(&saved), metrics(&whole));
+    assert!(checkpoint(&saved) == checkpoint(&whole), "the checkpoint of the resumed live run");
+    assert!(snapshots(&saved) == snapshots(&whole), "the snapshots of the resumed live run");
+    let eval = coevo().arg("--eval").arg(&saved).args(["--episodes", "1", "--steps", "20"]).output().unwrap();
+    assert!(eval.status.success(), "{}", String::from_utf8_lossy(&eval.stderr));
+    // A world whose population changed while it trained is no longer the run of its scene: not saved.
+    sim.world_mut().resource_mut::<LiveRun>().altered = Some("the population changed at episode 7".into());
+    let e = save(&sim, &dir.path().join("altered")).unwrap_err().to_string();
+    assert!(e.contains("not saved: the population changed"), "{e}");
+    assert!(!dir.path().join("altered").exists());
+}

@@ -278,3 +278,98 @@ fn watching_a_run_deploys_the_snapshots_asked_for() {
     let err = setup(vec![("prey".into(), 7)]).prepare().err().unwrap().to_string();
     assert!(err.starts_with("snapshot refused:") && err.contains("no snapshot of prey after 7 episodes"), "{err}");
 }
+
+#[test]
+fn with_an_agent_selected_the_plots_keep_their_height() {
+    // The inspector scrolls instead of squeezing its plots: the per-episode plot's dark area, below the
+    // selected agent's observation table, stays over 120 px tall (it was ~60 before the panel scrolled).
+    let (w, h, pixels) = screenshot(&["--scene", "scenes/paper.ron", "--select", "3", "--steps-per-frame", "5"]);
+    let dark = |x: u32, y: u32| pixels[(y * w + x) as usize].iter().all(|&c| c <= 22);
+    let (x0, x1) = (w - 280, w - 20);
+    let plot_rows = (0..h).filter(|&y| (x0..x1).filter(|&x| dark(x, y)).count() * 10 >= (x1 - x0) as usize * 8).count();
+    assert!(plot_rows >= 120, "{plot_rows} rows of plot in the inspector with an agent selected");
+}
+
+#[test]
+fn a_live_run_saved_from_the_window_resumes_to_the_headless_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut scene = Scene::load(Path::new("scenes/paper.ron")).unwrap();
+    scene.episode_steps = 50;
+    let file = dir.path().join("short.ron");
+    std::fs::write(&file, scene.to_ron()).unwrap();
+    let headless = dir.path().join("headless");
+    train(scene, &TrainOptions::new(headless.clone(), Some(3))).unwrap();
+    // Live training at 25 steps per frame, saved when its first episode ends.
+    let saved = dir.path().join("saved");
+    let shot = dir.path().join("shot.png");
+    let (file, saved_s, shot_s) = (file.to_str().unwrap(), saved.to_str().unwrap(), shot.to_str().unwrap());
+    let size = format!("{WIDTH}x{HEIGHT}");
+    let out = under_xvfb(&[
+        "--scene",
+        file,
+        "--steps-per-frame",
+        "25",
+        "--window",
+        &size,
+        "--frames",
+        "30",
+        "--screenshot",
+        shot_s,
+        "--save-run",
+        saved_s,
+    ]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{}\n{stdout}", String::from_utf8_lossy(&out.stderr));
+    assert!(stdout.contains(&format!("coevo: saved 1 episodes into {saved_s}")), "{stdout}");
+    // A run folder: --eval takes it, and --resume continues it to the headless run, to the last digit.
+    let eval = Command::new(BIN).args(["--eval", saved_s, "--episodes", "1", "--steps", "10"]).output().unwrap();
+    assert!(eval.status.success(), "{}", String::from_utf8_lossy(&eval.stderr));
+    let resume = Command::new(BIN).args(["--resume", saved_s, "--episodes", "3", "--quiet"]).output().unwrap();
+    assert!(resume.status.success(), "{}", String::from_utf8_lossy(&resume.stderr));
+    let without_wall = |run: &Path| -> Vec<String> {
+        let text = std::fs::read_to_string(run.join("metrics.csv")).unwrap();
+        text.lines().map(|l| l.rsplit_once(',').unwrap().0.to_string()).collect()
+    };
+    assert_eq!(without_wall(&saved), without_wall(&headless));
+    for actor in ["predator-actor.safetensors", "prey-actor.safetensors"] {
+        let read = |run: &Path| std::fs::read(run.join("checkpoint").join(actor)).unwrap();
+        assert!(read(&saved) == read(&headless), "{actor}");
+    }
+    // Never over a run: the same folder again is refused before a window opens.
+    let out = under_xvfb(&["--scene", file, "--save-run", saved_s]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && stderr.contains("already holds a run"), "{stderr}");
+}
+
+#[test]
+fn bodies_pressed_against_a_wall_are_drawn_over_it() {
+    // The confined demo: rule-based prey flee into the walls and stay pressed against them (soft walls:
+    // a body overlaps the wall by up to its radius). The wall band keeps its own colour only where no
+    // body is: on it, the prey's colour must show.
+    let (w, h, pixels) = screenshot(&["--scene", "scenes/confined.ron", "--rules", "--steps-per-frame", "20"]);
+    let scene = Scene::load(Path::new("scenes/confined.ron")).unwrap();
+    let prey = srgb8(scene.species[1].colour);
+    let wall = srgb8([0.42, 0.42, 0.46]);
+    // The wall band: the columns and rows where its colour is; prey pixels inside its bounding box but
+    // outside the floor are bodies drawn over it.
+    let at = |x: u32, y: u32| pixels[(y * w + x) as usize];
+    let floor = srgb8([0.98, 0.98, 0.97]);
+    let (mut fx0, mut fx1, mut fy0, mut fy1) = (w, 0, h, 0);
+    let (mut wx0, mut wx1, mut wy0, mut wy1) = (w, 0, h, 0);
+    for y in 0..h {
+        for x in 0..w {
+            if close(at(x, y), floor, 2) {
+                (fx0, fx1, fy0, fy1) = (fx0.min(x), fx1.max(x), fy0.min(y), fy1.max(y));
+            }
+            if close(at(x, y), wall, 2) {
+                (wx0, wx1, wy0, wy1) = (wx0.min(x), wx1.max(x), wy0.min(y), wy1.max(y));
+            }
+        }
+    }
+    let on_wall = (wy0..=wy1)
+        .flat_map(|y| (wx0..=wx1).map(move |x| (x, y)))
+        .filter(|&(x, y)| !(fx0..=fx1).contains(&x) || !(fy0..=fy1).contains(&y))
+        .filter(|&(x, y)| close(at(x, y), prey, 8))
+        .count();
+    assert!(on_wall > 50, "{on_wall} prey-coloured pixels on the wall band");
+}

@@ -18,6 +18,7 @@ pub mod animate;
 pub mod bench;
 pub mod env;
 pub mod evaluate;
+pub mod live;
 pub mod perturb;
 pub mod record;
 pub mod schema;

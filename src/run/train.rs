@@ -185,37 +185,10 @@ pub fn train(scene: Scene, opts: &TrainOptions) -> crate::error::Result<Vec<Epis
     bar.set_position(start_episode as u64);
     let started = Instant::now();
     let (mut steps, mut summaries) = (0usize, Vec::new());
-    let save = |sim: &Simulation,
-                learners_override: Option<&Vec<Option<crate::learning::SpeciesLearner>>>,
-                metrics_text: &str| {
-        let world = sim.world();
-        let learners = world.resource::<Learners>();
-        let species = learners_override.unwrap_or(&learners.species);
-        let state = TrainingState {
-            scene: scene.clone(),
-            episodes_done: world.resource::<Episode>().index,
-            sim_rng: world.resource::<SimRng>().0.clone(),
-            spawn_rng: Some(world.resource::<SpawnedFrom>().0.clone()),
-            species: species
-                .iter()
-                .zip(&names)
-                .map(|(l, name)| {
-                    l.as_ref().map(|l| SpeciesState {
-                        name: name.clone(),
-                        noise_std: l.noise_std,
-                        epsilon: l.epsilon,
-                        actor_adam_step: l.ddpg.actor_opt.step,
-                        critic_adam_step: l.ddpg.critic_opt.step,
-                        rng: Some(l.rng.clone()),
-                        transitions: (!l.frozen).then_some(l.buffer.pushed),
-                    })
-                })
-                .collect(),
-            metrics_csv: metrics_text.to_string(),
-        };
-        checkpoint::save(run, species, &names, &state)
-            .map_err(|e| format!("{}: cannot save checkpoint: {e}", run.display()))
-    };
+    let save =
+        |sim: &Simulation,
+         learners_override: Option<&Vec<Option<crate::learning::SpeciesLearner>>>,
+         metrics_text: &str| save_checkpoint(run, sim.world(), &scene, learners_override, metrics_text);
     while sim.episode().index < total {
         sim.step();
         sim.check()?;
@@ -253,6 +226,45 @@ pub fn train(scene: Scene, opts: &TrainOptions) -> crate::error::Result<Vec<Epis
     }
     bar.finish();
     Ok(summaries)
+}
+
+/// Saves the world's training state as `run`'s checkpoint (what `--resume` continues from): the learners
+/// (or `species`: the last good networks after a failure), the random streams, the episodes done and the
+/// run's `metrics_text`. For `--train` and for runs stepped elsewhere ([`super::live::LiveRun`]).
+pub(crate) fn save_checkpoint(
+    run: &Path,
+    world: &bevy::ecs::world::World,
+    scene: &Scene,
+    species: Option<&Vec<Option<crate::learning::SpeciesLearner>>>,
+    metrics_text: &str,
+) -> crate::error::Result<()> {
+    let learners = world.resource::<Learners>();
+    let species = species.unwrap_or(&learners.species);
+    let names: Vec<String> = world.resource::<SpeciesRegistry>().defs.iter().map(|d| d.name.clone()).collect();
+    let state = TrainingState {
+        scene: scene.clone(),
+        episodes_done: world.resource::<Episode>().index,
+        sim_rng: world.resource::<SimRng>().0.clone(),
+        spawn_rng: Some(world.resource::<SpawnedFrom>().0.clone()),
+        species: species
+            .iter()
+            .zip(&names)
+            .map(|(l, name)| {
+                l.as_ref().map(|l| SpeciesState {
+                    name: name.clone(),
+                    noise_std: l.noise_std,
+                    epsilon: l.epsilon,
+                    actor_adam_step: l.ddpg.actor_opt.step,
+                    critic_adam_step: l.ddpg.critic_opt.step,
+                    rng: Some(l.rng.clone()),
+                    transitions: (!l.frozen).then_some(l.buffer.pushed),
+                })
+            })
+            .collect(),
+        metrics_csv: metrics_text.to_string(),
+    };
+    Ok(checkpoint::save(run, species, &names, &state)
+        .map_err(|e| format!("{}: cannot save checkpoint: {e}", run.display()))?)
 }
 
 /// What a finished `--train` says about its run: first → last DoS, DoA and catches with the baselines of
@@ -301,7 +313,7 @@ pub fn explain(run: &Path) -> crate::error::Result<String> {
     let r = run.display();
     out.push_str(&format!(
         "next:\n  coevo --eval {r} --prey 50 --episodes 10                                  # the trained actors, no noise, on 50 {name}\n  \
-         coevo --eval {r} --prey 50 --episodes 10 --control blind --eval-out eval-blind.csv   # without seeing neighbours\n  \
+         coevo --eval {r} --prey 50 --episodes 10 --control blind:{name}:{name} --eval-out eval-blind.csv   # {name} blind to each other (still seeing the rest)\n  \
          coevo --plot {r}                                                            # learning curves, {r}/figures/\n  \
          coevo --animate {r}/clip.gif --run {r} --prey 50                            # a GIF of the trained swarm\n  \
          cargo run --release --features viewer -- --watch {r}                        # watch it live\n"

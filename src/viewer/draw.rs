@@ -152,17 +152,21 @@ fn dress_scene(
         ));
     };
     piece(Vec2::splat(edge), Vec2::ZERO, 0.0, FLOOR);
-    // The mask: four wide bands around the arena hide whatever reaches past an edge.
+    // The mask: four wide bands around the arena hide whatever reaches past an edge (on the torus, the
+    // part of a body that has wrapped is drawn at the other edge). Walls are soft (Hooke): a body pressed
+    // against one overlaps it by up to its radius, so there bodies are drawn over the walls and the mask.
+    let walls = scene.0.world.boundary == Boundary::Walls;
+    let (mask_z, wall_z) = if walls { (0.2, 0.3) } else { (10.0, 11.0) };
     let far = 50.0 * edge;
     for dir in [Vec2::X, Vec2::NEG_X, Vec2::Y, Vec2::NEG_Y] {
         let size = if dir.x != 0.0 { Vec2::new(far, 3.0 * far) } else { Vec2::new(3.0 * far, far) };
-        piece(size, dir * (edge + far) / 2.0, 10.0, OUTSIDE);
+        piece(size, dir * (edge + far) / 2.0, mask_z, OUTSIDE);
     }
-    if scene.0.world.boundary == Boundary::Walls {
+    if walls {
         let t = 0.6 * MARGIN * edge;
         for dir in [Vec2::X, Vec2::NEG_X, Vec2::Y, Vec2::NEG_Y] {
             let size = if dir.x != 0.0 { Vec2::new(t, edge + 2.0 * t) } else { Vec2::new(edge + 2.0 * t, t) };
-            piece(size, dir * (edge + t) / 2.0, 11.0, WALL);
+            piece(size, dir * (edge + t) / 2.0, wall_z, WALL);
         }
     }
     looks.circle = meshes.add(Circle::new(1.0));
@@ -206,7 +210,8 @@ fn dress_agents(mut commands: Commands, looks: Res<Looks>, new: Query<(Entity, &
     }
 }
 
-/// Depth of a species' bodies: later species above earlier ones, all below the mask.
+/// Depth of a species' bodies: later species above earlier ones, all below the torus's mask (above the
+/// walls and their mask).
 fn body_z(species: usize) -> f32 {
     1.0 + 0.1 * species as f32
 }

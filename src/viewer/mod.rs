@@ -26,6 +26,7 @@ mod panel;
 mod plots;
 
 use crate::learning::{Learners, LearningPlugin, Mode};
+use crate::run::live::LiveRun;
 use crate::scene::{Policy, Scene};
 use crate::sim::species::SpeciesRegistry;
 use crate::sim::{ActiveScene, SimulationPlugin};
@@ -124,6 +125,8 @@ pub struct ViewerOptions {
     pub select: Option<u32>,
     /// Render this many frames, save a PNG and exit.
     pub screenshot: Option<ScreenshotRequest>,
+    /// Live training: save the run into this folder when the current episode ends.
+    pub save_run: Option<PathBuf>,
 }
 
 /// The stages of a viewer frame, in order.
@@ -162,6 +165,18 @@ pub struct Control {
     pub respawn: Option<Vec<usize>>,
     /// The last thing that could not be done, shown in the panel until the next success.
     pub error: Option<String>,
+    /// Live training: the folder the panel offers to save the run into, and the save asked for, done when
+    /// the current episode ends (a run is saved between episodes, as `--train` checkpoints it).
+    pub save_folder: String,
+    pub save_pending: Option<PathBuf>,
+    /// What was last saved, shown in the panel.
+    pub notice: Option<String>,
+}
+
+/// The folder the panel offers for saving a live run of `setup`: `runs/live-<scene>-seed<seed>`.
+fn save_folder(setup: &Setup) -> String {
+    let stem = setup.source.file_stem().map_or("scene".into(), |s| s.to_string_lossy().into_owned());
+    format!("runs/live-{stem}-seed{}", setup.scene.seed)
 }
 
 pub struct ViewerPlugin {
@@ -181,7 +196,15 @@ impl Plugin for ViewerPlugin {
             steps_per_second: 0.0,
             total_steps: 0,
         })
-        .insert_resource(Control { current: o.setup.clone(), restart: None, respawn: None, error: None })
+        .insert_resource(Control {
+            current: o.setup.clone(),
+            restart: None,
+            respawn: None,
+            error: None,
+            save_folder: save_folder(&o.setup),
+            save_pending: o.save_run.clone(),
+            notice: None,
+        })
         .insert_resource(ClearColor(draw::OUTSIDE));
         app.configure_sets(Update, (ViewerSet::Control, ViewerSet::Step, ViewerSet::Draw).chain());
         app.add_systems(Update, (apply_control.in_set(ViewerSet::Control), step.in_set(ViewerSet::Step)));
@@ -218,7 +241,10 @@ pub fn run(options: ViewerOptions) -> crate::error::Result<()> {
     app.insert_resource(learners);
     app.add_plugins(LearningPlugin { mode: Mode::Train });
     app.add_plugins(ViewerPlugin { options });
-    app.add_systems(Startup, |world: &mut World| crate::sim::episode::spawn_population(world));
+    app.add_systems(Startup, |world: &mut World| {
+        crate::sim::episode::spawn_population(world);
+        track_live_run(world);
+    });
     match app.run() {
         AppExit::Success => Ok(()),
         AppExit::Error(code) => Err(format!("viewer exited with code {code}").into()),
@@ -237,8 +263,11 @@ fn apply_control(world: &mut World) {
                 crate::learning::restart(world, &scene, Some(learners));
                 world.resource_mut::<plots::History>().clear();
                 let mut c = world.resource_mut::<Control>();
+                c.save_folder = save_folder(&setup);
+                c.save_pending = None;
                 c.current = setup;
                 c.error = None;
+                track_live_run(world);
             }
             Err(e) => world.resource_mut::<Control>().error = Some(e.to_string()),
         }
@@ -267,6 +296,41 @@ fn respawn_with_counts(world: &mut World, counts: &[usize]) {
     crate::sim::episode::spawn_population(world);
     world.resource_mut::<plots::History>().start_episode();
     world.resource_mut::<Control>().error = None;
+    let episode = world.resource::<crate::sim::clock::Episode>().index;
+    if let Some(mut run) = world.get_resource_mut::<LiveRun>() {
+        run.altered.get_or_insert_with(|| format!("the population changed at episode {episode}"));
+    }
+}
+
+/// Live training keeps its run ([`LiveRun`]) from its first step, so that it can be saved; other modes
+/// train nothing.
+fn track_live_run(world: &mut World) {
+    world.remove_resource::<LiveRun>();
+    if world.resource::<Control>().current.mode == RunMode::LiveTraining {
+        let run = LiveRun::new(world);
+        world.insert_resource(run);
+    }
+}
+
+/// Saves the live run into the folder asked for, now that an episode has ended; says what happened in
+/// the panel (and on stdout, for scripts).
+fn save_live_run(world: &mut World) {
+    let Some(dir) = world.resource_mut::<Control>().save_pending.take() else { return };
+    let saved = match world.get_resource::<LiveRun>() {
+        Some(run) => run.save(world, &dir).map(|()| run.episodes()),
+        None => Err("only live training is saved as a run".into()),
+    };
+    let mut c = world.resource_mut::<Control>();
+    match saved {
+        Ok(episodes) => {
+            let notice =
+                format!("saved {episodes} episodes into {} (--resume, --eval, --watch take it)", dir.display());
+            println!("coevo: {notice}");
+            c.notice = Some(notice);
+            c.error = None;
+        }
+        Err(e) => c.error = Some(e.to_string()),
+    }
 }
 
 /// Runs this frame's fixed steps and records what the plots and trails need after each.
@@ -285,7 +349,13 @@ fn step(world: &mut World) {
     let mut done = 0;
     while budget(done) && world.resource::<Learners>().failure.is_none() && crate::sim::check_state(world).is_ok() {
         world.run_schedule(FixedUpdate);
+        if world.contains_resource::<LiveRun>() {
+            LiveRun::record(world);
+        }
         plots::record_step(world);
+        if world.resource::<crate::sim::clock::Episode>().step == 0 {
+            save_live_run(world);
+        }
         draw::record_trails(world);
         done += 1;
     }

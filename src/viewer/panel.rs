@@ -49,6 +49,7 @@ struct Status<'w> {
     registry: Res<'w, SpeciesRegistry>,
     learners: Res<'w, Learners>,
     time: Res<'w, Time<Real>>,
+    live: Option<Res<'w, crate::run::live::LiveRun>>,
 }
 
 fn controls(
@@ -75,6 +76,10 @@ fn controls(
                     ui.colored_label(egui::Color32::from_rgb(230, 80, 70), error);
                 }
                 status(ui, c, &playback, &world);
+                if let Some(live) = &world.live {
+                    ui.separator();
+                    save_run(ui, c, live, &world.episode);
+                }
                 ui.separator();
                 mode_and_files(ui, c, draft);
                 ui.separator();
@@ -132,6 +137,36 @@ fn status(ui: &mut egui::Ui, c: &Control, playback: &Playback, w: &Status) {
             };
             ui.label(format!("{}: {what}", w.registry.defs[s].name));
         }
+    }
+}
+
+/// Live training as a run folder: saved when the current episode ends, never over an existing folder.
+fn save_run(ui: &mut egui::Ui, c: &mut Control, live: &crate::run::live::LiveRun, episode: &Episode) {
+    ui.label("Save this run");
+    if let Some(why) = &live.altered {
+        ui.label(format!("not savable: {why} (restart to train a savable run)"));
+        return;
+    }
+    ui.horizontal(|ui| {
+        ui.label("into");
+        ui.text_edit_singleline(&mut c.save_folder);
+    });
+    match &c.save_pending {
+        Some(dir) => {
+            ui.label(format!("saving into {} when episode {} ends…", dir.display(), episode.index));
+            if ui.button("cancel").clicked() {
+                c.save_pending = None;
+            }
+        }
+        None => {
+            if ui.button("Save at the end of this episode").clicked() {
+                c.save_pending = Some(PathBuf::from(c.save_folder.trim()));
+                c.notice = None;
+            }
+        }
+    }
+    if let Some(notice) = &c.notice {
+        ui.colored_label(egui::Color32::from_rgb(60, 150, 80), notice);
     }
 }
 
@@ -379,18 +414,22 @@ fn inspector(
         .resizable(false)
         .exact_size(INSPECTOR_WIDTH)
         .show(&mut root, |ui| {
-            ui.heading("Selected agent");
-            let found = selection.0.and_then(|id| agents.iter().find(|a| *a.0 == id));
-            match found {
-                None => {
-                    ui.label("Click an agent to see its observation, action and reward.");
+            // One scroll for the whole panel: with an agent selected, its observation table and the plots
+            // keep their sizes and the panel scrolls, rather than squeezing the plots.
+            egui::ScrollArea::vertical().id_salt("inspector_scroll").show(ui, |ui| {
+                ui.heading("Selected agent");
+                let found = selection.0.and_then(|id| agents.iter().find(|a| *a.0 == id));
+                match found {
+                    None => {
+                        ui.label("Click an agent to see its observation, action and reward.");
+                    }
+                    Some(a) => agent_details(ui, a, &registry, &batches, scene.0.observation_frame),
                 }
-                Some(a) => agent_details(ui, a, &registry, &batches, scene.0.observation_frame),
-            }
-            ui.separator();
-            ui.heading("Swarming");
-            let prey = registry.headline();
-            plots::show(ui, &history, registry.defs.get(prey).map_or("", |d| d.name.as_str()));
+                ui.separator();
+                ui.heading("Swarming");
+                let prey = registry.headline();
+                plots::show(ui, &history, registry.defs.get(prey).map_or("", |d| d.name.as_str()));
+            });
         })
         .response
         .rect
@@ -457,26 +496,24 @@ fn agent_details(
     } else {
         ["neighbour", "Δx", "Δy", "Δh_x", "Δh_y"]
     };
-    egui::ScrollArea::vertical().id_salt("observation").max_height(200.0).show(ui, |ui| {
-        egui::Grid::new("obs").striped(true).num_columns(5).show(ui, |ui| {
-            for header in headers {
-                ui.strong(header);
-            }
-            ui.end_row();
-            for t in 0..registry.len() {
-                for n in 0..def.topological_limit {
-                    ui.label(format!("{} {}", registry.defs[t].name, n + 1));
-                    match neighbour_slot(obs, registry, s.0, t, n) {
-                        Some(slot) => slot.iter().for_each(|v| {
-                            ui.monospace(format!("{v:+.3}"));
-                        }),
-                        None => {
-                            ui.label("empty");
-                        }
+    egui::Grid::new("obs").striped(true).num_columns(5).show(ui, |ui| {
+        for header in headers {
+            ui.strong(header);
+        }
+        ui.end_row();
+        for t in 0..registry.len() {
+            for n in 0..def.topological_limit {
+                ui.label(format!("{} {}", registry.defs[t].name, n + 1));
+                match neighbour_slot(obs, registry, s.0, t, n) {
+                    Some(slot) => slot.iter().for_each(|v| {
+                        ui.monospace(format!("{v:+.3}"));
+                    }),
+                    None => {
+                        ui.label("empty");
                     }
-                    ui.end_row();
                 }
+                ui.end_row();
             }
-        });
+        }
     });
 }

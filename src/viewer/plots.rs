@@ -110,7 +110,8 @@ const CATCHES: egui::Color32 = egui::Color32::from_rgb(200, 40, 40);
 
 /// The three plots, stacked, each with labelled axes and its key above it.
 pub fn show(ui: &mut egui::Ui, h: &History, species: &str) {
-    let height = ((ui.available_height() - 120.0) / 3.0).clamp(90.0, 220.0);
+    // From the window's height, not the space left: the panel scrolls, so the plots never shrink to a strip.
+    let height = ((ui.ctx().viewport_rect().height() - 120.0) / 3.0).clamp(140.0, 220.0);
     ui.label(format!("{species}: per episode (thin) and {RUNNING_MEAN}-episode running mean"));
     key(ui, &[("DoS", DOS), ("DoA", DOA)]);
     Plot::new("per_episode")

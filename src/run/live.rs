@@ -1,0 +1,114 @@
+//! A training run stepped by a caller other than `--train` (the viewer's live training), kept so that it
+//! can be saved as a run folder: the `metrics.csv` rows, snapshots and checkpoint `--train` writes, saved at
+//! an episode boundary, so that `--resume`, `--eval` and the viewer's watch mode take it, and a resumed run
+//! continues exactly as the `--train` run of its scene and seed would have.
+
+use super::{schema, RunDir};
+use crate::io::Existing;
+use crate::learning::nets::Mlp;
+use crate::learning::{checkpoint, Learners};
+use crate::sim::clock::Episode;
+use crate::sim::metrics::EpisodeLog;
+use crate::sim::species::SpeciesRegistry;
+use crate::sim::ActiveScene;
+use bevy::prelude::{Resource, World};
+use std::path::Path;
+use std::time::Instant;
+
+#[derive(Resource)]
+pub struct LiveRun {
+    /// `metrics.csv` as `--train` would have written it so far.
+    metrics_text: String,
+    /// Episodes recorded (the next row's episode).
+    episodes: usize,
+    /// Each learning species' actor at the episodes `--train` snapshots (kept until saved).
+    snapshots: Vec<(String, usize, Mlp)>,
+    started: Instant,
+    /// Why the world is no longer the `--train` run of its scene and seed (its population was changed
+    /// while it trained): such a run is not saved.
+    pub altered: Option<String>,
+}
+
+impl LiveRun {
+    /// The run of the world as it is now, before its first step.
+    pub fn new(world: &World) -> LiveRun {
+        let header = schema::metrics_header(world.resource::<SpeciesRegistry>(), world.resource::<Learners>());
+        let mut run = LiveRun {
+            metrics_text: format!("{header}\n"),
+            episodes: 0,
+            snapshots: vec![],
+            started: Instant::now(),
+            altered: None,
+        };
+        if world.resource::<ActiveScene>().0.learning.snapshot_every > 0 {
+            run.snapshot(world, 0);
+        }
+        run
+    }
+
+    /// Episodes trained so far.
+    pub fn episodes(&self) -> usize {
+        self.episodes
+    }
+
+    fn snapshot(&mut self, world: &World, episode: usize) {
+        let names = &world.resource::<SpeciesRegistry>().defs;
+        for (l, def) in world.resource::<Learners>().species.iter().zip(names) {
+            if let Some(l) = l.as_ref().filter(|l| !l.frozen) {
+                self.snapshots.push((def.name.clone(), episode, l.ddpg.actor.clone()));
+            }
+        }
+    }
+
+    /// After a step: every episode that ended becomes its `metrics.csv` row (read from the episode log, not
+    /// taken: the viewer's plots take them after), with the snapshots `--train` would write.
+    pub fn record(world: &mut World) {
+        world.resource_scope(|world, mut run: bevy::prelude::Mut<LiveRun>| {
+            let ended: Vec<_> =
+                world.resource::<EpisodeLog>().episodes.iter().filter(|e| e.episode >= run.episodes).cloned().collect();
+            let scene = &world.resource::<ActiveScene>().0;
+            let (every, total) = (scene.learning.snapshot_every, scene.episodes);
+            for summary in ended {
+                let registry = world.resource::<SpeciesRegistry>().clone();
+                let wall = run.started.elapsed().as_secs_f64();
+                let row = schema::metrics_row(&summary, &registry, &mut world.resource_mut::<Learners>(), wall);
+                run.metrics_text.push_str(&row);
+                run.metrics_text.push('\n');
+                run.episodes = summary.episode + 1;
+                if every > 0 && (run.episodes.is_multiple_of(every) || run.episodes == total) {
+                    let episodes = run.episodes;
+                    run.snapshot(world, episodes);
+                }
+            }
+        });
+    }
+
+    /// Saves the run into a new folder `dir` (never over anything): `scene.ron`, `provenance.ron`,
+    /// `metrics.csv`, the snapshots and the checkpoint, as `--train` leaves a run it was stopped in at
+    /// this episode. Only at an episode boundary, and only a run whose population was never changed.
+    pub fn save(&self, world: &World, dir: &Path) -> crate::error::Result<()> {
+        if let Some(why) = &self.altered {
+            return Err(format!(
+                "{}: not saved: {why}, so it is no longer the run of its scene and seed",
+                dir.display()
+            )
+            .into());
+        }
+        let episode = world.resource::<Episode>();
+        if episode.step != 0 || episode.index != self.episodes {
+            return Err(format!("{}: not saved: runs are saved between episodes", dir.display()).into());
+        }
+        let run = RunDir::new(dir);
+        run.check_new(false)?;
+        let scene = &world.resource::<ActiveScene>().0;
+        let _lock = run.lock()?;
+        crate::io::write_file(&run.scene(), Existing::Replace, scene.to_ron().as_bytes())?;
+        run.write_provenance(scene)?;
+        crate::io::write_file(&run.metrics(), Existing::Replace, self.metrics_text.as_bytes())?;
+        for (name, episode, actor) in &self.snapshots {
+            checkpoint::save_snapshot(dir, name, *episode, actor)
+                .map_err(|e| format!("{}: cannot save snapshot: {e}", run.snapshots().display()))?;
+        }
+        super::train::save_checkpoint(dir, world, scene, None, &self.metrics_text)
+    }
+}
