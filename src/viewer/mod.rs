@@ -303,13 +303,20 @@ fn respawn_with_counts(world: &mut World, counts: &[usize]) {
 }
 
 /// Live training keeps its run ([`LiveRun`]) from its first step, so that it can be saved; other modes
-/// train nothing.
+/// train nothing. Watching a run shows its training curves (its `metrics.csv`) in the per-episode plots.
 fn track_live_run(world: &mut World) {
     world.remove_resource::<LiveRun>();
-    if world.resource::<Control>().current.mode == RunMode::LiveTraining {
+    let mode = world.resource::<Control>().current.mode.clone();
+    if mode == RunMode::LiveTraining {
         let run = LiveRun::new(world);
         world.insert_resource(run);
     }
+    let registry = world.resource::<SpeciesRegistry>();
+    let prey = registry.defs[registry.headline()].name.clone();
+    world.resource_mut::<plots::History>().training = match &mode {
+        RunMode::Watch(run) => plots::training_curves(run, &prey),
+        _ => None,
+    };
 }
 
 /// Saves the live run into the folder asked for, now that an episode has ended; says what happened in

@@ -7,7 +7,7 @@ use crate::sim::metrics::{EpisodeLog, SwarmMetrics};
 use crate::sim::species::SpeciesRegistry;
 use bevy::prelude::*;
 use bevy_egui::egui;
-use egui_plot::{Line, Plot, PlotPoints};
+use egui_plot::{Line, Plot, PlotPoints, Points};
 
 /// The paper's smoothing window for learning curves (Fig. 3: running mean over 100 episodes).
 const RUNNING_MEAN: usize = 100;
@@ -26,6 +26,9 @@ pub struct History {
     pub step_milling: Vec<[f64; 2]>,
     pub step_largest_cluster: Vec<[f64; 2]>,
     pub step_nn_correlation: Vec<[f64; 2]>,
+    /// Watching a run: its training curves from its `metrics.csv` ([episode, value] for DoS, DoA,
+    /// catches), shown before the episodes watched here.
+    pub training: Option<[Vec<[f64; 2]>; 3]>,
 }
 
 impl History {
@@ -108,23 +111,60 @@ const CLUSTER: egui::Color32 = egui::Color32::from_rgb(120, 120, 120);
 const C_NN: egui::Color32 = egui::Color32::from_rgb(200, 60, 140);
 const CATCHES: egui::Color32 = egui::Color32::from_rgb(200, 40, 40);
 
+/// Reads a watched run's training curves of `species` (DoS, DoA, catches per episode) from its
+/// `metrics.csv`; None when it has none to show.
+pub fn training_curves(run: &std::path::Path, species: &str) -> Option<[Vec<[f64; 2]>; 3]> {
+    use crate::run::schema::{self, Table};
+    let table = Table::read(&crate::run::RunDir::new(run).metrics()).ok()?;
+    let column = |name: &str| -> Option<Vec<[f64; 2]>> {
+        Some(table.column(name).ok()?.into_iter().enumerate().map(|(e, v)| [e as f64, v]).collect())
+    };
+    let curves = [column(&schema::of("dos", species))?, column(&schema::of("doa", species))?, column(schema::CATCHES)?];
+    (!curves[0].is_empty()).then_some(curves)
+}
+
+/// The episodes watched here, placed after the run's training episodes on the same axis.
+fn after(points: &[[f64; 2]], offset: f64) -> Vec<[f64; 2]> {
+    points.iter().map(|p| [p[0] + offset, p[1]]).collect()
+}
+
 /// The three plots, stacked, each with labelled axes and its key above it.
 pub fn show(ui: &mut egui::Ui, h: &History, species: &str) {
     // From the window's height, not the space left: the panel scrolls, so the plots never shrink to a strip.
     let height = ((ui.ctx().viewport_rect().height() - 120.0) / 3.0).clamp(140.0, 220.0);
-    ui.label(format!("{species}: per episode (thin) and {RUNNING_MEAN}-episode running mean"));
-    key(ui, &[("DoS", DOS), ("DoA", DOA)]);
+    let trained = h.training.as_ref().map_or(0.0, |t| t[0].len() as f64);
+    match &h.training {
+        Some(t) => {
+            ui.label(format!(
+                "{species}: the run's training ({} episodes of metrics.csv, exploration noise on; {RUNNING_MEAN}-episode running mean), then the episodes watched here (dots, no noise)",
+                t[0].len()
+            ));
+            key(ui, &[("DoS", DOS), ("DoA", DOA), ("watched DoS", DOS), ("watched DoA", DOA)]);
+        }
+        None => {
+            ui.label(format!("{species}: per episode (thin) and {RUNNING_MEAN}-episode running mean"));
+            key(ui, &[("DoS", DOS), ("DoA", DOA)]);
+        }
+    }
     Plot::new("per_episode")
         .height(height)
         .x_axis_label("episode")
         .y_axis_label("DoS, DoA")
         .include_y(0.0)
         .include_y(1.0)
-        .show(ui, |p| {
-            p.line(line("DoS", &h.dos, DOS.gamma_multiply(0.45), 1.0));
-            p.line(line("DoA", &h.doa, DOA.gamma_multiply(0.45), 1.0));
-            p.line(line("DoS mean", &running_mean(&h.dos, RUNNING_MEAN), DOS, 2.0));
-            p.line(line("DoA mean", &running_mean(&h.doa, RUNNING_MEAN), DOA, 2.0));
+        .show(ui, |p| match &h.training {
+            Some([dos, doa, _]) => {
+                p.line(line("DoS", &running_mean(dos, RUNNING_MEAN), DOS, 2.0));
+                p.line(line("DoA", &running_mean(doa, RUNNING_MEAN), DOA, 2.0));
+                p.points(Points::new("watched DoS", after(&h.dos, trained)).color(DOS).radius(3.0));
+                p.points(Points::new("watched DoA", after(&h.doa, trained)).color(DOA).radius(3.0));
+            }
+            None => {
+                p.line(line("DoS", &h.dos, DOS.gamma_multiply(0.45), 1.0));
+                p.line(line("DoA", &h.doa, DOA.gamma_multiply(0.45), 1.0));
+                p.line(line("DoS mean", &running_mean(&h.dos, RUNNING_MEAN), DOS, 2.0));
+                p.line(line("DoA mean", &running_mean(&h.doa, RUNNING_MEAN), DOA, 2.0));
+            }
         });
     ui.label("this episode, step by step");
     key(
@@ -154,7 +194,13 @@ pub fn show(ui: &mut egui::Ui, h: &History, species: &str) {
         });
     ui.label("catches per episode");
     Plot::new("catches").height(height).x_axis_label("episode").y_axis_label("catches").include_y(0.0).show(ui, |p| {
-        p.line(line("catches", &h.catches, CATCHES, 1.5));
+        match &h.training {
+            Some([_, _, catches]) => {
+                p.line(line("catches (training)", &running_mean(catches, RUNNING_MEAN), CATCHES, 1.5));
+                p.points(Points::new("catches (watched)", after(&h.catches, trained)).color(CATCHES).radius(3.0));
+            }
+            None => p.line(line("catches", &h.catches, CATCHES, 1.5)),
+        }
     });
 }
 
@@ -167,5 +213,24 @@ mod tests {
         let pts: Vec<[f64; 2]> = (0..5).map(|i| [i as f64, i as f64]).collect();
         let m = running_mean(&pts, 2);
         assert_eq!(m.iter().map(|p| p[1]).collect::<Vec<_>>(), vec![0.0, 0.5, 1.5, 2.5, 3.5]);
+    }
+
+    #[test]
+    fn a_watched_run_shows_its_training_curves_from_its_metrics() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut scene = crate::scene::Scene::preset("paper").unwrap();
+        scene.episode_steps = 20;
+        let run = dir.path().join("run");
+        crate::run::train::train(scene, &crate::run::train::TrainOptions::new(run.clone(), Some(3))).unwrap();
+        let [dos, doa, catches] = super::training_curves(&run, "prey").expect("curves from metrics.csv");
+        let table = crate::run::schema::Table::read(&run.join("metrics.csv")).unwrap();
+        let values = |c: &[[f64; 2]]| c.iter().map(|p| p[1]).collect::<Vec<_>>();
+        assert_eq!(dos.iter().map(|p| p[0]).collect::<Vec<_>>(), vec![0.0, 1.0, 2.0]);
+        assert_eq!(values(&dos), table.column("dos_prey").unwrap());
+        assert_eq!(values(&doa), table.column("doa_prey").unwrap());
+        assert_eq!(values(&catches), table.column("catches").unwrap());
+        // A run folder without metrics (the shipped actors) has none: the plot shows the watched episodes.
+        std::fs::remove_file(run.join("metrics.csv")).unwrap();
+        assert!(super::training_curves(&run, "prey").is_none());
     }
 }
