@@ -122,3 +122,168 @@ fn the_scene_reference_is_coevos_description_of_the_default_scene() {
         "docs/src/reference/scene.md is stale: paste the output of `coevo --describe-scene scenes/standard.ron`"
     );
 }
+
+/// One claim's row of REPRODUCTION.md: its estimate as shown ("0.035 ± 0.028 (10)") and its verdict.
+struct ClaimRow {
+    ours: String,
+    /// Holm-adjusted p ("–" for a level).
+    p: String,
+    verdict: String,
+}
+
+impl ClaimRow {
+    /// An effect detected after Holm's adjustment, or a level told apart from chance.
+    fn detected(&self) -> bool {
+        let p = self.p.trim_start_matches("< ").parse::<f64>().is_ok_and(|p| p < 0.05);
+        p || self.verdict.starts_with("measured: differs from chance") || self.verdict.contains("which excludes chance")
+    }
+}
+
+/// Every claim row of REPRODUCTION.md by (experiment, preset, claim text).
+fn claim_rows(md: &str) -> std::collections::BTreeMap<(String, String, String), ClaimRow> {
+    let mut rows = std::collections::BTreeMap::new();
+    let mut experiment = String::new();
+    for line in md.lines() {
+        if let Some(name) = line.strip_prefix("## ") {
+            experiment = name.trim().to_string();
+            continue;
+        }
+        if !line.starts_with("| ") {
+            continue;
+        }
+        // Cells split at `|` that are not escaped (`\|` inside a claim's text).
+        let mut cells = vec![String::new()];
+        let mut chars = line.trim().trim_matches('|').chars().peekable();
+        while let Some(c) = chars.next() {
+            match c {
+                '\\' if chars.peek() == Some(&'|') => cells.last_mut().unwrap().push(chars.next().unwrap()),
+                '|' => cells.push(String::new()),
+                c => cells.last_mut().unwrap().push(c),
+            }
+        }
+        let cells: Vec<String> = cells.into_iter().map(|c| c.trim().to_string()).collect();
+        if cells.len() == 7 && cells[0] != "preset" {
+            let key = (experiment.clone(), cells[0].clone(), cells[1].clone());
+            rows.insert(key, ClaimRow { ours: cells[4].clone(), p: cells[5].clone(), verdict: cells[6].clone() });
+        }
+    }
+    rows
+}
+
+/// A number as prose writes it (a − for a minus sign) and how many decimals it shows.
+fn shown_number(text: &str) -> Option<(f64, usize)> {
+    let text = text.replace('−', "-");
+    let decimals = text.split_once('.').map_or(0, |(_, d)| d.len());
+    text.parse().ok().map(|x| (x, decimals))
+}
+
+/// Every `MEAN ± CI<!-- claim: EXPERIMENT / PRESET / CLAIM -->` in `text` checked against REPRODUCTION.md:
+/// the numbers are the claim's estimate rounded to the decimals shown, and a "detected" or "not detected"
+/// written right after it is what the verdict says. Returns one line per disagreement.
+fn check_cited_claims(
+    text: &str,
+    rows: &std::collections::BTreeMap<(String, String, String), ClaimRow>,
+) -> Vec<String> {
+    const OPEN: &str = "<!-- claim: ";
+    let mut wrong = vec![];
+    for (i, line) in text.lines().enumerate() {
+        let mut rest = line;
+        let mut before_len = 0;
+        while let Some(at) = rest.find(OPEN) {
+            let before = &line[..before_len + at];
+            let after_open = &rest[at + OPEN.len()..];
+            let Some(close) = after_open.find("-->") else {
+                wrong.push(format!("line {}: an unclosed claim citation", i + 1));
+                break;
+            };
+            let cited = after_open[..close].trim();
+            let after = &after_open[close + 3..];
+            let parts: Vec<&str> = cited.splitn(3, " / ").collect();
+            let row = match parts[..] {
+                [e, p, c] => rows.get(&(e.to_string(), p.to_string(), c.to_string())),
+                _ => None,
+            };
+            let Some(row) = row else {
+                wrong.push(format!("line {}: no claim {cited:?} in REPRODUCTION.md", i + 1));
+                rest = after;
+                before_len = line.len() - rest.len();
+                continue;
+            };
+            // The prose's "MEAN ± CI" just before the citation.
+            let words: Vec<&str> = before.split_whitespace().collect();
+            let prose = match words[..] {
+                [.., m, "±", c] => shown_number(m.trim_start_matches(['(', '[']))
+                    .zip(shown_number(c.trim_end_matches([',', ';', ')']))),
+                _ => None,
+            };
+            let ours: Vec<&str> = row.ours.split_whitespace().collect();
+            let data = match ours[..] {
+                [m, "±", c, ..] => shown_number(m).zip(shown_number(c)),
+                _ => None,
+            };
+            match (prose, data) {
+                (Some(((m, dm), (c, dc))), Some(((dm_value, _), (dc_value, _)))) => {
+                    // The table shows three decimals; prose rounds that (or the value) to fewer.
+                    let agrees = |shown: f64, d: usize, value: f64| {
+                        (shown - value).abs() <= 0.5 * 10f64.powi(-(d as i32)) + 0.0005
+                    };
+                    if !agrees(m, dm, dm_value) || !agrees(c, dc, dc_value) {
+                        wrong.push(format!(
+                            "line {}: {m} ± {c} but REPRODUCTION.md has {} for {cited:?}",
+                            i + 1,
+                            row.ours
+                        ));
+                    }
+                }
+                _ => wrong.push(format!(
+                    "line {}: no \"MEAN ± CI\" before the citation of {cited:?} (data: {})",
+                    i + 1,
+                    row.ours
+                )),
+            }
+            // What the prose calls it, right after the citation.
+            let said = after.split(['|', ';', '.']).next().unwrap_or("");
+            let negative = said.contains("not detected") || said.contains("inconclusive");
+            let detected = row.detected();
+            if said.contains("detected") && !negative && !detected {
+                wrong.push(format!("line {}: called detected, but the verdict is {:?}", i + 1, row.verdict));
+            }
+            if negative && detected {
+                wrong.push(format!("line {}: called not detected, but the verdict is {:?}", i + 1, row.verdict));
+            }
+            rest = after;
+            before_len = line.len() - rest.len();
+        }
+    }
+    wrong
+}
+
+#[test]
+fn every_number_cited_from_a_claim_is_the_claims_estimate_and_verdict() {
+    let rows = claim_rows(&std::fs::read_to_string("REPRODUCTION.md").unwrap());
+    assert!(rows.len() > 100, "claim rows read from REPRODUCTION.md: {}", rows.len());
+    let mut cited = 0;
+    for path in markdown_files() {
+        let text = std::fs::read_to_string(&path).unwrap();
+        cited += text.matches("<!-- claim: ").count();
+        let wrong = check_cited_claims(&text, &rows);
+        assert!(wrong.is_empty(), "{}:\n{}", path.display(), wrong.join("\n"));
+    }
+    assert!(cited >= 7, "{cited} citations");
+    // A number that drifted from its claim, a wrong name and a verdict said wrongly are all found.
+    let key = ("e".to_string(), "gym-pps".to_string(), "a | claim".to_string());
+    let mut one = std::collections::BTreeMap::new();
+    one.insert(
+        key,
+        ClaimRow {
+            ours: "0.035 ± 0.028 (10)".into(),
+            p: "0.284".into(),
+            verdict: "no effect detected (inconclusive)".into(),
+        },
+    );
+    assert!(check_cited_claims("x +0.04 ± 0.03<!-- claim: e / gym-pps / a | claim --> (not detected)", &one).is_empty());
+    assert!(check_cited_claims("x 0.035 ± 0.028<!-- claim: e / gym-pps / a | claim -->", &one).is_empty());
+    assert_eq!(check_cited_claims("x +0.05 ± 0.03<!-- claim: e / gym-pps / a | claim -->", &one).len(), 1);
+    assert_eq!(check_cited_claims("x +0.04 ± 0.03<!-- claim: e / paper / a | claim -->", &one).len(), 1);
+    assert_eq!(check_cited_claims("x +0.04 ± 0.03<!-- claim: e / gym-pps / a | claim -->, detected", &one).len(), 1);
+}
