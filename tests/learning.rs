@@ -333,6 +333,24 @@ fn the_shipped_trained_run_is_the_default_scene_and_loads() {
 }
 
 #[test]
+fn the_shipped_confined_run_is_the_confined_scene_and_loads() {
+    // assets/trained-confined: learned prey against the paper's rule-based predators, in the box.
+    let asset = Path::new("assets/trained-confined");
+    let scene = Scene::load(&asset.join("scene.ron")).unwrap();
+    let text = std::fs::read_to_string("scenes/confined.ron").unwrap();
+    let mut confined = Scene::parse_with_preset(&text, "scenes/confined.ron", Some("gym-pps")).unwrap();
+    confined.seed = scene.seed;
+    assert_eq!(scene, confined, "the shipped prey were trained on scenes/confined.ron with gym-pps");
+    let mut small = scene.clone();
+    small.episode_steps = 3;
+    let mut sim = coevo::learning::simulation(small, coevo::learning::Mode::Evaluate, Some(asset)).unwrap();
+    for _ in 0..3 {
+        sim.step();
+    }
+    sim.check().unwrap();
+}
+
+#[test]
 fn a_finished_training_run_explains_itself() {
     let dir = tempfile::tempdir().unwrap();
     let scene = dir.path().join("tiny.ron");

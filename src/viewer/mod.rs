@@ -395,11 +395,14 @@ pub fn scene_files() -> Vec<PathBuf> {
 /// one click away before anything has been trained here.
 pub const SHIPPED_RUN: &str = "assets/trained-standard";
 
+/// Every shipped run, first in the picker: the default scene's, then learned prey fleeing rule-based
+/// predators in a box (`scenes/confined.ron`).
+pub const SHIPPED_RUNS: [&str; 2] = [SHIPPED_RUN, "assets/trained-confined"];
+
 /// The run folders a picker offers: the shipped run first, then `runs/*/` holding a `checkpoint/`, sorted.
 pub fn run_folders() -> Vec<PathBuf> {
     let is_run = |p: &std::path::Path| crate::run::RunDir::new(p).has_actors();
-    let shipped = PathBuf::from(SHIPPED_RUN);
-    let mut runs: Vec<PathBuf> = is_run(&shipped).then_some(shipped).into_iter().collect();
+    let mut runs: Vec<PathBuf> = SHIPPED_RUNS.iter().map(PathBuf::from).filter(|p| is_run(p)).collect();
     runs.extend(list_dir("runs", is_run));
     runs
 }
