@@ -241,6 +241,27 @@ fn check_cited_claims(
                     row.ours
                 )),
             }
+            // A Holm p-value written right after the citation is the claim's.
+            // (within the next 80 characters, before any other citation)
+            let next = after.find(OPEN).unwrap_or(after.len());
+            if let Some(at) = after[..next].find("Holm p = ").filter(|&at| at < 80) {
+                let shown: String = after[at + "Holm p = ".len()..]
+                    .chars()
+                    .take_while(|c| c.is_ascii_digit() || *c == '.' || *c == '<' || *c == ' ')
+                    .collect();
+                let (shown, data) = (shown.trim().trim_start_matches("< "), row.p.trim_start_matches("< "));
+                let agrees = match (shown_number(shown), shown_number(data)) {
+                    (Some((a, d)), Some((b, _))) => (a - b).abs() <= 0.5 * 10f64.powi(-(d as i32)) + 0.0005,
+                    _ => false,
+                };
+                if !agrees {
+                    wrong.push(format!(
+                        "line {}: Holm p = {shown} but REPRODUCTION.md has {} for {cited:?}",
+                        i + 1,
+                        row.p
+                    ));
+                }
+            }
             // What the prose calls it, right after the citation.
             let said = after.split(['|', ';', '.']).next().unwrap_or("");
             let negative = said.contains("not detected") || said.contains("inconclusive");
@@ -286,4 +307,11 @@ fn every_number_cited_from_a_claim_is_the_claims_estimate_and_verdict() {
     assert_eq!(check_cited_claims("x +0.05 ± 0.03<!-- claim: e / gym-pps / a | claim -->", &one).len(), 1);
     assert_eq!(check_cited_claims("x +0.04 ± 0.03<!-- claim: e / paper / a | claim -->", &one).len(), 1);
     assert_eq!(check_cited_claims("x +0.04 ± 0.03<!-- claim: e / gym-pps / a | claim -->, detected", &one).len(), 1);
+    assert!(
+        check_cited_claims("x +0.04 ± 0.03<!-- claim: e / gym-pps / a | claim --> (Holm p = 0.28)", &one).is_empty()
+    );
+    assert_eq!(
+        check_cited_claims("x +0.04 ± 0.03<!-- claim: e / gym-pps / a | claim --> (Holm p = 0.20)", &one).len(),
+        1
+    );
 }
