@@ -264,7 +264,9 @@ fn check_cited_claims(
             }
             // What the prose calls it, right after the citation.
             let said = after.split(['|', ';', '.']).next().unwrap_or("");
-            let negative = said.contains("not detected") || said.contains("inconclusive");
+            let said = &said[..said.find(OPEN).unwrap_or(said.len())];
+            let negative =
+                ["not detected", "neither", "none", "no effect", "inconclusive"].iter().any(|w| said.contains(w));
             let detected = row.detected();
             if said.contains("detected") && !negative && !detected {
                 wrong.push(format!("line {}: called detected, but the verdict is {:?}", i + 1, row.verdict));
