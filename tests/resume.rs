@@ -403,7 +403,9 @@ fn a_live_run_saved_between_episodes_resumes_to_the_train_run() {
     assert_eq!(sim.world().resource::<LiveRun>().episodes(), 7);
     save(&sim, &saved).unwrap();
     assert_eq!(rows(&saved), 7);
-    // Never over another run.
+    // Never into no folder (the current one), never over another run.
+    let e = save(&sim, Path::new("")).unwrap_err().to_string();
+    assert!(e.contains("name a folder"), "{e}");
     let e = save(&sim, &saved).unwrap_err().to_string();
     assert!(e.contains("already holds a run"), "{e}");
     // `--resume` continues it exactly as the uninterrupted `--train` run.

@@ -335,6 +335,29 @@ fn a_live_run_saved_from_the_window_resumes_to_the_headless_run() {
         let read = |run: &Path| std::fs::read(run.join("checkpoint").join(actor)).unwrap();
         assert!(read(&saved) == read(&headless), "{actor}");
     }
+    // A save the window closes before (5 steps of a 50-step episode) is said, with a non-zero exit.
+    let early = dir.path().join("early");
+    let shot2 = dir.path().join("shot2.png");
+    let out = under_xvfb(&[
+        "--scene",
+        file,
+        "--steps-per-frame",
+        "1",
+        "--window",
+        &size,
+        "--frames",
+        "5",
+        "--screenshot",
+        shot2.to_str().unwrap(),
+        "--save-run",
+        early.to_str().unwrap(),
+    ]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && stderr.contains("not saved: the window closed before the episode ended"),
+        "{stderr}"
+    );
+    assert!(!early.exists());
     // Never over a run: the same folder again is refused before a window opens.
     let out = under_xvfb(&["--scene", file, "--save-run", saved_s]);
     let stderr = String::from_utf8_lossy(&out.stderr);

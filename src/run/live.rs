@@ -87,6 +87,9 @@ impl LiveRun {
     /// `metrics.csv`, the snapshots and the checkpoint, as `--train` leaves a run it was stopped in at
     /// this episode. Only at an episode boundary, and only a run whose population was never changed.
     pub fn save(&self, world: &World, dir: &Path) -> crate::error::Result<()> {
+        if dir.as_os_str().is_empty() {
+            return Err("not saved: name a folder to save the run into".into());
+        }
         if let Some(why) = &self.altered {
             return Err(format!(
                 "{}: not saved: {why}, so it is no longer the run of its scene and seed",
@@ -94,21 +97,42 @@ impl LiveRun {
             )
             .into());
         }
+        // A run whose training failed or whose world faulted is not a run `--train` would have saved.
+        if let Some(failure) = &world.resource::<Learners>().failure {
+            return Err(format!("{}: not saved: training stopped: {failure}", dir.display()).into());
+        }
+        crate::sim::check_state(world).map_err(|e| format!("{}: not saved: {e}", dir.display()))?;
         let episode = world.resource::<Episode>();
         if episode.step != 0 || episode.index != self.episodes {
             return Err(format!("{}: not saved: runs are saved between episodes", dir.display()).into());
         }
         let run = RunDir::new(dir);
         run.check_new(false)?;
+        let existed = dir.exists();
         let scene = &world.resource::<ActiveScene>().0;
-        let _lock = run.lock()?;
-        crate::io::write_file(&run.scene(), Existing::Replace, scene.to_ron().as_bytes())?;
-        run.write_provenance(scene)?;
-        crate::io::write_file(&run.metrics(), Existing::Replace, self.metrics_text.as_bytes())?;
-        for (name, episode, actor) in &self.snapshots {
-            checkpoint::save_snapshot(dir, name, *episode, actor)
-                .map_err(|e| format!("{}: cannot save snapshot: {e}", run.snapshots().display()))?;
+        let lock = run.lock()?;
+        let written = (|| -> crate::error::Result<()> {
+            crate::io::write_file(&run.scene(), Existing::Replace, scene.to_ron().as_bytes())?;
+            run.write_provenance(scene)?;
+            crate::io::write_file(&run.metrics(), Existing::Replace, self.metrics_text.as_bytes())?;
+            for (name, episode, actor) in &self.snapshots {
+                checkpoint::save_snapshot(dir, name, *episode, actor)
+                    .map_err(|e| format!("{}: cannot save snapshot: {e}", run.snapshots().display()))?;
+            }
+            super::train::save_checkpoint(dir, world, scene, None, &self.metrics_text)
+        })();
+        drop(lock);
+        if written.is_err() {
+            // Nothing half-written stays behind: the folder was new, or empty.
+            if existed {
+                for entry in std::fs::read_dir(dir).into_iter().flatten().flatten() {
+                    let path = entry.path();
+                    let _ = if path.is_dir() { std::fs::remove_dir_all(&path) } else { std::fs::remove_file(&path) };
+                }
+            } else {
+                let _ = std::fs::remove_dir_all(dir);
+            }
         }
-        super::train::save_checkpoint(dir, world, scene, None, &self.metrics_text)
+        written
     }
 }

@@ -20,7 +20,7 @@ pub struct ScreenshotQueue(pub Vec<PathBuf>);
 
 /// The `--screenshot` run: frames rendered, when the frame-rate window began, and the save's outcome.
 #[derive(Resource)]
-struct OneShot {
+pub(super) struct OneShot {
     request: ScreenshotRequest,
     frames: usize,
     timing_from: Option<(usize, Instant)>,
@@ -97,7 +97,7 @@ fn save_png(image: &Image, path: &Path) -> crate::error::Result<()> {
 }
 
 /// Counts frames, asks for the screenshot at frame N and exits once it is saved.
-fn one_shot(
+pub(super) fn one_shot(
     shot: Option<ResMut<OneShot>>,
     mut queue: ResMut<ScreenshotQueue>,
     mut exit: MessageWriter<AppExit>,

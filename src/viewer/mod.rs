@@ -208,6 +208,8 @@ impl Plugin for ViewerPlugin {
         .insert_resource(ClearColor(draw::OUTSIDE));
         app.configure_sets(Update, (ViewerSet::Control, ViewerSet::Step, ViewerSet::Draw).chain());
         app.add_systems(Update, (apply_control.in_set(ViewerSet::Control), step.in_set(ViewerSet::Step)));
+        // After the screenshot's exit (capture.rs), so an exit asked for this frame is seen.
+        app.add_systems(Last, unsaved_on_exit.after(capture::one_shot));
         app.add_plugins((
             draw::DrawPlugin { trails: o.trails, select: o.select },
             plots::PlotsPlugin,
@@ -245,7 +247,11 @@ pub fn run(options: ViewerOptions) -> crate::error::Result<()> {
         crate::sim::episode::spawn_population(world);
         track_live_run(world);
     });
-    match app.run() {
+    let exit = app.run();
+    if let Some(reason) = EXIT_REASON.lock().unwrap_or_else(|e| e.into_inner()).take() {
+        return Err(reason.into());
+    }
+    match exit {
         AppExit::Success => Ok(()),
         AppExit::Error(code) => Err(format!("viewer exited with code {code}").into()),
     }
@@ -302,6 +308,24 @@ fn respawn_with_counts(world: &mut World, counts: &[usize]) {
     }
 }
 
+/// A save asked for (`--save-run` or the panel) that the window is closing before: said, with a non-zero
+/// exit, never silent.
+fn unsaved_on_exit(mut exits: ResMut<Messages<AppExit>>, mut control: ResMut<Control>) {
+    if exits.is_empty() {
+        return;
+    }
+    if let Some(dir) = control.save_pending.take() {
+        *EXIT_REASON.lock().unwrap_or_else(|e| e.into_inner()) = Some(format!(
+            "{}: not saved: the window closed before the episode ended (a run is saved between episodes)",
+            dir.display()
+        ));
+        exits.write(AppExit::from_code(1));
+    }
+}
+
+/// Why the window closed with an error, for [`run`]'s one error line (the app's world is gone by then).
+static EXIT_REASON: std::sync::Mutex<Option<String>> = std::sync::Mutex::new(None);
+
 /// Live training keeps its run ([`LiveRun`]) from its first step, so that it can be saved; other modes
 /// train nothing. Watching a run shows its training curves (its `metrics.csv`) in the per-episode plots.
 fn track_live_run(world: &mut World) {
@@ -336,7 +360,10 @@ fn save_live_run(world: &mut World) {
             c.notice = Some(notice);
             c.error = None;
         }
-        Err(e) => c.error = Some(e.to_string()),
+        Err(e) => {
+            eprintln!("coevo: error: {e}");
+            c.error = Some(e.to_string());
+        }
     }
 }
 
