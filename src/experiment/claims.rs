@@ -225,6 +225,16 @@ pub fn chance_level(exp: &Experiment, claim: &Claim, scene: Option<&crate::scene
         Quantity::DosFirst | Quantity::DosLast => random_dos(None),
         Quantity::EvalDos(e) => random_dos(Some(e)),
         Quantity::Crossplay(r) => super::crossplay::chance(r),
+        // Caught prey ranked at random within their group: the mean edge rank of no marginal predation.
+        Quantity::EvalOrder(_, q) | Quantity::TrainingFirst(q) | Quantity::TrainingLast(q)
+            if q == crate::run::schema::EDGE_RANK =>
+        {
+            Some(0.5)
+        }
+        // Independent headings: no correlation between nearest neighbours.
+        Quantity::EvalOrder(_, q) | Quantity::TrainingFirst(q) | Quantity::TrainingLast(q) if q == "nn_correlation" => {
+            Some(0.0)
+        }
         _ => None,
     }
 }

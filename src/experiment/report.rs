@@ -224,7 +224,8 @@ const METHOD: &str = "Each number is the mean over seeds of the prey's 100-episo
      (both presets; the column *p (Holm)*), which implies that its 95 % interval excludes 0. A claim of the paper is \
      **reproduced** when the claimed effect is detected in the claimed direction, or, for a level, when the paper's value \
      is inside the interval and chance is not (DoA by chance: 2/π ≈ 0.637; DoS by chance: uniform random positions at \
-     the same density, e.g. 0.227 for 10 prey and 0.100 for 50 in the 2 m torus); **not reproduced** when the effect is \
+     the same density, e.g. 0.227 for 10 prey and 0.100 for 50 in the 2 m torus; the mean edge rank of caught prey by \
+     chance: 0.5; C_nn by chance: 0); **not reproduced** when the effect is \
      detected the other way or the interval excludes the paper's value; **inconclusive** when the data are compatible with \
      both, with the smallest effect the seeds could detect (80 % power at α = 0.05 before the adjustment) and the seeds the paper's effect would need. A \
      claim of no effect is tested for equivalence within the margin its experiment file states (TOST: the 90 % interval \
