@@ -315,6 +315,17 @@ fn a_restarted_world_trains_exactly_like_a_fresh_one() {
     assert_eq!(trajectory(&mut reused, steps), expected);
 }
 
+/// A shipped run's actors load into its scene and drive it for three steps without a fault.
+fn deploys_for_three_steps(asset: &Path, scene: &Scene) {
+    let mut small = scene.clone();
+    small.episode_steps = 3;
+    let mut sim = coevo::learning::simulation(small, coevo::learning::Mode::Evaluate, Some(asset)).unwrap();
+    for _ in 0..3 {
+        sim.step();
+    }
+    sim.check().unwrap();
+}
+
 #[test]
 fn the_shipped_trained_run_is_the_default_scene_and_loads() {
     // assets/trained-standard is what the viewer's run list offers first and what the README's GIF shows.
@@ -323,13 +334,7 @@ fn the_shipped_trained_run_is_the_default_scene_and_loads() {
     let mut default = Scene::load(Path::new("scenes/standard.ron")).unwrap();
     default.seed = scene.seed;
     assert_eq!(scene, default, "the shipped actors were trained on scenes/standard.ron");
-    let mut small = scene.clone();
-    small.episode_steps = 3;
-    let mut sim = coevo::learning::simulation(small, coevo::learning::Mode::Evaluate, Some(asset)).unwrap();
-    for _ in 0..3 {
-        sim.step();
-    }
-    sim.check().unwrap();
+    deploys_for_three_steps(asset, &scene);
 }
 
 #[test]
@@ -341,13 +346,7 @@ fn the_shipped_confined_run_is_the_confined_scene_and_loads() {
     let mut confined = Scene::parse_with_preset(&text, "scenes/confined.ron", Some("gym-pps")).unwrap();
     confined.seed = scene.seed;
     assert_eq!(scene, confined, "the shipped prey were trained on scenes/confined.ron with gym-pps");
-    let mut small = scene.clone();
-    small.episode_steps = 3;
-    let mut sim = coevo::learning::simulation(small, coevo::learning::Mode::Evaluate, Some(asset)).unwrap();
-    for _ in 0..3 {
-        sim.step();
-    }
-    sim.check().unwrap();
+    deploys_for_three_steps(asset, &scene);
 }
 
 #[test]

@@ -119,17 +119,24 @@ fn a_screenshot_of_the_standard_scene_shows_the_arena_and_both_species() {
     }
 }
 
+/// `scenes/paper.ron` with `steps` steps per episode, written to `dir/short.ron` for the window, and the
+/// same scene trained headless for `episodes` episodes into `dir/run`.
+fn short_paper_run(dir: &Path, steps: usize, episodes: usize) -> (PathBuf, PathBuf) {
+    let mut scene = Scene::load(Path::new("scenes/paper.ron")).unwrap();
+    scene.episode_steps = steps;
+    let file = dir.join("short.ron");
+    std::fs::write(&file, scene.to_ron()).unwrap();
+    let run = dir.join("run");
+    train(scene, &TrainOptions::new(run.clone(), Some(episodes))).unwrap();
+    (file, run)
+}
+
 #[test]
 fn live_training_in_the_window_is_the_headless_training_run() {
     // The same scene and seed, trained headless for two episodes and live in the window at 25 steps per
     // frame: the episodes' DoS, DoA and catches must be the same numbers, to the last digit.
     let dir = tempfile::tempdir().unwrap();
-    let mut scene = Scene::load(Path::new("scenes/paper.ron")).unwrap();
-    scene.episode_steps = 200;
-    let file = dir.path().join("short.ron");
-    std::fs::write(&file, scene.to_ron()).unwrap();
-    let run = dir.path().join("run");
-    train(scene, &TrainOptions::new(run.clone(), Some(2))).unwrap();
+    let (file, run) = short_paper_run(dir.path(), 200, 2);
     let metrics = std::fs::read_to_string(run.join("metrics.csv")).unwrap();
     let header: Vec<&str> = metrics.lines().next().unwrap().split(',').collect();
     let col = |name: &str| header.iter().position(|h| *h == name).unwrap();
@@ -293,12 +300,7 @@ fn with_an_agent_selected_the_plots_keep_their_height() {
 #[test]
 fn a_live_run_saved_from_the_window_resumes_to_the_headless_run() {
     let dir = tempfile::tempdir().unwrap();
-    let mut scene = Scene::load(Path::new("scenes/paper.ron")).unwrap();
-    scene.episode_steps = 50;
-    let file = dir.path().join("short.ron");
-    std::fs::write(&file, scene.to_ron()).unwrap();
-    let headless = dir.path().join("headless");
-    train(scene, &TrainOptions::new(headless.clone(), Some(3))).unwrap();
+    let (file, headless) = short_paper_run(dir.path(), 50, 3);
     // Live training at 25 steps per frame, saved when its first episode ends.
     let saved = dir.path().join("saved");
     let shot = dir.path().join("shot.png");

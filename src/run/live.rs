@@ -123,14 +123,10 @@ impl LiveRun {
         })();
         drop(lock);
         if written.is_err() {
-            // Nothing half-written stays behind: the folder was new, or empty.
-            if existed {
-                for entry in std::fs::read_dir(dir).into_iter().flatten().flatten() {
-                    let path = entry.path();
-                    let _ = if path.is_dir() { std::fs::remove_dir_all(&path) } else { std::fs::remove_file(&path) };
-                }
-            } else {
-                let _ = std::fs::remove_dir_all(dir);
+            // Nothing half-written stays behind: the folder was new (removed again) or empty (emptied).
+            let _ = run.clear();
+            if !existed {
+                let _ = std::fs::remove_dir(dir);
             }
         }
         written
