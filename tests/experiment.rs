@@ -126,6 +126,11 @@ fn experiment_files_expand_to_runs_and_bad_ones_are_one_line() {
     }
 }
 
+/// How many replay-buffer segments (`checkpoint/<species>-replay-<from>-<to>.safetensors`) are among `files`.
+fn replay_segments(files: &std::collections::BTreeMap<std::path::PathBuf, Vec<u8>>) -> usize {
+    files.keys().filter(|f| f.to_string_lossy().contains("-replay-")).count()
+}
+
 /// The summary without its wall-clock column.
 fn summary(dir: &Path) -> Vec<String> {
     let text = std::fs::read_to_string(dir.join("results/tiny/summary.csv")).unwrap();
@@ -153,6 +158,11 @@ fn a_tiny_experiment_runs_resumes_and_gives_the_same_summary_at_one_or_two_jobs(
         figures / 2
     );
     assert!(stderr.contains(&said), "{said} not in {stderr}");
+    // Trained runs keep their networks and state, not their replay buffers (only an extension reads them).
+    let kept = files_under(&two.path().join("results/tiny"));
+    assert_eq!(kept.keys().filter(|f| f.ends_with("checkpoint/prey-actor.safetensors")).count(), 4);
+    assert_eq!(kept.keys().filter(|f| f.ends_with("checkpoint/state.ron")).count(), 4);
+    assert_eq!(replay_segments(&kept), 0, "{:?}", kept.keys().collect::<Vec<_>>());
     let rows = summary(two.path());
     assert_eq!(rows.len(), 5, "header and four runs: {rows:?}");
     assert!(rows[0].starts_with("preset,variant,seed,episodes,dos_first100,dos_last100,doa_first100,doa_last100,polarization_first100,polarization_last100,milling_first100"), "{}", rows[0]);
@@ -267,6 +277,7 @@ fn a_tiny_experiment_runs_resumes_and_gives_the_same_summary_at_one_or_two_jobs(
         ],
     );
     assert!(partial.status.success(), "{}", String::from_utf8_lossy(&partial.stderr));
+    assert!(replay_segments(&files_under(&seed1)) > 0, "a run trained by --train keeps its buffers");
     std::fs::remove_dir_all(one.path().join("results/tiny/paper/1-1/seed2/checkpoint")).unwrap();
     std::fs::remove_file(one.path().join("results/tiny/paper/5-3/seed1/eval-50-prey.csv")).unwrap();
     assert!(coevo(one.path(), &["--experiment", "experiments/tiny.ron", "--jobs", "2"]).status.success());
@@ -276,6 +287,7 @@ fn a_tiny_experiment_runs_resumes_and_gives_the_same_summary_at_one_or_two_jobs(
         "a finished run is not redone"
     );
     assert!(one.path().join("results/tiny/paper/5-3/seed1/eval-50-prey.csv").exists());
+    assert_eq!(replay_segments(&files_under(&seed1)), 0, "the resumed run's buffers go once it is trained");
     let again = summary(one.path());
     assert_eq!(again.len(), 5);
     assert!(again[1].starts_with("paper,1:1,1,3,"), "the resumed run has all its episodes: {}", again[1]);
@@ -354,9 +366,12 @@ fn slurm_scripts_have_the_array_range_and_the_aggregate_dependency() {
     assert!(submit.contains("jid=$(sbatch --parsable results/tiny/slurm/array.sh)"), "{submit}");
     assert!(submit.contains("sbatch --dependency=afterok:$jid results/tiny/slurm/aggregate.sh"), "{submit}");
     assert!(std::fs::read_to_string(slurm.join("aggregate.sh")).unwrap().contains("--plot results/tiny"));
-    // An array task runs exactly its run.
+    // An array task runs exactly its run (here of a file that keeps trained runs' replay buffers).
+    let keeping = TINY.replacen("seeds: [1, 2],", "seeds: [1, 2], keep_replay: true,", 1);
+    std::fs::write(dir.path().join("experiments/tiny.ron"), keeping).unwrap();
     assert!(coevo(dir.path(), &["--experiment", "experiments/tiny.ron", "--task", "2"]).status.success());
     assert!(dir.path().join("results/tiny/paper/5-3/seed1/checkpoint/state.ron").exists());
+    assert!(replay_segments(&files_under(&dir.path().join("results/tiny/paper/5-3/seed1"))) > 0);
     assert!(!dir.path().join("results/tiny/paper/1-1/seed1").exists());
     let bad = coevo(dir.path(), &["--experiment", "experiments/tiny.ron", "--task", "9"]);
     assert!(String::from_utf8_lossy(&bad.stderr).contains("--task 9: experiments/tiny.ron has runs 0 to 3"));

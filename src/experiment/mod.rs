@@ -58,6 +58,12 @@ pub struct ExperimentFile {
     /// default: every number of an experiment comes from one binary, and aggregation refuses otherwise.
     #[serde(default)]
     pub mixed_binaries: bool,
+    /// Keep each run's replay buffers once it is trained (~0.45 GB a run of the standard scene), so that
+    /// `coevo --resume RUN --episodes N` can extend it exactly as an uninterrupted longer run. Off by
+    /// default: a finished run's buffers are removed (`learning::checkpoint::drop_replay`), so a suite of
+    /// 150 runs needs ~1 GB rather than ~70 GB.
+    #[serde(default)]
+    pub keep_replay: bool,
     /// Cross-play every run's snapshots (`coevo --crossplay`) after its evaluations, so claims can name
     /// its read-outs (`Crossplay("...")`).
     #[serde(default)]

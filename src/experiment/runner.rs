@@ -125,6 +125,10 @@ pub fn complete_run(exp: &Experiment, run: &Run, exe: &Path, threads: usize) -> 
         args.extend(common.iter().cloned());
         child(exe, &args).map_err(|e| format!("{dir}: {e}"))?;
     }
+    if !exp.spec.keep_replay {
+        crate::learning::checkpoint::drop_replay(&run.dir)
+            .map_err(|e| format!("{dir}: cannot remove the trained run's replay buffers: {e}"))?;
+    }
     for e in &exp.spec.evaluations {
         let out = eval_file(&run.dir, &e.name);
         if evaluated_as(&out, e) {

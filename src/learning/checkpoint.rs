@@ -26,7 +26,8 @@
 //! leaves either the previous checkpoint or the new one, never a mix. Replay segments are written once:
 //! each checkpoint hard-links the previous checkpoint's segments that the buffer still holds and adds one
 //! segment with the transitions since, so a checkpoint costs the new data only, and the folder holds at
-//! most one buffer's worth plus one segment (~0.22 GB per species of the standard scene).
+//! most one buffer's worth plus one segment (~0.22 GB per species of the standard scene). An experiment
+//! removes a run's segments once it is trained ([`drop_replay`]) unless its file says `keep_replay: true`.
 
 use super::ddpg::Ddpg;
 use super::nets::Mlp;
@@ -140,6 +141,27 @@ pub fn load_snapshot(run: &Path, species: &str, episode: usize, like: &Mlp) -> c
     load_mlp(&path, like)
 }
 
+/// Frees a finished run's replay buffers: removes every replay segment of its checkpoint (~0.45 GB a run
+/// of the standard scene) and returns the bytes freed. Only resumed training reads them; evaluation,
+/// cross-play and the viewer need the networks alone. A run resumed without them refills its buffers
+/// and says so ([`load`]), as with a checkpoint of an older coevo.
+pub fn drop_replay(run: &Path) -> std::io::Result<u64> {
+    let dir = checkpoint_dir(run);
+    let entries = match std::fs::read_dir(&dir) {
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(0),
+        entries => entries?,
+    };
+    let mut freed = 0;
+    for entry in entries {
+        let entry = entry?;
+        if parse_segment_name(&entry.file_name().to_string_lossy()).is_some() {
+            freed += entry.metadata()?.len();
+            std::fs::remove_file(entry.path())?;
+        }
+    }
+    Ok(freed)
+}
+
 /// A replay segment: transitions `from..to` of a species, in `path`.
 #[derive(Clone, Debug, PartialEq)]
 struct Segment {
@@ -152,19 +174,24 @@ fn segment_name(species: &str, from: u64, to: u64) -> String {
     format!("{species}-replay-{from}-{to}.safetensors")
 }
 
+/// The species and transitions `from..to` a replay segment's file name holds ([`segment_name`]'s inverse).
+fn parse_segment_name(name: &str) -> Option<(&str, u64, u64)> {
+    let (species, range) = name.strip_suffix(".safetensors")?.rsplit_once("-replay-")?;
+    let (from, to) = range.split_once('-')?;
+    let (from, to) = (from.parse().ok()?, to.parse().ok()?);
+    (from < to).then_some((species, from, to))
+}
+
 /// The replay segments of `species` in a checkpoint folder, by first transition.
 fn segments(dir: &Path, species: &str) -> Vec<Segment> {
-    let prefix = format!("{species}-replay-");
     let mut found: Vec<Segment> = std::fs::read_dir(dir)
         .into_iter()
         .flatten()
         .flatten()
         .filter_map(|e| {
             let name = e.file_name().to_string_lossy().into_owned();
-            let range = name.strip_prefix(&prefix)?.strip_suffix(".safetensors")?;
-            let (from, to) = range.split_once('-')?;
-            let (from, to) = (from.parse().ok()?, to.parse().ok()?);
-            (from < to).then(|| Segment { from, to, path: e.path() })
+            let (of, from, to) = parse_segment_name(&name)?;
+            (of == species).then(|| Segment { from, to, path: e.path() })
         })
         .collect();
     found.sort_by_key(|s| (s.from, s.to));
