@@ -127,7 +127,8 @@ struct Cli {
     emit_slurm: bool,
     /// Regenerate summaries, figures and REPORT.md from CSV files alone: an experiment's results folder
     /// (results/NAME, with experiments/NAME.ron), one run folder, or `all` (every experiment, and
-    /// REPRODUCTION.md; an experiment whose run folders are not all here keeps its summaries and figures).
+    /// REPRODUCTION.md; an experiment whose run folders are not all here keeps its summaries, and its
+    /// figures are redrawn from its committed figure-data.ron.gz).
     #[arg(long, help_heading = "Modes", value_name = "DIR")]
     plot: Option<PathBuf>,
 

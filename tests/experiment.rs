@@ -154,7 +154,7 @@ fn a_tiny_experiment_runs_resumes_and_gives_the_same_summary_at_one_or_two_jobs(
     assert!(outside.is_empty(), "{outside:?}");
     let figures = std::fs::read_dir(two.path().join("results/tiny/figures")).unwrap().count();
     let said = format!(
-        "coevo: wrote results/tiny/summary.csv, results/tiny/summary-mean.csv, results/tiny/REPORT.md and {} figures (.svg and .png) in results/tiny/figures/",
+        "coevo: wrote results/tiny/summary.csv, results/tiny/summary-mean.csv, results/tiny/figure-data.ron.gz, results/tiny/REPORT.md and {} figures (.svg and .png) in results/tiny/figures/",
         figures / 2
     );
     assert!(stderr.contains(&said), "{said} not in {stderr}");
@@ -316,24 +316,42 @@ fn a_tiny_experiment_runs_resumes_and_gives_the_same_summary_at_one_or_two_jobs(
     std::fs::write(&provenance, original).unwrap();
 
     // As in a fresh clone (run folders are not committed): REPRODUCTION.md is recomputed from the committed
-    // summary.csv alone, byte for byte the same, and nothing committed is rewritten.
+    // summary.csv alone and the figures are redrawn from the committed figure-data.ron.gz, byte for byte
+    // the same, and nothing committed is rewritten.
     let committed = |p: &str| std::fs::read(one.path().join(p)).unwrap();
     assert!(coevo(one.path(), &["--plot", "all"]).status.success());
     let before =
         (committed("REPRODUCTION.md"), committed("results/tiny/summary.csv"), committed("results/tiny/REPORT.md"));
     std::fs::rename(one.path().join("results/tiny/paper"), one.path().join("elsewhere")).unwrap();
     let results = files_under(&one.path().join("results"));
+    assert!(results.keys().filter(|f| f.starts_with("tiny/figures")).count() > 10, "{:?}", results.keys());
+    std::fs::remove_dir_all(one.path().join("results/tiny/figures")).unwrap();
     let out = coevo(one.path(), &["--plot", "all"]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     assert_eq!(
         (committed("REPRODUCTION.md"), committed("results/tiny/summary.csv"), committed("results/tiny/REPORT.md")),
         before
     );
-    assert!(files_under(&one.path().join("results")) == results, "every file under results/ as it was");
-    // One experiment's folder alone has nothing to redraw; Slurm scripts aggregate nothing.
+    assert!(
+        files_under(&one.path().join("results")) == results,
+        "every file under results/ as it was, figures redrawn"
+    );
+    // So does one experiment's folder alone, and says what it wrote; without the figure data it has
+    // nothing to redraw. Slurm scripts aggregate nothing.
+    std::fs::remove_dir_all(one.path().join("results/tiny/figures")).unwrap();
+    let out = coevo(one.path(), &["--plot", "results/tiny"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        out.status.success() && stderr.contains("from the committed summary.csv and figure-data.ron.gz"),
+        "{stderr}"
+    );
+    assert!(files_under(&one.path().join("results")) == results, "figures redrawn again");
+    let data = one.path().join("results/tiny/figure-data.ron.gz");
+    std::fs::rename(&data, one.path().join("figure-data.ron.gz")).unwrap();
     let out = coevo(one.path(), &["--plot", "results/tiny"]);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && stderr.lines().count() == 1 && stderr.contains("no finished run"), "{stderr}");
+    std::fs::rename(one.path().join("figure-data.ron.gz"), &data).unwrap();
     assert!(coevo(one.path(), &["--experiment", "experiments/tiny.ron", "--emit-slurm"]).status.success());
     // Some run folders but fewer than the summary holds (an experiment being re-run): aggregating would
     // drop runs, so the experiment alone is refused, and REPRODUCTION.md reports it from its committed
@@ -588,6 +606,18 @@ fn an_experiment_cross_plays_its_runs_and_judges_the_read_outs() {
     assert!(md.contains("cross-play read-out doa_late_prey_part"), "{md}");
     // The share is a level against 0.5, not an effect against zero.
     assert!(md.contains("cross-play read-out prey_regress_vs_early_predators"), "{md}");
+    redrawn_without_run_folders(dir.path());
+}
+
+/// As in a clone (run folders are not committed): `--plot` redraws every figure of the tiny experiment,
+/// byte for byte, from its committed figure data.
+fn redrawn_without_run_folders(dir: &Path) {
+    let figures = files_under(&dir.join("results/tiny/figures"));
+    std::fs::remove_dir_all(dir.join("results/tiny/figures")).unwrap();
+    std::fs::rename(dir.join("results/tiny/paper"), dir.join("elsewhere")).unwrap();
+    let out = coevo(dir, &["--plot", "results/tiny"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(files_under(&dir.join("results/tiny/figures")) == figures, "every figure redrawn as it was");
 }
 
 #[test]
@@ -617,6 +647,7 @@ fn an_evaluation_with_a_perturbation_gives_the_response_columns_and_claims() {
     assert!(dir.path().join("results/tiny/figures/paper-perturbation-50-prey-turned.png").exists());
     let md = std::fs::read_to_string(dir.path().join("results/tiny/REPORT.md")).unwrap();
     assert!(md.contains("near response to one prey turned, in evaluation \"50 prey, turned\""), "{md}");
+    redrawn_without_run_folders(dir.path());
     // A Response claim needs a perturbed evaluation of that name.
     let bad = text.replace("perturb: 1.0, perturb_step: 5", "perturb_step: 5");
     std::fs::write(dir.path().join("experiments/bad.ron"), bad).unwrap();

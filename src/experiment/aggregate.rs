@@ -5,6 +5,7 @@ use super::claims::{
     chance_level, column, derive, is_effect, quantity, values, verdict, window_mean, ClaimResult, EvalData, RunData,
     SETTLED_STEPS, WINDOW,
 };
+use super::figure_data::{self, FigureData};
 use super::plot::{self, Curve, EstimatePanel, Panel, Row};
 use super::runner::{eval_file, stage, Stage};
 use super::stats::{difference, estimate, holm, mean, running_mean};
@@ -181,9 +182,6 @@ pub fn aggregate(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> crate::er
     fn io(path: &Path) -> impl Fn(std::io::Error) -> String + '_ {
         move |e| format!("{}: {e}", path.display())
     }
-    if written {
-        std::fs::create_dir_all(exp.root.join("figures")).map_err(io(&exp.root))?;
-    }
     let evals: Vec<String> = exp.spec.evaluations.iter().map(|e| e.name.clone()).collect();
     // One column per primitive quantity (named by `claims::column`), and beside every control how much
     // of the seeing actors' alignment it removes (derived, for reading).
@@ -238,6 +236,28 @@ pub fn aggregate(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> crate::er
     } else {
         Summary::read(&exp.root.join("summary.csv"))?.unwrap_or_default()
     };
+    // What the figures plot: from the run folders (and kept in figure-data.ron.gz), or in a clone from
+    // that committed file, so both draw the same figures byte for byte.
+    let drawn: Option<BTreeMap<usize, FigureData>> = if written {
+        let of_runs = data.iter().map(|(i, d)| Ok((*i, figure_data::of_run(exp, &exp.runs[*i], d)?)));
+        Some(of_runs.collect::<crate::error::Result<_>>()?)
+    } else {
+        let committed: Vec<usize> = table
+            .rows
+            .iter()
+            .filter_map(|row| {
+                exp.runs.iter().position(|r| r.preset == row.preset && r.variant == row.variant && r.seed == row.seed)
+            })
+            .collect();
+        if committed.is_empty() {
+            None
+        } else {
+            figure_data::read(exp, &committed)?
+        }
+    };
+    if drawn.is_some() {
+        std::fs::create_dir_all(exp.root.join("figures")).map_err(io(&exp.root))?;
+    }
     let mut means = String::from("preset,variant,quantity,seeds,mean,ci95\n");
     let mut results = Vec::new();
     let mut saved = 0;
@@ -290,12 +310,19 @@ pub fn aggregate(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> crate::er
                 },
             });
         }
-        if written {
-            figures(exp, preset, &prey, &of_variant, &mut saved)?;
+        if let Some(drawn) = &drawn {
+            let of_variant = |variant: &str| -> Vec<&FigureData> {
+                drawn
+                    .iter()
+                    .filter(|(i, _)| exp.runs[**i].preset == *preset && exp.runs[**i].variant == variant)
+                    .map(|(_, d)| d)
+                    .collect()
+            };
+            figures(exp, preset, &prey, &table, &of_variant, &mut saved)?;
             if exp.spec.crossplay.is_some() {
-                crossplay_figures(exp, preset, data, &mut saved)?;
+                crossplay_figures(exp, preset, drawn, &mut saved)?;
             }
-            perturbation_figures(exp, preset, data, &mut saved)?;
+            perturbation_figures(exp, preset, &of_variant, &mut saved)?;
         }
     }
     // One family per experiment: every effect's p-value, all presets, adjusted together (Holm).
@@ -310,8 +337,9 @@ pub fn aggregate(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> crate::er
     if written {
         crate::io::write_file(&exp.root.join("summary.csv"), crate::io::Existing::Replace, summary.as_bytes())?;
         crate::io::write_file(&exp.root.join("summary-mean.csv"), crate::io::Existing::Replace, means.as_bytes())?;
+        figure_data::write(exp, drawn.as_ref().expect("drawn from the run folders"))?;
     }
-    Ok(Aggregated { results, summary: table, figures: written.then_some(saved) })
+    Ok(Aggregated { results, summary: table, figures: drawn.is_some().then_some(saved), from_folders: written })
 }
 
 /// What [`aggregate`] found, and what it wrote.
@@ -319,9 +347,12 @@ pub struct Aggregated {
     pub results: Vec<ClaimResult>,
     /// The per-run values the claims were computed from (written now, or the committed summary.csv).
     pub summary: Summary,
-    /// With run folders here: how many figures it wrote (each as .svg and .png) beside summary.csv and
-    /// summary-mean.csv. None when it wrote nothing (no run folder here: a fresh clone).
+    /// How many figures it drew (each as .svg and .png): from the run folders, or in a clone from the
+    /// committed figure data. None when it drew none (a clone of a commit without figure data).
     pub figures: Option<usize>,
+    /// Whether the run folders were here, so summary.csv, summary-mean.csv and figure-data.ron.gz were
+    /// written from them (else the committed ones were read and left as they are).
+    pub from_folders: bool,
 }
 
 /// An experiment's per-run values as `summary.csv` holds them: one row per run (preset, variant, seed,
@@ -447,24 +478,21 @@ fn band(series: &[Vec<f64>], label: &str, x0: f64) -> Option<Curve> {
 /// Per evaluation with `perturb:`, the response of the other prey to the turned one against the lag,
 /// nearest six and ranks 25+, each variant's mean over its seeds with the 95 % band
 /// (`figures/<preset>-perturbation-<evaluation>.png`).
-fn perturbation_figures(
+fn perturbation_figures<'a>(
     exp: &Experiment,
     preset: &str,
-    data: &BTreeMap<usize, RunData>,
+    of_variant: &dyn Fn(&str) -> Vec<&'a FigureData>,
     saved: &mut usize,
 ) -> crate::error::Result<()> {
     for e in exp.spec.evaluations.iter().filter(|e| e.perturb.is_some()) {
         let mut panels = vec![];
-        for (which, ranks) in [("ranks 1–6", 1.0..=6.0), ("ranks 25+", 25.0..=f64::INFINITY)] {
+        for (k, (which, _)) in figure_data::RESPONSE_RANKS.iter().enumerate() {
             let mut curves = vec![];
             for v in &exp.spec.variants {
-                let mut series = vec![];
-                for r in data.keys().map(|&i| &exp.runs[i]).filter(|r| r.preset == preset && r.variant == v.name) {
-                    let path = crate::io::beside(&eval_file(&r.dir, &e.name), crate::run::PERTURBATION);
-                    if let Some(s) = read_response_by_lag(&path, &ranks)? {
-                        series.push(s);
-                    }
-                }
+                let series: Vec<Vec<f64>> = of_variant(&v.name)
+                    .iter()
+                    .filter_map(|d| d.evals.get(&e.name)?.response.as_ref()?.get(k).cloned())
+                    .collect();
                 curves.extend(band(&series, &v.name, 1.0));
             }
             panels.push(Panel {
@@ -482,30 +510,23 @@ fn perturbation_figures(
     Ok(())
 }
 
-/// The sample-weighted mean |Δheading| per lag (1, 2, ...) over the rank bins whose first rank lies in
-/// `ranks`, from a perturbation file; None without the file.
-fn read_response_by_lag(path: &Path, ranks: &std::ops::RangeInclusive<f64>) -> crate::error::Result<Option<Vec<f64>>> {
-    use crate::run::perturb::{read_rows, weighted_mean, LAGS};
-    Ok(read_rows(path)?
-        .map(|rows| (1..=LAGS).map(|lag| weighted_mean(&rows, lag as f64..=lag as f64, ranks.clone())).collect()))
-}
-
 /// Per variant, the cross-play matrix averaged over its seeds, as heat maps
 /// (`figures/<preset>-<variant>-crossplay.png`).
 fn crossplay_figures(
     exp: &Experiment,
     preset: &str,
-    data: &BTreeMap<usize, RunData>,
+    drawn: &BTreeMap<usize, FigureData>,
     saved: &mut usize,
 ) -> crate::error::Result<()> {
     for v in &exp.spec.variants {
-        let runs: Vec<&super::Run> =
-            data.keys().map(|&i| &exp.runs[i]).filter(|r| r.preset == preset && r.variant == v.name).collect();
-        let Some(pair) = runs.first().and_then(|r| super::crossplay::only_pair(&r.scene)) else { continue };
-        let mut matrices = vec![];
-        for r in &runs {
-            matrices.extend(super::crossplay::read_matrix(&r.dir, &pair)?);
-        }
+        let runs: Vec<(&super::Run, &FigureData)> = drawn
+            .iter()
+            .map(|(&i, d)| (&exp.runs[i], d))
+            .filter(|(r, _)| r.preset == preset && r.variant == v.name)
+            .collect();
+        let Some(pair) = runs.first().and_then(|(r, _)| super::crossplay::only_pair(&r.scene)) else { continue };
+        let matrices: Vec<_> =
+            runs.iter().filter_map(|(_, d)| d.crossplay.as_ref()).map(|c| c.matrix(pair.clone())).collect();
         if let Some(mean) = super::crossplay::mean_matrix(&matrices) {
             let what = format!("{}, {preset}, {} seeds: ", v.name, matrices.len());
             let stem = exp.root.join("figures").join(format!("{preset}-{}-crossplay", slug(&v.name)));
@@ -516,15 +537,18 @@ fn crossplay_figures(
     Ok(())
 }
 
+/// The training curves, the variants compared (from the per-run values of `table`), catches, and per
+/// evaluation its per-step curves and confusion curve.
 fn figures<'a>(
     exp: &Experiment,
     preset: &str,
     prey: &str,
-    of_variant: &dyn Fn(&str) -> Vec<&'a RunData>,
+    table: &Summary,
+    of_variant: &dyn Fn(&str) -> Vec<&'a FigureData>,
     saved: &mut usize,
 ) -> crate::error::Result<()> {
     let dir = exp.root.join("figures");
-    let curves = |pick: &dyn Fn(&RunData) -> Vec<f64>, x0: f64| -> Vec<Curve> {
+    let curves = |pick: &dyn Fn(&FigureData) -> Vec<f64>, x0: f64| -> Vec<Curve> {
         exp.spec
             .variants
             .iter()
@@ -592,7 +616,7 @@ fn figures<'a>(
             .into_iter()
             .map(|(what, x_label, q)| {
                 let rows = exp.spec.variants.iter().map(|v| {
-                    let e = estimate(&values(exp, &of_variant(&v.name), &q));
+                    let e = estimate(&table.values(exp, preset, &v.name, &q));
                     let label = format!("{} ({})", v.name, e.map_or(0, |e| e.n));
                     Row { label, mean: e.map_or(f64::NAN, |e| e.mean), ci: e.and_then(|e| e.ci) }
                 });
@@ -616,13 +640,13 @@ fn figures<'a>(
                 title: title(&format!("{}: DoS per step", e.name)),
                 x_label: "time step".into(),
                 y_label: "DoS".into(),
-                curves: curves(&|d| d.evals.get(&e.name).map_or(vec![], |x| x.series("dos").to_vec()), 1.0),
+                curves: curves(&|d| d.evals.get(&e.name).map_or(vec![], |x| x.dos.clone()), 1.0),
             },
             Panel {
                 title: title(&format!("{}: DoA per step", e.name)),
                 x_label: "time step".into(),
                 y_label: "DoA".into(),
-                curves: curves(&|d| d.evals.get(&e.name).map_or(vec![], |x| x.series("doa").to_vec()), 1.0),
+                curves: curves(&|d| d.evals.get(&e.name).map_or(vec![], |x| x.doa.clone()), 1.0),
             },
         ];
         if panels.iter().any(|p| !p.curves.is_empty()) {

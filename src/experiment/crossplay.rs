@@ -57,8 +57,14 @@ pub struct Cell {
 impl Cell {
     pub const NAMES: [&'static str; 5] = ["catches", "dos", "doa", "nn_correlation", "polarization"];
 
-    fn values(&self) -> [f64; 5] {
+    /// The cell's values in [`Cell::NAMES`] order.
+    pub fn values(&self) -> [f64; 5] {
         [self.catches, self.dos, self.doa, self.nn_correlation, self.polarization]
+    }
+
+    /// The cell of values in [`Cell::NAMES`] order.
+    pub fn from_values([catches, dos, doa, nn_correlation, polarization]: [f64; 5]) -> Cell {
+        Cell { catches, dos, doa, nn_correlation, polarization }
     }
 }
 

@@ -26,6 +26,7 @@
 pub mod aggregate;
 pub mod claims;
 pub mod crossplay;
+pub mod figure_data;
 pub mod plot;
 pub mod report;
 pub mod runner;

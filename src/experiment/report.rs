@@ -117,7 +117,7 @@ pub fn write_reproduction() -> crate::error::Result<()> {
 /// clone without them, from its committed summary.csv; then its REPORT.md, which holds only what the
 /// summary holds, so a clone regenerates it byte for byte. Says on stderr exactly what it wrote.
 fn report(exp: Experiment, data: &BTreeMap<usize, super::claims::RunData>) -> crate::error::Result<Reported> {
-    let aggregate::Aggregated { results, summary, figures } = aggregate::aggregate(&exp, data)?;
+    let aggregate::Aggregated { results, summary, figures, from_folders } = aggregate::aggregate(&exp, data)?;
     let wall = summary.columns.iter().position(|c| c == "wall_seconds");
     // + 0.0: an empty f64 sum is −0.0, which would print as "-0.0 h".
     // Shared runs are another experiment's trainings: counted there.
@@ -132,16 +132,27 @@ fn report(exp: Experiment, data: &BTreeMap<usize, super::claims::RunData>) -> cr
     let path = root.join(REPORT);
     std::fs::create_dir_all(root).map_err(|e| format!("{}: {e}", root.display()))?;
     crate::io::write_file(&path, Existing::Replace, experiment_report(&reported).as_bytes())?;
-    match figures {
-        Some(n) => eprintln!(
-            "coevo: wrote {0}/summary.csv, {0}/summary-mean.csv, {0}/{REPORT} and {n} figure{1} (.svg and .png) in {0}/figures/ ({2} claims checked)",
+    let drawn = |n: usize| {
+        format!("{n} figure{} (.svg and .png) in {}/figures/", if n == 1 { "" } else { "s" }, root.display())
+    };
+    match (from_folders, figures) {
+        (true, n) => eprintln!(
+            "coevo: wrote {0}/summary.csv, {0}/summary-mean.csv, {0}/{1}, {0}/{REPORT} and {2} ({3} claims checked)",
             root.display(),
-            if n == 1 { "" } else { "s" },
+            super::figure_data::FILE,
+            drawn(n.unwrap_or(0)),
             reported.results.len()
         ),
-        None => eprintln!(
-            "coevo: wrote {} from the committed summary.csv (its runs' folders are not all here: summaries and figures left as they are)",
-            path.display()
+        (false, Some(n)) => eprintln!(
+            "coevo: wrote {} and {} from the committed summary.csv and {} (its runs' folders are not all here: the summaries left as they are)",
+            path.display(),
+            drawn(n),
+            super::figure_data::FILE
+        ),
+        (false, None) => eprintln!(
+            "coevo: wrote {} from the committed summary.csv (its runs' folders are not all here, and it has no {}: summaries and figures left as they are)",
+            path.display(),
+            super::figure_data::FILE
         ),
     }
     Ok(reported)
@@ -171,10 +182,15 @@ pub fn plot(dir: &Path) -> crate::error::Result<()> {
     let results = dir.parent().unwrap_or(Path::new("."));
     let exp = Experiment::load(&file, results)?;
     let data = aggregate::load(&exp)?;
-    if data.is_empty() {
-        return Err(
-            format!("--plot {}: no finished run of {} there; nothing written", dir.display(), file.display()).into()
-        );
+    // Without run folders (a clone), the committed figure data redraws the figures.
+    if data.is_empty() && !exp.root.join(super::figure_data::FILE).exists() {
+        return Err(format!(
+            "--plot {}: no finished run of {} there, and no {}; nothing written",
+            dir.display(),
+            file.display(),
+            super::figure_data::FILE
+        )
+        .into());
     }
     report(exp, &data)?;
     Ok(())
