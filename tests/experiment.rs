@@ -655,3 +655,29 @@ fn an_evaluation_with_a_perturbation_gives_the_response_columns_and_claims() {
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && stderr.contains("with perturb: RADIANS"), "{stderr}");
 }
+
+#[test]
+fn an_evaluation_edited_in_the_file_is_run_again_and_never_aggregated_stale() {
+    let dir = workspace();
+    assert!(coevo(dir.path(), &["--experiment", "experiments/tiny.ron", "--jobs", "2"]).status.success());
+    let run = dir.path().join("results/tiny/paper/1-1/seed1");
+    let trained = std::fs::metadata(run.join("metrics.csv")).unwrap().modified().unwrap();
+    let last_row = |file: &str| {
+        let text = std::fs::read_to_string(run.join(file)).unwrap();
+        text.lines().last().unwrap().split(',').take(2).collect::<Vec<_>>().join(",")
+    };
+    assert_eq!(last_row("eval-50-prey.csv"), "1,20");
+    // The file now asks for 3 episodes of each evaluation: the 2-episode files are not aggregated under
+    // the new spec (one line naming a file), and the runner evaluates again, training nothing.
+    let edited = TINY.replace("episodes: 2, steps: 20", "episodes: 3, steps: 20");
+    std::fs::write(dir.path().join("experiments/tiny.ron"), edited).unwrap();
+    let out = coevo(dir.path(), &["--plot", "results/tiny"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && stderr.lines().count() == 1, "{stderr}");
+    assert!(stderr.contains("holds 2 episodes of 20 steps, the evaluation \"50 prey\" asks for 3 of 20"), "{stderr}");
+    let out = coevo(dir.path(), &["--experiment", "experiments/tiny.ron", "--jobs", "2"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert_eq!(last_row("eval-50-prey.csv"), "2,20");
+    assert_eq!(last_row("eval-50-prey-blind.csv"), "2,20");
+    assert_eq!(std::fs::metadata(run.join("metrics.csv")).unwrap().modified().unwrap(), trained);
+}

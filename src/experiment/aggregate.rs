@@ -86,6 +86,9 @@ pub fn load(exp: &Experiment) -> crate::error::Result<BTreeMap<usize, RunData>> 
             if !path.exists() {
                 continue;
             }
+            if let Some(stale) = super::runner::stale(run, e) {
+                return Err(format!("{stale}; run `coevo --experiment {}` to redo it", exp.file.display()).into());
+            }
             let table = Table::read(&path)?;
             let step = table.column(schema::STEP)?;
             let steps = step.iter().fold(0.0f64, |a, &b| a.max(b)) as usize;

@@ -131,7 +131,7 @@ pub fn complete_run(exp: &Experiment, run: &Run, exe: &Path, threads: usize) -> 
     }
     for e in &exp.spec.evaluations {
         let out = eval_file(&run.dir, &e.name);
-        if evaluated_as(&out, e) {
+        if evaluated_as(run, e) {
             continue;
         }
         let mut args = vec!["--eval".into(), dir.clone(), "--episodes".into(), e.episodes.to_string()];
@@ -183,7 +183,7 @@ fn crossplayed(run: &Run) -> bool {
 /// Whether a run is trained and has every evaluation (and its cross-play, when asked).
 fn finished(exp: &Experiment, run: &Run) -> bool {
     stage(run) == Ok(Stage::Trained)
-        && exp.spec.evaluations.iter().all(|e| evaluated_as(&eval_file(&run.dir, &e.name), e))
+        && exp.spec.evaluations.iter().all(|e| evaluated_as(run, e))
         && (exp.spec.crossplay.is_none() || crossplayed(run))
 }
 
@@ -193,9 +193,36 @@ fn evaluated(eval_csv: &Path) -> bool {
     eval_csv.exists() && crate::io::beside(eval_csv, "confusion").exists()
 }
 
-/// Whether an evaluation is complete, with its perturbation response when it asks for one.
-fn evaluated_as(eval_csv: &Path, e: &super::Evaluation) -> bool {
-    evaluated(eval_csv) && (e.perturb.is_none() || crate::io::beside(eval_csv, crate::run::PERTURBATION).exists())
+/// Whether an evaluation is complete, with its perturbation response when it asks for one, and made with
+/// the episodes and steps the experiment file asks for now (else it is run again).
+fn evaluated_as(run: &Run, e: &super::Evaluation) -> bool {
+    let eval_csv = eval_file(&run.dir, &e.name);
+    evaluated(&eval_csv)
+        && (e.perturb.is_none() || crate::io::beside(&eval_csv, crate::run::PERTURBATION).exists())
+        && stale(run, e).is_none()
+}
+
+/// How an existing evaluation differs from what the experiment file asks for now (an edited file: its
+/// episodes or steps changed), from the last row of its per-step CSV; None when it matches.
+pub fn stale(run: &Run, e: &super::Evaluation) -> Option<String> {
+    let path = eval_file(&run.dir, &e.name);
+    let text = crate::io::read_text(&path, crate::io::MAX_TEXT_BYTES).ok()?;
+    let last = text.lines().rev().find(|l| !l.trim().is_empty())?;
+    let mut cells = last.split(',').map(|c| c.parse::<usize>().ok());
+    let held = (cells.next().flatten().map(|episode| episode + 1), cells.next().flatten());
+    let asked = (e.episodes, e.steps.unwrap_or(run.scene.episode_steps));
+    (held != (Some(asked.0), Some(asked.1))).then(|| {
+        let shown = |n: Option<usize>| n.map_or("?".to_string(), |n| n.to_string());
+        format!(
+            "{}: holds {} episodes of {} steps, the evaluation {:?} asks for {} of {}",
+            path.display(),
+            shown(held.0),
+            shown(held.1),
+            e.name,
+            asked.0,
+            asked.1
+        )
+    })
 }
 
 /// Writes every variant's resolved scene (the seed is set per run), refusing runs of other scenes first.
