@@ -681,3 +681,43 @@ fn an_evaluation_edited_in_the_file_is_run_again_and_never_aggregated_stale() {
     assert_eq!(last_row("eval-50-prey-blind.csv"), "2,20");
     assert_eq!(std::fs::metadata(run.join("metrics.csv")).unwrap().modified().unwrap(), trained);
 }
+
+/// Copies `from` into `to`, leaving out run folders (`seed*`) and Slurm scripts, which a clone lacks.
+fn copy_as_cloned(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for entry in std::fs::read_dir(from).unwrap().map(|e| e.unwrap()) {
+        let name = entry.file_name().to_string_lossy().into_owned();
+        let path = entry.path();
+        if path.is_dir() {
+            if !name.starts_with("seed") && name != "slurm" {
+                copy_as_cloned(&path, &to.join(&name));
+            }
+        } else {
+            std::fs::copy(&path, to.join(&name)).unwrap();
+        }
+    }
+}
+
+#[test]
+fn the_committed_results_are_what_plot_all_regenerates_from_them() {
+    // The project's own results as a clone has them: `--plot all` recomputes every REPORT.md and
+    // REPRODUCTION.md from the committed summaries and redraws the figures from the committed figure data,
+    // and every file comes out byte for byte as committed (so nothing committed is stale or hand-edited).
+    let dir = tempfile::tempdir().unwrap();
+    for folder in ["experiments", "scenes", "results"] {
+        copy_as_cloned(Path::new(folder), &dir.path().join(folder));
+    }
+    std::fs::copy("REPRODUCTION.md", dir.path().join("REPRODUCTION.md")).unwrap();
+    let committed = files_under(&dir.path().join("results"));
+    let out = coevo(dir.path(), &["--plot", "all"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let reproduction = std::fs::read_to_string(dir.path().join("REPRODUCTION.md")).unwrap();
+    assert!(
+        reproduction == std::fs::read_to_string("REPRODUCTION.md").unwrap(),
+        "REPRODUCTION.md is not what `coevo --plot all` makes of the committed results: run it and commit"
+    );
+    let regenerated = files_under(&dir.path().join("results"));
+    let differing: Vec<_> = regenerated.keys().filter(|f| committed.get(*f) != regenerated.get(*f)).collect();
+    assert!(differing.is_empty(), "regenerated differently from the committed results: {differing:?}");
+    assert_eq!(regenerated.len(), committed.len(), "no file added or removed");
+}
