@@ -87,6 +87,10 @@ fn experiment_files_expand_to_runs_and_bad_ones_are_one_line() {
             TINY.replace("versus: \"1:1\"", "versus: \"5:3\""),
             "bad.ron: claims: \"5:3 against 1:1\" is compared with itself",
         ),
+        (
+            TINY.replace("(text: \"catches\"", "(text: \"DoS falls\""),
+            "bad.ron: claims: \"DoS falls\" is the text of two claims",
+        ),
         (TINY.replace("(\"prey\", 50)", "(\"hawk\", 50)"), "evaluations[50 prey]: no species named \"hawk\""),
         (
             TINY.replace("counts: [(\"prey\", 50)],", "counts: [(\"prey\", 50)], policies: [(\"hawk\", Still)],"),

@@ -435,7 +435,11 @@ impl Experiment {
                 ));
             }
         }
-        for c in &spec.claims {
+        for (i, c) in spec.claims.iter().enumerate() {
+            // A claim is cited by its text (REPRODUCTION.md's rows, the book's citations): one row per text.
+            if spec.claims[..i].iter().any(|d| d.text == c.text) {
+                return Err(err("claims", format!("{:?} is the text of two claims", c.text)));
+            }
             if let Some(v) = c.paper.filter(|v| !v.is_finite()) {
                 return Err(err("claims", format!("{:?}: paper must be a finite number (got {v})", c.text)));
             }

@@ -3,7 +3,7 @@
 
 use super::aggregate;
 use super::claims::{p_shown, quantity_name, ClaimResult};
-use super::{runner, Experiment};
+use super::{runner, Experiment, Quantity};
 use crate::io::Existing;
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
@@ -127,7 +127,7 @@ fn report(exp: Experiment, data: &BTreeMap<usize, super::claims::RunData>) -> cr
     let mut binaries: Vec<String> = summary.rows.iter().flat_map(|r| r.binary.split(' ').map(String::from)).collect();
     binaries.sort();
     binaries.dedup();
-    let reported = Reported { finished: summary.rows.len(), shared, exp, results, seconds, binaries };
+    let reported = Reported { finished: summary.rows.len(), shared, exp, results, seconds, binaries, summary };
     let root = &reported.exp.root;
     let path = root.join(REPORT);
     std::fs::create_dir_all(root).map_err(|e| format!("{}: {e}", root.display()))?;
@@ -225,6 +225,8 @@ pub struct Reported {
     pub shared: usize,
     /// The executables that made its runs (`unknown` for runs made before provenance files).
     pub binaries: Vec<String>,
+    /// The per-run values its claims were computed from.
+    pub summary: aggregate::Summary,
 }
 
 /// How every number of a report is computed and what its verdicts mean (REPRODUCTION.md's preamble, and
@@ -301,7 +303,57 @@ pub fn experiment_report(r: &Reported) -> String {
     md.push_str(CONTENTS);
     contents_row(&mut md, r);
     section(&mut md, r, Path::new("figures"));
+    collective(&mut md, r);
     md
+}
+
+/// Every evaluation's order parameters (`sim::metrics`, `sim::collective`) per preset and variant, mean ±
+/// 95 % CI over seeds (n), between mdBook anchors so the book includes the table rather than copying its
+/// numbers (`{{#include ../../../results/NAME/REPORT.md:collective}}`).
+fn collective(md: &mut String, Reported { exp, summary, .. }: &Reported) {
+    if summary.rows.is_empty() || exp.spec.evaluations.is_empty() {
+        return;
+    }
+    md.push_str(
+        "\n## Collective measures\n\nEach evaluation of the trained actors: means over its last 50 steps (edge rank: over \
+         every ranked catch), then mean ± 95 % CI over seeds (seeds). `clusters` counts groups; `largest` is the \
+         largest group's fraction of the headline species.\n\n<!-- ANCHOR: collective -->\n\
+         | preset | variant | evaluation | DoS | DoA | polarization | milling | clusters | largest | C_nn | edge rank |\n\
+         |---|---|---|---|---|---|---|---|---|---|---|\n",
+    );
+    for preset in &exp.spec.presets {
+        for v in &exp.spec.variants {
+            for e in &exp.spec.evaluations {
+                let shown = |q: Quantity, digits: usize| match super::stats::estimate(
+                    &summary.values(exp, preset, &v.name, &q),
+                ) {
+                    Some(est) => format!(
+                        "{:.digits$}{} ({})",
+                        est.mean,
+                        est.ci.map_or(String::new(), |c| format!(" ± {c:.digits$}")),
+                        est.n
+                    ),
+                    None => "–".into(),
+                };
+                let order = |name: &str, digits: usize| shown(Quantity::EvalOrder(e.name.clone(), name.into()), digits);
+                let cells = [
+                    shown(Quantity::EvalDos(e.name.clone()), 3),
+                    shown(Quantity::EvalDoa(e.name.clone()), 3),
+                    order("polarization", 2),
+                    order("milling", 2),
+                    order("clusters", 1),
+                    order("largest_cluster", 2),
+                    order("nn_correlation", 2),
+                    order("edge_rank", 3),
+                ];
+                if cells.iter().all(|c| c == "–") {
+                    continue;
+                }
+                writeln!(md, "| {preset} | {} | {} | {} |", cell(&v.name), cell(&e.name), cells.join(" | ")).unwrap();
+            }
+        }
+    }
+    md.push_str("<!-- ANCHOR_END: collective -->\n");
 }
 
 /// One experiment's line of the contents: what it tests, how far it got and the command that continues it.
