@@ -384,6 +384,14 @@ fn a_finished_training_run_explains_itself() {
         assert!(short.contains(expected), "{expected:?} not in:\n{short}");
     }
     assert!(short.contains(&format!("coevo --eval {}", dir.path().join("short").display())), "{short}");
+    // The comments of the next commands stand in one column.
+    let columns: Vec<usize> = short
+        .lines()
+        .skip_while(|l| *l != "next:")
+        .skip(1)
+        .map(|l| l.find("   # ").expect("a comment on every next command"))
+        .collect();
+    assert!(columns.len() == 5 && columns.iter().all(|&c| c == columns[0]), "{short}");
     // 210 episodes: first and last 100 apart, no overlap note.
     let long = train("210", "long");
     assert!(long.contains("first → last 100 of 210 episodes") && !long.contains("overlap"), "{long}");

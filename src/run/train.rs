@@ -311,12 +311,21 @@ pub fn explain(run: &Path) -> crate::error::Result<String> {
     }
     out.push_str("  one run is one sample: seeds of the same scene differ widely; compare seeds with an experiment file (docs/src/guide/experiments.md)\n");
     let r = run.display();
-    out.push_str(&format!(
-        "next:\n  coevo --eval {r} --prey 50 --episodes 10                                  # the trained actors, no noise, on 50 {name}\n  \
-         coevo --eval {r} --prey 50 --episodes 10 --control blind:{name}:{name} --eval-out eval-blind.csv   # {name} blind to each other (still seeing the rest)\n  \
-         coevo --plot {r}                                                            # learning curves, {r}/figures/\n  \
-         coevo --animate {r}/clip.gif --run {r} --prey 50                            # a GIF of the trained swarm\n  \
-         cargo run --release --features viewer -- --watch {r}                        # watch it live\n"
-    ));
+    // Each next command with what it does, the comments in one column.
+    let next = [
+        (format!("coevo --eval {r} --prey 50 --episodes 10"), format!("the trained actors, no noise, on 50 {name}")),
+        (
+            format!("coevo --eval {r} --prey 50 --episodes 10 --control blind:{name}:{name} --eval-out eval-blind.csv"),
+            format!("{name} blind to each other (still seeing the rest)"),
+        ),
+        (format!("coevo --plot {r}"), format!("learning curves, {r}/figures/")),
+        (format!("coevo --animate {r}/clip.gif --run {r} --prey 50"), "a GIF of the trained swarm".to_string()),
+        (format!("cargo run --release --features viewer -- --watch {r}"), "watch it live".to_string()),
+    ];
+    let width = next.iter().map(|(command, _)| command.chars().count()).max().unwrap_or(0);
+    out.push_str("next:\n");
+    for (command, what) in next {
+        out.push_str(&format!("  {command:<width$}   # {what}\n"));
+    }
     Ok(out)
 }
