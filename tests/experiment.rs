@@ -366,6 +366,24 @@ fn a_tiny_experiment_runs_resumes_and_gives_the_same_summary_at_one_or_two_jobs(
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && stderr.lines().count() == 1, "{stderr}");
     assert!(stderr.contains("results/tiny/summary.csv: holds 4 runs but only 1"), "{stderr}");
+    // As many run folders as the summary holds, but not the same runs (a third seed trained, two committed
+    // runs away): aggregating would replace them, so it is refused too, naming one.
+    let tiny = one.path().join("experiments/tiny.ron");
+    std::fs::write(&tiny, TINY.replacen("seeds: [1, 2],", "seeds: [1, 2, 3],", 1)).unwrap();
+    for task in ["2", "5"] {
+        let out = coevo(one.path(), &["--experiment", "experiments/tiny.ron", "--task", task]);
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    }
+    std::fs::rename(one.path().join("elsewhere/5-3/seed1"), one.path().join("results/tiny/paper/5-3/seed1")).unwrap();
+    let out = coevo(one.path(), &["--plot", "results/tiny"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && stderr.lines().count() == 1, "{stderr}");
+    assert!(
+        stderr.contains("holds 4 runs but only 2 of their run folders are here (missing paper/1:1/seed1 and 1 more"),
+        "{stderr}"
+    );
+    assert_eq!(committed("results/tiny/summary.csv"), before.1);
+    std::fs::write(&tiny, TINY).unwrap();
     let out = coevo(one.path(), &["--plot", "all"]);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success() && stderr.contains("(reported from the committed summary)"), "{stderr}");

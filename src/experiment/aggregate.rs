@@ -156,19 +156,34 @@ fn check_one_binary(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> crate:
     Ok(())
 }
 
-/// Refuses to aggregate fewer runs than the experiment's `summary.csv` already holds, unless there are
-/// none: run folders are not committed, so after some runs were moved away aggregating would replace the
-/// committed summaries and figures with fewer runs. Nothing is written then. With no run folder at all
-/// (a fresh clone) the committed summary.csv is read as it is and nothing of it is rewritten.
+/// Refuses to aggregate unless every run of the experiment's committed `summary.csv` (that the experiment
+/// file still has) is among the run folders here, unless there are none: run folders are not committed, so
+/// after some runs were moved away, or while an experiment is re-run, aggregating would replace the
+/// committed summaries and figures with a part of them (also when the part holds as many runs, of other
+/// variants). Nothing is written then. With no run folder at all (a fresh clone) the committed
+/// summary.csv is read as it is and nothing of it is rewritten.
 pub fn check_complete(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> crate::error::Result<()> {
-    let summary = exp.root.join("summary.csv");
-    let Ok(text) = crate::io::read_text(&summary, crate::io::MAX_TEXT_BYTES) else { return Ok(()) };
-    let held = text.lines().skip(1).filter(|l| !l.is_empty()).count();
-    if held > data.len() && !data.is_empty() {
+    let path = exp.root.join("summary.csv");
+    let Some(summary) = Summary::read(&path)? else { return Ok(()) };
+    if data.is_empty() {
+        return Ok(());
+    }
+    let held: Vec<usize> = summary
+        .rows
+        .iter()
+        .filter_map(|row| {
+            exp.runs.iter().position(|r| r.preset == row.preset && r.variant == row.variant && r.seed == row.seed)
+        })
+        .collect();
+    let missing: Vec<String> =
+        held.iter().filter(|i| !data.contains_key(i)).map(|&i| super::figure_data::key(&exp.runs[i])).collect();
+    if let Some(first) = missing.first() {
         return Err(format!(
-            "{}: holds {held} runs but only {} of their run folders are here (run folders are not committed); nothing written: run `coevo --experiment {}` to rebuild them, or move the summary away",
-            summary.display(),
-            data.len(),
+            "{}: holds {} runs but only {} of their run folders are here (missing {first}{}; run folders are not committed); nothing written: run `coevo --experiment {}` to rebuild them, or move the summary away",
+            path.display(),
+            held.len(),
+            held.len() - missing.len(),
+            if missing.len() > 1 { format!(" and {} more", missing.len() - 1) } else { String::new() },
             exp.file.display()
         )
         .into());
