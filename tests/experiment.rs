@@ -640,6 +640,17 @@ fn redrawn_without_run_folders(dir: &Path) {
     let out = coevo(dir, &["--plot", "results/tiny"]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     assert!(files_under(&dir.join("results/tiny/figures")) == figures, "every figure redrawn as it was");
+    // Figure data of other runs than the summary's (here: another training length) is refused in one line.
+    let summary = dir.join("results/tiny/summary.csv");
+    let text = std::fs::read_to_string(&summary).unwrap();
+    let tampered = text.replacen("paper,5:3,1,3,", "paper,5:3,1,4,", 1);
+    assert_ne!(tampered, text);
+    std::fs::write(&summary, tampered).unwrap();
+    let out = coevo(dir, &["--plot", "results/tiny"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && stderr.lines().count() == 1, "{stderr}");
+    assert!(stderr.contains("run paper/5:3/seed1 has 3 training episodes but summary.csv says 4"), "{stderr}");
+    std::fs::write(&summary, text).unwrap();
 }
 
 #[test]
@@ -702,6 +713,17 @@ fn an_evaluation_edited_in_the_file_is_run_again_and_never_aggregated_stale() {
     assert_eq!(last_row("eval-50-prey.csv"), "2,20");
     assert_eq!(last_row("eval-50-prey-blind.csv"), "2,20");
     assert_eq!(std::fs::metadata(run.join("metrics.csv")).unwrap().modified().unwrap(), trained);
+    // Training extended by a file that asks for more episodes: the runs resume without the replay buffers
+    // the runner dropped, and the runner passes on the child's warning that they differ from uninterrupted
+    // runs (the child succeeds, so its other output stays quiet).
+    let longer =
+        TINY.replace("episodes: 2, steps: 20", "episodes: 3, steps: 20").replacen("episodes: 3,", "episodes: 4,", 1);
+    std::fs::write(dir.path().join("experiments/tiny.ron"), longer).unwrap();
+    let out = coevo(dir.path(), &["--experiment", "experiments/tiny.ron", "--jobs", "1"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert_eq!(stderr.matches("coevo: warning: ").count(), 4, "{stderr}");
+    assert!(stderr.contains("lacks replay buffers") && !stderr.contains("coevo: trained"), "{stderr}");
 }
 
 /// Copies `from` into `to`, leaving out run folders (`seed*`) and Slurm scripts, which a clone lacks.
@@ -731,8 +753,19 @@ fn the_committed_results_are_what_plot_all_regenerates_from_them() {
     }
     std::fs::copy("REPRODUCTION.md", dir.path().join("REPRODUCTION.md")).unwrap();
     let committed = files_under(&dir.path().join("results"));
+    // The figures of every experiment with figure data go, so they must be redrawn.
+    let mut redrawn = 0;
+    for experiment in std::fs::read_dir(dir.path().join("results")).unwrap().map(|e| e.unwrap().path()) {
+        if experiment.join("figure-data.ron.gz").exists() && experiment.join("figures").exists() {
+            std::fs::remove_dir_all(experiment.join("figures")).unwrap();
+            redrawn += 1;
+        }
+    }
+    assert!(redrawn >= 3, "experiments with figure data: {redrawn}");
     let out = coevo(dir.path(), &["--plot", "all"]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert_eq!(stderr.matches("from the committed summary.csv and figure-data.ron.gz").count(), redrawn, "{stderr}");
     let reproduction = std::fs::read_to_string(dir.path().join("REPRODUCTION.md")).unwrap();
     assert!(
         reproduction == std::fs::read_to_string("REPRODUCTION.md").unwrap(),

@@ -267,11 +267,25 @@ pub fn aggregate(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> crate::er
                 exp.runs.iter().position(|r| r.preset == row.preset && r.variant == row.variant && r.seed == row.seed)
             })
             .collect();
-        if committed.is_empty() {
-            None
-        } else {
-            figure_data::read(exp, &committed)?
+        let read = if committed.is_empty() { None } else { figure_data::read(exp, &committed)? };
+        // The committed figure data must be of the committed summary's runs (each run's training length).
+        for (i, d) in read.iter().flatten() {
+            let r = &exp.runs[*i];
+            let row =
+                table.rows.iter().find(|row| row.preset == r.preset && row.variant == r.variant && row.seed == r.seed);
+            let episodes = row.map(|row| table.value(row, "episodes"));
+            if episodes != Some(d.dos.len() as f64) {
+                return Err(format!(
+                    "{}: run {} has {} training episodes but summary.csv says {}; the two files are of different runs",
+                    exp.root.join(figure_data::FILE).display(),
+                    figure_data::key(r),
+                    d.dos.len(),
+                    episodes.map_or("nothing".into(), |e| e.to_string())
+                )
+                .into());
+            }
         }
+        read
     };
     if drawn.is_some() {
         std::fs::create_dir_all(exp.root.join("figures")).map_err(io(&exp.root))?;
@@ -353,9 +367,11 @@ pub fn aggregate(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> crate::er
         r.verdict = verdict(&r.claim, r.estimate, r.p_holm, r.baseline);
     }
     if written {
+        // The figure data before the summary it must match: a write that fails between them leaves the
+        // old summary, which the next aggregation finds incomplete, never a new summary beside old curves.
+        figure_data::write(exp, drawn.as_ref().expect("drawn from the run folders"))?;
         crate::io::write_file(&exp.root.join("summary.csv"), crate::io::Existing::Replace, summary.as_bytes())?;
         crate::io::write_file(&exp.root.join("summary-mean.csv"), crate::io::Existing::Replace, means.as_bytes())?;
-        figure_data::write(exp, drawn.as_ref().expect("drawn from the run folders"))?;
     }
     Ok(Aggregated { results, summary: table, figures: drawn.is_some().then_some(saved), from_folders: written })
 }
@@ -429,7 +445,7 @@ impl Summary {
         Ok(Summary { columns, rows })
     }
 
-    fn value(&self, row: &SummaryRow, column: &str) -> f64 {
+    pub fn value(&self, row: &SummaryRow, column: &str) -> f64 {
         self.columns.iter().position(|c| c == column).map_or(f64::NAN, |i| row.values[i])
     }
 

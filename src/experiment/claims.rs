@@ -32,7 +32,7 @@ pub struct EvalData {
     /// Per order parameter of [`Swarming::NAMES`] (DoS, DoA, polarization, ...): its value per step,
     /// averaged over the evaluation's episodes (NaN throughout for columns an older coevo did not write).
     pub per_step: Vec<Vec<f64>>,
-    /// Mean edge rank over every ranked catch of the evaluation (NaN without one).
+    /// Mean edge rank over the evaluation's steps with a ranked catch, each step's own mean (NaN without one).
     pub edge_rank: f64,
     /// The confusion curve of the first predator species in `<eval>-confusion.csv`, per bin of prey in
     /// view: mean |turn command|, mean speed / max speed, catches per predator-step (NaN for empty bins;

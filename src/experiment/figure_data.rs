@@ -139,7 +139,11 @@ pub fn write(exp: &Experiment, data: &BTreeMap<usize, FigureData>) -> crate::err
 /// cannot be read or lacks one of `runs` (indices into the experiment's runs).
 pub fn read(exp: &Experiment, runs: &[usize]) -> crate::error::Result<Option<BTreeMap<usize, FigureData>>> {
     let path = path(exp);
-    let Ok(file) = std::fs::File::open(&path) else { return Ok(None) };
+    let file = match std::fs::File::open(&path) {
+        Ok(file) => file,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
+        Err(e) => return Err(format!("{}: {e}", path.display()).into()),
+    };
     let mut text = String::new();
     flate2::read::GzDecoder::new(file)
         .take(crate::io::MAX_TEXT_BYTES * 8)

@@ -315,8 +315,8 @@ fn collective(md: &mut String, Reported { exp, summary, .. }: &Reported) {
         return;
     }
     md.push_str(
-        "\n## Collective measures\n\nEach evaluation of the trained actors: means over its last 50 steps (edge rank: over \
-         every ranked catch), then mean ± 95 % CI over seeds (seeds). `clusters` counts groups; `largest` is the \
+        "\n## Collective measures\n\nEach evaluation of the trained actors: means over its last 50 steps (edge rank: the \
+         mean over the steps with a ranked catch of each step's mean), then mean ± 95 % CI over seeds (seeds). `clusters` counts groups; `largest` is the \
          largest group's fraction of the headline species.\n\n<!-- ANCHOR: collective -->\n\
          | preset | variant | evaluation | DoS | DoA | polarization | milling | clusters | largest | C_nn | edge rank |\n\
          |---|---|---|---|---|---|---|---|---|---|---|\n",

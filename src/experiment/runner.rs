@@ -73,6 +73,10 @@ fn child(exe: &Path, args: &[String]) -> crate::error::Result<()> {
     dies_with_parent(&mut command);
     let out = command.output().map_err(|e| format!("{}: cannot start: {e}", exe.display()))?;
     if out.status.success() {
+        // A child that succeeds may still warn (a resume that refills dropped buffers): pass it on.
+        for line in String::from_utf8_lossy(&out.stderr).lines().filter(|l| l.starts_with("coevo: warning: ")) {
+            eprintln!("{line}");
+        }
         Ok(())
     } else {
         let stderr = String::from_utf8_lossy(&out.stderr);
@@ -125,14 +129,20 @@ pub fn complete_run(exp: &Experiment, run: &Run, exe: &Path, threads: usize) -> 
         args.extend(common.iter().cloned());
         child(exe, &args).map_err(|e| format!("{dir}: {e}"))?;
     }
-    if !exp.spec.keep_replay {
-        crate::learning::checkpoint::drop_replay(&run.dir)
-            .map_err(|e| format!("{dir}: cannot remove the trained run's replay buffers: {e}"))?;
-    }
+    drop_replay(exp, run)?;
     for e in &exp.spec.evaluations {
         let out = eval_file(&run.dir, &e.name);
         if evaluated_as(run, e) {
             continue;
+        }
+        // An evaluation run again (stale, or killed part-way): its old side files go first, the confusion
+        // curve (the mark of a complete evaluation) before the rest, so a child killed before it writes
+        // them anew never leaves a new CSV beside old curves that would pass for complete.
+        for stem in ["confusion", "nn", "correlation", crate::run::PERTURBATION] {
+            let side = crate::io::beside(&out, stem);
+            if side.exists() {
+                std::fs::remove_file(&side).map_err(|err| format!("{}: {err}", side.display()))?;
+            }
         }
         let mut args = vec!["--eval".into(), dir.clone(), "--episodes".into(), e.episodes.to_string()];
         if let Some(steps) = e.steps {
@@ -172,6 +182,19 @@ pub fn complete_run(exp: &Experiment, run: &Run, exe: &Path, threads: usize) -> 
         let args = ["--crossplay".into(), dir.clone(), "--episodes".into(), c.episodes.to_string()];
         child(exe, &[args.as_slice(), &common].concat()).map_err(|err| format!("{dir}: cross-play: {err}"))?;
     }
+    Ok(())
+}
+
+/// Removes a trained run's replay buffers (`learning::checkpoint::drop_replay`) under its lock, unless the
+/// experiment keeps them. A shared run's buffers are its owner's to keep or drop.
+fn drop_replay(exp: &Experiment, run: &Run) -> crate::error::Result<()> {
+    if exp.spec.keep_replay || run.shared_from.is_some() || stage(run)? != Stage::Trained {
+        return Ok(());
+    }
+    let dir = crate::run::RunDir::new(&run.dir);
+    let _lock = dir.lock()?;
+    crate::learning::checkpoint::drop_replay(&run.dir)
+        .map_err(|e| format!("{}: cannot remove the trained run's replay buffers: {e}", run.dir.display()))?;
     Ok(())
 }
 
@@ -271,6 +294,11 @@ pub fn run(exp: &Experiment, opts: &RunnerOptions, only: Option<usize>) -> crate
                 let i = next.fetch_add(1, Ordering::SeqCst);
                 let Some(run) = runs.get(i) else { break };
                 if finished(exp, run) {
+                    // Finished by an earlier invocation, perhaps of a coevo that kept the buffers.
+                    if let Err(e) = drop_replay(exp, run) {
+                        bar.println(format!("coevo: {e}"));
+                        failures.lock().expect("no panics while holding it").push(e);
+                    }
                     continue;
                 }
                 // The cores are shared among the runs at a time (one run alone updates its species on all).

@@ -139,7 +139,7 @@ pub fn train(scene: Scene, opts: &TrainOptions) -> crate::error::Result<Vec<Epis
         crate::sim::episode::spawn_population(world);
         if state.spawn_rng.is_none() || state.species.iter().flatten().any(|s| s.transitions.is_none()) {
             eprintln!(
-                "coevo: {}: the checkpoint lacks replay buffers or spawn state (an older coevo, or segments removed, as an experiment does once a run is trained): the resumed run refills its buffers and differs from an uninterrupted one",
+                "coevo: warning: {}: the checkpoint lacks replay buffers or spawn state (an older coevo, or segments removed, as an experiment does once a run is trained): the resumed run refills its buffers and differs from an uninterrupted one",
                 run.display()
             );
         }
