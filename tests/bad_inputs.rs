@@ -351,7 +351,7 @@ fn cases() -> Vec<(Vec<&'static str>, &'static str)> {
         ),
         (
             vec!["--plot", "results/fine"],
-            "--plot results/fine: no finished run of experiments/fine.ron there; nothing written",
+            "--plot results/fine: no finished run of experiments/fine.ron there, and no figure-data.ron.gz; nothing written",
         ),
     ]
 }
