@@ -53,6 +53,17 @@ fn presets_differ_where_the_authors_code_differs() {
 }
 
 #[test]
+fn the_many_eyes_scene_is_the_default_scene_with_predators_seen_only_within_a_twelfth_of_d() {
+    let mut many_eyes = Scene::load(Path::new("scenes/many-eyes.ron")).unwrap();
+    let standard = Scene::load(Path::new("scenes/standard.ron")).unwrap();
+    let prey = many_eyes.species.iter_mut().find(|s| s.name == "prey").unwrap();
+    assert_eq!(prey.perception_of.len(), 1, "{:?}", prey.perception_of);
+    assert_eq!(prey.perception_of[0].0, "predator");
+    prey.perception_of.clear();
+    assert_eq!(many_eyes, standard, "nothing else differs");
+}
+
+#[test]
 fn the_resolved_scene_loads_back_identically() {
     let s = Scene::load(Path::new("scenes/confined-penalty.ron")).unwrap();
     assert_eq!(Scene::parse(&s.to_ron(), "resolved.ron").unwrap(), s);
