@@ -708,6 +708,13 @@ fn an_evaluation_edited_in_the_file_is_run_again_and_never_aggregated_stale() {
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && stderr.lines().count() == 1, "{stderr}");
     assert!(stderr.contains("holds 2 episodes of 20 steps, the evaluation \"50 prey\" asks for 3 of 20"), "{stderr}");
+    // `--plot all` still reports every experiment: this one from its committed summary, saying why.
+    let summary = std::fs::read(dir.path().join("results/tiny/summary.csv")).unwrap();
+    let out = coevo(dir.path(), &["--plot", "all"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(stderr.contains("asks for 3 of 20; run `coevo --experiment experiments/tiny.ron` to redo it (reported from the committed summary)"), "{stderr}");
+    assert_eq!(std::fs::read(dir.path().join("results/tiny/summary.csv")).unwrap(), summary);
     let out = coevo(dir.path(), &["--experiment", "experiments/tiny.ron", "--jobs", "2"]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     assert_eq!(last_row("eval-50-prey.csv"), "2,20");

@@ -95,7 +95,18 @@ pub fn write_reproduction() -> crate::error::Result<()> {
     let mut loaded = Vec::new();
     for file in Experiment::files(Path::new(EXPERIMENTS))? {
         let exp = Experiment::load(&file, Path::new(RESULTS))?;
-        let mut data = aggregate::load(&exp)?;
+        // An experiment whose file asks for evaluations other than its runs hold is reported from its
+        // committed summary until it is run again; the others are still reported.
+        let mut data = match runner::first_stale(&exp) {
+            Some(stale) => {
+                eprintln!(
+                    "coevo: {stale}; run `coevo --experiment {}` to redo it (reported from the committed summary)",
+                    exp.file.display()
+                );
+                BTreeMap::new()
+            }
+            None => aggregate::load(&exp)?,
+        };
         // An experiment being re-run (fewer run folders than its committed summary holds) is reported from
         // its committed summary.csv, and its files are left as they are, until its runs are all back.
         if let Err(e) = aggregate::check_complete(&exp, &data) {

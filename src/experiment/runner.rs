@@ -225,6 +225,15 @@ fn evaluated_as(run: &Run, e: &super::Evaluation) -> bool {
         && stale(run, e).is_none()
 }
 
+/// The first evaluation of the experiment's trained runs that is stale ([`stale`]), if any.
+pub fn first_stale(exp: &Experiment) -> Option<String> {
+    exp.runs
+        .iter()
+        .filter(|r| stage(r) == Ok(Stage::Trained))
+        .flat_map(|r| exp.spec.evaluations.iter().map(move |e| (r, e)))
+        .find_map(|(r, e)| stale(r, e))
+}
+
 /// How an existing evaluation differs from what the experiment file asks for now (an edited file: its
 /// episodes or steps changed), from the last row of its per-step CSV; None when it matches.
 pub fn stale(run: &Run, e: &super::Evaluation) -> Option<String> {
