@@ -168,13 +168,7 @@ pub fn check_complete(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> crat
     if data.is_empty() {
         return Ok(());
     }
-    let held: Vec<usize> = summary
-        .rows
-        .iter()
-        .filter_map(|row| {
-            exp.runs.iter().position(|r| r.preset == row.preset && r.variant == row.variant && r.seed == row.seed)
-        })
-        .collect();
+    let held: Vec<usize> = summary.runs(exp).into_iter().map(|(i, _)| i).collect();
     let missing: Vec<String> =
         held.iter().filter(|i| !data.contains_key(i)).map(|&i| super::figure_data::key(&exp.runs[i])).collect();
     if let Some(first) = missing.first() {
@@ -260,29 +254,22 @@ pub fn aggregate(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> crate::er
         let of_runs = data.iter().map(|(i, d)| Ok((*i, figure_data::of_run(exp, &exp.runs[*i], d)?)));
         Some(of_runs.collect::<crate::error::Result<_>>()?)
     } else {
-        let committed: Vec<usize> = table
-            .rows
-            .iter()
-            .filter_map(|row| {
-                exp.runs.iter().position(|r| r.preset == row.preset && r.variant == row.variant && r.seed == row.seed)
-            })
-            .collect();
-        let read = if committed.is_empty() { None } else { figure_data::read(exp, &committed)? };
+        let committed = table.runs(exp);
+        let indices: Vec<usize> = committed.iter().map(|(i, _)| *i).collect();
+        let read = if indices.is_empty() { None } else { figure_data::read(exp, &indices)? };
         // The committed figure data must be of the committed summary's runs (each run's training length).
-        for (i, d) in read.iter().flatten() {
-            let r = &exp.runs[*i];
-            let row =
-                table.rows.iter().find(|row| row.preset == r.preset && row.variant == r.variant && row.seed == r.seed);
-            let episodes = row.map(|row| table.value(row, "episodes"));
-            if episodes != Some(d.dos.len() as f64) {
-                return Err(format!(
-                    "{}: run {} has {} training episodes but summary.csv says {}; the two files are of different runs",
-                    exp.root.join(figure_data::FILE).display(),
-                    figure_data::key(r),
-                    d.dos.len(),
-                    episodes.map_or("nothing".into(), |e| e.to_string())
-                )
-                .into());
+        if let Some(read) = &read {
+            for (i, row) in &committed {
+                let (episodes, d) = (table.value(row, "episodes"), &read[i]);
+                if episodes != d.dos.len() as f64 {
+                    return Err(format!(
+                        "{}: run {} has {} training episodes but summary.csv says {episodes}; the two files are of different runs",
+                        exp.root.join(figure_data::FILE).display(),
+                        figure_data::key(&exp.runs[*i]),
+                        d.dos.len(),
+                    )
+                    .into());
+                }
             }
         }
         read
@@ -443,6 +430,20 @@ impl Summary {
             });
         }
         Ok(Summary { columns, rows })
+    }
+
+    /// The rows of runs the experiment file still has, each with its index into the experiment's runs.
+    pub fn runs<'a>(&'a self, exp: &Experiment) -> Vec<(usize, &'a SummaryRow)> {
+        self.rows
+            .iter()
+            .filter_map(|row| {
+                let i = exp
+                    .runs
+                    .iter()
+                    .position(|r| r.preset == row.preset && r.variant == row.variant && r.seed == row.seed)?;
+                Some((i, row))
+            })
+            .collect()
     }
 
     pub fn value(&self, row: &SummaryRow, column: &str) -> f64 {

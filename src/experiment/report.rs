@@ -335,16 +335,8 @@ fn collective(md: &mut String, Reported { exp, summary, .. }: &Reported) {
     for preset in &exp.spec.presets {
         for v in &exp.spec.variants {
             for e in &exp.spec.evaluations {
-                let shown = |q: Quantity, digits: usize| match super::stats::estimate(
-                    &summary.values(exp, preset, &v.name, &q),
-                ) {
-                    Some(est) => format!(
-                        "{:.digits$}{} ({})",
-                        est.mean,
-                        est.ci.map_or(String::new(), |c| format!(" ± {c:.digits$}")),
-                        est.n
-                    ),
-                    None => "–".into(),
+                let shown = |q: Quantity, digits: usize| {
+                    estimate_shown(super::stats::estimate(&summary.values(exp, preset, &v.name, &q)), digits)
                 };
                 let order = |name: &str, digits: usize| shown(Quantity::EvalOrder(e.name.clone(), name.into()), digits);
                 let cells = [
@@ -397,10 +389,7 @@ fn section(md: &mut String, Reported { exp, results, .. }: &Reported, figures: &
         md.push_str("| preset | claim (the paper) | quantity | paper | coevo (mean ± 95 % CI, seeds) | p (Holm) | verdict |\n|---|---|---|---|---|---|---|\n");
     }
     for r in results {
-        let ours = match r.estimate {
-            Some(e) => format!("{:.3}{} ({})", e.mean, e.ci.map_or(String::new(), |c| format!(" ± {c:.3}")), e.n),
-            None => "–".into(),
-        };
+        let ours = estimate_shown(r.estimate, 3);
         let paper = r.claim.paper.map_or("–".into(), |p| format!("{p:.3}"));
         let of = match &r.claim.versus {
             Some(base) => format!("`{}` minus `{base}` (Welch)", r.claim.variant),
@@ -427,6 +416,16 @@ fn section(md: &mut String, Reported { exp, results, .. }: &Reported, figures: &
         if !shown.is_empty() {
             writeln!(md, "\n{}\n", shown.join("\n")).unwrap();
         }
+    }
+}
+
+/// An estimate as the reports show it: "mean ± half-width (seeds)" to `digits` decimals, "–" without one.
+fn estimate_shown(e: Option<super::stats::Estimate>, digits: usize) -> String {
+    match e {
+        Some(e) => {
+            format!("{:.digits$}{} ({})", e.mean, e.ci.map_or(String::new(), |c| format!(" ± {c:.digits$}")), e.n)
+        }
+        None => "–".into(),
     }
 }
 

@@ -238,8 +238,18 @@ pub fn first_stale(exp: &Experiment) -> Option<String> {
 /// episodes or steps changed), from the last row of its per-step CSV; None when it matches.
 pub fn stale(run: &Run, e: &super::Evaluation) -> Option<String> {
     let path = eval_file(&run.dir, &e.name);
-    let text = crate::io::read_text(&path, crate::io::MAX_TEXT_BYTES).ok()?;
-    let last = text.lines().rev().find(|l| !l.trim().is_empty())?;
+    // Only the last row counts: read the file's tail (a per-step CSV runs to megabytes, and every run's
+    // evaluations are checked each time an experiment starts).
+    let tail = {
+        use std::io::{Read, Seek, SeekFrom};
+        let mut file = std::fs::File::open(&path).ok()?;
+        let len = file.metadata().ok()?.len();
+        file.seek(SeekFrom::Start(len.saturating_sub(4096))).ok()?;
+        let mut bytes = Vec::new();
+        file.read_to_end(&mut bytes).ok()?;
+        String::from_utf8_lossy(&bytes).into_owned()
+    };
+    let last = tail.lines().rev().find(|l| !l.trim().is_empty())?;
     let mut cells = last.split(',').map(|c| c.parse::<usize>().ok());
     let held = (cells.next().flatten().map(|episode| episode + 1), cells.next().flatten());
     let asked = (e.episodes, e.steps.unwrap_or(run.scene.episode_steps));
