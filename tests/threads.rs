@@ -102,3 +102,38 @@ fn an_unknown_kernel_family_is_one_error_line() {
         assert!(stderr.contains(names) && stderr.contains("sse9"), "{names}: {stderr}");
     }
 }
+
+#[test]
+fn a_large_crowded_population_moves_identically_on_one_two_and_three_threads() {
+    // Above 512 agents, observations are computed in parallel chunks: the state after 30 steps of random
+    // actions, with many bodies in contact, must not depend on the thread count.
+    use coevo::scene::{Policy, Scene};
+    use coevo::sim::components::{ContactForce, Heading, Position, Velocity};
+    use coevo::sim::perception::Batches;
+    let state = |threads: usize| {
+        coevo::parallel::set_threads(threads);
+        let mut scene = Scene::preset("paper").unwrap();
+        scene.species[0].count = 3;
+        scene.species[1].count = 1_500;
+        scene.species.iter_mut().for_each(|s| s.policy = Policy::Random);
+        scene.world.arena_edge = 6.0;
+        let mut sim = coevo::sim::Simulation::new(scene);
+        for _ in 0..30 {
+            sim.step();
+        }
+        let world = sim.world_mut();
+        let mut q = world.query::<(&Position, &Velocity, &Heading, &ContactForce)>();
+        let mut rows: Vec<[f64; 7]> =
+            q.iter(world).map(|(x, v, h, f)| [x.0.x, x.0.y, v.0.x, v.0.y, h.0, f.0.x, f.0.y]).collect();
+        rows.sort_by(|a, b| a.partial_cmp(b).unwrap());
+        let observations: Vec<f32> = world.resource::<Batches>().species[1].observations.clone();
+        (rows, observations)
+    };
+    let one = state(1);
+    let touching = one.0.iter().filter(|r| r[5] != 0.0 || r[6] != 0.0).count();
+    assert!(touching > 100, "only {touching} bodies in contact: the test needs a crowd");
+    for threads in [2, 3] {
+        assert!(state(threads) == one, "{threads} threads move the crowd differently from one");
+    }
+    coevo::parallel::set_threads(1);
+}
