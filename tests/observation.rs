@@ -221,7 +221,8 @@ fn large_populations_see_the_same_neighbours_as_a_brute_force_search() {
     for boundary in [Boundary::Periodic, Boundary::Walls] {
         let mut s = scene(3, 1_500, Policy::Random, boundary);
         s.world.arena_edge = 2.0 * (1_503.0f64 / 13.0).sqrt();
-        s.species[1].perception = Perception::Radius(1.5);
+        let radius = 1.5;
+        s.species[1].perception = Perception::Radius(radius);
         let mut sim = Simulation::new(s);
         let world = sim.world_mut();
         let mut q = world.query::<(&coevo::sim::components::AgentId, &mut coevo::sim::components::Position)>();
@@ -241,7 +242,7 @@ fn large_populations_see_the_same_neighbours_as_a_brute_force_search() {
                 .clone()
                 .filter(|&j| j != i)
                 .map(|j| (arena.delta(pop.position[i], pop.position[j]).length_squared(), j))
-                .filter(|&(d2, _)| d2 <= 1.5 * 1.5)
+                .filter(|&(d2, _)| d2 <= radius * radius)
                 .collect();
             near.sort_by(|a, b| a.partial_cmp(b).unwrap());
             let row = batch.observation(i - prey.start);

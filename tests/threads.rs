@@ -2,6 +2,7 @@
 //! concurrently and large populations are perceived and decided in chunks, all of it reproducible.
 //! Each run is a separate `coevo` process, so the thread count is really that process's.
 
+mod common;
 use std::path::Path;
 use std::process::Command;
 
@@ -107,15 +108,12 @@ fn an_unknown_kernel_family_is_one_error_line() {
 fn a_large_crowded_population_moves_identically_on_one_two_and_three_threads() {
     // Above 512 agents, observations are computed in parallel chunks: the state after 30 steps of random
     // actions, with many bodies in contact, must not depend on the thread count.
-    use coevo::scene::{Policy, Scene};
+    use coevo::scene::{Boundary, Policy};
     use coevo::sim::components::{ContactForce, Heading, Position, Velocity};
     use coevo::sim::perception::Batches;
     let state = |threads: usize| {
         coevo::parallel::set_threads(threads);
-        let mut scene = Scene::preset("paper").unwrap();
-        scene.species[0].count = 3;
-        scene.species[1].count = 1_500;
-        scene.species.iter_mut().for_each(|s| s.policy = Policy::Random);
+        let mut scene = common::scene(3, 1_500, Policy::Random, Boundary::Periodic);
         scene.world.arena_edge = 6.0;
         let mut sim = coevo::sim::Simulation::new(scene);
         for _ in 0..30 {
