@@ -177,7 +177,14 @@ impl CellGrid {
             t - ((t as f64) > v) as isize
         };
         let span = |x: f64| (floor((x - radius + self.half) / self.cell), floor((x + radius + self.half) / self.cell));
-        let ((x_lo, x_hi), (y_lo, y_hi)) = (span(p.x), span(p.y));
+        let ((mut x_lo, mut x_hi), (mut y_lo, mut y_hi)) = (span(p.x), span(p.y));
+        if !self.periodic {
+            // Members pressed beyond a wall are filed in the edge cells, so the box is clamped to the
+            // grid rather than cut: a box wholly beyond a wall still covers the edge cells.
+            let last = n as isize - 1;
+            (x_lo, x_hi, y_lo, y_hi) =
+                (x_lo.clamp(0, last), x_hi.clamp(0, last), y_lo.clamp(0, last), y_hi.clamp(0, last));
+        }
         if n < SCAN_ALL_BELOW || (x_hi - x_lo + 1) as usize >= n || (y_hi - y_lo + 1) as usize >= n {
             self.items.iter().zip(&self.item_positions).for_each(|(&i, &x)| f(i, x));
             return;
@@ -210,14 +217,28 @@ impl CellGrid {
         // gap(dx)² + gap(dy)² away, with gap the distance from p to that column/row of cells; a cell, and
         // then a whole ring, is skipped once that exceeds the current k-th distance.
         let (cx, cy) = (self.cell_coord(p.x), self.cell_coord(p.y));
-        let fx = p.x + self.half - cx as f64 * self.cell;
-        let fy = p.y + self.half - cy as f64 * self.cell;
+        // p's offset in its cell, clamped to the cell: a body pressed beyond a wall lies outside every
+        // cell, and a negative offset would make a gap negative and, squared, wrongly prune a ring.
+        let fx = (p.x + self.half - cx as f64 * self.cell).clamp(0.0, self.cell);
+        let fy = (p.y + self.half - cy as f64 * self.cell).clamp(0.0, self.cell);
         let gap = |d: isize, f: f64| match d {
             0 => 0.0,
             d if d > 0 => (d - 1) as f64 * self.cell + (self.cell - f),
             d => (-d - 1) as f64 * self.cell + f,
         };
-        let mut ring = 0usize;
+        // Rings 0 and 1 at once: the 3 × 3 block of cells around p's, at most six runs of consecutive
+        // items (stored cell by cell, row by row), ranked without branches when it holds few enough
+        // candidates. Any visiting order gives the same k: the answer is the k smallest under one total
+        // order (distance, then index).
+        let (runs, count) = self.block_runs(cx, cy);
+        let runs = &runs[..count];
+        if runs.iter().map(|r| r.len()).sum::<usize>() <= BLOCK_RANKED {
+            let inside = |c: usize| (1..n - 1).contains(&c);
+            q.rank_block(self, runs, !self.periodic || (inside(cx) && inside(cy)), out);
+        } else {
+            runs.iter().for_each(|r| q.scan(self, r.clone(), out));
+        }
+        let mut ring = 2usize;
         loop {
             if self.periodic && 2 * ring + 1 > n {
                 break; // rings would wrap onto visited cells: scan what is left below
@@ -274,7 +295,41 @@ impl CellGrid {
             }
         }
     }
+
+    /// The item ranges of the 3 × 3 block of cells around cell (cx, cy): a run of consecutive cells per
+    /// row, split in two where it wraps across the torus' seam, clipped at walls. Needs ≥ 3 cells per
+    /// side, so that the block's cells are distinct.
+    fn block_runs(&self, cx: usize, cy: usize) -> ([std::ops::Range<usize>; 6], usize) {
+        let n = self.cells_per_side;
+        let mut runs: [std::ops::Range<usize>; 6] = Default::default();
+        let mut count = 0;
+        let mut push = |row: usize, lo: usize, hi: usize| {
+            runs[count] = self.start[row + lo] as usize..self.start[row + hi + 1] as usize;
+            count += 1;
+        };
+        for dy in -1..=1 {
+            let Some(y) = self.offset(cy, dy) else { continue };
+            let row = y * n;
+            match (cx, self.periodic) {
+                (0, true) => {
+                    push(row, n - 1, n - 1);
+                    push(row, 0, 1);
+                }
+                (0, false) => push(row, 0, 1),
+                (x, true) if x == n - 1 => {
+                    push(row, n - 2, n - 1);
+                    push(row, 0, 0);
+                }
+                (x, false) if x == n - 1 => push(row, n - 2, n - 1),
+                (x, _) => push(row, x - 1, x + 1),
+            }
+        }
+        (runs, count)
+    }
 }
+
+/// Candidates up to which a 3 × 3 block is ranked all-against-all rather than scanned into a sorted list.
+const BLOCK_RANKED: usize = 48;
 
 /// One k-nearest query: keeps the best `k` candidates in a short sorted list.
 struct Knn<'a> {
@@ -294,6 +349,34 @@ impl Knn<'_> {
         } else {
             self.r2
         }
+    }
+
+    /// The best `k` of the items in `runs` (at most [`BLOCK_RANKED`], `out` empty): every candidate's rank
+    /// is the number of candidates before it, counted without branches (the sorted insertion's
+    /// unpredictable branches were most of a query's time); ranks below k go straight to their place.
+    /// `plain`: the block lies away from the torus' seam (or within walls), where the minimum image is the
+    /// plain difference, so the distances skip its branches and come out the same.
+    #[inline(always)]
+    fn rank_block(&self, grid: &CellGrid, runs: &[std::ops::Range<usize>], plain: bool, out: &mut Vec<(f64, u32)>) {
+        let mut d2 = [f64::INFINITY; BLOCK_RANKED];
+        let mut index = [u32::MAX; BLOCK_RANKED];
+        let mut m = 0;
+        for r in runs {
+            for (&i, &x) in grid.items[r.clone()].iter().zip(&grid.item_positions[r.clone()]) {
+                let d = if plain { x - self.p } else { self.arena.delta(self.p, x) }.length_squared();
+                // Written always, kept only if it counts (no branch): a rejected candidate is overwritten
+                // by the next one or reset below. The block holds at most BLOCK_RANKED, so m stays in bounds.
+                d2[m] = d;
+                index[m] = i;
+                m += ((d <= self.r2) & (i != self.exclude)) as usize;
+            }
+        }
+        if m < BLOCK_RANKED {
+            (d2[m], index[m]) = (f64::INFINITY, u32::MAX);
+        }
+        let k = self.k.min(m);
+        out.resize(k, (0.0, 0));
+        place_by_rank(&d2, &index, m, out);
     }
 
     /// Considers the grid items in `range` (a cell, or everything).
@@ -325,6 +408,62 @@ impl Knn<'_> {
     }
 }
 
+/// Puts each of the first `m` candidates (`d2`, `index`; the rest padded with (∞, u32::MAX)) whose rank
+/// is below `out.len()` at `out[rank]`, its rank being the number of candidates before it in (distance,
+/// index) order. The comparisons are exact, so every instruction set gives the same answer; with AVX-512
+/// a candidate is compared with eight others per instruction.
+fn place_by_rank(d2: &[f64; BLOCK_RANKED], index: &[u32; BLOCK_RANKED], m: usize, out: &mut [(f64, u32)]) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        static AVX512: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+        if *AVX512.get_or_init(|| {
+            std::arch::is_x86_feature_detected!("avx512f") && std::arch::is_x86_feature_detected!("avx512vl")
+        }) {
+            // SAFETY: the features were detected on this CPU.
+            return unsafe { place_by_rank_avx512(d2, index, m, out) };
+        }
+    }
+    place_by_rank_portable(d2, index, m, out)
+}
+
+fn place_by_rank_portable(d2: &[f64; BLOCK_RANKED], index: &[u32; BLOCK_RANKED], m: usize, out: &mut [(f64, u32)]) {
+    for a in 0..m {
+        let (da, ia) = (d2[a], index[a]);
+        let rank = (0..m).filter(|&b| d2[b] < da || (d2[b] == da && index[b] < ia)).count();
+        if rank < out.len() {
+            out[rank] = (da, ia);
+        }
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx512vl")]
+fn place_by_rank_avx512(d2: &[f64; BLOCK_RANKED], index: &[u32; BLOCK_RANKED], m: usize, out: &mut [(f64, u32)]) {
+    use std::arch::x86_64::*;
+    // Whole blocks of eight lanes: the padding is never before a real candidate.
+    let blocks = m.div_ceil(8);
+    for a in 0..m {
+        let (da, ia) = (d2[a], index[a]);
+        let (vd, vi) = (_mm512_set1_pd(da), _mm256_set1_epi32(ia as i32));
+        let mut rank = 0;
+        for c in 0..blocks {
+            // SAFETY: c * 8 + 8 <= BLOCK_RANKED, since m <= BLOCK_RANKED and BLOCK_RANKED is a multiple of 8.
+            let (d, i) = unsafe {
+                (
+                    _mm512_loadu_pd(d2.as_ptr().add(c * 8)),
+                    _mm256_loadu_si256(index.as_ptr().add(c * 8) as *const __m256i),
+                )
+            };
+            let nearer = _mm512_cmp_pd_mask::<_CMP_LT_OQ>(d, vd);
+            let tie = _mm512_cmp_pd_mask::<_CMP_EQ_OQ>(d, vd) & _mm256_cmplt_epu32_mask(i, vi);
+            rank += (nearer | tie).count_ones() as usize;
+        }
+        if rank < out.len() {
+            out[rank] = (da, ia);
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -349,6 +488,98 @@ mod tests {
         let p = a.wrap(DVec2::new(1.03, -1.02));
         assert!((p - DVec2::new(-0.97, 0.98)).length() < 1e-12, "{p}");
         assert_eq!(a.wrap(DVec2::new(0.3, -0.4)), DVec2::new(0.3, -0.4));
+    }
+
+    #[test]
+    fn ranking_is_the_same_on_every_instruction_set() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        for m in 0..=BLOCK_RANKED {
+            let mut d2 = [f64::INFINITY; BLOCK_RANKED];
+            let mut index = [u32::MAX; BLOCK_RANKED];
+            for j in 0..m {
+                // Few distinct distances, so ties are common; distinct indices, as in a grid.
+                d2[j] = rng.gen_range(0..6) as f64 * 0.5;
+                index[j] = (j as u32 * 7919) % 1000;
+            }
+            let k = m.min(rng.gen_range(1..10));
+            let (mut fast, mut portable) = (vec![(0.0, 0); k], vec![(0.0, 0); k]);
+            place_by_rank(&d2, &index, m, &mut fast);
+            place_by_rank_portable(&d2, &index, m, &mut portable);
+            let mut sorted: Vec<(f64, u32)> = (0..m).map(|j| (d2[j], index[j])).collect();
+            sorted.sort_by(|a, b| a.partial_cmp(b).unwrap());
+            sorted.truncate(k);
+            assert_eq!(fast, sorted, "m={m}");
+            assert_eq!(portable, sorted, "m={m}");
+        }
+    }
+
+    /// Within walls a crowded body can sit beyond the wall (the spring pushes it back over a few steps):
+    /// its offset in its cell is then negative, and no neighbour may be missed for it (the ring search
+    /// once squared that negative gap and skipped the next row of cells).
+    #[test]
+    fn grid_k_nearest_is_exact_for_bodies_pushed_into_a_wall() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        let arena = Arena { edge: 2.0, boundary: Boundary::Walls };
+        // A crowd pressed against the bottom wall, partly beyond it, above a uniform population.
+        let mut pos: Vec<DVec2> =
+            (0..1000).map(|_| DVec2::new(rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0))).collect();
+        pos.extend((0..600).map(|_| DVec2::new(rng.gen_range(-1.0..1.0), rng.gen_range(-1.06..-0.98))));
+        let mut grid = CellGrid::default();
+        grid.rebuild(&arena, &pos, 0..pos.len());
+        let mut out = vec![];
+        for (q, &p) in pos.iter().enumerate().filter(|(_, p)| p.abs().max_element() > 1.0) {
+            grid.k_nearest(&arena, p, 6, f64::INFINITY, q as u32, &mut out);
+            let mut brute: Vec<(f64, u32)> = (0..pos.len() as u32)
+                .filter(|&i| i != q as u32)
+                .map(|i| (arena.delta(p, pos[i as usize]).length_squared(), i))
+                .collect();
+            brute.sort_by(|a, b| a.partial_cmp(b).unwrap());
+            brute.truncate(6);
+            assert_eq!(out, brute, "q={q} at {p}");
+        }
+    }
+
+    #[test]
+    fn bodies_beyond_a_wall_still_find_each_other() {
+        let arena = Arena { edge: 4.0, boundary: Boundary::Walls };
+        let mut pos: Vec<DVec2> =
+            (0..400).map(|i| DVec2::new((i % 20) as f64 * 0.2 - 1.9, (i / 20) as f64 * 0.2 - 1.9)).collect();
+        // Two bodies 0.05 apart, both 0.3 beyond the left wall: farther out than the search radius.
+        pos.extend([DVec2::new(-2.3, 0.0), DVec2::new(-2.3, 0.05)]);
+        let mut grid = CellGrid::default();
+        grid.rebuild(&arena, &pos, 0..pos.len());
+        let mut near = vec![];
+        grid.for_each_near(pos[400], 0.1, |i, _| near.push(i));
+        assert!(near.contains(&401), "{near:?}");
+    }
+
+    /// Exact ties everywhere (a lattice) and blocks too crowded to rank (a tight cluster) take the block
+    /// path's both branches; the answer must still be brute force's, ties broken by index.
+    #[test]
+    fn grid_k_nearest_breaks_ties_by_index_and_survives_crowded_blocks() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+        for boundary in [Boundary::Periodic, Boundary::Walls] {
+            let arena = Arena { edge: 4.0, boundary };
+            let mut pos: Vec<DVec2> =
+                (0..256).map(|i| DVec2::new((i % 16) as f64 * 0.25 - 2.0, (i / 16) as f64 * 0.25 - 2.0)).collect();
+            pos.extend((0..120).map(|_| DVec2::new(rng.gen_range(0.9..1.0), rng.gen_range(-1.0..-0.9))));
+            let mut grid = CellGrid::default();
+            grid.rebuild(&arena, &pos, 0..pos.len());
+            let mut out = vec![];
+            for (q, &p) in pos.iter().enumerate() {
+                for (k, radius) in [(6, f64::INFINITY), (1, 0.3), (12, 0.6)] {
+                    grid.k_nearest(&arena, p, k, radius, q as u32, &mut out);
+                    let mut brute: Vec<(f64, u32)> = (0..pos.len() as u32)
+                        .filter(|&i| i != q as u32)
+                        .map(|i| (arena.delta(p, pos[i as usize]).length_squared(), i))
+                        .filter(|e| e.0 <= radius * radius)
+                        .collect();
+                    brute.sort_by(|a, b| a.partial_cmp(b).unwrap());
+                    brute.truncate(k);
+                    assert_eq!(out, brute, "{boundary:?} q={q} k={k}");
+                }
+            }
+        }
     }
 
     #[test]
