@@ -217,14 +217,18 @@ impl CellGrid {
         // gap(dx)² + gap(dy)² away, with gap the distance from p to that column/row of cells; a cell, and
         // then a whole ring, is skipped once that exceeds the current k-th distance.
         let (cx, cy) = (self.cell_coord(p.x), self.cell_coord(p.y));
-        // p's offset in its cell, clamped to the cell: a body pressed beyond a wall lies outside every
-        // cell, and a negative offset would make a gap negative and, squared, wrongly prune a ring.
-        let fx = (p.x + self.half - cx as f64 * self.cell).clamp(0.0, self.cell);
-        let fy = (p.y + self.half - cy as f64 * self.cell).clamp(0.0, self.cell);
-        let gap = |d: isize, f: f64| match d {
-            0 => 0.0,
-            d if d > 0 => (d - 1) as f64 * self.cell + (self.cell - f),
-            d => (-d - 1) as f64 * self.cell + f,
+        // p's offset in its cell. It can lie outside [0, cell]: by rounding at a cell's edge, and by a
+        // body's depth beyond a wall (such bodies are filed in the edge cells). The offsets stay exact so
+        // the gaps stay true lower bounds; a gap below zero is zero, as squaring it would overstate it.
+        let fx = p.x + self.half - cx as f64 * self.cell;
+        let fy = p.y + self.half - cy as f64 * self.cell;
+        let gap = |d: isize, f: f64| {
+            match d {
+                0 => 0.0,
+                d if d > 0 => (d - 1) as f64 * self.cell + (self.cell - f),
+                d => (-d - 1) as f64 * self.cell + f,
+            }
+            .max(0.0)
         };
         // Rings 0 and 1 at once: the 3 × 3 block of cells around p's, at most six runs of consecutive
         // items (stored cell by cell, row by row), ranked without branches when it holds few enough
@@ -247,11 +251,9 @@ impl CellGrid {
                 return; // every cell visited
             }
             let r = ring as isize;
-            if ring >= 1 {
-                let nearest_side = gap(r, fx).min(gap(-r, fx)).min(gap(r, fy)).min(gap(-r, fy));
-                if nearest_side * nearest_side > q.worst(out) {
-                    return;
-                }
+            let nearest_side = gap(r, fx).min(gap(-r, fx)).min(gap(r, fy)).min(gap(-r, fy));
+            if nearest_side * nearest_side > q.worst(out) {
+                return;
             }
             // The ring's cells nearest first, so the best candidates arrive early and prune the rest
             // (sorted on the stack; a ring too large for the buffer is visited in row order).
@@ -328,8 +330,10 @@ impl CellGrid {
     }
 }
 
-/// Candidates up to which a 3 × 3 block is ranked all-against-all rather than scanned into a sorted list.
+/// Candidates up to which a 3 × 3 block is ranked all-against-all rather than scanned into a sorted list
+/// (whole vectors of eight).
 const BLOCK_RANKED: usize = 48;
+const _: () = assert!(BLOCK_RANKED.is_multiple_of(8));
 
 /// One k-nearest query: keeps the best `k` candidates in a short sorted list.
 struct Knn<'a> {
@@ -551,6 +555,28 @@ mod tests {
         let mut near = vec![];
         grid.for_each_near(pos[400], 0.1, |i, _| near.push(i));
         assert!(near.contains(&401), "{near:?}");
+    }
+
+    /// A query on a cell's edge whose offset rounds to just below zero, with the nearest member two
+    /// columns away and a near-tie inside the 3 × 3 block (found by review): clamping the offset to the
+    /// cell overstated the ring-2 gap by a rounding error and pruned the true nearest.
+    #[test]
+    fn a_query_on_a_cell_edge_still_finds_the_nearest_two_cells_away() {
+        for boundary in [Boundary::Periodic, Boundary::Walls] {
+            let arena = Arena { edge: 79.71428571428571, boundary };
+            let mut pos = vec![
+                DVec2::new(22.775510204081627, -0.9489795918367392),
+                DVec2::new(20.87755102040816, -0.9489795918367392),
+                DVec2::new(22.775510204081627, 0.94897959183673),
+            ];
+            pos.resize(3528, DVec2::new(-17.0, -30.0));
+            let mut grid = CellGrid::default();
+            grid.rebuild(&arena, &pos, 0..pos.len());
+            assert_eq!(grid.cells_per_side, 42);
+            let mut out = vec![];
+            grid.k_nearest(&arena, pos[0], 1, f64::INFINITY, 0, &mut out);
+            assert_eq!(out, vec![(arena.delta(pos[0], pos[1]).length_squared(), 1)], "{boundary:?}");
+        }
     }
 
     /// Exact ties everywhere (a lattice) and blocks too crowded to rank (a tight cluster) take the block
