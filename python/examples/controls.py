@@ -78,11 +78,19 @@ def interval(x: list[float]) -> tuple[float, float, float]:
 
 
 def show(label: str, x: list[float], against: float | None = 0.0) -> None:
-    """One row: mean ± 95 % t half-width, and the t test against `against` (None: a level, not tested)."""
+    """One row: mean ± 95 % t half-width, and the t test against `against` (None: a level, not tested).
+    Never prints NaN: runs without the value are left out, and one run or no spread says so instead."""
+    x = [v for v in x if not math.isnan(v)]
+    if not x:
+        print(f"  {label:52s} –   (no run has it: no metrics.csv)")
+        return
     m, h, p = interval([v - (against or 0.0) for v in x])
+    if len(x) < 2:
+        print(f"  {label:52s} {m + (against or 0.0):+.3f}   (one run: no interval, no test)")
+        return
     text = f"{m + (against or 0.0):+.3f} ± {h:.3f}"
     if against is not None:
-        text += f"   p = {p:.3g} against {against:+.3f}"
+        text += f"   p = {p:.3g} against {against:+.3f}" if not math.isnan(p) else "   p: – (no spread)"
     print(f"  {label:52s} {text}")
 
 
