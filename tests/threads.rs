@@ -106,15 +106,15 @@ fn an_unknown_kernel_family_is_one_error_line() {
 
 #[test]
 fn a_large_crowded_population_moves_identically_on_one_two_and_three_threads() {
-    // Above 512 agents, observations are computed in parallel chunks: the state after 30 steps of random
-    // actions, with many bodies in contact, must not depend on the thread count.
+    // Above 512 agents observations, and above 4096 contacts, are computed in parallel chunks: the state
+    // after 30 steps of random actions, with many bodies in contact, must not depend on the thread count.
     use coevo::scene::{Boundary, Policy};
     use coevo::sim::components::{ContactForce, Heading, Position, Velocity};
     use coevo::sim::perception::Batches;
     let state = |threads: usize| {
         coevo::parallel::set_threads(threads);
-        let mut scene = common::scene(3, 1_500, Policy::Random, Boundary::Periodic);
-        scene.world.arena_edge = 6.0;
+        let mut scene = common::scene(3, 5_000, Policy::Random, Boundary::Periodic);
+        scene.world.arena_edge = 11.0;
         let mut sim = coevo::sim::Simulation::new(scene);
         for _ in 0..30 {
             sim.step();

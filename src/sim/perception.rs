@@ -222,44 +222,72 @@ fn detect_contacts(
     arena: Res<Arena>,
     scene: Res<ActiveScene>,
     mut agents: Query<(&Slot, &mut ContactForce, &mut Contacts)>,
+    mut found: Local<Vec<(DVec2, ContactCounts)>>,
 ) {
     let k = scene.0.world.contact_stiffness;
-    for (slot, mut force, mut contacts) in &mut agents {
-        let i = slot.index as usize;
-        let (xi, ri, si) = (pop.position[i], pop.radius[i], pop.species[i]);
-        let mut f = DVec2::ZERO;
-        let mut counts = ContactCounts::default();
-        for (t, grid) in pop.grids.iter().enumerate() {
-            grid.for_each_near(xi, ri + pop.max_radius[t], |j, xj| {
-                let j = j as usize;
-                if j == i {
-                    return;
-                }
-                let d = arena.delta(xi, xj);
-                let reach = ri + pop.radius[j];
-                if d.length_squared() >= reach * reach {
-                    return;
-                }
-                let dist = d.length();
-                let overlap = reach - dist;
-                // Coincident centres have no line of centres: separate them along x, by slot order.
-                let away = if dist > 0.0 { -d / dist } else { DVec2::X * if i < j { -1.0 } else { 1.0 } };
-                f += k * overlap * away;
-                if registry.catches[si][t] {
-                    counts.catching += 1;
-                    counts.contact_reward += registry.contact_reward[si][t].0;
-                }
-                if registry.catches[t][si] {
-                    counts.caught += 1;
-                    counts.contact_reward += registry.contact_reward[t][si].1;
-                }
-            });
+    let (pop, registry, arena) = (&*pop, &*registry, &*arena);
+    // By slot, each agent alone, then into the components. Only large populations are split over the
+    // cores: a section's threads cost more than the contacts of a thousand agents (3 + 1 000 steps ran 10 %
+    // slower split in chunks of OBSERVE_CHUNK). Each agent alone, so the split never changes a number.
+    found.clear();
+    found.resize(pop.len(), (DVec2::ZERO, ContactCounts::default()));
+    let chunk =
+        if pop.len() > CONTACTS_ALONE_UP_TO { pop.len().div_ceil(crate::parallel::threads()) } else { pop.len() };
+    crate::parallel::for_each_chunk(&mut found, chunk, |c, out| {
+        for (n, out) in out.iter_mut().enumerate() {
+            *out = contacts_of(pop, registry, arena, k, c * chunk + n);
         }
-        counts.walls = arena.wall_contact(xi, DVec2::ZERO, ri, 0.0, 0.0).1;
+    });
+    for (slot, mut force, mut contacts) in &mut agents {
+        let (f, counts) = found[slot.index as usize];
         force.0 = f;
         contacts.before = contacts.now;
         contacts.now = counts;
     }
+}
+
+/// Populations up to this size get their contacts on the calling thread.
+const CONTACTS_ALONE_UP_TO: usize = 4096;
+
+/// The Hooke force on the agent in slot `i` (stiffness `k`) and its contact counts.
+fn contacts_of(
+    pop: &Population,
+    registry: &SpeciesRegistry,
+    arena: &Arena,
+    k: f64,
+    i: usize,
+) -> (DVec2, ContactCounts) {
+    let (xi, ri, si) = (pop.position[i], pop.radius[i], pop.species[i]);
+    let mut f = DVec2::ZERO;
+    let mut counts = ContactCounts::default();
+    for (t, grid) in pop.grids.iter().enumerate() {
+        grid.for_each_near(xi, ri + pop.max_radius[t], |j, xj| {
+            let j = j as usize;
+            if j == i {
+                return;
+            }
+            let d = arena.delta(xi, xj);
+            let reach = ri + pop.radius[j];
+            if d.length_squared() >= reach * reach {
+                return;
+            }
+            let dist = d.length();
+            let overlap = reach - dist;
+            // Coincident centres have no line of centres: separate them along x, by slot order.
+            let away = if dist > 0.0 { -d / dist } else { DVec2::X * if i < j { -1.0 } else { 1.0 } };
+            f += k * overlap * away;
+            if registry.catches[si][t] {
+                counts.catching += 1;
+                counts.contact_reward += registry.contact_reward[si][t].0;
+            }
+            if registry.catches[t][si] {
+                counts.caught += 1;
+                counts.contact_reward += registry.contact_reward[t][si].1;
+            }
+        });
+    }
+    counts.walls = arena.wall_contact(xi, DVec2::ZERO, ri, 0.0, 0.0).1;
+    (f, counts)
 }
 
 /// Agents observed per parallel task: populations up to this size are observed on the calling thread;
