@@ -4,9 +4,10 @@
 //! across threads they spend more time synchronising than computing, and the default rayon pool made a
 //! training run ~2× slower with two threads than with one. So dfdx's kernels always run on one thread
 //! ([`single_threaded_kernels`]), and the cores are used at a coarser grain: one learned species per
-//! thread in the DDPG updates, fixed-size chunks of agents in perception and inference. Every piece of
-//! work is computed exactly as it would be alone (same inputs, same random stream, same chunking), so
-//! the number of threads decides only how long a run takes, never what it computes.
+//! thread in the DDPG updates, chunks of agents in perception and inference. Every piece of work is
+//! computed exactly as it would be alone (same inputs, same random stream, same chunking, or chunks of
+//! agents each computed alone, where the chunking cannot matter), so the number of threads decides only
+//! how long a run takes, never what it computes.
 
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Once;

@@ -80,18 +80,20 @@ def interval(x: list[float]) -> tuple[float, float, float]:
 def show(label: str, x: list[float], against: float | None = 0.0) -> None:
     """One row: mean ± 95 % t half-width, and the t test against `against` (None: a level, not tested).
     Never prints NaN: runs without the value are left out, and one run or no spread says so instead."""
+    runs = len(x)
     x = [v for v in x if not math.isnan(v)]
+    left_out = f"   ({runs - len(x)} of {runs} runs have no value)" if len(x) < runs else ""
     if not x:
-        print(f"  {label:52s} –   (no run has it: no metrics.csv)")
+        print(f"  {label:52s} –   (no run has a value, e.g. no metrics.csv)")
         return
     m, h, p = interval([v - (against or 0.0) for v in x])
     if len(x) < 2:
-        print(f"  {label:52s} {m + (against or 0.0):+.3f}   (one run: no interval, no test)")
+        print(f"  {label:52s} {m + (against or 0.0):+.3f}   (one run: no interval, no test){left_out}")
         return
     text = f"{m + (against or 0.0):+.3f} ± {h:.3f}"
     if against is not None:
         text += f"   p = {p:.3g} against {against:+.3f}" if not math.isnan(p) else "   p: – (no spread)"
-    print(f"  {label:52s} {text}")
+    print(f"  {label:52s} {text}{left_out}")
 
 
 def main() -> None:
@@ -125,6 +127,10 @@ def main() -> None:
     if "versus" in results:
         x = [r["seeing"]["doa"] for r in results["runs"]]
         y = [r["seeing"]["doa"] for r in results["versus"]]
+        if min(len(x), len(y)) < 2 or np.std(x) + np.std(y) == 0:
+            print(f"runs minus versus, DoA seeing: {np.mean(x) - np.mean(y):+.3f} "
+                  "(no Welch test: it needs two runs a side and some spread)")
+            return
         w = stats.ttest_ind(x, y, equal_var=False)
         ci = w.confidence_interval(0.95)
         print(f"runs minus versus, DoA seeing (Welch): {np.mean(x) - np.mean(y):+.3f} "

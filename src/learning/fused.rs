@@ -1,6 +1,6 @@
 //! The forward and backward passes of the DDPG update computed directly, without dfdx's machinery: the
 //! same products on the same gemm kernels, into buffers allocated at the first update and reused, the
-//! bias added in the product's epilogue and the activation in one pass, and only the gradients the update
+//! bias and the activation applied to each product in one pass, and only the gradients the update
 //! needs (no critic parameter gradients in the actor step, only the action columns of the critic's input
 //! gradient, no input gradients anywhere else).
 //!
@@ -60,9 +60,9 @@ impl Pass {
             let (below, above) = self.acts.split_at_mut(l + 1);
             let (x, z) = (&below[l], &mut above[0]);
             let (inputs, outputs) = (layer.inputs(), layer.outputs());
-            // z = b (broadcast over rows), then z += x·Wᵀ in the product's epilogue.
-            let bias = layer.bias.as_slice();
-            z.chunks_exact_mut(outputs).for_each(|row| row.copy_from_slice(bias));
+            // z = x·Wᵀ, then z + b and the activation in one pass over z: the same sums as writing b into
+            // z first and accumulating the product onto it (one product pass at these sizes, and
+            // b + s = s + b exactly), without a copy of b into every row.
             let w = layer.weight.as_slice();
             // SAFETY: every pointer and stride below addresses only the buffers' own extents:
             // z is rows × outputs, x is rows × inputs, Wᵀ is read as inputs × outputs from W (outputs × inputs).
@@ -73,17 +73,21 @@ impl Pass {
                     inputs,
                     z.as_mut_ptr(),
                     outputs,
-                    true,
+                    false,
                     x.as_ptr(),
                     (inputs, 1),
                     w.as_ptr(),
                     (1, inputs),
                 );
             }
+            let bias = layer.bias.as_slice();
+            let rows_of = |z: &mut [f32], f: fn(f32) -> f32| {
+                z.chunks_exact_mut(outputs).for_each(|row| row.iter_mut().zip(bias).for_each(|(v, b)| *v = f(*v + b)))
+            };
             match (l == last, net.output) {
-                (false, _) => z.iter_mut().for_each(|v| *v = v.max(0.0)),
-                (true, Output::Tanh) => z.iter_mut().for_each(|v| *v = v.tanh()),
-                (true, Output::Linear) => {}
+                (false, _) => rows_of(z, |v| v.max(0.0)),
+                (true, Output::Tanh) => rows_of(z, f32::tanh),
+                (true, Output::Linear) => rows_of(z, |v| v),
             }
         }
     }
