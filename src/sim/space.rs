@@ -494,6 +494,18 @@ mod tests {
         assert_eq!(a.wrap(DVec2::new(0.3, -0.4)), DVec2::new(0.3, -0.4));
     }
 
+    /// What `k_nearest` must return, by comparing `p` with every member of `pos`.
+    fn brute_nearest(arena: &Arena, pos: &[DVec2], p: DVec2, k: usize, radius: f64, exclude: u32) -> Vec<(f64, u32)> {
+        let mut all: Vec<(f64, u32)> = (0..pos.len() as u32)
+            .filter(|&i| i != exclude)
+            .map(|i| (arena.delta(p, pos[i as usize]).length_squared(), i))
+            .filter(|e| e.0 <= radius * radius)
+            .collect();
+        all.sort_by(|a, b| a.partial_cmp(b).unwrap());
+        all.truncate(k);
+        all
+    }
+
     #[test]
     fn ranking_is_the_same_on_every_instruction_set() {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
@@ -533,13 +545,7 @@ mod tests {
         let mut out = vec![];
         for (q, &p) in pos.iter().enumerate().filter(|(_, p)| p.abs().max_element() > 1.0) {
             grid.k_nearest(&arena, p, 6, f64::INFINITY, q as u32, &mut out);
-            let mut brute: Vec<(f64, u32)> = (0..pos.len() as u32)
-                .filter(|&i| i != q as u32)
-                .map(|i| (arena.delta(p, pos[i as usize]).length_squared(), i))
-                .collect();
-            brute.sort_by(|a, b| a.partial_cmp(b).unwrap());
-            brute.truncate(6);
-            assert_eq!(out, brute, "q={q} at {p}");
+            assert_eq!(out, brute_nearest(&arena, &pos, p, 6, f64::INFINITY, q as u32), "q={q} at {p}");
         }
     }
 
@@ -595,13 +601,7 @@ mod tests {
             for (q, &p) in pos.iter().enumerate() {
                 for (k, radius) in [(6, f64::INFINITY), (1, 0.3), (12, 0.6)] {
                     grid.k_nearest(&arena, p, k, radius, q as u32, &mut out);
-                    let mut brute: Vec<(f64, u32)> = (0..pos.len() as u32)
-                        .filter(|&i| i != q as u32)
-                        .map(|i| (arena.delta(p, pos[i as usize]).length_squared(), i))
-                        .filter(|e| e.0 <= radius * radius)
-                        .collect();
-                    brute.sort_by(|a, b| a.partial_cmp(b).unwrap());
-                    brute.truncate(k);
+                    let brute = brute_nearest(&arena, &pos, p, k, radius, q as u32);
                     assert_eq!(out, brute, "{boundary:?} q={q} k={k}");
                 }
             }
@@ -624,13 +624,7 @@ mod tests {
                     let (k, radius) = ([1, 6, 10][q % 3], [0.3, 1.0, 10.0][q % 3]);
                     let exclude = (q % n.max(1)) as u32;
                     grid.k_nearest(&arena, p, k, radius, exclude, &mut out);
-                    let mut brute: Vec<(f64, u32)> = (0..n as u32)
-                        .filter(|&i| i != exclude)
-                        .map(|i| (arena.delta(p, pos[i as usize]).length_squared(), i))
-                        .filter(|e| e.0 <= radius * radius)
-                        .collect();
-                    brute.sort_by(|a, b| a.partial_cmp(b).unwrap());
-                    brute.truncate(k);
+                    let brute = brute_nearest(&arena, &pos, p, k, radius, exclude);
                     assert_eq!(out, brute, "{boundary:?} n={n} q={q}");
                 }
             }
