@@ -106,10 +106,12 @@ fn an_unknown_kernel_family_is_one_error_line() {
 
 #[test]
 fn a_large_crowded_population_moves_identically_on_one_two_and_three_threads() {
-    // Above 512 agents observations, and above 4096 contacts, are computed in parallel chunks: the state
-    // after 30 steps of random actions, with many bodies in contact, must not depend on the thread count.
+    // Above 512 agents observations, and above 4096 contacts, the order parameters' terms and the cluster
+    // links, are computed in parallel chunks: the state after 30 steps of random actions, with many bodies
+    // in contact, and its order parameters must not depend on the thread count.
     use coevo::scene::{Boundary, Policy};
     use coevo::sim::components::{ContactForce, Heading, Position, Velocity};
+    use coevo::sim::metrics::SwarmMetrics;
     use coevo::sim::perception::Batches;
     let state = |threads: usize| {
         coevo::parallel::set_threads(threads);
@@ -125,11 +127,14 @@ fn a_large_crowded_population_moves_identically_on_one_two_and_three_threads() {
             q.iter(world).map(|(x, v, h, f)| [x.0.x, x.0.y, v.0.x, v.0.y, h.0, f.0.x, f.0.y]).collect();
         rows.sort_by(|a, b| a.partial_cmp(b).unwrap());
         let observations: Vec<f32> = world.resource::<Batches>().species[1].observations.clone();
-        (rows, observations)
+        let metrics = world.resource::<SwarmMetrics>();
+        (rows, observations, metrics.now.clone(), metrics.nn_distances_now.clone())
     };
     let one = state(1);
     let touching = one.0.iter().filter(|r| r[5] != 0.0 || r[6] != 0.0).count();
     assert!(touching > 100, "only {touching} bodies in contact: the test needs a crowd");
+    let prey = one.2[1].expect("5 000 prey have order parameters");
+    assert!(prey.clusters > 1.0 && prey.largest_cluster < 1.0, "the crowd needs several clusters: {prey:?}");
     for threads in [2, 3] {
         assert!(state(threads) == one, "{threads} threads move the crowd differently from one");
     }

@@ -38,14 +38,23 @@ pub fn cluster_labels(
         i
     }
     let link2 = link * link;
-    for j in members.clone() {
-        grid.for_each_near(positions[j], link, |i, x| {
-            let i = i as usize;
-            if i > j && arena.delta(positions[j], x).length_squared() <= link2 {
-                let (a, b) = (root(&mut parent, (j - start) as u32), root(&mut parent, (i - start) as u32));
-                parent[a.max(b) as usize] = a.min(b);
-            }
-        });
+    // The linked pairs (j, i > j), searched on all cores for large groups, then joined; the labels depend
+    // only on which members end up connected, never on the order of the joins.
+    let pairs = crate::parallel::map_ranges(members.len(), |r| {
+        let mut pairs = Vec::new();
+        for j in r.start + start..r.end + start {
+            grid.for_each_near(positions[j], link, |i, x| {
+                let i = i as usize;
+                if i > j && arena.delta(positions[j], x).length_squared() <= link2 {
+                    pairs.push(((j - start) as u32, (i - start) as u32));
+                }
+            });
+        }
+        pairs
+    });
+    for &(j, i) in pairs.iter().flatten() {
+        let (a, b) = (root(&mut parent, j), root(&mut parent, i));
+        parent[a.max(b) as usize] = a.min(b);
     }
     let mut label = vec![u32::MAX; members.len()];
     let mut next = 0;

@@ -62,26 +62,37 @@ impl Swarming {
 
 /// The group's centre c (see [`Swarming`]).
 pub fn centre(arena: &Arena, positions: &[DVec2]) -> DVec2 {
-    let n = positions.len().max(1) as f64;
+    centre_of(arena, positions, positions.iter().map(|&p| circular_terms(arena, p)))
+}
+
+/// One position's terms of the circular mean on the torus: the sine and cosine of each coordinate's
+/// angle on its periodic axis, `[sin x, cos x, sin y, cos y]`.
+fn circular_terms(arena: &Arena, p: DVec2) -> [f64; 4] {
+    let turn = std::f64::consts::TAU / arena.edge;
+    let (x, y) = (p.x * turn, p.y * turn);
+    [x.sin(), x.cos(), y.sin(), y.cos()]
+}
+
+/// [`centre`] given each position's [`circular_terms`] (read only on the torus), summed in order.
+fn centre_of(arena: &Arena, positions: &[DVec2], terms: impl Iterator<Item = [f64; 4]>) -> DVec2 {
     match arena.boundary {
-        crate::scene::Boundary::Walls => positions.iter().copied().sum::<DVec2>() / n,
+        crate::scene::Boundary::Walls => positions.iter().copied().sum::<DVec2>() / positions.len().max(1) as f64,
         crate::scene::Boundary::Periodic => {
             let turn = std::f64::consts::TAU / arena.edge;
-            let axis = |get: fn(&DVec2) -> f64| {
-                let (s, c) = positions
-                    .iter()
-                    .fold((0.0, 0.0), |(s, c), p| (s + (get(p) * turn).sin(), c + (get(p) * turn).cos()));
-                s.atan2(c) / turn
-            };
-            DVec2::new(axis(|p| p.x), axis(|p| p.y))
+            let [sx, cx, sy, cy] = terms.fold([0.0; 4], |sum, t| std::array::from_fn(|a| sum[a] + t[a]));
+            DVec2::new(sx.atan2(cx) / turn, sy.atan2(cy) / turn)
         }
     }
 }
 
 /// Polarization and milling of a group of positions and unit headings (see [`Swarming`]).
 pub fn polarization_and_milling(arena: &Arena, positions: &[DVec2], headings: &[DVec2]) -> (f64, f64) {
+    order_about(arena, centre(arena, positions), positions, headings)
+}
+
+/// Polarization and milling about the centre `c`.
+fn order_about(arena: &Arena, c: DVec2, positions: &[DVec2], headings: &[DVec2]) -> (f64, f64) {
     let n = positions.len().max(1) as f64;
-    let c = centre(arena, positions);
     let polarization = headings.iter().copied().sum::<DVec2>().length() / n;
     let rotation: f64 = positions
         .iter()
@@ -121,25 +132,39 @@ pub fn swarming(
         return None;
     }
     let start = members.start;
-    let mut found = Vec::with_capacity(1);
+    // Each member alone (on all cores for large groups): its nearest kin k, ‖x_j − x_k‖, ‖h_j + h_k‖
+    // and its terms of the circular mean, the dearest part (sines and cosines). Then everything is
+    // summed in member order, so no sum depends on the split or the thread count.
+    let periodic = arena.boundary == crate::scene::Boundary::Periodic;
+    let terms = crate::parallel::map_ranges(n, |r| {
+        let mut found = Vec::with_capacity(1);
+        r.map(|m| {
+            let j = start + m;
+            let k = match known_nearest.get(j).copied().flatten() {
+                Some(k) => k as usize,
+                None => {
+                    grid.k_nearest(arena, positions[j], 1, f64::INFINITY, j as u32, &mut found);
+                    found[0].1 as usize
+                }
+            };
+            let d = arena.delta(positions[j], positions[k]).length();
+            let circular = if periodic { circular_terms(arena, positions[j]) } else { [0.0; 4] };
+            (d, (headings[j] + headings[k]).length(), k - start, circular)
+        })
+        .collect::<Vec<_>>()
+    });
+    let terms = || terms.iter().flatten();
     let (mut distance, mut alignment) = (0.0, 0.0);
     let mut nearest = Vec::with_capacity(n);
-    for j in members.clone() {
-        let k = match known_nearest.get(j).copied().flatten() {
-            Some(k) => k as usize,
-            None => {
-                grid.k_nearest(arena, positions[j], 1, f64::INFINITY, j as u32, &mut found);
-                found[0].1 as usize
-            }
-        };
-        let d = arena.delta(positions[j], positions[k]).length();
+    for &(d, a, k, _) in terms() {
         nn_distances.push(d);
         distance += d;
-        alignment += (headings[j] + headings[k]).length();
-        nearest.push(k - start);
+        alignment += a;
+        nearest.push(k);
     }
-    let (polarization, milling) =
-        polarization_and_milling(arena, &positions[members.clone()], &headings[members.clone()]);
+    let (positions, headings) = (&positions[members.clone()], &headings[members.clone()]);
+    let c = centre_of(arena, positions, terms().map(|t| t.3));
+    let (polarization, milling) = order_about(arena, c, positions, headings);
     let sizes = collective::cluster_sizes(labels);
     Some(Swarming {
         dos: distance / (n as f64 * arena.max_distance()),
@@ -148,7 +173,7 @@ pub fn swarming(
         milling,
         clusters: sizes.len() as f64,
         largest_cluster: sizes.iter().copied().max().unwrap_or(0) as f64 / n as f64,
-        nn_correlation: collective::nn_correlation(&headings[members], &nearest),
+        nn_correlation: collective::nn_correlation(headings, &nearest),
     })
 }
 

@@ -146,6 +146,7 @@ type IndexQuery<'w, 's> = Query<
         &'static Heading,
         &'static Body,
         &'static Action,
+        &'static mut Slot,
     ),
 >;
 
@@ -154,8 +155,7 @@ fn index_population(
     mut batches: ResMut<Batches>,
     registry: Res<SpeciesRegistry>,
     arena: Res<Arena>,
-    agents: IndexQuery,
-    mut slots: Query<&mut Slot>,
+    mut agents: IndexQuery,
 ) {
     let turn_of = |s: usize, a: &Action| {
         let max = registry.defs[s].max_turn_rate;
@@ -165,9 +165,13 @@ fn index_population(
             0.0
         }
     };
+    // Each agent with its place in the query's order, which the second pass below repeats.
     let mut order: Vec<_> = agents
         .iter()
-        .map(|(e, id, s, x, v, h, body, a)| ((s.0, *id), e, x.0, v.0, h.unit(), body.radius, turn_of(s.0, a)))
+        .enumerate()
+        .map(|(q, (e, id, s, x, v, h, body, a, _))| {
+            ((s.0, *id), q, e, x.0, v.0, h.unit(), body.radius, turn_of(s.0, a))
+        })
         .collect();
     order.sort_unstable_by_key(|a| a.0);
     let p = &mut *pop;
@@ -184,7 +188,8 @@ fn index_population(
     let n_species = registry.len();
     p.ranges = vec![0..0; n_species];
     p.max_radius = vec![0.0; n_species];
-    for ((s, id), e, x, v, h, radius, turn) in order {
+    let mut slot_of = vec![Slot { index: 0, row: 0 }; order.len()];
+    for ((s, id), q, e, x, v, h, radius, turn) in order {
         let slot = p.entity.len();
         if p.ranges[s].is_empty() {
             p.ranges[s] = slot..slot;
@@ -199,8 +204,11 @@ fn index_population(
         p.radius.push(radius);
         p.turn.push(turn);
         p.max_radius[s] = p.max_radius[s].max(radius);
-        let mut out = slots.get_mut(e).expect("agents have a Slot");
-        *out = Slot { index: slot as u32, row: (slot - p.ranges[s].start) as u32 };
+        slot_of[q] = Slot { index: slot as u32, row: (slot - p.ranges[s].start) as u32 };
+    }
+    // The same query, unchanged since, iterates in the same order.
+    for (q, (.., mut slot)) in agents.iter_mut().enumerate() {
+        *slot = slot_of[q];
     }
     p.grids.resize_with(n_species, CellGrid::default);
     for s in 0..n_species {
@@ -226,13 +234,11 @@ fn detect_contacts(
 ) {
     let k = scene.0.world.contact_stiffness;
     let (pop, registry, arena) = (&*pop, &*registry, &*arena);
-    // By slot, each agent alone, then into the components. Only large populations are split over the
-    // cores: a section's threads cost more than the contacts of a thousand agents (3 + 1 000 steps ran 10 %
-    // slower split in chunks of OBSERVE_CHUNK). Each agent alone, so the split never changes a number.
+    // By slot, each agent alone, then into the components; only large populations are split over the
+    // cores (crate::parallel::ALONE_UP_TO). Each agent alone, so the split never changes a number.
     found.clear();
     found.resize(pop.len(), (DVec2::ZERO, ContactCounts::default()));
-    let chunk =
-        if pop.len() > CONTACTS_ALONE_UP_TO { pop.len().div_ceil(crate::parallel::threads()) } else { pop.len() };
+    let chunk = crate::parallel::chunk_len(pop.len());
     crate::parallel::for_each_chunk(&mut found, chunk, |c, out| {
         for (n, out) in out.iter_mut().enumerate() {
             *out = contacts_of(pop, registry, arena, k, c * chunk + n);
@@ -245,9 +251,6 @@ fn detect_contacts(
         contacts.now = counts;
     }
 }
-
-/// Populations up to this size get their contacts on the calling thread.
-const CONTACTS_ALONE_UP_TO: usize = 4096;
 
 /// The Hooke force on the agent in slot `i` (stiffness `k`) and its contact counts.
 fn contacts_of(
