@@ -419,15 +419,22 @@ impl Knn<'_> {
 fn place_by_rank(d2: &[f64; BLOCK_RANKED], index: &[u32; BLOCK_RANKED], m: usize, out: &mut [(f64, u32)]) {
     #[cfg(target_arch = "x86_64")]
     {
-        static AVX512: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
-        if *AVX512.get_or_init(|| {
-            std::arch::is_x86_feature_detected!("avx512f") && std::arch::is_x86_feature_detected!("avx512vl")
-        }) {
+        if has_avx512() {
             // SAFETY: the features were detected on this CPU.
             return unsafe { place_by_rank_avx512(d2, index, m, out) };
         }
     }
     place_by_rank_portable(d2, index, m, out)
+}
+
+/// Whether this CPU runs AVX-512 (F and VL), detected once. Only exact operations use it here, so it
+/// changes how fast, never what is computed.
+#[cfg(target_arch = "x86_64")]
+pub(crate) fn has_avx512() -> bool {
+    static AVX512: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+    *AVX512.get_or_init(|| {
+        std::arch::is_x86_feature_detected!("avx512f") && std::arch::is_x86_feature_detected!("avx512vl")
+    })
 }
 
 fn place_by_rank_portable(d2: &[f64; BLOCK_RANKED], index: &[u32; BLOCK_RANKED], m: usize, out: &mut [(f64, u32)]) {
