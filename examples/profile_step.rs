@@ -9,8 +9,10 @@ use coevo::sim::SimSet;
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
-/// Wall time per stage, summed over steps, and the instant the last stage ended.
-static STAGES: Mutex<(Vec<(&'static str, Duration)>, Option<Instant>)> = Mutex::new((Vec::new(), None));
+/// Wall time per stage, summed over steps.
+type Totals = Vec<(&'static str, Duration)>;
+/// The totals, and the instant the last stage ended.
+static STAGES: Mutex<(Totals, Option<Instant>)> = Mutex::new((Vec::new(), None));
 
 fn mark(label: &'static str) -> impl FnMut() {
     move || {

@@ -43,10 +43,10 @@ pub fn cluster_labels(
     // only on which members end up connected, never on the order of the joins.
     let pairs = crate::parallel::map_ranges(members.len(), |r| {
         let mut pairs = Vec::new();
-        for j in r.start + start..r.end + start {
-            grid.for_each_near(positions[j], link, |i, x| {
+        for (j, &xj) in positions.iter().enumerate().take(r.end + start).skip(r.start + start) {
+            grid.for_each_near(xj, link, |i, x| {
                 let i = i as usize;
-                if i > j && arena.delta(positions[j], x).length_squared() <= link2 {
+                if i > j && arena.delta(xj, x).length_squared() <= link2 {
                     pairs.push(((j - start) as u32, (i - start) as u32));
                 }
             });
