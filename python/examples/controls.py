@@ -7,7 +7,8 @@ over each episode's last 50 steps. Across runs: mean ± 95 % t interval of each 
 "seeing minus control" difference (computed run by run), with a two-sided one-sample t test of the
 difference (no correction for multiple comparisons: the p-values are per row). ``--versus RUN...`` adds
 a second group (e.g. runs trained without predators) and its Welch difference from the first. Each
-evaluation is written into its run folder as ``eval-<name>.csv``.
+evaluation is written into its run folder as ``eval-<name>.csv`` (so a shipped run under ``assets/``, which
+coevo keeps as committed, is given as a copy: ``cp -r assets/trained-standard runs/trained-standard``).
 
     python python/examples/controls.py runs/ippo-seed1 runs/ippo-seed2 runs/ippo-seed3 \\
         --versus runs/ippo-nopred-seed1 runs/ippo-nopred-seed2 runs/ippo-nopred-seed3
@@ -58,8 +59,10 @@ def evaluate(coevo: str, run: str, episodes: int, steps: int) -> dict[str, dict[
         file = "eval-" + name.replace(", ", "-").replace(" ", "-") + ".csv"
         path = os.path.join(run, file)
         if not os.path.exists(path):
-            subprocess.run([coevo, "--eval", run, "--prey", "50", "--episodes", str(episodes), "--steps", str(steps),
-                            "--eval-out", file, *flags], check=True, capture_output=True)
+            done = subprocess.run([coevo, "--eval", run, "--prey", "50", "--episodes", str(episodes), "--steps",
+                                   str(steps), "--eval-out", file, *flags], capture_output=True, text=True)
+            if done.returncode != 0:  # e.g. a run shipped under assets/, which coevo keeps as committed
+                raise SystemExit(done.stderr.strip() or f"coevo --eval {run}: exit {done.returncode}")
         out[name] = {"doa": settled(path, "doa_prey"), "nn_correlation": settled(path, "nn_correlation_prey")}
     out["training"] = {"doa_first": window(run, "doa_prey", True), "doa_last": window(run, "doa_prey", False),
                        "catches_last": window(run, "catches", False)}

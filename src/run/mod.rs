@@ -204,7 +204,21 @@ impl RunDir {
 
     /// Takes the run's lock for this process (creating the folder if needed), after removing what a
     /// killed process left: a stale lock, temporaries of dead PIDs, a half-written `checkpoint.tmp/`.
+    /// Refuses a shipped run where it was shipped ([`Provenance::shipped`]): every writer takes this
+    /// lock first.
     pub fn lock(&self) -> crate::error::Result<RunLock> {
+        let shipped = self.read_provenance()?.and_then(|p| p.shipped);
+        let here = std::fs::canonicalize(&self.path).unwrap_or_else(|_| self.path.clone());
+        if let Some(at) = shipped.filter(|at| here.ends_with(at)) {
+            let name = Path::new(&at).file_name().map_or("shipped".into(), |n| n.to_string_lossy());
+            return Err(format!(
+                "{}: a run shipped with coevo ({at}), kept as committed, so nothing writes into it; copy it \
+                 and use the copy, e.g. cp -r {} runs/{name}",
+                self.path.display(),
+                self.path.display()
+            )
+            .into());
+        }
         std::fs::create_dir_all(&self.path).map_err(io_err(&self.path))?;
         let path = self.path.join(LOCK);
         for _ in 0..2 {
@@ -334,6 +348,11 @@ pub struct Provenance {
     /// one binary, which the experiment layer refuses to compare unless told (`mixed_binaries`).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub also_by: Vec<String>,
+    /// Where a run shipped with coevo sits in the source tree (`assets/trained-standard`): there it is
+    /// kept as committed, so nothing writes into it (evaluations, cross-play and resumed training refuse
+    /// it, [`RunDir::lock`]); a copy anywhere else is an ordinary run.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub shipped: Option<String>,
 }
 
 /// The running executable's identity: the first 16 hex digits of the BLAKE3 hash of its file (`blake3`
@@ -360,6 +379,7 @@ impl Provenance {
         Provenance {
             binary: binary().to_string(),
             also_by: vec![],
+            shipped: None,
             coevo_version: crate::VERSION.to_string(),
             git_commit: crate::GIT_COMMIT.to_string(),
             kernels: crate::learning::nets::kernels().to_string(),
