@@ -80,7 +80,8 @@ fn workspace() -> tempfile::TempDir {
         "(coevo_version: \"0.1.0\", kernels: \"another-family\", plugins: [])\n",
     )
     .unwrap();
-    // A run as coevo ships them, under assets/ (provenance.ron says where).
+    // A run as coevo ships them, under assets/ of a source tree (provenance.ron says where).
+    std::fs::write(root.join("Cargo.toml"), "[package]\nname = \"coevo\"\n").unwrap();
     copy_dir(&root.join("run"), &root.join("assets/shipped-run"));
     let provenance = std::fs::read_to_string(root.join("run/provenance.ron")).unwrap();
     let shipped = provenance.trim_end().strip_suffix(')').unwrap().to_string()
@@ -315,9 +316,10 @@ fn cases() -> Vec<(Vec<&'static str>, &'static str)> {
         (vec!["--eval", "busy-run"], "busy-run: in use by coevo process"),
         // A run shipped with coevo (assets/) is read, never written: copies are evaluated and resumed.
         (vec!["--eval", "assets/shipped-run"], "assets/shipped-run: a run shipped with coevo (assets/shipped-run)"),
-        (vec!["--eval", "assets/shipped-run", "--eval-out", "x.csv"], "cp -r assets/shipped-run runs/shipped-run"),
+        (vec!["--eval", "assets/shipped-run", "--eval-out", "x.csv"], "mkdir -p runs && cp -r assets/shipped-run runs/"),
         (vec!["--resume", "assets/shipped-run", "--episodes", "3"], "kept as committed, so nothing writes into it"),
         (vec!["--crossplay", "assets/shipped-run"], "assets/shipped-run: a run shipped with coevo"),
+        (vec!["--plot", "assets/shipped-run"], "assets/shipped-run: a run shipped with coevo"),
         // A user-chosen output never takes a run's own name or another evaluation's.
         (vec!["--eval", "run", "--eval-out", "metrics.csv"], "--eval-out metrics.csv: is one of the run's own files"),
         (vec!["--eval", "run", "--eval-out", "scene.csv"], "--eval-out scene.csv: is one of the run's own files"),
@@ -411,11 +413,20 @@ fn what_may_be_written_is_written_and_nothing_else() {
     let out = coevo(&["--train", "--out", "run", "--overwrite", "--episodes", "1", "--quiet"]);
     assert!(String::from_utf8_lossy(&out.stderr).contains("run/checkpoint/mine.txt: not a file coevo wrote"));
     assert!(root.join("run/checkpoint/mine.txt").exists());
-    // A copy of a shipped run is an ordinary run: evaluated in place, its provenance then names this binary.
-    copy_dir(&root.join("assets/shipped-run"), &root.join("runs/shipped-run"));
-    let out = coevo(&["--eval", "runs/shipped-run", "--steps", "3"]);
+    // A copy of a shipped run is an ordinary run, also a copy of the whole assets/ folder elsewhere (no
+    // source tree around it): evaluated in place, its provenance then names this binary.
+    for copy in ["runs/shipped-run", "backup/assets/shipped-run"] {
+        copy_dir(&root.join("assets/shipped-run"), &root.join(copy));
+        let out = coevo(&["--eval", copy, "--steps", "3"]);
+        assert!(out.status.success(), "{copy}: {}", String::from_utf8_lossy(&out.stderr));
+        assert!(root.join(copy).join("eval.csv").exists(), "{copy}");
+    }
+    // A damaged provenance.ron does not stop --overwrite from replacing the run.
+    copy_dir(&root.join("nan-run"), &root.join("damaged-run"));
+    std::fs::write(root.join("damaged-run/provenance.ron"), "(damaged").unwrap();
+    let out = coevo(&["--train", "--out", "damaged-run", "--overwrite", "--episodes", "1", "--quiet"]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    assert!(root.join("runs/shipped-run/eval.csv").exists());
+    assert!(std::fs::read_to_string(root.join("damaged-run/provenance.ron")).unwrap().contains("binary"));
     // A new or empty folder is used as it is.
     std::fs::create_dir(root.join("empty")).unwrap();
     let out = coevo(&["--train", "--out", "empty", "--episodes", "1", "--quiet"]);

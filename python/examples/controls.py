@@ -8,7 +8,7 @@ over each episode's last 50 steps. Across runs: mean ± 95 % t interval of each 
 difference (no correction for multiple comparisons: the p-values are per row). ``--versus RUN...`` adds
 a second group (e.g. runs trained without predators) and its Welch difference from the first. Each
 evaluation is written into its run folder as ``eval-<name>.csv`` (so a shipped run under ``assets/``, which
-coevo keeps as committed, is given as a copy: ``cp -r assets/trained-standard runs/trained-standard``).
+coevo keeps as committed, is given as a copy: ``mkdir -p runs && cp -r assets/trained-standard runs/``).
 
     python python/examples/controls.py runs/ippo-seed1 runs/ippo-seed2 runs/ippo-seed3 \\
         --versus runs/ippo-nopred-seed1 runs/ippo-nopred-seed2 runs/ippo-nopred-seed3

@@ -729,6 +729,7 @@ fn figures<'a>(
 /// `RUN/figures/training.png`, from its `metrics.csv`.
 pub fn plot_run(dir: &Path) -> crate::error::Result<std::path::PathBuf> {
     let run = RunDir::new(dir);
+    run.refuse_if_shipped()?;
     let scene = crate::scene::Scene::load(&run.scene())?;
     let prey = scene.species[SpeciesRegistry::from_scene(&scene).headline()].name.clone();
     let metrics = Table::read(&run.metrics())?;

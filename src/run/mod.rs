@@ -202,23 +202,31 @@ impl RunDir {
         Ok(())
     }
 
+    /// Refuses a shipped run where it was shipped ([`Provenance::shipped`]): the folder sits at that path
+    /// under a source tree (a `Cargo.toml` there). Read leniently, so a damaged `provenance.ron` is left
+    /// to whoever reads it for its own purpose (and `--overwrite` may still replace it).
+    pub fn refuse_if_shipped(&self) -> crate::error::Result<()> {
+        let Some(at) = self.read_provenance().ok().flatten().and_then(|p| p.shipped) else { return Ok(()) };
+        let at_path = Path::new(&at);
+        let plain = at_path.components().all(|c| matches!(c, std::path::Component::Normal(_)));
+        let Ok(here) = std::fs::canonicalize(&self.path) else { return Ok(()) };
+        let root = here.ancestors().nth(at_path.components().count());
+        if !plain || !here.ends_with(at_path) || !root.is_some_and(|r| r.join("Cargo.toml").is_file()) {
+            return Ok(());
+        }
+        let shown = self.path.display();
+        Err(format!(
+            "{shown}: a run shipped with coevo ({at}), kept as committed, so nothing writes into it; copy it \
+             and use the copy, e.g. mkdir -p runs && cp -r {shown} runs/"
+        )
+        .into())
+    }
+
     /// Takes the run's lock for this process (creating the folder if needed), after removing what a
     /// killed process left: a stale lock, temporaries of dead PIDs, a half-written `checkpoint.tmp/`.
-    /// Refuses a shipped run where it was shipped ([`Provenance::shipped`]): every writer takes this
-    /// lock first.
+    /// Every writer of an existing run takes it, so it refuses a shipped run ([`RunDir::refuse_if_shipped`]).
     pub fn lock(&self) -> crate::error::Result<RunLock> {
-        let shipped = self.read_provenance()?.and_then(|p| p.shipped);
-        let here = std::fs::canonicalize(&self.path).unwrap_or_else(|_| self.path.clone());
-        if let Some(at) = shipped.filter(|at| here.ends_with(at)) {
-            let name = Path::new(&at).file_name().map_or("shipped".into(), |n| n.to_string_lossy());
-            return Err(format!(
-                "{}: a run shipped with coevo ({at}), kept as committed, so nothing writes into it; copy it \
-                 and use the copy, e.g. cp -r {} runs/{name}",
-                self.path.display(),
-                self.path.display()
-            )
-            .into());
-        }
+        self.refuse_if_shipped()?;
         std::fs::create_dir_all(&self.path).map_err(io_err(&self.path))?;
         let path = self.path.join(LOCK);
         for _ in 0..2 {
@@ -349,8 +357,8 @@ pub struct Provenance {
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub also_by: Vec<String>,
     /// Where a run shipped with coevo sits in the source tree (`assets/trained-standard`): there it is
-    /// kept as committed, so nothing writes into it (evaluations, cross-play and resumed training refuse
-    /// it, [`RunDir::lock`]); a copy anywhere else is an ordinary run.
+    /// kept as committed, so nothing writes into it (evaluations, cross-play, resumed training and
+    /// `--plot` refuse it, [`RunDir::refuse_if_shipped`]); a copy anywhere else is an ordinary run.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub shipped: Option<String>,
 }
