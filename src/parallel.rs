@@ -101,6 +101,9 @@ pub fn ranges(n: usize) -> impl Iterator<Item = std::ops::Range<usize>> {
 /// item is computed alone: callers that then sum the items do so in item order, so neither the split nor
 /// the thread count changes a number.
 pub fn map_ranges<T: Send>(n: usize, f: impl Fn(std::ops::Range<usize>) -> T + Sync) -> Vec<T> {
+    if chunk_len(n) >= n {
+        return vec![f(0..n)]; // one range: no bookkeeping (the small groups of every training step)
+    }
     let mut work: Vec<(std::ops::Range<usize>, Option<T>)> = ranges(n).map(|r| (r, None)).collect();
     for_each_mut(&mut work, |(r, out)| *out = Some(f(r.clone())));
     work.into_iter().map(|(_, out)| out.expect("every range is computed")).collect()
