@@ -6,8 +6,10 @@
 use bevy::math::DVec2;
 use bevy::prelude::*;
 
-/// Stable identity of an agent within an episode: spawn order, species by species.
+/// Stable identity of an agent within an episode: spawn order, species by species. Every agent has a
+/// [`Slot`] (perception indexes only entities that have one).
 #[derive(Component, Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+#[require(Slot)]
 pub struct AgentId(pub u32);
 
 /// Index of the agent's species in the [`crate::sim::species::SpeciesRegistry`].
