@@ -111,22 +111,31 @@ pub fn add_heading_correlation(
     let delta: Vec<DVec2> = headings.iter().map(|h| *h - mean).collect();
     variance.0 += delta.iter().map(|d| d.length_squared()).sum::<f64>();
     variance.1 += n as u64;
-    // Each i's pairs (i, j > i) a block at a time: the bins and products first, in a loop without
-    // branches that vectorizes, then added in (i, j) order, the order that fixes every sum's rounding (so
-    // large groups are faster, every number as before).
-    const BLOCK: usize = 512;
-    let (mut bin_of, mut product) = ([0u32; BLOCK], [0.0f64; BLOCK]);
     let pairs = Pairs::new(arena, positions, &delta, width);
-    for i in 0..n {
-        for from in (i + 1..n).step_by(BLOCK) {
-            let to = (from + BLOCK).min(n);
-            let (bin_of, product) = (&mut bin_of[..to - from], &mut product[..to - from]);
-            pairs.terms(i, from, bin_of, product);
-            for (&b, &p) in bin_of.iter().zip(product.iter()) {
-                if let Some(bin) = bins.get_mut(b as usize) {
-                    bin.0 += p;
-                    bin.1 += 1;
-                }
+    // Large groups compute their terms on another core while this one adds them up.
+    let pipelined = n * (n - 1) / 2 > 4 * PIPELINE_BATCH && crate::parallel::threads() > 1;
+    pairs.add_to(bins, pipelined);
+}
+
+/// Pairs' terms are computed a block of one agent's pairs at a time.
+const BLOCK: usize = 512;
+/// Pairs per batch handed from the computing core to the adding one.
+const PIPELINE_BATCH: usize = 1 << 17;
+
+/// The bins and products of consecutive pairs in (i, j) order.
+#[derive(Default)]
+struct Batch {
+    bin_of: Vec<u32>,
+    product: Vec<f64>,
+}
+
+impl Batch {
+    /// Adds the batch's products to `bins`, in order (pairs beyond the last bin are left out).
+    fn add_to(&self, bins: &mut [(f64, u64)]) {
+        for (&b, &p) in self.bin_of.iter().zip(&self.product) {
+            if let Some(bin) = bins.get_mut(b as usize) {
+                bin.0 += p;
+                bin.1 += 1;
             }
         }
     }
@@ -145,6 +154,55 @@ struct Pairs<'a> {
 impl<'a> Pairs<'a> {
     fn new(arena: &Arena, x: &'a [DVec2], dh: &'a [DVec2], width: f64) -> Self {
         Pairs { edge: arena.edge, half: arena.half(), periodic: arena.boundary == Boundary::Periodic, width, x, dh }
+    }
+
+    /// Adds every pair (i, j > i) to `bins`, in (i, j) order, the order that fixes every sum's rounding:
+    /// the terms a block at a time in a loop without branches that vectorizes, then added. `pipelined`:
+    /// the terms computed on another thread, batch by batch, while this one adds them (the same order).
+    fn add_to(&self, bins: &mut [(f64, u64)], pipelined: bool) {
+        let mut at = (0, 1);
+        if !pipelined {
+            let mut batch = Batch::default();
+            while self.fill(&mut at, &mut batch, BLOCK) {
+                batch.add_to(bins);
+            }
+            return;
+        }
+        let (full, filled) = std::sync::mpsc::sync_channel::<Batch>(2);
+        let (empty, emptied) = std::sync::mpsc::channel::<Batch>();
+        std::thread::scope(|scope| {
+            scope.spawn(move || loop {
+                let mut batch = emptied.try_recv().unwrap_or_default();
+                if !self.fill(&mut at, &mut batch, PIPELINE_BATCH) || full.send(batch).is_err() {
+                    return;
+                }
+            });
+            for batch in filled {
+                batch.add_to(bins);
+                let _ = empty.send(batch); // for reuse; the computing thread may have finished
+            }
+        });
+    }
+
+    /// Replaces `batch` with the terms of the pairs from `at` = (i, first j) on, in (i, j) order, whole
+    /// blocks up to `capacity` pairs; moves `at` past them. False when no pair is left.
+    fn fill(&self, at: &mut (usize, usize), batch: &mut Batch, capacity: usize) -> bool {
+        let n = self.x.len();
+        batch.bin_of.clear();
+        batch.product.clear();
+        while at.0 < n && batch.bin_of.len() + BLOCK <= capacity {
+            let (i, from) = *at;
+            if from >= n {
+                *at = (i + 1, i + 2);
+                continue;
+            }
+            let (len, to) = (batch.bin_of.len(), (from + BLOCK).min(n));
+            batch.bin_of.resize(len + to - from, 0);
+            batch.product.resize(len + to - from, 0.0);
+            self.terms(i, from, &mut batch.bin_of[len..], &mut batch.product[len..]);
+            at.1 = to;
+        }
+        !batch.bin_of.is_empty()
     }
 
     /// For agent i and the agents from `from` on, one per slot of `bin_of`: the bin ⌊‖x_j − x_i‖ / width⌋
@@ -375,6 +433,14 @@ mod tests {
             let (mut bins, mut var) = (vec![(0.0, 0); 23], (0.0, 0));
             add_heading_correlation(&arena, &pos, &head, 0.17, &mut bins, &mut var);
             let mean = head.iter().copied().sum::<DVec2>() / head.len() as f64;
+            // Both ways of adding them: on one thread, and computed on another.
+            let delta: Vec<DVec2> = head.iter().map(|h| *h - mean).collect();
+            let pairs = Pairs::new(&arena, &pos, &delta, 0.17);
+            let both = [false, true].map(|pipelined| {
+                let mut bins = vec![(0.0, 0); 23];
+                pairs.add_to(&mut bins, pipelined);
+                bins
+            });
             let mut plain = vec![(0.0, 0); 23];
             for i in 0..pos.len() {
                 for j in i + 1..pos.len() {
@@ -385,11 +451,14 @@ mod tests {
                     }
                 }
             }
-            assert!(bins.iter().zip(&plain).all(|(a, b)| a.0.to_bits() == b.0.to_bits() && a.1 == b.1), "{boundary:?}");
+            for bins in [&bins, &both[0], &both[1]] {
+                assert!(
+                    bins.iter().zip(&plain).all(|(a, b)| a.0.to_bits() == b.0.to_bits() && a.1 == b.1),
+                    "{boundary:?}"
+                );
+            }
             assert!(plain.iter().map(|b| b.1).sum::<u64>() < 1300 * 1299 / 2, "some pairs beyond the last bin");
             // This CPU's kernel against the portable loop, directly (the sums above used the former).
-            let delta: Vec<DVec2> = head.iter().map(|h| *h - mean).collect();
-            let pairs = Pairs::new(&arena, &pos, &delta, 0.17);
             let (mut b1, mut p1, mut b2, mut p2) = (vec![0; 1290], vec![0.0; 1290], vec![0; 1290], vec![0.0; 1290]);
             pairs.terms(3, 10, &mut b1, &mut p1);
             pairs.terms_portable(3, 10, &mut b2, &mut p2);
