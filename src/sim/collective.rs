@@ -143,9 +143,7 @@ impl Batch {
 
 /// The terms of [`add_heading_correlation`]'s pairs: positions x and heading fluctuations δh.
 struct Pairs<'a> {
-    edge: f64,
-    half: f64,
-    periodic: bool,
+    arena: Arena,
     width: f64,
     x: &'a [DVec2],
     dh: &'a [DVec2],
@@ -153,7 +151,7 @@ struct Pairs<'a> {
 
 impl<'a> Pairs<'a> {
     fn new(arena: &Arena, x: &'a [DVec2], dh: &'a [DVec2], width: f64) -> Self {
-        Pairs { edge: arena.edge, half: arena.half(), periodic: arena.boundary == Boundary::Periodic, width, x, dh }
+        Pairs { arena: *arena, width, x, dh }
     }
 
     /// Adds every pair (i, j > i) to `bins`, in (i, j) order, the order that fixes every sum's rounding:
@@ -223,18 +221,11 @@ impl<'a> Pairs<'a> {
     }
 
     /// [`Pairs::terms`] as `Arena::delta`, `length` and `dot` compute them: IEEE operations, so the same
-    /// bits at any vector width; the minimum image written as selects, so that the loop vectorizes.
+    /// bits at any vector width; the boundary decided once per block, so that the loop vectorizes.
     #[inline(always)]
     fn terms_portable(&self, i: usize, from: usize, bin_of: &mut [u32], product: &mut [f64]) {
-        let image = |d: f64| {
-            let wrapped = if d > self.half { d - self.edge } else { d };
-            let wrapped = if d < -self.half { d + self.edge } else { wrapped };
-            if self.periodic {
-                wrapped
-            } else {
-                d
-            }
-        };
+        let (periodic, edge) = (self.arena.boundary == Boundary::Periodic, self.arena.edge);
+        let image = |d: f64| if periodic { crate::sim::space::min_image(d, edge) } else { d };
         let (xi, di) = (self.x[i], self.dh[i]);
         let others = self.x[from..].iter().zip(&self.dh[from..]);
         for ((b, p), (x, d)) in bin_of.iter_mut().zip(product.iter_mut()).zip(others) {
