@@ -28,7 +28,7 @@ fn mark(label: &'static str) -> impl FnMut() {
     }
 }
 
-/// The stages as a step runs them (the marks in parentheses only start a clock).
+/// The stages as a step runs them (the mark before Decide only starts the step's clock).
 const STEP_ORDER: [&str; 10] = [
     "decide",
     "act",
@@ -57,7 +57,6 @@ fn instrument(app: &mut App) {
         app.add_systems(FixedUpdate, mark(label).after(set).before(next));
     }
     app.add_systems(FixedUpdate, mark("episode").after(Episode));
-    app.add_systems(FixedUpdate, mark("(before perceive)").in_set(Perceive).before(perception::run_perceive));
     use PerceiveSet::*;
     app.add_systems(
         perception::Perceive,
