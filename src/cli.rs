@@ -131,6 +131,10 @@ struct Cli {
     /// figures are redrawn from its committed figure-data.ron.gz).
     #[arg(long, help_heading = "Modes", value_name = "DIR")]
     plot: Option<PathBuf>,
+    /// --plot: draw a run stopped after its last checkpoint, or an experiment whose runs are not all
+    /// finished, from what there is (marked partial) instead of refusing.
+    #[arg(long, help_heading = "Experiments")]
+    partial: bool,
 
     /// Record a trajectory CSV: step,id,species,x,y,vx,vy,theta,thrust,turn_rate,reward.
     #[arg(long, help_heading = "Modes", value_name = "OUT.csv")]
@@ -244,7 +248,7 @@ const TAKES: [(&str, &[&str]); 11] = [
     ("bench", &["bench_seconds"]),
     ("describe_scene", &["seed", "prey", "predators", "count", "policy"]),
     ("experiment", &["jobs", "task", "emit_slurm", "quiet"]),
-    ("plot", &[]),
+    ("plot", &["partial"]),
     (
         VIEWER,
         &[
@@ -387,8 +391,9 @@ pub fn main(species: SpeciesPlugins) -> ExitCode {
     }
 }
 
+/// One line on stderr and a failure; a stderr that cannot take it (closed, full) still fails, quietly.
 fn fail(message: &str) -> ExitCode {
-    eprintln!("coevo: error: {message}");
+    let _ = crate::errln!("coevo: error: {message}");
     ExitCode::FAILURE
 }
 
@@ -472,16 +477,16 @@ fn run(cli: Cli, call: Call) -> crate::error::Result<()> {
                 return Err(format!("--bench-seconds: must be a number of seconds in (0, 3600] (got {seconds})").into());
             }
             let budget = Duration::from_secs_f64(seconds);
-            println!(
+            crate::outln!(
                 "coevo {} ({}), {} matrix-product kernels, {} threads",
                 env!("CARGO_PKG_VERSION"),
                 env!("COEVO_GIT_COMMIT"),
                 crate::learning::nets::kernels(),
                 crate::parallel::threads()
-            );
-            crate::run::bench::print(&crate::run::bench::environment(budget));
-            crate::run::bench::print(&crate::run::bench::learning(budget));
-            crate::run::bench::print(&crate::run::bench::external(budget));
+            )?;
+            crate::run::bench::print(&crate::run::bench::environment(budget))?;
+            crate::run::bench::print(&crate::run::bench::learning(budget))?;
+            crate::run::bench::print(&crate::run::bench::external(budget))?;
             Ok(())
         }
         Call::Eval(run) => {
@@ -512,7 +517,7 @@ fn run(cli: Cli, call: Call) -> crate::error::Result<()> {
             if cli.untrained && !opts.snapshots.is_empty() {
                 return Err("--untrained: deploys the networks the run was initialised with; --snapshot deploys others (the initial ones are --snapshot NAME=0)".into());
             }
-            println!("{}", crate::run::evaluate::evaluate(&opts)?);
+            crate::outln!("{}", crate::run::evaluate::evaluate(&opts)?)?;
             Ok(())
         }
         Call::Crossplay(run) => {
@@ -525,7 +530,7 @@ fn run(cli: Cli, call: Call) -> crate::error::Result<()> {
             };
             let (matrices, written) = crossplay::crossplay(&opts)?;
             for m in &matrices {
-                println!(
+                crate::outln!(
                     "cross-play {}: {} {} snapshots × {} {} snapshots, {} episodes per cell",
                     run.display(),
                     m.prey_episodes.len(),
@@ -533,14 +538,14 @@ fn run(cli: Cli, call: Call) -> crate::error::Result<()> {
                     m.predator_episodes.len(),
                     m.pair.predator_name,
                     opts.episodes
-                );
+                )?;
                 for r in crossplay::readouts(m) {
                     let value = r.value.map_or("–".to_string(), |v| format!("{v:+.3}"));
-                    println!("  {:<36} {value:>7}", r.name);
+                    crate::outln!("  {:<36} {value:>7}", r.name)?;
                 }
             }
             for line in written {
-                println!("wrote {line}");
+                crate::outln!("wrote {line}")?;
             }
             Ok(())
         }
@@ -564,9 +569,9 @@ fn run(cli: Cli, call: Call) -> crate::error::Result<()> {
                 progress: !cli.quiet,
             };
             let summaries = crate::run::train::train(scene, &opts)?;
-            eprintln!("coevo: trained {} episodes into {}", summaries.len(), run.display());
+            crate::errln!("coevo: trained {} episodes into {}", summaries.len(), run.display())?;
             if !cli.quiet {
-                eprint!("{}", crate::run::train::explain(&run)?);
+                crate::io::err_text(format_args!("{}", crate::run::train::explain(&run)?))?;
             }
             Ok(())
         }
@@ -574,7 +579,7 @@ fn run(cli: Cli, call: Call) -> crate::error::Result<()> {
             let (mut sim, steps, actors) = deployed(&cli, standard)?;
             let existing = if cli.overwrite { Existing::Replace } else { Existing::Refuse };
             crate::run::record::record(&mut sim, steps, &out, existing)?;
-            eprintln!("coevo: wrote {steps} steps to {}{actors}", out.display());
+            crate::errln!("coevo: wrote {steps} steps to {}{actors}", out.display())?;
             Ok(())
         }
         Call::Animate(out) => {
@@ -603,7 +608,7 @@ fn run(cli: Cli, call: Call) -> crate::error::Result<()> {
                 progress: !cli.quiet,
             };
             let s = crate::run::animate::animate(&mut sim, &opts, &out, existing)?;
-            eprintln!(
+            crate::errln!(
                 "coevo: wrote {} frames ({steps} steps, {:.1} MB) to {}{actors}; over the clip: polarization {:.3}, milling {:.3}, DoA {:.3}",
                 s.frames,
                 s.bytes as f64 / 1e6,
@@ -611,7 +616,7 @@ fn run(cli: Cli, call: Call) -> crate::error::Result<()> {
                 s.polarization,
                 s.milling,
                 s.doa
-            );
+            )?;
             Ok(())
         }
         Call::Experiment(which) => crate::experiment::report::experiment(&crate::experiment::report::Request {
@@ -624,10 +629,13 @@ fn run(cli: Cli, call: Call) -> crate::error::Result<()> {
         Call::Describe(path) => {
             let (scene, source) =
                 load_scene(&Cli { scene: Some(path), ..cli.clone() }, standard, &overrides(&cli, false)?)?;
-            print!("{}", crate::sim::species::describe(&scene, &source.display().to_string()));
+            crate::io::out_text(format_args!(
+                "{}",
+                crate::sim::species::describe(&scene, &source.display().to_string())
+            ))?;
             Ok(())
         }
-        Call::Plot(dir) => crate::experiment::report::plot(&dir),
+        Call::Plot(dir) => crate::experiment::report::plot(&dir, cli.partial),
         Call::Viewer => viewer(&cli),
     }
 }
@@ -643,6 +651,7 @@ fn deployed(cli: &Cli, standard: &Path) -> crate::error::Result<(crate::sim::Sim
     let (mut scene, _) = load_scene(cli, &default, &overrides(cli, false)?)?;
     let steps = cli.steps.unwrap_or(scene.episode_steps);
     scene.episode_steps = steps;
+    crate::run::announce_cost(&scene, steps)?;
     let wanted = snapshots(cli, cli.run.as_deref(), "--run")?;
     let mut learners = crate::learning::Learners::new(&scene, Mode::Evaluate);
     learners.load_actors(&scene, cli.run.as_deref())?;

@@ -17,6 +17,7 @@
 use std::fs::File;
 use std::io::{self, BufWriter, Read, Write};
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::Mutex;
 
 /// Temporary files and folders of this process that a signal must not leave behind.
@@ -43,16 +44,107 @@ fn remove_live_temporaries() {
     }
 }
 
-/// On SIGINT, SIGTERM or SIGHUP: remove this process's temporaries and lock files, then exit with 130
-/// (the shell's code for an interrupted command). Headless modes only: the viewer keeps Bevy's handler.
+/// Set by the signal handler: no new step of file writing starts ([`Writing::begin`] waits for the exit).
+static EXITING: AtomicBool = AtomicBool::new(false);
+/// Steps of file writing under way ([`Writing`]), which the signal handler lets finish.
+static WRITING: AtomicUsize = AtomicUsize::new(0);
+
+thread_local! {
+    /// How deep this thread is in nested [`Writing`] steps (an inner step never waits for the exit).
+    static DEPTH: std::cell::Cell<usize> = const { std::cell::Cell::new(0) };
+}
+
+/// A step of file writing that a signal must not cut in two: creating a temporary and registering it,
+/// renaming it into place, swapping a checkpoint folder, taking a lock. While one is under way the signal
+/// handler waits for it; once a signal has come, no new one starts (the thread waits for the exit). So the
+/// handler never removes a temporary that a writer is about to rename or write into, and a writer never
+/// creates one after the handler has cleaned up. Long streaming writes (a record of many steps) hold none
+/// between their steps, so a signal still stops them at once.
+pub struct Writing(());
+
+impl Writing {
+    pub fn begin() -> Writing {
+        DEPTH.with(|depth| {
+            if depth.get() == 0 {
+                loop {
+                    if !EXITING.load(Ordering::SeqCst) {
+                        WRITING.fetch_add(1, Ordering::SeqCst);
+                        if !EXITING.load(Ordering::SeqCst) {
+                            break;
+                        }
+                        WRITING.fetch_sub(1, Ordering::SeqCst);
+                    }
+                    // The handler is cleaning up and will end the process.
+                    std::thread::park_timeout(std::time::Duration::from_secs(1));
+                }
+            } else {
+                WRITING.fetch_add(1, Ordering::SeqCst);
+            }
+            depth.set(depth.get() + 1);
+        });
+        Writing(())
+    }
+}
+
+impl Drop for Writing {
+    fn drop(&mut self) {
+        DEPTH.with(|depth| depth.set(depth.get() - 1));
+        WRITING.fetch_sub(1, Ordering::SeqCst);
+    }
+}
+
+/// The longest the signal handler waits for a step of writing to finish (a checkpoint of the largest
+/// buffers takes a second or two).
+const WRITING_GRACE: std::time::Duration = std::time::Duration::from_secs(60);
+
+/// On SIGINT, SIGTERM or SIGHUP: let the step of file writing under way finish ([`Writing`]), remove
+/// this process's temporaries and lock files, then exit with 130 (the shell's code for an interrupted
+/// command). Headless modes only: the viewer keeps Bevy's handler.
 pub fn install_signal_cleanup() {
     let _ = ctrlc::set_handler(|| {
+        EXITING.store(true, Ordering::SeqCst);
+        let waited = std::time::Instant::now();
+        while WRITING.load(Ordering::SeqCst) > 0 && waited.elapsed() < WRITING_GRACE {
+            std::thread::sleep(std::time::Duration::from_millis(1));
+        }
         remove_live_temporaries();
         // Not eprintln!: stderr may be a pipe to a parent that is gone, and a panic here would keep the
         // process alive without its handler.
         let _ = writeln!(io::stderr(), "coevo: interrupted; temporary files removed, finished work kept");
         std::process::exit(130);
     });
+}
+
+/// Writes a line to standard output; a closed or full stream is an error (one line, a non-zero exit),
+/// never a panic as `println!` would give ([`outln!`](crate::outln)).
+pub fn out_line(args: std::fmt::Arguments) -> crate::error::Result<()> {
+    let mut out = io::stdout().lock();
+    writeln!(out, "{args}").and_then(|()| out.flush()).map_err(|e| format!("standard output: {e}").into())
+}
+
+/// Writes to standard output as [`out_line`] does, without adding a line break.
+pub fn out_text(args: std::fmt::Arguments) -> crate::error::Result<()> {
+    let mut out = io::stdout().lock();
+    write!(out, "{args}").and_then(|()| out.flush()).map_err(|e| format!("standard output: {e}").into())
+}
+
+/// Writes to standard error (what coevo says besides its results); a closed or full stream is an error,
+/// never a panic as `eprintln!` would give ([`errln!`](crate::errln)).
+pub fn err_text(args: std::fmt::Arguments) -> crate::error::Result<()> {
+    let mut err = io::stderr().lock();
+    write!(err, "{args}").and_then(|()| err.flush()).map_err(|e| format!("standard error: {e}").into())
+}
+
+/// `println!` that returns an error instead of panicking on a closed or full standard output.
+#[macro_export]
+macro_rules! outln {
+    ($($arg:tt)*) => { $crate::io::out_line(format_args!($($arg)*)) };
+}
+
+/// `eprintln!` that returns an error instead of panicking on a closed or full standard error.
+#[macro_export]
+macro_rules! errln {
+    ($($arg:tt)*) => { $crate::io::err_text(format_args!("{}\n", format_args!($($arg)*))) };
 }
 
 /// Whether a process with this PID exists (a PID that is ours is alive; `kill(pid, 0)` asks without
@@ -124,6 +216,7 @@ pub fn check_target(path: &Path, existing: Existing) -> io::Result<()> {
 pub struct AtomicFile {
     target: PathBuf,
     tmp: PathBuf,
+    existing: Existing,
     out: Option<BufWriter<File>>,
 }
 
@@ -131,14 +224,17 @@ impl AtomicFile {
     /// Starts writing `path`, after checking that it may be written ([`check_target`]).
     pub fn create(path: &Path, existing: Existing) -> io::Result<AtomicFile> {
         check_target(path, existing)?;
+        let _writing = Writing::begin();
         if let Some(name) = path.file_name() {
             let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
             remove_stale_temporaries(dir, Some(&name.to_string_lossy()));
         }
         let tmp = temporary_beside(path);
-        let out = BufWriter::new(File::create(&tmp)?);
+        // create_new: never through a link or over a file someone else placed at the temporary's name.
+        let _ = std::fs::remove_file(&tmp);
+        let out = BufWriter::new(File::options().write(true).create_new(true).open(&tmp)?);
         register_temporary(&tmp);
-        Ok(AtomicFile { target: path.to_path_buf(), tmp, out: Some(out) })
+        Ok(AtomicFile { target: path.to_path_buf(), tmp, existing, out: Some(out) })
     }
 
     /// The writer.
@@ -146,13 +242,21 @@ impl AtomicFile {
         self.out.as_mut().expect("an uncommitted file has its writer")
     }
 
-    /// Flushes, syncs and renames the temporary over the target.
+    /// Flushes, syncs and renames the temporary over the target. A target the caller may not replace
+    /// ([`Existing::Refuse`]) is still refused if another process created it meanwhile: the rename then
+    /// does not replace ([`rename_new`]), so of two processes writing one new file only one succeeds.
     pub fn commit(mut self) -> io::Result<()> {
         let mut out = self.out.take().expect("commit once");
         out.flush()?;
         out.get_ref().sync_all()?;
         drop(out);
-        let renamed = std::fs::rename(&self.tmp, &self.target);
+        let _writing = Writing::begin();
+        let renamed = match self.existing {
+            Existing::Replace => {
+                check_target(&self.target, Existing::Replace).and_then(|()| std::fs::rename(&self.tmp, &self.target))
+            }
+            Existing::Refuse => rename_new(&self.tmp, &self.target),
+        };
         if renamed.is_err() {
             let _ = std::fs::remove_file(&self.tmp);
         }
@@ -164,10 +268,63 @@ impl AtomicFile {
 impl Drop for AtomicFile {
     fn drop(&mut self) {
         if self.out.take().is_some() {
+            let _writing = Writing::begin();
             let _ = std::fs::remove_file(&self.tmp);
             unregister_temporary(&self.tmp);
         }
     }
+}
+
+/// Renames `from` to `to` unless `to` exists (Linux `renameat2(RENAME_NOREPLACE)`; elsewhere, or on a
+/// file system without it, a hard link and an unlink, which fail the same way).
+fn rename_new(from: &Path, to: &Path) -> io::Result<()> {
+    let taken =
+        || io::Error::new(io::ErrorKind::AlreadyExists, "already exists; choose a new name or pass --overwrite");
+    #[cfg(target_os = "linux")]
+    {
+        use std::os::unix::ffi::OsStrExt;
+        let c = |p: &Path| std::ffi::CString::new(p.as_os_str().as_bytes()).map_err(io::Error::other);
+        let (a, b) = (c(from)?, c(to)?);
+        // SAFETY: two NUL-terminated paths that live across the call.
+        let r =
+            unsafe { libc::renameat2(libc::AT_FDCWD, a.as_ptr(), libc::AT_FDCWD, b.as_ptr(), libc::RENAME_NOREPLACE) };
+        if r == 0 {
+            return Ok(());
+        }
+        let e = io::Error::last_os_error();
+        match e.raw_os_error() {
+            Some(libc::EEXIST) => return Err(taken()),
+            Some(libc::EINVAL) | Some(libc::ENOSYS) => {}
+            _ => return Err(e),
+        }
+    }
+    match std::fs::hard_link(from, to) {
+        Ok(()) => std::fs::remove_file(from),
+        Err(e) if e.kind() == io::ErrorKind::AlreadyExists => Err(taken()),
+        Err(e) => Err(e),
+    }
+}
+
+/// Creates the folder `dir` (and its parents) where coevo writes its own files inside a run or results
+/// folder (`figures/`, `snapshots/`, `slurm/`), and refuses it unless it is a real folder: a symbolic link
+/// there would send coevo's writes into whatever folder it points to.
+pub fn own_dir(dir: &Path) -> crate::error::Result<()> {
+    let shown = || dir.display().to_string();
+    match std::fs::symlink_metadata(dir) {
+        Ok(m) if m.file_type().is_symlink() => {
+            return Err(format!(
+                "{}: is a symbolic link; coevo writes only into real folders it owns, never through a link: remove the link",
+                shown()
+            )
+            .into())
+        }
+        Ok(m) if !m.is_dir() => return Err(format!("{}: exists and is not a folder", shown()).into()),
+        Ok(_) => return Ok(()),
+        Err(_) => {}
+    }
+    let _writing = Writing::begin();
+    std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", shown()))?;
+    Ok(())
 }
 
 /// Writes `path` atomically with `write`; on error the target is untouched and the temporary removed.

@@ -48,6 +48,14 @@ fn workspace() -> tempfile::TempDir {
         let opts = coevo::run::train::TrainOptions::new(root.join(run), Some(1));
         coevo::run::train::train(scene.clone(), &opts).unwrap();
     }
+    // Two episodes, a checkpoint and a snapshot after each: two replay segments per species of equal
+    // size, and rows to lose.
+    let mut twice = scene.clone();
+    twice.learning.checkpoint_every = 1;
+    twice.learning.snapshot_every = 1;
+    coevo::run::train::train(twice.clone(), &coevo::run::train::TrainOptions::new(root.join("run2"), Some(2))).unwrap();
+    twice.seed += 1;
+    coevo::run::train::train(twice, &coevo::run::train::TrainOptions::new(root.join("other-seed"), Some(2))).unwrap();
     // A NaN in the prey actor's first weight: the safetensors header is followed by the tensors' bytes.
     let actor = root.join("nan-run/checkpoint/prey-actor.safetensors");
     let mut bytes = std::fs::read(&actor).unwrap();
@@ -72,6 +80,7 @@ fn workspace() -> tempfile::TempDir {
         assert!(text.contains(from), "{file} holds {from}");
         std::fs::write(&path, text.replacen(from, to, 1)).unwrap();
     }
+    damage(root);
     copy_dir(&root.join("run"), &root.join("hawk-run"));
     std::fs::write(root.join("hawk-run/provenance.ron"), "(coevo_version: \"0.1.0\", plugins: [\"hawk\"])\n").unwrap();
     copy_dir(&root.join("run"), &root.join("kernels-run"));
@@ -101,6 +110,97 @@ fn workspace() -> tempfile::TempDir {
     #[cfg(unix)]
     std::os::unix::fs::symlink(root.join("notes.csv"), root.join("link.csv")).unwrap();
     dir
+}
+
+/// Runs damaged after training, each in one way (robustness III): every one is refused by whatever reads
+/// it, in one line naming the file.
+fn damage(root: &Path) {
+    let copy = |from: &str, to: &str| {
+        copy_dir(&root.join(from), &root.join(to));
+        root.join(to)
+    };
+    let flip = |path: &Path, at: usize| {
+        let mut bytes = std::fs::read(path).unwrap();
+        let n = bytes.len();
+        bytes[n - at] ^= 0x01;
+        std::fs::write(path, bytes).unwrap();
+    };
+    let swap = |a: &Path, b: &Path| {
+        let tmp = a.with_extension("swap");
+        std::fs::rename(a, &tmp).unwrap();
+        std::fs::rename(b, a).unwrap();
+        std::fs::rename(&tmp, b).unwrap();
+    };
+    // The predator's and the prey's actors swapped (the same shapes in the paper preset).
+    let run = copy("run", "swapped-run");
+    swap(&run.join("checkpoint/prey-actor.safetensors"), &run.join("checkpoint/predator-actor.safetensors"));
+    // One finite weight changed in its last bit.
+    flip(&copy("run", "tweaked-run").join("checkpoint/prey-actor.safetensors"), 6);
+    // A NaN written over the last transition of a replay segment.
+    let run = copy("run", "nan-segment-run");
+    let segment = std::fs::read_dir(run.join("checkpoint"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .find(|p| p.to_string_lossy().contains("prey-replay-"))
+        .unwrap();
+    let mut bytes = std::fs::read(&segment).unwrap();
+    let n = bytes.len();
+    bytes[n - 4..].copy_from_slice(&f32::NAN.to_le_bytes());
+    std::fs::write(&segment, bytes).unwrap();
+    // Two replay segments of one size swapped.
+    let run = copy("run2", "swapped-segments-run");
+    let mut segments: Vec<PathBuf> = std::fs::read_dir(run.join("checkpoint"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.to_string_lossy().contains("predator-replay-"))
+        .collect();
+    segments.sort();
+    assert_eq!(segments.len(), 2);
+    assert_eq!(std::fs::metadata(&segments[0]).unwrap().len(), std::fs::metadata(&segments[1]).unwrap().len());
+    swap(&segments[0], &segments[1]);
+    // The random stream's state edited in state.ron.
+    let state = copy("run", "reseeded-run").join("checkpoint/state.ron");
+    let text = std::fs::read_to_string(&state).unwrap();
+    let at = text.find("seed: (").unwrap() + "seed: (".len();
+    let digit = text[at..].find(|c: char| c.is_ascii_digit()).unwrap() + at;
+    let changed = if &text[digit..=digit] == "7" { "8" } else { "7" };
+    std::fs::write(&state, format!("{}{changed}{}", &text[..digit], &text[digit + 1..])).unwrap();
+    // A metrics row edited (the episode's step count).
+    let metrics = copy("run", "edited-row-run").join("metrics.csv");
+    let text = std::fs::read_to_string(&metrics).unwrap();
+    std::fs::write(&metrics, text.replacen("\n0,10,", "\n0,11,", 1)).unwrap();
+    // The manifest removed.
+    std::fs::remove_file(copy("run", "unsealed-run").join("checkpoint/manifest.ron")).unwrap();
+    // A snapshot copied in from a run of another scene (another seed).
+    let run = copy("run2", "foreign-snapshot-run");
+    std::fs::copy(
+        root.join("other-seed/snapshots/prey-ep00001.safetensors"),
+        run.join("snapshots/prey-ep00001.safetensors"),
+    )
+    .unwrap();
+    // metrics.csv broken for plots: a row repeated, a row lost, a row cut mid-line, a NaN, a header only,
+    // rows after the last checkpoint.
+    let metrics = |run: &str| std::fs::read_to_string(root.join(run).join("metrics.csv")).unwrap();
+    let lines: Vec<String> = metrics("run2").lines().map(str::to_string).collect();
+    let write = |run: &str, text: String| std::fs::write(copy("run2", run).join("metrics.csv"), text).unwrap();
+    write("repeated-row-run", format!("{}\n{}\n", lines.join("\n"), lines[2]));
+    write("lost-row-run", format!("{}\n{}\n", lines[0], lines[1]));
+    write("cut-row-run", format!("{}\n{}", lines[..2].join("\n"), &lines[2][..lines[2].len() / 2]));
+    let mut cells: Vec<&str> = lines[1].split(',').collect();
+    cells[2] = "NaN";
+    write("nan-row-run", format!("{}\n{}\n{}\n", lines[0], cells.join(","), lines[2]));
+    write("header-only-run", format!("{}\n", lines[0]));
+    let mut next: Vec<String> = lines[2].split(',').map(str::to_string).collect();
+    next[0] = "2".into();
+    write("after-checkpoint-run", format!("{}\n{}\n", lines.join("\n"), next.join(",")));
+    // Folders of the run that are links: figures/ to a user's folder, snapshots/ to another run's.
+    #[cfg(unix)]
+    {
+        std::os::unix::fs::symlink(root.join("mine"), copy("run2", "linked-figures-run").join("figures")).unwrap();
+        let run = copy("run2", "linked-snapshots-run");
+        std::fs::remove_dir_all(run.join("snapshots")).unwrap();
+        std::os::unix::fs::symlink(root.join("run2/snapshots"), run.join("snapshots")).unwrap();
+    }
 }
 
 fn copy_dir(from: &Path, to: &Path) {
@@ -146,6 +246,9 @@ const EXPERIMENTS: &[(&str, &str)] = &[
         r#"(base: "scenes/paper.ron", seeds: [1], variants: [(name: "a", patch: (species: [(name: "pr,ey", count: 2, mass: 1.0, radius: 0.03, max_speed: 0.5, max_thrust: 1.0, max_turn_rate: 0.5, perception: Full, topological_limit: 6, colour: (0.1, 0.1, 0.1), catches: [], policy: Random)]))])"#,
     ),
     ("fine", r#"(base: "scenes/paper.ron", seeds: [1, 2], variants: [(name: "a")])"#),
+    // Found only after runs had trained, before robustness III: refused at load now.
+    ("zero-crossplay", r#"(base: "scenes/paper.ron", seeds: [1], variants: [(name: "a")], crossplay: (episodes: 0))"#),
+    ("nul-variant", "(base: \"scenes/paper.ron\", seeds: [1], variants: [(name: \"a\u{0}b\")])"),
 ];
 
 /// Scenes written into the workspace for the cases below, by name.
@@ -176,6 +279,10 @@ const SCENES: &[(&str, &str)] = &[
     ("truncated", "(\n  seed: 3,\n  species: [(name: \"prey\", count: 2)\n"),
     ("frozen-missing", r#"(species: [(name: "prey", policy: Frozen("no-such-run"))])"#),
     ("unknown-field", "(world: (gravity: 9.81))"),
+    (
+        "long-species",
+        r#"(species: [(name: "prey", count: 0), (name: "LONG", count: 2, mass: 1.0, radius: 0.03, max_speed: 0.5, max_thrust: 1.0, max_turn_rate: 0.5, perception: Full, topological_limit: 6, colour: (0.1, 0.1, 0.1), catches: [], policy: Random)])"#,
+    ),
     (
         "comma",
         r#"(species: [(name: "prey", count: 3), (name: "pr,ey", count: 2, mass: 1.0, radius: 0.03, max_speed: 0.5, max_thrust: 1.0, max_turn_rate: 0.5, perception: Full, topological_limit: 6, colour: (0.1, 0.1, 0.1), catches: [], policy: Random)])"#,
@@ -299,7 +406,7 @@ fn cases() -> Vec<(Vec<&'static str>, &'static str)> {
         ),
         (
             vec!["--resume", "lowered-run", "--episodes", "3"],
-            "damaged checkpoint: episodes_done is 0 but its metrics hold episodes 0..=0",
+            "lowered-run/checkpoint/state.ron: changed since the checkpoint was written",
         ),
         (
             vec!["--resume", "run", "--episodes", "1"],
@@ -328,6 +435,54 @@ fn cases() -> Vec<(Vec<&'static str>, &'static str)> {
             "ends in -confusion, the name of another evaluation's confusion file",
         ),
         (vec!["--eval", "run", "--eval-out", "../x.csv"], "--eval-out ../x.csv: must be a single name"),
+        // A checkpoint proves its integrity: whatever reads it checks each file against its manifest and
+        // its metadata (robustness III).
+        (vec!["--eval", "swapped-run", "--steps", "3"], "predator-actor.safetensors: holds a network of prey, not of predator"),
+        (
+            vec!["--eval", "tweaked-run", "--steps", "3"],
+            "tweaked-run/checkpoint/prey-actor.safetensors: changed since the checkpoint was written",
+        ),
+        (vec!["--resume", "nan-segment-run", "--episodes", "3"], "tensor next_obs holds a non-finite value"),
+        (
+            vec!["--resume", "swapped-segments-run", "--episodes", "3"],
+            "predator-replay-0-30.safetensors: changed since the checkpoint was written",
+        ),
+        (
+            vec!["--resume", "reseeded-run", "--episodes", "3"],
+            "reseeded-run/checkpoint/state.ron: changed since the checkpoint was written",
+        ),
+        (
+            vec!["--resume", "edited-row-run", "--episodes", "3"],
+            "edited-row-run/metrics.csv: its rows up to the checkpoint differ from what was trained",
+        ),
+        (vec!["--eval", "unsealed-run", "--steps", "3"], "unsealed-run/checkpoint/manifest.ron: missing"),
+        (
+            vec!["--crossplay", "foreign-snapshot-run", "--episodes", "1", "--steps", "3"],
+            "snapshots/prey-ep00001.safetensors: trained on another scene",
+        ),
+        (
+            vec!["--eval", "foreign-snapshot-run", "--snapshot", "prey=1", "--steps", "3"],
+            "trained on another scene",
+        ),
+        // Plots and summaries draw only from whole data.
+        (vec!["--plot", "repeated-row-run"], "repeated-row-run/metrics.csv:4: episode 1 where episode 2 belongs"),
+        (vec!["--plot", "lost-row-run"], "holds 1 episodes but the checkpoint 2: rows were lost"),
+        (vec!["--plot", "cut-row-run"], "cut-row-run/metrics.csv:3: the last row is cut short"),
+        (vec!["--plot", "nan-row-run"], "\"NaN\" is not a finite number"),
+        (vec!["--plot", "header-only-run"], "holds no episode (a header only)"),
+        (vec!["--plot", "after-checkpoint-run"], "holds 3 episodes but the checkpoint only 2"),
+        // No write through a link.
+        (vec!["--plot", "linked-figures-run"], "linked-figures-run/figures: is a symbolic link"),
+        (vec!["--resume", "linked-snapshots-run", "--episodes", "3"], "linked-snapshots-run/snapshots: is a symbolic link"),
+        // Flags given twice, names that fail late.
+        (
+            vec!["--eval", "run", "--control", "blind:prey:prey", "--control", "shuffled:prey:prey"],
+            "name the same block twice",
+        ),
+        (vec!["--eval", "run", "--seed", "1", "--seed", "2"], "'--seed <S>' cannot be used multiple times"),
+        (vec!["--experiment", "experiments/zero-crossplay.ron"], "crossplay.episodes: must be ≥ 1 (got 0)"),
+        (vec!["--experiment", "experiments/nul-variant.ron"], "must not hold a control character"),
+        (vec!["--train", "--scene", "long-species.ron"], "at most 64 characters"),
         // Experiment files are checked whole before anything runs.
         (
             vec!["--experiment", "experiments/dotdot.ron"],
@@ -374,7 +529,7 @@ fn every_bad_input_is_one_line_a_failure_and_changes_nothing() {
     let dir = workspace();
     let root = dir.path();
     for (name, text) in SCENES {
-        std::fs::write(root.join(format!("{name}.ron")), text).unwrap();
+        std::fs::write(root.join(format!("{name}.ron")), text.replace("LONG", &"s".repeat(10_000))).unwrap();
     }
     std::fs::write(root.join("binary.ron"), [b'(', 0xff, 0xfe, b')']).unwrap();
     let before = snapshot(root);
@@ -427,6 +582,18 @@ fn what_may_be_written_is_written_and_nothing_else() {
     let out = coevo(&["--train", "--out", "damaged-run", "--overwrite", "--episodes", "1", "--quiet"]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     assert!(std::fs::read_to_string(root.join("damaged-run/provenance.ron")).unwrap().contains("binary"));
+    // --partial draws a run stopped after its last checkpoint, saying so in the figure.
+    let out = coevo(&["--plot", "after-checkpoint-run", "--partial"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let svg = std::fs::read_to_string(root.join("after-checkpoint-run/figures/training.svg")).unwrap();
+    assert!(svg.contains("partial: episodes 2..3 after the last checkpoint"), "the figure says it is partial");
+    // What a killed process left is cleared by the next use: a checkpoint.old/ of a swap cut short
+    // beside a whole checkpoint, and a lock file left empty (a disk that filled as it was taken).
+    copy_dir(&root.join("run/checkpoint"), &root.join("run2/checkpoint.old"));
+    std::fs::write(root.join("run2/coevo.lock"), "").unwrap();
+    let out = coevo(&["--eval", "run2", "--steps", "3"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(!root.join("run2/checkpoint.old").exists() && !root.join("run2/coevo.lock").exists());
     // A new or empty folder is used as it is.
     std::fs::create_dir(root.join("empty")).unwrap();
     let out = coevo(&["--train", "--out", "empty", "--episodes", "1", "--quiet"]);

@@ -10,6 +10,8 @@ use coevo::run::train::{train, TrainOptions};
 use coevo::scene::{Overrides, Scene};
 use std::path::{Path, PathBuf};
 
+mod common;
+
 /// A small scene trained for 5 episodes with snapshots every 2: episodes 0, 2, 4 and 5 (the end).
 fn trained(dir: &Path) -> (Scene, PathBuf) {
     let mut scene = Scene::preset("paper").unwrap();
@@ -86,6 +88,7 @@ fn a_run_against_itself_with_identical_snapshots_gives_identical_cells() {
             std::fs::copy(&first, snapshots.join(format!("{species}-ep{e:05}.safetensors"))).unwrap();
         }
     }
+    common::reseal_snapshots(&run);
     let m = play(&run);
     assert_eq!((m.prey_episodes.clone(), m.predator_episodes.clone()), (vec![0, 2, 4, 5], vec![0, 2, 4, 5]));
     // crossplay.csv reads back as the matrix, to the last digit; the mean of two equal matrices is it.
@@ -111,10 +114,14 @@ fn predators_that_never_move_catch_only_what_the_prey_bring_them() {
     // snapshot still too.
     for e in [0, 2, 4, 5] {
         let actor = load_snapshot(&run, "predator", e, &like(&scene, 0)).unwrap();
-        save_snapshot(&run, "predator", e, &still(actor)).unwrap();
+        save_snapshot(&run, &scene, "predator", e, &still(actor)).unwrap();
     }
     let prey0 = load_snapshot(&run, "prey", 0, &like(&scene, 1)).unwrap();
-    save_snapshot(&run, "prey", 0, &still(prey0)).unwrap();
+    save_snapshot(&run, &scene, "prey", 0, &still(prey0)).unwrap();
+    // Snapshots changed by hand are refused as damaged until the checkpoint's manifest says otherwise.
+    let opts = CrossplayOptions { run: run.clone(), episodes: 2, overrides: Overrides::default(), progress: false };
+    assert!(crossplay(&opts).unwrap_err().to_string().contains("changed since the checkpoint was written"));
+    common::reseal_snapshots(&run);
     let m = play(&run);
     // Nobody moves: no catch.
     assert!(m.cells[0].iter().all(|c| c.catches == 0.0), "{:?}", m.cells[0]);

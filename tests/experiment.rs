@@ -401,11 +401,48 @@ fn slurm_scripts_have_the_array_range_and_the_aggregate_dependency() {
     let slurm = dir.path().join("results/tiny/slurm");
     let array = std::fs::read_to_string(slurm.join("array.sh")).unwrap();
     assert!(array.contains("#SBATCH --array=0-3"), "{array}");
-    assert!(array.contains("--experiment experiments/tiny.ron --task $SLURM_ARRAY_TASK_ID"), "{array}");
+    assert!(array.contains("--experiment experiments/tiny.ron --task \"$SLURM_ARRAY_TASK_ID\""), "{array}");
     let submit = std::fs::read_to_string(slurm.join("submit.sh")).unwrap();
-    assert!(submit.contains("jid=$(sbatch --parsable results/tiny/slurm/array.sh)"), "{submit}");
-    assert!(submit.contains("sbatch --dependency=afterok:$jid results/tiny/slurm/aggregate.sh"), "{submit}");
+    assert!(
+        submit.contains("jid=$(sbatch --parsable --job-name=tiny --output='results/tiny/slurm/%A_%a.log' results/tiny/slurm/array.sh)"),
+        "{submit}"
+    );
+    assert!(submit.contains("sbatch --dependency=afterok:\"$jid\""), "{submit}");
+    assert!(submit.contains("results/tiny/slurm/aggregate.sh"), "{submit}");
     assert!(std::fs::read_to_string(slurm.join("aggregate.sh")).unwrap().contains("--plot results/tiny"));
+    // Paths and names are words of the scripts, never shell code (robustness III): the array task's
+    // command line parses back to exactly the file's path, and submitting runs nothing of a name.
+    let root = dir.path();
+    let bin = root.join("bin");
+    std::fs::create_dir(&bin).unwrap();
+    std::fs::write(bin.join("sbatch"), "#!/bin/sh\nprintf '%s\\n' \"$@\" >> sbatch.log\necho 42\n").unwrap();
+    std::fs::set_permissions(bin.join("sbatch"), std::os::unix::fs::PermissionsExt::from_mode(0o755)).unwrap();
+    for name in ["x;touch PWNED;", "y$(touch PWNED)", "with space", "it's"] {
+        let file = format!("experiments/{name}.ron");
+        std::fs::write(root.join(&file), TINY).unwrap();
+        let out = coevo(root, &["--experiment", &file, "--emit-slurm"]);
+        assert!(out.status.success(), "{name}: {}", String::from_utf8_lossy(&out.stderr));
+        let scripts = root.join("results").join(name).join("slurm");
+        let array = std::fs::read_to_string(scripts.join("array.sh")).unwrap();
+        let exec = array.lines().find(|l| l.starts_with("exec ")).unwrap();
+        let words = shell_words::split(exec).unwrap();
+        assert_eq!(words[2..6], ["--experiment", file.as_str(), "--task", "$SLURM_ARRAY_TASK_ID"], "{name}: {exec}");
+        let path = format!("{}:{}", bin.display(), std::env::var("PATH").unwrap());
+        let submitted =
+            Command::new("bash").arg(scripts.join("submit.sh")).env("PATH", path).current_dir(root).output().unwrap();
+        assert!(submitted.status.success(), "{name}: {}", String::from_utf8_lossy(&submitted.stderr));
+        let log = std::fs::read_to_string(root.join("sbatch.log")).unwrap();
+        assert!(
+            log.contains(&format!("--job-name={name}\n")) && log.contains(&format!("results/{name}/slurm/array.sh\n")),
+            "{log}"
+        );
+        assert!(!root.join("PWNED").exists(), "{name}: a name ran as shell code");
+    }
+    // A name no script can quote safely is refused before anything is written.
+    std::fs::write(root.join("experiments/per%cent.ron"), TINY).unwrap();
+    let out = coevo(root, &["--experiment", "experiments/per%cent.ron", "--emit-slurm"]);
+    assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("control character or %"));
+    assert!(!root.join("results/per%cent/slurm").exists());
     // An array task runs exactly its run (here of a file that keeps trained runs' replay buffers).
     let keeping = TINY.replacen("seeds: [1, 2],", "seeds: [1, 2], keep_replay: true,", 1);
     std::fs::write(dir.path().join("experiments/tiny.ron"), keeping).unwrap();

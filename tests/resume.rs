@@ -2,7 +2,7 @@
 //! themselves. Every run here is a real `coevo` process, killed with SIGKILL or SIGTERM as a machine or a
 //! user would.
 
-use coevo::learning::checkpoint::TrainingState;
+use coevo::learning::manifest::Manifest;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
@@ -60,8 +60,8 @@ fn metrics(run: &Path) -> Vec<String> {
     text.lines().map(|l| l.rsplit_once(',').unwrap().0.to_string()).collect()
 }
 
-/// Every file of the checkpoint with its bytes; state.ron with its copy of the metrics' wall clock
-/// dropped (the one thing that is not a function of scene and seed).
+/// Every file of the checkpoint with its bytes; manifest.ron without its hash of metrics.csv, which holds
+/// the wall clock (the one thing that is not a function of scene and seed).
 fn checkpoint(run: &Path) -> Vec<(String, Vec<u8>)> {
     let mut files: Vec<(String, Vec<u8>)> = std::fs::read_dir(run.join("checkpoint"))
         .unwrap()
@@ -69,11 +69,10 @@ fn checkpoint(run: &Path) -> Vec<(String, Vec<u8>)> {
             let e = e.unwrap();
             let name = e.file_name().to_string_lossy().into_owned();
             let mut bytes = std::fs::read(e.path()).unwrap();
-            if name == "state.ron" {
-                let mut state: TrainingState = ron::from_str(std::str::from_utf8(&bytes).unwrap()).unwrap();
-                let lines: Vec<&str> = state.metrics_csv.lines().map(|l| l.rsplit_once(',').unwrap().0).collect();
-                state.metrics_csv = lines.join("\n");
-                bytes = ron::to_string(&state).unwrap().into_bytes();
+            if name == "manifest.ron" {
+                let mut manifest: Manifest = ron::from_str(std::str::from_utf8(&bytes).unwrap()).unwrap();
+                manifest.metrics = Default::default();
+                bytes = manifest.to_ron().into_bytes();
             }
             (name, bytes)
         })
@@ -430,4 +429,115 @@ fn a_live_run_saved_between_episodes_resumes_to_the_train_run() {
     let e = save(&sim, &dir.path().join("altered")).unwrap_err().to_string();
     assert!(e.contains("not saved: the population changed"), "{e}");
     assert!(!dir.path().join("altered").exists());
+}
+
+/// Every file and folder under `dir` whose name marks it as a temporary or a leftover of a checkpoint
+/// swap, or a lock.
+fn leftovers(dir: &Path) -> Vec<PathBuf> {
+    let mut found = Vec::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for entry in std::fs::read_dir(&d).unwrap() {
+            let path = entry.unwrap().path();
+            let name = path.file_name().unwrap().to_string_lossy().into_owned();
+            if name.ends_with(".tmp") || name == "checkpoint.old" || name == "coevo.lock" {
+                found.push(path.clone());
+            }
+            if path.is_dir() {
+                stack.push(path);
+            }
+        }
+    }
+    found
+}
+
+#[test]
+fn a_signal_at_any_moment_leaves_nothing_half_done_and_says_so_once() {
+    let dir = tempfile::tempdir().unwrap();
+    // A checkpoint and a snapshot after every episode: most of the time is spent writing.
+    let scene = dir.path().join("scene.ron");
+    std::fs::write(
+        &scene,
+        scene_text(false).replace("checkpoint_every: 2, snapshot_every: 5", "checkpoint_every: 1, snapshot_every: 1"),
+    )
+    .unwrap();
+    let whole = dir.path().join("whole");
+    finish(train(&scene, &whole));
+    for (i, signal) in ["-TERM", "-INT", "-HUP"].iter().cycle().take(9).enumerate() {
+        let run = dir.path().join(format!("signalled-{i}"));
+        let mut child = train(&scene, &run);
+        let started = Instant::now();
+        while rows(&run) < 2 + i {
+            assert!(child.try_wait().unwrap().is_none(), "the run ended before the signal");
+            assert!(started.elapsed() < Duration::from_secs(120), "no progress");
+            std::thread::sleep(Duration::from_millis(1));
+        }
+        // At a different moment of the episode each time: stepping, snapshotting, checkpointing.
+        std::thread::sleep(Duration::from_millis(3 * i as u64));
+        assert!(Command::new("kill").args([signal.to_string(), child.id().to_string()]).status().unwrap().success());
+        let out = child.wait_with_output().unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(130), "{signal}: {stderr}");
+        assert_eq!(stderr.lines().count(), 1, "{signal}: one line: {stderr}");
+        assert!(stderr.contains("interrupted"), "{stderr}");
+        assert_eq!(leftovers(&run), Vec::<PathBuf>::new(), "{signal} after {} episodes", 2 + i);
+        let resumed = coevo().arg("--resume").arg(&run).args(["--quiet"]).output().unwrap();
+        assert!(resumed.status.success(), "{}", String::from_utf8_lossy(&resumed.stderr));
+        assert_eq!(metrics(&run), metrics(&whole), "{signal}: resumed after the signal");
+    }
+}
+
+#[test]
+fn of_two_processes_writing_one_new_file_exactly_one_succeeds() {
+    let dir = tempfile::tempdir().unwrap();
+    let record = || {
+        coevo()
+            .args(["--record", "same.csv", "--steps", "300", "--prey", "200", "--scene"])
+            .arg(standard())
+            .current_dir(dir.path())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap()
+    };
+    for _ in 0..3 {
+        let _ = std::fs::remove_file(dir.path().join("same.csv"));
+        let _ = std::fs::remove_file(dir.path().join("same-order.csv"));
+        let (a, b) = (record(), record());
+        let outs = [a.wait_with_output().unwrap(), b.wait_with_output().unwrap()];
+        let succeeded = outs.iter().filter(|o| o.status.success()).count();
+        let stderr: Vec<String> = outs.iter().map(|o| String::from_utf8_lossy(&o.stderr).into_owned()).collect();
+        assert_eq!(succeeded, 1, "{stderr:?}");
+        let refused = outs.iter().find(|o| !o.status.success()).unwrap();
+        assert!(String::from_utf8_lossy(&refused.stderr).contains("already exists"), "{stderr:?}");
+        let rows = std::fs::read_to_string(dir.path().join("same.csv")).unwrap().lines().count();
+        assert_eq!(rows, 1 + 301 * 203, "the file is one process's, whole");
+    }
+}
+
+#[test]
+fn a_full_output_is_an_error_not_a_panic() {
+    let dir = tempfile::tempdir().unwrap();
+    let full = || std::fs::OpenOptions::new().write(true).open("/dev/full").unwrap();
+    let describe = || {
+        let mut c = coevo();
+        c.arg("--describe-scene").arg(standard()).current_dir(dir.path());
+        c
+    };
+    // stdout full: the error goes to stderr.
+    let out = describe().stdout(full()).output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("standard output:") && !stderr.contains("panicked"), "{stderr}");
+    // stderr full, with an error or with the closing line of a record: a failure, and no panic (which
+    // exits 101).
+    let out = coevo().args(["--describe-scene", "nope.ron"]).current_dir(dir.path()).stderr(full()).output().unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    let out = coevo()
+        .args(["--record", "r.csv", "--steps", "2", "--scene"])
+        .arg(standard())
+        .current_dir(dir.path())
+        .stderr(full())
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
 }

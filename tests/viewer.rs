@@ -10,6 +10,8 @@ use coevo::viewer::{RunMode, Setup};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+mod common;
+
 const BIN: &str = env!("CARGO_BIN_EXE_coevo");
 const WIDTH: u32 = 1280;
 const HEIGHT: u32 = 720;
@@ -278,7 +280,8 @@ fn watching_a_run_deploys_the_snapshots_asked_for() {
     let mut other = trained.species[1].as_ref().unwrap().ddpg.actor.clone();
     let shifted: Vec<Vec<f32>> = other.parameters().iter().map(|p| p.iter().map(|x| x + 0.5).collect()).collect();
     other.set_parameters(&shifted);
-    coevo::learning::checkpoint::save_snapshot(&run, "prey", 0, &other).unwrap();
+    coevo::learning::checkpoint::save_snapshot(&run, &scene, "prey", 0, &other).unwrap();
+    common::reseal_snapshots(&run);
     let (_, learners) = setup(vec![("prey".into(), 0)]).prepare().unwrap();
     assert_eq!(learners.species[1].as_ref().unwrap().ddpg.actor.parameters(), other.parameters());
     assert_ne!(trained.species[1].as_ref().unwrap().ddpg.actor.parameters(), other.parameters());

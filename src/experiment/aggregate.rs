@@ -58,7 +58,7 @@ pub fn load(exp: &Experiment) -> crate::error::Result<BTreeMap<usize, RunData>> 
         if stage(run)? != Stage::Trained {
             continue;
         }
-        let metrics = Table::read(&RunDir::new(&run.dir).metrics())?;
+        let (metrics, _) = RunDir::new(&run.dir).checked_metrics(false)?;
         let mut d = RunData {
             dos: metrics.column(&schema::of("dos", &prey))?,
             doa: metrics.column(&schema::of("doa", &prey))?,
@@ -89,7 +89,7 @@ pub fn load(exp: &Experiment) -> crate::error::Result<BTreeMap<usize, RunData>> 
             if let Some(stale) = super::runner::stale(run, e) {
                 return Err(format!("{stale}; run `coevo --experiment {}` to redo it", exp.file.display()).into());
             }
-            let table = Table::read(&path)?;
+            let table = Table::read_eval(&path)?;
             let step = table.column(schema::STEP)?;
             let steps = step.iter().fold(0.0f64, |a, &b| a.max(b)) as usize;
             let per_step = |values: &[f64]| -> Vec<f64> {
@@ -191,9 +191,6 @@ pub fn aggregate(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> crate::er
     check_complete(exp, data)?;
     let written = !data.is_empty();
     let prey = headline(exp);
-    fn io(path: &Path) -> impl Fn(std::io::Error) -> String + '_ {
-        move |e| format!("{}: {e}", path.display())
-    }
     let evals: Vec<String> = exp.spec.evaluations.iter().map(|e| e.name.clone()).collect();
     // One column per primitive quantity (named by `claims::column`), and beside every control how much
     // of the seeing actors' alignment it removes (derived, for reading).
@@ -275,7 +272,7 @@ pub fn aggregate(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> crate::er
         read
     };
     if drawn.is_some() {
-        std::fs::create_dir_all(exp.root.join("figures")).map_err(io(&exp.root))?;
+        crate::io::own_dir(&exp.root.join("figures"))?;
     }
     let mut means = String::from("preset,variant,quantity,seeds,mean,ci95\n");
     let mut results = Vec::new();
@@ -726,13 +723,15 @@ fn figures<'a>(
 }
 
 /// One run's learning curves (DoS and DoA of the headline species, 100-episode running means) into
-/// `RUN/figures/training.png`, from its `metrics.csv`.
-pub fn plot_run(dir: &Path) -> crate::error::Result<std::path::PathBuf> {
+/// `RUN/figures/training.png`, from its `metrics.csv`, checked whole ([`RunDir::checked_metrics`]);
+/// with `partial` a run stopped after its last checkpoint is drawn too, its titles saying so.
+pub fn plot_run(dir: &Path, partial: bool) -> crate::error::Result<std::path::PathBuf> {
     let run = RunDir::new(dir);
     run.refuse_if_shipped()?;
     let scene = crate::scene::Scene::load(&run.scene())?;
     let prey = scene.species[SpeciesRegistry::from_scene(&scene).headline()].name.clone();
-    let metrics = Table::read(&run.metrics())?;
+    let (metrics, note) = run.checked_metrics(partial)?;
+    let note = note.map_or(String::new(), |n| format!(" ({n})"));
     let curve = |name: &str| -> crate::error::Result<Vec<Curve>> {
         let values = running_mean(&metrics.column(name)?, WINDOW);
         Ok(vec![Curve {
@@ -744,20 +743,20 @@ pub fn plot_run(dir: &Path) -> crate::error::Result<std::path::PathBuf> {
     };
     let panels = [
         Panel {
-            title: format!("DoS of {prey}"),
+            title: format!("DoS of {prey}{note}"),
             x_label: "episode".into(),
             y_label: format!("DoS ({WINDOW}-episode mean)"),
             curves: curve(&schema::of("dos", &prey))?,
         },
         Panel {
-            title: format!("DoA of {prey}"),
+            title: format!("DoA of {prey}{note}"),
             x_label: "episode".into(),
             y_label: format!("DoA ({WINDOW}-episode mean)"),
             curves: curve(&schema::of("doa", &prey))?,
         },
     ];
     let figures = crate::run::RunDir::new(dir).figures();
-    std::fs::create_dir_all(&figures).map_err(|e| format!("{}: {e}", figures.display()))?;
+    crate::io::own_dir(&figures)?;
     plot::save(&figures.join("training"), &panels)?;
     Ok(figures.join("training.png"))
 }

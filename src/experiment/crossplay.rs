@@ -516,7 +516,7 @@ fn write(run: &std::path::Path, matrices: &[Matrix]) -> crate::error::Result<Vec
     use crate::io::Existing;
     let dir = RunDir::new(run);
     let figures = dir.figures();
-    std::fs::create_dir_all(&figures).map_err(|e| format!("{}: {e}", figures.display()))?;
+    crate::io::own_dir(&figures)?;
     let mut written = Vec::new();
     let only = matrices.len() == 1;
     for m in matrices {

@@ -298,6 +298,10 @@ pub struct Experiment {
 
 /// A folder-safe version of a name: runs of other characters become one `-` ("5:3" → "5-3",
 /// "n0 = 1" → "n0-1", "50 prey, blind" → "50-prey-blind").
+/// The longest variant or evaluation name: it becomes a folder or file name (`eval-NAME-confusion.csv`),
+/// which file systems cap at 255 bytes.
+const MAX_NAME: usize = 100;
+
 pub fn slug(name: &str) -> String {
     let mut out = String::new();
     for c in name.chars() {
@@ -403,6 +407,32 @@ impl Experiment {
         }
         if spec.variants.is_empty() {
             return Err(err("variants", "an experiment needs at least one variant".into()));
+        }
+        // Checked here, before anything is trained: a run would fail only at its cross-play.
+        if let Some(c) = spec.crossplay.as_ref().filter(|c| c.episodes == 0) {
+            return Err(err("crossplay.episodes", format!("must be ≥ 1 (got {})", c.episodes)));
+        }
+        // Names become folders, file names, CSV fields and figure labels: no control character (a NUL
+        // would pass the folder's slug and fail only in the figure writer, after the runs), and short
+        // enough for every file name made of them.
+        let names = spec
+            .variants
+            .iter()
+            .map(|v| ("variants", &v.name))
+            .chain(spec.evaluations.iter().map(|e| ("evaluations", &e.name)));
+        for (list, name) in names {
+            if name.chars().any(char::is_control) {
+                return Err(err(
+                    &format!("{list}[{}].name", name.escape_debug()),
+                    "must not hold a control character".into(),
+                ));
+            }
+            if name.chars().count() > MAX_NAME {
+                return Err(err(
+                    &format!("{list}[{}…].name", name.chars().take(16).collect::<String>()),
+                    format!("at most {MAX_NAME} characters (it names folders and files)"),
+                ));
+            }
         }
         for (i, v) in spec.variants.iter().enumerate() {
             let field = format!("variants[{}].name", v.name);
@@ -523,9 +553,6 @@ impl Experiment {
                 if spec.crossplay.is_none() {
                     return Err(err("claims", format!("Crossplay({r:?}) needs crossplay: (episodes: N) in the file")));
                 }
-            }
-            if let Some(c) = spec.crossplay.as_ref().filter(|c| c.episodes == 0) {
-                return Err(err("crossplay.episodes", format!("must be ≥ 1 (got {})", c.episodes)));
             }
             if let Quantity::InteractionDoa(e) | Quantity::Interaction(e, _) = &c.quantity {
                 if seeing_partner(&spec.evaluations, e).is_none() {

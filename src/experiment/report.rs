@@ -53,8 +53,11 @@ pub fn experiment(request: &Request) -> crate::error::Result<()> {
         }
         let exe = std::env::current_exe().map_err(|e| format!("cannot find the coevo binary: {e}"))?;
         for exp in &experiments {
-            let dir = runner::emit_slurm(exp, &exe.to_string_lossy())?;
-            println!("{}: {} runs; submit with: bash {}/submit.sh", exp.name, exp.runs.len(), dir.display());
+            let dir = runner::emit_slurm(exp, &exe)?;
+            // Quoted as the scripts quote it, so the line can be pasted into a shell as it is.
+            let submit = dir.join("submit.sh").to_string_lossy().into_owned();
+            let submit = shlex::try_quote(&submit).map_or(submit.clone(), |q| q.into_owned());
+            crate::outln!("{}: {} runs; submit with: bash {submit}", exp.name, exp.runs.len())?;
         }
         return Ok(());
     }
@@ -99,10 +102,10 @@ pub fn write_reproduction() -> crate::error::Result<()> {
         // committed summary until it is run again; the others are still reported.
         let mut data = match runner::first_stale(&exp) {
             Some(stale) => {
-                eprintln!(
+                crate::errln!(
                     "coevo: {stale}; run `coevo --experiment {}` to redo it (reported from the committed summary)",
                     exp.file.display()
-                );
+                )?;
                 BTreeMap::new()
             }
             None => aggregate::load(&exp)?,
@@ -110,7 +113,7 @@ pub fn write_reproduction() -> crate::error::Result<()> {
         // An experiment being re-run (fewer run folders than its committed summary holds) is reported from
         // its committed summary.csv, and its files are left as they are, until its runs are all back.
         if let Err(e) = aggregate::check_complete(&exp, &data) {
-            eprintln!("coevo: {e} (reported from the committed summary)");
+            crate::errln!("coevo: {e} (reported from the committed summary)")?;
             data.clear();
         }
         loaded.push((exp, data));
@@ -120,7 +123,7 @@ pub fn write_reproduction() -> crate::error::Result<()> {
         all.push(report(exp, &data)?);
     }
     crate::io::write_file(Path::new("REPRODUCTION.md"), Existing::Replace, reproduction(&all).as_bytes())?;
-    eprintln!("coevo: wrote REPRODUCTION.md");
+    crate::errln!("coevo: wrote REPRODUCTION.md")?;
     Ok(())
 }
 
@@ -147,37 +150,39 @@ fn report(exp: Experiment, data: &BTreeMap<usize, super::claims::RunData>) -> cr
         format!("{n} figure{} (.svg and .png) in {}/figures/", if n == 1 { "" } else { "s" }, root.display())
     };
     match (from_folders, figures) {
-        (true, n) => eprintln!(
+        (true, n) => crate::errln!(
             "coevo: wrote {0}/summary.csv, {0}/summary-mean.csv, {0}/{1}, {0}/{REPORT} and {2} ({3} claims checked)",
             root.display(),
             super::figure_data::FILE,
             drawn(n.unwrap_or(0)),
             reported.results.len()
-        ),
-        (false, Some(n)) => eprintln!(
+        )?,
+        (false, Some(n)) => crate::errln!(
             "coevo: wrote {} and {} from the committed summary.csv and {} (its runs' folders are not all here: the summaries left as they are)",
             path.display(),
             drawn(n),
             super::figure_data::FILE
-        ),
-        (false, None) => eprintln!(
+        )?,
+        (false, None) => crate::errln!(
             "coevo: wrote {} from the committed summary.csv (its runs' folders are not all here, and it has no {}: summaries and figures left as they are)",
             path.display(),
             super::figure_data::FILE
-        ),
+        )?,
     }
     Ok(reported)
 }
 
 /// `--plot DIR`: an experiment's summaries, figures and REPORT.md, or one run's learning curves, from CSVs
 /// alone.
-pub fn plot(dir: &Path) -> crate::error::Result<()> {
+/// With `partial`, a run stopped after its last checkpoint, or an experiment whose runs are not all
+/// finished, is drawn from what there is (marked partial); without, either is refused.
+pub fn plot(dir: &Path, partial: bool) -> crate::error::Result<()> {
     if dir == Path::new("all") {
         return write_reproduction();
     }
     if crate::run::is_run(dir) {
-        let path = aggregate::plot_run(dir)?;
-        eprintln!("coevo: wrote {} and its .svg", path.display());
+        let path = aggregate::plot_run(dir, partial)?;
+        crate::errln!("coevo: wrote {} and its .svg", path.display())?;
         return Ok(());
     }
     let name = dir.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
@@ -193,6 +198,18 @@ pub fn plot(dir: &Path) -> crate::error::Result<()> {
     let results = dir.parent().unwrap_or(Path::new("."));
     let exp = Experiment::load(&file, results)?;
     let data = aggregate::load(&exp)?;
+    aggregate::check_complete(&exp, &data)?;
+    if !partial && !data.is_empty() && data.len() < exp.runs.len() {
+        return Err(format!(
+            "--plot {}: only {} of the {} runs of {} are finished here; nothing written: finish them with `coevo --experiment {}`, or --partial summarises the finished ones (its report says how many)",
+            dir.display(),
+            data.len(),
+            exp.runs.len(),
+            file.display(),
+            file.display()
+        )
+        .into());
+    }
     // Without run folders (a clone), the committed figure data redraws the figures.
     if data.is_empty() && !exp.root.join(super::figure_data::FILE).exists() {
         return Err(format!(

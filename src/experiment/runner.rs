@@ -75,7 +75,7 @@ fn child(exe: &Path, args: &[String]) -> crate::error::Result<()> {
     if out.status.success() {
         // A child that succeeds may still warn (a resume that refills dropped buffers): pass it on.
         for line in String::from_utf8_lossy(&out.stderr).lines().filter(|l| l.starts_with("coevo: warning: ")) {
-            eprintln!("{line}");
+            crate::errln!("{line}")?;
         }
         Ok(())
     } else {
@@ -339,34 +339,59 @@ pub fn run(exp: &Experiment, opts: &RunnerOptions, only: Option<usize>) -> crate
     }
 }
 
+/// A word for a generated shell script: quoted for any POSIX shell (`shlex`), so no path or name from an
+/// experiment file or the command line is ever run as shell code. Refused, before anything is written,
+/// where quoting cannot be trusted: control characters (a newline would end a `#SBATCH` line or a
+/// command), text that is not UTF-8, and `%` (Slurm reads it as a pattern in file names).
+fn shell_word(what: &str, text: Option<&str>) -> crate::error::Result<String> {
+    let text = text.ok_or_else(|| format!("--emit-slurm: {what} is not UTF-8; a job script cannot name it safely"))?;
+    if text.chars().any(|c| c.is_control() || c == '%') {
+        return Err(format!(
+            "--emit-slurm: {what} {text:?} holds a control character or %, which a job script cannot quote safely; rename it"
+        )
+        .into());
+    }
+    Ok(shlex::try_quote(text).map_err(|e| format!("--emit-slurm: {what} {text:?}: {e}"))?.into_owned())
+}
+
 /// A Slurm job array (one task per run) and a dependent aggregate job, for the same experiment file on a
-/// cluster. Written to `results/<experiment>/slurm/`; `submit.sh` submits both.
-pub fn emit_slurm(exp: &Experiment, exe: &str) -> crate::error::Result<PathBuf> {
+/// cluster. Written to `results/<experiment>/slurm/`; `submit.sh` submits both. Every path and name is a
+/// quoted word of a command line ([`shell_word`]); the `#SBATCH` lines hold numbers only, so job names
+/// and log files are given on `sbatch`'s command line, where they can be quoted.
+pub fn emit_slurm(exp: &Experiment, exe: &Path) -> crate::error::Result<PathBuf> {
     let dir = exp.root.join("slurm");
-    std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
-    let file = exp.file.display();
+    let exe = shell_word("the coevo binary's path", exe.to_str())?;
+    let file = shell_word("the experiment file's path", exp.file.to_str())?;
+    // The results folder is checked once (no control character, no %); the words built on it are then
+    // quoted as they stand, the log pattern's %A_%a being Slurm's.
+    let results = shell_word("the results folder", exp.root.to_str())?;
+    let root = exp.root.to_str().unwrap_or_default();
+    let quoted = |tail: &str| -> crate::error::Result<String> {
+        Ok(shlex::try_quote(&format!("{root}/slurm/{tail}")).map_err(|e| format!("--emit-slurm: {e}"))?.into_owned())
+    };
+    let (array_sh, aggregate_sh) = (quoted("array.sh")?, quoted("aggregate.sh")?);
+    let (array_log, aggregate_log) = (quoted("%A_%a.log")?, quoted("aggregate.log")?);
+    let name = shell_word("the experiment's name", Some(&exp.name))?;
+    let aggregate_name = shell_word("the experiment's name", Some(&format!("{}-aggregate", exp.name)))?;
     let last = exp.runs.len() - 1;
     let array = format!(
-        "#!/bin/bash\n#SBATCH --job-name={name}\n#SBATCH --array=0-{last}\n#SBATCH --cpus-per-task=1\n#SBATCH --mem=2G\n\
-         #SBATCH --time=02:00:00\n#SBATCH --output={root}/slurm/%A_%a.log\n\
-         # One run of the experiment (train, resume or skip, then its evaluations) per array task.\n\
-         {exe} --experiment {file} --task $SLURM_ARRAY_TASK_ID --quiet\n",
-        name = exp.name,
-        root = exp.root.display(),
+        "#!/bin/bash\n#SBATCH --array=0-{last}\n#SBATCH --cpus-per-task=1\n#SBATCH --mem=2G\n#SBATCH --time=02:00:00\n\
+         # One run of the experiment (train, resume or skip, then its evaluations) per array task; submit.sh\n\
+         # names the job and its log.\n\
+         exec {exe} --experiment {file} --task \"$SLURM_ARRAY_TASK_ID\" --quiet\n",
     );
     let aggregate = format!(
-        "#!/bin/bash\n#SBATCH --job-name={name}-aggregate\n#SBATCH --cpus-per-task=1\n#SBATCH --mem=4G\n#SBATCH --time=00:30:00\n\
-         #SBATCH --output={root}/slurm/aggregate.log\n# Summaries and figures from the runs' CSV files.\n{exe} --plot {root}\n",
-        name = exp.name,
-        root = exp.root.display(),
+        "#!/bin/bash\n#SBATCH --cpus-per-task=1\n#SBATCH --mem=4G\n#SBATCH --time=00:30:00\n\
+         # Summaries and figures from the runs' CSV files.\nexec {exe} --plot {results}\n",
     );
     let submit = format!(
         "#!/bin/bash\n# Submits the runs as a job array, then the aggregation once every run has succeeded.\nset -euo pipefail\n\
-         cd \"$(dirname \"$0\")/{up}\"\njid=$(sbatch --parsable {root}/slurm/array.sh)\n\
-         sbatch --dependency=afterok:$jid {root}/slurm/aggregate.sh\n",
+         cd \"$(dirname \"$0\")/{up}\"\n\
+         jid=$(sbatch --parsable --job-name={name} --output={array_log} {array_sh})\n\
+         sbatch --dependency=afterok:\"$jid\" --job-name={aggregate_name} --output={aggregate_log} {aggregate_sh}\n",
         up = "../".repeat(exp.root.components().count() + 1),
-        root = exp.root.display(),
     );
+    crate::io::own_dir(&dir)?;
     for (name, text) in [("array.sh", array), ("aggregate.sh", aggregate), ("submit.sh", submit)] {
         crate::io::write_file(&dir.join(name), crate::io::Existing::Replace, text.as_bytes())?;
     }

@@ -11,8 +11,15 @@
 //!   `next_obs` (n, d_o). Together the segments cover what the buffer holds (its last `buffer_capacity`
 //!   transitions), so a resumed run samples exactly the mini-batches the uninterrupted run would.
 //! - `state.ron`: the scene, episodes done, RNG states (environment as it stood before the current
-//!   population was spawned, each species), exploration σ/ε, Adam step counts, transitions stored,
-//!   metrics so far.
+//!   population was spawned, each species), exploration σ/ε, Adam step counts, transitions stored. Of a
+//!   constant size: the metrics live in `metrics.csv` alone (checkpoints of a coevo before manifests
+//!   carried a copy of them here).
+//! - `manifest.ron`: the size and BLAKE3 hash of every file above, of the run's snapshots and of
+//!   `metrics.csv` up to the checkpoint's episode, checked by whatever reads the checkpoint
+//!   ([`super::manifest`]).
+//!
+//! Every safetensors file names in its metadata what it is (`species`, `role`: actor, training or
+//! replay; `scene`: the run's scene, [`scene_id`]), so a file put in another's place is refused by name.
 //!
 //! Snapshots, in `RUN/snapshots/` (not part of the checkpoint: kept for the whole run):
 //!
@@ -30,6 +37,7 @@
 //! removes a run's segments once it is trained ([`drop_replay`]) unless its file says `keep_replay: true`.
 
 use super::ddpg::Ddpg;
+use super::manifest::{Digest, Hashing, Manifest, SpeciesEntry, MANIFEST};
 use super::nets::Mlp;
 use super::replay::ReplayBuffer;
 use super::SpeciesLearner;
@@ -53,7 +61,9 @@ pub struct TrainingState {
     #[serde(default)]
     pub spawn_rng: Option<ChaCha8Rng>,
     pub species: Vec<Option<SpeciesState>>,
-    /// metrics.csv as it stood at this checkpoint.
+    /// metrics.csv as it stood at this checkpoint, in checkpoints of a coevo before manifests (empty, and
+    /// not written, since: the manifest hashes `metrics.csv` itself up to the checkpoint).
+    #[serde(default, skip_serializing_if = "String::is_empty")]
     pub metrics_csv: String,
 }
 
@@ -89,34 +99,107 @@ pub fn checkpoint_dir(run: &Path) -> PathBuf {
 pub const SNAPSHOTS: &str = "snapshots";
 
 fn snapshot_path(run: &Path, species: &str, episode: usize) -> PathBuf {
-    run.join(SNAPSHOTS).join(format!("{species}-ep{episode:05}.safetensors"))
+    run.join(SNAPSHOTS).join(snapshot_name(species, episode))
 }
 
-/// Keeps `species`' actor as it is after `episode` episodes. Written whole or not at all; a resumed run
-/// writes the same bytes again for the episodes it replays, so snapshots survive kills unchanged.
-pub fn save_snapshot(run: &Path, species: &str, episode: usize, actor: &Mlp) -> std::io::Result<()> {
+/// The episode of a snapshot's file name (`<species>-ep<NNNNN>.safetensors`), with its species.
+fn parse_snapshot_name(name: &str) -> Option<(&str, usize)> {
+    let (species, digits) = name.strip_suffix(".safetensors")?.rsplit_once("-ep")?;
+    digits.bytes().all(|b| b.is_ascii_digit()).then(|| Some((species, digits.parse().ok()?))).flatten()
+}
+
+/// A scene's identity in the metadata of the networks trained on it: the first 16 hex digits of the
+/// BLAKE3 hash of its resolved RON.
+pub fn scene_id(scene: &Scene) -> String {
+    blake3::hash(scene.to_ron().as_bytes()).to_hex()[..16].to_string()
+}
+
+/// Keeps `species`' actor as it is after `episode` episodes of training on `scene`. Written whole or not
+/// at all; a resumed run writes the same bytes again for the episodes it replays, so snapshots survive
+/// kills unchanged.
+pub fn save_snapshot(
+    run: &Path,
+    scene: &Scene,
+    species: &str,
+    episode: usize,
+    actor: &Mlp,
+) -> crate::error::Result<()> {
     let path = snapshot_path(run, species, episode);
-    std::fs::create_dir_all(path.parent().expect("a snapshot lives in a folder"))?;
-    write_actor(&path, actor)
+    crate::io::own_dir(&run.join(SNAPSHOTS))?;
+    // The role of the checkpoint's actor: the last snapshot is that actor, byte for byte.
+    write_actor(&path, actor, &metadata(species, "actor", Some(scene)))
+        .map(drop)
+        .map_err(|e| format!("{}: cannot save snapshot: {e}", path.display()).into())
 }
 
-/// An actor as its own safetensors file, named as PyTorch's `nn.Sequential` (module docs).
-fn write_actor(path: &Path, actor: &Mlp) -> std::io::Result<()> {
-    let tensors = named("", actor.parameters(), actor);
-    crate::io::write_atomically(path, Existing::Replace, |w| std::io::Write::write_all(w, &serialize(&tensors)))
+/// What a safetensors file of coevo says it is: `species`, `role` and the `scene` it was trained on.
+fn metadata(species: &str, role: &str, scene: Option<&Scene>) -> Metadata {
+    let mut m = Metadata::from([("species".to_string(), species.to_string()), ("role".to_string(), role.to_string())]);
+    if let Some(scene) = scene {
+        m.insert("scene".into(), scene_id(scene));
+    }
+    m
+}
+
+/// Sorted, so a file's bytes are a function of its contents.
+type Metadata = std::collections::BTreeMap<String, String>;
+
+/// Refuses a safetensors file whose metadata names another species or role (or, given, another scene)
+/// than the file is read as. Files without coevo's metadata (older checkpoints, actors exported from
+/// Python, shipped runs) pass.
+fn check_metadata(
+    path: &Path,
+    bytes: &[u8],
+    species: &str,
+    roles: &[&str],
+    scene: Option<&str>,
+) -> crate::error::Result<()> {
+    let Ok((_, meta)) = SafeTensors::read_metadata(bytes) else { return Ok(()) };
+    let Some(meta) = meta.metadata().as_ref() else { return Ok(()) };
+    let field = |k: &str| meta.get(k).map(String::as_str);
+    if let Some(theirs) = field("species").filter(|s| *s != species) {
+        return Err(format!(
+            "{}: holds a network of {theirs}, not of {species}; files were swapped or copied in",
+            path.display()
+        )
+        .into());
+    }
+    if let Some(theirs) = field("role").filter(|r| !roles.contains(r)) {
+        return Err(format!(
+            "{}: holds a {theirs} file, not {}; files were swapped or copied in",
+            path.display(),
+            roles.join(" or ")
+        )
+        .into());
+    }
+    if let (Some(theirs), Some(ours)) = (field("scene"), scene) {
+        if theirs != ours {
+            return Err(format!(
+                "{}: trained on another scene (scene {theirs}) than the run's (scene {ours}); snapshots of one run are not another's",
+                path.display()
+            )
+            .into());
+        }
+    }
+    Ok(())
+}
+
+/// An actor as its own safetensors file, named as PyTorch's `nn.Sequential` (module docs); its digest.
+fn write_actor(path: &Path, actor: &Mlp, meta: &Metadata) -> std::io::Result<Digest> {
+    let bytes = serialize(&named("", actor.parameters(), actor), meta);
+    crate::io::write_atomically(path, Existing::Replace, |w| std::io::Write::write_all(w, &bytes))?;
+    Ok(Digest::of(&bytes))
 }
 
 /// The episodes of `species`' snapshots in a run, ascending.
 pub fn snapshot_episodes(run: &Path, species: &str) -> Vec<usize> {
-    let prefix = format!("{species}-ep");
     let mut found: Vec<usize> = std::fs::read_dir(run.join(SNAPSHOTS))
         .into_iter()
         .flatten()
         .flatten()
         .filter_map(|e| {
             let name = e.file_name().to_string_lossy().into_owned();
-            let digits = name.strip_prefix(&prefix)?.strip_suffix(".safetensors")?;
-            digits.bytes().all(|b| b.is_ascii_digit()).then(|| digits.parse().ok()).flatten()
+            parse_snapshot_name(&name).filter(|(s, _)| *s == species).map(|(_, episode)| episode)
         })
         .collect();
     found.sort_unstable();
@@ -138,7 +221,34 @@ pub fn load_snapshot(run: &Path, species: &str, episode: usize, like: &Mlp) -> c
         )
         .into());
     }
-    load_mlp(&path, like)
+    let manifest = run_manifest(&checkpoint_dir(run))?;
+    let scene = manifest.as_ref().map(|m| m.scene.as_str());
+    let bytes = read_as(&path, &Expected { species, roles: &["actor"], scene })?;
+    let net = mlp_from(&path, &bytes, like)?;
+    sealed(&path, &bytes, manifest.as_ref().map(|m| &m.snapshots))?;
+    Ok(net)
+}
+
+fn snapshot_name(species: &str, episode: usize) -> String {
+    format!("{species}-ep{episode:05}.safetensors")
+}
+
+/// The manifest of a checkpoint folder, and a damaged checkpoint where it should have one: its
+/// `state.ron` is of a coevo that writes manifests (no metrics copy in it). None for checkpoints of an
+/// older coevo, and for folders of actors only.
+fn run_manifest(dir: &Path) -> crate::error::Result<Option<Manifest>> {
+    if let Some(m) = Manifest::read(dir)? {
+        return Ok(Some(m));
+    }
+    let state = dir.join(STATE);
+    if state.exists() && read_state(&state)?.metrics_csv.is_empty() {
+        return Err(format!(
+            "{}: missing, so the checkpoint cannot be checked; it is damaged: restore it or train the run again",
+            dir.join(MANIFEST).display()
+        )
+        .into());
+    }
+    Ok(None)
 }
 
 /// Frees a finished run's replay buffers: removes every replay segment of its checkpoint (~0.45 GB a run
@@ -210,9 +320,9 @@ fn chain(segments: &[Segment], from: u64, to: u64) -> Option<Vec<Segment>> {
     Some(out)
 }
 
-/// Writes transitions `from..to` of a buffer as one safetensors file, streamed (a segment can hold a
-/// whole buffer, ~0.2 GB, which is never copied in memory).
-fn write_segment(path: &Path, buf: &ReplayBuffer, from: u64, to: u64) -> std::io::Result<()> {
+/// Writes transitions `from..to` of `species`' buffer as one safetensors file, streamed (a segment can hold
+/// a whole buffer, ~0.2 GB, which is never copied in memory) and hashed as it goes; its digest.
+fn write_segment(path: &Path, species: &str, buf: &ReplayBuffer, from: u64, to: u64) -> std::io::Result<Digest> {
     let n = (to - from) as usize;
     let (d, a) = (buf.obs_dim, buf.act_dim);
     let sizes = [("obs", vec![n, d]), ("actions", vec![n, a]), ("rewards", vec![n]), ("next_obs", vec![n, d])];
@@ -231,57 +341,82 @@ fn write_segment(path: &Path, buf: &ReplayBuffer, from: u64, to: u64) -> std::io
             entry
         })
         .collect();
-    let mut header = format!("{{{}}}", entries.join(","));
-    // Padded to 8 bytes with spaces, as safetensors' own writer does.
-    while header.len() % 8 != 0 {
-        header.push(' ');
-    }
+    let meta = metadata_json(&metadata(species, "replay", None));
+    let header = padded(format!("{{\"__metadata__\":{meta},{}}}", entries.join(",")));
+    let mut digest = Digest::default();
     crate::io::write_atomically(path, Existing::Replace, |w| {
         use std::io::Write;
+        let mut w = Hashing::new(w);
         w.write_all(&(header.len() as u64).to_le_bytes())?;
         w.write_all(header.as_bytes())?;
-        let put = |w: &mut std::io::BufWriter<std::fs::File>, values: &[f32]| {
+        let put = |w: &mut Hashing<&mut std::io::BufWriter<std::fs::File>>, values: &[f32]| {
             values.iter().try_for_each(|v| w.write_all(&v.to_le_bytes()))
         };
         for part in 0..4 {
             for k in from..to {
                 let (o, act, r, o2) = buf.transition(k);
                 match part {
-                    0 => put(w, o)?,
-                    1 => put(w, act)?,
-                    2 => put(w, &[r])?,
-                    _ => put(w, o2)?,
+                    0 => put(&mut w, o)?,
+                    1 => put(&mut w, act)?,
+                    2 => put(&mut w, &[r])?,
+                    _ => put(&mut w, o2)?,
                 }
             }
         }
+        digest = w.digest();
         Ok(())
-    })
+    })?;
+    Ok(digest)
 }
 
 /// Saves a species' buffer into the checkpoint being written (`tmp`): the segments of the current
 /// checkpoint (`dir`) that still hold transitions of the buffer are hard-linked (copied where links
-/// are not possible), the transitions since go into one new segment.
-fn save_replay(dir: &Path, tmp: &Path, species: &str, buf: &ReplayBuffer) -> std::io::Result<()> {
+/// are not possible), the transitions since go into one new segment. Returns every segment's name and
+/// digest (a linked one's from the current checkpoint's manifest, `previous`, where it has one).
+fn save_replay(
+    dir: &Path,
+    tmp: &Path,
+    species: &str,
+    buf: &ReplayBuffer,
+    previous: Option<&Manifest>,
+) -> std::io::Result<Vec<(String, Digest)>> {
     let (first, pushed) = (buf.first_held(), buf.pushed);
     let existing = segments(dir, species);
     let mut covered = first;
+    let mut written = Vec::new();
     for s in &existing {
         if s.from <= covered && s.to > covered && s.to <= pushed {
-            let to = tmp.join(s.path.file_name().expect("a segment file"));
+            let name = s.path.file_name().expect("a segment file").to_string_lossy().into_owned();
+            let to = tmp.join(&name);
             if std::fs::hard_link(&s.path, &to).is_err() {
                 std::fs::copy(&s.path, &to)?;
             }
+            let digest = match previous.and_then(|m| m.files.get(&name)) {
+                Some(d) => d.clone(),
+                None => Digest::of_file(&to)?,
+            };
+            written.push((name, digest));
             covered = s.to;
         }
     }
     if covered < pushed {
-        write_segment(&tmp.join(segment_name(species, covered, pushed)), buf, covered, pushed)?;
+        let name = segment_name(species, covered, pushed);
+        let digest = write_segment(&tmp.join(&name), species, buf, covered, pushed)?;
+        written.push((name, digest));
     }
-    Ok(())
+    Ok(written)
 }
 
 /// The buffer a checkpoint saved: `transitions` stored in all, the held ones read back from the segments.
-fn load_replay(dir: &Path, species: &str, like: &ReplayBuffer, transitions: u64) -> crate::error::Result<ReplayBuffer> {
+/// Each segment is checked against the manifest (where the checkpoint has one) and its metadata, and its
+/// values must be finite.
+fn load_replay(
+    dir: &Path,
+    species: &str,
+    like: &ReplayBuffer,
+    transitions: u64,
+    manifest: Option<&Manifest>,
+) -> crate::error::Result<ReplayBuffer> {
     let mut buf = ReplayBuffer::restoring(like.capacity, like.obs_dim, like.act_dim, transitions);
     let (d, a) = (like.obs_dim, like.act_dim);
     let Some(parts) = chain(&segments(dir, species), buf.first_held(), transitions) else {
@@ -292,7 +427,7 @@ fn load_replay(dir: &Path, species: &str, like: &ReplayBuffer, transitions: u64)
         ).into());
     };
     for s in parts {
-        let bytes = read_file(&s.path)?;
+        let bytes = read_as(&s.path, &Expected { species, roles: &["replay"], scene: None })?;
         let st = parse(&s.path, &bytes)?;
         let n = (s.to - s.from) as usize;
         let tensor = |name: &str, shape: Vec<usize>| -> crate::error::Result<Vec<f32>> {
@@ -306,7 +441,11 @@ fn load_replay(dir: &Path, species: &str, like: &ReplayBuffer, transitions: u64)
                 )
                 .into());
             }
-            Ok(t.data().chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect())
+            finite(
+                &s.path,
+                name,
+                t.data().chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect(),
+            )
         };
         let (obs, actions, rewards, next_obs) = (
             tensor("obs", vec![n, d])?,
@@ -314,6 +453,7 @@ fn load_replay(dir: &Path, species: &str, like: &ReplayBuffer, transitions: u64)
             tensor("rewards", vec![n])?,
             tensor("next_obs", vec![n, d])?,
         );
+        sealed(&s.path, &bytes, manifest.map(|m| &m.files))?;
         for k in s.from.max(buf.first_held())..s.to {
             let i = (k - s.from) as usize;
             buf.put(
@@ -342,7 +482,31 @@ fn named(prefix: &str, values: Vec<Vec<f32>>, net: &Mlp) -> Vec<(String, Vec<usi
         .collect()
 }
 
-fn serialize(tensors: &[(String, Vec<usize>, Vec<f32>)]) -> Vec<u8> {
+/// The safetensors file of `tensors` with `meta` as its `__metadata__`, first in the header with its keys
+/// sorted (safetensors' own writer orders metadata as a hash map iterates, which differs between
+/// processes, and checkpoints must be the same bytes in every process).
+fn serialize(tensors: &[(String, Vec<usize>, Vec<f32>)], meta: &Metadata) -> Vec<u8> {
+    let plain = serialize_plain(tensors);
+    let n = u64::from_le_bytes(plain[..8].try_into().expect("8 bytes")) as usize;
+    let header = std::str::from_utf8(&plain[8..8 + n]).expect("a JSON header").trim_end();
+    let tensors_json = header.strip_prefix('{').expect("a JSON object");
+    let header = padded(format!("{{\"__metadata__\":{},{tensors_json}", metadata_json(meta)));
+    [&(header.len() as u64).to_le_bytes()[..], header.as_bytes(), &plain[8 + n..]].concat()
+}
+
+fn metadata_json(meta: &Metadata) -> String {
+    serde_json::to_string(meta).expect("strings serialize")
+}
+
+/// A header padded to 8 bytes with spaces, as safetensors' own writer does.
+fn padded(mut header: String) -> String {
+    while !header.len().is_multiple_of(8) {
+        header.push(' ');
+    }
+    header
+}
+
+fn serialize_plain(tensors: &[(String, Vec<usize>, Vec<f32>)]) -> Vec<u8> {
     let bytes: Vec<Vec<u8>> =
         tensors.iter().map(|(_, _, v)| v.iter().flat_map(|x| x.to_le_bytes()).collect()).collect();
     let views: Vec<(String, TensorView)> = tensors
@@ -369,13 +533,53 @@ fn read_into(file: &Path, st: &SafeTensors, prefix: &str, like: &Mlp) -> crate::
                     t.shape()
                 ).into());
             }
-            let values: Vec<f32> = t.data().chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect();
-            match values.iter().position(|v| !v.is_finite()) {
-                Some(i) => Err(format!("{}: tensor {name} holds a non-finite value ({} at index {i}); refusing a broken network", file.display(), values[i]).into()),
-                None => Ok(values),
-            }
+            finite(file, &name, t.data().chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect())
         })
         .collect()
+}
+
+/// Refuses a tensor with a NaN or infinity: no network or transition of a sound run holds one.
+fn finite(file: &Path, name: &str, values: Vec<f32>) -> crate::error::Result<Vec<f32>> {
+    match values.iter().position(|v| !v.is_finite()) {
+        Some(i) => Err(format!(
+            "{}: tensor {name} holds a non-finite value ({} at index {i}); refusing a broken checkpoint",
+            file.display(),
+            values[i]
+        )
+        .into()),
+        None => Ok(values),
+    }
+}
+
+/// What a safetensors file is read as: whose, which roles, trained on which scene (None: any).
+struct Expected<'a> {
+    species: &'a str,
+    roles: &'a [&'a str],
+    scene: Option<&'a str>,
+}
+
+/// A safetensors file's bytes, checked against what it is read as (its metadata). Its tensors are then
+/// read (names, shapes, finite values) and last it is checked against the manifest ([`sealed`]), so a
+/// file that is wrong in a way one can name is refused with that name, any other change by the manifest.
+fn read_as(path: &Path, expected: &Expected) -> crate::error::Result<Vec<u8>> {
+    let bytes = read_file(path)?;
+    check_metadata(path, &bytes, expected.species, expected.roles, expected.scene)?;
+    Ok(bytes)
+}
+
+/// Checks a file's `bytes` against `entries` of the checkpoint's manifest, where it has one.
+fn sealed(
+    path: &Path,
+    bytes: &[u8],
+    entries: Option<&std::collections::BTreeMap<String, Digest>>,
+) -> crate::error::Result<()> {
+    match entries {
+        Some(entries) => {
+            let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+            Manifest::check(entries, &name, path, bytes)
+        }
+        None => Ok(()),
+    }
 }
 
 fn read_file(path: &Path) -> crate::error::Result<Vec<u8>> {
@@ -391,34 +595,52 @@ fn parse<'a>(path: &Path, bytes: &'a [u8]) -> crate::error::Result<SafeTensors<'
         .map_err(|e| format!("{}: not a valid safetensors file ({e:?})", path.display()))?)
 }
 
-/// Loads a species' actor from a run folder into `like` (which fixes the expected shapes).
+/// Loads a species' actor from a run folder into `like` (which fixes the expected shapes), checked
+/// against the checkpoint's manifest and the file's metadata.
 pub fn load_actor(run: &Path, species: &str, like: &Mlp) -> crate::error::Result<Mlp> {
-    load_mlp(&checkpoint_dir(run).join(format!("{species}-actor.safetensors")), like)
+    let dir = checkpoint_dir(run);
+    let path = dir.join(actor_name(species));
+    let manifest = run_manifest(&dir)?;
+    let bytes = read_as(&path, &Expected { species, roles: &["actor"], scene: None })?;
+    let net = mlp_from(&path, &bytes, like)?;
+    sealed(&path, &bytes, manifest.as_ref().map(|m| &m.files))?;
+    Ok(net)
 }
 
-/// An actor file (as PyTorch names it) loaded into `like`.
-fn load_mlp(path: &Path, like: &Mlp) -> crate::error::Result<Mlp> {
-    let bytes = read_file(path)?;
-    let st = parse(path, &bytes)?;
+fn actor_name(species: &str) -> String {
+    format!("{species}-actor.safetensors")
+}
+
+fn training_name(species: &str) -> String {
+    format!("{species}-training.safetensors")
+}
+
+/// An actor file's bytes (as PyTorch names it) loaded into `like`.
+fn mlp_from(path: &Path, bytes: &[u8], like: &Mlp) -> crate::error::Result<Mlp> {
+    let st = parse(path, bytes)?;
     let mut net = like.clone();
     net.set_parameters(&read_into(path, &st, "", like)?);
     Ok(net)
 }
 
-/// Saves learners and state into `run/checkpoint/`, atomically as a folder.
+/// Saves learners and state into `run/checkpoint/`, atomically as a folder, its manifest written last
+/// ([`Manifest`]): `metrics` is the digest of `metrics.csv` as it stands (its rows up to this checkpoint).
 pub fn save(
     run: &Path,
     learners: &[Option<SpeciesLearner>],
     names: &[String],
     state: &TrainingState,
+    metrics: Digest,
 ) -> std::io::Result<()> {
     let dir = checkpoint_dir(run);
     let tmp = run.join(CHECKPOINT_TMP);
     let old = run.join(CHECKPOINT_OLD);
+    // One step a signal lets finish: the handler never removes the folder being written or swapped.
+    let _writing = crate::io::Writing::begin();
     let _ = std::fs::remove_dir_all(&tmp);
-    std::fs::create_dir_all(&tmp)?;
+    std::fs::create_dir(&tmp)?;
     crate::io::register_temporary(&tmp);
-    let written = write_checkpoint(&dir, &tmp, learners, names, state);
+    let written = write_checkpoint(run, &tmp, learners, names, state, metrics);
     if written.is_err() {
         let _ = std::fs::remove_dir_all(&tmp);
         crate::io::unregister_temporary(&tmp);
@@ -435,21 +657,44 @@ pub fn save(
     Ok(())
 }
 
-/// Every file of a checkpoint, into `tmp`.
+/// Completes a checkpoint swap that a kill cut short ([`save`]): where `checkpoint/` is whole (its state
+/// file is there) a leftover `checkpoint.old/` is removed; where it is missing, `checkpoint.old/` is put
+/// back. Only with the run's lock held.
+pub fn finish_swap(run: &Path) {
+    let (dir, old) = (checkpoint_dir(run), run.join(CHECKPOINT_OLD));
+    if !old.exists() {
+        return;
+    }
+    if dir.join(STATE).exists() {
+        let _ = std::fs::remove_dir_all(&old);
+    } else if !dir.exists() {
+        let _ = std::fs::rename(&old, &dir);
+    }
+}
+
+/// Every file of a checkpoint, into `tmp`, the manifest last.
 fn write_checkpoint(
-    dir: &Path,
+    run: &Path,
     tmp: &Path,
     learners: &[Option<SpeciesLearner>],
     names: &[String],
     state: &TrainingState,
+    metrics: Digest,
 ) -> std::io::Result<()> {
+    let dir = checkpoint_dir(run);
+    // The current checkpoint's manifest gives the digests of the segments linked from it (None for a
+    // checkpoint of an older coevo: they are hashed from disk once).
+    let previous = Manifest::read(&dir).ok().flatten();
+    let mut manifest =
+        Manifest { episodes_done: state.episodes_done, scene: scene_id(&state.scene), metrics, ..Manifest::default() };
     for (learner, name) in learners.iter().zip(names) {
         let Some(l) = learner else { continue };
         if !l.frozen {
-            save_replay(dir, tmp, name, &l.buffer)?;
+            manifest.files.extend(save_replay(&dir, tmp, name, &l.buffer, previous.as_ref())?);
         }
         let d = &l.ddpg;
-        write_actor(&tmp.join(format!("{name}-actor.safetensors")), &d.actor)?;
+        let actor = write_actor(&tmp.join(actor_name(name)), &d.actor, &metadata(name, "actor", Some(&state.scene)))?;
+        manifest.files.insert(actor_name(name), actor);
         let mut training = named("critic.", d.critic.parameters(), &d.critic);
         training.extend(named("target_actor.", d.target_actor.parameters(), &d.target_actor));
         training.extend(named("target_critic.", d.target_critic.parameters(), &d.target_critic));
@@ -457,27 +702,98 @@ fn write_checkpoint(
         training.extend(named("actor_adam.v.", d.actor_opt.v.clone(), &d.actor));
         training.extend(named("critic_adam.m.", d.critic_opt.m.clone(), &d.critic));
         training.extend(named("critic_adam.v.", d.critic_opt.v.clone(), &d.critic));
-        crate::io::write_atomically(&tmp.join(format!("{name}-training.safetensors")), Existing::Replace, |w| {
-            std::io::Write::write_all(w, &serialize(&training))
+        let bytes = serialize(&training, &metadata(name, "training", Some(&state.scene)));
+        crate::io::write_atomically(&tmp.join(training_name(name)), Existing::Replace, |w| {
+            std::io::Write::write_all(w, &bytes)
         })?;
+        manifest.files.insert(training_name(name), Digest::of(&bytes));
+        manifest.species.push(SpeciesEntry {
+            name: name.clone(),
+            observation: d.actor.layers[0].weight.shape().1,
+            hidden: d.actor.layers[0].weight.shape().0,
+            transitions: (!l.frozen).then(|| (l.buffer.first_held(), l.buffer.pushed)),
+        });
     }
     let ron = ron::ser::to_string_pretty(state, ron::ser::PrettyConfig::new().struct_names(false))
         .map_err(|e| std::io::Error::other(e.to_string()))?;
-    crate::io::write_atomically(&tmp.join(STATE), Existing::Replace, |w| std::io::Write::write_all(w, ron.as_bytes()))
+    crate::io::write_atomically(&tmp.join(STATE), Existing::Replace, |w| std::io::Write::write_all(w, ron.as_bytes()))?;
+    manifest.files.insert(STATE.to_string(), Digest::of(ron.as_bytes()));
+    manifest.snapshots = snapshot_digests(run, state.episodes_done, previous.as_ref())?;
+    crate::io::write_atomically(&tmp.join(MANIFEST), Existing::Replace, |w| {
+        std::io::Write::write_all(w, manifest.to_ron().as_bytes())
+    })
+}
+
+/// The digests of the run's snapshots up to `episodes_done`: those the current checkpoint's manifest
+/// already holds carried over, the newer ones (written since) hashed from disk.
+fn snapshot_digests(
+    run: &Path,
+    episodes_done: usize,
+    previous: Option<&Manifest>,
+) -> std::io::Result<std::collections::BTreeMap<String, Digest>> {
+    let mut digests = std::collections::BTreeMap::new();
+    let entries = match std::fs::read_dir(run.join(SNAPSHOTS)) {
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(digests),
+        entries => entries?,
+    };
+    for entry in entries {
+        let entry = entry?;
+        let name = entry.file_name().to_string_lossy().into_owned();
+        if parse_snapshot_name(&name).is_none_or(|(_, e)| e > episodes_done) {
+            continue;
+        }
+        let digest = match previous.and_then(|m| m.snapshots.get(&name)) {
+            Some(d) => d.clone(),
+            None => Digest::of_file(&entry.path())?,
+        };
+        digests.insert(name, digest);
+    }
+    Ok(digests)
 }
 
 /// Reads a checkpoint's state file.
 pub fn read_state(path: &Path) -> crate::error::Result<TrainingState> {
     let text = crate::io::read_text(path, crate::io::MAX_TEXT_BYTES).map_err(|e| format!("{}: {e}", path.display()))?;
-    Ok(ron::from_str(&text).map_err(|e| format!("{}: corrupt checkpoint state ({e})", path.display()))?)
+    state_from(path, &text)
 }
 
-/// Restores learners from `run/checkpoint/` (or `checkpoint.old` after a kill mid-swap) and returns the state.
+fn state_from(path: &Path, text: &str) -> crate::error::Result<TrainingState> {
+    Ok(ron::from_str(text).map_err(|e| format!("{}: corrupt checkpoint state ({e})", path.display()))?)
+}
+
+/// The checkpoint's state file, checked against its manifest, and the manifest (None for a checkpoint of
+/// a coevo before manifests): what `--resume` continues from and what `--plot` counts rows against.
+pub fn read_checked_state(dir: &Path) -> crate::error::Result<(TrainingState, Option<Manifest>)> {
+    let path = dir.join(STATE);
+    let manifest = run_manifest(dir)?;
+    let bytes = read_file(&path)?;
+    if let Some(m) = &manifest {
+        Manifest::check(&m.files, STATE, &path, &bytes)?;
+    }
+    let text =
+        String::from_utf8(bytes).map_err(|_| format!("{}: corrupt checkpoint state (not UTF-8)", path.display()))?;
+    let state = state_from(&path, &text)?;
+    if let Some(m) = &manifest {
+        if m.episodes_done != state.episodes_done {
+            return Err(format!(
+                "{}: holds {} episodes, its manifest {}; the checkpoint is damaged",
+                path.display(),
+                state.episodes_done,
+                m.episodes_done
+            )
+            .into());
+        }
+    }
+    Ok((state, manifest))
+}
+
+/// Restores learners from `run/checkpoint/` (or `checkpoint.old` after a kill mid-swap), every file
+/// checked against the checkpoint's manifest, and returns the state with the manifest.
 pub fn load(
     run: &Path,
     learners: &mut [Option<SpeciesLearner>],
     names: &[String],
-) -> crate::error::Result<TrainingState> {
+) -> crate::error::Result<(TrainingState, Option<Manifest>)> {
     let mut dir = checkpoint_dir(run);
     let old = run.join(CHECKPOINT_OLD);
     if !dir.join(STATE).exists() && old.join(STATE).exists() {
@@ -490,7 +806,8 @@ pub fn load(
     if !state_path.exists() {
         return Err(format!("{}: no checkpoint to resume", state_path.display()).into());
     }
-    let mut state = read_state(&state_path)?;
+    let (mut state, manifest) = read_checked_state(&dir)?;
+    let manifest = manifest.as_ref();
     let mut dropped = Vec::new();
     for (learner, name) in learners.iter_mut().zip(names) {
         let Some(l) = learner else { continue };
@@ -500,21 +817,26 @@ pub fn load(
             .flatten()
             .find(|s| &s.name == name)
             .ok_or_else(|| format!("{}: no species {name:?} in the checkpoint", state_path.display()))?;
-        let actor_path = dir.join(format!("{name}-actor.safetensors"));
-        let bytes = read_file(&actor_path)?;
-        let st = parse(&actor_path, &bytes)?;
+        let actor_path = dir.join(actor_name(name));
+        let scene = scene_id(&state.scene);
+        let expected = |roles| Expected { species: name, roles, scene: Some(&scene) };
+        let actor_bytes = read_as(&actor_path, &expected(&["actor"]))?;
+        let st = parse(&actor_path, &actor_bytes)?;
         let actor = read_into(&actor_path, &st, "", &l.ddpg.actor)?;
-        let path = dir.join(format!("{name}-training.safetensors"));
-        let bytes = read_file(&path)?;
+        let path = dir.join(training_name(name));
+        let bytes = read_as(&path, &expected(&["training"]))?;
         let st = parse(&path, &bytes)?;
         let d: &mut Ddpg = &mut l.ddpg;
         let critic = read_into(&path, &st, "critic.", &d.critic)?;
         let target_actor = read_into(&path, &st, "target_actor.", &d.actor)?;
         let target_critic = read_into(&path, &st, "target_critic.", &d.critic)?;
-        d.actor_opt.m = read_into(&path, &st, "actor_adam.m.", &d.actor)?;
-        d.actor_opt.v = read_into(&path, &st, "actor_adam.v.", &d.actor)?;
-        d.critic_opt.m = read_into(&path, &st, "critic_adam.m.", &d.critic)?;
-        d.critic_opt.v = read_into(&path, &st, "critic_adam.v.", &d.critic)?;
+        let actor_m = read_into(&path, &st, "actor_adam.m.", &d.actor)?;
+        let actor_v = read_into(&path, &st, "actor_adam.v.", &d.actor)?;
+        let critic_m = read_into(&path, &st, "critic_adam.m.", &d.critic)?;
+        let critic_v = read_into(&path, &st, "critic_adam.v.", &d.critic)?;
+        sealed(&actor_path, &actor_bytes, manifest.map(|m| &m.files))?;
+        sealed(&path, &bytes, manifest.map(|m| &m.files))?;
+        (d.actor_opt.m, d.actor_opt.v, d.critic_opt.m, d.critic_opt.v) = (actor_m, actor_v, critic_m, critic_v);
         d.actor.set_parameters(&actor);
         d.critic.set_parameters(&critic);
         d.target_actor.set_parameters(&target_actor);
@@ -532,12 +854,12 @@ pub fn load(
             if transitions > 0 && segments(&dir, name).is_empty() {
                 dropped.push(name.clone());
             } else {
-                l.buffer = load_replay(&dir, name, &l.buffer, transitions)?;
+                l.buffer = load_replay(&dir, name, &l.buffer, transitions, manifest)?;
             }
         }
     }
     for s in state.species.iter_mut().flatten().filter(|s| dropped.contains(&s.name)) {
         s.transitions = None;
     }
-    Ok(state)
+    Ok((state, manifest.cloned()))
 }

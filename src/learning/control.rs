@@ -86,7 +86,14 @@ impl ObservationControl {
         if texts.len() > 1 && texts.iter().any(|t| *t == "seeing" || !t.contains(':')) {
             return Err(format!("{}: only block forms (blind:OBSERVER:OBSERVED) combine", texts.join(", ")));
         }
-        Ok(ObservationControl { forms: texts.iter().map(|t| t.parse()).collect::<Result<_, _>>()? })
+        let forms: Vec<ControlForm> = texts.iter().map(|t| t.parse()).collect::<Result<_, _>>()?;
+        // One alteration per block: a second would silently decide which applies.
+        for (i, f) in forms.iter().enumerate() {
+            if let Some(twice) = forms[..i].iter().find(|o| o.block == f.block) {
+                return Err(format!("{twice} and {f}: name the same block twice; give each block once"));
+            }
+        }
+        Ok(ObservationControl { forms })
     }
 
     pub fn is_seeing(&self) -> bool {

@@ -16,6 +16,7 @@ pub mod checkpoint;
 pub mod control;
 pub mod ddpg;
 pub mod fused;
+pub mod manifest;
 pub mod nets;
 pub mod replay;
 

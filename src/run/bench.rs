@@ -99,10 +99,11 @@ pub fn external(budget: Duration) -> Vec<Figure> {
     figures
 }
 
-pub fn print(figures: &[Figure]) {
+pub fn print(figures: &[Figure]) -> crate::error::Result<()> {
     for f in figures {
-        println!("{:<72} {:>12.0} {}", f.label, f.per_second, f.unit);
+        crate::outln!("{:<72} {:>12.0} {}", f.label, f.per_second, f.unit)?;
     }
+    Ok(())
 }
 
 /// Learning figures: one DDPG update per species at batch 256, batched actor inference, and a policy

@@ -203,6 +203,7 @@ pub fn evaluate(opts: &EvalOptions) -> crate::error::Result<String> {
         learners.load_snapshots(&scene, &opts.run, &opts.snapshots)?;
         crate::learning::simulation_of(scene.clone(), learners, |_| {})
     };
+    super::announce_cost(&scene, opts.episodes * scene.episode_steps)?;
     let mut sim = build()?;
     let mut twin = match opts.perturb {
         Some(p) if p.step == 0 || p.step >= scene.episode_steps => {
@@ -245,6 +246,7 @@ pub fn evaluate(opts: &EvalOptions) -> crate::error::Result<String> {
     let mut file = AtomicFile::create(&path, Existing::Replace).map_err(write_err)?;
     writeln!(file.writer(), "{}", schema::eval_header(&registry, prey)).map_err(write_err)?;
     let mut acc = Accumulated::new(2.0 * registry.defs[prey].radius, sim.world().resource::<Arena>());
+    let bar = super::step_bar(&scene, opts.episodes * scene.episode_steps);
     for episode in 0..opts.episodes {
         if episode > 0 {
             crate::sim::episode::next_episode(sim.world_mut());
@@ -255,6 +257,7 @@ pub fn evaluate(opts: &EvalOptions) -> crate::error::Result<String> {
         for step in 1..=scene.episode_steps {
             sim.step();
             sim.check()?;
+            bar.inc(1);
             if let Some((twin, response)) = &mut twin {
                 twin.step();
                 twin.check()?;

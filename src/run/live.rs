@@ -116,10 +116,10 @@ impl LiveRun {
             run.write_provenance(scene)?;
             crate::io::write_file(&run.metrics(), Existing::Replace, self.metrics_text.as_bytes())?;
             for (name, episode, actor) in &self.snapshots {
-                checkpoint::save_snapshot(dir, name, *episode, actor)
-                    .map_err(|e| format!("{}: cannot save snapshot: {e}", run.snapshots().display()))?;
+                checkpoint::save_snapshot(dir, scene, name, *episode, actor)?;
             }
-            super::train::save_checkpoint(dir, world, scene, None, &self.metrics_text)
+            let metrics = crate::learning::manifest::Digest::of(self.metrics_text.as_bytes());
+            super::train::save_checkpoint(dir, world, scene, None, metrics)
         })();
         drop(lock);
         if written.is_err() {

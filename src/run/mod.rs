@@ -106,6 +106,61 @@ impl RunDir {
         self.checkpoint().join(crate::learning::checkpoint::STATE)
     }
 
+    /// `metrics.csv`'s rows up to the checkpoint whose manifest gives `expected` (the digest of its first
+    /// `expected.bytes` bytes): refused in one line where they differ from what was trained (edited, cut
+    /// or lost since). Rows after them (episodes trained after the checkpoint) are not returned.
+    pub fn metrics_up_to(&self, expected: &crate::learning::manifest::Digest) -> crate::error::Result<String> {
+        let path = self.metrics();
+        let text = crate::io::read_text(&path, crate::io::MAX_TEXT_BYTES).map_err(|e| e.in_file(&path))?;
+        let head = text.get(..expected.bytes as usize).unwrap_or(&text);
+        if crate::learning::manifest::Digest::of(head.as_bytes()) != *expected {
+            return Err(format!(
+                "{}: its rows up to the checkpoint differ from what was trained (changed, cut or lost since: the checkpoint's manifest hashes them); restore the file or train the run again",
+                path.display()
+            )
+            .into());
+        }
+        Ok(head.to_string())
+    }
+
+    /// The run's `metrics.csv` for plots and summaries, refused in one line unless it is the run's whole
+    /// record: every row complete and finite, episodes in order ([`schema::Table::read_metrics`]), the rows
+    /// up to the checkpoint as trained ([`RunDir::metrics_up_to`]) and exactly as many as the checkpoint's
+    /// episodes. With `partial`, rows after the checkpoint (a run stopped before its next one, or still
+    /// without one) and a last row cut short are accepted, and the second value says so.
+    pub fn checked_metrics(&self, partial: bool) -> crate::error::Result<(schema::Table, Option<String>)> {
+        let table = schema::Table::read_metrics(&self.metrics(), partial)?;
+        let rows = table.rows.len();
+        let shown = self.metrics().display().to_string();
+        if !self.state().exists() {
+            return match partial {
+                true => Ok((table, Some(format!("partial: {rows} episodes, no checkpoint yet")))),
+                false => Err(format!("{shown}: the run has no checkpoint to count its {rows} rows against (stopped before its first); --partial draws them, marked partial").into()),
+            };
+        }
+        let (state, manifest) = crate::learning::checkpoint::read_checked_state(&self.checkpoint())?;
+        let done = state.episodes_done;
+        // The count first (the plainer message), then the rows' bytes against the manifest.
+        let counted: crate::error::Result<Option<String>> = match rows.cmp(&done) {
+            std::cmp::Ordering::Less => Err(format!(
+                "{shown}: holds {rows} episodes but the checkpoint {done}: rows were lost; restore the file or train the run again"
+            )
+            .into()),
+            std::cmp::Ordering::Greater if !partial => Err(format!(
+                "{shown}: holds {rows} episodes but the checkpoint only {done} (a run stopped after its last checkpoint, or rows added by hand): --resume {} finishes it; --partial draws the rows as they are, marked partial",
+                self.path.display()
+            )
+            .into()),
+            std::cmp::Ordering::Greater => Ok(Some(format!("partial: episodes {done}..{rows} after the last checkpoint"))),
+            std::cmp::Ordering::Equal => Ok(None),
+        };
+        let counted = counted?;
+        if let Some(m) = &manifest {
+            self.metrics_up_to(&m.metrics)?;
+        }
+        Ok((table, counted))
+    }
+
     /// Whether the run has trained actors to deploy: its scene and a checkpoint (what `--watch` and the
     /// viewer's run picker offer).
     pub fn has_actors(&self) -> bool {
@@ -178,6 +233,7 @@ impl RunDir {
                 let ours = entry.file_type().is_ok_and(|t| t.is_file())
                     && (name.ends_with(".safetensors")
                         || name == crate::learning::checkpoint::STATE
+                        || name == crate::learning::manifest::MANIFEST
                         || (name.starts_with('.') && name.ends_with(".tmp")));
                 if !ours {
                     return Err(format!(
@@ -227,13 +283,21 @@ impl RunDir {
     /// Every writer of an existing run takes it, so it refuses a shipped run ([`RunDir::refuse_if_shipped`]).
     pub fn lock(&self) -> crate::error::Result<RunLock> {
         self.refuse_if_shipped()?;
+        self.refuse_links()?;
         std::fs::create_dir_all(&self.path).map_err(io_err(&self.path))?;
         let path = self.path.join(LOCK);
         for _ in 0..2 {
+            let writing = crate::io::Writing::begin();
             match std::fs::OpenOptions::new().write(true).create_new(true).open(&path) {
                 Ok(mut f) => {
                     register_temporary(&path);
-                    writeln!(f, "{}", std::process::id()).map_err(io_err(&path))?;
+                    if let Err(e) = writeln!(f, "{}", std::process::id()).and_then(|()| f.sync_all()) {
+                        // A lock without its PID (a full disk) is not left behind.
+                        let _ = std::fs::remove_file(&path);
+                        unregister_temporary(&path);
+                        return Err(io_err(&path)(e).into());
+                    }
+                    drop(writing);
                     self.remove_leftovers();
                     return Ok(RunLock { path });
                 }
@@ -258,9 +322,28 @@ impl RunDir {
         Err(format!("{}: could not take the run's lock", path.display()).into())
     }
 
-    /// What killed processes left behind (only called with the lock held, so nobody is writing).
+    /// Refuses a run whose own folders (checkpoints, snapshots, figures) are symbolic links: coevo writes
+    /// into them, and would write into whatever they point to (another run, a user's folder).
+    fn refuse_links(&self) -> crate::error::Result<()> {
+        for name in CHECKPOINT_DIRS.iter().chain(&[FIGURES]) {
+            let path = self.path.join(name);
+            if std::fs::symlink_metadata(&path).is_ok_and(|m| m.file_type().is_symlink()) {
+                return Err(format!(
+                    "{}: is a symbolic link; coevo writes only into real folders it owns, never through a link: remove the link",
+                    path.display()
+                )
+                .into());
+            }
+        }
+        Ok(())
+    }
+
+    /// What killed processes left behind (only called with the lock held, so nobody is writing): a
+    /// half-written `checkpoint.tmp/`, a `checkpoint.old/` of a swap cut short (put back where the
+    /// checkpoint is missing, removed where the new one is whole), temporaries of dead PIDs.
     fn remove_leftovers(&self) {
         let _ = std::fs::remove_dir_all(self.path.join(CHECKPOINT_TMP));
+        crate::learning::checkpoint::finish_swap(&self.path);
         crate::io::remove_stale_temporaries(&self.path, None);
         crate::io::remove_stale_temporaries(&self.checkpoint(), None);
         crate::io::remove_stale_temporaries(&self.path.join(SNAPSHOTS), None);
@@ -326,6 +409,52 @@ impl RunDir {
             None => Ok(()),
         }
     }
+}
+
+/// Above this many estimated seconds per step a mode says what it is about to cost and shows progress.
+const COSTLY_STEP_SECONDS: f64 = 0.5;
+
+fn costly(scene: &crate::scene::Scene) -> bool {
+    scene.estimated_step_seconds() >= COSTLY_STEP_SECONDS
+}
+
+/// Before `steps` steps of `scene` (and before its population is spawned, which costs a step):
+/// where a step is estimated to cost more than half a second
+/// ([`crate::scene::Scene::estimated_step_seconds`]), says so on stderr with the estimate for the
+/// whole call.
+pub fn announce_cost(scene: &crate::scene::Scene, steps: usize) -> crate::error::Result<()> {
+    let per_step = scene.estimated_step_seconds();
+    if !costly(scene) {
+        return Ok(());
+    }
+    let agents: usize = scene.species.iter().map(|s| s.count).sum();
+    let total = per_step * steps as f64;
+    let shown = |s: f64| match s {
+        s if s < 120.0 => format!("{s:.0} s"),
+        s if s < 7200.0 => format!("{:.0} min", s / 60.0),
+        s => format!("{:.1} h", s / 3600.0),
+    };
+    crate::errln!(
+        "coevo: {agents} agents with ~{:.0} bodies within contact reach of each ({} m arena): about {} a step, {} for {steps} steps (an estimate); Ctrl-C stops it",
+        scene.bodies_within_reach(),
+        scene.world.arena_edge,
+        shown(per_step),
+        shown(total)
+    )
+}
+
+/// A progress bar over `steps` steps where a step of `scene` is costly ([`announce_cost`]), a hidden
+/// one otherwise.
+pub fn step_bar(scene: &crate::scene::Scene, steps: usize) -> indicatif::ProgressBar {
+    if !costly(scene) {
+        return indicatif::ProgressBar::hidden();
+    }
+    let bar = indicatif::ProgressBar::new(steps as u64);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("{bar:30} {pos}/{len} steps  {elapsed} elapsed, ETA {eta}")
+            .expect("valid template"),
+    );
+    bar
 }
 
 /// Whether a folder holds a run.
@@ -410,6 +539,7 @@ pub struct RunLock {
 
 impl Drop for RunLock {
     fn drop(&mut self) {
+        let _writing = crate::io::Writing::begin();
         let _ = std::fs::remove_file(&self.path);
         unregister_temporary(&self.path);
     }

@@ -174,6 +174,71 @@ pub struct Table {
 }
 
 impl Table {
+    /// A run's `metrics.csv` as training writes it, refused in one line unless it is whole: every line
+    /// complete (the file ends in a line break) and as wide as the header, every cell a finite number or
+    /// blank, the episodes 0, 1, 2, … in order, at least one row. With `partial`, a last line cut short
+    /// (a run killed mid-write) is dropped instead of refused.
+    pub fn read_metrics(path: &Path, partial: bool) -> crate::error::Result<Table> {
+        Table::read_whole(path, partial, true)
+    }
+
+    /// An evaluation's per-step CSV, refused unless whole as [`Table::read_metrics`] says (episodes are
+    /// repeated there, one row per step).
+    pub fn read_eval(path: &Path) -> crate::error::Result<Table> {
+        Table::read_whole(path, false, false)
+    }
+
+    fn read_whole(path: &Path, partial: bool, one_row_per_episode: bool) -> crate::error::Result<Table> {
+        let text =
+            crate::io::read_text(path, crate::io::MAX_TEXT_BYTES).map_err(|e| format!("{}: {e}", path.display()))?;
+        let refuse = |line: usize, why: String| -> crate::error::Error {
+            crate::error::Error { file: Some(path.display().to_string()), line: Some(line), field: None, message: why }
+        };
+        let mut lines: Vec<&str> = text.split_terminator('\n').collect();
+        if !text.is_empty() && !text.ends_with('\n') {
+            if !partial {
+                return Err(refuse(lines.len(), "the last row is cut short (no line break): the file is damaged or still being written; --partial draws the rows before it".into()));
+            }
+            lines.pop();
+        }
+        let header: Vec<String> = lines.first().unwrap_or(&"").split(',').map(str::to_string).collect();
+        let episode = header
+            .iter()
+            .position(|h| h == EPISODE)
+            .ok_or_else(|| refuse(1, format!("no column {EPISODE}: not a metrics.csv")))?;
+        let mut rows = Vec::with_capacity(lines.len());
+        for (i, line) in lines.iter().enumerate().skip(1) {
+            let cells: Vec<&str> = line.split(',').collect();
+            if cells.len() != header.len() {
+                return Err(refuse(i + 1, format!("{} cells where the header has {}", cells.len(), header.len())));
+            }
+            let row = cells
+                .iter()
+                .zip(&header)
+                .map(|(c, h)| match c.parse::<f64>() {
+                    _ if c.is_empty() => Ok(f64::NAN),
+                    Ok(x) if x.is_finite() => Ok(x),
+                    _ => Err(refuse(i + 1, format!("{h}: {c:?} is not a finite number"))),
+                })
+                .collect::<crate::error::Result<Vec<f64>>>()?;
+            if one_row_per_episode && row[episode] != (i - 1) as f64 {
+                return Err(refuse(
+                    i + 1,
+                    format!(
+                        "episode {} where episode {} belongs: rows missing, repeated or out of order",
+                        cells[episode],
+                        i - 1
+                    ),
+                ));
+            }
+            rows.push(row);
+        }
+        if rows.is_empty() {
+            return Err(refuse(1, "holds no episode (a header only)".into()));
+        }
+        Ok(Table { header, rows, path: path.to_path_buf() })
+    }
+
     pub fn read(path: &Path) -> crate::error::Result<Table> {
         let text =
             crate::io::read_text(path, crate::io::MAX_TEXT_BYTES).map_err(|e| format!("{}: {e}", path.display()))?;

@@ -5,6 +5,7 @@
 use super::{io_err, schema, RunDir};
 use crate::io::Existing;
 use crate::learning::checkpoint::{self, SpeciesState, TrainingState};
+use crate::learning::manifest::{Digest, Hashing};
 use crate::learning::{Learners, Mode};
 use crate::scene::Scene;
 use crate::sim::clock::Episode;
@@ -36,11 +37,13 @@ impl TrainOptions {
 }
 
 /// Refuses a resume that could not continue the run as it was: its scene.ron edited since training
-/// began, a checkpoint whose metrics disagree with its episode count, or nothing left to train.
+/// began, metrics (`metrics`, as they stood at the checkpoint) that disagree with its episode count, or
+/// nothing left to train.
 fn check_resumable(
     run: &Path,
     scene: &Scene,
     state: &TrainingState,
+    metrics: &str,
     total: usize,
     asked: bool,
 ) -> crate::error::Result<()> {
@@ -56,8 +59,7 @@ fn check_resumable(
             RunDir::new(run).scene().display()
         ).into());
     }
-    let rows: Vec<usize> = state
-        .metrics_csv
+    let rows: Vec<usize> = metrics
         .lines()
         .skip(1)
         .filter(|l| !l.is_empty())
@@ -123,29 +125,33 @@ pub fn train(scene: Scene, opts: &TrainOptions) -> crate::error::Result<Vec<Epis
     let registry = sim.world().resource::<SpeciesRegistry>().clone();
     let names: Vec<String> = registry.defs.iter().map(|d| d.name.clone()).collect();
     let metrics_path = dir.metrics();
-    let mut metrics_text: String;
+    // metrics.csv up to the last row written: what the next checkpoint's manifest hashes.
+    let metrics_text: String;
     // Seconds trained before this invocation: wall_seconds counts the run's whole training time.
     let mut wall_before = 0.0;
     if opts.resume {
         let world = sim.world_mut();
-        let state = {
+        let (state, manifest) = {
             let mut learners = world.resource_mut::<Learners>();
             checkpoint::load(run, &mut learners.species, &names)?
         };
-        check_resumable(run, &scene, &state, total, opts.episodes.is_some())?;
+        let rows = match &manifest {
+            Some(m) => dir.metrics_up_to(&m.metrics)?,
+            None => state.metrics_csv.clone(),
+        };
+        check_resumable(run, &scene, &state, &rows, total, opts.episodes.is_some())?;
         dir.note_binary()?;
         world.resource_mut::<SimRng>().0 = state.spawn_rng.clone().unwrap_or_else(|| state.sim_rng.clone());
         world.resource_mut::<Episode>().index = state.episodes_done;
         crate::sim::episode::spawn_population(world);
         if state.spawn_rng.is_none() || state.species.iter().flatten().any(|s| s.transitions.is_none()) {
-            eprintln!(
+            crate::errln!(
                 "coevo: warning: {}: the checkpoint lacks replay buffers or spawn state (an older coevo, or segments removed, as an experiment does once a run is trained): the resumed run refills its buffers and differs from an uninterrupted one",
                 run.display()
-            );
+            )?;
         }
         // A run begun by an older coevo keeps its rows, under today's columns (new ones blank).
-        metrics_text =
-            schema::with_header(&state.metrics_csv, &schema::metrics_header(&registry, world.resource::<Learners>()));
+        metrics_text = schema::with_header(&rows, &schema::metrics_header(&registry, world.resource::<Learners>()));
         wall_before = schema::last_wall_seconds(&metrics_text);
     } else {
         dir.check_new(opts.overwrite)?;
@@ -157,6 +163,10 @@ pub fn train(scene: Scene, opts: &TrainOptions) -> crate::error::Result<Vec<Epis
     }
     crate::io::write_file(&metrics_path, Existing::Replace, metrics_text.as_bytes())?;
     let mut csv = std::fs::OpenOptions::new().append(true).open(&metrics_path).map_err(io_err(&metrics_path))?;
+    // The rows are hashed as they are written, so memory stays constant over any number of episodes.
+    let mut metrics = Hashing::new(std::io::sink());
+    metrics.write_all(metrics_text.as_bytes()).expect("a sink takes everything");
+    drop(metrics_text);
 
     let start_episode = sim.episode().index;
     // Snapshots of every learning species' actor (cross-play, `super::crossplay`): as initialised, every
@@ -167,8 +177,7 @@ pub fn train(scene: Scene, opts: &TrainOptions) -> crate::error::Result<Vec<Epis
         let learners = sim.world().resource::<Learners>();
         for (l, name) in learners.species.iter().zip(&names) {
             if let Some(l) = l.as_ref().filter(|l| !l.frozen) {
-                checkpoint::save_snapshot(run, name, episode, &l.ddpg.actor)
-                    .map_err(|e| format!("{}: cannot save snapshot: {e}", dir.snapshots().display()))?;
+                checkpoint::save_snapshot(run, &scene, name, episode, &l.ddpg.actor)?;
             }
         }
         Ok(())
@@ -185,17 +194,18 @@ pub fn train(scene: Scene, opts: &TrainOptions) -> crate::error::Result<Vec<Epis
     bar.set_position(start_episode as u64);
     let started = Instant::now();
     let (mut steps, mut summaries) = (0usize, Vec::new());
-    let save =
-        |sim: &Simulation,
-         learners_override: Option<&Vec<Option<crate::learning::SpeciesLearner>>>,
-         metrics_text: &str| save_checkpoint(run, sim.world(), &scene, learners_override, metrics_text);
+    let save = |sim: &Simulation,
+                learners_override: Option<&Vec<Option<crate::learning::SpeciesLearner>>>,
+                metrics: &Hashing<std::io::Sink>| {
+        save_checkpoint(run, sim.world(), &scene, learners_override, metrics.digest())
+    };
     while sim.episode().index < total {
         sim.step();
         sim.check()?;
         steps += 1;
         if let Some(failure) = sim.world().resource::<Learners>().failure.clone() {
             let last_good = sim.world().resource::<Learners>().last_good.clone();
-            save(&sim, last_good.as_ref(), &metrics_text)?;
+            save(&sim, last_good.as_ref(), &metrics)?;
             return Err(format!(
                 "training stopped: {failure}; the last good networks are saved in {}",
                 checkpoint::checkpoint_dir(run).display()
@@ -207,15 +217,15 @@ pub fn train(scene: Scene, opts: &TrainOptions) -> crate::error::Result<Vec<Epis
         };
         let wall = wall_before + started.elapsed().as_secs_f64();
         let row = schema::metrics_row(&summary, &registry, &mut sim.world_mut().resource_mut::<Learners>(), wall);
-        writeln!(csv, "{row}").map_err(io_err(&metrics_path))?;
-        metrics_text.push_str(&row);
-        metrics_text.push('\n');
+        let row = format!("{row}\n");
+        csv.write_all(row.as_bytes()).map_err(io_err(&metrics_path))?;
+        metrics.write_all(row.as_bytes()).expect("a sink takes everything");
         let done = summary.episode + 1;
         if snapshot_every > 0 && (done % snapshot_every == 0 || done == total) {
             snapshot(&sim, done)?;
         }
         if done % every == 0 || done == total {
-            save(&sim, None, &metrics_text)?;
+            save(&sim, None, &metrics)?;
         }
         if let Some(sw) = summary.swarming.get(prey).copied().flatten() {
             let rate = steps as f64 / started.elapsed().as_secs_f64();
@@ -229,14 +239,15 @@ pub fn train(scene: Scene, opts: &TrainOptions) -> crate::error::Result<Vec<Epis
 }
 
 /// Saves the world's training state as `run`'s checkpoint (what `--resume` continues from): the learners
-/// (or `species`: the last good networks after a failure), the random streams, the episodes done and the
-/// run's `metrics_text`. For `--train` and for runs stepped elsewhere ([`super::live::LiveRun`]).
+/// (or `species`: the last good networks after a failure), the random streams and the episodes done,
+/// with `metrics`, the digest of the run's `metrics.csv` as it stands. For `--train` and for runs stepped
+/// elsewhere ([`super::live::LiveRun`]).
 pub(crate) fn save_checkpoint(
     run: &Path,
     world: &bevy::ecs::world::World,
     scene: &Scene,
     species: Option<&Vec<Option<crate::learning::SpeciesLearner>>>,
-    metrics_text: &str,
+    metrics: Digest,
 ) -> crate::error::Result<()> {
     let learners = world.resource::<Learners>();
     let species = species.unwrap_or(&learners.species);
@@ -261,9 +272,9 @@ pub(crate) fn save_checkpoint(
                 })
             })
             .collect(),
-        metrics_csv: metrics_text.to_string(),
+        metrics_csv: String::new(),
     };
-    Ok(checkpoint::save(run, species, &names, &state)
+    Ok(checkpoint::save(run, species, &names, &state, metrics)
         .map_err(|e| format!("{}: cannot save checkpoint: {e}", run.display()))?)
 }
 

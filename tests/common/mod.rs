@@ -45,3 +45,15 @@ pub fn get<C: bevy::prelude::Component + Copy>(sim: &mut Simulation, id: u32) ->
 pub fn manual(scene: Scene) -> Simulation {
     Simulation::with_plugins(scene, |app| coevo::sim::policy::PolicyPlugins::register(app, "test"))
 }
+
+/// Records the run's snapshots as they are now in its checkpoint's manifest, as if training had written
+/// them (what a test that edits snapshots on purpose needs).
+pub fn reseal_snapshots(run: &std::path::Path) {
+    use coevo::learning::manifest::{Digest, Manifest, MANIFEST};
+    let dir = run.join("checkpoint");
+    let mut manifest = Manifest::read(&dir).unwrap().unwrap();
+    for (name, digest) in manifest.snapshots.iter_mut() {
+        *digest = Digest::of_file(&run.join("snapshots").join(name)).unwrap();
+    }
+    std::fs::write(dir.join(MANIFEST), manifest.to_ron()).unwrap();
+}
