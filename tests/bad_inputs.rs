@@ -587,6 +587,19 @@ fn what_may_be_written_is_written_and_nothing_else() {
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let svg = std::fs::read_to_string(root.join("after-checkpoint-run/figures/training.svg")).unwrap();
     assert!(svg.contains("partial: episodes 2..3 after the last checkpoint"), "the figure says it is partial");
+    // A run trained outside coevo (python/examples/ippo.py: scene, metrics and actors, no training state
+    // or provenance) is drawn whole, without --partial.
+    let outside = root.join("outside-run");
+    std::fs::create_dir_all(outside.join("checkpoint")).unwrap();
+    for file in
+        ["scene.ron", "metrics.csv", "checkpoint/prey-actor.safetensors", "checkpoint/predator-actor.safetensors"]
+    {
+        std::fs::copy(root.join("run2").join(file), outside.join(file)).unwrap();
+    }
+    let out = coevo(&["--plot", "outside-run"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let svg = std::fs::read_to_string(outside.join("figures/training.svg")).unwrap();
+    assert!(!svg.contains("partial"), "a whole run trained outside coevo is not marked partial");
     // What a killed process left is cleared by the next use: a checkpoint.old/ of a swap cut short
     // beside a whole checkpoint, and a lock file left empty (a disk that filled as it was taken).
     copy_dir(&root.join("run/checkpoint"), &root.join("run2/checkpoint.old"));

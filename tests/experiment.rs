@@ -206,6 +206,28 @@ fn a_tiny_experiment_runs_resumes_and_gives_the_same_summary_at_one_or_two_jobs(
         "{md}"
     );
     assert!(md.contains("\n## tiny\n") && md.contains("![paper-variants](figures/paper-variants.png)"), "{md}");
+    // Every order parameter of the one list (sim::metrics::order_parameters!) reaches metrics.csv, the
+    // evaluation's CSV, the summary's columns (training and evaluation), the claims' validator and the
+    // report's table, so one added there is seen everywhere.
+    use coevo::sim::metrics::Swarming;
+    let run = two.path().join("results/tiny/paper/5-3/seed1");
+    let metrics_header = std::fs::read_to_string(run.join("metrics.csv")).unwrap().lines().next().unwrap().to_string();
+    let eval_header =
+        std::fs::read_to_string(run.join("eval-50-prey.csv")).unwrap().lines().next().unwrap().to_string();
+    let summary_header = &rows[0];
+    for name in Swarming::NAMES {
+        let column = format!("{name}_prey");
+        assert!(metrics_header.split(',').any(|c| c == column), "metrics.csv lacks {column}: {metrics_header}");
+        assert!(eval_header.split(',').any(|c| c == column), "eval-50-prey.csv lacks {column}: {eval_header}");
+    }
+    for (name, label) in coevo::experiment::EVAL_ORDER.iter().zip(coevo::experiment::EVAL_ORDER_LABELS) {
+        for column in [format!("{name}_last100"), format!("eval_50-prey_{name}")] {
+            assert!(summary_header.split(',').any(|c| c == column), "summary.csv lacks {column}");
+        }
+        assert!(md.contains(&format!(" {label} |")), "REPORT.md's table lacks {label}");
+    }
+    assert_eq!(Swarming::NAMES[..2], ["dos", "doa"], "DoS and DoA first: they have quantities of their own");
+    assert_eq!(coevo::experiment::EVAL_ORDER.len(), Swarming::N - 2 + 1);
     assert!(md.contains("| paper | DoS falls | DoS change, last − first 100 of `5:3` | -0.030 |"), "{md}");
     // A comparison of two variants: the difference of their seed means (Welch's interval beside it).
     let change = |variant: &str| {

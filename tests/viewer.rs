@@ -254,8 +254,8 @@ fn rule_based_mode_replaces_learned_species_by_chase_and_flee() {
 #[test]
 fn the_shipped_trained_run_is_first_in_the_run_list_and_loads() {
     let runs = coevo::viewer::run_folders();
-    assert_eq!(runs.first().map(PathBuf::as_path), Some(Path::new(coevo::viewer::SHIPPED_RUN)));
-    let run = PathBuf::from(coevo::viewer::SHIPPED_RUN);
+    assert_eq!(runs.first().map(PathBuf::as_path), Some(Path::new(coevo::run::SHIPPED_RUN)));
+    let run = PathBuf::from(coevo::run::SHIPPED_RUN);
     let scene = Scene::load(&run.join("scene.ron")).unwrap();
     let (_, learners) =
         Setup { scene, source: run.join("scene.ron"), mode: RunMode::Watch(run.clone()), snapshots: vec![] }

@@ -6,10 +6,10 @@ use super::claims::{
     SETTLED_STEPS, WINDOW,
 };
 use super::figure_data::{self, FigureData};
+use super::file::{slug, Experiment, Quantity};
 use super::plot::{self, Curve, EstimatePanel, Panel, Row};
 use super::runner::{eval_file, stage, Stage};
 use super::stats::{difference, estimate, holm, mean, running_mean};
-use super::{slug, Experiment, Quantity};
 use crate::run::schema::{self, Table};
 use crate::run::RunDir;
 use crate::sim::metrics::Swarming;
@@ -65,7 +65,7 @@ pub fn load(exp: &Experiment) -> crate::error::Result<BTreeMap<usize, RunData>> 
             catches: metrics.column(schema::CATCHES)?,
             returns: metrics.column(&schema::of("return", &prey))?,
             wall_seconds: metrics.column(schema::WALL_SECONDS)?.last().copied().unwrap_or(0.0),
-            orders: super::EVAL_ORDER
+            orders: super::file::EVAL_ORDER
                 .iter()
                 .map(|q| {
                     (
@@ -195,7 +195,7 @@ pub fn aggregate(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> crate::er
     // One column per primitive quantity (named by `claims::column`), and beside every control how much
     // of the seeing actors' alignment it removes (derived, for reading).
     let mut primitives = vec![Quantity::DosFirst, Quantity::DosLast, Quantity::DoaFirst, Quantity::DoaLast];
-    for order in super::EVAL_ORDER {
+    for order in super::file::EVAL_ORDER {
         primitives.push(Quantity::TrainingFirst(order.into()));
         primitives.push(Quantity::TrainingLast(order.into()));
     }
@@ -206,8 +206,8 @@ pub fn aggregate(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> crate::er
     for e in &evals {
         quantities.push(named(Quantity::EvalDos(e.clone())));
         quantities.push(named(Quantity::EvalDoa(e.clone())));
-        quantities.extend(super::EVAL_ORDER.iter().map(|o| named(Quantity::EvalOrder(e.clone(), o.to_string()))));
-        if super::seeing_partner(&exp.spec.evaluations, e).is_some() {
+        quantities.extend(super::file::EVAL_ORDER.iter().map(|o| named(Quantity::EvalOrder(e.clone(), o.to_string()))));
+        if super::file::seeing_partner(&exp.spec.evaluations, e).is_some() {
             quantities.push((format!("eval_{}_doa_interaction", slug(e)), Quantity::InteractionDoa(e.clone())));
         }
     }
@@ -551,7 +551,7 @@ fn crossplay_figures(
     saved: &mut usize,
 ) -> crate::error::Result<()> {
     for v in &exp.spec.variants {
-        let runs: Vec<(&super::Run, &FigureData)> = drawn
+        let runs: Vec<(&super::file::Run, &FigureData)> = drawn
             .iter()
             .map(|(&i, d)| (&exp.runs[i], d))
             .filter(|(r, _)| r.preset == preset && r.variant == v.name)
@@ -635,7 +635,7 @@ fn figures<'a>(
             ),
         ];
         for e in &exp.spec.evaluations {
-            if let Some(seeing) = super::seeing_partner(&exp.spec.evaluations, &e.name) {
+            if let Some(seeing) = super::file::seeing_partner(&exp.spec.evaluations, &e.name) {
                 let title = format!("{}: DoA seeing − {}", seeing.name, e.name);
                 compared.push((
                     title,

@@ -2,8 +2,8 @@
 //! the quantities computed from it ([`quantity`]), their names in reports, and the verdict on a claim
 //! ([`verdict`]).
 
+use super::file::{Claim, Experiment, Quantity};
 use super::stats::{mean, Estimate};
-use super::{Claim, Experiment, Quantity};
 use crate::sim::metrics::Swarming;
 use std::collections::BTreeMap;
 
@@ -14,7 +14,7 @@ pub struct RunData {
     pub doa: Vec<f64>,
     pub catches: Vec<f64>,
     pub returns: Vec<f64>,
-    /// The other per-episode order parameters by name ([`super::EVAL_ORDER`]); NaN for episodes (or
+    /// The other per-episode order parameters by name ([`super::file::EVAL_ORDER`]); NaN for episodes (or
     /// runs) written before they were measured.
     pub orders: BTreeMap<String, Vec<f64>>,
     pub wall_seconds: f64,
@@ -110,11 +110,11 @@ pub fn column(q: &Quantity) -> Option<String> {
         Quantity::TrainingFirst(o) => format!("{o}_first100"),
         Quantity::TrainingLast(o) => format!("{o}_last100"),
         Quantity::Reach90(o) => format!("{o}_reach90"),
-        Quantity::EvalDos(e) => format!("eval_{}_dos_settled", super::slug(e)),
-        Quantity::EvalDoa(e) => format!("eval_{}_doa_settled", super::slug(e)),
-        Quantity::EvalOrder(e, o) => format!("eval_{}_{o}", super::slug(e)),
+        Quantity::EvalDos(e) => format!("eval_{}_dos_settled", super::file::slug(e)),
+        Quantity::EvalDoa(e) => format!("eval_{}_doa_settled", super::file::slug(e)),
+        Quantity::EvalOrder(e, o) => format!("eval_{}_{o}", super::file::slug(e)),
         Quantity::Crossplay(name) => format!("crossplay_{name}"),
-        Quantity::Response(e, which) => format!("eval_{}_response_{which}", super::slug(e)),
+        Quantity::Response(e, which) => format!("eval_{}_response_{which}", super::file::slug(e)),
         _ => return None,
     })
 }
@@ -128,14 +128,14 @@ pub fn derive(exp: &Experiment, q: &Quantity, primitive: &dyn Fn(&Quantity) -> f
         "doa" => primitive(&Quantity::EvalDoa(e.into())),
         _ => primitive(&Quantity::EvalOrder(e.into(), o.into())),
     };
-    let seeing = |e: &str| super::seeing_partner(&exp.spec.evaluations, e).map(|s| s.name.clone());
+    let seeing = |e: &str| super::file::seeing_partner(&exp.spec.evaluations, e).map(|s| s.name.clone());
     match q {
         Quantity::DosChange => primitive(&Quantity::DosLast) - primitive(&Quantity::DosFirst),
         Quantity::DoaChange => primitive(&Quantity::DoaLast) - primitive(&Quantity::DoaFirst),
         Quantity::CatchesChange => primitive(&Quantity::CatchesLast) - primitive(&Quantity::CatchesFirst),
         Quantity::InteractionDoa(e) => seeing(e).map_or(f64::NAN, |s| of_eval(&s, "doa") - of_eval(e, "doa")),
         Quantity::Interaction(e, o) => seeing(e).map_or(f64::NAN, |s| of_eval(&s, o) - of_eval(e, o)),
-        Quantity::Learned(e, o) => match super::untrained_partner(&exp.spec.evaluations, e) {
+        Quantity::Learned(e, o) => match super::file::untrained_partner(&exp.spec.evaluations, e) {
             Some(untrained) => of_eval(e, o) - of_eval(&untrained.name, o),
             None => f64::NAN,
         },

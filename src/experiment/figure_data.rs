@@ -11,8 +11,8 @@
 
 use super::claims::RunData;
 use super::crossplay::{Cell, Matrix, Pair};
+use super::file::{Experiment, Run};
 use super::runner::eval_file;
-use super::{Experiment, Run};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::io::{Read, Write};

@@ -3,8 +3,10 @@
 
 use super::aggregate;
 use super::claims::{p_shown, quantity_name, ClaimResult};
-use super::{runner, Experiment, Quantity};
+use super::file::{Experiment, Quantity, EVAL_ORDER, EVAL_ORDER_DIGITS, EVAL_ORDER_LABELS};
+use super::runner;
 use crate::io::Existing;
+use crate::sim::metrics::Swarming;
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -346,26 +348,27 @@ fn collective(md: &mut String, Reported { exp, summary, .. }: &Reported) {
         "\n## Collective measures\n\nEach evaluation of the trained actors: means over its last 50 steps (edge rank: the \
          mean over the steps with a ranked catch of each step's mean), then mean ± 95 % CI over seeds (seeds). `clusters` counts groups; `largest` is the \
          largest group's fraction of the headline species.\n\n<!-- ANCHOR: collective -->\n\
-         | preset | variant | evaluation | DoS | DoA | polarization | milling | clusters | largest | C_nn | edge rank |\n\
-         |---|---|---|---|---|---|---|---|---|---|---|\n",
+         ",
     );
+    let labels = Swarming::LABELS[..2].iter().chain(&EVAL_ORDER_LABELS);
+    let columns = ["preset", "variant", "evaluation"].iter().chain(labels).copied().collect::<Vec<_>>();
+    writeln!(md, "| {} |\n|{}", columns.join(" | "), "---|".repeat(columns.len())).unwrap();
     for preset in &exp.spec.presets {
         for v in &exp.spec.variants {
             for e in &exp.spec.evaluations {
                 let shown = |q: Quantity, digits: usize| {
                     estimate_shown(super::stats::estimate(&summary.values(exp, preset, &v.name, &q)), digits)
                 };
-                let order = |name: &str, digits: usize| shown(Quantity::EvalOrder(e.name.clone(), name.into()), digits);
-                let cells = [
-                    shown(Quantity::EvalDos(e.name.clone()), 3),
-                    shown(Quantity::EvalDoa(e.name.clone()), 3),
-                    order("polarization", 2),
-                    order("milling", 2),
-                    order("clusters", 1),
-                    order("largest_cluster", 2),
-                    order("nn_correlation", 2),
-                    order("edge_rank", 3),
+                let mut cells = vec![
+                    shown(Quantity::EvalDos(e.name.clone()), Swarming::DIGITS[0]),
+                    shown(Quantity::EvalDoa(e.name.clone()), Swarming::DIGITS[1]),
                 ];
+                cells.extend(
+                    EVAL_ORDER
+                        .iter()
+                        .zip(EVAL_ORDER_DIGITS)
+                        .map(|(name, digits)| shown(Quantity::EvalOrder(e.name.clone(), name.to_string()), digits)),
+                );
                 if cells.iter().all(|c| c == "–") {
                     continue;
                 }

@@ -4,7 +4,7 @@
 //! child writes is atomic or checkpointed, so the experiment can be killed at any moment and run again
 //! to continue; no finished run is redone.
 
-use super::{slug, Experiment, Run};
+use super::file::{slug, Experiment, Run};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -218,7 +218,7 @@ fn evaluated(eval_csv: &Path) -> bool {
 
 /// Whether an evaluation is complete, with its perturbation response when it asks for one, and made with
 /// the episodes and steps the experiment file asks for now (else it is run again).
-fn evaluated_as(run: &Run, e: &super::Evaluation) -> bool {
+fn evaluated_as(run: &Run, e: &super::file::Evaluation) -> bool {
     let eval_csv = eval_file(&run.dir, &e.name);
     evaluated(&eval_csv)
         && (e.perturb.is_none() || crate::io::beside(&eval_csv, crate::run::PERTURBATION).exists())
@@ -236,7 +236,7 @@ pub fn first_stale(exp: &Experiment) -> Option<String> {
 
 /// How an existing evaluation differs from what the experiment file asks for now (an edited file: its
 /// episodes or steps changed), from the last row of its per-step CSV; None when it matches.
-pub fn stale(run: &Run, e: &super::Evaluation) -> Option<String> {
+pub fn stale(run: &Run, e: &super::file::Evaluation) -> Option<String> {
     let path = eval_file(&run.dir, &e.name);
     // Only the last row counts: read the file's tail (a per-step CSV runs to megabytes, and every run's
     // evaluations are checked each time an experiment starts).

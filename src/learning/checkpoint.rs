@@ -37,10 +37,10 @@
 //! removes a run's segments once it is trained ([`drop_replay`]) unless its file says `keep_replay: true`.
 
 use super::ddpg::Ddpg;
+use super::learner::SpeciesLearner;
 use super::manifest::{Digest, Hashing, Manifest, SpeciesEntry, MANIFEST};
 use super::nets::Mlp;
 use super::replay::ReplayBuffer;
-use super::SpeciesLearner;
 use crate::io::Existing;
 use crate::scene::Scene;
 use dfdx::shapes::HasShape;

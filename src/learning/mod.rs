@@ -16,6 +16,7 @@ pub mod checkpoint;
 pub mod control;
 pub mod ddpg;
 pub mod fused;
+pub mod learner;
 pub mod manifest;
 pub mod nets;
 pub mod replay;
@@ -23,19 +24,19 @@ pub mod replay;
 use crate::scene::{LearningParams, Policy, Scene};
 use crate::sim::clock::Episode;
 use crate::sim::episode::SimRng;
-use crate::sim::perception::{Batches, SpeciesBatch};
-use crate::sim::species::{SpeciesRegistry, ACTION_DIM};
+use crate::sim::perception::Batches;
+use crate::sim::species::SpeciesRegistry;
 use crate::sim::Simulation;
 use crate::sim::{ActiveScene, SimSet};
 use bevy::prelude::*;
 use control::ResolvedControl;
-use ddpg::{Ddpg, Losses};
-use nets::Dev;
+use ddpg::Losses;
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
-use replay::{Batch, ReplayBuffer};
 use std::path::{Path, PathBuf};
+
+pub use learner::SpeciesLearner;
 
 /// Train (explore, store, update) or only act (evaluation: no noise, no updates).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -46,31 +47,6 @@ pub enum Mode {
 
 pub struct LearningPlugin {
     pub mode: Mode,
-}
-
-/// One species' learner.
-#[derive(Clone, Debug)]
-pub struct SpeciesLearner {
-    pub ddpg: Ddpg,
-    /// The species' own dfdx device: every tensor holds a handle to its device, so species that share one
-    /// would contend for its reference counts when they update concurrently.
-    pub dev: Dev,
-    pub buffer: ReplayBuffer,
-    /// Loaded from a checkpoint and never updated.
-    pub frozen: bool,
-    /// Current exploration noise std σ and random-action probability ε.
-    pub noise_std: f64,
-    pub epsilon: f64,
-    /// The species' own random stream: exploration noise and mini-batch sampling. One stream per species
-    /// lets species update concurrently without changing which random numbers go where.
-    pub rng: ChaCha8Rng,
-    /// The observations the current actions were chosen on (o_t), to pair with o_{t+1}.
-    pending_obs: Vec<f32>,
-    /// The mini-batch buffers, reused by every update.
-    batch: Batch,
-    /// Sum and count of losses since the last episode summary.
-    pub loss_sum: Losses,
-    pub updates: usize,
 }
 
 /// Every learned species' learner (None for rule-based species).
@@ -85,25 +61,6 @@ pub struct Learners {
     pub last_good: Option<Vec<Option<SpeciesLearner>>>,
     /// Species names, registry order.
     pub names: Vec<String>,
-}
-
-impl SpeciesLearner {
-    /// A copy of the networks and exploration state with an empty replay buffer: what a checkpoint holds.
-    pub fn without_buffer(&self) -> SpeciesLearner {
-        SpeciesLearner {
-            ddpg: self.ddpg.clone(),
-            dev: self.dev.clone(),
-            buffer: ReplayBuffer::new(self.buffer.capacity, self.buffer.obs_dim, self.buffer.act_dim),
-            frozen: self.frozen,
-            noise_std: self.noise_std,
-            epsilon: self.epsilon,
-            rng: self.rng.clone(),
-            pending_obs: vec![],
-            batch: Batch::default(),
-            loss_sum: self.loss_sum,
-            updates: self.updates,
-        }
-    }
 }
 
 impl Learners {
@@ -139,20 +96,7 @@ impl Learners {
                     _ => return None,
                 };
                 let d = registry.observation_dim(s);
-                let dev = Dev::default();
-                Some(SpeciesLearner {
-                    ddpg: Ddpg::new(&dev, d, &p, &mut init_rng),
-                    dev,
-                    buffer: ReplayBuffer::new(p.buffer_capacity, d, ACTION_DIM),
-                    frozen,
-                    noise_std: p.noise_std,
-                    epsilon: p.epsilon,
-                    rng: species_stream(scene.seed, s),
-                    pending_obs: vec![],
-                    batch: Batch::default(),
-                    loss_sum: Losses::default(),
-                    updates: 0,
-                })
+                Some(SpeciesLearner::new(d, &p, frozen, &mut init_rng, species_stream(scene.seed, s)))
             })
             .collect();
         Learners {
@@ -296,44 +240,6 @@ fn decide_learned(mut learners: ResMut<Learners>, mut batches: ResMut<Batches>, 
             }
         }
         learner.pending_obs.clone_from(&batch.observations);
-    }
-}
-
-impl SpeciesLearner {
-    /// Stores the step's transitions (o_t, a_t, r_t, o_{t+1}) of every individual in the species' buffer.
-    fn store(&mut self, b: &SpeciesBatch) {
-        let d = b.obs_dim;
-        // Rows pair up only if the population did not change during the step.
-        if self.pending_obs.len() != b.observations.len() {
-            return;
-        }
-        for row in 0..b.n {
-            self.buffer.push(
-                &self.pending_obs[row * d..(row + 1) * d],
-                &b.actions[row * ACTION_DIM..(row + 1) * ACTION_DIM],
-                b.rewards[row],
-                b.observation(row),
-            );
-        }
-    }
-
-    /// `n` DDPG updates, each on a mini-batch of `batch_size` sampled from the species' buffer with its own
-    /// stream. Err (the losses) when a loss or, at the end, a parameter is not finite.
-    fn update(&mut self, n: usize, batch_size: usize) -> Result<(), Losses> {
-        for _ in 0..n {
-            self.buffer.sample_into(&mut self.batch, batch_size, &mut self.rng);
-            let losses = self.ddpg.update(&self.batch);
-            self.loss_sum.critic += losses.critic;
-            self.loss_sum.actor += losses.actor;
-            self.updates += 1;
-            if !losses.critic.is_finite() || !losses.actor.is_finite() {
-                return Err(losses);
-            }
-        }
-        match n > 0 && !self.ddpg.is_finite() {
-            true => Err(self.loss_sum),
-            false => Ok(()),
-        }
     }
 }
 

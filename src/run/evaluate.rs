@@ -7,15 +7,15 @@
 //! The loop accumulates ([`Accumulated::step`]); the files and the summary line are written from what it
 //! accumulated ([`Accumulated::distributions`], [`Accumulated::summary`]).
 
+use super::folder::RunDir;
 use super::schema;
-use super::RunDir;
 use crate::io::{AtomicFile, Existing};
 use crate::learning::control::ObservationControl;
 use crate::learning::Mode;
 use crate::scene::Overrides;
 use crate::sim::clock::Episode;
 use crate::sim::collective::{add_heading_correlation, confusion_bin_label, heading_correlation};
-use crate::sim::metrics::{Confusion, SwarmMetrics};
+use crate::sim::metrics::{Confusion, SwarmMetrics, Swarming};
 use crate::sim::perception::Population;
 use crate::sim::space::Arena;
 use crate::sim::species::SpeciesRegistry;
@@ -50,7 +50,7 @@ pub struct EvalOptions {
 /// What the evaluation accumulates over its steps, of the headline species.
 struct Accumulated {
     /// Sums of the order parameters of [`crate::sim::metrics::Swarming::NAMES`] over the steps that have them.
-    sums: [f64; 7],
+    sums: [f64; Swarming::N],
     steps: usize,
     /// Edge rank of every ranked catch.
     ranks: Vec<f64>,
@@ -64,7 +64,7 @@ struct Accumulated {
 impl Accumulated {
     fn new(diameter: f64, arena: &Arena) -> Accumulated {
         Accumulated {
-            sums: [0.0; 7],
+            sums: [0.0; Swarming::N],
             steps: 0,
             ranks: Vec::new(),
             diameter,
@@ -203,7 +203,7 @@ pub fn evaluate(opts: &EvalOptions) -> crate::error::Result<String> {
         learners.load_snapshots(&scene, &opts.run, &opts.snapshots)?;
         crate::learning::simulation_of(scene.clone(), learners, |_| {})
     };
-    super::announce_cost(&scene, opts.episodes * scene.episode_steps)?;
+    super::progress::announce_cost(&scene, opts.episodes * scene.episode_steps)?;
     let mut sim = build()?;
     let mut twin = match opts.perturb {
         Some(p) if p.step == 0 || p.step >= scene.episode_steps => {
@@ -246,7 +246,7 @@ pub fn evaluate(opts: &EvalOptions) -> crate::error::Result<String> {
     let mut file = AtomicFile::create(&path, Existing::Replace).map_err(write_err)?;
     writeln!(file.writer(), "{}", schema::eval_header(&registry, prey)).map_err(write_err)?;
     let mut acc = Accumulated::new(2.0 * registry.defs[prey].radius, sim.world().resource::<Arena>());
-    let bar = super::step_bar(&scene, opts.episodes * scene.episode_steps);
+    let bar = super::progress::step_bar(&scene, opts.episodes * scene.episode_steps);
     for episode in 0..opts.episodes {
         if episode > 0 {
             crate::sim::episode::next_episode(sim.world_mut());
@@ -271,10 +271,10 @@ pub fn evaluate(opts: &EvalOptions) -> crate::error::Result<String> {
     file.commit().map_err(write_err)?;
     // The confusion curve last: the experiment runner takes its presence for a complete evaluation.
     if let Some((_, response)) = &twin {
-        let out = crate::io::beside(&path, super::PERTURBATION);
+        let out = crate::io::beside(&path, super::folder::PERTURBATION);
         crate::io::write_file(&out, Existing::Replace, response.csv().as_bytes())?;
     }
-    for (what, text) in super::EVAL_BESIDE.iter().zip(files) {
+    for (what, text) in super::folder::EVAL_BESIDE.iter().zip(files) {
         crate::io::write_file(&crate::io::beside(&path, what), Existing::Replace, text.as_bytes())?;
     }
     // A replaced policy is named beside its species: "3 predator (ChaseNearest) + 50 prey".

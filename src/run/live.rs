@@ -3,7 +3,8 @@
 //! an episode boundary, so that `--resume`, `--eval` and the viewer's watch mode take it, and a resumed run
 //! continues exactly as the `--train` run of its scene and seed would have.
 
-use super::{schema, RunDir};
+use super::folder::RunDir;
+use super::schema;
 use crate::io::Existing;
 use crate::learning::nets::Mlp;
 use crate::learning::{checkpoint, Learners};

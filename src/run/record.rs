@@ -36,7 +36,7 @@ pub fn record(sim: &mut Simulation, steps: usize, path: &Path, existing: Existin
     writeln!(file.writer(), "{HEADER}").map_err(io_err)?;
     writeln!(order.writer(), "step,species,{}", Swarming::NAMES.join(",")).map_err(order_err)?;
     let names: Vec<String> = sim.world().resource::<SpeciesRegistry>().defs.iter().map(|d| d.name.clone()).collect();
-    let bar = super::step_bar(&sim.world().resource::<crate::sim::ActiveScene>().0, steps);
+    let bar = super::progress::step_bar(&sim.world().resource::<crate::sim::ActiveScene>().0, steps);
     for t in 0..=steps {
         let states = snapshot(sim);
         let transitions = if t < steps {

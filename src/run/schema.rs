@@ -50,7 +50,7 @@ fn blank(x: Option<f64>) -> String {
 
 /// The cells of a species' order parameters, blank where it has none (fewer than two agents).
 fn species_cells(swarming: Option<Swarming>, edge_rank: Option<f64>) -> impl Iterator<Item = String> {
-    swarming.map_or([None; 7], |s| s.values().map(Some)).map(blank).into_iter().chain([blank(edge_rank)])
+    swarming.map_or([None; Swarming::N], |s| s.values().map(Some)).map(blank).into_iter().chain([blank(edge_rank)])
 }
 
 /// `metrics.csv`'s header.

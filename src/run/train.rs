@@ -2,7 +2,8 @@
 //! directly, into a run folder ([`super::RunDir`]): `metrics.csv` one row per episode
 //! ([`super::schema`]), a checkpoint every `checkpoint_every` episodes (`learning::checkpoint`).
 
-use super::{io_err, schema, RunDir};
+use super::folder::{io_err, RunDir};
+use super::schema;
 use crate::io::Existing;
 use crate::learning::checkpoint::{self, SpeciesState, TrainingState};
 use crate::learning::manifest::{Digest, Hashing};

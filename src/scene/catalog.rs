@@ -2,7 +2,7 @@
 //! presets), so a scene that names `hawk` is resolved from here. Program-wide, filled once at start-up by
 //! `sim::species::SpeciesPlugins::register`.
 
-use super::{ContactReward, SpeciesDef};
+use super::schema::{ContactReward, SpeciesDef};
 use std::sync::RwLock;
 
 /// A species as a plugin brings it: its definition with defaults, the species that catch it, and the

@@ -1,7 +1,7 @@
 //! The observation and action layout a scene implies (Section "Agent Observation"): own state, then one
 //! block of `topological_limit` neighbour slots per species of the scene, in the scene's order.
 
-use super::Scene;
+use super::schema::Scene;
 
 /// Own state in the observation: [x, y, v_x, v_y, h_x, h_y].
 pub const OWN_STATE_DIM: usize = 6;

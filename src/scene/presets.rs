@@ -1,7 +1,7 @@
 //! The presets a scene starts from (`../shared/reference/parameters.md`): `paper`, the paper's values with
 //! the authors' code's where the paper is silent, and `gym-pps`, the authors' code as it runs.
 
-use super::*;
+use super::schema::*;
 
 /// The `paper` preset: the paper's values, the authors' code's where the paper is silent.
 pub(super) fn paper() -> Scene {
@@ -65,7 +65,7 @@ pub(super) fn paper() -> Scene {
             exploration_decay: 5e-5,
             exploration_floor: 0.05,
             checkpoint_every: 100,
-            snapshot_every: super::default_snapshot_every(),
+            snapshot_every: default_snapshot_every(),
         },
         observation_frame: ObservationFrame::World,
         cluster_link: default_cluster_link(),

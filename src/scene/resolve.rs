@@ -3,8 +3,10 @@
 //! call ([`Overrides`]) applied and validated. Every error is one line: `file:line: field: message`.
 
 use super::diagnostics::{field_before, locate, readable};
-use super::*;
+use super::schema::*;
+use super::{catalog, presets};
 use crate::error::{Error, Result};
+use std::path::Path;
 
 /// Reads RON text of a coevo file (a scene, an experiment) into `T`, with `Some` implied for optional
 /// fields, and errors in a user's words: `file:line: field: message`.
@@ -165,7 +167,7 @@ impl Scene {
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Overrides {
     pub counts: Vec<(String, usize)>,
-    pub policies: Vec<(String, super::Policy)>,
+    pub policies: Vec<(String, Policy)>,
     pub seed: Option<u64>,
     pub episode_steps: Option<usize>,
     pub confusion_radius: Option<f64>,

@@ -1,7 +1,7 @@
 //! Validation of a resolved scene: every value the physics or learning would choke on, the integrator's
 //! stability bounds, and the memory a scene would need (before anything is allocated).
 
-use super::*;
+use super::schema::*;
 use crate::error::Error;
 
 impl Scene {

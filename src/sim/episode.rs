@@ -5,6 +5,7 @@
 //! inside a wall), headings uniform in (−π, π], velocities zero. Overlaps at spawn are allowed; the
 //! contact springs separate them. The paper is silent on this; it is what the authors' code does.
 
+use super::schedule::{ActiveScene, SimSet};
 use crate::scene::Boundary;
 use crate::sim::clock::Episode;
 use crate::sim::components::*;
@@ -13,7 +14,6 @@ use crate::sim::perception::Perceive;
 use crate::sim::physics::{PhysicsSet, FULL_ENERGY};
 use crate::sim::space::Arena;
 use crate::sim::species::SpeciesRegistry;
-use crate::sim::{ActiveScene, SimSet};
 use bevy::math::DVec2;
 use bevy::prelude::*;
 use rand::{Rng, SeedableRng};

@@ -10,53 +10,78 @@
 //! reports them for prey. Per step ([`SwarmMetrics::now`]) and per episode ([`EpisodeLog`]), with catches
 //! (predator–prey pairs in contact) and each species' mean return per agent.
 
+use super::schedule::SimSet;
 use crate::sim::collective::{self, ConfusionBin, CONFUSION_BINS};
 use crate::sim::components::*;
 use crate::sim::perception::Population;
 use crate::sim::space::{Arena, CellGrid};
 use crate::sim::species::SpeciesRegistry;
-use crate::sim::SimSet;
 use bevy::math::DVec2;
 use bevy::prelude::*;
 
-/// The order of one group at one instant: the paper's DoS and DoA, and order parameters of collective
-/// motion that tell a flock from a mill and from agents that merely share a heading (not in the paper):
-///
-/// ```text
-///   polarization P = ‖(1/N) Σ_j h_j‖                        1 = all aligned, ~1/√N for random headings
-///   milling      M = |(1/N) Σ_j (r̂_j × h_j)_z|,  r_j = x_j − c    1 = a perfect mill, ~0 for a flock
-///   clusters, largest_cluster (a fraction of N), nn_correlation C_nn: see crate::sim::collective
-/// ```
-///
-/// c is the group's centre: the mean position with walls, and on the torus the circular mean per axis
-/// (each coordinate mapped to an angle on its periodic axis, the angles averaged as unit vectors, mapped
-/// back), with r_j the minimum image of x_j − c. Swirling shows as M high with P low.
-#[derive(Clone, Copy, Debug, PartialEq, Default)]
-pub struct Swarming {
-    pub dos: f64,
-    pub doa: f64,
-    pub polarization: f64,
-    pub milling: f64,
-    /// Number of single-linkage clusters.
-    pub clusters: f64,
-    /// Size of the largest cluster over N.
-    pub largest_cluster: f64,
-    /// Connected correlation of heading fluctuations between nearest neighbours.
-    pub nn_correlation: f64,
+/// The one definition of the order parameters: each line a field of [`Swarming`], in column order, with
+/// the label report tables give it and the digits they show. `metrics.csv`, the evaluations' CSVs,
+/// experiment summaries, claims (`EvalOrder`), report tables and figures take their columns from
+/// [`Swarming::NAMES`], [`Swarming::LABELS`] and [`Swarming::DIGITS`]: adding a line here (and computing
+/// it in [`swarming`]) adds the order parameter everywhere.
+macro_rules! order_parameters {
+    ($(#[$sdoc:meta])* pub struct Swarming {
+        $($(#[$doc:meta])* $field:ident : $label:literal, $digits:literal;)*
+    }) => {
+        $(#[$sdoc])*
+        #[derive(Clone, Copy, Debug, PartialEq, Default)]
+        pub struct Swarming {
+            $($(#[$doc])* pub $field: f64,)*
+        }
+
+        impl Swarming {
+            /// How many there are.
+            pub const N: usize = [$(stringify!($field)),*].len();
+            /// Column names, in the order of [`Swarming::values`] (CSV headers append `_<species>`).
+            pub const NAMES: [&'static str; Self::N] = [$(stringify!($field)),*];
+            /// How report tables head each column.
+            pub const LABELS: [&'static str; Self::N] = [$($label),*];
+            /// Digits report tables show of each.
+            pub const DIGITS: [usize; Self::N] = [$($digits),*];
+
+            pub fn values(&self) -> [f64; Self::N] {
+                [$(self.$field),*]
+            }
+
+            pub fn from_values(v: [f64; Self::N]) -> Self {
+                let [$($field),*] = v;
+                Swarming { $($field),* }
+            }
+        }
+    };
 }
 
-impl Swarming {
-    /// Column names, in the order of [`Swarming::values`] (CSV headers append `_<species>`).
-    pub const NAMES: [&'static str; 7] =
-        ["dos", "doa", "polarization", "milling", "clusters", "largest_cluster", "nn_correlation"];
-
-    pub fn values(&self) -> [f64; 7] {
-        [self.dos, self.doa, self.polarization, self.milling, self.clusters, self.largest_cluster, self.nn_correlation]
-    }
-
-    pub fn from_values(v: [f64; 7]) -> Self {
-        let [dos, doa, polarization, milling, clusters, largest_cluster, nn_correlation] = v;
-        Swarming { dos, doa, polarization, milling, clusters, largest_cluster, nn_correlation }
+order_parameters! {
+    /// The order of one group at one instant: the paper's DoS and DoA, and order parameters of collective
+    /// motion that tell a flock from a mill and from agents that merely share a heading (not in the paper):
+    ///
+    /// ```text
+    ///   polarization P = ‖(1/N) Σ_j h_j‖                        1 = all aligned, ~1/√N for random headings
+    ///   milling      M = |(1/N) Σ_j (r̂_j × h_j)_z|,  r_j = x_j − c    1 = a perfect mill, ~0 for a flock
+    ///   clusters, largest_cluster (a fraction of N), nn_correlation C_nn: see crate::sim::collective
+    /// ```
+    ///
+    /// c is the group's centre: the mean position with walls, and on the torus the circular mean per axis
+    /// (each coordinate mapped to an angle on its periodic axis, the angles averaged as unit vectors, mapped
+    /// back), with r_j the minimum image of x_j − c. Swirling shows as M high with P low.
+    pub struct Swarming {
+        /// Degree of sparsity (per step; the paper's DoS).
+        dos: "DoS", 3;
+        /// Degree of alignment (per step; the paper's DoA).
+        doa: "DoA", 3;
+        polarization: "polarization", 2;
+        milling: "milling", 2;
+        /// Number of single-linkage clusters.
+        clusters: "clusters", 1;
+        /// Size of the largest cluster over N.
+        largest_cluster: "largest", 2;
+        /// Connected correlation of heading fluctuations between nearest neighbours.
+        nn_correlation: "C_nn", 2;
     }
 }
 
@@ -233,7 +258,7 @@ pub struct Confusion(pub Vec<[ConfusionBin; CONFUSION_BINS.len()]>);
 #[derive(Default, Debug, Clone)]
 struct EpisodeSums {
     steps: usize,
-    swarming: Vec<[f64; 7]>,
+    swarming: Vec<[f64; Swarming::N]>,
     catches: u64,
     catches_by: Vec<u64>,
     rewards: Vec<f64>,
@@ -304,7 +329,7 @@ fn measure(
     pop: Res<Population>,
     arena: Res<Arena>,
     registry: Res<SpeciesRegistry>,
-    scene: Res<crate::sim::ActiveScene>,
+    scene: Res<super::schedule::ActiveScene>,
     mut metrics: ResMut<SwarmMetrics>,
     mut confusion: ResMut<Confusion>,
     agents: Query<(&Slot, &Contacts, &Reward)>,
@@ -386,7 +411,7 @@ fn measure(
     m.in_view = in_view;
     // The episode's running sums.
     let e = &mut m.episode;
-    e.swarming.resize(n_species, [0.0; 7]);
+    e.swarming.resize(n_species, [0.0; Swarming::N]);
     e.edge_ranks.resize(n_species, (0.0, 0));
     e.agents = (0..n_species).map(|s| pop.count(s)).collect();
     for (sum, now) in e.swarming.iter_mut().zip(&m.now) {

@@ -24,6 +24,7 @@ pub mod perception;
 pub mod physics;
 pub mod policy;
 pub mod reward;
+pub mod schedule;
 pub mod space;
 pub mod species;
 
@@ -37,23 +38,7 @@ use perception::PerceptionPlugin;
 use physics::PhysicsPlugin;
 use policy::PolicyPlugin;
 use reward::RewardPlugin;
-
-/// The scene the world runs, as resolved from its file and preset.
-#[derive(Resource, Clone, Debug)]
-pub struct ActiveScene(pub Scene);
-
-/// The stages of one fixed step, in order.
-#[derive(SystemSet, Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum SimSet {
-    Decide,
-    Act,
-    Physics,
-    Perceive,
-    Reward,
-    Measure,
-    Learn,
-    Episode,
-}
+pub use schedule::{ActiveScene, SimSet};
 
 /// The simulation: every stage's plugin, the scene's resources and the step's order.
 pub struct SimulationPlugin {

@@ -12,11 +12,11 @@
 //! Δ the minimum-image displacement, never itself; empty slots are zeros. For the paper's predators and
 //! prey with limit 6 that is 6 + 4·(6 + 6) = 54 numbers.
 
+use super::schedule::ActiveScene;
 use crate::scene::{ObservationFrame, Scene};
 use crate::sim::components::*;
 use crate::sim::space::{Arena, CellGrid};
 use crate::sim::species::{SpeciesRegistry, ACTION_DIM, NEIGHBOUR_DIM, OWN_STATE_DIM};
-use crate::sim::ActiveScene;
 use bevy::ecs::schedule::ScheduleLabel;
 use bevy::math::DVec2;
 use bevy::prelude::*;

@@ -13,11 +13,11 @@
 //! update; the authors' code uses the updated velocity, which is also the stable choice with stiff
 //! springs (parameters.md, "Integration order").
 
+use super::schedule::{ActiveScene, SimSet};
 use crate::scene::SpeedClip;
 use crate::sim::components::*;
 use crate::sim::space::Arena;
 use crate::sim::species::SpeciesRegistry;
-use crate::sim::{ActiveScene, SimSet};
 use bevy::math::DVec2;
 use bevy::prelude::*;
 use std::f64::consts::PI;

@@ -5,12 +5,12 @@
 //! exactly what a learned agent perceives. `Learned` and `Frozen` species are decided by the learning
 //! plugin, `Plugin(name)` species by whatever plugin registered that name.
 
+use super::schedule::{ActiveScene, SimSet};
 use crate::scene::{ObservationFrame, Policy};
 use crate::sim::components::*;
 use crate::sim::episode::SimRng;
 use crate::sim::perception::{neighbour_slot, Batches};
 use crate::sim::species::{SpeciesRegistry, ACTION_DIM};
-use crate::sim::{ActiveScene, SimSet};
 use bevy::prelude::*;
 use rand::Rng;
 

@@ -11,10 +11,10 @@
 //! after the move (`paper`) or before it (`gym-pps`). Species plugins add terms of their own after
 //! [`RewardStage::Survival`].
 
+use super::schedule::{ActiveScene, SimSet};
 use crate::scene::{ContactJudging, RewardParams, WallPenaltyMode};
 use crate::sim::components::*;
 use crate::sim::perception::Batches;
-use crate::sim::{ActiveScene, SimSet};
 use bevy::prelude::*;
 
 /// Within `SimSet::Reward`: the survival reward and energy costs first; extra terms of species plugins

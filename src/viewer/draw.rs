@@ -6,7 +6,7 @@
 //! opposite side (a "ghost"), and everything outside the arena is masked, so crossing the seam shows no
 //! streak. Overlays are gizmos: trails, catches, the selected agent's perception radius and neighbours.
 
-use super::ViewerSet;
+use super::schedule::ViewerSet;
 use crate::scene::Boundary;
 use crate::sim::components::{AgentId, Body, Contacts, Heading, Position, Slot, SpeciesId};
 use crate::sim::perception::{neighbour_slot, Batches};

@@ -24,10 +24,11 @@ mod capture;
 mod draw;
 mod panel;
 mod plots;
+pub mod schedule;
+pub mod setup;
 
 use crate::learning::{Learners, LearningPlugin, Mode};
 use crate::run::live::LiveRun;
-use crate::scene::{Policy, Scene};
 use crate::sim::species::SpeciesRegistry;
 use crate::sim::{ActiveScene, SimulationPlugin};
 use bevy::app::FixedMainScheduleOrder;
@@ -40,76 +41,8 @@ use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 pub use capture::ScreenshotRequest;
-
-/// How the world's species are driven.
-#[derive(Clone, Debug, PartialEq)]
-pub enum RunMode {
-    /// The scene as written: its learned species train while you watch (as `--train` would, step for
-    /// step).
-    LiveTraining,
-    /// The actors of a run folder (`runs/<name>/checkpoint/`), deployed without noise or updates.
-    Watch(PathBuf),
-    /// Learned species replaced by the paper's rule-based behaviours: a species that catches chases, a
-    /// species that is caught flees, any other moves at random.
-    RuleBased,
-}
-
-impl RunMode {
-    pub fn label(&self) -> String {
-        match self {
-            RunMode::LiveTraining => "live training".into(),
-            RunMode::Watch(run) => format!("watching {}", run.display()),
-            RunMode::RuleBased => "rule-based".into(),
-        }
-    }
-}
-
-/// What the viewer runs: a scene (named by the file it came from) in a mode.
-#[derive(Clone, Debug)]
-pub struct Setup {
-    pub scene: Scene,
-    pub source: PathBuf,
-    pub mode: RunMode,
-    /// In watch mode, these species' snapshots (`NAME`, episodes) instead of their trained actors.
-    pub snapshots: Vec<(String, usize)>,
-}
-
-impl Setup {
-    /// The scene as this mode runs it and the learners it needs. An error (a checkpoint that is missing or
-    /// does not fit the scene) changes nothing.
-    pub fn prepare(&self) -> crate::error::Result<(Scene, Learners)> {
-        let mut scene = self.scene.clone();
-        if self.mode == RunMode::RuleBased {
-            let registry = SpeciesRegistry::from_scene(&scene);
-            for (s, def) in scene.species.iter_mut().enumerate() {
-                if matches!(def.policy, Policy::Learned | Policy::Frozen(_)) {
-                    def.policy = if registry.prey_of(s).next().is_some() {
-                        Policy::ChaseNearest
-                    } else if registry.predators_of(s).next().is_some() {
-                        Policy::FleeNearest
-                    } else {
-                        Policy::Random
-                    };
-                }
-            }
-        }
-        scene.validate().map_err(|e| e.in_file(&self.source))?;
-        // The viewer registers no plugin policies of its own.
-        crate::sim::policy::PolicyPlugins::default()
-            .check(&scene)
-            .map_err(|e| format!("{}: {e}", self.source.display()))?;
-        let (mode, run) = match &self.mode {
-            RunMode::Watch(run) => (Mode::Evaluate, Some(run.as_path())),
-            _ => (Mode::Train, None),
-        };
-        let mut learners = Learners::new(&scene, mode);
-        learners.load_actors(&scene, run).map_err(|e| format!("checkpoint refused: {e}"))?;
-        if let Some(run) = run {
-            learners.load_snapshots(&scene, run, &self.snapshots).map_err(|e| format!("snapshot refused: {e}"))?;
-        }
-        Ok((scene, learners))
-    }
-}
+pub use schedule::ViewerSet;
+pub use setup::{run_folders, scene_files, Control, Playback, RunMode, Setup};
 
 /// Command-line options of the viewer.
 #[derive(Clone, Debug)]
@@ -129,55 +62,8 @@ pub struct ViewerOptions {
     pub save_run: Option<PathBuf>,
 }
 
-/// The stages of a viewer frame, in order.
-#[derive(SystemSet, Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum ViewerSet {
-    Control,
-    Step,
-    Draw,
-}
-
-/// Play, pause and pace.
-#[derive(Resource, Clone, Debug)]
-pub struct Playback {
-    pub playing: bool,
-    /// Fixed steps per rendered frame.
-    pub steps_per_frame: usize,
-    /// Step for `FAST_FRAME_BUDGET` per frame instead (live training at full speed, still drawn).
-    pub as_fast_as_possible: bool,
-    /// One step on the next frame, even when paused.
-    pub step_once: bool,
-    /// Steps per second of wall-clock time, measured over the last frames.
-    pub steps_per_second: f64,
-    pub total_steps: u64,
-}
-
 /// Wall-clock time spent stepping per frame in "as fast as possible": the rest of the frame draws.
 const FAST_FRAME_BUDGET: Duration = Duration::from_millis(40);
-
-/// What runs now and what the panel asked for.
-#[derive(Resource, Clone, Debug)]
-pub struct Control {
-    pub current: Setup,
-    /// Applied at the start of the next frame (a restart with new learners).
-    pub restart: Option<Setup>,
-    /// New counts per species: respawn now, keep the learners (the networks do not depend on counts).
-    pub respawn: Option<Vec<usize>>,
-    /// The last thing that could not be done, shown in the panel until the next success.
-    pub error: Option<String>,
-    /// Live training: the folder the panel offers to save the run into, and the save asked for, done when
-    /// the current episode ends (a run is saved between episodes, as `--train` checkpoints it).
-    pub save_folder: String,
-    pub save_pending: Option<PathBuf>,
-    /// What was last saved, shown in the panel.
-    pub notice: Option<String>,
-}
-
-/// The folder the panel offers for saving a live run of `setup`: `runs/live-<scene>-seed<seed>`.
-fn save_folder(setup: &Setup) -> String {
-    let stem = setup.source.file_stem().map_or("scene".into(), |s| s.to_string_lossy().into_owned());
-    format!("runs/live-{stem}-seed{}", setup.scene.seed)
-}
 
 pub struct ViewerPlugin {
     pub options: ViewerOptions,
@@ -201,7 +87,7 @@ impl Plugin for ViewerPlugin {
             restart: None,
             respawn: None,
             error: None,
-            save_folder: save_folder(&o.setup),
+            save_folder: setup::save_folder(&o.setup),
             save_pending: o.save_run.clone(),
             notice: None,
         })
@@ -269,7 +155,7 @@ fn apply_control(world: &mut World) {
                 crate::learning::restart(world, &scene, Some(learners));
                 world.resource_mut::<plots::History>().clear();
                 let mut c = world.resource_mut::<Control>();
-                c.save_folder = save_folder(&setup);
+                c.save_folder = setup::save_folder(&setup);
                 c.save_pending = None;
                 c.current = setup;
                 c.error = None;
@@ -411,33 +297,4 @@ fn step(world: &mut World) {
         let now = done as f64 / seconds;
         p.steps_per_second = if p.steps_per_second == 0.0 { now } else { 0.95 * p.steps_per_second + 0.05 * now };
     }
-}
-
-/// The scene files a picker offers: `scenes/*.ron`, sorted.
-pub fn scene_files() -> Vec<PathBuf> {
-    list_dir("scenes", |p| p.extension().is_some_and(|e| e == "ron"))
-}
-
-/// The trained run shipped with coevo: the default scene's actors (see its README), so a trained swarm is
-/// one click away before anything has been trained here.
-pub const SHIPPED_RUN: &str = "assets/trained-standard";
-
-/// Every shipped run, first in the picker: the default scene's, then learned prey fleeing rule-based
-/// predators in a box (`scenes/confined.ron`).
-pub const SHIPPED_RUNS: [&str; 2] = [SHIPPED_RUN, "assets/trained-confined"];
-
-/// The run folders a picker offers: the shipped run first, then `runs/*/` holding a `checkpoint/`, sorted.
-pub fn run_folders() -> Vec<PathBuf> {
-    let is_run = |p: &std::path::Path| crate::run::RunDir::new(p).has_actors();
-    let mut runs: Vec<PathBuf> = SHIPPED_RUNS.iter().map(PathBuf::from).filter(|p| is_run(p)).collect();
-    runs.extend(list_dir("runs", is_run));
-    runs
-}
-
-fn list_dir(dir: &str, keep: impl Fn(&std::path::Path) -> bool) -> Vec<PathBuf> {
-    let mut out: Vec<PathBuf> = std::fs::read_dir(dir)
-        .map(|rd| rd.filter_map(|e| e.ok().map(|e| e.path())).filter(|p| keep(p)).collect())
-        .unwrap_or_default();
-    out.sort();
-    out
 }

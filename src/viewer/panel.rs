@@ -9,7 +9,7 @@
 use super::capture::ScreenshotQueue;
 use super::draw::{species_colour, Overlays, PanelSpace, Selection};
 use super::plots::{self, History};
-use super::{run_folders, scene_files, Control, Playback, RunMode, Setup};
+use super::setup::{run_folders, scene_files, Control, Playback, RunMode, Setup};
 use crate::learning::Learners;
 use crate::scene::{Boundary, Perception, Scene, PRESETS};
 use crate::sim::clock::Episode;

@@ -1,0 +1,304 @@
+//! An experiment file's schema (`experiments/*.ron`, described in the module above): what it declares
+//! (variants, evaluations, claims), the runs it resolves to, and the names it derives (slugs, partners).
+//! Read and validated by `load.rs`.
+
+use crate::run::schema::EDGE_RANK;
+use crate::scene::{Overrides, Scene, ScenePatch};
+use crate::sim::metrics::Swarming;
+use serde::Deserialize;
+use std::path::PathBuf;
+
+/// An experiment file as written.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ExperimentFile {
+    #[serde(default)]
+    pub description: String,
+    /// The scene file every variant starts from.
+    pub base: String,
+    #[serde(default = "default_presets")]
+    pub presets: Vec<String>,
+    pub seeds: Vec<u64>,
+    #[serde(default)]
+    pub episodes: Option<usize>,
+    pub variants: Vec<VariantFile>,
+    #[serde(default)]
+    pub evaluations: Vec<Evaluation>,
+    #[serde(default)]
+    pub claims: Vec<Claim>,
+    /// Compare runs made by different executables (`provenance.ron`'s `binary` and `also_by`). Off by
+    /// default: every number of an experiment comes from one binary, and aggregation refuses otherwise.
+    #[serde(default)]
+    pub mixed_binaries: bool,
+    /// Keep each run's replay buffers once it is trained (~0.45 GB a run of the standard scene), so that
+    /// `coevo --resume RUN --episodes N` can extend it exactly as an uninterrupted longer run. Off by
+    /// default: a finished run's buffers are removed (`learning::checkpoint::drop_replay`), so a suite of
+    /// 150 runs needs ~1 GB rather than ~70 GB.
+    #[serde(default)]
+    pub keep_replay: bool,
+    /// Cross-play every run's snapshots (`coevo --crossplay`) after its evaluations, so claims can name
+    /// its read-outs (`Crossplay("...")`).
+    #[serde(default)]
+    pub crossplay: Option<CrossplaySpec>,
+}
+
+/// How an experiment cross-plays its runs.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct CrossplaySpec {
+    /// Episodes per cell.
+    #[serde(default = "five")]
+    pub episodes: usize,
+}
+
+fn five() -> usize {
+    5
+}
+
+fn default_presets() -> Vec<String> {
+    vec!["paper".into()]
+}
+
+/// A named change of the base scene.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct VariantFile {
+    pub name: String,
+    #[serde(default)]
+    pub patch: ScenePatch,
+    /// `"EXPERIMENT/VARIANT"`: this variant's runs are that experiment's runs (same preset and seed, the
+    /// same resolved scene, checked), not trained or copied again: a shared run is one training, counted
+    /// once, and never compared with itself.
+    #[serde(default)]
+    pub shared_from: Option<String>,
+}
+
+/// How the trained policies of every run are deployed (`coevo --eval`): species counts, episodes and
+/// steps; its per-step DoS/DoA land in `eval-<name>.csv`.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Evaluation {
+    pub name: String,
+    /// Species counts for the evaluation, e.g. `[("prey", 50), ("predator", 0)]`.
+    #[serde(default)]
+    pub counts: Vec<(String, usize)>,
+    #[serde(default = "three")]
+    pub episodes: usize,
+    /// Steps per episode (default: the scene's).
+    #[serde(default)]
+    pub steps: Option<usize>,
+    /// What the actors see (`learning::control`): `Blind`, `Shuffled`, a block form such as
+    /// `"blind:prey:prey"`, or a list of block forms (default: seeing).
+    #[serde(default)]
+    pub control: crate::learning::control::ObservationControl,
+    /// Radius (m) of "prey in view" for the confusion curve (default: the scene's).
+    #[serde(default)]
+    pub confusion_radius: Option<f64>,
+    /// Deploy the actors as initialised before training (`coevo --eval --untrained`): the start against
+    /// which [`Quantity::Learned`] measures what training changed.
+    #[serde(default)]
+    pub untrained: bool,
+    /// Also turn one prey of a twin world by this many radians (`coevo --eval --perturb`) after
+    /// `perturb_step` (default: half the episode), for [`Quantity::Response`].
+    #[serde(default)]
+    pub perturb: Option<f64>,
+    #[serde(default)]
+    pub perturb_step: Option<usize>,
+    /// Species whose policy the evaluation replaces, e.g. `[("predator", ChaseNearest)]`: trained prey
+    /// against the paper's rule-based predators (`coevo --eval --policy`).
+    #[serde(default)]
+    pub policies: Vec<(String, crate::scene::Policy)>,
+}
+
+impl Evaluation {
+    /// What the evaluation changes of a run's scene.
+    pub fn overrides(&self) -> Overrides {
+        Overrides {
+            counts: self.counts.clone(),
+            policies: self.policies.clone(),
+            seed: None,
+            episode_steps: self.steps,
+            confusion_radius: self.confusion_radius,
+        }
+    }
+}
+
+fn three() -> usize {
+    3
+}
+
+/// One quantitative statement of the paper this experiment tests, for REPRODUCTION.md.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Claim {
+    /// The paper's words.
+    pub text: String,
+    pub variant: String,
+    pub quantity: Quantity,
+    /// The paper's number, when it gives one.
+    #[serde(default)]
+    pub paper: Option<f64>,
+    /// Compare with this variant: the claim's number becomes `variant`'s mean minus this variant's, with
+    /// Welch's 95 % interval (e.g. an ablation variant against the base it changes one thing of).
+    #[serde(default)]
+    pub versus: Option<String>,
+    /// For a claim of no effect ("unchanged", "flat"): the margin m of the equivalence test (TOST): the
+    /// claim is reproduced when the effect's 90 % interval lies inside (−m, m).
+    #[serde(default)]
+    pub margin: Option<f64>,
+    /// For a level: the value that chance alone gives, which the level must be told apart from (DoA's
+    /// 2/π and DoS at random positions are filled in when not given).
+    #[serde(default)]
+    pub baseline: Option<f64>,
+    /// The paper states only the direction of this effect (e.g. "faster convergence"): `paper` then gives
+    /// its sign (+1 or −1), never a size the interval could exclude.
+    #[serde(default)]
+    pub direction_only: bool,
+}
+
+/// A number the aggregate computes per run (prey, or the experiment's headline species).
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+pub enum Quantity {
+    /// Mean of the first / last 100 episodes of training.
+    DosFirst,
+    DosLast,
+    DoaFirst,
+    DoaLast,
+    /// Last 100 minus first 100 (the paper's "falls from … to …").
+    DosChange,
+    DoaChange,
+    /// Catches per episode (every predator–prey contact that began), last 100 minus first 100: whether
+    /// the prey learned to escape faster than the predators learned to catch.
+    CatchesChange,
+    /// Catches per episode over the first / last 100 episodes of training: how well the prey survive.
+    CatchesFirst,
+    CatchesLast,
+    /// Another per-episode order parameter of training (`polarization`, `milling`, `clusters`,
+    /// `largest_cluster`, `nn_correlation`, `edge_rank`): mean of the first / last 100 episodes.
+    TrainingFirst(String),
+    TrainingLast(String),
+    /// The evaluation's mean over its last 50 steps (the trained policies' settled state).
+    EvalDos(String),
+    EvalDoa(String),
+    /// The same for another order parameter of the evaluation: `polarization`, `milling`, `clusters`,
+    /// `largest_cluster`, `nn_correlation`; or `edge_rank`, the mean edge rank of every prey caught in it.
+    EvalOrder(String, String),
+    /// The interaction-driven part of the alignment: DoA of the seeing evaluation with the same counts,
+    /// episodes and steps, minus DoA of this control evaluation (blind or shuffled), per run.
+    InteractionDoa(String),
+    /// The same for another order parameter (as [`Quantity::EvalOrder`] names them), e.g.
+    /// `Interaction("50 prey, blind to prey", "nn_correlation")`: seeing minus the control, per run.
+    Interaction(String, String),
+    /// What training changed: an order parameter (`dos`, `doa` or as [`Quantity::EvalOrder`]) in an
+    /// evaluation of the trained actors minus the same evaluation of the untrained ones (same counts,
+    /// episodes, steps and control, `untrained: true`), per run.
+    Learned(String, String),
+    /// The episode at which the 100-episode running mean of `dos` or `doa` first completes 90 % of its
+    /// change from the first 100 episodes to the last 100 (the paper's time course, Fig. 3).
+    Reach90(String),
+    /// The information-transfer response of an evaluation with `perturb:`: `"near"`, the mean |Δheading|
+    /// of the turned prey's 6 nearest over the 10 steps after the turn, or `"far"`, the same for ranks 25
+    /// and beyond (radians).
+    Response(String, String),
+    /// A read-out of the run's cross-play matrix (`crossplay::readouts`, the headline species against its
+    /// first predator species), e.g. `Crossplay("doa_late_prey_part")`; needs `crossplay:` in the file.
+    Crossplay(String),
+}
+
+/// Order parameters an [`Quantity::EvalOrder`] may name.
+/// Taken from the one list of order parameters: every one of [`Swarming`] but DoS and DoA (its first two;
+/// they have quantities of their own, `EvalDos` and `EvalDoa`), then the edge rank of caught prey.
+pub const EVAL_ORDER: [&str; EVAL_ORDERS] = eval_order(Swarming::NAMES, EDGE_RANK);
+
+/// The report-table heading and digits of each of [`EVAL_ORDER`], in its order.
+pub const EVAL_ORDER_LABELS: [&str; EVAL_ORDERS] = eval_order(Swarming::LABELS, "edge rank");
+pub const EVAL_ORDER_DIGITS: [usize; EVAL_ORDERS] = eval_order(Swarming::DIGITS, 3);
+
+const EVAL_ORDERS: usize = Swarming::N - 2 + 1;
+
+/// `per_swarming` without its first two (DoS, DoA), then `edge_rank`.
+const fn eval_order<T: Copy>(per_swarming: [T; Swarming::N], edge_rank: T) -> [T; EVAL_ORDERS] {
+    let mut out = [edge_rank; EVAL_ORDERS];
+    let mut i = 2;
+    while i < Swarming::N {
+        out[i - 2] = per_swarming[i];
+        i += 1;
+    }
+    out
+}
+
+/// The untrained evaluation a trained evaluation `name` is compared with: same counts, policies, episodes,
+/// steps and control, `untrained: true`.
+pub fn untrained_partner<'a>(evaluations: &'a [Evaluation], name: &str) -> Option<&'a Evaluation> {
+    let trained = evaluations.iter().find(|e| e.name == name && !e.untrained)?;
+    evaluations.iter().find(|e| {
+        e.untrained
+            && e.counts == trained.counts
+            && e.episodes == trained.episodes
+            && e.steps == trained.steps
+            && e.control == trained.control
+            && e.policies == trained.policies
+    })
+}
+
+/// The seeing evaluation a control evaluation `name` is compared with: same counts, policies, episodes,
+/// steps and training state.
+/// None when `name` is no control or has no such partner.
+pub fn seeing_partner<'a>(evaluations: &'a [Evaluation], name: &str) -> Option<&'a Evaluation> {
+    let control = evaluations.iter().find(|e| e.name == name)?;
+    if control.control.is_seeing() {
+        return None;
+    }
+    evaluations.iter().find(|e| {
+        e.control.is_seeing()
+            && e.counts == control.counts
+            && e.episodes == control.episodes
+            && e.steps == control.steps
+            && e.policies == control.policies
+            && e.untrained == control.untrained
+    })
+}
+
+/// One run of an experiment.
+#[derive(Clone, Debug)]
+pub struct Run {
+    pub preset: String,
+    pub variant: String,
+    pub seed: u64,
+    /// The variant's resolved scene, seed applied.
+    pub scene: Scene,
+    /// The run's folder: under this experiment's results, or the owner's for a shared run.
+    pub dir: PathBuf,
+    /// The experiment whose run this is, for a variant with `shared_from`.
+    pub shared_from: Option<String>,
+}
+
+/// A loaded and validated experiment.
+#[derive(Clone, Debug)]
+pub struct Experiment {
+    pub name: String,
+    pub file: PathBuf,
+    pub spec: ExperimentFile,
+    /// `results/<name>`.
+    pub root: PathBuf,
+    /// Every preset × variant × seed, in that order.
+    pub runs: Vec<Run>,
+}
+
+/// The longest variant or evaluation name: it becomes a folder or file name (`eval-NAME-confusion.csv`),
+/// which file systems cap at 255 bytes.
+pub(super) const MAX_NAME: usize = 100;
+
+/// A folder-safe version of a name: runs of other characters become one `-` ("5:3" → "5-3",
+/// "n0 = 1" → "n0-1", "50 prey, blind" → "50-prey-blind").
+pub fn slug(name: &str) -> String {
+    let mut out = String::new();
+    for c in name.chars() {
+        if c.is_ascii_alphanumeric() || c == '.' || c == '_' {
+            out.push(c);
+        } else if !out.is_empty() && !out.ends_with('-') {
+            out.push('-');
+        }
+    }
+    out.trim_end_matches('-').to_string()
+}

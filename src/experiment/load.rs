@@ -1,0 +1,345 @@
+//! Reading an experiment file: every field validated, every run's scene resolved, shared variants
+//! checked against their owners, before anything runs; errors are one line naming the file and field.
+
+use super::crossplay;
+use super::file::*;
+use crate::error::{Error, Result};
+use crate::scene::{parse_ron, Scene, PRESETS};
+use std::path::{Path, PathBuf};
+
+/// The experiment and variant a `shared_from` names (`"EXPERIMENT/VARIANT"`, the experiment a file beside
+/// `file`), loaded without its own shared variants (a variant it shares itself is refused); its evaluations of the same name must be the same
+/// evaluations, since both experiments write them into the same run folders.
+fn shared_owner(
+    file: &Path,
+    results: &Path,
+    from: &str,
+    ours: &[Evaluation],
+) -> std::result::Result<(Experiment, String), String> {
+    let Some((experiment, variant)) = from.split_once('/') else {
+        return Err(format!("{from:?} is not EXPERIMENT/VARIANT"));
+    };
+    let owner_file = file.parent().unwrap_or(Path::new(".")).join(format!("{experiment}.ron"));
+    if !owner_file.is_file() {
+        return Err(format!("no experiment file {}", owner_file.display()));
+    }
+    let owner = Experiment::load_with(&owner_file, results, false).map_err(|e| e.to_string())?;
+    match owner.spec.variants.iter().find(|v| v.name == variant) {
+        None => return Err(format!("{experiment} has no variant {variant:?}")),
+        Some(v) if v.shared_from.is_some() => {
+            return Err(format!(
+                "{experiment}/{variant} is itself shared from {}; share from the experiment that trains it",
+                v.shared_from.as_deref().unwrap_or_default()
+            ))
+        }
+        Some(_) => {}
+    }
+    for e in ours {
+        if let Some(theirs) = owner.spec.evaluations.iter().find(|t| slug(&t.name) == slug(&e.name)) {
+            if theirs != e {
+                return Err(format!(
+                    "evaluation {:?} differs from {experiment}'s of the same name, and both would write eval-{}.csv into the shared runs",
+                    e.name,
+                    slug(&e.name)
+                ));
+            }
+        }
+    }
+    Ok((owner, variant.to_string()))
+}
+
+/// The first line where two texts differ (trimmed), None when they are equal.
+fn first_difference(a: &str, b: &str) -> Option<String> {
+    if a == b {
+        return None;
+    }
+    let line = a.lines().zip(b.lines()).find(|(x, y)| x != y).map_or("length", |(x, _)| x.trim());
+    Some(line.to_string())
+}
+
+/// The first value that appears twice.
+fn first_repeat<T: PartialEq>(values: &[T]) -> Option<&T> {
+    values.iter().enumerate().find(|(i, v)| values[..*i].contains(v)).map(|(_, v)| v)
+}
+
+impl Experiment {
+    /// Loads an experiment file and resolves every run's scene; errors are one line naming the file and
+    /// the field, as for scenes.
+    pub fn load(file: &Path, results: &Path) -> Result<Experiment> {
+        Experiment::load_with(file, results, true)
+    }
+
+    /// [`Experiment::load`]; `share` resolves `shared_from` variants (an owner is loaded without, so a
+    /// variant shared from a shared variant is refused rather than followed).
+    fn load_with(file: &Path, results: &Path, share: bool) -> Result<Experiment> {
+        let shown = file.display().to_string();
+        let text = crate::io::read_text(file, crate::scene::MAX_SCENE_BYTES).map_err(|e| format!("{shown}: {e}"))?;
+        let spec: ExperimentFile = parse_ron(&text, &shown)?;
+        let name = file.file_stem().map_or(String::new(), |s| s.to_string_lossy().into_owned());
+        let err = |field: &str, message: String| Error::field(field.to_string(), message).in_file(file);
+        // The name is a folder under results/: one safe component, never `.`, `..` or hidden.
+        crate::run::check_name(&name)
+            .map_err(|m| format!("{shown}: the file name {m}, as it names the folder results/{name}"))?;
+        if spec.presets.is_empty() {
+            return Err(err("presets", "an experiment needs at least one preset".into()));
+        }
+        if let Some(p) = first_repeat(&spec.presets) {
+            return Err(err("presets", format!("{p:?} appears twice")));
+        }
+        if spec.seeds.is_empty() {
+            return Err(err("seeds", "an experiment needs at least one seed".into()));
+        }
+        if let Some(s) = first_repeat(&spec.seeds) {
+            return Err(err(
+                "seeds",
+                format!("seed {s} appears twice (a run of the same scene and seed is the same run)"),
+            ));
+        }
+        if spec.episodes == Some(0) {
+            return Err(err("episodes", "must be ≥ 1".into()));
+        }
+        if spec.variants.is_empty() {
+            return Err(err("variants", "an experiment needs at least one variant".into()));
+        }
+        // Checked here, before anything is trained: a run would fail only at its cross-play.
+        if let Some(c) = spec.crossplay.as_ref().filter(|c| c.episodes == 0) {
+            return Err(err("crossplay.episodes", format!("must be ≥ 1 (got {})", c.episodes)));
+        }
+        // Names become folders, file names, CSV fields and figure labels: no control character (a NUL
+        // would pass the folder's slug and fail only in the figure writer, after the runs), and short
+        // enough for every file name made of them.
+        let names = spec
+            .variants
+            .iter()
+            .map(|v| ("variants", &v.name))
+            .chain(spec.evaluations.iter().map(|e| ("evaluations", &e.name)));
+        for (list, name) in names {
+            if name.chars().any(char::is_control) {
+                return Err(err(
+                    &format!("{list}[{}].name", name.escape_debug()),
+                    "must not hold a control character".into(),
+                ));
+            }
+            if name.chars().count() > MAX_NAME {
+                return Err(err(
+                    &format!("{list}[{}…].name", name.chars().take(16).collect::<String>()),
+                    format!("at most {MAX_NAME} characters (it names folders and files)"),
+                ));
+            }
+        }
+        for (i, v) in spec.variants.iter().enumerate() {
+            let field = format!("variants[{}].name", v.name);
+            crate::run::check_name(&slug(&v.name)).map_err(|m| {
+                err(&field, format!("as a folder name ({:?}) it {m}; use letters or digits", slug(&v.name)))
+            })?;
+            if spec.variants[..i].iter().any(|o| slug(&o.name) == slug(&v.name)) {
+                return Err(err(&field, format!("names the same folder ({:?}) as another variant", slug(&v.name))));
+            }
+        }
+        for (i, e) in spec.evaluations.iter().enumerate() {
+            let field = |f: &str| format!("evaluations[{}].{f}", e.name);
+            let file = format!("eval-{}.csv", slug(&e.name));
+            if slug(&e.name).is_empty() {
+                return Err(err(&field("name"), "needs a letter or digit".into()));
+            }
+            crate::run::RunDir::new(".")
+                .eval_output(Some(&file))
+                .map_err(|m| err(&field("name"), m.to_string().replacen("--eval-out ", "as the file ", 1)))?;
+            if spec.evaluations[..i].iter().any(|o| slug(&o.name) == slug(&e.name)) {
+                return Err(err(&field("name"), format!("names the same file ({file}) as another evaluation")));
+            }
+            if e.episodes == 0 || e.steps == Some(0) {
+                return Err(err(&field("episodes"), "episodes and steps must be ≥ 1".into()));
+            }
+            if let Some(r) = e.confusion_radius.filter(|r| !(r.is_finite() && *r > 0.0)) {
+                return Err(err(
+                    &field("confusion_radius"),
+                    format!("must be a finite number of metres > 0 (got {r})"),
+                ));
+            }
+        }
+        for (i, c) in spec.claims.iter().enumerate() {
+            // A claim is cited by its text (REPRODUCTION.md's rows, the book's citations): one row per text.
+            if spec.claims[..i].iter().any(|d| d.text == c.text) {
+                return Err(err("claims", format!("{:?} is the text of two claims", c.text)));
+            }
+            if let Some(v) = c.paper.filter(|v| !v.is_finite()) {
+                return Err(err("claims", format!("{:?}: paper must be a finite number (got {v})", c.text)));
+            }
+            for v in std::iter::once(&c.variant).chain(&c.versus) {
+                if !spec.variants.iter().any(|x| &x.name == v) {
+                    return Err(err("claims", format!("no variant named {v:?}")));
+                }
+            }
+            if c.versus.as_ref() == Some(&c.variant) {
+                return Err(err("claims", format!("{:?} is compared with itself (versus)", c.text)));
+            }
+            if let Some(versus) = &c.versus {
+                let source =
+                    |name: &String| spec.variants.iter().find(|v| &v.name == name).and_then(|v| v.shared_from.clone());
+                if let Some(shared) = source(&c.variant).filter(|s| Some(s) == source(versus).as_ref()) {
+                    return Err(err(
+                        "claims",
+                        format!("{:?} compares runs with themselves: both variants are shared from {shared}", c.text),
+                    ));
+                }
+            }
+            if let Quantity::EvalDos(e)
+            | Quantity::EvalDoa(e)
+            | Quantity::EvalOrder(e, _)
+            | Quantity::InteractionDoa(e)
+            | Quantity::Interaction(e, _)
+            | Quantity::Learned(e, _) = &c.quantity
+            {
+                if !spec.evaluations.iter().any(|x| &x.name == e) {
+                    return Err(err("claims", format!("no evaluation named {e:?}")));
+                }
+            }
+            if let Quantity::EvalOrder(_, q)
+            | Quantity::Interaction(_, q)
+            | Quantity::TrainingFirst(q)
+            | Quantity::TrainingLast(q) = &c.quantity
+            {
+                if !EVAL_ORDER.contains(&q.as_str()) {
+                    return Err(err(
+                        "claims",
+                        format!("no order parameter named {q:?} (one of {})", EVAL_ORDER.join(", ")),
+                    ));
+                }
+            }
+            if let Quantity::Learned(e, _) = &c.quantity {
+                if untrained_partner(&spec.evaluations, e).is_none() {
+                    return Err(err("claims", format!("evaluation {e:?} needs an untrained partner (untrained: true, the same counts, episodes, steps and control)")));
+                }
+            }
+            if let Quantity::Learned(_, q) = &c.quantity {
+                if !["dos", "doa"].contains(&q.as_str()) && !EVAL_ORDER.contains(&q.as_str()) {
+                    return Err(err(
+                        "claims",
+                        format!("no order parameter named {q:?} (dos, doa or one of {})", EVAL_ORDER.join(", ")),
+                    ));
+                }
+            }
+            if let Quantity::Reach90(q) = &c.quantity {
+                if !["dos", "doa"].contains(&q.as_str()) {
+                    return Err(err("claims", format!("Reach90 takes \"dos\" or \"doa\" (got {q:?})")));
+                }
+            }
+            if let Quantity::Response(e, which) = &c.quantity {
+                if !["near", "far"].contains(&which.as_str()) {
+                    return Err(err("claims", format!("Response takes \"near\" or \"far\" (got {which:?})")));
+                }
+                if !spec.evaluations.iter().any(|x| &x.name == e && x.perturb.is_some()) {
+                    return Err(err(
+                        "claims",
+                        format!("Response({e:?}, ..) needs an evaluation {e:?} with perturb: RADIANS"),
+                    ));
+                }
+            }
+            if let Quantity::Crossplay(r) = &c.quantity {
+                if !crossplay::READOUTS.contains(&r.as_str()) {
+                    return Err(err(
+                        "claims",
+                        format!("no cross-play read-out named {r:?} (one of {})", crossplay::READOUTS.join(", ")),
+                    ));
+                }
+                if spec.crossplay.is_none() {
+                    return Err(err("claims", format!("Crossplay({r:?}) needs crossplay: (episodes: N) in the file")));
+                }
+            }
+            if let Quantity::InteractionDoa(e) | Quantity::Interaction(e, _) = &c.quantity {
+                if seeing_partner(&spec.evaluations, e).is_none() {
+                    return Err(err("claims", format!("evaluation {e:?} needs a control (Blind, Shuffled or a block form) and a seeing evaluation with the same counts, policies, episodes and steps")));
+                }
+            }
+        }
+        // The base scene: relative to the working folder, as the project's files say ("scenes/paper.ron"),
+        // else to the experiment file's own folder, so a file works from anywhere.
+        let beside = file.parent().map(|p| p.join(&spec.base));
+        let base = match beside {
+            Some(b) if !Path::new(&spec.base).exists() && b.exists() => b,
+            _ => PathBuf::from(&spec.base),
+        };
+        let base_text = crate::io::read_text(&base, crate::scene::MAX_SCENE_BYTES)
+            .map_err(|e| err("base", format!("{}: {e}", base.display())))?;
+        let root = results.join(&name);
+        let mut runs = Vec::new();
+        for preset in &spec.presets {
+            if !PRESETS.contains(&preset.as_str()) {
+                return Err(err("presets", format!("unknown preset {preset:?} (known: {})", PRESETS.join(", "))));
+            }
+            let base = Scene::parse_with_preset(&base_text, &base.display().to_string(), Some(preset))
+                .map_err(|e| err("base", e.to_string()))?;
+            for v in &spec.variants {
+                let mut scene =
+                    base.patched(v.patch.clone()).map_err(|e| err(&format!("variants[{}]", v.name), e.to_string()))?;
+                if let Some(episodes) = spec.episodes {
+                    scene.episodes = episodes;
+                }
+                // Each evaluation's scene as `coevo --eval` will make it, checked now rather than after training.
+                for e in &spec.evaluations {
+                    let mut evaluated = scene.clone();
+                    e.overrides()
+                        .apply(&mut evaluated, Path::new(&format!("evaluations[{}]", e.name)))
+                        .map_err(|m| format!("{shown}: {m}"))?;
+                    e.control.resolve(&crate::sim::species::SpeciesRegistry::from_scene(&evaluated)).map_err(|m| {
+                        err(&format!("evaluations[{}].control", e.name), format!("variant {}: {m}", v.name))
+                    })?;
+                }
+                let owner = match (&v.shared_from, share) {
+                    (Some(from), true) => Some(
+                        shared_owner(file, results, from, &spec.evaluations)
+                            .map_err(|m| err(&format!("variants[{}].shared_from", v.name), m))?,
+                    ),
+                    // Loaded as another experiment's owner: its own shared variants are not its runs
+                    // (`shared_owner` refuses sharing one of them).
+                    (Some(_), false) => continue,
+                    (None, _) => None,
+                };
+                for &seed in &spec.seeds {
+                    let mut scene = scene.clone();
+                    scene.seed = seed;
+                    let (dir, shared_from) = match &owner {
+                        None => (root.join(preset).join(slug(&v.name)).join(format!("seed{seed}")), None),
+                        Some((exp, variant)) => {
+                            let field = format!("variants[{}].shared_from", v.name);
+                            let theirs = exp
+                                .runs
+                                .iter()
+                                .find(|r| r.preset == *preset && &r.variant == variant && r.seed == seed)
+                                .ok_or_else(|| {
+                                    err(
+                                        &field,
+                                        format!("{}/{variant} has no run of preset {preset} and seed {seed}", exp.name),
+                                    )
+                                })?;
+                            if let Some(line) = first_difference(&theirs.scene.to_ron(), &scene.to_ron()) {
+                                return Err(err(
+                                    &field,
+                                    format!(
+                                        "{}/{variant} is another scene (preset {preset}, first difference: {line}); a shared run must be the same run",
+                                        exp.name
+                                    ),
+                                ));
+                            }
+                            (theirs.dir.clone(), Some(exp.name.clone()))
+                        }
+                    };
+                    runs.push(Run { preset: preset.clone(), variant: v.name.clone(), seed, scene, dir, shared_from });
+                }
+            }
+        }
+        Ok(Experiment { name, file: file.to_path_buf(), spec, root, runs })
+    }
+
+    /// Every experiment file under `dir`, sorted.
+    pub fn files(dir: &Path) -> Result<Vec<PathBuf>> {
+        let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
+            .map_err(|e| format!("{}: {e}", dir.display()))?
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .filter(|p| p.extension().is_some_and(|e| e == "ron"))
+            .collect();
+        files.sort();
+        Ok(files)
+    }
+}

@@ -1,0 +1,359 @@
+//! The scene's schema: every field of a scene, resolved ([`Scene`]) and as a file holds it (the patches),
+//! with the defaults and the few questions a scene answers about itself. Read, resolved and validated by
+//! the sibling modules.
+
+use serde::{Deserialize, Serialize};
+
+/// Declares a resolved config struct and its patch (every field optional) with `apply` between them,
+/// so a field is written once.
+macro_rules! patchable {
+    ($(#[$meta:meta])* pub struct $name:ident / $patch:ident {
+        $( $(#[$fmeta:meta])* pub $field:ident : $ty:ty, )*
+    }) => {
+        $(#[$meta])*
+        #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+        #[serde(deny_unknown_fields)]
+        pub struct $name { $( $(#[$fmeta])* pub $field: $ty, )* }
+
+        #[doc = concat!("A partial [`", stringify!($name), "`], as written in a scene file.")]
+        #[derive(Clone, Debug, Default, Deserialize)]
+        #[serde(deny_unknown_fields)]
+        pub struct $patch { $( #[serde(default)] pub $field: Option<$ty>, )* }
+
+        impl $patch {
+            /// Overwrites the fields this patch sets.
+            pub fn apply(self, to: &mut $name) { $( if let Some(v) = self.$field { to.$field = v; } )* }
+        }
+    };
+}
+
+/// The two boundary conditions of the paper (Section "Modeling").
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Boundary {
+    /// A torus: leaving one edge re-enters at the opposite one by the overshoot (Appendix B).
+    Periodic,
+    /// A square box whose walls push back with Hooke's law.
+    Walls,
+}
+
+/// How the speed limit is enforced after the velocity update.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum SpeedClip {
+    /// Rescale v so that ‖v‖ ≤ max speed (the paper).
+    Norm,
+    /// Clamp v_x and v_y each to [−max, max] (the authors' code).
+    PerComponent,
+}
+
+/// When contacts are judged for the reward of the transition t → t+1.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum ContactJudging {
+    /// On the state after the move, so an action is answered by its own consequence (the `paper` preset).
+    AfterMove,
+    /// On the positions before the move (the authors' code).
+    BeforeMove,
+}
+
+/// How the wall penalty counts walls.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum WallPenaltyMode {
+    /// One penalty while touching any wall (the paper: "−0.1 when contact ... happens").
+    AnyWall,
+    /// One penalty per wall touched, two in a corner (the authors' code).
+    PerWall,
+}
+
+/// The perception radius R of a species (Section "Agent Observation").
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub enum Perception {
+    /// R = D, the largest possible distance in the arena (the paper's default).
+    Full,
+    /// R as a fraction of D, as the paper's perception experiments state it (2/3·D, 1/3·D).
+    FractionOfD(f64),
+    /// R in metres.
+    Radius(f64),
+}
+
+/// What chooses a species' actions each step (the Decide set).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub enum Policy {
+    /// Uniformly random normalized actions.
+    Random,
+    /// No thrust, no turning.
+    Still,
+    /// The paper's rule-based predator: turn toward the nearest observed agent of a species it catches at
+    /// the maximum turn rate, full thrust.
+    ChaseNearest,
+    /// Turn away from the nearest observed agent of a species that catches it, full thrust.
+    FleeNearest,
+    /// Trained by the learning plugin (Algorithm 1).
+    Learned,
+    /// A trained actor loaded from a checkpoint folder, no updates.
+    Frozen(String),
+    /// Decided by your own plugin: a system in `SimSet::Decide` that writes this species' rows of the action
+    /// batch (see `tests/species_plugin.rs`).
+    Plugin(String),
+}
+
+patchable! {
+    /// The physical world: Eq. (1), Appendix B and the environment table.
+    pub struct WorldParams / WorldParamsPatch {
+        /// Edge length of the square arena in metres; the arena is centred on the origin.
+        pub arena_edge: f64,
+        pub boundary: Boundary,
+        /// Δt in seconds.
+        pub dt: f64,
+        /// Drag coefficient in N·s/m: f_d = −drag·v.
+        pub drag: f64,
+        /// Agent–agent contact stiffness in N/m (Hooke on the overlap).
+        pub contact_stiffness: f64,
+        /// Wall contact stiffness in N/m.
+        pub wall_stiffness: f64,
+        /// Wall damping in N·s/m on the velocity component normal to a penetrated wall.
+        pub wall_damping: f64,
+        pub speed_clip: SpeedClip,
+        /// The authors' energy budget (1000 units, −|v| per step, +0.1 when resting): `gym-pps` only.
+        pub energy_budget: bool,
+    }
+}
+
+patchable! {
+    /// Per-agent rewards of the transition t → t+1 (Section "Rewards").
+    pub struct RewardParams / RewardParamsPatch {
+        /// +this per caught agent touched (predator), −this per catcher touching (prey).
+        pub contact: f64,
+        /// Energy cost per newton of thrust: −thrust_cost·|a_F|.
+        pub thrust_cost: f64,
+        /// Energy cost per rad/s of turn rate: −turn_cost·|a_R|.
+        pub turn_cost: f64,
+        /// Penalty for touching a wall (0 disables it).
+        pub wall_penalty: f64,
+        pub wall_penalty_mode: WallPenaltyMode,
+        pub contacts_judged: ContactJudging,
+    }
+}
+
+patchable! {
+    /// One species: its body, its limits, what it perceives and what it catches.
+    pub struct SpeciesDef / SpeciesPatch {
+        pub name: String,
+        /// Number of agents spawned each episode.
+        pub count: usize,
+        /// Mass in kg.
+        pub mass: f64,
+        /// Body radius in metres.
+        pub radius: f64,
+        /// Speed limit in m/s.
+        pub max_speed: f64,
+        /// a_F ∈ [0, max_thrust] in newtons.
+        pub max_thrust: f64,
+        /// a_R ∈ [−max_turn_rate, max_turn_rate] in rad/s.
+        pub max_turn_rate: f64,
+        pub perception: Perception,
+        /// At most this many agents of each species are observed (the paper: 6).
+        pub topological_limit: usize,
+        /// sRGB in [0, 1]: the colour the viewer draws the species in.
+        pub colour: [f32; 3],
+        /// Names of the species this one catches on contact.
+        pub catches: Vec<String>,
+        pub policy: Policy,
+        /// Names of species whose observation block this species never sees (not in the paper): the slots
+        /// stay in the layout as zeros, so d_o and checkpoints are unchanged. `blind_to: ["prey"]` on the prey
+        /// trains prey that cannot see each other, the control that separates flocking from herding.
+        #[serde(default, skip_serializing_if = "Vec::is_empty")]
+        pub blind_to: Vec<String>,
+        /// Perception per observed species (not in the paper): `[("predator", FractionOfD(0.0833))]` sees
+        /// predators only within D/12 and every other species within `perception` (the "many eyes" condition).
+        #[serde(default, skip_serializing_if = "Vec::is_empty")]
+        pub perception_of: Vec<(String, Perception)>,
+    }
+}
+
+patchable! {
+    /// Algorithm 1's hyper-parameters (Appendix B; the values of the authors' code where the paper is silent).
+    pub struct LearningParams / LearningParamsPatch {
+        /// Hidden layer width of actor and critic (three hidden layers).
+        pub hidden: usize,
+        pub actor_lr: f64,
+        pub critic_lr: f64,
+        /// Discount factor γ.
+        pub gamma: f64,
+        /// Soft target update rate τ.
+        pub tau: f64,
+        /// Mini-batch size S.
+        pub batch_size: usize,
+        /// Replay buffer capacity per species, in transitions.
+        pub buffer_capacity: usize,
+        /// Gradient steps per species after each episode (the authors' schedule); 0 disables.
+        pub updates_per_episode: usize,
+        /// Gradient steps per species after each environment step (Algorithm 1 as printed); 0 disables.
+        pub updates_per_step: usize,
+        /// No update before a buffer holds this many transitions.
+        pub warmup_transitions: usize,
+        /// Initial std of the Gaussian action noise, on the tanh output.
+        pub noise_std: f64,
+        /// Initial probability that a species acts uniformly at random for a step.
+        pub epsilon: f64,
+        /// σ and ε fall by this much per episode ...
+        pub exploration_decay: f64,
+        /// ... down to this floor.
+        pub exploration_floor: f64,
+        /// Save a checkpoint every this many episodes (and at the end).
+        pub checkpoint_every: usize,
+        /// Keep each learning species' actor before training and every this many episodes (and at the end)
+        /// in `RUN/snapshots/`, for cross-play (`coevo --crossplay`); 0 keeps none. Not in the paper.
+        #[serde(default = "default_snapshot_every")]
+        pub snapshot_every: usize,
+    }
+}
+
+/// Snapshots every 100 episodes: 21 actors of ~50 KB per species in a standard run. Also the value of a
+/// scene written before snapshots existed.
+pub fn default_snapshot_every() -> usize {
+    100
+}
+
+/// A fully resolved scene: what the simulation runs.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Scene {
+    pub preset: String,
+    pub seed: u64,
+    /// Steps per episode (T).
+    pub episode_steps: usize,
+    /// Episodes of a training run (M).
+    pub episodes: usize,
+    pub world: WorldParams,
+    pub rewards: RewardParams,
+    pub species: Vec<SpeciesDef>,
+    pub learning: LearningParams,
+    /// The frame observations are written in (`World` in both presets; absent in older scene files).
+    #[serde(default)]
+    pub observation_frame: ObservationFrame,
+    /// Agents of one species closer than this many body diameters (centre to centre) belong to one
+    /// cluster, for the group-structure measures (not in the paper; absent in older scene files).
+    #[serde(default = "default_cluster_link")]
+    pub cluster_link: f64,
+    /// Prey within this many metres of a predator count as "in view" for the confusion curve (None:
+    /// the predator's perception radius; with `Full` perception every prey is in view, so a smaller
+    /// radius is needed for a curve).
+    #[serde(default)]
+    pub confusion_radius: Option<f64>,
+    /// Contact rewards of particular (catcher, caught) pairs; every other pair pays ±`rewards.contact`.
+    #[serde(default)]
+    pub contact_rewards: Vec<ContactReward>,
+}
+
+/// The reward of one contact between a catcher and a species it catches, for each side (a species plugin
+/// brings these for its pairs; a scene may set or override them).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ContactReward {
+    pub catcher: String,
+    pub caught: String,
+    /// Paid to the catcher per contact (the paper: +contact).
+    pub catcher_reward: f64,
+    /// Paid to the caught per contact (the paper: −contact).
+    pub caught_reward: f64,
+}
+
+/// Body diameters within which two agents of a species belong to one cluster, unless the scene says.
+pub const DEFAULT_CLUSTER_LINK: f64 = 2.0;
+
+pub(super) fn default_cluster_link() -> f64 {
+    DEFAULT_CLUSTER_LINK
+}
+
+/// The frame of an agent's observation.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub enum ObservationFrame {
+    /// The paper's: own absolute position, velocity and heading, neighbours' displacements and heading
+    /// differences in world coordinates.
+    #[default]
+    World,
+    /// Everything relative to the observer and rotated into its frame (forward, left): own forward and
+    /// lateral speed, its last turn command, the nearest wall point; neighbours' displacements and
+    /// headings. Nothing absolute, so no actor can steer every agent to one absolute heading: any
+    /// alignment must come from interaction (not in the paper; see docs/src/results/observation-frames.md).
+    Body,
+}
+
+/// A scene file: a preset and what it overrides.
+#[derive(Clone, Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ScenePatch {
+    #[serde(default)]
+    pub preset: Option<String>,
+    #[serde(default)]
+    pub seed: Option<u64>,
+    #[serde(default)]
+    pub episode_steps: Option<usize>,
+    #[serde(default)]
+    pub episodes: Option<usize>,
+    #[serde(default)]
+    pub world: Option<WorldParamsPatch>,
+    #[serde(default)]
+    pub rewards: Option<RewardParamsPatch>,
+    #[serde(default)]
+    pub species: Option<Vec<SpeciesPatch>>,
+    #[serde(default)]
+    pub learning: Option<LearningParamsPatch>,
+    #[serde(default)]
+    pub observation_frame: Option<ObservationFrame>,
+    #[serde(default)]
+    pub cluster_link: Option<f64>,
+    #[serde(default)]
+    pub confusion_radius: Option<f64>,
+    /// Replaces the list of per-pair contact rewards.
+    #[serde(default)]
+    pub contact_rewards: Option<Vec<ContactReward>>,
+}
+
+/// The largest scene file read (a real one is a few hundred bytes).
+pub const MAX_SCENE_BYTES: u64 = 1 << 20;
+
+/// The names `preset:` accepts.
+pub const PRESETS: [&str; 2] = ["paper", "gym-pps"];
+
+impl Scene {
+    /// D: the largest possible distance between two agents (√2·edge/2 on the torus, √2·edge with walls).
+    pub fn max_distance(&self) -> f64 {
+        max_distance(self.world.boundary, self.world.arena_edge)
+    }
+
+    /// The species with this name.
+    pub fn species_named(&self, name: &str) -> Option<&SpeciesDef> {
+        self.species.iter().find(|s| s.name == name)
+    }
+
+    /// Sets the count of a named species (for `--prey 50`-style overrides).
+    pub fn set_count(&mut self, name: &str, count: usize) -> crate::error::Result<()> {
+        self.species_mut(name)?.count = count;
+        Ok(())
+    }
+
+    /// Replaces a species' policy, e.g. learned predators by the paper's rule-based chase-nearest ones for
+    /// an evaluation of prey against opponents they never trained with.
+    pub fn set_policy(&mut self, name: &str, policy: Policy) -> crate::error::Result<()> {
+        self.species_mut(name)?.policy = policy;
+        Ok(())
+    }
+
+    fn species_mut(&mut self, name: &str) -> crate::error::Result<&mut SpeciesDef> {
+        self.species.iter_mut().find(|s| s.name == name).ok_or_else(|| format!("no species named {name:?}").into())
+    }
+
+    /// The resolved scene as RON, loadable again as a scene file.
+    pub fn to_ron(&self) -> String {
+        let pretty = ron::ser::PrettyConfig::new().depth_limit(4).struct_names(false);
+        ron::Options::default().to_string_pretty(self, pretty).expect("a Scene always serializes")
+    }
+}
+
+/// D for a boundary kind and arena edge (Section "Results", definition of DoS).
+pub fn max_distance(boundary: Boundary, edge: f64) -> f64 {
+    match boundary {
+        Boundary::Periodic => edge * std::f64::consts::SQRT_2 / 2.0,
+        Boundary::Walls => edge * std::f64::consts::SQRT_2,
+    }
+}
