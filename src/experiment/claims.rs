@@ -120,7 +120,7 @@ pub fn column(q: &Quantity) -> Option<String> {
 }
 
 /// Every quantity from primitive ones (`primitive` gives those): the one definition of each derived
-/// quantity, for a run's files ([`quantity`]) and for summary.csv (`aggregate::Summary::quantity`) alike.
+/// quantity, for a run's files ([`quantity`]) and for summary.csv (`summary::Summary::quantity`) alike.
 pub fn derive(exp: &Experiment, q: &Quantity, primitive: &dyn Fn(&Quantity) -> f64) -> f64 {
     // An order parameter of an evaluation: DoS and DoA settled, the others as EvalOrder has them.
     let of_eval = |e: &str, o: &str| match o {

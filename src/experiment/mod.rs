@@ -26,12 +26,15 @@
 pub mod aggregate;
 pub mod claims;
 pub mod crossplay;
+pub mod data;
 pub mod figure_data;
+pub mod figures;
 pub mod file;
 mod load;
 pub mod plot;
 pub mod report;
 pub mod runner;
 pub mod stats;
+pub mod summary;
 
 pub use file::*;

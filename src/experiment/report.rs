@@ -1,10 +1,10 @@
 //! What an experiment reports, and the orchestration of `--experiment` and `--plot`: REPRODUCTION.md over
 //! the project's experiment files, an experiment's own summaries and figures otherwise.
 
-use super::aggregate;
 use super::claims::{p_shown, quantity_name, ClaimResult};
 use super::file::{Experiment, Quantity, EVAL_ORDER, EVAL_ORDER_DIGITS, EVAL_ORDER_LABELS};
 use super::runner;
+use super::{aggregate, data, figures, summary};
 use crate::io::Existing;
 use crate::sim::metrics::Swarming;
 use std::collections::BTreeMap;
@@ -87,7 +87,7 @@ pub fn experiment(request: &Request) -> crate::error::Result<()> {
         return write_reproduction();
     }
     for exp in experiments {
-        let data = aggregate::load(&exp)?;
+        let data = data::load(&exp)?;
         report(exp, &data)?;
     }
     Ok(())
@@ -110,11 +110,11 @@ pub fn write_reproduction() -> crate::error::Result<()> {
                 )?;
                 BTreeMap::new()
             }
-            None => aggregate::load(&exp)?,
+            None => data::load(&exp)?,
         };
         // An experiment being re-run (fewer run folders than its committed summary holds) is reported from
         // its committed summary.csv, and its files are left as they are, until its runs are all back.
-        if let Err(e) = aggregate::check_complete(&exp, &data) {
+        if let Err(e) = data::check_complete(&exp, &data) {
             crate::errln!("coevo: {e} (reported from the committed summary)")?;
             data.clear();
         }
@@ -183,7 +183,7 @@ pub fn plot(dir: &Path, partial: bool) -> crate::error::Result<()> {
         return write_reproduction();
     }
     if crate::run::is_run(dir) {
-        let path = aggregate::plot_run(dir, partial)?;
+        let path = figures::plot_run(dir, partial)?;
         crate::errln!("coevo: wrote {} and its .svg", path.display())?;
         return Ok(());
     }
@@ -199,8 +199,8 @@ pub fn plot(dir: &Path, partial: bool) -> crate::error::Result<()> {
     }
     let results = dir.parent().unwrap_or(Path::new("."));
     let exp = Experiment::load(&file, results)?;
-    let data = aggregate::load(&exp)?;
-    aggregate::check_complete(&exp, &data)?;
+    let data = data::load(&exp)?;
+    data::check_complete(&exp, &data)?;
     if !partial && !data.is_empty() && data.len() < exp.runs.len() {
         return Err(format!(
             "--plot {}: only {} of the {} runs of {} are finished here; nothing written: finish them with `coevo --experiment {}`, or --partial summarises the finished ones (its report says how many)",
@@ -256,7 +256,7 @@ pub struct Reported {
     /// The executables that made its runs (`unknown` for runs made before provenance files).
     pub binaries: Vec<String>,
     /// The per-run values its claims were computed from.
-    pub summary: aggregate::Summary,
+    pub summary: summary::Summary,
 }
 
 /// How every number of a report is computed and what its verdicts mean (REPRODUCTION.md's preamble, and

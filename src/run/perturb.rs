@@ -5,7 +5,7 @@
 //! heading of every other prey in the twin is compared with the same prey in the untouched world. The
 //! difference can only come from the turn: through what the others observe of the turned prey (and of
 //! each other since), or through contacts. A response that spreads through conspecifics by topological
-//! rank is flocking; without any observation there is none (`tests/perturb.rs`).
+//! rank is flocking; without any observation there is none (`tests/it/perturb.rs`).
 
 use crate::sim::components::Heading;
 use crate::sim::perception::{Perceive, Population};

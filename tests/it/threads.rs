@@ -2,7 +2,7 @@
 //! concurrently and large populations are perceived and decided in chunks, all of it reproducible.
 //! Each run is a separate `coevo` process, so the thread count is really that process's.
 
-mod common;
+use crate::common;
 use std::path::Path;
 use std::process::Command;
 

@@ -1,12 +1,11 @@
 //! Eq. (1) and Appendix B, one force at a time.
 
-mod common;
+use crate::common::{get, manual, place, scene};
 use bevy::math::DVec2;
 use coevo::scene::{Boundary, Policy, SpeedClip};
 use coevo::sim::components::*;
 use coevo::sim::physics::{clip_speed, wrap_angle};
 use coevo::sim::Simulation;
-use common::{get, manual, place, scene};
 
 #[test]
 fn drag_gives_terminal_speed_thrust_over_drag() {

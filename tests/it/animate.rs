@@ -1,7 +1,7 @@
 //! Headless animations: a rule-based scene rendered to a GIF decodes, with the requested frames, size and
 //! both species' colours, and the file appears only whole.
 
-mod common;
+use crate::common;
 
 use coevo::io::Existing;
 use coevo::run::animate::{animate, AnimateOptions, CAPTION};

@@ -10,7 +10,7 @@ use coevo::run::train::{train, TrainOptions};
 use coevo::scene::{Overrides, Scene};
 use std::path::{Path, PathBuf};
 
-mod common;
+use crate::common;
 
 /// A small scene trained for 5 episodes with snapshots every 2: episodes 0, 2, 4 and 5 (the end).
 fn trained(dir: &Path) -> (Scene, PathBuf) {

@@ -2,13 +2,12 @@
 //! then up to 6 prey, nearest first, within the perception radius, minimum image, never itself, zeros
 //! where nobody is seen.
 
-mod common;
+use crate::common::{place, scene};
 use bevy::math::DVec2;
 use coevo::scene::{Boundary, Perception, Policy};
 use coevo::sim::perception::Batches;
 use coevo::sim::space::min_image;
 use coevo::sim::Simulation;
-use common::{place, scene};
 use std::f64::consts::{FRAC_PI_2, FRAC_PI_6};
 
 /// 2 predators (ids 0, 1) and 9 prey (ids 2..=10). Prey 2 is the observer at (0.95, 0) facing +x; prey

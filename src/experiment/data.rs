@@ -1,0 +1,181 @@
+//! An experiment's finished runs, loaded from their CSV files (never retraining) and checked: one
+//! binary, every committed run present.
+
+use super::claims::{EvalData, RunData};
+use super::file::Experiment;
+use super::runner::{eval_file, stage, Stage};
+use super::stats::mean;
+use super::summary::Summary;
+use crate::run::schema::{self, Table};
+use crate::run::RunDir;
+use crate::sim::metrics::Swarming;
+use crate::sim::species::SpeciesRegistry;
+use std::collections::BTreeMap;
+use std::path::Path;
+
+/// The first species' rows of a confusion curve file (`species,prey_in_view,samples,mean_abs_turn,
+/// mean_speed_fraction,catches_per_step`); empty when there is no file.
+fn read_confusion(path: &Path) -> crate::error::Result<Vec<[f64; 3]>> {
+    if !path.exists() {
+        return Ok(vec![]);
+    }
+    let text = crate::io::read_text(path, crate::io::MAX_TEXT_BYTES).map_err(|e| format!("{}: {e}", path.display()))?;
+    let rows: Vec<Vec<&str>> =
+        text.lines().skip(1).map(|l| l.split(',').collect()).filter(|r: &Vec<&str>| r.len() == 6).collect();
+    let first = rows.first().map(|r| r[0]).unwrap_or_default();
+    let cell = |c: &str| c.parse::<f64>().unwrap_or(f64::NAN);
+    Ok(rows.iter().filter(|r| r[0] == first).map(|r| [cell(r[3]), cell(r[4]), cell(r[5])]).collect())
+}
+
+/// The near and far responses of a perturbation file (`run::perturb`): the sample-weighted mean
+/// |Δheading| of ranks 1–6 over lags 1–10, and of ranks 25+ over the same lags; NaN without the file.
+fn read_response(path: &Path) -> crate::error::Result<[f64; 2]> {
+    use crate::run::perturb::{read_rows, weighted_mean};
+    Ok(match read_rows(path)? {
+        Some(rows) => {
+            [weighted_mean(&rows, 1.0..=10.0, 1.0..=6.0), weighted_mean(&rows, 1.0..=10.0, 25.0..=f64::INFINITY)]
+        }
+        None => [f64::NAN; 2],
+    })
+}
+
+/// The species whose DoS/DoA an experiment reports (prey in the paper's scenes).
+pub(super) fn headline(exp: &Experiment) -> String {
+    let scene = &exp.runs[0].scene;
+    scene.species[SpeciesRegistry::from_scene(scene).headline()].name.clone()
+}
+
+/// The data of every finished run, by run index.
+pub fn load(exp: &Experiment) -> crate::error::Result<BTreeMap<usize, RunData>> {
+    let prey = headline(exp);
+    let mut data = BTreeMap::new();
+    for (i, run) in exp.runs.iter().enumerate() {
+        if stage(run)? != Stage::Trained {
+            continue;
+        }
+        let (metrics, _) = RunDir::new(&run.dir).checked_metrics(false)?;
+        let mut d = RunData {
+            dos: metrics.column(&schema::of("dos", &prey))?,
+            doa: metrics.column(&schema::of("doa", &prey))?,
+            catches: metrics.column(schema::CATCHES)?,
+            returns: metrics.column(&schema::of("return", &prey))?,
+            wall_seconds: metrics.column(schema::WALL_SECONDS)?.last().copied().unwrap_or(0.0),
+            orders: super::file::EVAL_ORDER
+                .iter()
+                .map(|q| {
+                    (
+                        q.to_string(),
+                        metrics.column(&schema::of(q, &prey)).unwrap_or_else(|_| vec![f64::NAN; metrics.rows.len()]),
+                    )
+                })
+                .collect(),
+            evals: BTreeMap::new(),
+            crossplay: super::crossplay::read_readouts(&run.dir, &prey)?,
+            binaries: match RunDir::new(&run.dir).read_provenance()? {
+                Some(p) => p.binaries().into_iter().map(String::from).collect(),
+                None => vec!["unknown".into()],
+            },
+        };
+        for e in &exp.spec.evaluations {
+            let path = eval_file(&run.dir, &e.name);
+            if !path.exists() {
+                continue;
+            }
+            if let Some(stale) = super::runner::stale(run, e) {
+                return Err(format!("{stale}; run `coevo --experiment {}` to redo it", exp.file.display()).into());
+            }
+            let table = Table::read_eval(&path)?;
+            let step = table.column(schema::STEP)?;
+            let steps = step.iter().fold(0.0f64, |a, &b| a.max(b)) as usize;
+            let per_step = |values: &[f64]| -> Vec<f64> {
+                (1..=steps)
+                    .map(|s| {
+                        mean(
+                            &step
+                                .iter()
+                                .zip(values)
+                                .filter(|(t, v)| **t as usize == s && v.is_finite())
+                                .map(|(_, v)| *v)
+                                .collect::<Vec<_>>(),
+                        )
+                        .unwrap_or(f64::NAN)
+                    })
+                    .collect()
+            };
+            // DoS and DoA must be there; the other order parameters only since the collective measures.
+            let series = |name: &str| -> crate::error::Result<Vec<f64>> {
+                match table.column(&schema::of(name, &prey)) {
+                    Ok(values) => Ok(per_step(&values)),
+                    Err(_) if !matches!(name, "dos" | "doa") => Ok(vec![f64::NAN; steps]),
+                    Err(e) => Err(e),
+                }
+            };
+            let per_step = Swarming::NAMES.iter().map(|n| series(n)).collect::<crate::error::Result<Vec<_>>>()?;
+            let ranks = table.column(&schema::of(schema::EDGE_RANK, &prey)).unwrap_or_default();
+            let edge_rank = mean(&ranks.into_iter().filter(|x| x.is_finite()).collect::<Vec<_>>()).unwrap_or(f64::NAN);
+            let confusion = read_confusion(&crate::io::beside(&path, "confusion"))?;
+            let response = read_response(&crate::io::beside(&path, crate::run::PERTURBATION))?;
+            d.evals.insert(e.name.clone(), EvalData { per_step, edge_rank, confusion, response });
+        }
+        data.insert(i, d);
+    }
+    check_one_binary(exp, &data)?;
+    Ok(data)
+}
+
+/// Refuses runs (training, resumes, evaluations) made by more than one executable, unless the experiment
+/// file says `mixed_binaries: true`: its numbers would not come from one program.
+fn check_one_binary(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> crate::error::Result<()> {
+    if exp.spec.mixed_binaries {
+        return Ok(());
+    }
+    let mut first: Option<(&str, &std::path::Path)> = None;
+    for (&i, d) in data {
+        let dir = &exp.runs[i].dir;
+        for b in &d.binaries {
+            match first {
+                None => first = Some((b, dir)),
+                Some((a, other)) if a != b => {
+                    return Err(format!(
+                        "{}: runs of more than one binary ({} by {a}, {} by {b}); rerun them with one coevo or set mixed_binaries: true",
+                        exp.file.display(),
+                        other.display(),
+                        dir.display()
+                    )
+                    .into())
+                }
+                Some(_) => {}
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Refuses to aggregate unless every run of the experiment's committed `summary.csv` (that the experiment
+/// file still has) is among the run folders here, unless there are none: run folders are not committed, so
+/// after some runs were moved away, or while an experiment is re-run, aggregating would replace the
+/// committed summaries and figures with a part of them (also when the part holds as many runs, of other
+/// variants). Nothing is written then. With no run folder at all (a fresh clone) the committed
+/// summary.csv is read as it is and nothing of it is rewritten.
+pub fn check_complete(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> crate::error::Result<()> {
+    let path = exp.root.join("summary.csv");
+    let Some(summary) = Summary::read(&path)? else { return Ok(()) };
+    if data.is_empty() {
+        return Ok(());
+    }
+    let held: Vec<usize> = summary.runs(exp).into_iter().map(|(i, _)| i).collect();
+    let missing: Vec<String> =
+        held.iter().filter(|i| !data.contains_key(i)).map(|&i| super::figure_data::key(&exp.runs[i])).collect();
+    if let Some(first) = missing.first() {
+        return Err(format!(
+            "{}: holds {} runs but only {} of their run folders are here (missing {first}{}; run folders are not committed); nothing written: run `coevo --experiment {}` to rebuild them, or move the summary away",
+            path.display(),
+            held.len(),
+            held.len() - missing.len(),
+            if missing.len() > 1 { format!(" and {} more", missing.len() - 1) } else { String::new() },
+            exp.file.display()
+        )
+        .into());
+    }
+    Ok(())
+}

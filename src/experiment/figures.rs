@@ -1,0 +1,344 @@
+//! An experiment's figures (drawn by `plot.rs`) and a run's training curves (`--plot RUN`).
+
+use super::claims::{RunData, SETTLED_STEPS, WINDOW};
+use super::data::headline;
+use super::figure_data::{self, FigureData};
+use super::file::{slug, Experiment, Quantity};
+use super::plot::{self, Curve, EstimatePanel, Panel, Row};
+use super::stats::{estimate, running_mean};
+use super::summary::Summary;
+use crate::run::schema;
+use crate::run::RunDir;
+use crate::sim::species::SpeciesRegistry;
+use std::collections::BTreeMap;
+use std::path::Path;
+
+/// What the figures plot: from the run folders when `written` (and kept in figure-data.ron.gz), or in a
+/// clone from that committed file, checked against the committed summary `table`, so both draw the same
+/// figures byte for byte. None when there is nothing to draw.
+pub fn data(
+    exp: &Experiment,
+    data: &BTreeMap<usize, RunData>,
+    table: &Summary,
+    written: bool,
+) -> crate::error::Result<Option<BTreeMap<usize, FigureData>>> {
+    Ok(if written {
+        let of_runs = data.iter().map(|(i, d)| Ok((*i, figure_data::of_run(exp, &exp.runs[*i], d)?)));
+        Some(of_runs.collect::<crate::error::Result<_>>()?)
+    } else {
+        let committed = table.runs(exp);
+        let indices: Vec<usize> = committed.iter().map(|(i, _)| *i).collect();
+        let read = if indices.is_empty() { None } else { figure_data::read(exp, &indices)? };
+        // The committed figure data must be of the committed summary's runs (each run's training length).
+        if let Some(read) = &read {
+            for (i, row) in &committed {
+                let (episodes, d) = (table.value(row, "episodes"), &read[i]);
+                if episodes != d.dos.len() as f64 {
+                    return Err(format!(
+                        "{}: run {} has {} training episodes but summary.csv says {episodes}; the two files are of different runs",
+                        exp.root.join(figure_data::FILE).display(),
+                        figure_data::key(&exp.runs[*i]),
+                        d.dos.len(),
+                    )
+                    .into());
+                }
+            }
+        }
+        read
+    })
+}
+
+/// Every figure of one preset: the training curves, the variants compared, catches, each evaluation's
+/// curves, the cross-play heat maps and the perturbation responses; `saved` counts them.
+pub fn draw(
+    exp: &Experiment,
+    preset: &str,
+    table: &Summary,
+    drawn: &BTreeMap<usize, FigureData>,
+    saved: &mut usize,
+) -> crate::error::Result<()> {
+    let prey = headline(exp);
+    let of_variant = |variant: &str| -> Vec<&FigureData> {
+        drawn
+            .iter()
+            .filter(|(i, _)| exp.runs[**i].preset == *preset && exp.runs[**i].variant == variant)
+            .map(|(_, d)| d)
+            .collect()
+    };
+    figures(exp, preset, &prey, table, &of_variant, saved)?;
+    if exp.spec.crossplay.is_some() {
+        crossplay_figures(exp, preset, drawn, saved)?;
+    }
+    perturbation_figures(exp, preset, &of_variant, saved)?;
+    Ok(())
+}
+
+/// Mean and 95 % band over seeds, point by point, of equally long series (cut to the shortest).
+fn band(series: &[Vec<f64>], label: &str, x0: f64) -> Option<Curve> {
+    let len = series.iter().map(Vec::len).min()?;
+    let (mut m, mut lo, mut hi) = (vec![], vec![], vec![]);
+    for t in 0..len {
+        let e = estimate(&series.iter().map(|s| s[t]).filter(|x| x.is_finite()).collect::<Vec<_>>());
+        let (mean, ci) = e.map_or((f64::NAN, 0.0), |e| (e.mean, e.ci.unwrap_or(0.0)));
+        m.push(mean);
+        lo.push(mean - ci);
+        hi.push(mean + ci);
+    }
+    let seeds = series.len();
+    let label = format!("{label} ({seeds} seed{})", if seeds == 1 { "" } else { "s" });
+    Some(Curve { label, x: (0..len).map(|t| x0 + t as f64).collect(), mean: m, band: (seeds > 1).then_some((lo, hi)) })
+}
+
+/// Per evaluation with `perturb:`, the response of the other prey to the turned one against the lag,
+/// nearest six and ranks 25+, each variant's mean over its seeds with the 95 % band
+/// (`figures/<preset>-perturbation-<evaluation>.png`).
+fn perturbation_figures<'a>(
+    exp: &Experiment,
+    preset: &str,
+    of_variant: &dyn Fn(&str) -> Vec<&'a FigureData>,
+    saved: &mut usize,
+) -> crate::error::Result<()> {
+    for e in exp.spec.evaluations.iter().filter(|e| e.perturb.is_some()) {
+        let mut panels = vec![];
+        for (k, (which, _)) in figure_data::RESPONSE_RANKS.iter().enumerate() {
+            let mut curves = vec![];
+            for v in &exp.spec.variants {
+                let series: Vec<Vec<f64>> = of_variant(&v.name)
+                    .iter()
+                    .filter_map(|d| d.evals.get(&e.name)?.response.as_ref()?.get(k).cloned())
+                    .collect();
+                curves.extend(band(&series, &v.name, 1.0));
+            }
+            panels.push(Panel {
+                title: format!("{}, {preset}: {}, response of {which}", exp.name, e.name),
+                x_label: "steps after the turn".into(),
+                y_label: "mean |Δheading| (rad)".into(),
+                curves,
+            });
+        }
+        if panels.iter().any(|p| !p.curves.is_empty()) {
+            plot::save(&exp.root.join("figures").join(format!("{preset}-perturbation-{}", slug(&e.name))), &panels)?;
+            *saved += 1;
+        }
+    }
+    Ok(())
+}
+
+/// Per variant, the cross-play matrix averaged over its seeds, as heat maps
+/// (`figures/<preset>-<variant>-crossplay.png`).
+fn crossplay_figures(
+    exp: &Experiment,
+    preset: &str,
+    drawn: &BTreeMap<usize, FigureData>,
+    saved: &mut usize,
+) -> crate::error::Result<()> {
+    for v in &exp.spec.variants {
+        let runs: Vec<(&super::file::Run, &FigureData)> = drawn
+            .iter()
+            .map(|(&i, d)| (&exp.runs[i], d))
+            .filter(|(r, _)| r.preset == preset && r.variant == v.name)
+            .collect();
+        let Some(pair) = runs.first().and_then(|(r, _)| super::crossplay::only_pair(&r.scene)) else { continue };
+        let matrices: Vec<_> =
+            runs.iter().filter_map(|(_, d)| d.crossplay.as_ref()).map(|c| c.matrix(pair.clone())).collect();
+        if let Some(mean) = super::crossplay::mean_matrix(&matrices) {
+            let what = format!("{}, {preset}, {} seeds: ", v.name, matrices.len());
+            let stem = exp.root.join("figures").join(format!("{preset}-{}-crossplay", slug(&v.name)));
+            plot::save_heatmaps(&stem, &super::crossplay::heatmaps(&mean, &what))?;
+            *saved += 1;
+        }
+    }
+    Ok(())
+}
+
+/// The training curves, the variants compared (from the per-run values of `table`), catches, and per
+/// evaluation its per-step curves and confusion curve.
+fn figures<'a>(
+    exp: &Experiment,
+    preset: &str,
+    prey: &str,
+    table: &Summary,
+    of_variant: &dyn Fn(&str) -> Vec<&'a FigureData>,
+    saved: &mut usize,
+) -> crate::error::Result<()> {
+    let dir = exp.root.join("figures");
+    let curves = |pick: &dyn Fn(&FigureData) -> Vec<f64>, x0: f64| -> Vec<Curve> {
+        exp.spec
+            .variants
+            .iter()
+            .filter_map(|v| {
+                band(
+                    &of_variant(&v.name).iter().map(|d| pick(d)).filter(|s| !s.is_empty()).collect::<Vec<_>>(),
+                    &v.name,
+                    x0,
+                )
+            })
+            .collect()
+    };
+    let title = |what: &str| format!("{}, {preset}: {what}", exp.name);
+    let training = [
+        Panel {
+            title: title(&format!("DoS of {prey}")),
+            x_label: "episode".into(),
+            y_label: format!("DoS ({WINDOW}-episode mean)"),
+            curves: curves(&|d| running_mean(&d.dos, WINDOW), 1.0),
+        },
+        Panel {
+            title: title(&format!("DoA of {prey}")),
+            x_label: "episode".into(),
+            y_label: format!("DoA ({WINDOW}-episode mean)"),
+            curves: curves(&|d| running_mean(&d.doa, WINDOW), 1.0),
+        },
+    ];
+    if training.iter().all(|p| p.curves.is_empty()) {
+        return Ok(());
+    }
+    plot::save(&dir.join(format!("{preset}-training")), &training)?;
+    *saved += 1;
+    // Variants side by side: what each change does to the learning and to the interaction-driven part of
+    // the alignment (seeing minus each control), mean over seeds with its 95 % CI; the ablations' answer to
+    // "which differences decide".
+    if exp.spec.variants.len() > 1 {
+        let mut compared = vec![
+            (
+                format!("DoA of {prey}: change over training"),
+                format!("DoA, last − first {WINDOW} episodes"),
+                Quantity::DoaChange,
+            ),
+            (
+                format!("DoS of {prey}: change over training"),
+                format!("DoS, last − first {WINDOW} episodes"),
+                Quantity::DosChange,
+            ),
+            (
+                "catches: change over training".into(),
+                format!("catches per episode, last − first {WINDOW} episodes"),
+                Quantity::CatchesChange,
+            ),
+        ];
+        for e in &exp.spec.evaluations {
+            if let Some(seeing) = super::file::seeing_partner(&exp.spec.evaluations, &e.name) {
+                let title = format!("{}: DoA seeing − {}", seeing.name, e.name);
+                compared.push((
+                    title,
+                    format!("DoA difference, last {SETTLED_STEPS} steps"),
+                    Quantity::InteractionDoa(e.name.clone()),
+                ));
+            }
+        }
+        let panels: Vec<EstimatePanel> = compared
+            .into_iter()
+            .map(|(what, x_label, q)| {
+                let rows = exp.spec.variants.iter().map(|v| {
+                    let e = estimate(&table.values(exp, preset, &v.name, &q));
+                    let label = format!("{} ({})", v.name, e.map_or(0, |e| e.n));
+                    Row { label, mean: e.map_or(f64::NAN, |e| e.mean), ci: e.and_then(|e| e.ci) }
+                });
+                EstimatePanel { title: title(&what), x_label, rows: rows.collect() }
+            })
+            .collect();
+        plot::save_estimates(&dir.join(format!("{preset}-variants")), &panels)?;
+        *saved += 1;
+    }
+    let catches = [Panel {
+        title: title("catches per episode"),
+        x_label: "episode".into(),
+        y_label: format!("catches ({WINDOW}-episode mean)"),
+        curves: curves(&|d| running_mean(&d.catches, WINDOW), 1.0),
+    }];
+    plot::save(&dir.join(format!("{preset}-catches")), &catches)?;
+    *saved += 1;
+    for e in &exp.spec.evaluations {
+        let panels = [
+            Panel {
+                title: title(&format!("{}: DoS per step", e.name)),
+                x_label: "time step".into(),
+                y_label: "DoS".into(),
+                curves: curves(&|d| d.evals.get(&e.name).map_or(vec![], |x| x.dos.clone()), 1.0),
+            },
+            Panel {
+                title: title(&format!("{}: DoA per step", e.name)),
+                x_label: "time step".into(),
+                y_label: "DoA".into(),
+                curves: curves(&|d| d.evals.get(&e.name).map_or(vec![], |x| x.doa.clone()), 1.0),
+            },
+        ];
+        if panels.iter().any(|p| !p.curves.is_empty()) {
+            plot::save(&dir.join(format!("{preset}-eval-{}", slug(&e.name))), &panels)?;
+            *saved += 1;
+        }
+        // The confusion curve: what a predator does, and catches, against the prey it has in view.
+        let bins = (0..crate::sim::collective::CONFUSION_BINS.len())
+            .map(crate::sim::collective::confusion_bin_label)
+            .collect::<Vec<_>>()
+            .join(", ");
+        let x_label = format!("prey in view, bins {bins}");
+        let confusion = |k: usize| {
+            curves(&|d| d.evals.get(&e.name).map_or(vec![], |x| x.confusion.iter().map(|b| b[k]).collect()), 0.0)
+        };
+        let panels = [
+            Panel {
+                title: title(&format!("{}: predator |turn|", e.name)),
+                x_label: x_label.clone(),
+                y_label: "mean |turn command| / max".into(),
+                curves: confusion(0),
+            },
+            Panel {
+                title: title(&format!("{}: predator speed", e.name)),
+                x_label: x_label.clone(),
+                y_label: "mean speed / max".into(),
+                curves: confusion(1),
+            },
+            Panel {
+                title: title(&format!("{}: catch rate", e.name)),
+                x_label,
+                y_label: "catches per predator-step".into(),
+                curves: confusion(2),
+            },
+        ];
+        if panels.iter().any(|p| p.curves.iter().any(|c| c.mean.iter().any(|v| v.is_finite()))) {
+            plot::save(&dir.join(format!("{preset}-confusion-{}", slug(&e.name))), &panels)?;
+            *saved += 1;
+        }
+    }
+    Ok(())
+}
+
+/// One run's learning curves (DoS and DoA of the headline species, 100-episode running means) into
+/// `RUN/figures/training.png`, from its `metrics.csv`, checked whole ([`RunDir::checked_metrics`]);
+/// with `partial` a run stopped after its last checkpoint is drawn too, its titles saying so.
+pub fn plot_run(dir: &Path, partial: bool) -> crate::error::Result<std::path::PathBuf> {
+    let run = RunDir::new(dir);
+    run.refuse_if_shipped()?;
+    let scene = crate::scene::Scene::load(&run.scene())?;
+    let prey = scene.species[SpeciesRegistry::from_scene(&scene).headline()].name.clone();
+    let (metrics, note) = run.checked_metrics(partial)?;
+    let note = note.map_or(String::new(), |n| format!(" ({n})"));
+    let curve = |name: &str| -> crate::error::Result<Vec<Curve>> {
+        let values = running_mean(&metrics.column(name)?, WINDOW);
+        Ok(vec![Curve {
+            label: dir.display().to_string(),
+            x: (1..=values.len()).map(|x| x as f64).collect(),
+            mean: values,
+            band: None,
+        }])
+    };
+    let panels = [
+        Panel {
+            title: format!("DoS of {prey}{note}"),
+            x_label: "episode".into(),
+            y_label: format!("DoS ({WINDOW}-episode mean)"),
+            curves: curve(&schema::of("dos", &prey))?,
+        },
+        Panel {
+            title: format!("DoA of {prey}{note}"),
+            x_label: "episode".into(),
+            y_label: format!("DoA ({WINDOW}-episode mean)"),
+            curves: curve(&schema::of("doa", &prey))?,
+        },
+    ];
+    let figures = crate::run::RunDir::new(dir).figures();
+    crate::io::own_dir(&figures)?;
+    plot::save(&figures.join("training"), &panels)?;
+    Ok(figures.join("training.png"))
+}

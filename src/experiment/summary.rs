@@ -1,0 +1,215 @@
+//! `summary.csv` and `summary-mean.csv`: an experiment's per-run values and their means over seeds,
+//! written and read by one definition of their columns ([`columns`]). The claims are computed from
+//! `summary.csv` alone, so a clone without run folders recomputes them exactly.
+
+use super::claims::{column, derive, quantity, values, window_mean, RunData};
+use super::file::{slug, Experiment, Quantity};
+use super::stats::estimate;
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+use std::path::Path;
+
+/// The columns of `summary.csv` after preset, variant, seed and episodes: one per primitive quantity
+/// (named by [`column`]), beside every control how much of the seeing actors' alignment it removes
+/// (derived, for reading), then the catches; the one definition the summary is written by ([`text`]) and
+/// read back by ([`Summary`]).
+pub fn columns(exp: &Experiment) -> Vec<(String, Quantity)> {
+    let evals: Vec<String> = exp.spec.evaluations.iter().map(|e| e.name.clone()).collect();
+    let mut primitives = vec![Quantity::DosFirst, Quantity::DosLast, Quantity::DoaFirst, Quantity::DoaLast];
+    for order in super::file::EVAL_ORDER {
+        primitives.push(Quantity::TrainingFirst(order.into()));
+        primitives.push(Quantity::TrainingLast(order.into()));
+    }
+    primitives.push(Quantity::Reach90("dos".into()));
+    primitives.push(Quantity::Reach90("doa".into()));
+    let named = |q: Quantity| (column(&q).expect("a primitive quantity has a column"), q);
+    let mut quantities: Vec<(String, Quantity)> = primitives.into_iter().map(named).collect();
+    for e in &evals {
+        quantities.push(named(Quantity::EvalDos(e.clone())));
+        quantities.push(named(Quantity::EvalDoa(e.clone())));
+        quantities.extend(super::file::EVAL_ORDER.iter().map(|o| named(Quantity::EvalOrder(e.clone(), o.to_string()))));
+        if super::file::seeing_partner(&exp.spec.evaluations, e).is_some() {
+            quantities.push((format!("eval_{}_doa_interaction", slug(e)), Quantity::InteractionDoa(e.clone())));
+        }
+    }
+    for e in exp.spec.evaluations.iter().filter(|e| e.perturb.is_some()) {
+        for which in ["near", "far"] {
+            quantities.push(named(Quantity::Response(e.name.clone(), which.into())));
+        }
+    }
+    if exp.spec.crossplay.is_some() {
+        quantities.extend(super::crossplay::READOUTS.iter().map(|r| named(Quantity::Crossplay(r.to_string()))));
+    }
+    quantities.extend([named(Quantity::CatchesFirst), named(Quantity::CatchesLast)]);
+    quantities
+}
+
+/// `summary.csv`: one row per finished run in `data`, its values of `quantities` ([`columns`]), blank
+/// where a run has none, then its returns, wall time, binaries and the experiment it is shared from.
+pub fn text(exp: &Experiment, data: &BTreeMap<usize, RunData>, quantities: &[(String, Quantity)]) -> String {
+    let mut summary = String::from("preset,variant,seed,episodes");
+    for (name, _) in quantities {
+        write!(summary, ",{name}").unwrap();
+    }
+    summary.push_str(",return_first100,return_last100,wall_seconds,binary,shared_from\n");
+    for (i, d) in data {
+        let r = &exp.runs[*i];
+        write!(summary, "{},{},{},{}", csv_text(&r.preset), csv_text(&r.variant), r.seed, d.dos.len()).unwrap();
+        for (_, q) in quantities {
+            // Blank, never NaN, where a run has no value (an evaluation without a catch has no edge rank).
+            let v = quantity(exp, d, q);
+            write!(summary, ",{}", if v.is_finite() { v.to_string() } else { String::new() }).unwrap();
+        }
+        let (r0, r1) = (window_mean(&d.returns, true), window_mean(&d.returns, false));
+        let shared = r.shared_from.as_deref().unwrap_or("");
+        writeln!(summary, ",{r0},{r1},{},{},{shared}", d.wall_seconds, csv_text(&d.binaries.join(" "))).unwrap();
+    }
+
+    summary
+}
+
+/// `summary-mean.csv`: per preset, variant and quantity, the mean over seeds and its 95 % interval.
+pub fn means_text(exp: &Experiment, data: &BTreeMap<usize, RunData>, quantities: &[(String, Quantity)]) -> String {
+    let mut means = String::from("preset,variant,quantity,seeds,mean,ci95\n");
+    for preset in &exp.spec.presets {
+        let of_variant = |variant: &str| -> Vec<&RunData> {
+            data.iter()
+                .filter(|(i, _)| exp.runs[**i].preset == *preset && exp.runs[**i].variant == variant)
+                .map(|(_, d)| d)
+                .collect()
+        };
+        for v in &exp.spec.variants {
+            let runs = of_variant(&v.name);
+            for (name, q) in quantities {
+                if let Some(e) = estimate(&values(exp, &runs, q)) {
+                    let ci = e.ci.map_or(String::new(), |c| c.to_string());
+                    writeln!(means, "{},{},{name},{},{},{ci}", csv_text(preset), csv_text(&v.name), e.n, e.mean)
+                        .unwrap();
+                }
+            }
+        }
+    }
+    means
+}
+
+/// An experiment's per-run values as `summary.csv` holds them: one row per run (preset, variant, seed,
+/// then one column per quantity), read with the `csv` crate (variant names may hold commas). The claims
+/// are computed from it alone.
+#[derive(Clone, Debug, Default)]
+pub struct Summary {
+    pub columns: Vec<String>,
+    pub rows: Vec<SummaryRow>,
+}
+
+#[derive(Clone, Debug)]
+pub struct SummaryRow {
+    pub preset: String,
+    pub variant: String,
+    pub seed: u64,
+    /// Every column's value (NaN where blank or not a number), in `columns` order.
+    pub values: Vec<f64>,
+    /// The executables that made the run (`binary` column; "unknown" for runs before provenance files).
+    pub binary: String,
+    /// The experiment that trained the run, when this experiment shares it (`shared_from`); empty else.
+    pub shared_from: String,
+}
+
+impl Summary {
+    /// The committed summary of an experiment, None when it has none.
+    pub fn read(path: &Path) -> crate::error::Result<Option<Summary>> {
+        match crate::io::read_text(path, crate::io::MAX_TEXT_BYTES) {
+            Ok(text) => Ok(Some(Summary::parse(&text, path)?)),
+            Err(_) if !path.exists() => Ok(None),
+            Err(e) => Err(format!("{}: {e}", path.display()).into()),
+        }
+    }
+
+    pub fn parse(text: &str, path: &Path) -> crate::error::Result<Summary> {
+        let bad = |e: csv::Error| format!("{}: {e}", path.display());
+        let mut reader = csv::Reader::from_reader(text.as_bytes());
+        let columns: Vec<String> = reader.headers().map_err(bad)?.iter().map(str::to_string).collect();
+        let at = |name: &str| columns.iter().position(|c| c == name);
+        let (Some(preset), Some(variant), Some(seed)) = (at("preset"), at("variant"), at("seed")) else {
+            return Err(format!("{}: no preset, variant and seed columns", path.display()).into());
+        };
+        let (binary, shared) = (at("binary"), at("shared_from"));
+        let mut rows = vec![];
+        for record in reader.records() {
+            let record = record.map_err(bad)?;
+            rows.push(SummaryRow {
+                preset: record[preset].to_string(),
+                variant: record[variant].to_string(),
+                seed: record[seed].parse().map_err(|_| format!("{}: seed {:?}", path.display(), &record[seed]))?,
+                values: record.iter().map(|c| c.parse().unwrap_or(f64::NAN)).collect(),
+                binary: binary.map_or("unknown", |b| &record[b]).to_string(),
+                shared_from: shared.map_or("", |c| &record[c]).to_string(),
+            });
+        }
+        Ok(Summary { columns, rows })
+    }
+
+    /// The rows of runs the experiment file still has, each with its index into the experiment's runs.
+    pub fn runs<'a>(&'a self, exp: &Experiment) -> Vec<(usize, &'a SummaryRow)> {
+        self.rows
+            .iter()
+            .filter_map(|row| {
+                let i = exp
+                    .runs
+                    .iter()
+                    .position(|r| r.preset == row.preset && r.variant == row.variant && r.seed == row.seed)?;
+                Some((i, row))
+            })
+            .collect()
+    }
+
+    pub fn value(&self, row: &SummaryRow, column: &str) -> f64 {
+        self.columns.iter().position(|c| c == column).map_or(f64::NAN, |i| row.values[i])
+    }
+
+    /// A run's value of a quantity, from its row ([`super::claims::quantity`] computes the same from the
+    /// run's own files; both through [`derive`]).
+    pub fn quantity(&self, exp: &Experiment, row: &SummaryRow, q: &Quantity) -> f64 {
+        derive(exp, q, &|p| column(p).map_or(f64::NAN, |c| self.value(row, &c)))
+    }
+
+    /// The fewest episodes any run of one preset and variant trained, None without a run.
+    pub fn episodes(&self, preset: &str, variant: &str) -> Option<usize> {
+        self.rows
+            .iter()
+            .filter(|r| r.preset == preset && r.variant == variant)
+            .map(|r| self.value(r, "episodes"))
+            .filter(|x| x.is_finite())
+            .map(|x| x as usize)
+            .min()
+    }
+
+    /// The finite values of a quantity over the runs of one preset and variant (one per seed).
+    pub fn values(&self, exp: &Experiment, preset: &str, variant: &str, q: &Quantity) -> Vec<f64> {
+        self.rows
+            .iter()
+            .filter(|r| r.preset == preset && r.variant == variant)
+            .map(|r| self.quantity(exp, r, q))
+            .filter(|x| x.is_finite())
+            .collect()
+    }
+}
+
+/// A name as one CSV field: quoted (RFC 4180) when it holds a comma or a quote, as variant names may
+/// ("body frame, no predators").
+pub(super) fn csv_text(s: &str) -> String {
+    if s.contains([',', '"', '\n']) {
+        format!("\"{}\"", s.replace('"', "\"\""))
+    } else {
+        s.to_string()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn names_with_commas_stay_one_csv_field() {
+        assert_eq!(super::csv_text("5:3"), "5:3");
+        assert_eq!(super::csv_text("body frame, no predators"), "\"body frame, no predators\"");
+        assert_eq!(super::csv_text("a \"b\", c"), "\"a \"\"b\"\", c\"");
+    }
+}

@@ -1,0 +1,22 @@
+//! The headless integration tests, one binary (each test binary links the whole crate, Bevy included,
+//! so one binary instead of fourteen saves CI most of their link time). Two stay apart, each for a reason
+//! of its own: `tests/species_plugin.rs` registers species plugins process-wide, which would add them to
+//! every simulation of the other tests; `tests/viewer.rs` needs the `viewer` feature and a display.
+
+#[path = "../common/mod.rs"]
+mod common;
+
+mod animate;
+mod bad_inputs;
+mod crossplay;
+mod docs;
+mod env;
+mod experiment;
+mod learning;
+mod observation;
+mod perturb;
+mod physics;
+mod record;
+mod resume;
+mod scenes;
+mod threads;
