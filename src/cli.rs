@@ -568,8 +568,8 @@ fn run(cli: Cli, call: Call) -> crate::error::Result<()> {
                 episodes: cli.episodes,
                 progress: !cli.quiet,
             };
-            let summaries = crate::run::train::train(scene, &opts)?;
-            crate::errln!("coevo: trained {} episodes into {}", summaries.len(), run.display())?;
+            let trained = crate::run::train::train(scene, &opts)?;
+            crate::errln!("coevo: trained {trained} episodes into {}", run.display())?;
             if !cli.quiet {
                 crate::io::err_text(format_args!("{}", crate::run::train::explain(&run)?))?;
             }

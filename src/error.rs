@@ -2,6 +2,10 @@
 //! the line in it when known, and the field, then what is wrong: `file:line: field: message`. Parts that
 //! are not known are left out, so an error made deep down (a field of a scene being validated) gains its
 //! file where the file is known ([`Error::in_file`]).
+//!
+//! Each error also has a [`Kind`]: what went wrong, for programs that drive coevo (the Python package
+//! raises one exception class per kind). The kind is set where a concern hands its error on (a scene
+//! loaded, a checkpoint read, a run folder checked), the innermost first, and never printed.
 
 use std::path::Path;
 
@@ -16,6 +20,30 @@ pub struct Error {
     /// The field, as a path such as `species[prey].mass`.
     pub field: Option<String>,
     pub message: String,
+    /// What went wrong, for programs (not printed).
+    pub kind: Kind,
+}
+
+/// What an error concerns.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Kind {
+    /// Not classified.
+    #[default]
+    Other,
+    /// A scene file or scene value: unreadable, invalid, unstable, too large.
+    Scene,
+    /// A checkpoint or snapshot: missing, damaged, of another run, scene or species.
+    Checkpoint,
+    /// A run folder: in use, of another scene, not a run, shipped, incomplete data.
+    RunFolder,
+    /// An experiment file or its results.
+    Experiment,
+    /// A command-line flag or argument from a program.
+    Input,
+    /// The simulation left the physically possible (a NaN, an escaped body).
+    Simulation,
+    /// Reading or writing a file failed (permissions, full disk, a link where none may be).
+    Io,
 }
 
 /// What coevo's fallible functions return.
@@ -24,7 +52,15 @@ pub type Result<T> = std::result::Result<T, Error>;
 impl Error {
     /// An error about a field: `field: message`.
     pub fn field(field: String, message: String) -> Error {
-        Error { file: None, line: None, field: Some(field), message }
+        Error { file: None, line: None, field: Some(field), message, kind: Kind::Other }
+    }
+
+    /// The error as one of `kind`, unless an inner concern already classified it.
+    pub fn of_kind(mut self, kind: Kind) -> Error {
+        if self.kind == Kind::Other {
+            self.kind = kind;
+        }
+        self
     }
 
     /// The error as it concerns `file`, unless it already names one.
@@ -53,7 +89,18 @@ impl Error {
 
 impl From<String> for Error {
     fn from(message: String) -> Error {
-        Error { file: None, line: None, field: None, message }
+        Error { file: None, line: None, field: None, message, kind: Kind::Other }
+    }
+}
+
+/// `.kind(Kind::Scene)` on any coevo result: classifies its error ([`Error::of_kind`]).
+pub trait ResultExt<T> {
+    fn kind(self, kind: Kind) -> Result<T>;
+}
+
+impl<T, E: Into<Error>> ResultExt<T> for std::result::Result<T, E> {
+    fn kind(self, kind: Kind) -> Result<T> {
+        self.map_err(|e| e.into().of_kind(kind))
     }
 }
 
@@ -74,6 +121,13 @@ mod tests {
         let e = Error::field("world.dt".into(), "must be > 0".into()).in_file(Path::new("s.ron"));
         assert_eq!(e.to_string(), "s.ron: world.dt: must be > 0");
         assert_eq!(Error { line: Some(3), ..e.clone() }.to_string(), "s.ron:3: world.dt: must be > 0");
-        assert_eq!(e.in_file(Path::new("other.ron")).file.as_deref(), Some("s.ron"), "the first file named stays");
+        assert_eq!(
+            e.clone().in_file(Path::new("other.ron")).file.as_deref(),
+            Some("s.ron"),
+            "the first file named stays"
+        );
+        let classified = e.of_kind(Kind::Scene).of_kind(Kind::RunFolder);
+        assert_eq!(classified.kind, Kind::Scene, "the innermost kind stays");
+        assert_eq!(classified.to_string(), "s.ron: world.dt: must be > 0", "the kind is not printed");
     }
 }

@@ -14,6 +14,7 @@
 //!   ([`install_signal_cleanup`]), and those of a killed process (its PID no longer alive) are removed by the
 //!   next write of the same target ([`AtomicFile::create`]) or the next use of a run folder.
 
+use crate::error::ResultExt;
 use std::fs::File;
 use std::io::{self, BufWriter, Read, Write};
 use std::path::{Path, PathBuf};
@@ -309,22 +310,25 @@ fn rename_new(from: &Path, to: &Path) -> io::Result<()> {
 /// folder (`figures/`, `snapshots/`, `slurm/`), and refuses it unless it is a real folder: a symbolic link
 /// there would send coevo's writes into whatever folder it points to.
 pub fn own_dir(dir: &Path) -> crate::error::Result<()> {
-    let shown = || dir.display().to_string();
-    match std::fs::symlink_metadata(dir) {
-        Ok(m) if m.file_type().is_symlink() => {
-            return Err(format!(
-                "{}: is a symbolic link; coevo writes only into real folders it owns, never through a link: remove the link",
-                shown()
-            )
-            .into())
+    (|| -> crate::error::Result<()> {
+        let shown = || dir.display().to_string();
+        match std::fs::symlink_metadata(dir) {
+            Ok(m) if m.file_type().is_symlink() => {
+                return Err(format!(
+                    "{}: is a symbolic link; coevo writes only into real folders it owns, never through a link: remove the link",
+                    shown()
+                )
+                .into())
+            }
+            Ok(m) if !m.is_dir() => return Err(format!("{}: exists and is not a folder", shown()).into()),
+            Ok(_) => return Ok(()),
+            Err(_) => {}
         }
-        Ok(m) if !m.is_dir() => return Err(format!("{}: exists and is not a folder", shown()).into()),
-        Ok(_) => return Ok(()),
-        Err(_) => {}
-    }
-    let _writing = Writing::begin();
-    std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", shown()))?;
-    Ok(())
+        let _writing = Writing::begin();
+        std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", shown()))?;
+        Ok(())
+    })()
+    .kind(crate::error::Kind::Io)
 }
 
 /// Writes `path` atomically with `write`; on error the target is untouched and the temporary removed.
@@ -347,7 +351,9 @@ pub fn beside(path: &Path, what: &str) -> PathBuf {
 }
 
 pub fn write_file(path: &Path, existing: Existing, bytes: &[u8]) -> crate::error::Result<()> {
-    Ok(write_atomically(path, existing, |w| w.write_all(bytes)).map_err(|e| format!("{}: {e}", path.display()))?)
+    write_atomically(path, existing, |w| w.write_all(bytes))
+        .map_err(|e| format!("{}: {e}", path.display()))
+        .kind(crate::error::Kind::Io)
 }
 
 fn temporary_beside(path: &Path) -> PathBuf {
@@ -362,21 +368,24 @@ pub const MAX_TEXT_BYTES: u64 = 64 << 20;
 /// Reads a UTF-8 text file of at most `limit` bytes; a leading byte-order mark is dropped. Errors say
 /// what is wrong in a user's words.
 pub fn read_text(path: &Path, limit: u64) -> crate::error::Result<String> {
-    // Asked before opening: opening a FIFO blocks until a writer comes, a device may never end.
-    let meta = std::fs::metadata(path).map_err(|e| format!("cannot read: {e}"))?;
-    if !meta.is_file() {
-        return Err("is not a regular file (a folder, pipe or device); coevo reads its inputs from files".into());
-    }
-    let file = File::open(path).map_err(|e| format!("cannot read: {e}"))?;
-    let mut bytes = Vec::new();
-    file.take(limit + 1).read_to_end(&mut bytes).map_err(|e| format!("cannot read: {e}"))?;
-    if bytes.len() as u64 > limit {
-        return Err(format!("is larger than {} MiB; not a file coevo reads", limit >> 20).into());
-    }
-    let text = String::from_utf8(bytes).map_err(|e| {
-        format!("is not UTF-8 text (invalid byte at offset {}); save it as UTF-8", e.utf8_error().valid_up_to())
-    })?;
-    Ok(text.strip_prefix('\u{feff}').map(str::to_string).unwrap_or(text))
+    (|| -> crate::error::Result<String> {
+        // Asked before opening: opening a FIFO blocks until a writer comes, a device may never end.
+        let meta = std::fs::metadata(path).map_err(|e| format!("cannot read: {e}"))?;
+        if !meta.is_file() {
+            return Err("is not a regular file (a folder, pipe or device); coevo reads its inputs from files".into());
+        }
+        let file = File::open(path).map_err(|e| format!("cannot read: {e}"))?;
+        let mut bytes = Vec::new();
+        file.take(limit + 1).read_to_end(&mut bytes).map_err(|e| format!("cannot read: {e}"))?;
+        if bytes.len() as u64 > limit {
+            return Err(format!("is larger than {} MiB; not a file coevo reads", limit >> 20).into());
+        }
+        let text = String::from_utf8(bytes).map_err(|e| {
+            format!("is not UTF-8 text (invalid byte at offset {}); save it as UTF-8", e.utf8_error().valid_up_to())
+        })?;
+        Ok(text.strip_prefix('\u{feff}').map(str::to_string).unwrap_or(text))
+    })()
+    .kind(crate::error::Kind::Io)
 }
 
 /// The memory coevo may use, in bytes: the least of what the machine has free (`MemAvailable`), the

@@ -27,8 +27,32 @@ from pettingzoo import ParallelEnv as _ParallelEnv
 from ._coevo import Env as _Env
 from ._coevo import VecEnv as _VecEnv
 from ._coevo import __version__, git_commit
+from ._coevo import (  # one exception class per kind of error, all subclasses of CoevoError (a ValueError)
+    CheckpointError,
+    CoevoError,
+    CoevoIOError,
+    ExperimentError,
+    InputError,
+    RunFolderError,
+    SceneError,
+    SimulationError,
+)
 
-__all__ = ["parallel_env", "CoevoParallelEnv", "VecEnv", "__version__", "git_commit"]
+__all__ = [
+    "parallel_env",
+    "CoevoParallelEnv",
+    "VecEnv",
+    "__version__",
+    "git_commit",
+    "CoevoError",
+    "SceneError",
+    "CheckpointError",
+    "RunFolderError",
+    "ExperimentError",
+    "InputError",
+    "SimulationError",
+    "CoevoIOError",
+]
 
 
 def _counts(counts: dict[str, int] | None) -> list[tuple[str, int]] | None:

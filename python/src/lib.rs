@@ -5,14 +5,58 @@
 use coevo::learning::control::ObservationControl;
 use coevo::scene::{Overrides, Scene};
 use numpy::{IntoPyArray, PyArray1, PyArray2, PyArray3, PyArrayMethods, PyReadonlyArray2, PyReadonlyArray3};
+use pyo3::create_exception;
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use std::path::Path;
 
-/// coevo's one-line errors as Python's ValueError.
-fn err(e: impl std::fmt::Display) -> PyErr {
-    PyValueError::new_err(e.to_string())
+// coevo's error kinds as Python exceptions, all subclasses of `CoevoError` (itself a `ValueError`, which
+// every coevo error was before kinds): `except coevo.SceneError` tells a bad scene from a damaged
+// checkpoint (`coevo::error::Kind`).
+create_exception!(
+    _coevo,
+    CoevoError,
+    PyValueError,
+    "An error of coevo: one line naming the file or flag, the line and the field."
+);
+create_exception!(_coevo, SceneError, CoevoError, "A scene file or value: unreadable, invalid, unstable or too large.");
+create_exception!(
+    _coevo,
+    CheckpointError,
+    CoevoError,
+    "A checkpoint or snapshot: missing, damaged, or of another run, scene or species."
+);
+create_exception!(
+    _coevo,
+    RunFolderError,
+    CoevoError,
+    "A run folder: in use, of another scene, not a run, shipped, or with incomplete data."
+);
+create_exception!(_coevo, ExperimentError, CoevoError, "An experiment file or its results.");
+create_exception!(_coevo, InputError, CoevoError, "An argument given to coevo (a control, a count, a file name).");
+create_exception!(
+    _coevo,
+    SimulationError,
+    CoevoError,
+    "The simulation left the physically possible (a NaN, an escaped body)."
+);
+create_exception!(_coevo, CoevoIOError, CoevoError, "Reading or writing a file failed.");
+
+/// A coevo error as the Python exception of its kind.
+fn err(e: coevo::error::Error) -> PyErr {
+    use coevo::error::Kind;
+    let message = e.to_string();
+    match e.kind {
+        Kind::Scene => SceneError::new_err(message),
+        Kind::Checkpoint => CheckpointError::new_err(message),
+        Kind::RunFolder => RunFolderError::new_err(message),
+        Kind::Experiment => ExperimentError::new_err(message),
+        Kind::Input => InputError::new_err(message),
+        Kind::Simulation => SimulationError::new_err(message),
+        Kind::Io => CoevoIOError::new_err(message),
+        Kind::Other => CoevoError::new_err(message),
+    }
 }
 
 /// A scene file with the counts, seed and episode length given from Python, validated.
@@ -23,7 +67,7 @@ fn scene(path: &str, seed: Option<u64>, counts: Option<Vec<(String, usize)>>, st
 
 /// `--control`'s forms (`"blind:prey:prey"`, …; none: everything seen).
 fn control(forms: Option<Vec<String>>) -> PyResult<ObservationControl> {
-    ObservationControl::parse(&forms.unwrap_or_default()).map_err(|e| err(format!("control: {e}")))
+    ObservationControl::parse(&forms.unwrap_or_default()).map_err(|e| InputError::new_err(format!("control: {e}")))
 }
 
 /// One world whose learning species are decided from Python.
@@ -207,5 +251,14 @@ fn _coevo(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("git_commit", coevo::GIT_COMMIT)?;
     m.add_class::<Env>()?;
     m.add_class::<VecEnv>()?;
+    let py = m.py();
+    m.add("CoevoError", py.get_type::<CoevoError>())?;
+    m.add("SceneError", py.get_type::<SceneError>())?;
+    m.add("CheckpointError", py.get_type::<CheckpointError>())?;
+    m.add("RunFolderError", py.get_type::<RunFolderError>())?;
+    m.add("ExperimentError", py.get_type::<ExperimentError>())?;
+    m.add("InputError", py.get_type::<InputError>())?;
+    m.add("SimulationError", py.get_type::<SimulationError>())?;
+    m.add("CoevoIOError", py.get_type::<CoevoIOError>())?;
     Ok(())
 }

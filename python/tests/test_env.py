@@ -91,6 +91,31 @@ def test_bad_input_is_one_line():
         coevo.VecEnv(STANDARD, num_envs=0)
 
 
+def test_each_kind_of_error_has_its_exception(tmp_path):
+    """A bad scene, a missing checkpoint and a bad argument raise distinct classes, all CoevoError (a
+    ValueError, as every coevo error was before kinds)."""
+    with pytest.raises(coevo.SceneError, match="cannot read"):
+        coevo.parallel_env("no-such-scene.ron")
+    with pytest.raises(coevo.SceneError, match="no species named"):
+        coevo.parallel_env(STANDARD, counts={"hawk": 3})
+    frozen = tmp_path / "frozen.ron"
+    frozen.write_text(f'(species: [(name: "prey", policy: Frozen("{tmp_path / "no-such-run"}"))])')
+    with pytest.raises(coevo.CheckpointError, match="no-such-run"):
+        coevo.parallel_env(str(frozen))
+    with pytest.raises(coevo.InputError, match="control: blind:prey:hawk"):
+        coevo.parallel_env(STANDARD, control="blind:prey:hawk")
+    with pytest.raises(coevo.InputError, match="num_envs: must be"):
+        coevo.VecEnv(STANDARD, num_envs=0)
+    env = coevo._coevo.Env(STANDARD, None, None, 5)
+    env.reset(None)
+    with pytest.raises(coevo.InputError, match="actions: expected 26 values"):
+        env.step(np.zeros((3, 2), np.float32))
+    for kind in (coevo.SceneError, coevo.CheckpointError, coevo.RunFolderError, coevo.ExperimentError,
+                 coevo.InputError, coevo.SimulationError, coevo.CoevoIOError):
+        assert issubclass(kind, coevo.CoevoError) and issubclass(kind, ValueError)
+    assert not issubclass(coevo.SceneError, coevo.CheckpointError)
+
+
 def test_render_gives_the_animation_frame():
     env = coevo.parallel_env(STANDARD, render_mode="rgb_array", render_size=200)
     env.reset()

@@ -293,7 +293,7 @@ pub fn read_readouts(
     run: &std::path::Path,
     prey: &str,
 ) -> crate::error::Result<std::collections::BTreeMap<String, f64>> {
-    let path = RunDir::new(run).crossplay(READOUTS_STEM);
+    let path = RunDir::new(run).crossplay(crate::run::CROSSPLAY_READOUTS);
     let mut out = std::collections::BTreeMap::new();
     let Ok(text) = crate::io::read_text(&path, crate::io::MAX_TEXT_BYTES) else { return Ok(out) };
     let bad = |e: csv::Error| format!("{}: {e}", path.display());
@@ -309,9 +309,6 @@ pub fn read_readouts(
     }
     Ok(out)
 }
-
-/// The read-outs file's stem.
-pub const READOUTS_STEM: &str = "crossplay-readouts";
 
 /// The read-outs of a matrix. Generations are the snapshot episodes both species have (the diagonal and
 /// CIAO need them paired); "early" opponents of generation k are generations 0..=k.
@@ -424,7 +421,7 @@ pub fn readouts_csv(matrices: &[Matrix]) -> String {
 
 /// A run's cross-play matrix as written in `crossplay.csv` (the scene's only pair), None without one.
 pub fn read_matrix(run: &std::path::Path, pair: &Pair) -> crate::error::Result<Option<Matrix>> {
-    let path = RunDir::new(run).crossplay("crossplay");
+    let path = RunDir::new(run).crossplay(crate::run::CROSSPLAY);
     let Ok(text) = crate::io::read_text(&path, crate::io::MAX_TEXT_BYTES) else { return Ok(None) };
     let bad = |e: csv::Error| format!("{}: {e}", path.display());
     let mut reader = csv::Reader::from_reader(text.as_bytes());
@@ -488,8 +485,8 @@ pub fn only_pair(scene: &Scene) -> Option<Pair> {
 /// File stem of a pair's outputs: `crossplay` when it is the scene's only pair.
 fn stem(m: &Matrix, only: bool) -> String {
     match only {
-        true => "crossplay".into(),
-        false => format!("crossplay-{}-{}", m.pair.prey_name, m.pair.predator_name),
+        true => crate::run::CROSSPLAY.into(),
+        false => format!("{}-{}-{}", crate::run::CROSSPLAY, m.pair.prey_name, m.pair.predator_name),
     }
 }
 
@@ -527,7 +524,7 @@ fn write(run: &std::path::Path, matrices: &[Matrix]) -> crate::error::Result<Vec
         written.push(csv.display().to_string());
         written.push(figure.with_extension("png").display().to_string());
     }
-    let readouts = dir.crossplay(READOUTS_STEM);
+    let readouts = dir.crossplay(crate::run::CROSSPLAY_READOUTS);
     crate::io::write_file(&readouts, Existing::Replace, readouts_csv(matrices).as_bytes())?;
     written.push(readouts.display().to_string());
     Ok(written)

@@ -3,7 +3,7 @@
 
 use super::crossplay;
 use super::file::*;
-use crate::error::{Error, Result};
+use crate::error::{Error, Result, ResultExt};
 use crate::scene::{parse_ron, Scene, PRESETS};
 use std::path::{Path, PathBuf};
 
@@ -66,7 +66,7 @@ impl Experiment {
     /// Loads an experiment file and resolves every run's scene; errors are one line naming the file and
     /// the field, as for scenes.
     pub fn load(file: &Path, results: &Path) -> Result<Experiment> {
-        Experiment::load_with(file, results, true)
+        Experiment::load_with(file, results, true).kind(crate::error::Kind::Experiment)
     }
 
     /// [`Experiment::load`]; `share` resolves `shared_from` variants (an owner is loaded without, so a
@@ -138,7 +138,7 @@ impl Experiment {
         }
         for (i, e) in spec.evaluations.iter().enumerate() {
             let field = |f: &str| format!("evaluations[{}].{f}", e.name);
-            let file = format!("eval-{}.csv", slug(&e.name));
+            let file = crate::run::evaluation_file_name(&slug(&e.name));
             if slug(&e.name).is_empty() {
                 return Err(err(&field("name"), "needs a letter or digit".into()));
             }

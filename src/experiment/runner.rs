@@ -61,7 +61,7 @@ pub fn stage(run: &Run) -> crate::error::Result<Stage> {
 
 /// The file an evaluation of a run writes.
 pub fn eval_file(dir: &Path, evaluation: &str) -> PathBuf {
-    dir.join(format!("eval-{}.csv", slug(evaluation)))
+    crate::run::RunDir::new(dir).evaluation(&slug(evaluation))
 }
 
 /// Runs one child process; Err is its one-line error.
@@ -200,7 +200,7 @@ fn drop_replay(exp: &Experiment, run: &Run) -> crate::error::Result<()> {
 
 /// Whether a run's cross-play is complete (its read-outs are written last).
 fn crossplayed(run: &Run) -> bool {
-    crate::run::RunDir::new(&run.dir).crossplay(super::crossplay::READOUTS_STEM).exists()
+    crate::run::RunDir::new(&run.dir).crossplay(crate::run::CROSSPLAY_READOUTS).exists()
 }
 
 /// Whether a run is trained and has every evaluation (and its cross-play, when asked).

@@ -41,6 +41,7 @@ use super::learner::SpeciesLearner;
 use super::manifest::{Digest, Hashing, Manifest, SpeciesEntry, MANIFEST};
 use super::nets::Mlp;
 use super::replay::ReplayBuffer;
+use crate::error::{Kind, ResultExt};
 use crate::io::Existing;
 use crate::scene::Scene;
 use dfdx::shapes::HasShape;
@@ -208,25 +209,28 @@ pub fn snapshot_episodes(run: &Path, species: &str) -> Vec<usize> {
 
 /// Loads `species`' actor as it was after `episode` episodes into `like` (which fixes the shapes).
 pub fn load_snapshot(run: &Path, species: &str, episode: usize, like: &Mlp) -> crate::error::Result<Mlp> {
-    let path = snapshot_path(run, species, episode);
-    if !path.exists() {
-        let kept = snapshot_episodes(run, species);
-        return Err(format!(
-            "{}: no snapshot of {species} after {episode} episodes; the run keeps {}",
-            run.display(),
-            match kept.is_empty() {
-                true => format!("none of {species} (trained before snapshots, or snapshot_every: 0)"),
-                false => format!("episodes {}", kept.iter().map(usize::to_string).collect::<Vec<_>>().join(", ")),
-            }
-        )
-        .into());
-    }
-    let manifest = run_manifest(&checkpoint_dir(run))?;
-    let scene = manifest.as_ref().map(|m| m.scene.as_str());
-    let bytes = read_as(&path, &Expected { species, roles: &["actor"], scene })?;
-    let net = mlp_from(&path, &bytes, like)?;
-    sealed(&path, &bytes, manifest.as_ref().map(|m| &m.snapshots))?;
-    Ok(net)
+    (|| -> crate::error::Result<Mlp> {
+        let path = snapshot_path(run, species, episode);
+        if !path.exists() {
+            let kept = snapshot_episodes(run, species);
+            return Err(format!(
+                "{}: no snapshot of {species} after {episode} episodes; the run keeps {}",
+                run.display(),
+                match kept.is_empty() {
+                    true => format!("none of {species} (trained before snapshots, or snapshot_every: 0)"),
+                    false => format!("episodes {}", kept.iter().map(usize::to_string).collect::<Vec<_>>().join(", ")),
+                }
+            )
+            .into());
+        }
+        let manifest = run_manifest(&checkpoint_dir(run))?;
+        let scene = manifest.as_ref().map(|m| m.scene.as_str());
+        let bytes = read_as(&path, &Expected { species, roles: &["actor"], scene })?;
+        let net = mlp_from(&path, &bytes, like)?;
+        sealed(&path, &bytes, manifest.as_ref().map(|m| &m.snapshots))?;
+        Ok(net)
+    })()
+    .kind(Kind::Checkpoint)
 }
 
 fn snapshot_name(species: &str, episode: usize) -> String {
@@ -598,13 +602,16 @@ fn parse<'a>(path: &Path, bytes: &'a [u8]) -> crate::error::Result<SafeTensors<'
 /// Loads a species' actor from a run folder into `like` (which fixes the expected shapes), checked
 /// against the checkpoint's manifest and the file's metadata.
 pub fn load_actor(run: &Path, species: &str, like: &Mlp) -> crate::error::Result<Mlp> {
-    let dir = checkpoint_dir(run);
-    let path = dir.join(actor_name(species));
-    let manifest = run_manifest(&dir)?;
-    let bytes = read_as(&path, &Expected { species, roles: &["actor"], scene: None })?;
-    let net = mlp_from(&path, &bytes, like)?;
-    sealed(&path, &bytes, manifest.as_ref().map(|m| &m.files))?;
-    Ok(net)
+    (|| -> crate::error::Result<Mlp> {
+        let dir = checkpoint_dir(run);
+        let path = dir.join(actor_name(species));
+        let manifest = run_manifest(&dir)?;
+        let bytes = read_as(&path, &Expected { species, roles: &["actor"], scene: None })?;
+        let net = mlp_from(&path, &bytes, like)?;
+        sealed(&path, &bytes, manifest.as_ref().map(|m| &m.files))?;
+        Ok(net)
+    })()
+    .kind(Kind::Checkpoint)
 }
 
 fn actor_name(species: &str) -> String {
@@ -764,27 +771,30 @@ fn state_from(path: &Path, text: &str) -> crate::error::Result<TrainingState> {
 /// The checkpoint's state file, checked against its manifest, and the manifest (None for a checkpoint of
 /// a coevo before manifests): what `--resume` continues from and what `--plot` counts rows against.
 pub fn read_checked_state(dir: &Path) -> crate::error::Result<(TrainingState, Option<Manifest>)> {
-    let path = dir.join(STATE);
-    let manifest = run_manifest(dir)?;
-    let bytes = read_file(&path)?;
-    if let Some(m) = &manifest {
-        Manifest::check(&m.files, STATE, &path, &bytes)?;
-    }
-    let text =
-        String::from_utf8(bytes).map_err(|_| format!("{}: corrupt checkpoint state (not UTF-8)", path.display()))?;
-    let state = state_from(&path, &text)?;
-    if let Some(m) = &manifest {
-        if m.episodes_done != state.episodes_done {
-            return Err(format!(
-                "{}: holds {} episodes, its manifest {}; the checkpoint is damaged",
-                path.display(),
-                state.episodes_done,
-                m.episodes_done
-            )
-            .into());
+    (|| -> crate::error::Result<(TrainingState, Option<Manifest>)> {
+        let path = dir.join(STATE);
+        let manifest = run_manifest(dir)?;
+        let bytes = read_file(&path)?;
+        if let Some(m) = &manifest {
+            Manifest::check(&m.files, STATE, &path, &bytes)?;
         }
-    }
-    Ok((state, manifest))
+        let text = String::from_utf8(bytes)
+            .map_err(|_| format!("{}: corrupt checkpoint state (not UTF-8)", path.display()))?;
+        let state = state_from(&path, &text)?;
+        if let Some(m) = &manifest {
+            if m.episodes_done != state.episodes_done {
+                return Err(format!(
+                    "{}: holds {} episodes, its manifest {}; the checkpoint is damaged",
+                    path.display(),
+                    state.episodes_done,
+                    m.episodes_done
+                )
+                .into());
+            }
+        }
+        Ok((state, manifest))
+    })()
+    .kind(Kind::Checkpoint)
 }
 
 /// Restores learners from `run/checkpoint/` (or `checkpoint.old` after a kill mid-swap), every file
@@ -794,72 +804,75 @@ pub fn load(
     learners: &mut [Option<SpeciesLearner>],
     names: &[String],
 ) -> crate::error::Result<(TrainingState, Option<Manifest>)> {
-    let mut dir = checkpoint_dir(run);
-    let old = run.join(CHECKPOINT_OLD);
-    if !dir.join(STATE).exists() && old.join(STATE).exists() {
-        // Killed mid-swap: the old checkpoint is whole; put it back, so the next save links from it.
-        if !dir.exists() && std::fs::rename(&old, &dir).is_err() {
-            dir = old;
-        }
-    }
-    let state_path = dir.join(STATE);
-    if !state_path.exists() {
-        return Err(format!("{}: no checkpoint to resume", state_path.display()).into());
-    }
-    let (mut state, manifest) = read_checked_state(&dir)?;
-    let manifest = manifest.as_ref();
-    let mut dropped = Vec::new();
-    for (learner, name) in learners.iter_mut().zip(names) {
-        let Some(l) = learner else { continue };
-        let s = state
-            .species
-            .iter()
-            .flatten()
-            .find(|s| &s.name == name)
-            .ok_or_else(|| format!("{}: no species {name:?} in the checkpoint", state_path.display()))?;
-        let actor_path = dir.join(actor_name(name));
-        let scene = scene_id(&state.scene);
-        let expected = |roles| Expected { species: name, roles, scene: Some(&scene) };
-        let actor_bytes = read_as(&actor_path, &expected(&["actor"]))?;
-        let st = parse(&actor_path, &actor_bytes)?;
-        let actor = read_into(&actor_path, &st, "", &l.ddpg.actor)?;
-        let path = dir.join(training_name(name));
-        let bytes = read_as(&path, &expected(&["training"]))?;
-        let st = parse(&path, &bytes)?;
-        let d: &mut Ddpg = &mut l.ddpg;
-        let critic = read_into(&path, &st, "critic.", &d.critic)?;
-        let target_actor = read_into(&path, &st, "target_actor.", &d.actor)?;
-        let target_critic = read_into(&path, &st, "target_critic.", &d.critic)?;
-        let actor_m = read_into(&path, &st, "actor_adam.m.", &d.actor)?;
-        let actor_v = read_into(&path, &st, "actor_adam.v.", &d.actor)?;
-        let critic_m = read_into(&path, &st, "critic_adam.m.", &d.critic)?;
-        let critic_v = read_into(&path, &st, "critic_adam.v.", &d.critic)?;
-        sealed(&actor_path, &actor_bytes, manifest.map(|m| &m.files))?;
-        sealed(&path, &bytes, manifest.map(|m| &m.files))?;
-        (d.actor_opt.m, d.actor_opt.v, d.critic_opt.m, d.critic_opt.v) = (actor_m, actor_v, critic_m, critic_v);
-        d.actor.set_parameters(&actor);
-        d.critic.set_parameters(&critic);
-        d.target_actor.set_parameters(&target_actor);
-        d.target_critic.set_parameters(&target_critic);
-        d.actor_opt.step = s.actor_adam_step;
-        d.critic_opt.step = s.critic_adam_step;
-        l.noise_std = s.noise_std;
-        l.epsilon = s.epsilon;
-        if let Some(rng) = &s.rng {
-            l.rng = rng.clone();
-        }
-        if let (Some(transitions), false) = (s.transitions, l.frozen) {
-            // Segments removed by hand (to free space) leave the buffer to be refilled, as in checkpoints
-            // of an older coevo; some of them missing is damage.
-            if transitions > 0 && segments(&dir, name).is_empty() {
-                dropped.push(name.clone());
-            } else {
-                l.buffer = load_replay(&dir, name, &l.buffer, transitions, manifest)?;
+    (|| -> crate::error::Result<(TrainingState, Option<Manifest>)> {
+        let mut dir = checkpoint_dir(run);
+        let old = run.join(CHECKPOINT_OLD);
+        if !dir.join(STATE).exists() && old.join(STATE).exists() {
+            // Killed mid-swap: the old checkpoint is whole; put it back, so the next save links from it.
+            if !dir.exists() && std::fs::rename(&old, &dir).is_err() {
+                dir = old;
             }
         }
-    }
-    for s in state.species.iter_mut().flatten().filter(|s| dropped.contains(&s.name)) {
-        s.transitions = None;
-    }
-    Ok((state, manifest.cloned()))
+        let state_path = dir.join(STATE);
+        if !state_path.exists() {
+            return Err(format!("{}: no checkpoint to resume", state_path.display()).into());
+        }
+        let (mut state, manifest) = read_checked_state(&dir)?;
+        let manifest = manifest.as_ref();
+        let mut dropped = Vec::new();
+        for (learner, name) in learners.iter_mut().zip(names) {
+            let Some(l) = learner else { continue };
+            let s = state
+                .species
+                .iter()
+                .flatten()
+                .find(|s| &s.name == name)
+                .ok_or_else(|| format!("{}: no species {name:?} in the checkpoint", state_path.display()))?;
+            let actor_path = dir.join(actor_name(name));
+            let scene = scene_id(&state.scene);
+            let expected = |roles| Expected { species: name, roles, scene: Some(&scene) };
+            let actor_bytes = read_as(&actor_path, &expected(&["actor"]))?;
+            let st = parse(&actor_path, &actor_bytes)?;
+            let actor = read_into(&actor_path, &st, "", &l.ddpg.actor)?;
+            let path = dir.join(training_name(name));
+            let bytes = read_as(&path, &expected(&["training"]))?;
+            let st = parse(&path, &bytes)?;
+            let d: &mut Ddpg = &mut l.ddpg;
+            let critic = read_into(&path, &st, "critic.", &d.critic)?;
+            let target_actor = read_into(&path, &st, "target_actor.", &d.actor)?;
+            let target_critic = read_into(&path, &st, "target_critic.", &d.critic)?;
+            let actor_m = read_into(&path, &st, "actor_adam.m.", &d.actor)?;
+            let actor_v = read_into(&path, &st, "actor_adam.v.", &d.actor)?;
+            let critic_m = read_into(&path, &st, "critic_adam.m.", &d.critic)?;
+            let critic_v = read_into(&path, &st, "critic_adam.v.", &d.critic)?;
+            sealed(&actor_path, &actor_bytes, manifest.map(|m| &m.files))?;
+            sealed(&path, &bytes, manifest.map(|m| &m.files))?;
+            (d.actor_opt.m, d.actor_opt.v, d.critic_opt.m, d.critic_opt.v) = (actor_m, actor_v, critic_m, critic_v);
+            d.actor.set_parameters(&actor);
+            d.critic.set_parameters(&critic);
+            d.target_actor.set_parameters(&target_actor);
+            d.target_critic.set_parameters(&target_critic);
+            d.actor_opt.step = s.actor_adam_step;
+            d.critic_opt.step = s.critic_adam_step;
+            l.noise_std = s.noise_std;
+            l.epsilon = s.epsilon;
+            if let Some(rng) = &s.rng {
+                l.rng = rng.clone();
+            }
+            if let (Some(transitions), false) = (s.transitions, l.frozen) {
+                // Segments removed by hand (to free space) leave the buffer to be refilled, as in checkpoints
+                // of an older coevo; some of them missing is damage.
+                if transitions > 0 && segments(&dir, name).is_empty() {
+                    dropped.push(name.clone());
+                } else {
+                    l.buffer = load_replay(&dir, name, &l.buffer, transitions, manifest)?;
+                }
+            }
+        }
+        for s in state.species.iter_mut().flatten().filter(|s| dropped.contains(&s.name)) {
+            s.transitions = None;
+        }
+        Ok((state, manifest.cloned()))
+    })()
+    .kind(Kind::Checkpoint)
 }

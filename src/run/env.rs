@@ -89,7 +89,9 @@ impl Env {
     /// unknown species or an observer that is not decided from outside is an Err naming the form).
     pub fn with_control(scene: Scene, control: ObservationControl) -> crate::error::Result<Env> {
         scene.validate()?;
-        let resolved = control.resolve(&SpeciesRegistry::from_scene(&scene)).map_err(|e| format!("control: {e}"))?;
+        let resolved = control
+            .resolve(&SpeciesRegistry::from_scene(&scene))
+            .map_err(|e| crate::error::Error::from(format!("control: {e}")).of_kind(crate::error::Kind::Input))?;
         let learned: Vec<usize> =
             (0..scene.species.len()).filter(|&s| scene.species[s].policy == Policy::Learned).collect();
         if learned.is_empty() {
@@ -200,18 +202,20 @@ impl Env {
     pub fn step(&mut self, actions: &[f32]) -> crate::error::Result<StepResult> {
         let agents: usize = self.external.iter().map(|&(_, n)| n).sum();
         if actions.len() != agents * ACTION_DIM {
-            return Err(format!(
+            return Err(crate::error::Error::from(format!(
                 "actions: expected {} values ({agents} agents × 2), got {}",
                 agents * ACTION_DIM,
                 actions.len()
-            )
-            .into());
+            ))
+            .of_kind(crate::error::Kind::Input));
         }
         if let Some(i) = actions.iter().position(|a| !a.is_finite()) {
-            return Err(format!("actions[{i}]: {} is not a finite number", actions[i]).into());
+            return Err(crate::error::Error::from(format!("actions[{i}]: {} is not a finite number", actions[i]))
+                .of_kind(crate::error::Kind::Input));
         }
         if self.world.resource::<Episode>().step >= self.scene.episode_steps {
-            return Err("step: the episode is over (truncated); reset first".into());
+            return Err(crate::error::Error::from("step: the episode is over (truncated); reset first")
+                .of_kind(crate::error::Kind::Input));
         }
         let mut given = vec![Vec::new(); self.scene.species.len()];
         let mut rest = actions;
@@ -221,7 +225,7 @@ impl Env {
             rest = more;
         }
         self.world.insert_resource(ExternalActions(given));
-        self.world.run_schedule(FixedUpdate);
+        crate::sim::step_world(&mut self.world);
         crate::sim::check_state(&self.world)?;
         let world = &self.world;
         let batches = world.resource::<Batches>();
@@ -292,7 +296,7 @@ impl VecEnv {
         control: ObservationControl,
     ) -> crate::error::Result<VecEnv> {
         if worlds == 0 {
-            return Err("num_envs: must be ≥ 1".into());
+            return Err(crate::error::Error::from("num_envs: must be ≥ 1").of_kind(crate::error::Kind::Input));
         }
         let envs = (0..worlds as u64)
             .map(|i| {
@@ -364,14 +368,14 @@ impl VecEnv {
     pub fn step(&mut self, actions: &[f32]) -> crate::error::Result<VecStep> {
         let per = self.agents * ACTION_DIM;
         if actions.len() != per * self.envs.len() {
-            return Err(format!(
+            return Err(crate::error::Error::from(format!(
                 "actions: expected {} values ({} worlds × {} agents × 2), got {}",
                 per * self.envs.len(),
                 self.envs.len(),
                 self.agents,
                 actions.len()
-            )
-            .into());
+            ))
+            .of_kind(crate::error::Kind::Input));
         }
         let mut work: Vec<(&mut Env, &[f32], Option<WorldStep>)> =
             self.envs.iter_mut().zip(actions.chunks(per)).map(|(e, a)| (e, a, None)).collect();

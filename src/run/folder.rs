@@ -15,6 +15,7 @@
 //! second process on the same run is refused while the first is alive ([`RunLock`]).
 
 use super::schema;
+use crate::error::{Kind, ResultExt};
 use crate::io::{process_alive, register_temporary, unregister_temporary, Existing};
 use serde::{Deserialize, Serialize};
 use std::io::Write;
@@ -38,6 +39,8 @@ pub const LOCK: &str = "coevo.lock";
 pub const FIGURES: &str = "figures";
 /// The stem every cross-play output begins with.
 pub const CROSSPLAY: &str = "crossplay";
+/// The stem of the cross-play read-outs (`crossplay-readouts.csv`).
+pub const CROSSPLAY_READOUTS: &str = "crossplay-readouts";
 /// The checkpoint folders are the checkpoint's own (`learning::checkpoint`).
 pub use crate::learning::checkpoint::{CHECKPOINT, CHECKPOINT_OLD, CHECKPOINT_TMP, SNAPSHOTS};
 /// The files an evaluation writes beside its per-step CSV (`OUT-nn.csv`, ...); the confusion curve last.
@@ -52,6 +55,12 @@ const CHECKPOINT_DIRS: [&str; 4] = [CHECKPOINT, CHECKPOINT_TMP, CHECKPOINT_OLD, 
 
 pub(super) fn io_err(path: &Path) -> impl Fn(std::io::Error) -> String + '_ {
     move |e| format!("{}: {e}", path.display())
+}
+
+/// The file name of an experiment's evaluation named `slug` (a name made folder-safe) in a run folder:
+/// `eval-<slug>.csv`, beside the run's own `eval.csv`.
+pub fn evaluation_file_name(slug: &str) -> String {
+    format!("{}-{slug}.csv", EVAL.trim_end_matches(".csv"))
 }
 
 /// A run folder.
@@ -91,6 +100,11 @@ impl RunDir {
     }
 
     /// A cross-play output, `<stem>.csv` (`experiment::crossplay`); stems begin with `crossplay`.
+    /// The file of a named evaluation of an experiment ([`evaluation_file_name`]).
+    pub fn evaluation(&self, slug: &str) -> PathBuf {
+        self.path.join(evaluation_file_name(slug))
+    }
+
     pub fn crossplay(&self, stem: &str) -> PathBuf {
         debug_assert!(stem.starts_with(CROSSPLAY));
         self.path.join(format!("{stem}.csv"))
@@ -109,17 +123,20 @@ impl RunDir {
     /// `expected.bytes` bytes): refused in one line where they differ from what was trained (edited, cut
     /// or lost since). Rows after them (episodes trained after the checkpoint) are not returned.
     pub fn metrics_up_to(&self, expected: &crate::learning::manifest::Digest) -> crate::error::Result<String> {
-        let path = self.metrics();
-        let text = crate::io::read_text(&path, crate::io::MAX_TEXT_BYTES).map_err(|e| e.in_file(&path))?;
-        let head = text.get(..expected.bytes as usize).unwrap_or(&text);
-        if crate::learning::manifest::Digest::of(head.as_bytes()) != *expected {
-            return Err(format!(
-                "{}: its rows up to the checkpoint differ from what was trained (changed, cut or lost since: the checkpoint's manifest hashes them); restore the file or train the run again",
-                path.display()
-            )
-            .into());
-        }
-        Ok(head.to_string())
+        (|| -> crate::error::Result<String> {
+            let path = self.metrics();
+            let text = crate::io::read_text(&path, crate::io::MAX_TEXT_BYTES).map_err(|e| e.in_file(&path))?;
+            let head = text.get(..expected.bytes as usize).unwrap_or(&text);
+            if crate::learning::manifest::Digest::of(head.as_bytes()) != *expected {
+                return Err(format!(
+                    "{}: its rows up to the checkpoint differ from what was trained (changed, cut or lost since: the checkpoint's manifest hashes them); restore the file or train the run again",
+                    path.display()
+                )
+                .into());
+            }
+            Ok(head.to_string())
+        })()
+        .kind(Kind::RunFolder)
     }
 
     /// The run's `metrics.csv` for plots and summaries, refused in one line unless it is the run's whole
@@ -128,41 +145,44 @@ impl RunDir {
     /// episodes. With `partial`, rows after the checkpoint (a run stopped before its next one, or still
     /// without one) and a last row cut short are accepted, and the second value says so.
     pub fn checked_metrics(&self, partial: bool) -> crate::error::Result<(schema::Table, Option<String>)> {
-        let table = schema::Table::read_metrics(&self.metrics(), partial)?;
-        let rows = table.rows.len();
-        let shown = self.metrics().display().to_string();
-        // A run trained outside coevo (python/examples/ippo.py) has no training state to count against:
-        // its rows are whole when every line is.
-        if !self.state().exists() && !self.provenance().exists() {
-            return Ok((table, None));
-        }
-        if !self.state().exists() {
-            return match partial {
-                true => Ok((table, Some(format!("partial: {rows} episodes, no checkpoint yet")))),
-                false => Err(format!("{shown}: the run has no checkpoint to count its {rows} rows against (stopped before its first); --partial draws them, marked partial").into()),
+        (|| -> crate::error::Result<(schema::Table, Option<String>)> {
+            let table = schema::Table::read_metrics(&self.metrics(), partial)?;
+            let rows = table.rows.len();
+            let shown = self.metrics().display().to_string();
+            // A run trained outside coevo (python/examples/ippo.py) has no training state to count against:
+            // its rows are whole when every line is.
+            if !self.state().exists() && !self.provenance().exists() {
+                return Ok((table, None));
+            }
+            if !self.state().exists() {
+                return match partial {
+                    true => Ok((table, Some(format!("partial: {rows} episodes, no checkpoint yet")))),
+                    false => Err(format!("{shown}: the run has no checkpoint to count its {rows} rows against (stopped before its first); --partial draws them, marked partial").into()),
+                };
+            }
+            let (state, manifest) = crate::learning::checkpoint::read_checked_state(&self.checkpoint())?;
+            let done = state.episodes_done;
+            // The count first (the plainer message), then the rows' bytes against the manifest.
+            let counted: crate::error::Result<Option<String>> = match rows.cmp(&done) {
+                std::cmp::Ordering::Less => Err(format!(
+                    "{shown}: holds {rows} episodes but the checkpoint {done}: rows were lost; restore the file or train the run again"
+                )
+                .into()),
+                std::cmp::Ordering::Greater if !partial => Err(format!(
+                    "{shown}: holds {rows} episodes but the checkpoint only {done} (a run stopped after its last checkpoint, or rows added by hand): --resume {} finishes it; --partial draws the rows as they are, marked partial",
+                    self.path.display()
+                )
+                .into()),
+                std::cmp::Ordering::Greater => Ok(Some(format!("partial: episodes {done}..{rows} after the last checkpoint"))),
+                std::cmp::Ordering::Equal => Ok(None),
             };
-        }
-        let (state, manifest) = crate::learning::checkpoint::read_checked_state(&self.checkpoint())?;
-        let done = state.episodes_done;
-        // The count first (the plainer message), then the rows' bytes against the manifest.
-        let counted: crate::error::Result<Option<String>> = match rows.cmp(&done) {
-            std::cmp::Ordering::Less => Err(format!(
-                "{shown}: holds {rows} episodes but the checkpoint {done}: rows were lost; restore the file or train the run again"
-            )
-            .into()),
-            std::cmp::Ordering::Greater if !partial => Err(format!(
-                "{shown}: holds {rows} episodes but the checkpoint only {done} (a run stopped after its last checkpoint, or rows added by hand): --resume {} finishes it; --partial draws the rows as they are, marked partial",
-                self.path.display()
-            )
-            .into()),
-            std::cmp::Ordering::Greater => Ok(Some(format!("partial: episodes {done}..{rows} after the last checkpoint"))),
-            std::cmp::Ordering::Equal => Ok(None),
-        };
-        let counted = counted?;
-        if let Some(m) = &manifest {
-            self.metrics_up_to(&m.metrics)?;
-        }
-        Ok((table, counted))
+            let counted = counted?;
+            if let Some(m) = &manifest {
+                self.metrics_up_to(&m.metrics)?;
+            }
+            Ok((table, counted))
+        })()
+        .kind(Kind::RunFolder)
     }
 
     /// Whether the run has trained actors to deploy: its scene and a checkpoint (what `--watch` and the
@@ -180,75 +200,81 @@ impl RunDir {
     /// `NAME.csv` inside the run that takes none of the run's own names, nor the name of another
     /// evaluation's distribution files.
     pub fn eval_output(&self, file_name: Option<&str>) -> crate::error::Result<PathBuf> {
-        let name = file_name.unwrap_or(EVAL);
-        let refuse = |why: &str| Err(format!("--eval-out {name}: {why}").into());
-        let Some(stem) = name.strip_suffix(".csv") else {
-            return refuse("must be a plain file name ending in .csv (written inside the run folder)");
-        };
-        if let Err(why) = check_name(stem) {
-            return refuse(&why.to_string());
-        }
-        // Reserved by stem, so no output reads as one of the run's own files (scene.csv, checkpoint.csv).
-        let stem_of = |f: &str| f.split('.').next().unwrap_or(f).to_string();
-        let reserved = RUN_FILES.iter().chain(&CHECKPOINT_DIRS).chain(&[LOCK]).filter(|f| **f != EVAL);
-        if reserved.map(|f| stem_of(f)).any(|s| s == stem) {
-            return refuse("is one of the run's own files; choose another name");
-        }
-        if stem.starts_with(CROSSPLAY) {
-            return refuse("begins with crossplay, the name of the cross-play files; choose another name");
-        }
-        if let Some(suffix) = EVAL_BESIDE.iter().chain(&[PERTURBATION]).find(|s| stem.ends_with(&format!("-{s}"))) {
-            return refuse(&format!(
-                "ends in -{suffix}, the name of another evaluation's {suffix} file; choose another name"
-            ));
-        }
-        Ok(self.path.join(name))
+        (|| -> crate::error::Result<PathBuf> {
+            let name = file_name.unwrap_or(EVAL);
+            let refuse = |why: &str| Err(format!("--eval-out {name}: {why}").into());
+            let Some(stem) = name.strip_suffix(".csv") else {
+                return refuse("must be a plain file name ending in .csv (written inside the run folder)");
+            };
+            if let Err(why) = check_name(stem) {
+                return refuse(&why.to_string());
+            }
+            // Reserved by stem, so no output reads as one of the run's own files (scene.csv, checkpoint.csv).
+            let stem_of = |f: &str| f.split('.').next().unwrap_or(f).to_string();
+            let reserved = RUN_FILES.iter().chain(&CHECKPOINT_DIRS).chain(&[LOCK]).filter(|f| **f != EVAL);
+            if reserved.map(|f| stem_of(f)).any(|s| s == stem) {
+                return refuse("is one of the run's own files; choose another name");
+            }
+            if stem.starts_with(CROSSPLAY) {
+                return refuse("begins with crossplay, the name of the cross-play files; choose another name");
+            }
+            if let Some(suffix) = EVAL_BESIDE.iter().chain(&[PERTURBATION]).find(|s| stem.ends_with(&format!("-{s}"))) {
+                return refuse(&format!(
+                    "ends in -{suffix}, the name of another evaluation's {suffix} file; choose another name"
+                ));
+            }
+            Ok(self.path.join(name))
+        })()
+        .kind(Kind::Input)
     }
 
     /// Checks that the folder may receive a new run, changing nothing: a new or empty folder, or (with
     /// `overwrite`) one that holds a run whose checkpoint folders hold only coevo's files.
     pub fn check_new(&self, overwrite: bool) -> crate::error::Result<()> {
-        let shown = self.path.display();
-        match std::fs::symlink_metadata(&self.path) {
-            Err(_) => return Ok(()),
-            Ok(m) if !m.is_dir() => return Err(format!("{shown}: exists and is not a folder").into()),
-            Ok(_) => {}
-        }
-        let mut entries = std::fs::read_dir(&self.path).map_err(io_err(&self.path))?;
-        if entries.all(|e| e.is_ok_and(|e| e.file_name() == LOCK)) {
-            return Ok(());
-        }
-        if !self.is_run() {
-            return Err(format!(
-                "{shown}: is not empty and holds no coevo run; coevo writes runs only into new or empty folders"
-            )
-            .into());
-        }
-        if !overwrite {
-            return Err(format!(
-                "{shown}: already holds a run; continue it with --resume {shown}, or replace it with --overwrite"
-            )
-            .into());
-        }
-        for dir in CHECKPOINT_DIRS.iter().map(|d| self.path.join(d)).filter(|d| d.exists()) {
-            for entry in std::fs::read_dir(&dir).map_err(io_err(&dir))? {
-                let entry = entry.map_err(io_err(&dir))?;
-                let name = entry.file_name().to_string_lossy().into_owned();
-                let ours = entry.file_type().is_ok_and(|t| t.is_file())
-                    && (name.ends_with(".safetensors")
-                        || name == crate::learning::checkpoint::STATE
-                        || name == crate::learning::manifest::MANIFEST
-                        || (name.starts_with('.') && name.ends_with(".tmp")));
-                if !ours {
-                    return Err(format!(
-                        "{}: not a file coevo wrote; --overwrite removes only coevo's files, so move it first",
-                        entry.path().display()
-                    )
-                    .into());
+        (|| -> crate::error::Result<()> {
+            let shown = self.path.display();
+            match std::fs::symlink_metadata(&self.path) {
+                Err(_) => return Ok(()),
+                Ok(m) if !m.is_dir() => return Err(format!("{shown}: exists and is not a folder").into()),
+                Ok(_) => {}
+            }
+            let mut entries = std::fs::read_dir(&self.path).map_err(io_err(&self.path))?;
+            if entries.all(|e| e.is_ok_and(|e| e.file_name() == LOCK)) {
+                return Ok(());
+            }
+            if !self.is_run() {
+                return Err(format!(
+                    "{shown}: is not empty and holds no coevo run; coevo writes runs only into new or empty folders"
+                )
+                .into());
+            }
+            if !overwrite {
+                return Err(format!(
+                    "{shown}: already holds a run; continue it with --resume {shown}, or replace it with --overwrite"
+                )
+                .into());
+            }
+            for dir in CHECKPOINT_DIRS.iter().map(|d| self.path.join(d)).filter(|d| d.exists()) {
+                for entry in std::fs::read_dir(&dir).map_err(io_err(&dir))? {
+                    let entry = entry.map_err(io_err(&dir))?;
+                    let name = entry.file_name().to_string_lossy().into_owned();
+                    let ours = entry.file_type().is_ok_and(|t| t.is_file())
+                        && (name.ends_with(".safetensors")
+                            || name == crate::learning::checkpoint::STATE
+                            || name == crate::learning::manifest::MANIFEST
+                            || (name.starts_with('.') && name.ends_with(".tmp")));
+                    if !ours {
+                        return Err(format!(
+                            "{}: not a file coevo wrote; --overwrite removes only coevo's files, so move it first",
+                            entry.path().display()
+                        )
+                        .into());
+                    }
                 }
             }
-        }
-        Ok(())
+            Ok(())
+        })()
+        .kind(Kind::RunFolder)
     }
 
     /// Removes the run's own files (after [`RunDir::check_new`] with `overwrite`), keeping the lock.
@@ -266,64 +292,70 @@ impl RunDir {
     /// under a source tree (a `Cargo.toml` there). Read leniently, so a damaged `provenance.ron` is left
     /// to whoever reads it for its own purpose (and `--overwrite` may still replace it).
     pub fn refuse_if_shipped(&self) -> crate::error::Result<()> {
-        let Some(at) = self.read_provenance().ok().flatten().and_then(|p| p.shipped) else { return Ok(()) };
-        let at_path = Path::new(&at);
-        let plain = at_path.components().all(|c| matches!(c, std::path::Component::Normal(_)));
-        let Ok(here) = std::fs::canonicalize(&self.path) else { return Ok(()) };
-        let root = here.ancestors().nth(at_path.components().count());
-        if !plain || !here.ends_with(at_path) || !root.is_some_and(|r| r.join("Cargo.toml").is_file()) {
-            return Ok(());
-        }
-        let shown = self.path.display();
-        Err(format!(
-            "{shown}: a run shipped with coevo ({at}), kept as committed, so nothing writes into it; copy it \
-             and use the copy, e.g. mkdir -p runs && cp -r {shown} runs/"
-        )
-        .into())
+        (|| -> crate::error::Result<()> {
+            let Some(at) = self.read_provenance().ok().flatten().and_then(|p| p.shipped) else { return Ok(()) };
+            let at_path = Path::new(&at);
+            let plain = at_path.components().all(|c| matches!(c, std::path::Component::Normal(_)));
+            let Ok(here) = std::fs::canonicalize(&self.path) else { return Ok(()) };
+            let root = here.ancestors().nth(at_path.components().count());
+            if !plain || !here.ends_with(at_path) || !root.is_some_and(|r| r.join("Cargo.toml").is_file()) {
+                return Ok(());
+            }
+            let shown = self.path.display();
+            Err(format!(
+                "{shown}: a run shipped with coevo ({at}), kept as committed, so nothing writes into it; copy it \
+                 and use the copy, e.g. mkdir -p runs && cp -r {shown} runs/"
+            )
+            .into())
+        })()
+        .kind(Kind::RunFolder)
     }
 
     /// Takes the run's lock for this process (creating the folder if needed), after removing what a
     /// killed process left: a stale lock, temporaries of dead PIDs, a half-written `checkpoint.tmp/`.
     /// Every writer of an existing run takes it, so it refuses a shipped run ([`RunDir::refuse_if_shipped`]).
     pub fn lock(&self) -> crate::error::Result<RunLock> {
-        self.refuse_if_shipped()?;
-        self.refuse_links()?;
-        std::fs::create_dir_all(&self.path).map_err(io_err(&self.path))?;
-        let path = self.path.join(LOCK);
-        for _ in 0..2 {
-            let writing = crate::io::Writing::begin();
-            match std::fs::OpenOptions::new().write(true).create_new(true).open(&path) {
-                Ok(mut f) => {
-                    register_temporary(&path);
-                    if let Err(e) = writeln!(f, "{}", std::process::id()).and_then(|()| f.sync_all()) {
-                        // A lock without its PID (a full disk) is not left behind.
-                        let _ = std::fs::remove_file(&path);
-                        unregister_temporary(&path);
-                        return Err(io_err(&path)(e).into());
-                    }
-                    drop(writing);
-                    self.remove_leftovers();
-                    return Ok(RunLock { path });
-                }
-                Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {
-                    let owner = std::fs::read_to_string(&path).ok().and_then(|t| t.trim().parse::<u32>().ok());
-                    match owner {
-                        Some(pid) if process_alive(pid) => {
-                            return Err(format!(
-                                "{}: in use by coevo process {pid} ({}); wait for it to end, or end it",
-                                self.path.display(),
-                                path.display()
-                            )
-                            .into())
+        (|| -> crate::error::Result<RunLock> {
+            self.refuse_if_shipped()?;
+            self.refuse_links()?;
+            std::fs::create_dir_all(&self.path).map_err(io_err(&self.path))?;
+            let path = self.path.join(LOCK);
+            for _ in 0..2 {
+                let writing = crate::io::Writing::begin();
+                match std::fs::OpenOptions::new().write(true).create_new(true).open(&path) {
+                    Ok(mut f) => {
+                        register_temporary(&path);
+                        if let Err(e) = writeln!(f, "{}", std::process::id()).and_then(|()| f.sync_all()) {
+                            // A lock without its PID (a full disk) is not left behind.
+                            let _ = std::fs::remove_file(&path);
+                            unregister_temporary(&path);
+                            return Err(io_err(&path)(e).into());
                         }
-                        // A lock of a process that is gone (or half-written by one killed at once): stale.
-                        _ => std::fs::remove_file(&path).map_err(io_err(&path))?,
+                        drop(writing);
+                        self.remove_leftovers();
+                        return Ok(RunLock { path });
                     }
+                    Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {
+                        let owner = std::fs::read_to_string(&path).ok().and_then(|t| t.trim().parse::<u32>().ok());
+                        match owner {
+                            Some(pid) if process_alive(pid) => {
+                                return Err(format!(
+                                    "{}: in use by coevo process {pid} ({}); wait for it to end, or end it",
+                                    self.path.display(),
+                                    path.display()
+                                )
+                                .into())
+                            }
+                            // A lock of a process that is gone (or half-written by one killed at once): stale.
+                            _ => std::fs::remove_file(&path).map_err(io_err(&path))?,
+                        }
+                    }
+                    Err(e) => return Err(io_err(&path)(e).into()),
                 }
-                Err(e) => return Err(io_err(&path)(e).into()),
             }
-        }
-        Err(format!("{}: could not take the run's lock", path.display()).into())
+            Err(format!("{}: could not take the run's lock", path.display()).into())
+        })()
+        .kind(Kind::RunFolder)
     }
 
     /// Refuses a run whose own folders (checkpoints, snapshots, figures) are symbolic links: coevo writes
@@ -388,30 +420,36 @@ impl RunDir {
     /// Refuses to continue training on another family of matrix-product kernels than the run began on:
     /// the continuation would differ in the last bits from the uninterrupted run.
     pub fn check_kernels(&self) -> crate::error::Result<()> {
-        let now = crate::learning::nets::kernels();
-        match self.read_provenance()? {
-            Some(p) if !p.kernels.is_empty() && p.kernels != now => Err(format!(
-                "{}: the run was trained on {} kernels and this machine runs {now}; continued here it would differ from an uninterrupted run (provenance.ron)",
-                self.path.display(),
-                p.kernels
-            )
-            .into()),
-            _ => Ok(()),
-        }
+        (|| -> crate::error::Result<()> {
+            let now = crate::learning::nets::kernels();
+            match self.read_provenance()? {
+                Some(p) if !p.kernels.is_empty() && p.kernels != now => Err(format!(
+                    "{}: the run was trained on {} kernels and this machine runs {now}; continued here it would differ from an uninterrupted run (provenance.ron)",
+                    self.path.display(),
+                    p.kernels
+                )
+                .into()),
+                _ => Ok(()),
+            }
+        })()
+        .kind(Kind::RunFolder)
     }
 
     /// Refuses a run that needs species plugins this program does not have (resumed or evaluated by a
     /// binary without the plugin, its species would lose their systems). Runs older than provenance files
     /// need none.
     pub fn check_plugins(&self) -> crate::error::Result<()> {
-        let Some(p) = self.read_provenance()? else { return Ok(()) };
-        match p.plugins.iter().find(|name| crate::sim::species::catalog::get(name).is_none()) {
-            Some(name) => Err(format!(
-                "{}: the run needs the species plugin {name:?}, which this program does not have; use the program that trained it (e.g. cargo run --release --example {name})",
-                self.path.display()
-            ).into()),
-            None => Ok(()),
-        }
+        (|| -> crate::error::Result<()> {
+            let Some(p) = self.read_provenance()? else { return Ok(()) };
+            match p.plugins.iter().find(|name| crate::sim::species::catalog::get(name).is_none()) {
+                Some(name) => Err(format!(
+                    "{}: the run needs the species plugin {name:?}, which this program does not have; use the program that trained it (e.g. cargo run --release --example {name})",
+                    self.path.display()
+                ).into()),
+                None => Ok(()),
+            }
+        })()
+        .kind(Kind::RunFolder)
     }
 }
 

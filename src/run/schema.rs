@@ -192,7 +192,13 @@ impl Table {
         let text =
             crate::io::read_text(path, crate::io::MAX_TEXT_BYTES).map_err(|e| format!("{}: {e}", path.display()))?;
         let refuse = |line: usize, why: String| -> crate::error::Error {
-            crate::error::Error { file: Some(path.display().to_string()), line: Some(line), field: None, message: why }
+            crate::error::Error {
+                file: Some(path.display().to_string()),
+                line: Some(line),
+                field: None,
+                message: why,
+                kind: crate::error::Kind::RunFolder,
+            }
         };
         let mut lines: Vec<&str> = text.split_terminator('\n').collect();
         if !text.is_empty() && !text.ends_with('\n') {

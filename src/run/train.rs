@@ -11,7 +11,7 @@ use crate::learning::{Learners, Mode};
 use crate::scene::Scene;
 use crate::sim::clock::Episode;
 use crate::sim::episode::{SimRng, SpawnedFrom};
-use crate::sim::metrics::{EpisodeLog, EpisodeSummary};
+use crate::sim::metrics::EpisodeLog;
 use crate::sim::species::SpeciesRegistry;
 use crate::sim::Simulation;
 use indicatif::{ProgressBar, ProgressStyle};
@@ -95,9 +95,10 @@ fn check_resumable(
     Ok(())
 }
 
-/// Trains a scene (or resumes a run) and returns the episode summaries of this invocation. Everything is
-/// validated and loaded before the run folder is created or touched.
-pub fn train(scene: Scene, opts: &TrainOptions) -> crate::error::Result<Vec<EpisodeSummary>> {
+/// Trains a scene (or resumes a run) and returns how many episodes this invocation trained (not their
+/// summaries: a long run would hold them all; they are in `metrics.csv`). Everything is validated and
+/// loaded before the run folder is created or touched.
+pub fn train(scene: Scene, opts: &TrainOptions) -> crate::error::Result<usize> {
     let run = &opts.run;
     let dir = RunDir::new(run);
     if opts.resume {
@@ -194,7 +195,7 @@ pub fn train(scene: Scene, opts: &TrainOptions) -> crate::error::Result<Vec<Epis
     );
     bar.set_position(start_episode as u64);
     let started = Instant::now();
-    let (mut steps, mut summaries) = (0usize, Vec::new());
+    let (mut steps, mut trained) = (0usize, 0usize);
     let save = |sim: &Simulation,
                 learners_override: Option<&Vec<Option<crate::learning::SpeciesLearner>>>,
                 metrics: &Hashing<std::io::Sink>| {
@@ -233,10 +234,10 @@ pub fn train(scene: Scene, opts: &TrainOptions) -> crate::error::Result<Vec<Epis
             bar.set_message(format!("DoS {:.3} DoA {:.3}  {rate:.0} steps/s", sw.dos, sw.doa));
         }
         bar.set_position(done as u64);
-        summaries.push(summary);
+        trained += 1;
     }
     bar.finish();
-    Ok(summaries)
+    Ok(trained)
 }
 
 /// Saves the world's training state as `run`'s checkpoint (what `--resume` continues from): the learners

@@ -5,7 +5,7 @@
 use super::diagnostics::{field_before, locate, readable};
 use super::schema::*;
 use super::{catalog, presets};
-use crate::error::{Error, Result};
+use crate::error::{Error, Kind, Result, ResultExt};
 use std::path::Path;
 
 /// Reads RON text of a coevo file (a scene, an experiment) into `T`, with `Some` implied for optional
@@ -20,6 +20,7 @@ pub fn parse_ron<T: serde::de::DeserializeOwned>(text: &str, file: &str) -> Resu
                 _ => field_before(text, e.span.start.line, e.span.start.col),
             }),
             message: readable(text, &e),
+            kind: crate::error::Kind::Other,
         },
     )
 }
@@ -37,7 +38,8 @@ impl Scene {
     /// Loads, resolves and validates a scene file.
     pub fn load(path: &Path) -> Result<Scene> {
         let text = crate::io::read_text(path, MAX_SCENE_BYTES)
-            .map_err(|e| Error::from(e.message.replace("cannot read:", "cannot read scene:")).in_file(path))?;
+            .map_err(|e| Error::from(e.message.replace("cannot read:", "cannot read scene:")).in_file(path))
+            .kind(Kind::Scene)?;
         Scene::parse(&text, &path.display().to_string())
     }
 
@@ -49,6 +51,10 @@ impl Scene {
     /// [`Scene::parse`], on `preset` instead of the one the text names (experiments switch a sweep's base
     /// between the `paper` and `gym-pps` presets).
     pub fn parse_with_preset(text: &str, file: &str, preset: Option<&str>) -> Result<Scene> {
+        Scene::resolve_text(text, file, preset).kind(Kind::Scene)
+    }
+
+    fn resolve_text(text: &str, file: &str, preset: Option<&str>) -> Result<Scene> {
         let patch: ScenePatch = parse_ron(text, file)?;
         // An error about a field, at the line of the file that sets it.
         let located = |e: Error| {
@@ -177,7 +183,7 @@ impl Overrides {
     /// The scene file at `path` with the overrides applied and validated.
     pub fn load(&self, path: &Path) -> Result<Scene> {
         let mut scene = Scene::load(path)?;
-        self.apply(&mut scene, path)?;
+        self.apply(&mut scene, path).kind(Kind::Scene)?;
         Ok(scene)
     }
 

@@ -7,6 +7,11 @@ use crate::error::Error;
 impl Scene {
     /// Checks every value the physics or learning would choke on; an error names the field.
     pub fn validate(&self) -> crate::error::Result<()> {
+        use crate::error::ResultExt;
+        self.check_values().kind(crate::error::Kind::Scene)
+    }
+
+    fn check_values(&self) -> crate::error::Result<()> {
         fn check(ok: bool, field: &str, message: impl FnOnce() -> String) -> crate::error::Result<()> {
             if ok {
                 Ok(())

@@ -124,7 +124,7 @@ impl Simulation {
 
     /// One environment step t → t+1.
     pub fn step(&mut self) {
-        self.app.world_mut().run_schedule(FixedUpdate);
+        step_world(self.app.world_mut());
     }
 
     pub fn world(&self) -> &World {
@@ -146,16 +146,27 @@ impl Simulation {
     }
 }
 
+/// One step of a world that runs the simulation without Bevy's app loop ([`Simulation::step`], the
+/// Python env): the `FixedUpdate` schedule, then what `App::update` does after every frame, clearing the
+/// world's trackers. Without it the removed-component records of every despawned agent (a respawn every
+/// episode) are never dropped: a 20 000-episode run grew by ~2.6 kB an episode. Nothing in the step reads
+/// change or removal trackers, so the step computes the same either way.
+pub fn step_world(world: &mut World) {
+    world.run_schedule(FixedUpdate);
+    world.clear_trackers();
+}
+
 /// [`Simulation::check`] for any world running the simulation (the viewer's too).
 pub fn check_state(world: &World) -> crate::error::Result<()> {
     let Some(f) = &world.resource::<physics::StateFault>().0 else {
         return Ok(());
     };
     let name = &world.resource::<species::SpeciesRegistry>().defs[f.species].name;
-    Err(format!(
+    use crate::error::ResultExt;
+    Err::<(), String>(format!(
         "episode {}, step {}: agent {} ({name}): {}; the integrator is unstable for this scene \
              (check world.dt, world.contact_stiffness, world.wall_stiffness and species[{name}].mass)",
         f.episode, f.step, f.agent, f.what
-    )
-    .into())
+    ))
+    .kind(crate::error::Kind::Simulation)
 }

@@ -223,14 +223,14 @@ mod tests {
         let run = dir.path().join("run");
         crate::run::train::train(scene, &crate::run::train::TrainOptions::new(run.clone(), Some(3))).unwrap();
         let [dos, doa, catches] = super::training_curves(&run, "prey").expect("curves from metrics.csv");
-        let table = crate::run::schema::Table::read(&run.join("metrics.csv")).unwrap();
+        let table = crate::run::schema::Table::read(&crate::run::RunDir::new(&run).metrics()).unwrap();
         let values = |c: &[[f64; 2]]| c.iter().map(|p| p[1]).collect::<Vec<_>>();
         assert_eq!(dos.iter().map(|p| p[0]).collect::<Vec<_>>(), vec![0.0, 1.0, 2.0]);
         assert_eq!(values(&dos), table.column("dos_prey").unwrap());
         assert_eq!(values(&doa), table.column("doa_prey").unwrap());
         assert_eq!(values(&catches), table.column("catches").unwrap());
         // A run folder without metrics (the shipped actors) has none: the plot shows the watched episodes.
-        std::fs::remove_file(run.join("metrics.csv")).unwrap();
+        std::fs::remove_file(crate::run::RunDir::new(&run).metrics()).unwrap();
         assert!(super::training_curves(&run, "prey").is_none());
     }
 }

@@ -11,6 +11,7 @@ mod bad_inputs;
 mod crossplay;
 mod docs;
 mod env;
+mod errors;
 mod experiment;
 mod learning;
 mod observation;
