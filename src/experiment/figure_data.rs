@@ -6,8 +6,10 @@
 //! Per run (keyed `preset/variant/seedK`): the headline species' DoS and DoA and the catches per training
 //! episode (`metrics.csv`); per evaluation its DoS and DoA per step (mean over episodes), its confusion
 //! curve and, with a perturbation, the response by lag of the nearest six and of ranks 25+; the cross-play
-//! matrix when the run was cross-played. RON (numbers printed to round-trip exactly, NaN as `NaN`),
-//! gzip-compressed by flate2.
+//! matrix when the run was cross-played. RON, gzip-compressed by flate2. Values are kept at single
+//! precision (f32, shortest round-trip text, NaN as `NaN`): seven significant digits, far below a pixel
+//! of any figure, at half the size; the figures are drawn from the values so rounded ([`of_run`]),
+//! whether they come from the run folders or from the file.
 
 use super::claims::RunData;
 use super::crossplay::{Cell, Matrix, Pair};
@@ -29,9 +31,12 @@ pub const RESPONSE_RANKS: [(&str, std::ops::RangeInclusive<f64>); 2] =
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct FigureData {
     /// Per training episode, of the headline species.
+    #[serde(with = "single")]
     pub dos: Vec<f64>,
+    #[serde(with = "single")]
     pub doa: Vec<f64>,
     /// Per training episode.
+    #[serde(with = "single")]
     pub catches: Vec<f64>,
     /// Per evaluation, by name.
     pub evals: BTreeMap<String, EvalFigures>,
@@ -43,11 +48,15 @@ pub struct FigureData {
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct EvalFigures {
     /// Per step, mean over the evaluation's episodes.
+    #[serde(with = "single")]
     pub dos: Vec<f64>,
+    #[serde(with = "single")]
     pub doa: Vec<f64>,
     /// Per bin of prey in view: mean |turn command|, mean speed / max speed, catches per predator-step.
+    #[serde(with = "single")]
     pub confusion: Vec<[f64; 3]>,
     /// With a perturbation: the response per lag of each of [`RESPONSE_RANKS`].
+    #[serde(with = "single")]
     pub response: Option<Vec<Vec<f64>>>,
 }
 
@@ -56,7 +65,80 @@ pub struct EvalFigures {
 pub struct CrossplayCells {
     pub prey_episodes: Vec<usize>,
     pub predator_episodes: Vec<usize>,
+    #[serde(with = "single")]
     pub cells: Vec<Vec<[f64; 5]>>,
+}
+
+/// Values stored at single precision: each f64 written as the f32 nearest it and read back as that f32,
+/// for the shapes [`FigureData`] holds. [`single::round`] gives a value as the file will hold it.
+mod single {
+    use serde::de::DeserializeOwned;
+    use serde::{Deserialize, Deserializer, Serialize, Serializer};
+
+    pub trait Single: Sized {
+        type Stored: Serialize + DeserializeOwned;
+        fn store(&self) -> Self::Stored;
+        fn load(stored: Self::Stored) -> Self;
+    }
+
+    impl Single for f64 {
+        type Stored = f32;
+        fn store(&self) -> f32 {
+            *self as f32
+        }
+        fn load(stored: f32) -> f64 {
+            stored as f64
+        }
+    }
+
+    impl<T: Single> Single for Vec<T> {
+        type Stored = Vec<T::Stored>;
+        fn store(&self) -> Self::Stored {
+            self.iter().map(Single::store).collect()
+        }
+        fn load(stored: Self::Stored) -> Self {
+            stored.into_iter().map(T::load).collect()
+        }
+    }
+
+    impl<T: Single> Single for Option<T> {
+        type Stored = Option<T::Stored>;
+        fn store(&self) -> Self::Stored {
+            self.as_ref().map(Single::store)
+        }
+        fn load(stored: Self::Stored) -> Self {
+            stored.map(T::load)
+        }
+    }
+
+    // serde has array impls for lengths up to 32, not for a generic length: the two FigureData holds.
+    macro_rules! arrays {
+        ($($n:literal),*) => {$(
+            impl Single for [f64; $n] {
+                type Stored = [f32; $n];
+                fn store(&self) -> [f32; $n] {
+                    self.map(|x| x as f32)
+                }
+                fn load(stored: [f32; $n]) -> [f64; $n] {
+                    stored.map(|x| x as f64)
+                }
+            }
+        )*};
+    }
+    arrays!(3, 5);
+
+    /// The value as the file holds it.
+    pub fn round<T: Single>(value: &T) -> T {
+        T::load(value.store())
+    }
+
+    pub fn serialize<T: Single, S: Serializer>(value: &T, s: S) -> Result<S::Ok, S::Error> {
+        value.store().serialize(s)
+    }
+
+    pub fn deserialize<'de, T: Single, D: Deserializer<'de>>(d: D) -> Result<T, D::Error> {
+        T::Stored::deserialize(d).map(T::load)
+    }
 }
 
 impl CrossplayCells {
@@ -93,10 +175,10 @@ pub fn of_run(exp: &Experiment, run: &Run, data: &RunData) -> crate::error::Resu
             None => None,
         };
         let figures = EvalFigures {
-            dos: e.series("dos").to_vec(),
-            doa: e.series("doa").to_vec(),
-            confusion: e.confusion.clone(),
-            response,
+            dos: single::round(&e.series("dos").to_vec()),
+            doa: single::round(&e.series("doa").to_vec()),
+            confusion: single::round(&e.confusion),
+            response: single::round(&response),
         };
         evals.insert(name.clone(), figures);
     }
@@ -104,11 +186,17 @@ pub fn of_run(exp: &Experiment, run: &Run, data: &RunData) -> crate::error::Resu
         (Some(_), Some(pair)) => super::crossplay::read_matrix(&run.dir, &pair)?.map(|m| CrossplayCells {
             prey_episodes: m.prey_episodes,
             predator_episodes: m.predator_episodes,
-            cells: m.cells.iter().map(|row| row.iter().map(Cell::values).collect()).collect(),
+            cells: single::round(&m.cells.iter().map(|row| row.iter().map(Cell::values).collect()).collect()),
         }),
         _ => None,
     };
-    Ok(FigureData { dos: data.dos.clone(), doa: data.doa.clone(), catches: data.catches.clone(), evals, crossplay })
+    Ok(FigureData {
+        dos: single::round(&data.dos),
+        doa: single::round(&data.doa),
+        catches: single::round(&data.catches),
+        evals,
+        crossplay,
+    })
 }
 
 /// The response per lag (1, 2, ...) of each of [`RESPONSE_RANKS`], from a perturbation file; None without it.
@@ -165,7 +253,7 @@ mod tests {
     use super::*;
 
     #[test]
-    fn numbers_survive_the_file_exactly_also_nan_and_infinities() {
+    fn numbers_survive_the_file_at_single_precision_also_nan_and_infinities() {
         let d = FigureData {
             dos: vec![0.1 + 0.2, 1e-300, -0.0, f64::NAN],
             doa: vec![std::f64::consts::FRAC_2_PI],
@@ -189,10 +277,16 @@ mod tests {
         let back: FigureData = ron::from_str(&ron::to_string(&d).unwrap()).unwrap();
         let bits = |d: &FigureData| format!("{:?}", ron::to_string(d).unwrap());
         assert_eq!(bits(&back), bits(&d));
+        // What comes back is the f32 nearest each value, exactly: what `of_run` draws from.
         assert_eq!(
             back.dos[..3].iter().map(|x| x.to_bits()).collect::<Vec<_>>(),
-            d.dos[..3].iter().map(|x| x.to_bits()).collect::<Vec<_>>()
+            d.dos[..3].iter().map(|&x| (x as f32 as f64).to_bits()).collect::<Vec<_>>()
         );
+        assert_eq!(back.evals["50 prey, blind"].dos, single::round(&d.evals["50 prey, blind"].dos));
+        assert_ne!(back.evals["50 prey, blind"].dos, d.evals["50 prey, blind"].dos, "rounded to f32");
+        let again: FigureData = ron::from_str(&ron::to_string(&back).unwrap()).unwrap();
+        assert_eq!(bits(&again), bits(&back));
+        assert_eq!(again.dos[..3], back.dos[..3], "a rounded value survives the file exactly");
         assert!(back.dos[3].is_nan() && back.evals["50 prey, blind"].confusion[0][0].is_nan());
         assert_eq!(back.catches[1], f64::INFINITY);
     }

@@ -99,7 +99,34 @@ fn figure<P>(
         }
         root.present().map_err(draw_err)?;
     }
-    Ok(text)
+    Ok(without_repeated_points(&text))
+}
+
+/// plotters writes every point of a curve at whole pixels, so a 2000-episode curve on a ~500-pixel axis
+/// repeats points; a segment from a point to itself draws nothing, so each polyline and polygon keeps
+/// one point of every run of repeats (a fifth of the committed SVG bytes).
+fn without_repeated_points(svg: &str) -> String {
+    const POINTS: &str = " points=\"";
+    let mut out = String::with_capacity(svg.len());
+    let mut rest = svg;
+    while let Some(at) = rest.find(POINTS) {
+        let start = at + POINTS.len();
+        out.push_str(&rest[..start]);
+        let end = rest[start..].find('"').map_or(rest.len(), |e| start + e);
+        let mut last = None;
+        let kept: Vec<&str> = rest[start..end]
+            .split(' ')
+            .filter(|p| {
+                let new = last != Some(*p);
+                last = Some(*p);
+                new
+            })
+            .collect();
+        out.push_str(&kept.join(" "));
+        rest = &rest[end..];
+    }
+    out.push_str(rest);
+    out
 }
 
 /// A figure of curves, its panels side by side, as SVG text.
@@ -344,6 +371,14 @@ fn write(stem: &Path, text: String) -> crate::error::Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn repeated_points_are_dropped_and_nothing_else_changes() {
+        let svg = r##"<polyline stroke="#000" points="1,2 1,2 1,2 3,4 1,2 5,6 5,6 "/><text x="1">1,2 1,2</text>"##;
+        let kept = without_repeated_points(svg);
+        assert_eq!(kept, r##"<polyline stroke="#000" points="1,2 3,4 1,2 5,6 "/><text x="1">1,2 1,2</text>"##);
+        assert_eq!(without_repeated_points(&kept), kept);
+    }
 
     /// Runs of one colour along a line of pixels, ignoring white and the grey of axes and text.
     fn coloured_runs(pixels: impl Iterator<Item = [u8; 3]>) -> usize {

@@ -429,9 +429,9 @@ fn section(md: &mut String, Reported { exp, results, .. }: &Reported, figures: &
     for preset in &exp.spec.presets {
         let shown: Vec<String> = ["variants", "training"]
             .iter()
-            .map(|what| format!("{preset}-{what}.png"))
+            .map(|what| format!("{preset}-{what}.svg"))
             .filter(|file| exp.root.join("figures").join(file).exists())
-            .map(|file| format!("![{}]({})", file.trim_end_matches(".png"), figures.join(&file).display()))
+            .map(|file| format!("![{}]({})", file.trim_end_matches(".svg"), figures.join(&file).display()))
             .collect();
         if !shown.is_empty() {
             writeln!(md, "\n{}\n", shown.join("\n")).unwrap();
