@@ -368,24 +368,24 @@ pub const MAX_TEXT_BYTES: u64 = 64 << 20;
 /// Reads a UTF-8 text file of at most `limit` bytes; a leading byte-order mark is dropped. Errors say
 /// what is wrong in a user's words.
 pub fn read_text(path: &Path, limit: u64) -> crate::error::Result<String> {
-    (|| -> crate::error::Result<String> {
-        // Asked before opening: opening a FIFO blocks until a writer comes, a device may never end.
-        let meta = std::fs::metadata(path).map_err(|e| format!("cannot read: {e}"))?;
-        if !meta.is_file() {
-            return Err("is not a regular file (a folder, pipe or device); coevo reads its inputs from files".into());
-        }
-        let file = File::open(path).map_err(|e| format!("cannot read: {e}"))?;
-        let mut bytes = Vec::new();
-        file.take(limit + 1).read_to_end(&mut bytes).map_err(|e| format!("cannot read: {e}"))?;
-        if bytes.len() as u64 > limit {
-            return Err(format!("is larger than {} MiB; not a file coevo reads", limit >> 20).into());
-        }
-        let text = String::from_utf8(bytes).map_err(|e| {
-            format!("is not UTF-8 text (invalid byte at offset {}); save it as UTF-8", e.utf8_error().valid_up_to())
-        })?;
-        Ok(text.strip_prefix('\u{feff}').map(str::to_string).unwrap_or(text))
-    })()
-    .kind(crate::error::Kind::Io)
+    // Only the system's refusals are I/O errors; a file of the wrong sort or content is left unclassified,
+    // for the concern that reads it to classify (a damaged manifest is a checkpoint error).
+    let cannot = |e: io::Error| crate::error::Error::from(format!("cannot read: {e}")).of_kind(crate::error::Kind::Io);
+    // Asked before opening: opening a FIFO blocks until a writer comes, a device may never end.
+    let meta = std::fs::metadata(path).map_err(cannot)?;
+    if !meta.is_file() {
+        return Err("is not a regular file (a folder, pipe or device); coevo reads its inputs from files".into());
+    }
+    let file = File::open(path).map_err(cannot)?;
+    let mut bytes = Vec::new();
+    file.take(limit + 1).read_to_end(&mut bytes).map_err(cannot)?;
+    if bytes.len() as u64 > limit {
+        return Err(format!("is larger than {} MiB; not a file coevo reads", limit >> 20).into());
+    }
+    let text = String::from_utf8(bytes).map_err(|e| {
+        format!("is not UTF-8 text (invalid byte at offset {}); save it as UTF-8", e.utf8_error().valid_up_to())
+    })?;
+    Ok(text.strip_prefix('\u{feff}').map(str::to_string).unwrap_or(text))
 }
 
 /// The memory coevo may use, in bytes: the least of what the machine has free (`MemAvailable`), the

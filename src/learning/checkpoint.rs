@@ -829,8 +829,10 @@ pub fn load(
                 .find(|s| &s.name == name)
                 .ok_or_else(|| format!("{}: no species {name:?} in the checkpoint", state_path.display()))?;
             let actor_path = dir.join(actor_name(name));
-            let scene = scene_id(&state.scene);
-            let expected = |roles| Expected { species: name, roles, scene: Some(&scene) };
+            // The scene the manifest names (as a snapshot's is checked): an id recomputed from the scene
+            // read back would change with the scene's serialized form, refusing every older checkpoint.
+            let scene = manifest.map(|m| m.scene.as_str());
+            let expected = |roles| Expected { species: name, roles, scene };
             let actor_bytes = read_as(&actor_path, &expected(&["actor"]))?;
             let st = parse(&actor_path, &actor_bytes)?;
             let actor = read_into(&actor_path, &st, "", &l.ddpg.actor)?;

@@ -95,7 +95,8 @@ impl Env {
         let learned: Vec<usize> =
             (0..scene.species.len()).filter(|&s| scene.species[s].policy == Policy::Learned).collect();
         if learned.is_empty() {
-            return Err("the scene has no Learned species to decide from outside".into());
+            return Err(crate::error::Error::from("the scene has no Learned species to decide from outside")
+                .of_kind(crate::error::Kind::Scene));
         }
         // The world runs the scene with its learned species decided from outside; `scene` is kept as given.
         let mut decided = scene.clone();

@@ -25,6 +25,12 @@ fn each_concern_classifies_its_errors() {
     let mut learners = Learners::new(&scene, Mode::Evaluate);
     let e = learners.load_actors(&scene, Some(root)).unwrap_err();
     assert_eq!(e.kind, Kind::Checkpoint, "{e}");
+    // A manifest that is not a file is a damaged checkpoint, not a failure to read.
+    let damaged = root.join("damaged");
+    std::fs::create_dir_all(damaged.join("checkpoint/manifest.ron")).unwrap();
+    let e = learners.load_actors(&scene, Some(&damaged)).unwrap_err();
+    assert!(e.to_string().contains("manifest.ron: is not a regular file"), "{e}");
+    assert_eq!(e.kind, Kind::Checkpoint, "{e}");
     // Run folders: a second lock while the first is held; an evaluation output named like a run file.
     let run = RunDir::new(root.join("run"));
     let held = run.lock().unwrap();
