@@ -126,12 +126,20 @@ fn play(
 /// matrices and the files written. Everything is checked and loaded before anything is played.
 pub fn crossplay(opts: &CrossplayOptions) -> crate::error::Result<(Vec<Matrix>, Vec<String>)> {
     let dir = RunDir::new(&opts.run);
-    if !dir.has_actors() {
-        return Err(format!("{}: holds no trained coevo run to cross-play", opts.run.display()).into());
+    let no_run = || Err(format!("{}: holds no trained coevo run to cross-play", opts.run.display()).into());
+    if !dir.is_run() {
+        return no_run();
     }
     dir.check_plugins()?;
     if opts.episodes == 0 {
         return Err("--episodes: must be ≥ 1".into());
+    }
+    // Nobody else writes the run meanwhile, and what a killed process left (a checkpoint swap cut short)
+    // is put right before its snapshots are read and checked against the manifest. Its numbers become
+    // part of the run's (provenance `also_by`).
+    let _lock = dir.lock()?;
+    if !dir.has_actors() {
+        return no_run();
     }
     let scene_path = dir.scene();
     let scene = opts.overrides.load(&scene_path)?;
@@ -166,8 +174,6 @@ pub fn crossplay(opts: &CrossplayOptions) -> crate::error::Result<(Vec<Matrix>, 
             snapshots[s].push((e, checkpoint::load_snapshot(&opts.run, name, e, shape)?));
         }
     }
-    // Nobody else writes the run meanwhile; its numbers become part of the run's (provenance `also_by`).
-    let _lock = dir.lock()?;
     dir.note_binary()?;
     // Cells of every pair, row-major, in one list: they run on all cores.
     let mut cells: Vec<(usize, usize, usize, crate::error::Result<Cell>)> = pairs

@@ -195,6 +195,9 @@ pub fn evaluate(opts: &EvalOptions) -> crate::error::Result<String> {
     if opts.episodes == 0 {
         return Err("--episodes: must be ≥ 1".into());
     }
+    // Nobody else writes the run while it is evaluated (a training would swap its checkpoint), and what a
+    // killed process left (a checkpoint swap cut short) is put right before the actors are read.
+    let _lock = dir.lock()?;
     let scene = opts.overrides.load(&dir.scene())?;
     let trained = (!opts.untrained).then_some(opts.run.as_path());
     let build = || -> crate::error::Result<Simulation> {
@@ -224,8 +227,6 @@ pub fn evaluate(opts: &EvalOptions) -> crate::error::Result<String> {
         let registry = sim.world().resource::<SpeciesRegistry>();
         opts.control.resolve(registry).map_err(|e| format!("--control: {e}"))?
     };
-    // Nobody else writes the run while it is evaluated (a training would swap its checkpoint).
-    let _lock = dir.lock()?;
     if path.starts_with(&opts.run) {
         // Its numbers become part of the run's: the run records the evaluating executable.
         dir.note_binary()?;

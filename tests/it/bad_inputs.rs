@@ -607,6 +607,20 @@ fn what_may_be_written_is_written_and_nothing_else() {
     let out = coevo(&["--eval", "run2", "--steps", "3"]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     assert!(!root.join("run2/checkpoint.old").exists() && !root.join("run2/coevo.lock").exists());
+    // A swap cut between its two renames (checkpoint/ gone, checkpoint.old/ whole): an evaluation puts the
+    // checkpoint back before reading its actors, and checks them against its manifest.
+    copy_dir(&root.join("run2"), &root.join("cut-swap-run"));
+    std::fs::rename(root.join("cut-swap-run/checkpoint"), root.join("cut-swap-run/checkpoint.old")).unwrap();
+    let out = coevo(&["--eval", "cut-swap-run", "--steps", "3"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        root.join("cut-swap-run/checkpoint/manifest.ron").exists()
+            && !root.join("cut-swap-run/checkpoint.old").exists()
+    );
+    std::fs::rename(root.join("cut-swap-run/checkpoint"), root.join("cut-swap-run/checkpoint.old")).unwrap();
+    let out = coevo(&["--crossplay", "cut-swap-run", "--episodes", "1", "--steps", "3"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(root.join("cut-swap-run/checkpoint/manifest.ron").exists());
     // A new or empty folder is used as it is.
     std::fs::create_dir(root.join("empty")).unwrap();
     let out = coevo(&["--train", "--out", "empty", "--episodes", "1", "--quiet"]);
