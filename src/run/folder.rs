@@ -14,10 +14,10 @@
 //! User-chosen outputs (`--eval-out`, an experiment's evaluation names) never take a reserved name, and a
 //! second process on the same run is refused while the first is alive ([`RunLock`]).
 
+use super::provenance::{binary, Provenance};
 use super::schema;
 use crate::error::{Kind, ResultExt};
 use crate::io::{process_alive, register_temporary, unregister_temporary, Existing};
-use serde::{Deserialize, Serialize};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
@@ -456,75 +456,6 @@ impl RunDir {
 /// Whether a folder holds a run.
 pub fn is_run(dir: &Path) -> bool {
     RunDir::new(dir).is_run()
-}
-
-/// What made a run (`provenance.ron`), written when the run is created. Fields a coevo before them did
-/// not write read as empty.
-#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
-pub struct Provenance {
-    pub coevo_version: String,
-    /// The commit the binary was built from (`git describe --always --dirty`).
-    #[serde(default)]
-    pub git_commit: String,
-    /// The matrix-product kernels it ran on ([`crate::learning::nets::kernels`]).
-    #[serde(default)]
-    pub kernels: String,
-    /// Worker threads when the run was created (results never depend on them).
-    #[serde(default)]
-    pub threads: usize,
-    /// Species of the scene that come from species plugins of the program that trained it.
-    pub plugins: Vec<String>,
-    /// The executable that created the run ([`binary`]).
-    #[serde(default)]
-    pub binary: String,
-    /// Other executables that later resumed or evaluated it, in order: a run with any is not a run of
-    /// one binary, which the experiment layer refuses to compare unless told (`mixed_binaries`).
-    #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub also_by: Vec<String>,
-    /// Where a run shipped with coevo sits in the source tree (`assets/trained-standard`): there it is
-    /// kept as committed, so nothing writes into it (evaluations, cross-play, resumed training and
-    /// `--plot` refuse it, [`RunDir::refuse_if_shipped`]); a copy anywhere else is an ordinary run.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub shipped: Option<String>,
-}
-
-/// The running executable's identity: the first 16 hex digits of the BLAKE3 hash of its file (`blake3`
-/// crate), or `unknown` where it cannot be read. Two builds differ here even when their commit names agree
-/// (a `-dirty` tree), so "one binary" means one file.
-pub fn binary() -> &'static str {
-    static BINARY: std::sync::OnceLock<String> = std::sync::OnceLock::new();
-    BINARY.get_or_init(|| {
-        std::env::current_exe()
-            .and_then(std::fs::read)
-            .map(|bytes| blake3::hash(&bytes).to_hex()[..16].to_string())
-            .unwrap_or_else(|_| "unknown".into())
-    })
-}
-
-impl Provenance {
-    /// Every executable that wrote into the run: its creator, then the others.
-    pub fn binaries(&self) -> Vec<&str> {
-        let creator = if self.binary.is_empty() { "unknown" } else { self.binary.as_str() };
-        std::iter::once(creator).chain(self.also_by.iter().map(String::as_str)).collect()
-    }
-
-    pub fn of(scene: &crate::scene::Scene) -> Provenance {
-        Provenance {
-            binary: binary().to_string(),
-            also_by: vec![],
-            shipped: None,
-            coevo_version: crate::VERSION.to_string(),
-            git_commit: crate::GIT_COMMIT.to_string(),
-            kernels: crate::learning::nets::kernels().to_string(),
-            threads: crate::parallel::threads(),
-            plugins: scene
-                .species
-                .iter()
-                .filter(|d| crate::sim::species::catalog::get(&d.name).is_some())
-                .map(|d| d.name.clone())
-                .collect(),
-        }
-    }
 }
 
 /// A run's lock, held while this process writes the run; removed when dropped (and on a signal).
