@@ -434,23 +434,7 @@ fn load_replay(
         let bytes = read_as(&s.path, &Expected { species, roles: &["replay"], scene: None })?;
         let st = parse(&s.path, &bytes)?;
         let n = (s.to - s.from) as usize;
-        let tensor = |name: &str, shape: Vec<usize>| -> crate::error::Result<Vec<f32>> {
-            let t = st.tensor(name).map_err(|_| format!("{}: no tensor {name:?}", s.path.display()))?;
-            if t.dtype() != Dtype::F32 || t.shape() != shape.as_slice() {
-                return Err(format!(
-                    "{}: tensor {name} is {:?} {:?}, expected F32 {shape:?}",
-                    s.path.display(),
-                    t.dtype(),
-                    t.shape()
-                )
-                .into());
-            }
-            finite(
-                &s.path,
-                name,
-                t.data().chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect(),
-            )
-        };
+        let tensor = |name: &str, shape: Vec<usize>| f32_tensor(&s.path, &st, name, &shape, ("expected", ""));
         let (obs, actions, rewards, next_obs) = (
             tensor("obs", vec![n, d])?,
             tensor("actions", vec![n, a])?,
@@ -528,22 +512,33 @@ fn read_into(file: &Path, st: &SafeTensors, prefix: &str, like: &Mlp) -> crate::
     named(prefix, like.parameters(), like)
         .into_iter()
         .map(|(name, shape, _)| {
-            let t = st.tensor(&name).map_err(|_| format!("{}: no tensor {name:?}", file.display()))?;
-            if t.dtype() != Dtype::F32 || t.shape() != shape.as_slice() {
-                return Err(format!(
-                    "{}: tensor {name} is {:?} {:?}, this scene needs F32 {shape:?} (observation size or hidden width differ)",
-                    file.display(),
-                    t.dtype(),
-                    t.shape()
-                ).into());
-            }
-            finite(file, &name, t.data().chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect())
+            f32_tensor(file, st, &name, &shape, ("this scene needs", " (observation size or hidden width differ)"))
         })
         .collect()
 }
 
-/// Refuses a tensor with a NaN or infinity: no network or transition of a sound run holds one.
-fn finite(file: &Path, name: &str, values: Vec<f32>) -> crate::error::Result<Vec<f32>> {
+/// The values of tensor `name` of a safetensors file, refused unless it is F32 of `shape` (`expected`: the
+/// words before and after the shape in the error) and finite: no network or transition of a sound run
+/// holds a NaN or an infinity.
+fn f32_tensor(
+    file: &Path,
+    st: &SafeTensors,
+    name: &str,
+    shape: &[usize],
+    expected: (&str, &str),
+) -> crate::error::Result<Vec<f32>> {
+    let t = st.tensor(name).map_err(|_| format!("{}: no tensor {name:?}", file.display()))?;
+    if t.dtype() != Dtype::F32 || t.shape() != shape {
+        let (before, after) = expected;
+        return Err(format!(
+            "{}: tensor {name} is {:?} {:?}, {before} F32 {shape:?}{after}",
+            file.display(),
+            t.dtype(),
+            t.shape()
+        )
+        .into());
+    }
+    let values: Vec<f32> = t.data().chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect();
     match values.iter().position(|v| !v.is_finite()) {
         Some(i) => Err(format!(
             "{}: tensor {name} holds a non-finite value ({} at index {i}); refusing a broken checkpoint",
