@@ -116,14 +116,8 @@ pub fn install_signal_cleanup() {
     });
 }
 
-/// Writes a line to standard output; a closed or full stream is an error (one line, a non-zero exit),
-/// never a panic as `println!` would give ([`outln!`](crate::outln)).
-pub fn out_line(args: std::fmt::Arguments) -> crate::error::Result<()> {
-    let mut out = io::stdout().lock();
-    writeln!(out, "{args}").and_then(|()| out.flush()).map_err(|e| format!("standard output: {e}").into())
-}
-
-/// Writes to standard output as [`out_line`] does, without adding a line break.
+/// Writes to standard output; a closed or full stream is an error (one line, a non-zero exit), never a
+/// panic as `print!` would give ([`outln!`](crate::outln)).
 pub fn out_text(args: std::fmt::Arguments) -> crate::error::Result<()> {
     let mut out = io::stdout().lock();
     write!(out, "{args}").and_then(|()| out.flush()).map_err(|e| format!("standard output: {e}").into())
@@ -139,7 +133,7 @@ pub fn err_text(args: std::fmt::Arguments) -> crate::error::Result<()> {
 /// `println!` that returns an error instead of panicking on a closed or full standard output.
 #[macro_export]
 macro_rules! outln {
-    ($($arg:tt)*) => { $crate::io::out_line(format_args!($($arg)*)) };
+    ($($arg:tt)*) => { $crate::io::out_text(format_args!("{}\n", format_args!($($arg)*))) };
 }
 
 /// `eprintln!` that returns an error instead of panicking on a closed or full standard error.
@@ -365,9 +359,13 @@ fn temporary_beside(path: &Path) -> PathBuf {
 /// real one, far less than memory.
 pub const MAX_TEXT_BYTES: u64 = 64 << 20;
 
-/// Reads a UTF-8 text file of at most `limit` bytes; a leading byte-order mark is dropped. Errors say
-/// what is wrong in a user's words.
+/// Reads a UTF-8 text file of at most `limit` bytes; a leading byte-order mark is dropped. Errors name the
+/// file and say what is wrong in a user's words.
 pub fn read_text(path: &Path, limit: u64) -> crate::error::Result<String> {
+    read_text_unnamed(path, limit).map_err(|e| e.in_file(path))
+}
+
+fn read_text_unnamed(path: &Path, limit: u64) -> crate::error::Result<String> {
     // Only the system's refusals are I/O errors; a file of the wrong sort or content is left unclassified,
     // for the concern that reads it to classify (a damaged manifest is a checkpoint error).
     let cannot = |e: io::Error| crate::error::Error::from(format!("cannot read: {e}")).of_kind(crate::error::Kind::Io);

@@ -19,7 +19,7 @@ fn read_confusion(path: &Path) -> crate::error::Result<Vec<[f64; 3]>> {
     if !path.exists() {
         return Ok(vec![]);
     }
-    let text = crate::io::read_text(path, crate::io::MAX_TEXT_BYTES).map_err(|e| format!("{}: {e}", path.display()))?;
+    let text = crate::io::read_text(path, crate::io::MAX_TEXT_BYTES)?;
     let rows: Vec<Vec<&str>> =
         text.lines().skip(1).map(|l| l.split(',').collect()).filter(|r: &Vec<&str>| r.len() == 6).collect();
     let first = rows.first().map(|r| r[0]).unwrap_or_default();

@@ -73,7 +73,7 @@ impl Experiment {
     /// variant shared from a shared variant is refused rather than followed).
     fn load_with(file: &Path, results: &Path, share: bool) -> Result<Experiment> {
         let shown = file.display().to_string();
-        let text = crate::io::read_text(file, crate::scene::MAX_SCENE_BYTES).map_err(|e| format!("{shown}: {e}"))?;
+        let text = crate::io::read_text(file, crate::scene::MAX_SCENE_BYTES)?;
         let spec: ExperimentFile = parse_ron(&text, &shown)?;
         let name = file.file_stem().map_or(String::new(), |s| s.to_string_lossy().into_owned());
         let err = |field: &str, message: String| Error::field(field.to_string(), message).in_file(file);
@@ -261,7 +261,7 @@ impl Experiment {
             _ => PathBuf::from(&spec.base),
         };
         let base_text = crate::io::read_text(&base, crate::scene::MAX_SCENE_BYTES)
-            .map_err(|e| err("base", format!("{}: {e}", base.display())))?;
+            .map_err(|e| err("base", format!("{}: {}", base.display(), e.message)))?;
         let root = results.join(&name);
         let mut runs = Vec::new();
         for preset in &spec.presets {

@@ -120,7 +120,7 @@ impl Summary {
         match crate::io::read_text(path, crate::io::MAX_TEXT_BYTES) {
             Ok(text) => Ok(Some(Summary::parse(&text, path)?)),
             Err(_) if !path.exists() => Ok(None),
-            Err(e) => Err(format!("{}: {e}", path.display()).into()),
+            Err(e) => Err(e),
         }
     }
 

@@ -755,7 +755,7 @@ fn snapshot_digests(
 
 /// Reads a checkpoint's state file.
 pub fn read_state(path: &Path) -> crate::error::Result<TrainingState> {
-    let text = crate::io::read_text(path, crate::io::MAX_TEXT_BYTES).map_err(|e| format!("{}: {e}", path.display()))?;
+    let text = crate::io::read_text(path, crate::io::MAX_TEXT_BYTES)?;
     state_from(path, &text)
 }
 

@@ -75,7 +75,7 @@ impl Manifest {
         if std::fs::symlink_metadata(&path).is_err() {
             return Ok(None);
         }
-        let text = crate::io::read_text(&path, crate::io::MAX_TEXT_BYTES).map_err(|e| e.in_file(&path))?;
+        let text = crate::io::read_text(&path, crate::io::MAX_TEXT_BYTES)?;
         Ok(Some(ron::from_str(&text).map_err(|e| format!("{}: damaged checkpoint manifest ({e})", path.display()))?))
     }
 

@@ -125,7 +125,7 @@ impl RunDir {
     pub fn metrics_up_to(&self, expected: &crate::learning::manifest::Digest) -> crate::error::Result<String> {
         (|| -> crate::error::Result<String> {
             let path = self.metrics();
-            let text = crate::io::read_text(&path, crate::io::MAX_TEXT_BYTES).map_err(|e| e.in_file(&path))?;
+            let text = crate::io::read_text(&path, crate::io::MAX_TEXT_BYTES)?;
             let head = text.get(..expected.bytes as usize).unwrap_or(&text);
             if crate::learning::manifest::Digest::of(head.as_bytes()) != *expected {
                 return Err(format!(
@@ -399,8 +399,7 @@ impl RunDir {
         if !path.exists() {
             return Ok(None);
         }
-        let text =
-            crate::io::read_text(&path, crate::io::MAX_TEXT_BYTES).map_err(|e| format!("{}: {e}", path.display()))?;
+        let text = crate::io::read_text(&path, crate::io::MAX_TEXT_BYTES)?;
         Ok(Some(ron::from_str(&text).map_err(|e| format!("{}: damaged ({e})", path.display()))?))
     }
 

@@ -32,7 +32,7 @@ pub fn read_rows(path: &std::path::Path) -> crate::error::Result<Option<Vec<[f64
     if !path.exists() {
         return Ok(None);
     }
-    let text = crate::io::read_text(path, crate::io::MAX_TEXT_BYTES).map_err(|e| format!("{}: {e}", path.display()))?;
+    let text = crate::io::read_text(path, crate::io::MAX_TEXT_BYTES)?;
     let rows = text.lines().skip(1).filter_map(|row| {
         let c: Vec<f64> = row.split(',').map(|x| x.parse().unwrap_or(f64::NAN)).collect();
         let [lag, from, _, mean, n] = c[..] else { return None };

@@ -189,8 +189,7 @@ impl Table {
     }
 
     fn read_whole(path: &Path, partial: bool, one_row_per_episode: bool) -> crate::error::Result<Table> {
-        let text =
-            crate::io::read_text(path, crate::io::MAX_TEXT_BYTES).map_err(|e| format!("{}: {e}", path.display()))?;
+        let text = crate::io::read_text(path, crate::io::MAX_TEXT_BYTES)?;
         let refuse = |line: usize, why: String| -> crate::error::Error {
             crate::error::Error {
                 file: Some(path.display().to_string()),
@@ -246,8 +245,7 @@ impl Table {
     }
 
     pub fn read(path: &Path) -> crate::error::Result<Table> {
-        let text =
-            crate::io::read_text(path, crate::io::MAX_TEXT_BYTES).map_err(|e| format!("{}: {e}", path.display()))?;
+        let text = crate::io::read_text(path, crate::io::MAX_TEXT_BYTES)?;
         let mut lines = text.lines();
         let header: Vec<String> = lines.next().unwrap_or("").split(',').map(str::to_string).collect();
         let rows: Vec<Vec<f64>> = lines
