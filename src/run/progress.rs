@@ -12,11 +12,10 @@ fn costly(scene: &crate::scene::Scene) -> bool {
 /// ([`crate::scene::Scene::estimated_step_seconds`]), says so on stderr with the estimate for the
 /// whole call.
 pub fn announce_cost(scene: &crate::scene::Scene, steps: usize) -> crate::error::Result<()> {
-    let per_step = scene.estimated_step_seconds();
     if !costly(scene) {
         return Ok(());
     }
-    let agents: usize = scene.species.iter().map(|s| s.count).sum();
+    let (agents, per_step) = (scene.agents(), scene.estimated_step_seconds());
     let total = per_step * steps as f64;
     let shown = |s: f64| match s {
         s if s < 120.0 => format!("{s:.0} s"),

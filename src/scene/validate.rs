@@ -227,7 +227,7 @@ impl Scene {
     /// times the area within twice the largest radius. Contacts and the nearest-neighbour search scan
     /// about this many bodies per agent, so a step costs about agents × (1 + this).
     pub fn bodies_within_reach(&self) -> f64 {
-        let n: f64 = self.species.iter().map(|s| s.count as f64).sum();
+        let n = self.agents() as f64;
         let r = self.species.iter().map(|s| s.radius).fold(0.0, f64::max);
         n * std::f64::consts::PI * (2.0 * r).powi(2) / self.world.arena_edge.powi(2)
     }
@@ -236,8 +236,12 @@ impl Scene {
     /// within its reach ([`Scene::bodies_within_reach`]), measured with `coevo --record` of 10 000 and
     /// 30 000 prey in the default arena (0.06 and 0.5 s a step); an order of magnitude, not a promise.
     pub fn estimated_step_seconds(&self) -> f64 {
-        let n: f64 = self.species.iter().map(|s| s.count as f64).sum();
-        1.5e-7 * n * (1.0 + self.bodies_within_reach())
+        1.5e-7 * self.agents() as f64 * (1.0 + self.bodies_within_reach())
+    }
+
+    /// Agents of every species.
+    pub fn agents(&self) -> usize {
+        self.species.iter().map(|s| s.count).sum()
     }
 
     pub fn check_memory(&self, limit: f64) -> crate::error::Result<()> {
