@@ -99,12 +99,12 @@ impl RunDir {
         self.path.join(FIGURES)
     }
 
-    /// A cross-play output, `<stem>.csv` (`experiment::crossplay`); stems begin with `crossplay`.
     /// The file of a named evaluation of an experiment ([`evaluation_file_name`]).
     pub fn evaluation(&self, slug: &str) -> PathBuf {
         self.path.join(evaluation_file_name(slug))
     }
 
+    /// A cross-play output, `<stem>.csv` (`experiment::crossplay`); stems begin with `crossplay`.
     pub fn crossplay(&self, stem: &str) -> PathBuf {
         debug_assert!(stem.starts_with(CROSSPLAY));
         self.path.join(format!("{stem}.csv"))
@@ -123,30 +123,39 @@ impl RunDir {
     /// `expected.bytes` bytes): refused in one line where they differ from what was trained (edited, cut
     /// or lost since). Rows after them (episodes trained after the checkpoint) are not returned.
     pub fn metrics_up_to(&self, expected: &crate::learning::manifest::Digest) -> crate::error::Result<String> {
-        (|| -> crate::error::Result<String> {
-            let path = self.metrics();
-            let text = crate::io::read_text(&path, crate::io::MAX_TEXT_BYTES)?;
-            let head = text.get(..expected.bytes as usize).unwrap_or(&text);
-            if crate::learning::manifest::Digest::of(head.as_bytes()) != *expected {
-                return Err(format!(
-                    "{}: its rows up to the checkpoint differ from what was trained (changed, cut or lost since: the checkpoint's manifest hashes them); restore the file or train the run again",
-                    path.display()
-                )
-                .into());
-            }
-            Ok(head.to_string())
-        })()
-        .kind(Kind::RunFolder)
+        let text = crate::io::read_text(&self.metrics(), crate::io::MAX_TEXT_BYTES)?;
+        Ok(self.rows_as_trained(&text, expected)?.to_string())
+    }
+
+    /// The first `expected.bytes` bytes of `text` (the run's `metrics.csv` as read), refused unless they
+    /// hash to `expected` ([`RunDir::metrics_up_to`]).
+    fn rows_as_trained<'t>(
+        &self,
+        text: &'t str,
+        expected: &crate::learning::manifest::Digest,
+    ) -> crate::error::Result<&'t str> {
+        let head = text.get(..expected.bytes as usize).unwrap_or(text);
+        if crate::learning::manifest::Digest::of(head.as_bytes()) != *expected {
+            let e: crate::error::Error = format!(
+                "{}: its rows up to the checkpoint differ from what was trained (changed, cut or lost since: the checkpoint's manifest hashes them); restore the file or train the run again",
+                self.metrics().display()
+            )
+            .into();
+            return Err(e.of_kind(Kind::RunFolder));
+        }
+        Ok(head)
     }
 
     /// The run's `metrics.csv` for plots and summaries, refused in one line unless it is the run's whole
-    /// record: every row complete and finite, episodes in order ([`schema::Table::read_metrics`]), the rows
+    /// record: every row complete and finite, episodes in order ([`schema::Table::metrics_of`]), the rows
     /// up to the checkpoint as trained ([`RunDir::metrics_up_to`]) and exactly as many as the checkpoint's
     /// episodes. With `partial`, rows after the checkpoint (a run stopped before its next one, or still
     /// without one) and a last row cut short are accepted, and the second value says so.
     pub fn checked_metrics(&self, partial: bool) -> crate::error::Result<(schema::Table, Option<String>)> {
         (|| -> crate::error::Result<(schema::Table, Option<String>)> {
-            let table = schema::Table::read_metrics(&self.metrics(), partial)?;
+            // Read once: parsed into the table, and its bytes checked against the manifest.
+            let text = crate::io::read_text(&self.metrics(), crate::io::MAX_TEXT_BYTES)?;
+            let table = schema::Table::metrics_of(&text, &self.metrics(), partial)?;
             let rows = table.rows.len();
             let shown = self.metrics().display().to_string();
             // A run trained outside coevo (python/examples/ippo.py) has no training state to count against:
@@ -178,7 +187,7 @@ impl RunDir {
             };
             let counted = counted?;
             if let Some(m) = &manifest {
-                self.metrics_up_to(&m.metrics)?;
+                self.rows_as_trained(&text, &m.metrics)?;
             }
             Ok((table, counted))
         })()

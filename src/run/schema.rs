@@ -177,19 +177,19 @@ impl Table {
     /// A run's `metrics.csv` as training writes it, refused in one line unless it is whole: every line
     /// complete (the file ends in a line break) and as wide as the header, every cell a finite number or
     /// blank, the episodes 0, 1, 2, … in order, at least one row. With `partial`, a last line cut short
-    /// (a run killed mid-write) is dropped instead of refused.
-    pub fn read_metrics(path: &Path, partial: bool) -> crate::error::Result<Table> {
-        Table::read_whole(path, partial, true)
+    /// (a run killed mid-write) is dropped instead of refused. `text` is the file `path` as read (errors
+    /// name it).
+    pub fn metrics_of(text: &str, path: &Path, partial: bool) -> crate::error::Result<Table> {
+        Table::whole(text, path, partial, true)
     }
 
-    /// An evaluation's per-step CSV, refused unless whole as [`Table::read_metrics`] says (episodes are
+    /// An evaluation's per-step CSV, refused unless whole as [`Table::metrics_of`] says (episodes are
     /// repeated there, one row per step).
     pub fn read_eval(path: &Path) -> crate::error::Result<Table> {
-        Table::read_whole(path, false, false)
+        Table::whole(&crate::io::read_text(path, crate::io::MAX_TEXT_BYTES)?, path, false, false)
     }
 
-    fn read_whole(path: &Path, partial: bool, one_row_per_episode: bool) -> crate::error::Result<Table> {
-        let text = crate::io::read_text(path, crate::io::MAX_TEXT_BYTES)?;
+    fn whole(text: &str, path: &Path, partial: bool, one_row_per_episode: bool) -> crate::error::Result<Table> {
         let refuse = |line: usize, why: String| -> crate::error::Error {
             crate::error::Error {
                 file: Some(path.display().to_string()),
