@@ -16,6 +16,7 @@
 //! put through the flocking/herding controls. Finished episodes are summarised as `metrics.csv` rows
 //! ([`VecEnv::take_episode_rows`]), so an outside learner writes the run files `coevo --plot` reads.
 
+use crate::error::{Kind, ResultExt};
 use crate::learning::control::{ObservationControl, ResolvedControl};
 use crate::learning::Mode;
 use crate::scene::{Policy, Scene};
@@ -91,12 +92,12 @@ impl Env {
         scene.validate()?;
         let resolved = control
             .resolve(&SpeciesRegistry::from_scene(&scene))
-            .map_err(|e| crate::error::Error::from(format!("control: {e}")).of_kind(crate::error::Kind::Input))?;
+            .map_err(|e| format!("control: {e}"))
+            .kind(Kind::Input)?;
         let learned: Vec<usize> =
             (0..scene.species.len()).filter(|&s| scene.species[s].policy == Policy::Learned).collect();
         if learned.is_empty() {
-            return Err(crate::error::Error::from("the scene has no Learned species to decide from outside")
-                .of_kind(crate::error::Kind::Scene));
+            return Err("the scene has no Learned species to decide from outside").kind(Kind::Scene);
         }
         // The world runs the scene with its learned species decided from outside; `scene` is kept as given.
         let mut decided = scene.clone();
@@ -203,20 +204,18 @@ impl Env {
     pub fn step(&mut self, actions: &[f32]) -> crate::error::Result<StepResult> {
         let agents: usize = self.external.iter().map(|&(_, n)| n).sum();
         if actions.len() != agents * ACTION_DIM {
-            return Err(crate::error::Error::from(format!(
+            return Err(format!(
                 "actions: expected {} values ({agents} agents × 2), got {}",
                 agents * ACTION_DIM,
                 actions.len()
             ))
-            .of_kind(crate::error::Kind::Input));
+            .kind(Kind::Input);
         }
         if let Some(i) = actions.iter().position(|a| !a.is_finite()) {
-            return Err(crate::error::Error::from(format!("actions[{i}]: {} is not a finite number", actions[i]))
-                .of_kind(crate::error::Kind::Input));
+            return Err(format!("actions[{i}]: {} is not a finite number", actions[i])).kind(Kind::Input);
         }
         if self.world.resource::<Episode>().step >= self.scene.episode_steps {
-            return Err(crate::error::Error::from("step: the episode is over (truncated); reset first")
-                .of_kind(crate::error::Kind::Input));
+            return Err("step: the episode is over (truncated); reset first").kind(Kind::Input);
         }
         let mut given = vec![Vec::new(); self.scene.species.len()];
         let mut rest = actions;
@@ -297,7 +296,7 @@ impl VecEnv {
         control: ObservationControl,
     ) -> crate::error::Result<VecEnv> {
         if worlds == 0 {
-            return Err(crate::error::Error::from("num_envs: must be ≥ 1").of_kind(crate::error::Kind::Input));
+            return Err("num_envs: must be ≥ 1").kind(Kind::Input);
         }
         let envs = (0..worlds as u64)
             .map(|i| {
@@ -369,14 +368,14 @@ impl VecEnv {
     pub fn step(&mut self, actions: &[f32]) -> crate::error::Result<VecStep> {
         let per = self.agents * ACTION_DIM;
         if actions.len() != per * self.envs.len() {
-            return Err(crate::error::Error::from(format!(
+            return Err(format!(
                 "actions: expected {} values ({} worlds × {} agents × 2), got {}",
                 per * self.envs.len(),
                 self.envs.len(),
                 self.agents,
                 actions.len()
             ))
-            .of_kind(crate::error::Kind::Input));
+            .kind(Kind::Input);
         }
         let mut work: Vec<(&mut Env, &[f32], Option<WorldStep>)> =
             self.envs.iter_mut().zip(actions.chunks(per)).map(|(e, a)| (e, a, None)).collect();

@@ -136,12 +136,10 @@ impl RunDir {
     ) -> crate::error::Result<&'t str> {
         let head = text.get(..expected.bytes as usize).unwrap_or(text);
         if crate::learning::manifest::Digest::of(head.as_bytes()) != *expected {
-            let e: crate::error::Error = format!(
+            return Err(format!(
                 "{}: its rows up to the checkpoint differ from what was trained (changed, cut or lost since: the checkpoint's manifest hashes them); restore the file or train the run again",
                 self.metrics().display()
-            )
-            .into();
-            return Err(e.of_kind(Kind::RunFolder));
+            )).kind(Kind::RunFolder);
         }
         Ok(head)
     }

@@ -163,7 +163,7 @@ pub fn check_state(world: &World) -> crate::error::Result<()> {
     };
     let name = &world.resource::<species::SpeciesRegistry>().defs[f.species].name;
     use crate::error::ResultExt;
-    Err::<(), String>(format!(
+    Err(format!(
         "episode {}, step {}: agent {} ({name}): {}; the integrator is unstable for this scene \
              (check world.dt, world.contact_stiffness, world.wall_stiffness and species[{name}].mass)",
         f.episode, f.step, f.agent, f.what
