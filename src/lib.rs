@@ -30,3 +30,8 @@ pub mod sim;
 pub mod svg;
 #[cfg(feature = "viewer")]
 pub mod viewer;
+/// Without the window only the viewer's flags exist, so they are refused with a hint.
+#[cfg(not(feature = "viewer"))]
+pub mod viewer {
+    pub mod args;
+}

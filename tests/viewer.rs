@@ -280,7 +280,7 @@ fn watching_a_run_deploys_the_snapshots_asked_for() {
     let mut other = trained.species[1].as_ref().unwrap().ddpg.actor.clone();
     let shifted: Vec<Vec<f32>> = other.parameters().iter().map(|p| p.iter().map(|x| x + 0.5).collect()).collect();
     other.set_parameters(&shifted);
-    coevo::learning::checkpoint::save_snapshot(&run, &scene, "prey", 0, &other).unwrap();
+    coevo::learning::snapshots::save_snapshot(&run, &scene, "prey", 0, &other).unwrap();
     common::reseal_snapshots(&run);
     let (_, learners) = setup(vec![("prey".into(), 0)]).prepare().unwrap();
     assert_eq!(learners.species[1].as_ref().unwrap().ddpg.actor.parameters(), other.parameters());

@@ -193,7 +193,7 @@ pub fn is_effect(claim: &Claim) -> bool {
                 | Quantity::Interaction(..)
                 | Quantity::Learned(..)
         )
-        || matches!(&claim.quantity, Quantity::Crossplay(r) if super::crossplay::chance(r).is_none())
+        || matches!(&claim.quantity, Quantity::Crossplay(r) if super::crossplay_readouts::chance(r).is_none())
 }
 
 /// Whether a quantity compares the first and last 100 training episodes (meaningless when they overlap).
@@ -224,7 +224,7 @@ pub fn chance_level(exp: &Experiment, claim: &Claim, scene: Option<&crate::scene
         Quantity::DoaFirst | Quantity::DoaLast | Quantity::EvalDoa(_) => Some(std::f64::consts::FRAC_2_PI),
         Quantity::DosFirst | Quantity::DosLast => random_dos(None),
         Quantity::EvalDos(e) => random_dos(Some(e)),
-        Quantity::Crossplay(r) => super::crossplay::chance(r),
+        Quantity::Crossplay(r) => super::crossplay_readouts::chance(r),
         // Caught prey ranked at random within their group: the mean edge rank of no marginal predation.
         Quantity::EvalOrder(_, q) | Quantity::TrainingFirst(q) | Quantity::TrainingLast(q)
             if q == crate::run::schema::EDGE_RANK =>

@@ -70,7 +70,7 @@ pub fn load(exp: &Experiment) -> crate::error::Result<BTreeMap<usize, RunData>> 
                 })
                 .collect(),
             evals: BTreeMap::new(),
-            crossplay: super::crossplay::read_readouts(&run.dir, &prey)?,
+            crossplay: super::crossplay_readouts::read_readouts(&run.dir, &prey)?,
             binaries: match RunDir::new(&run.dir).read_provenance()? {
                 Some(p) => p.binaries().into_iter().map(String::from).collect(),
                 None => vec!["unknown".into()],

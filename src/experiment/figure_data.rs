@@ -12,7 +12,7 @@
 //! whether they come from the run folders or from the file.
 
 use super::claims::RunData;
-use super::crossplay::{Cell, Matrix, Pair};
+use super::crossplay_matrix::{Cell, Matrix, Pair};
 use super::file::{Experiment, Run};
 use super::runner::eval_file;
 use serde::{Deserialize, Serialize};
@@ -182,8 +182,8 @@ pub fn of_run(exp: &Experiment, run: &Run, data: &RunData) -> crate::error::Resu
         };
         evals.insert(name.clone(), figures);
     }
-    let crossplay = match (&exp.spec.crossplay, super::crossplay::only_pair(&run.scene)) {
-        (Some(_), Some(pair)) => super::crossplay::read_matrix(&run.dir, &pair)?.map(|m| CrossplayCells {
+    let crossplay = match (&exp.spec.crossplay, super::crossplay_matrix::only_pair(&run.scene)) {
+        (Some(_), Some(pair)) => super::crossplay_matrix::read_matrix(&run.dir, &pair)?.map(|m| CrossplayCells {
             prey_episodes: m.prey_episodes,
             predator_episodes: m.predator_episodes,
             cells: single::round(&m.cells.iter().map(|row| row.iter().map(Cell::values).collect()).collect()),

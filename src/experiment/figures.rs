@@ -138,10 +138,10 @@ fn crossplay_figures(
             .map(|(&i, d)| (&exp.runs[i], d))
             .filter(|(r, _)| r.preset == preset && r.variant == v.name)
             .collect();
-        let Some(pair) = runs.first().and_then(|(r, _)| super::crossplay::only_pair(&r.scene)) else { continue };
+        let Some(pair) = runs.first().and_then(|(r, _)| super::crossplay_matrix::only_pair(&r.scene)) else { continue };
         let matrices: Vec<_> =
             runs.iter().filter_map(|(_, d)| d.crossplay.as_ref()).map(|c| c.matrix(pair.clone())).collect();
-        if let Some(mean) = super::crossplay::mean_matrix(&matrices) {
+        if let Some(mean) = super::crossplay_matrix::mean_matrix(&matrices) {
             let what = format!("{}, {preset}, {} seeds: ", v.name, matrices.len());
             let stem = exp.root.join("figures").join(format!("{preset}-{}-crossplay", slug(&v.name)));
             plot::save_heatmaps(&stem, &super::crossplay::heatmaps(&mean, &what))?;

@@ -32,7 +32,7 @@ pub struct ExperimentFile {
     pub mixed_binaries: bool,
     /// Keep each run's replay buffers once it is trained (~0.45 GB a run of the standard scene), so that
     /// `coevo --resume RUN --episodes N` can extend it exactly as an uninterrupted longer run. Off by
-    /// default: a finished run's buffers are removed (`learning::checkpoint::drop_replay`), so a suite of
+    /// default: a finished run's buffers are removed (`learning::replay_segments::drop_replay`), so a suite of
     /// 150 runs needs ~1 GB rather than ~70 GB.
     #[serde(default)]
     pub keep_replay: bool,
@@ -200,7 +200,7 @@ pub enum Quantity {
     /// of the turned prey's 6 nearest over the 10 steps after the turn, or `"far"`, the same for ranks 25
     /// and beyond (radians).
     Response(String, String),
-    /// A read-out of the run's cross-play matrix (`crossplay::readouts`, the headline species against its
+    /// A read-out of the run's cross-play matrix (`crossplay_readouts::readouts`, the headline species against its
     /// first predator species), e.g. `Crossplay("doa_late_prey_part")`; needs `crossplay:` in the file.
     Crossplay(String),
 }

@@ -1,7 +1,7 @@
 //! Reading an experiment file: every field validated, every run's scene resolved, shared variants
 //! checked against their owners, before anything runs; errors are one line naming the file and field.
 
-use super::crossplay;
+use super::crossplay_readouts;
 use super::file::*;
 use crate::error::{Error, Result, ResultExt};
 use crate::scene::{parse_ron, Scene, PRESETS};
@@ -237,10 +237,13 @@ impl Experiment {
                 }
             }
             if let Quantity::Crossplay(r) = &c.quantity {
-                if !crossplay::READOUTS.contains(&r.as_str()) {
+                if !crossplay_readouts::READOUTS.contains(&r.as_str()) {
                     return Err(err(
                         "claims",
-                        format!("no cross-play read-out named {r:?} (one of {})", crossplay::READOUTS.join(", ")),
+                        format!(
+                            "no cross-play read-out named {r:?} (one of {})",
+                            crossplay_readouts::READOUTS.join(", ")
+                        ),
                     ));
                 }
                 if spec.crossplay.is_none() {

@@ -25,7 +25,10 @@
 
 pub mod aggregate;
 pub mod claims;
+pub mod command;
 pub mod crossplay;
+pub mod crossplay_matrix;
+pub mod crossplay_readouts;
 pub mod data;
 pub mod figure_data;
 pub mod figures;

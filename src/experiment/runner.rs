@@ -109,24 +109,21 @@ fn dies_with_parent(command: &mut Command) {
 /// depend on it).
 pub fn complete_run(exp: &Experiment, run: &Run, exe: &Path, threads: usize) -> crate::error::Result<()> {
     let dir = run.dir.to_string_lossy().into_owned();
-    let threads = threads.max(1).to_string();
-    let common = ["--quiet".to_string(), "--threads".into(), threads.clone()];
-    let train: Option<Vec<String>> = match stage(run)? {
-        Stage::Trained => None,
-        Stage::Partial(_) => {
-            Some(vec!["--resume".into(), dir.clone(), "--episodes".into(), run.scene.episodes.to_string()])
-        }
-        s @ (Stage::Fresh | Stage::Unsaved) => {
-            let mut args = vec!["--train".into(), "--scene".into(), variant_scene(run).to_string_lossy().into_owned()];
-            args.extend(["--seed".into(), run.seed.to_string(), "--out".into(), dir.clone()]);
-            if s == Stage::Unsaved {
-                args.push("--overwrite".into());
-            }
-            Some(args)
-        }
+    let threads = crate::run::args::threads_argv(threads.max(1));
+    let train = |resume: bool, overwrite: bool| crate::run::train::TrainOptions {
+        run: run.dir.clone(),
+        resume,
+        overwrite,
+        episodes: resume.then_some(run.scene.episodes),
+        progress: false,
     };
-    if let Some(mut args) = train {
-        args.extend(common.iter().cloned());
+    let train = match stage(run)? {
+        Stage::Trained => None,
+        Stage::Partial(_) => Some(train(true, false)),
+        s @ (Stage::Fresh | Stage::Unsaved) => Some(train(false, s == Stage::Unsaved)),
+    };
+    if let Some(opts) = train {
+        let args = [opts.to_argv(&variant_scene(run), run.seed), threads.clone()].concat();
         child(exe, &args).map_err(|e| format!("{dir}: {e}"))?;
     }
     drop_replay(exp, run)?;
@@ -144,48 +141,33 @@ pub fn complete_run(exp: &Experiment, run: &Run, exe: &Path, threads: usize) -> 
                 std::fs::remove_file(&side).map_err(|err| format!("{}: {err}", side.display()))?;
             }
         }
-        let mut args = vec!["--eval".into(), dir.clone(), "--episodes".into(), e.episodes.to_string()];
-        if let Some(steps) = e.steps {
-            args.extend(["--steps".into(), steps.to_string()]);
-        }
-        for (species, n) in &e.counts {
-            args.extend(["--count".into(), format!("{species}={n}")]);
-        }
-        for (species, policy) in &e.policies {
-            let policy = ron::to_string(policy).expect("a policy always serializes");
-            args.extend(["--policy".into(), format!("{species}={policy}")]);
-        }
-        for form in e.control.texts() {
-            args.extend(["--control".into(), form]);
-        }
-        if e.untrained {
-            args.push("--untrained".into());
-        }
-        if let Some(angle) = e.perturb {
-            args.extend(["--perturb".into(), angle.to_string()]);
-        }
-        if let Some(step) = e.perturb_step {
-            args.extend(["--perturb-step".into(), step.to_string()]);
-        }
-        if let Some(r) = e.confusion_radius {
-            args.extend(["--confusion-radius".into(), r.to_string()]);
-        }
-        args.extend([
-            "--eval-out".into(),
-            out.file_name().expect("a file").to_string_lossy().into_owned(),
-            "--threads".into(),
-            threads.clone(),
-        ]);
-        child(exe, &args).map_err(|err| format!("{dir}: evaluation {}: {err}", e.name))?;
+        let opts = crate::run::evaluate::EvalOptions {
+            run: run.dir.clone(),
+            control: e.control.clone(),
+            out: Some(out.file_name().expect("a file").to_string_lossy().into_owned()),
+            episodes: e.episodes,
+            overrides: e.overrides(),
+            untrained: e.untrained,
+            snapshots: vec![],
+            perturb: e.perturb,
+            perturb_step: e.perturb_step,
+        };
+        child(exe, &[opts.to_argv(), threads.clone()].concat())
+            .map_err(|err| format!("{dir}: evaluation {}: {err}", e.name))?;
     }
     if let Some(c) = exp.spec.crossplay.as_ref().filter(|_| !crossplayed(run)) {
-        let args = ["--crossplay".into(), dir.clone(), "--episodes".into(), c.episodes.to_string()];
-        child(exe, &[args.as_slice(), &common].concat()).map_err(|err| format!("{dir}: cross-play: {err}"))?;
+        let opts = crate::experiment::crossplay::CrossplayOptions {
+            run: run.dir.clone(),
+            episodes: c.episodes,
+            overrides: Default::default(),
+            progress: false,
+        };
+        child(exe, &[opts.to_argv(), threads].concat()).map_err(|err| format!("{dir}: cross-play: {err}"))?;
     }
     Ok(())
 }
 
-/// Removes a trained run's replay buffers (`learning::checkpoint::drop_replay`) under its lock, unless the
+/// Removes a trained run's replay buffers (`learning::replay_segments::drop_replay`) under its lock, unless the
 /// experiment keeps them. A shared run's buffers are its owner's to keep or drop.
 fn drop_replay(exp: &Experiment, run: &Run) -> crate::error::Result<()> {
     if exp.spec.keep_replay || run.shared_from.is_some() || stage(run)? != Stage::Trained {
@@ -193,7 +175,7 @@ fn drop_replay(exp: &Experiment, run: &Run) -> crate::error::Result<()> {
     }
     let dir = crate::run::RunDir::new(&run.dir);
     let _lock = dir.lock()?;
-    crate::learning::checkpoint::drop_replay(&run.dir)
+    crate::learning::replay_segments::drop_replay(&run.dir)
         .map_err(|e| format!("{}: cannot remove the trained run's replay buffers: {e}", run.dir.display()))?;
     Ok(())
 }

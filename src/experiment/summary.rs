@@ -38,7 +38,8 @@ pub fn columns(exp: &Experiment) -> Vec<(String, Quantity)> {
         }
     }
     if exp.spec.crossplay.is_some() {
-        quantities.extend(super::crossplay::READOUTS.iter().map(|r| named(Quantity::Crossplay(r.to_string()))));
+        quantities
+            .extend(super::crossplay_readouts::READOUTS.iter().map(|r| named(Quantity::Crossplay(r.to_string()))));
     }
     quantities.extend([named(Quantity::CatchesFirst), named(Quantity::CatchesLast)]);
     quantities

@@ -57,7 +57,7 @@ pub struct SpeciesEntry {
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct Manifest {
     pub episodes_done: usize,
-    /// The run's scene ([`super::checkpoint::scene_id`]): every network file and snapshot names it too.
+    /// The run's scene ([`super::tensors::scene_id`]): every network file and snapshot names it too.
     pub scene: String,
     pub species: Vec<SpeciesEntry>,
     /// Every file of the checkpoint folder but the manifest, by name.

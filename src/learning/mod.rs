@@ -15,11 +15,15 @@
 pub mod checkpoint;
 pub mod control;
 pub mod ddpg;
+pub mod files;
 pub mod fused;
 pub mod learner;
 pub mod manifest;
 pub mod nets;
 pub mod replay;
+pub mod replay_segments;
+pub mod snapshots;
+pub mod tensors;
 
 use crate::scene::{LearningParams, Policy, Scene};
 use crate::sim::clock::Episode;
@@ -152,7 +156,7 @@ impl Learners {
                     )
                 })?;
             let like = &self.species[s].as_ref().expect("learned species have learners").ddpg.actor;
-            loaded.push((s, checkpoint::load_snapshot(run, name, *episode, like)?));
+            loaded.push((s, snapshots::load_snapshot(run, name, *episode, like)?));
         }
         for (s, actor) in loaded {
             self.species[s].as_mut().expect("checked above").ddpg.actor = actor;

@@ -63,6 +63,66 @@ pub struct AnimationSummary {
     pub doa: f64,
 }
 
+/// `--animate OUT.gif` and its own flags.
+#[derive(clap::Args, Debug, Clone, Default)]
+pub struct AnimateArgs {
+    /// Render an episode to an animated GIF, headless (no window, no GPU): species colours, heading
+    /// lines, optional --trails, a caption with the step and the live DoS/DoA/polarization/milling.
+    #[arg(long, help_heading = "Modes", value_name = "OUT.gif")]
+    pub animate: Option<std::path::PathBuf>,
+    /// --animate: width of the arena image in pixels [default: 480].
+    #[arg(long, help_heading = "Recording and animation", value_name = "PX", value_parser = clap::value_parser!(u32).range(64..=2048))]
+    pub size: Option<u32>,
+    /// --animate, viewer: fixed steps per frame [default: 1].
+    #[arg(long, help_heading = "Recording and animation", value_name = "N", value_parser = super::args::at_least_one)]
+    pub steps_per_frame: Option<usize>,
+    /// --animate, viewer: draw fading trajectory tails (in the viewer, from the start).
+    #[arg(long, help_heading = "Recording and animation")]
+    pub trails: bool,
+}
+
+impl super::args::Mode for AnimateArgs {
+    const MODE: &'static str = "animate";
+    const TAKES: &'static [&'static str] =
+        &["run", "scene", "seed", "steps", "prey", "predators", "count", "policy", "overwrite", "quiet", "snapshot"];
+}
+
+/// `--animate OUT.gif`: the deployed scene ([`super::deploy`]) drawn.
+pub fn main(
+    out: &Path,
+    args: &AnimateArgs,
+    deploy: &super::deploy::DeployArgs,
+    shared: &super::args::Shared,
+) -> crate::error::Result<()> {
+    if out.extension().is_none_or(|e| e != "gif") {
+        return Err(format!("--animate {}: the file must end in .gif", out.display()).into());
+    }
+    let existing = shared.common.existing();
+    crate::io::check_target(out, existing).map_err(|e| format!("--animate {}: {e}", out.display()))?;
+    let mut d = deploy.deploy(&shared.scene)?;
+    let opts = AnimateOptions {
+        steps: d.steps,
+        steps_per_frame: args.steps_per_frame.unwrap_or(1),
+        trails: args.trails,
+        size: args.size.unwrap_or(480),
+        title: deploy.title(&shared.scene),
+        progress: !shared.common.quiet,
+    };
+    let s = animate(&mut d.sim, &opts, out, existing)?;
+    crate::errln!(
+        "coevo: wrote {} frames ({} steps, {:.1} MB) to {}{}; over the clip: polarization {:.3}, milling {:.3}, DoA {:.3}",
+        s.frames,
+        d.steps,
+        s.bytes as f64 / 1e6,
+        out.display(),
+        d.actors,
+        s.polarization,
+        s.milling,
+        s.doa
+    )?;
+    Ok(())
+}
+
 /// Steps `sim` for `opts.steps` steps and writes the GIF to `path` (atomically; see [`AtomicFile`]).
 pub fn animate(
     sim: &mut Simulation,

@@ -8,6 +8,43 @@ use crate::scene::{Policy, Scene};
 use crate::sim::Simulation;
 use std::time::{Duration, Instant};
 
+/// `--bench` and its own flag.
+#[derive(clap::Args, Debug, Clone, Default)]
+pub struct BenchArgs {
+    /// Print throughput figures for this machine.
+    #[arg(long, help_heading = "Modes")]
+    pub bench: bool,
+    /// Seconds per benchmark figure (--bench), in (0, 3600].
+    #[arg(long, help_heading = "Modes", value_name = "SECONDS")]
+    pub bench_seconds: Option<f64>,
+}
+
+impl super::args::Mode for BenchArgs {
+    const MODE: &'static str = "bench";
+    const TAKES: &'static [&'static str] = &[];
+}
+
+impl BenchArgs {
+    /// `--bench`: what ran the figures, then the environment, learning and external figures.
+    pub fn main(&self) -> crate::error::Result<()> {
+        let seconds = self.bench_seconds.unwrap_or(2.0);
+        if !(seconds > 0.0 && seconds <= 3600.0) {
+            return Err(format!("--bench-seconds: must be a number of seconds in (0, 3600] (got {seconds})").into());
+        }
+        let budget = Duration::from_secs_f64(seconds);
+        crate::outln!(
+            "coevo {} ({}), {} matrix-product kernels, {} threads",
+            env!("CARGO_PKG_VERSION"),
+            env!("COEVO_GIT_COMMIT"),
+            crate::learning::nets::kernels(),
+            crate::parallel::threads()
+        )?;
+        print(&environment(budget))?;
+        print(&learning(budget))?;
+        print(&external(budget))
+    }
+}
+
 /// One measured configuration.
 pub struct Figure {
     pub label: String,

@@ -7,6 +7,7 @@
 //! The loop accumulates ([`Accumulated::step`]); the files and the summary line are written from what it
 //! accumulated ([`Accumulated::distributions`], [`Accumulated::summary`]).
 
+use super::args::Shared;
 use super::folder::RunDir;
 use super::schema;
 use crate::io::{AtomicFile, Existing};
@@ -21,13 +22,14 @@ use crate::sim::space::Arena;
 use crate::sim::species::SpeciesRegistry;
 use crate::sim::Simulation;
 use std::io::Write;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// The nearest-neighbour distance histogram: bins of this many body diameters, NN_BINS of them and one
 /// for everything beyond.
 const NN_BIN_DIAMETERS: f64 = 0.25;
 const NN_BINS: usize = 80;
 
+#[derive(Clone, Debug, PartialEq)]
 pub struct EvalOptions {
     pub run: PathBuf,
     /// What the actors see of their neighbours (a control for alignment claims).
@@ -42,9 +44,101 @@ pub struct EvalOptions {
     pub untrained: bool,
     /// Deploy these species' snapshots (`NAME`, episodes trained) instead of the trained checkpoint.
     pub snapshots: Vec<(String, usize)>,
-    /// Also run a twin world in which one prey is turned, and write the others' response
-    /// ([`super::perturb`]).
-    pub perturb: Option<super::perturb::Perturbation>,
+    /// Also run a twin world in which one prey is turned by this many radians, and write the others'
+    /// response ([`super::perturb`])...
+    pub perturb: Option<f64>,
+    /// ... after this step of each episode (default: half the episode).
+    pub perturb_step: Option<usize>,
+}
+
+/// `--eval RUN`: the evaluation's own flags.
+#[derive(clap::Args, Debug, Clone, Default)]
+pub struct EvalArgs {
+    /// Evaluate a run's policies without noise; writes DIR/eval.csv (per-step DoS/DoA).
+    #[arg(long, help_heading = "Modes", value_name = "DIR")]
+    pub eval: Option<PathBuf>,
+    /// --eval: what the actors see of their neighbours (controls for alignment claims) [default: seeing].
+    /// `blind` zeroes, `shuffled` swaps between individuals, every neighbour block of every learning
+    /// species; `blind:OBSERVER:OBSERVED` / `shuffled:OBSERVER:OBSERVED` only the block in which species
+    /// OBSERVER sees species OBSERVED (`blind:prey:prey`: prey blind to each other, still seeing the
+    /// predators; the predators untouched). Block forms repeat: --control blind:prey:prey --control ...
+    #[arg(long, help_heading = "Evaluation", value_name = "CONTROL")]
+    pub control: Vec<String>,
+    /// --eval: also run a twin world in which one prey is turned by this many radians, and write how the
+    /// other prey's headings respond, by topological rank and lag, to NAME-perturbation.csv (information
+    /// transfer; not in the paper).
+    #[arg(long, help_heading = "Evaluation", value_name = "RADIANS")]
+    pub perturb: Option<f64>,
+    /// --eval --perturb: the step of each episode after which the prey is turned [default: half the episode].
+    #[arg(long, help_heading = "Evaluation", value_name = "N")]
+    pub perturb_step: Option<usize>,
+    /// --eval: the file name of the per-step CSV inside the run folder [default: eval.csv].
+    #[arg(long, help_heading = "Evaluation", value_name = "NAME.csv")]
+    pub eval_out: Option<String>,
+    /// --eval: prey within this many metres of a predator count as in view for the confusion curve
+    /// (NAME-confusion.csv) [default: the scene's confusion_radius, else the perception radius].
+    #[arg(long, help_heading = "Evaluation", value_name = "M")]
+    pub confusion_radius: Option<f64>,
+    /// --eval: deploy the run's actors as they were before training (initialised from the run's scene and
+    /// seed), the baseline of what training changed.
+    #[arg(long, help_heading = "Evaluation")]
+    pub untrained: bool,
+}
+
+impl super::args::Mode for EvalArgs {
+    const MODE: &'static str = "eval";
+    const TAKES: &'static [&'static str] =
+        &["episodes", "steps", "seed", "prey", "predators", "count", "snapshot", "policy"];
+}
+
+impl EvalArgs {
+    /// The evaluation of `run` the flags ask for.
+    pub fn options(&self, run: &Path, shared: &Shared) -> crate::error::Result<EvalOptions> {
+        let (scene, common) = (&shared.scene, &shared.common);
+        if self.untrained && scene.seed.is_some() {
+            return Err("--untrained: deploys the networks the run was initialised with, from the run's seed; --seed would initialise others".into());
+        }
+        let snapshots = scene.snapshots(Some(run), "--eval")?;
+        if self.untrained && !snapshots.is_empty() {
+            return Err("--untrained: deploys the networks the run was initialised with; --snapshot deploys others (the initial ones are --snapshot NAME=0)".into());
+        }
+        if self.perturb.is_none() && self.perturb_step.is_some() {
+            return Err("--perturb-step: needs --perturb RADIANS".into());
+        }
+        Ok(EvalOptions {
+            run: run.to_path_buf(),
+            out: self.eval_out.clone(),
+            control: ObservationControl::parse(&self.control).map_err(|e| format!("--control: {e}"))?,
+            episodes: common.episodes.unwrap_or(1),
+            overrides: Overrides { confusion_radius: self.confusion_radius, ..scene.overrides(true)? },
+            untrained: self.untrained,
+            snapshots,
+            perturb: self.perturb,
+            perturb_step: self.perturb_step,
+        })
+    }
+}
+
+impl EvalOptions {
+    /// The call that runs this evaluation, as argv.
+    pub fn to_argv(&self) -> Vec<String> {
+        let mut argv =
+            vec!["--eval".into(), self.run.display().to_string(), "--episodes".into(), self.episodes.to_string()];
+        argv.extend(super::args::overrides_argv(&self.overrides, &self.snapshots));
+        let mut flag =
+            |name: &str, value: Option<String>| argv.extend(value.map(|v| [name.to_string(), v]).into_iter().flatten());
+        for form in self.control.texts() {
+            flag("--control", Some(form));
+        }
+        flag("--perturb", self.perturb.map(|a| a.to_string()));
+        flag("--perturb-step", self.perturb_step.map(|s| s.to_string()));
+        flag("--confusion-radius", self.overrides.confusion_radius.map(|r| r.to_string()));
+        flag("--eval-out", self.out.clone());
+        if self.untrained {
+            argv.push("--untrained".into());
+        }
+        argv
+    }
 }
 
 /// What the evaluation accumulates over its steps, of the headline species.
@@ -208,7 +302,11 @@ pub fn evaluate(opts: &EvalOptions) -> crate::error::Result<String> {
     };
     super::progress::announce_cost(&scene, opts.episodes * scene.episode_steps)?;
     let mut sim = build()?;
-    let mut twin = match opts.perturb {
+    let perturbation = opts.perturb.map(|angle| super::perturb::Perturbation {
+        angle,
+        step: opts.perturb_step.unwrap_or(scene.episode_steps / 2),
+    });
+    let mut twin = match perturbation {
         Some(p) if p.step == 0 || p.step >= scene.episode_steps => {
             return Err(format!(
                 "--perturb-step {}: must be between 1 and the episode's steps − 1 ({})",

@@ -42,7 +42,7 @@ pub const CROSSPLAY: &str = "crossplay";
 /// The stem of the cross-play read-outs (`crossplay-readouts.csv`).
 pub const CROSSPLAY_READOUTS: &str = "crossplay-readouts";
 /// The checkpoint folders are the checkpoint's own (`learning::checkpoint`).
-pub use crate::learning::checkpoint::{CHECKPOINT, CHECKPOINT_OLD, CHECKPOINT_TMP, SNAPSHOTS};
+pub use crate::learning::files::{CHECKPOINT, CHECKPOINT_OLD, CHECKPOINT_TMP, SNAPSHOTS};
 /// The files an evaluation writes beside its per-step CSV (`OUT-nn.csv`, ...); the confusion curve last.
 pub const EVAL_BESIDE: [&str; 3] = ["nn", "correlation", "confusion"];
 /// The file a perturbed evaluation writes beside the others (`OUT-perturbation.csv`, [`perturb`]).
@@ -90,6 +90,11 @@ impl RunDir {
         self.path.join(CHECKPOINT)
     }
 
+    /// A species' trained actor in the checkpoint.
+    pub fn actor(&self, species: &str) -> PathBuf {
+        self.checkpoint().join(crate::learning::files::actor_name(species))
+    }
+
     pub fn provenance(&self) -> PathBuf {
         self.path.join(PROVENANCE)
     }
@@ -116,7 +121,7 @@ impl RunDir {
 
     /// The checkpoint's state (`learning::checkpoint::TrainingState`).
     pub fn state(&self) -> PathBuf {
-        self.checkpoint().join(crate::learning::checkpoint::STATE)
+        self.checkpoint().join(crate::learning::files::STATE)
     }
 
     /// `metrics.csv`'s rows up to the checkpoint whose manifest gives `expected` (the digest of its first
@@ -267,7 +272,7 @@ impl RunDir {
                     let name = entry.file_name().to_string_lossy().into_owned();
                     let ours = entry.file_type().is_ok_and(|t| t.is_file())
                         && (name.ends_with(".safetensors")
-                            || name == crate::learning::checkpoint::STATE
+                            || name == crate::learning::files::STATE
                             || name == crate::learning::manifest::MANIFEST
                             || (name.starts_with('.') && name.ends_with(".tmp")));
                     if !ours {

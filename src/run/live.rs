@@ -7,7 +7,7 @@ use super::folder::RunDir;
 use super::schema;
 use crate::io::Existing;
 use crate::learning::nets::Mlp;
-use crate::learning::{checkpoint, Learners};
+use crate::learning::Learners;
 use crate::sim::clock::Episode;
 use crate::sim::metrics::EpisodeLog;
 use crate::sim::species::SpeciesRegistry;
@@ -117,7 +117,7 @@ impl LiveRun {
             run.write_provenance(scene)?;
             crate::io::write_file(&run.metrics(), Existing::Replace, self.metrics_text.as_bytes())?;
             for (name, episode, actor) in &self.snapshots {
-                checkpoint::save_snapshot(dir, scene, name, *episode, actor)?;
+                crate::learning::snapshots::save_snapshot(dir, scene, name, *episode, actor)?;
             }
             let metrics = crate::learning::manifest::Digest::of(self.metrics_text.as_bytes());
             super::train::save_checkpoint(dir, world, scene, None, metrics)

@@ -1,10 +1,13 @@
 //! Run modes and their run folders: `folder.rs` owns a run folder (its names, what may be written into
 //! it, who may write); `train.rs`, `evaluate.rs`, `record.rs`, `animate.rs`, `bench.rs` are the modes,
 //! `schema.rs` their CSV columns, `provenance.rs` what made a run, `env.rs` coevo stepped from outside,
-//! `progress.rs` costly calls' notices.
+//! `progress.rs` costly calls' notices, `args.rs` the flags several modes share (each mode's own flags sit
+//! beside it), `deploy.rs` what `--record` and `--animate` show.
 
 pub mod animate;
+pub mod args;
 pub mod bench;
+pub mod deploy;
 pub mod env;
 pub mod evaluate;
 pub mod folder;

@@ -22,6 +22,28 @@ use std::path::Path;
 
 pub const HEADER: &str = "step,id,species,x,y,vx,vy,theta,thrust,turn_rate,reward";
 
+/// `--record OUT.csv`.
+#[derive(clap::Args, Debug, Clone, Default)]
+pub struct RecordArgs {
+    /// Record a trajectory CSV: step,id,species,x,y,vx,vy,theta,thrust,turn_rate,reward.
+    #[arg(long, help_heading = "Modes", value_name = "OUT.csv")]
+    pub record: Option<std::path::PathBuf>,
+}
+
+impl super::args::Mode for RecordArgs {
+    const MODE: &'static str = "record";
+    const TAKES: &'static [&'static str] =
+        &["run", "scene", "seed", "steps", "prey", "predators", "count", "policy", "overwrite", "snapshot"];
+}
+
+/// `--record OUT.csv`: the deployed scene ([`super::deploy`]) recorded.
+pub fn main(out: &Path, deploy: &super::deploy::DeployArgs, shared: &super::args::Shared) -> crate::error::Result<()> {
+    let mut d = deploy.deploy(&shared.scene)?;
+    record(&mut d.sim, d.steps, out, shared.common.existing())?;
+    crate::errln!("coevo: wrote {} steps to {}{}", d.steps, out.display(), d.actors)?;
+    Ok(())
+}
+
 /// Runs `steps` steps of `sim` and streams the trajectory to `path`, which appears only when complete
 /// (see [`crate::io::AtomicFile`]). Stops with an error, writing nothing, if the state stops being
 /// physical ([`Simulation::check`]).

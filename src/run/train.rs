@@ -2,6 +2,7 @@
 //! directly, into a run folder ([`super::RunDir`]): `metrics.csv` one row per episode
 //! ([`super::schema`]), a checkpoint every `checkpoint_every` episodes (`learning::checkpoint`).
 
+use super::args::Shared;
 use super::folder::{io_err, RunDir};
 use super::schema;
 use crate::io::Existing;
@@ -19,6 +20,7 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+#[derive(Clone, Debug, PartialEq)]
 pub struct TrainOptions {
     pub run: PathBuf,
     pub resume: bool,
@@ -35,6 +37,102 @@ impl TrainOptions {
     pub fn new(run: impl Into<PathBuf>, episodes: Option<usize>) -> TrainOptions {
         TrainOptions { run: run.into(), resume: false, overwrite: false, episodes, progress: false }
     }
+
+    /// The call that trains `scene` (a file) with `seed` as these options say, or resumes `run`, as argv.
+    pub fn to_argv(&self, scene: &Path, seed: u64) -> Vec<String> {
+        let mut argv: Vec<String> = if self.resume {
+            vec!["--resume".into(), self.run.display().to_string()]
+        } else {
+            let mut argv = vec!["--train".into(), "--scene".into(), scene.display().to_string()];
+            argv.extend(["--seed".into(), seed.to_string(), "--out".into(), self.run.display().to_string()]);
+            argv
+        };
+        if let Some(n) = self.episodes {
+            argv.extend(["--episodes".into(), n.to_string()]);
+        }
+        if self.overwrite {
+            argv.push("--overwrite".into());
+        }
+        if !self.progress {
+            argv.push("--quiet".into());
+        }
+        argv
+    }
+}
+
+/// `--train`: a new run of a scene.
+#[derive(clap::Args, Debug, Clone, Default)]
+pub struct TrainArgs {
+    /// Train the scene's learning species headless (Algorithm 1) into --out.
+    #[arg(long, help_heading = "Modes")]
+    pub train: bool,
+    /// Run folder for --train (default runs/<scene>-seed<seed>); must be new or empty.
+    #[arg(long, help_heading = "Running", value_name = "DIR")]
+    pub out: Option<PathBuf>,
+}
+
+impl super::args::Mode for TrainArgs {
+    const MODE: &'static str = "train";
+    const TAKES: &'static [&'static str] = &["scene", "seed", "episodes", "overwrite", "quiet"];
+}
+
+/// `--resume RUN`: a killed or finished run continued.
+#[derive(clap::Args, Debug, Clone, Default)]
+pub struct ResumeArgs {
+    /// Continue a killed or finished run from its last checkpoint (to --episodes in total).
+    #[arg(long, help_heading = "Modes", value_name = "DIR")]
+    pub resume: Option<PathBuf>,
+}
+
+impl super::args::Mode for ResumeArgs {
+    const MODE: &'static str = "resume";
+    const TAKES: &'static [&'static str] = &["episodes", "quiet"];
+}
+
+impl TrainArgs {
+    /// The scene to train (--scene with --seed) and the options.
+    pub fn options(&self, shared: &Shared) -> crate::error::Result<(Scene, TrainOptions)> {
+        let (args, common) = (&shared.scene, &shared.common);
+        let (scene, path) = args.load(Path::new(super::args::STANDARD_SCENE), &args.overrides(false)?)?;
+        let stem = path.file_stem().map_or("run".into(), |s| s.to_string_lossy().into_owned());
+        let run = self.out.clone().unwrap_or_else(|| PathBuf::from(format!("runs/{stem}-seed{}", scene.seed)));
+        Ok((
+            scene,
+            TrainOptions {
+                run,
+                resume: false,
+                overwrite: common.overwrite,
+                episodes: common.episodes,
+                progress: !common.quiet,
+            },
+        ))
+    }
+}
+
+impl ResumeArgs {
+    /// The options of continuing the run (its own scene is loaded by [`train`]; the one returned is a
+    /// placeholder).
+    pub fn options(&self, run: &Path, shared: &Shared) -> (Scene, TrainOptions) {
+        let common = &shared.common;
+        let opts = TrainOptions {
+            run: run.to_path_buf(),
+            resume: true,
+            overwrite: false,
+            episodes: common.episodes,
+            progress: !common.quiet,
+        };
+        (Scene::preset("paper").expect("a preset of this program"), opts)
+    }
+}
+
+/// `--train` or `--resume`: trains, says where and what came out.
+pub fn main(scene: Scene, opts: &TrainOptions) -> crate::error::Result<()> {
+    let trained = train(scene, opts)?;
+    crate::errln!("coevo: trained {trained} episodes into {}", opts.run.display())?;
+    if opts.progress {
+        crate::io::err_text(format_args!("{}", explain(&opts.run)?))?;
+    }
+    Ok(())
 }
 
 /// Refuses a resume that could not continue the run as it was: its scene.ron edited since training
@@ -179,7 +277,7 @@ pub fn train(scene: Scene, opts: &TrainOptions) -> crate::error::Result<usize> {
         let learners = sim.world().resource::<Learners>();
         for (l, name) in learners.species.iter().zip(&names) {
             if let Some(l) = l.as_ref().filter(|l| !l.frozen) {
-                checkpoint::save_snapshot(run, &scene, name, episode, &l.ddpg.actor)?;
+                crate::learning::snapshots::save_snapshot(run, &scene, name, episode, &l.ddpg.actor)?;
             }
         }
         Ok(())
@@ -210,7 +308,7 @@ pub fn train(scene: Scene, opts: &TrainOptions) -> crate::error::Result<usize> {
             save(&sim, last_good.as_ref(), &metrics)?;
             return Err(format!(
                 "training stopped: {failure}; the last good networks are saved in {}",
-                checkpoint::checkpoint_dir(run).display()
+                crate::learning::files::checkpoint_dir(run).display()
             )
             .into());
         }

@@ -20,6 +20,7 @@
 // tuples: both lints flag the ordinary shape of a system.
 #![allow(clippy::too_many_arguments, clippy::type_complexity)]
 
+pub mod args;
 mod capture;
 mod draw;
 mod panel;
@@ -296,5 +297,69 @@ fn step(world: &mut World) {
         // A running mean over roughly the last second of frames.
         let now = done as f64 / seconds;
         p.steps_per_second = if p.steps_per_second == 0.0 { now } else { 0.95 * p.steps_per_second + 0.05 * now };
+    }
+}
+
+impl args::ViewerArgs {
+    /// Opens the window as the flags say.
+    pub fn main(
+        &self,
+        draw: &crate::run::animate::AnimateArgs,
+        shared: &crate::run::args::Shared,
+    ) -> crate::error::Result<()> {
+        use std::path::Path;
+        let scene = &shared.scene;
+        if self.watch.is_some() && (scene.scene.is_some() || self.rules) {
+            return Err("--watch: shows a run in its own scene; it does not combine with --scene or --rules".into());
+        }
+        let (default, mode) = match &self.watch {
+            Some(run) => {
+                crate::run::RunDir::new(run).check_plugins()?;
+                (run.join(crate::run::SCENE), RunMode::Watch(run.clone()))
+            }
+            None => (
+                Path::new(crate::run::args::STANDARD_SCENE).to_path_buf(),
+                if self.rules { RunMode::RuleBased } else { RunMode::LiveTraining },
+            ),
+        };
+        let (loaded, source) = scene.load(&default, &scene.overrides(false)?)?;
+        let size = self.window.clone().unwrap_or_else(|| "1280x720".into());
+        let window = size
+            .split_once('x')
+            .and_then(|(w, h)| Some(bevy::math::UVec2::new(w.parse().ok()?, h.parse().ok()?)))
+            .filter(|s| s.x >= 320 && s.y >= 240)
+            .ok_or_else(|| format!("--window {size}: expected WxH of at least 320x240, e.g. 1280x720"))?;
+        if let Some(path) = &self.screenshot {
+            if path.extension().is_none_or(|e| e != "png") {
+                return Err(format!("--screenshot {}: the file must end in .png", path.display()).into());
+            }
+            crate::io::check_target(path, shared.common.existing())
+                .map_err(|e| format!("--screenshot {}: {e}", path.display()))?;
+        }
+        let snapshots = scene.snapshots(self.watch.as_deref(), "--watch")?;
+        if let Some(dir) = &self.save_run {
+            if self.watch.is_some() || self.rules {
+                return Err(
+                    format!("--save-run {}: saves live training; not with --watch or --rules", dir.display()).into()
+                );
+            }
+            crate::run::RunDir::new(dir).check_new(false).map_err(|e| format!("--save-run {e}"))?;
+        }
+        run(ViewerOptions {
+            setup: Setup { scene: loaded, source, mode, snapshots },
+            window,
+            steps_per_frame: draw.steps_per_frame.unwrap_or(1),
+            paused: self.paused,
+            // Live training starts fast, so its curves move within the first minute (an episode takes ~20 s
+            // at one step per frame); watching a run or rule-based agents starts at one step per frame.
+            fast: self.fast || (self.watch.is_none() && !self.rules && draw.steps_per_frame.is_none() && !self.paused),
+            trails: draw.trails,
+            select: self.select,
+            screenshot: self
+                .screenshot
+                .clone()
+                .map(|path| ScreenshotRequest { path, frames: self.frames.unwrap_or(60) }),
+            save_run: self.save_run.clone(),
+        })
     }
 }

@@ -181,7 +181,7 @@ fn restart_as(c: &mut Control, scene: Scene, source: PathBuf, mode: RunMode) {
 fn snapshot_picker(ui: &mut egui::Ui, c: &mut Control) {
     let RunMode::Watch(run) = c.current.mode.clone() else { return };
     for def in c.current.scene.species.iter().filter(|d| d.policy == crate::scene::Policy::Learned) {
-        let kept = crate::learning::checkpoint::snapshot_episodes(&run, &def.name);
+        let kept = crate::learning::snapshots::snapshot_episodes(&run, &def.name);
         if kept.is_empty() {
             continue;
         }

@@ -146,6 +146,7 @@ fn corrupt_missing_or_mismatched_checkpoints_are_refused_clearly() {
             untrained: false,
             snapshots: vec![],
             perturb: None,
+            perturb_step: None,
         })
     };
     let corrupt = eval(vec![]).unwrap_err().to_string();
@@ -180,6 +181,7 @@ fn evaluation_deploys_on_fifty_prey_and_without_predators() {
         untrained: false,
         snapshots: vec![],
         perturb: None,
+        perturb_step: None,
     })
     .unwrap();
     assert!(line.contains("0 predator + 50 prey"), "{line}");
@@ -222,6 +224,7 @@ fn evaluation_deploys_on_fifty_prey_and_without_predators() {
         untrained: false,
         snapshots: vec![],
         perturb: None,
+        perturb_step: None,
     })
     .unwrap();
     let confusion = std::fs::read_to_string(run.join("with-predators-confusion.csv")).unwrap();
@@ -243,6 +246,7 @@ fn evaluation_deploys_on_fifty_prey_and_without_predators() {
             untrained: false,
             snapshots: vec![],
             perturb: None,
+            perturb_step: None,
         })
         .unwrap()
     };

@@ -1,0 +1,269 @@
+//! `--experiment` and `--plot`: their flags, and the orchestration: run an experiment's runs
+//! ([`super::runner`]), load what they wrote ([`super::data`]), aggregate it ([`super::aggregate`]) and
+//! write each experiment's REPORT.md and REPRODUCTION.md ([`super::report`]).
+
+use super::file::Experiment;
+use super::report::{experiment_report, reproduction, Reported, EXPERIMENTS, REPORT, RESULTS};
+use super::runner;
+use super::{aggregate, data, figures};
+use crate::io::Existing;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+/// `--experiment FILE|all` and its own flags.
+#[derive(clap::Args, Debug, Clone, Default)]
+pub struct ExperimentArgs {
+    /// Run an experiment file (experiments/*.ron), or `all` of them: every preset × variant × seed as a
+    /// run under results/, resuming killed runs and skipping finished ones, then evaluations, summaries,
+    /// figures and results/NAME/REPORT.md (claims and verdicts); `all` also rewrites REPRODUCTION.md.
+    #[arg(long, help_heading = "Modes", value_name = "FILE|all")]
+    pub experiment: Option<String>,
+    /// --experiment: runs at a time, sharing the cores (--threads / J each) [default: 2].
+    #[arg(long, help_heading = "Experiments", value_name = "J", value_parser = crate::run::args::at_least_one)]
+    pub jobs: Option<usize>,
+    /// --experiment: only run index N of the experiment (what a Slurm array task runs).
+    #[arg(long, help_heading = "Experiments", value_name = "N")]
+    pub task: Option<usize>,
+    /// --experiment: write a Slurm job array and a dependent aggregate job instead of running.
+    #[arg(long, help_heading = "Experiments")]
+    pub emit_slurm: bool,
+}
+
+impl crate::run::args::Mode for ExperimentArgs {
+    const MODE: &'static str = "experiment";
+    const TAKES: &'static [&'static str] = &["quiet"];
+}
+
+/// What `--experiment` was asked.
+pub struct Request<'a> {
+    /// An experiment file, or `all` of `experiments/`.
+    pub which: &'a str,
+    /// Runs at a time [default 2].
+    pub jobs: Option<usize>,
+    /// Only this run (a Slurm array task).
+    pub task: Option<usize>,
+    /// Write Slurm scripts instead of running.
+    pub emit_slurm: bool,
+    pub quiet: bool,
+}
+
+impl ExperimentArgs {
+    pub fn request<'a>(&self, which: &'a str, shared: &crate::run::args::Shared) -> Request<'a> {
+        Request { which, jobs: self.jobs, task: self.task, emit_slurm: self.emit_slurm, quiet: shared.common.quiet }
+    }
+}
+
+/// `--plot DIR|all` and its own flag.
+#[derive(clap::Args, Debug, Clone, Default)]
+pub struct PlotArgs {
+    /// Regenerate summaries, figures and REPORT.md from CSV files alone: an experiment's results folder
+    /// (results/NAME, with experiments/NAME.ron), one run folder, or `all` (every experiment, and
+    /// REPRODUCTION.md; an experiment whose run folders are not all here keeps its summaries, and its
+    /// figures are redrawn from its committed figure-data.ron.gz).
+    #[arg(long, help_heading = "Modes", value_name = "DIR")]
+    pub plot: Option<PathBuf>,
+    /// --plot: draw a run stopped after its last checkpoint, or an experiment whose runs are not all
+    /// finished, from what there is (marked partial) instead of refusing.
+    #[arg(long, help_heading = "Experiments")]
+    pub partial: bool,
+}
+
+impl crate::run::args::Mode for PlotArgs {
+    const MODE: &'static str = "plot";
+    const TAKES: &'static [&'static str] = &[];
+}
+
+/// `--experiment FILE|all`: run, evaluate and aggregate; then REPRODUCTION.md from every experiment's
+/// results so far (the project's experiment files), or the experiment's own summaries (any other file).
+pub fn experiment(request: &Request) -> crate::error::Result<()> {
+    let which = request.which;
+    let files = match which {
+        "all" => Experiment::files(Path::new(EXPERIMENTS))?,
+        file => vec![PathBuf::from(file)],
+    };
+    let experiments = files.iter().map(|f| Experiment::load(f, Path::new(RESULTS))).collect::<Result<Vec<_>, _>>()?;
+    if let Some(task) = request.task {
+        match experiments.as_slice() {
+            [exp] if task < exp.runs.len() => {}
+            [exp] => {
+                return Err(format!("--task {task}: {} has runs 0 to {}", exp.file.display(), exp.runs.len() - 1).into())
+            }
+            _ => return Err("--task: names a run of one experiment file, not of `all`".into()),
+        }
+    }
+    if request.emit_slurm {
+        if request.task.is_some() {
+            return Err("--task: not used by --emit-slurm, which writes a job for every run".into());
+        }
+        let exe = std::env::current_exe().map_err(|e| format!("cannot find the coevo binary: {e}"))?;
+        for exp in &experiments {
+            let dir = runner::emit_slurm(exp, &exe)?;
+            // Quoted as the scripts quote it, so the line can be pasted into a shell as it is.
+            let submit = dir.join("submit.sh").to_string_lossy().into_owned();
+            let submit = shlex::try_quote(&submit).map_or(submit.clone(), |q| q.into_owned());
+            crate::outln!("{}: {} runs; submit with: bash {submit}", exp.name, exp.runs.len())?;
+        }
+        return Ok(());
+    }
+    let opts = runner::RunnerOptions {
+        exe: std::env::current_exe().map_err(|e| format!("cannot find the coevo binary: {e}"))?,
+        jobs: request.jobs.unwrap_or(2),
+        progress: !request.quiet,
+    };
+    // Every experiment is attempted; the one error line names the first failure.
+    let failed: Vec<crate::error::Error> =
+        experiments.iter().filter_map(|exp| runner::run(exp, &opts, request.task).err()).collect();
+    if let Some(first) = failed.first() {
+        let others = match failed.len() {
+            1 => String::new(),
+            n => format!("; {} more experiments failed", n - 1),
+        };
+        let kept = if which == "all" { " (REPRODUCTION.md left as it was)" } else { "" };
+        return Err(format!("{first}{others}{kept}").into());
+    }
+    if request.task.is_some() {
+        return Ok(());
+    }
+    // REPRODUCTION.md is the suite's: written when asked for `all`; one experiment reports alone.
+    if which == "all" {
+        return write_reproduction();
+    }
+    for exp in experiments {
+        let data = data::load(&exp)?;
+        report(exp, &data)?;
+    }
+    Ok(())
+}
+
+/// Summaries, figures and REPORT.md of every experiment of `experiments/`, and REPRODUCTION.md over all of
+/// them.
+pub fn write_reproduction() -> crate::error::Result<()> {
+    // Everything loaded and checked before anything is written.
+    let mut loaded = Vec::new();
+    for file in Experiment::files(Path::new(EXPERIMENTS))? {
+        let exp = Experiment::load(&file, Path::new(RESULTS))?;
+        // An experiment whose file asks for evaluations other than its runs hold is reported from its
+        // committed summary until it is run again; the others are still reported.
+        let mut data = match runner::first_stale(&exp) {
+            Some(stale) => {
+                crate::errln!(
+                    "coevo: {stale}; run `coevo --experiment {}` to redo it (reported from the committed summary)",
+                    exp.file.display()
+                )?;
+                BTreeMap::new()
+            }
+            None => data::load(&exp)?,
+        };
+        // An experiment being re-run (fewer run folders than its committed summary holds) is reported from
+        // its committed summary.csv, and its files are left as they are, until its runs are all back.
+        if let Err(e) = data::check_complete(&exp, &data) {
+            crate::errln!("coevo: {e} (reported from the committed summary)")?;
+            data.clear();
+        }
+        loaded.push((exp, data));
+    }
+    let mut all = Vec::new();
+    for (exp, data) in loaded {
+        all.push(report(exp, &data)?);
+    }
+    crate::io::write_file(Path::new("REPRODUCTION.md"), Existing::Replace, reproduction(&all).as_bytes())?;
+    crate::errln!("coevo: wrote REPRODUCTION.md")?;
+    Ok(())
+}
+
+/// One experiment's claims checked, from its run folders (writing its summaries and figures) or, in a
+/// clone without them, from its committed summary.csv; then its REPORT.md, which holds only what the
+/// summary holds, so a clone regenerates it byte for byte. Says on stderr exactly what it wrote.
+fn report(exp: Experiment, data: &BTreeMap<usize, super::claims::RunData>) -> crate::error::Result<Reported> {
+    let aggregate::Aggregated { results, summary, figures, from_folders } = aggregate::aggregate(&exp, data)?;
+    let wall = summary.columns.iter().position(|c| c == "wall_seconds");
+    // + 0.0: an empty f64 sum is −0.0, which would print as "-0.0 h".
+    // Shared runs are another experiment's trainings: counted there.
+    let own = || summary.rows.iter().filter(|r| r.shared_from.is_empty());
+    let seconds: f64 = own().filter_map(|r| wall.map(|i| r.values[i])).filter(|x| x.is_finite()).sum::<f64>() + 0.0;
+    let shared = summary.rows.len() - own().count();
+    let mut binaries: Vec<String> = summary.rows.iter().flat_map(|r| r.binary.split(' ').map(String::from)).collect();
+    binaries.sort();
+    binaries.dedup();
+    let reported = Reported { finished: summary.rows.len(), shared, exp, results, seconds, binaries, summary };
+    let root = &reported.exp.root;
+    let path = root.join(REPORT);
+    std::fs::create_dir_all(root).map_err(|e| format!("{}: {e}", root.display()))?;
+    crate::io::write_file(&path, Existing::Replace, experiment_report(&reported).as_bytes())?;
+    let drawn = |n: usize| {
+        format!("{n} figure{} (.svg and .png) in {}/figures/", if n == 1 { "" } else { "s" }, root.display())
+    };
+    match (from_folders, figures) {
+        (true, n) => crate::errln!(
+            "coevo: wrote {0}/summary.csv, {0}/summary-mean.csv, {0}/{1}, {0}/{REPORT} and {2} ({3} claims checked)",
+            root.display(),
+            super::figure_data::FILE,
+            drawn(n.unwrap_or(0)),
+            reported.results.len()
+        )?,
+        (false, Some(n)) => crate::errln!(
+            "coevo: wrote {} and {} from the committed summary.csv and {} (its runs' folders are not all here: the summaries left as they are)",
+            path.display(),
+            drawn(n),
+            super::figure_data::FILE
+        )?,
+        (false, None) => crate::errln!(
+            "coevo: wrote {} from the committed summary.csv (its runs' folders are not all here, and it has no {}: summaries and figures left as they are)",
+            path.display(),
+            super::figure_data::FILE
+        )?,
+    }
+    Ok(reported)
+}
+
+/// `--plot DIR`: an experiment's summaries, figures and REPORT.md, or one run's learning curves, from CSVs
+/// alone.
+/// With `partial`, a run stopped after its last checkpoint, or an experiment whose runs are not all
+/// finished, is drawn from what there is (marked partial); without, either is refused.
+pub fn plot(dir: &Path, partial: bool) -> crate::error::Result<()> {
+    if dir == Path::new("all") {
+        return write_reproduction();
+    }
+    if crate::run::is_run(dir) {
+        let path = figures::plot_run(dir, partial)?;
+        crate::errln!("coevo: wrote {} and its .svg", path.display())?;
+        return Ok(());
+    }
+    let name = dir.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    let file = Path::new(EXPERIMENTS).join(format!("{name}.ron"));
+    if !file.exists() {
+        return Err(format!(
+            "--plot {}: neither a run folder nor the results of an experiment file {}",
+            dir.display(),
+            file.display()
+        )
+        .into());
+    }
+    let results = dir.parent().unwrap_or(Path::new("."));
+    let exp = Experiment::load(&file, results)?;
+    let data = data::load(&exp)?;
+    data::check_complete(&exp, &data)?;
+    if !partial && !data.is_empty() && data.len() < exp.runs.len() {
+        return Err(format!(
+            "--plot {}: only {} of the {} runs of {} are finished here; nothing written: finish them with `coevo --experiment {}`, or --partial summarises the finished ones (its report says how many)",
+            dir.display(),
+            data.len(),
+            exp.runs.len(),
+            file.display(),
+            file.display()
+        )
+        .into());
+    }
+    // Without run folders (a clone), the committed figure data redraws the figures.
+    if data.is_empty() && !exp.root.join(super::figure_data::FILE).exists() {
+        return Err(format!(
+            "--plot {}: no finished run of {} there, and no {}; nothing written",
+            dir.display(),
+            file.display(),
+            super::figure_data::FILE
+        )
+        .into());
+    }
+    report(exp, &data)?;
+    Ok(())
+}

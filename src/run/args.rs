@@ -1,0 +1,225 @@
+//! The command-line flags several modes share, and how a mode's arguments are declared.
+//!
+//! coevo keeps one flat surface (`coevo --train`, `coevo --eval RUN`: one mode flag per call). Each mode
+//! owns a clap [`Args`](clap::Args) struct in its own module (`run/train.rs`, `run/evaluate.rs`, …) with
+//! its mode flag and the flags only it takes; it names, in [`Mode::TAKES`], which flags of [`SceneArgs`]
+//! and [`CommonArgs`] (or of another mode) it takes too. `cli.rs` flattens them all into one command and
+//! refuses a flag the chosen mode does not take. A mode's arguments become its typed options there, and
+//! the options write themselves back as argv (`to_argv`) for the experiment runner's children, so no
+//! flag is spelled outside its owner.
+
+use crate::scene::{Overrides, Scene};
+use clap::Args;
+use std::path::{Path, PathBuf};
+
+/// A mode's own arguments: its mode flag (`MODE`, the clap id; "" for the viewer, the call without one)
+/// and the flags declared elsewhere that it takes besides its own, `--threads` and `--kernels`.
+pub trait Mode: Args {
+    const MODE: &'static str;
+    const TAKES: &'static [&'static str];
+}
+
+/// Which scene a call runs and what it changes of it.
+#[derive(Args, Debug, Clone, Default)]
+pub struct SceneArgs {
+    /// Scene file to run [default: scenes/standard.ron].
+    #[arg(long, help_heading = "Scene", value_name = "PATH")]
+    pub scene: Option<PathBuf>,
+    /// Override the scene's random seed.
+    #[arg(long, help_heading = "Scene", value_name = "S")]
+    pub seed: Option<u64>,
+    /// Steps to simulate (--record) or per episode (--eval).
+    #[arg(long, help_heading = "Scene", value_name = "N", value_parser = at_least_one)]
+    pub steps: Option<usize>,
+    /// Number of prey (--eval, --record, viewer; the paper evaluates on 50).
+    #[arg(long, help_heading = "Scene", value_name = "N")]
+    pub prey: Option<usize>,
+    /// Number of predators (--eval, --record, viewer; 0 removes them, as in the paper's Fig. 5a).
+    #[arg(long, help_heading = "Scene", value_name = "N")]
+    pub predators: Option<usize>,
+    /// Any species' count, as NAME=N (repeatable; --eval, --record, viewer).
+    #[arg(long, help_heading = "Scene", value_name = "NAME=N")]
+    pub count: Vec<String>,
+    /// A species' policy, as NAME=POLICY with POLICY as a scene file writes it: ChaseNearest, FleeNearest,
+    /// Random, Still, Frozen("RUN") (repeatable; --eval, --record, --animate, --describe-scene), e.g.
+    /// --policy predator=ChaseNearest evaluates trained prey against the paper's rule-based predators.
+    #[arg(long, help_heading = "Scene", value_name = "NAME=POLICY")]
+    pub policy: Vec<String>,
+    /// Deploy a species' snapshot instead of its trained actor, as NAME=EPISODE (repeatable; --eval,
+    /// --record and --animate with --run, viewer with --watch), e.g. --snapshot prey=300.
+    #[arg(long, help_heading = "Scene", value_name = "NAME=EPISODE")]
+    pub snapshot: Vec<String>,
+}
+
+/// Flags of how a call runs rather than what it runs.
+#[derive(Args, Debug, Clone, Default)]
+pub struct CommonArgs {
+    /// Episodes of the training run (default: the scene's `episodes`) or of the evaluation (default 1).
+    #[arg(long, help_heading = "Running", value_name = "N")]
+    pub episodes: Option<usize>,
+    /// --train into a folder that holds a run, or --record/--animate/--screenshot over an existing file:
+    /// replace it (coevo's own files only).
+    #[arg(long, help_heading = "Running")]
+    pub overwrite: bool,
+    /// No progress bar (--train, --resume, --crossplay, --animate, --experiment).
+    #[arg(long, help_heading = "Running")]
+    pub quiet: bool,
+    /// Worker threads (default: COEVO_THREADS, else all cores). Results never depend on it.
+    #[arg(long, help_heading = "Running", value_name = "N", value_parser = at_least_one)]
+    pub threads: Option<usize>,
+    /// Matrix-product kernels: auto, avx512, avx2 or portable (default: COEVO_KERNELS, else auto). Pin one
+    /// family so CPUs with and without AVX-512 compute identical runs.
+    #[arg(long, help_heading = "Running", value_name = "FAMILY")]
+    pub kernels: Option<String>,
+}
+
+impl CommonArgs {
+    /// Sets what is process-wide: the worker threads, and the matrix-product kernels (--kernels, else
+    /// COEVO_KERNELS) before any network exists, since gemm fixes its kernels at its first product.
+    pub fn apply_to_process(&self) -> crate::error::Result<()> {
+        if let Some(n) = self.threads {
+            crate::parallel::set_threads(n);
+        }
+        match (&self.kernels, std::env::var("COEVO_KERNELS")) {
+            (Some(family), _) => crate::learning::nets::pin_kernels(family).map_err(|e| format!("--kernels: {e}"))?,
+            (None, Ok(family)) => {
+                crate::learning::nets::pin_kernels(&family).map_err(|e| format!("COEVO_KERNELS: {e}"))?
+            }
+            (None, Err(_)) => {}
+        }
+        Ok(())
+    }
+
+    /// The existing-file rule of --overwrite.
+    pub fn existing(&self) -> crate::io::Existing {
+        if self.overwrite {
+            crate::io::Existing::Replace
+        } else {
+            crate::io::Existing::Refuse
+        }
+    }
+}
+
+/// The flags of [`SceneArgs`] and [`CommonArgs`] as a call gave them, handed to every mode.
+#[derive(Debug, Clone, Default)]
+pub struct Shared {
+    pub scene: SceneArgs,
+    pub common: CommonArgs,
+}
+
+/// A child process's worker threads, as argv (the experiment runner's children).
+pub fn threads_argv(threads: usize) -> Vec<String> {
+    vec!["--threads".into(), threads.to_string()]
+}
+
+/// clap's parser of a count that must be ≥ 1.
+pub fn at_least_one(text: &str) -> Result<usize, String> {
+    match text.parse::<usize>() {
+        Ok(0) => Err("must be ≥ 1".into()),
+        Ok(n) => Ok(n),
+        Err(_) => Err(format!("{text:?} is not a count")),
+    }
+}
+
+impl SceneArgs {
+    /// What the call changes of the scene it loads: --prey, --predators and --count (in that order),
+    /// --seed, and --steps per episode when `steps` (--eval; --record and --animate run --steps as one
+    /// episode).
+    pub fn overrides(&self, steps: bool) -> crate::error::Result<Overrides> {
+        let mut counts: Vec<(String, usize)> = self.prey.map(|n| ("prey".to_string(), n)).into_iter().collect();
+        counts.extend(self.predators.map(|n| ("predator".to_string(), n)));
+        for c in &self.count {
+            let (name, n) = c.split_once('=').ok_or_else(|| format!("--count {c}: expected NAME=N"))?;
+            counts.push((name.to_string(), n.parse().map_err(|_| format!("--count {c}: {n} is not a count"))?));
+        }
+        let mut policies = vec![];
+        for p in &self.policy {
+            let (name, policy) = p.split_once('=').ok_or_else(|| format!("--policy {p}: expected NAME=POLICY"))?;
+            let policy = ron::from_str(policy).map_err(|_| {
+                format!("--policy {p}: {policy} is not a policy (ChaseNearest, FleeNearest, Random, Still, Frozen(\"RUN\"), Learned)")
+            })?;
+            policies.push((name.to_string(), policy));
+        }
+        Ok(Overrides {
+            counts,
+            policies,
+            seed: self.seed,
+            episode_steps: if steps { self.steps } else { None },
+            confusion_radius: None,
+        })
+    }
+
+    /// The --snapshot requests (NAME=EPISODE); they need a run whose snapshots to deploy (`run`, given
+    /// with the flag `what`).
+    pub fn snapshots(&self, run: Option<&Path>, what: &str) -> crate::error::Result<Vec<(String, usize)>> {
+        if !self.snapshot.is_empty() && run.is_none() {
+            return Err(format!("--snapshot: deploys a run's snapshots; give the run with {what}").into());
+        }
+        self.snapshot
+            .iter()
+            .map(|text| {
+                let (name, episode) = text
+                    .split_once('=')
+                    .ok_or_else(|| format!("--snapshot {text}: expected NAME=EPISODE, e.g. prey=300"))?;
+                let episode = episode
+                    .parse()
+                    .map_err(|_| format!("--snapshot {text}: {episode:?} is not a number of episodes"))?;
+                Ok((name.to_string(), episode))
+            })
+            .collect()
+    }
+
+    /// The scene file of the call (--scene, else `default`) with `overrides` applied and validated.
+    pub fn load(&self, default: &Path, overrides: &Overrides) -> crate::error::Result<(Scene, PathBuf)> {
+        let path = self.scene.clone().unwrap_or_else(|| default.to_path_buf());
+        Ok((overrides.load(&path)?, path))
+    }
+}
+
+/// `overrides` and `snapshots` as the flags that ask for them: counts as --count (applied in order, as
+/// --prey and --predators are), the seed, --steps per episode (the modes that take it per episode). The
+/// confusion radius is --eval's own flag ([`super::evaluate::EvalOptions::to_argv`]).
+pub fn overrides_argv(overrides: &Overrides, snapshots: &[(String, usize)]) -> Vec<String> {
+    let mut argv = vec![];
+    let mut flag = |name: &str, value: String| argv.extend([name.to_string(), value]);
+    if let Some(seed) = overrides.seed {
+        flag("--seed", seed.to_string());
+    }
+    if let Some(steps) = overrides.episode_steps {
+        flag("--steps", steps.to_string());
+    }
+    for (species, n) in &overrides.counts {
+        flag("--count", format!("{species}={n}"));
+    }
+    for (species, policy) in &overrides.policies {
+        flag("--policy", format!("{species}={}", ron::to_string(policy).expect("a policy always serializes")));
+    }
+    for (species, episode) in snapshots {
+        flag("--snapshot", format!("{species}={episode}"));
+    }
+    argv
+}
+
+/// `--describe-scene FILE`.
+#[derive(Args, Debug, Clone, Default)]
+pub struct DescribeArgs {
+    /// Print a scene as the simulation will run it: species, counts, who catches whom with the reward of
+    /// each contact, the observation layout of each observer species with offsets, and every resolved
+    /// parameter (with the species plugins of this program).
+    #[arg(long, help_heading = "Modes", value_name = "FILE")]
+    pub describe_scene: Option<PathBuf>,
+}
+
+impl Mode for DescribeArgs {
+    const MODE: &'static str = "describe_scene";
+    const TAKES: &'static [&'static str] = &["seed", "prey", "predators", "count", "policy"];
+}
+
+/// `--describe-scene FILE`: the scene with the call's overrides, described.
+pub fn describe(path: &Path, shared: &Shared) -> crate::error::Result<()> {
+    let scene = shared.scene.overrides(false)?.load(path)?;
+    crate::io::out_text(format_args!("{}", crate::sim::species::describe(&scene, &path.display().to_string())))
+}
+
+/// The default scene of every mode that loads one.
+pub const STANDARD_SCENE: &str = "scenes/standard.ron";
