@@ -17,13 +17,13 @@ coevo keeps as committed, is given as a copy: ``mkdir -p runs && cp -r assets/tr
 from __future__ import annotations
 
 import argparse
-import csv
 import math
 import os
 import subprocess
 
 import numpy as np
-from scipy import stats
+
+import coevo
 
 EVALUATIONS = {  # name: extra coevo --eval flags
     "seeing": [],
@@ -35,49 +35,46 @@ EVALUATIONS = {  # name: extra coevo --eval flags
 }
 
 
-def settled(path: str, column: str, last: int = 50) -> float:
+def settled(run: coevo.RunFolder, path: str, column: str, last: int = 50) -> float:
+    """The mean over episodes of each episode's last `last` steps (the per-step CSV read whole by coevo)."""
+    table = run.read_evaluation(path)
     per_episode: dict[int, list[float]] = {}
-    with open(path) as f:
-        for row in csv.DictReader(f):
-            if row[column]:
-                per_episode.setdefault(int(row["episode"]), []).append(float(row[column]))
+    for episode, value in zip(table["episode"], table[column]):
+        if not math.isnan(value):
+            per_episode.setdefault(int(episode), []).append(value)
     return float(np.mean([np.mean(v[-last:]) for v in per_episode.values()]))
 
 
-def window(run: str, column: str, first: bool, n: int = 100) -> float:
+def window(run: coevo.RunFolder, column: str, first: bool, n: int = 100) -> float:
     """The mean of the first or last `n` episodes of training; NaN for a run without `metrics.csv`."""
-    if not os.path.exists(os.path.join(run, "metrics.csv")):
+    if not os.path.exists(run.metrics):
         return math.nan
-    with open(os.path.join(run, "metrics.csv")) as f:
-        values = [float(r[column]) for r in csv.DictReader(f) if r[column]]
+    values = [v for v in run.read_metrics()[column] if not math.isnan(v)]
     return float(np.mean(values[:n] if first else values[-n:]))
 
 
-def evaluate(coevo: str, run: str, episodes: int, steps: int) -> dict[str, dict[str, float]]:
+def evaluate(coevo_bin: str, path: str, episodes: int, steps: int) -> dict[str, dict[str, float]]:
+    run = coevo.RunFolder(path)
     out = {}
     for name, flags in EVALUATIONS.items():
-        file = "eval-" + name.replace(", ", "-").replace(" ", "-") + ".csv"
-        path = os.path.join(run, file)
-        if not os.path.exists(path):
-            done = subprocess.run([coevo, "--eval", run, "--prey", "50", "--episodes", str(episodes), "--steps",
-                                   str(steps), "--eval-out", file, *flags], capture_output=True, text=True)
+        file = run.evaluation(name.replace(", ", "-").replace(" ", "-"))
+        if not os.path.exists(file):
+            done = subprocess.run([coevo_bin, "--eval", path, "--prey", "50", "--episodes", str(episodes), "--steps",
+                                   str(steps), "--eval-out", os.path.basename(file), *flags],
+                                  capture_output=True, text=True)
             if done.returncode != 0:  # e.g. a run shipped under assets/, which coevo keeps as committed
-                raise SystemExit(done.stderr.strip() or f"coevo --eval {run}: exit {done.returncode}")
-        out[name] = {"doa": settled(path, "doa_prey"), "nn_correlation": settled(path, "nn_correlation_prey")}
+                raise SystemExit(done.stderr.strip() or f"coevo --eval {path}: exit {done.returncode}")
+        out[name] = {"doa": settled(run, file, "doa_prey"), "nn_correlation": settled(run, file, "nn_correlation_prey")}
     out["training"] = {"doa_first": window(run, "doa_prey", True), "doa_last": window(run, "doa_prey", False),
                        "catches_last": window(run, "catches", False)}
     return out
 
 
 def interval(x: list[float]) -> tuple[float, float, float]:
-    """Mean, 95 % t half-width, two-sided p of mean 0."""
-    x = np.asarray(x, float)
-    if len(x) < 2:
-        return float(x.mean()), math.nan, math.nan
-    se = x.std(ddof=1) / math.sqrt(len(x))
-    t = stats.t.ppf(0.975, len(x) - 1)
-    p = float(stats.ttest_1samp(x, 0.0).pvalue) if se > 0 else math.nan
-    return float(x.mean()), float(t * se), p
+    """Mean, 95 % t half-width, two-sided p of mean 0, as coevo's reports compute them."""
+    e = coevo.t_estimate(x)
+    nan = lambda v: math.nan if v is None else v  # noqa: E731
+    return e["mean"], nan(e["ci"]), nan(e["p"])
 
 
 def show(label: str, x: list[float], against: float | None = 0.0) -> None:
@@ -134,10 +131,9 @@ def main() -> None:
             print(f"runs minus versus, DoA seeing: {np.mean(x) - np.mean(y):+.3f} "
                   "(no Welch test: it needs two runs a side and some spread)")
             return
-        w = stats.ttest_ind(x, y, equal_var=False)
-        ci = w.confidence_interval(0.95)
-        print(f"runs minus versus, DoA seeing (Welch): {np.mean(x) - np.mean(y):+.3f} "
-              f"[{ci.low:+.3f}, {ci.high:+.3f}] (p = {w.pvalue:.3g})")
+        w = coevo.welch(x, y)  # coevo's Welch test: degrees of freedom rounded down, as its reports
+        print(f"runs minus versus, DoA seeing (Welch): {w['mean']:+.3f} "
+              f"[{w['mean'] - w['ci']:+.3f}, {w['mean'] + w['ci']:+.3f}] (p = {w['p']:.3g})")
 
 
 if __name__ == "__main__":

@@ -107,14 +107,14 @@ def main(args: Args) -> None:
     torch.manual_seed(args.seed)
     torch.set_num_threads(args.torch_threads)
     rng = np.random.default_rng(args.seed)
-    os.makedirs(os.path.join(args.out, "checkpoint"), exist_ok=False)
     counts = {k: int(v) for k, v in (c.split("=") for c in args.counts.split(",") if c)}
     env = coevo.VecEnv(args.scene, num_envs=args.num_envs, seed=args.seed, counts=counts)
-    with open(os.path.join(args.out, "scene.ron"), "w") as f:
-        f.write(coevo.parallel_env(args.scene, seed=args.seed, counts=counts).scene_ron())
+    # coevo names the run folder's files (scene.ron, metrics.csv, the checkpoint's actors); a folder that
+    # holds anything is refused.
+    run = coevo.RunFolder.create(args.out, coevo.parallel_env(args.scene, seed=args.seed, counts=counts).scene_ron())
     with open(coevo._coevo.__file__, "rb") as f:
         extension = hashlib.sha256(f.read()).hexdigest()[:16]
-    with open(os.path.join(args.out, "ippo.json"), "w") as f:
+    with open(os.path.join(run.path, "ippo.json"), "w") as f:
         json.dump({"algorithm": "ippo", "args": asdict(args), "coevo_version": coevo.__version__,
                    "coevo_git_commit": coevo.git_commit, "coevo_extension_sha256": extension,
                    "torch": torch.__version__}, f, indent=1)
@@ -133,7 +133,7 @@ def main(args: Args) -> None:
     logp_buf, rew_buf, val_buf = (np.zeros(shape, np.float32) for _ in range(3))
     done_buf = np.zeros(shape[:2], np.float32)
 
-    metrics = open(os.path.join(args.out, "metrics.csv"), "w")
+    metrics = open(run.metrics, "w")
     metrics.write(header + "\n")
     losses = {s: ("", "", "") for s in learning}  # value loss, policy loss, std of the latest update
     started = time.time()
@@ -206,7 +206,7 @@ def main(args: Args) -> None:
             losses[s] = (f"{v_loss.item()}", f"{pg_loss.item()}", f"{agents[s].actor_log_std.exp().mean().item()}")
         if (it + 1) % 50 == 0 or it + 1 == iterations:
             for s in learning:
-                save_actor(agents[s], os.path.join(args.out, "checkpoint", f"{s}-actor.safetensors"))
+                save_actor(agents[s], run.actor(s))
             print(f"iteration {it + 1}/{iterations}, {(it + 1) * args.num_envs * args.num_steps} world steps, "
                   f"{time.time() - started:.0f} s", flush=True)
     metrics.close()

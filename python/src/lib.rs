@@ -2,7 +2,10 @@
 //! PettingZoo `ParallelEnv`). Nothing is simulated here: `Env` and `VecEnv` hold coevo's own
 //! [`coevo::run::env`] worlds, which step the very schedule `coevo --train` steps.
 
+use coevo::experiment::stats::{self, Estimate};
 use coevo::learning::control::ObservationControl;
+use coevo::run::schema::Table;
+use coevo::run::RunDir;
 use coevo::scene::{Overrides, Scene};
 use numpy::{IntoPyArray, PyArray1, PyArray2, PyArray3, PyArrayMethods, PyReadonlyArray2, PyReadonlyArray3};
 use pyo3::create_exception;
@@ -245,12 +248,123 @@ impl VecEnv {
     }
 }
 
+/// A run folder as coevo names its files: for programs that train outside coevo (`examples/ippo.py`)
+/// or read runs (`examples/controls.py`), so they spell no file name of their own.
+#[pyclass(module = "coevo._coevo")]
+struct RunFolder {
+    dir: RunDir,
+}
+
+#[pymethods]
+impl RunFolder {
+    #[new]
+    fn new(path: &str) -> Self {
+        RunFolder { dir: RunDir::new(path) }
+    }
+
+    /// A new run folder for a run trained outside coevo: refused unless `path` is new or empty; writes
+    /// `scene_ron` as its scene and makes its checkpoint folder.
+    #[staticmethod]
+    fn create(path: &str, scene_ron: &str) -> PyResult<Self> {
+        let dir = RunDir::new(path);
+        dir.check_new(false).map_err(err)?;
+        let made =
+            |p: &Path| std::fs::create_dir_all(p).map_err(|e| CoevoIOError::new_err(format!("{}: {e}", p.display())));
+        made(&dir.checkpoint())?;
+        coevo::io::write_file(&dir.scene(), coevo::io::Existing::Refuse, scene_ron.as_bytes()).map_err(err)?;
+        Ok(RunFolder { dir })
+    }
+
+    #[getter]
+    fn path(&self) -> String {
+        self.dir.path().display().to_string()
+    }
+
+    /// `scene.ron`: the scene as trained.
+    #[getter]
+    fn scene(&self) -> String {
+        self.dir.scene().display().to_string()
+    }
+
+    /// `metrics.csv`: one row per finished episode.
+    #[getter]
+    fn metrics(&self) -> String {
+        self.dir.metrics().display().to_string()
+    }
+
+    /// A species' trained actor (`checkpoint/<species>-actor.safetensors`).
+    fn actor(&self, species: &str) -> String {
+        self.dir.actor(species).display().to_string()
+    }
+
+    /// The per-step CSV of an evaluation named `slug` (`eval-<slug>.csv`; give its file name to
+    /// `coevo --eval RUN --eval-out`).
+    fn evaluation(&self, slug: &str) -> String {
+        self.dir.evaluation(slug).display().to_string()
+    }
+
+    /// `metrics.csv` as columns (name: one float per episode; NaN where blank), refused unless whole
+    /// (with `partial`, a last line cut short is dropped).
+    #[pyo3(signature = (partial=false))]
+    fn read_metrics(&self, py: Python<'_>, partial: bool) -> PyResult<Py<PyDict>> {
+        let path = self.dir.metrics();
+        let text = coevo::io::read_text(&path, coevo::io::MAX_TEXT_BYTES).map_err(err)?;
+        columns(py, &Table::metrics_of(&text, &path, partial).map_err(err)?)
+    }
+
+    /// An evaluation's per-step CSV (a file of this run, e.g. `evaluation(slug)`) as columns, refused
+    /// unless whole.
+    fn read_evaluation(&self, py: Python<'_>, path: &str) -> PyResult<Py<PyDict>> {
+        columns(py, &Table::read_eval(Path::new(path)).map_err(err)?)
+    }
+}
+
+/// A table's columns as a dict of float lists.
+fn columns(py: Python<'_>, table: &Table) -> PyResult<Py<PyDict>> {
+    let out = PyDict::new(py);
+    for (i, name) in table.header.iter().enumerate() {
+        out.set_item(name, table.rows.iter().map(|r| r[i]).collect::<Vec<f64>>())?;
+    }
+    Ok(out.unbind())
+}
+
+/// An estimate as coevo's reports print it: mean, 95 % half-width, two-sided p of zero, samples, degrees
+/// of freedom (None where one sample allows no interval).
+fn estimate_dict(py: Python<'_>, e: Option<Estimate>) -> PyResult<Option<Py<PyDict>>> {
+    let Some(e) = e else { return Ok(None) };
+    let out = PyDict::new(py);
+    out.set_item("mean", e.mean)?;
+    out.set_item("ci", e.ci)?;
+    out.set_item("p", e.p_value())?;
+    out.set_item("n", e.n)?;
+    out.set_item("df", e.df)?;
+    Ok(Some(out.unbind()))
+}
+
+/// The mean of independent samples with its Student-t 95 % interval and the two-sided t test of zero,
+/// exactly as coevo's experiment reports compute them (`coevo::experiment::stats::estimate`); None
+/// without samples.
+#[pyfunction]
+fn t_estimate(py: Python<'_>, samples: Vec<f64>) -> PyResult<Option<Py<PyDict>>> {
+    estimate_dict(py, stats::estimate(&samples))
+}
+
+/// Mean of `a` minus mean of `b` with Welch's 95 % interval and test, degrees of freedom rounded down, as
+/// coevo's reports compute it (`coevo::experiment::stats::difference`); None without samples.
+#[pyfunction]
+fn welch(py: Python<'_>, a: Vec<f64>, b: Vec<f64>) -> PyResult<Option<Py<PyDict>>> {
+    estimate_dict(py, stats::difference(&a, &b))
+}
+
 #[pymodule]
 fn _coevo(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", coevo::VERSION)?;
     m.add("git_commit", coevo::GIT_COMMIT)?;
     m.add_class::<Env>()?;
     m.add_class::<VecEnv>()?;
+    m.add_class::<RunFolder>()?;
+    m.add_function(wrap_pyfunction!(t_estimate, m)?)?;
+    m.add_function(wrap_pyfunction!(welch, m)?)?;
     let py = m.py();
     m.add("CoevoError", py.get_type::<CoevoError>())?;
     m.add("SceneError", py.get_type::<SceneError>())?;

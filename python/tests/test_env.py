@@ -216,8 +216,9 @@ def test_trained_actors_outside_coevo_retrace_coevos_record(tmp_path):
         for line in f:
             step, agent, _, x, y = line.split(",")[:5]
             recorded.setdefault(int(step), []).append((int(agent), float(x), float(y)))
-    env = coevo.parallel_env(str(run / "scene.ron"), seed=4, counts={"prey": 50})
-    actors = {s: _actor(str(run / "checkpoint" / f"{s}-actor.safetensors")) for s in ("predator", "prey")}
+    folder = coevo.RunFolder(str(run))
+    env = coevo.parallel_env(folder.scene, seed=4, counts={"prey": 50})
+    actors = {s: _actor(folder.actor(s)) for s in ("predator", "prey")}
     obs, _ = env.reset()
     for t in range(steps + 1):
         want = np.array([p[1:] for p in sorted(recorded[t])])
@@ -226,6 +227,47 @@ def test_trained_actors_outside_coevo_retrace_coevos_record(tmp_path):
             break
         actions = {a: actors[a.rsplit("_", 1)[0]](obs[a]) for a in env.agents}
         obs, *_ = env.step(actions)
+
+
+def test_run_folder_names_reads_and_refuses(tmp_path):
+    """A run folder as coevo names and reads it: a new one for a run trained outside coevo, its metrics
+    read whole (a cut line refused, or dropped with partial=True), a folder in use refused."""
+    env = coevo.VecEnv(STANDARD, num_envs=1, seed=2, counts={"prey": 4}, episode_steps=5)
+    run = coevo.RunFolder.create(str(tmp_path / "r"), coevo.parallel_env(STANDARD).scene_ron())
+    assert os.path.isfile(run.scene) and os.path.isdir(os.path.dirname(run.actor("prey")))
+    assert os.path.basename(run.evaluation("blind")) == "eval-blind.csv"
+    with pytest.raises(coevo.RunFolderError):
+        coevo.RunFolder.create(run.path, "()")  # it holds a run now
+    env.reset()
+    rows = []
+    while len(rows) < 2:
+        env.step(np.zeros((1, 7, 2), np.float32))
+        rows += env.take_episode_rows()
+    learning = [c for c in env.metrics_header().split(",") if c.startswith("critic_loss_")]
+    with open(run.metrics, "w") as f:
+        f.write(env.metrics_header() + "\n")
+        for row in rows:
+            f.write(row + ",0,0,0,0" * len(learning) + ",1.5\n")
+    metrics = run.read_metrics()
+    assert metrics["episode"] == [0.0, 1.0] and metrics["wall_seconds"] == [1.5, 1.5]
+    with open(run.metrics, "a") as f:
+        f.write("2,0.5")  # a line cut short by a kill
+    with pytest.raises(coevo.RunFolderError, match="metrics.csv"):
+        run.read_metrics()
+    assert run.read_metrics(partial=True)["episode"] == [0.0, 1.0]
+
+
+def test_statistics_are_coevos():
+    """The intervals and tests of coevo's reports: Student t of one group, Welch (df rounded down)."""
+    e = coevo.t_estimate([1.0, 2.0, 3.0])
+    assert e["mean"] == 2.0 and e["n"] == 3 and e["df"] == 2.0
+    assert abs(e["ci"] - 4.302652729911275 / 3**0.5) < 1e-9  # t(0.975, 2) · s/√n, s = 1
+    assert abs(e["p"] - 0.07417990022744858) < 1e-9
+    w = coevo.welch([1.0, 2.0, 3.0, 4.0], [0.0, 0.0, 1.0])
+    assert w["mean"] == 2.5 - 1 / 3
+    assert w["df"] == 4.0  # Welch–Satterthwaite 4.35, rounded down
+    assert coevo.t_estimate([5.0])["ci"] is None
+    assert coevo.t_estimate([]) is None
 
 
 def test_version_is_the_crates():
