@@ -5,6 +5,7 @@
 use super::file::Experiment;
 use super::report::{experiment_report, reproduction, Reported, EXPERIMENTS, REPORT, RESULTS};
 use super::runner;
+use super::summary::Summary;
 use super::{aggregate, data, figures};
 use crate::io::Existing;
 use std::collections::BTreeMap;
@@ -126,7 +127,7 @@ pub fn experiment(request: &Request) -> crate::error::Result<()> {
     }
     // REPRODUCTION.md is the suite's: written when asked for `all`; one experiment reports alone.
     if which == "all" {
-        return write_reproduction();
+        return write_reproduction(false);
     }
     for exp in experiments {
         let data = data::load(&exp)?;
@@ -136,8 +137,9 @@ pub fn experiment(request: &Request) -> crate::error::Result<()> {
 }
 
 /// Summaries, figures and REPORT.md of every experiment of `experiments/`, and REPRODUCTION.md over all of
-/// them.
-pub fn write_reproduction() -> crate::error::Result<()> {
+/// them. An experiment some but not all of whose runs are finished (in its run folders, or in its
+/// committed summary) is refused unless `partial`, and then its reports say "partial".
+pub fn write_reproduction(partial: bool) -> crate::error::Result<()> {
     // Everything loaded and checked before anything is written.
     let mut loaded = Vec::new();
     for file in Experiment::files(Path::new(EXPERIMENTS))? {
@@ -159,6 +161,9 @@ pub fn write_reproduction() -> crate::error::Result<()> {
         if let Err(e) = data::check_complete(&exp, &data) {
             crate::errln!("coevo: {e} (reported from the committed summary)")?;
             data.clear();
+        }
+        if !partial {
+            check_whole(&exp, &data, "--plot all")?;
         }
         loaded.push((exp, data));
     }
@@ -222,7 +227,7 @@ fn report(exp: Experiment, data: &BTreeMap<usize, super::claims::RunData>) -> cr
 /// finished, is drawn from what there is (marked partial); without, either is refused.
 pub fn plot(dir: &Path, partial: bool) -> crate::error::Result<()> {
     if dir == Path::new("all") {
-        return write_reproduction();
+        return write_reproduction(partial);
     }
     if crate::run::is_run(dir) {
         let path = figures::plot_run(dir, partial)?;
@@ -243,16 +248,8 @@ pub fn plot(dir: &Path, partial: bool) -> crate::error::Result<()> {
     let exp = Experiment::load(&file, results)?;
     let data = data::load(&exp)?;
     data::check_complete(&exp, &data)?;
-    if !partial && !data.is_empty() && data.len() < exp.runs.len() {
-        return Err(format!(
-            "--plot {}: only {} of the {} runs of {} are finished here; nothing written: finish them with `coevo --experiment {}`, or --partial summarises the finished ones (its report says how many)",
-            dir.display(),
-            data.len(),
-            exp.runs.len(),
-            file.display(),
-            file.display()
-        )
-        .into());
+    if !partial {
+        check_whole(&exp, &data, &format!("--plot {}", dir.display()))?;
     }
     // Without run folders (a clone), the committed figure data redraws the figures.
     if data.is_empty() && !exp.root.join(super::figure_data::FILE).exists() {
@@ -266,4 +263,33 @@ pub fn plot(dir: &Path, partial: bool) -> crate::error::Result<()> {
     }
     report(exp, &data)?;
     Ok(())
+}
+
+/// How many of the experiment's runs are finished: its run folders here (`data`), or, with none here (a
+/// clone), the rows of its committed summary.csv that are runs of the file.
+fn finished(exp: &Experiment, data: &BTreeMap<usize, super::claims::RunData>) -> crate::error::Result<usize> {
+    if !data.is_empty() {
+        return Ok(data.len());
+    }
+    Ok(Summary::read(&exp.root.join("summary.csv"))?.map_or(0, |s| s.runs(exp).len()))
+}
+
+/// Refuses (`what`: the call, for the error line) an experiment some but not all of whose runs are
+/// finished: its claims would be judged on part of their seeds with nothing saying so. None finished is
+/// "not run yet", which every report says.
+fn check_whole(
+    exp: &Experiment,
+    data: &BTreeMap<usize, super::claims::RunData>,
+    what: &str,
+) -> crate::error::Result<()> {
+    let (done, runs) = (finished(exp, data)?, exp.runs.len());
+    if done == 0 || done == runs {
+        return Ok(());
+    }
+    let from = if data.is_empty() { format!("{}/summary.csv holds", exp.root.display()) } else { "here are".into() };
+    Err(format!(
+        "{what}: {from} {done} of the {runs} runs of {file}; nothing written: finish them with `coevo --experiment {file}`, or add --partial to report the finished ones, marked partial",
+        file = exp.file.display()
+    )
+    .into())
 }

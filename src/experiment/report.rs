@@ -187,10 +187,19 @@ fn contents_row(md: &mut String, Reported { exp, seconds, finished, shared, bina
 /// One experiment's section: its claims, and its figures (the comparison of variants and the learning
 /// curves shown, the rest linked), the figures' links under `figures` (they are looked up in the
 /// experiment's own figures folder).
-fn section(md: &mut String, Reported { exp, results, .. }: &Reported, figures: &Path) {
+fn section(md: &mut String, Reported { exp, results, finished, .. }: &Reported, figures: &Path) {
     let what = if exp.spec.description.is_empty() { String::new() } else { format!("{}. ", exp.spec.description) };
     let (file, root) = shown_paths(exp);
     writeln!(md, "\n## {}\n\n{what}`{}`, results in `{}/`.\n", exp.name, file.display(), root.display()).unwrap();
+    if (1..exp.runs.len()).contains(finished) {
+        writeln!(
+            md,
+            "**Partial: {finished} of the {} runs are finished.** Every number, verdict and figure of this experiment \
+             is from those runs alone and provisional until the rest finish (reported with `--partial`).\n",
+            exp.runs.len()
+        )
+        .unwrap();
+    }
     if !results.is_empty() {
         md.push_str("| preset | claim (the paper) | quantity | paper | coevo (mean ± 95 % CI, seeds) | p (Holm) | verdict |\n|---|---|---|---|---|---|---|\n");
     }

@@ -378,6 +378,29 @@ fn a_tiny_experiment_runs_resumes_and_gives_the_same_summary_at_one_or_two_jobs(
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && stderr.lines().count() == 1 && stderr.contains("no finished run"), "{stderr}");
     std::fs::rename(one.path().join("figure-data.ron.gz"), &data).unwrap();
+    // A committed summary missing a run (3 of the file's 4): refused in one line, by one experiment's
+    // --plot and by --plot all, unless --partial, and then its report says "partial".
+    let summary = one.path().join("results/tiny/summary.csv");
+    let whole = std::fs::read_to_string(&summary).unwrap();
+    let cut: String = whole.lines().take(4).map(|l| format!("{l}\n")).collect();
+    assert_eq!((whole.lines().count(), cut.lines().count()), (5, 4));
+    std::fs::write(&summary, &cut).unwrap();
+    for plot in ["results/tiny", "all"] {
+        let report = committed("results/tiny/REPORT.md");
+        let out = coevo(one.path(), &["--plot", plot]);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success() && stderr.lines().count() == 1, "{stderr}");
+        assert!(stderr.contains("results/tiny/summary.csv holds 3 of the 4 runs of experiments/tiny.ron"), "{stderr}");
+        assert_eq!(committed("results/tiny/REPORT.md"), report, "nothing written");
+        let out = coevo(one.path(), &["--plot", plot, "--partial"]);
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        let report = String::from_utf8(committed("results/tiny/REPORT.md")).unwrap();
+        assert!(report.contains("**Partial: 3 of the 4 runs are finished.**"), "{report}");
+    }
+    assert!(String::from_utf8(committed("REPRODUCTION.md")).unwrap().contains("**Partial: 3 of the 4 runs"));
+    std::fs::write(&summary, &whole).unwrap();
+    assert!(coevo(one.path(), &["--plot", "all"]).status.success());
+    assert_eq!(committed("results/tiny/REPORT.md"), before.2);
     assert!(coevo(one.path(), &["--experiment", "experiments/tiny.ron", "--emit-slurm"]).status.success());
     // Some run folders but fewer than the summary holds (an experiment being re-run): aggregating would
     // drop runs, so the experiment alone is refused, and REPRODUCTION.md reports it from its committed
