@@ -354,3 +354,76 @@ fn every_number_cited_from_a_claim_is_the_claims_estimate_and_verdict() {
     let late = "x +0.04 ± 0.03<!-- claim: e / gym-pps / a | claim --> is smaller than 0.17 and reproduced";
     assert_eq!(check_cited_claims(late, &one).len(), 1);
 }
+
+/// Words that claim two things are the same (equivalence), which only an equivalence test (TOST, within a
+/// stated margin) can support: "no difference detected" is the honest report of a test that found nothing.
+const EQUIVALENCE_WORDS: [&str; 11] = [
+    "as much",
+    "just as",
+    "as well as seeing",
+    "removes nothing",
+    "does not need",
+    "not needed",
+    "(it does not)",
+    "makes no difference",
+    "no difference we can measure",
+    "**herding**",
+    "equally",
+];
+
+/// Every sentence of `text` that uses equivalence wording ([`EQUIVALENCE_WORDS`]) but cites no claim
+/// whose verdict is an equivalence shown (TOST): one line each.
+fn unsupported_equivalence(
+    text: &str,
+    rows: &std::collections::BTreeMap<(String, String, String), Vec<ClaimRow>>,
+) -> Vec<String> {
+    let joined = text.replace('\n', " ");
+    // Sentences end at a full stop, `;` or a table cell's `|` followed by a space (a `.` inside a number
+    // or a file name is followed by no space).
+    let mut wrong = vec![];
+    for sentence in joined.split(". ").flat_map(|s| s.split("; ")).flat_map(|s| s.split(" | ")) {
+        let lower = sentence.to_lowercase();
+        let Some(word) = EQUIVALENCE_WORDS.iter().find(|w| lower.contains(&w.to_lowercase())) else { continue };
+        let equivalent = sentence.split("<!-- claim: ").skip(1).any(|c| {
+            let cited = c.split("-->").next().unwrap_or("").trim();
+            let parts: Vec<&str> = cited.splitn(3, " / ").collect();
+            match parts[..] {
+                [e, p, c] => rows.get(&(e.to_string(), p.to_string(), c.to_string())).is_some_and(|r| {
+                    r.iter().all(|r| r.verdict.contains("TOST") && !r.verdict.contains("inconclusive"))
+                }),
+                _ => false,
+            }
+        });
+        if !equivalent {
+            let shown: String = sentence.chars().take(120).collect();
+            wrong.push(format!("{word:?} without an equivalence verdict: {shown}…"));
+        }
+    }
+    wrong
+}
+
+#[test]
+fn no_sentence_claims_equivalence_without_an_equivalence_verdict() {
+    let rows = claim_rows(&std::fs::read_to_string("REPRODUCTION.md").unwrap());
+    let mut wrong = vec![];
+    for path in markdown_files() {
+        let text = std::fs::read_to_string(&path).unwrap();
+        wrong.extend(unsupported_equivalence(&text, &rows).into_iter().map(|w| format!("{}: {w}", path.display())));
+    }
+    assert!(wrong.is_empty(), "equivalence claimed without a test that shows it:\n{}", wrong.join("\n"));
+    // The check itself: equivalence wording citing a claim of non-detection fails; citing a TOST verdict
+    // passes; a non-detection said as such passes.
+    let mut rows = std::collections::BTreeMap::new();
+    let row =
+        |verdict: &str| ClaimRow { ours: "0.001 ± 0.072 (10)".into(), p: "1.000".into(), verdict: verdict.into() };
+    rows.insert(("e".into(), "gym-pps".into(), "a".into()), vec![row("no effect detected (inconclusive)")]);
+    rows.insert(
+        ("e".into(), "gym-pps".into(), "b".into()),
+        vec![row("reproduced: no effect beyond ±0.05 (TOST, 90 % CI [-0.03, 0.03])")],
+    );
+    let said = |text: &str| unsupported_equivalence(text, &rows).len();
+    assert_eq!(said("Blind prey align as much (+0.00 ± 0.07<!-- claim: e / gym-pps / a -->). Next."), 1);
+    assert_eq!(said("Blind prey align as much (+0.00 ± 0.07<!-- claim: e / gym-pps / b -->). Next."), 0);
+    assert_eq!(said("No difference is detected (+0.00 ± 0.07<!-- claim: e / gym-pps / a -->)."), 0);
+    assert_eq!(said("The answer is **herding**. It is."), 1);
+}
