@@ -1,12 +1,12 @@
 //! From the runs' CSV files alone (never retraining): the paper's claims checked on the per-run values,
 //! with the summaries (`summary.rs`) and figures (`figures.rs`) written beside them.
 
-use super::claims::{chance_level, is_effect, verdict, ClaimResult, RunData, WINDOW};
+use super::claims::{chance_level, is_effect, verdict, ClaimResult, RunData, ALPHA, WINDOW};
 use super::data::check_complete;
 use super::figure_data;
 use super::figures;
 use super::file::Experiment;
-use super::stats::{difference, estimate, holm};
+use super::stats::{difference, estimate, holm, holm_levels};
 use super::summary::{self, Summary};
 use std::collections::BTreeMap;
 
@@ -55,8 +55,13 @@ pub fn aggregate(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> crate::er
                 preset: preset.clone(),
                 claim: claim.clone(),
                 estimate: e,
-                p: e.filter(|_| is_effect(claim) && !identical).and_then(|e| e.p_value()),
+                // The claim's own test: TOST for a claim of no effect, else the two-sided test of none.
+                p: e.filter(|_| is_effect(claim) && !identical).and_then(|e| match claim.margin {
+                    Some(m) => e.tost_p(m),
+                    None => e.p_value(),
+                }),
                 p_holm: None,
+                level: None,
                 baseline: chance_level(exp, claim, scene),
                 verdict: match (overlap, identical) {
                     (true, _) => OVERLAP.into(),
@@ -69,14 +74,20 @@ pub fn aggregate(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> crate::er
             figures::draw(exp, preset, &table, drawn, &mut saved)?;
         }
     }
-    // One family per experiment: every effect's p-value, all presets, adjusted together (Holm).
-    let tested: Vec<usize> = (0..results.len()).filter(|&i| results[i].p.is_some()).collect();
-    let adjusted = holm(&tested.iter().map(|&i| results[i].p.unwrap_or(1.0)).collect::<Vec<_>>());
-    for (&i, p) in tested.iter().zip(adjusted) {
-        results[i].p_holm = Some(p);
+    // Families: the claims of one `family` name, all presets, adjusted together (Holm); claims without a
+    // name are the experiment's family. Each test's interval is shown at its Holm step's level.
+    let families: std::collections::BTreeSet<Option<String>> = results.iter().map(|r| r.claim.family.clone()).collect();
+    for family in families {
+        let tested: Vec<usize> =
+            (0..results.len()).filter(|&i| results[i].p.is_some() && results[i].claim.family == family).collect();
+        let p: Vec<f64> = tested.iter().map(|&i| results[i].p.unwrap_or(1.0)).collect();
+        for ((&i, adjusted), level) in tested.iter().zip(holm(&p)).zip(holm_levels(&p, ALPHA)) {
+            results[i].p_holm = Some(adjusted);
+            results[i].level = Some(level);
+        }
     }
     for r in results.iter_mut().filter(|r| r.verdict != IDENTICAL && r.verdict != OVERLAP) {
-        r.verdict = verdict(&r.claim, r.estimate, r.p_holm, r.baseline);
+        r.verdict = verdict(&r.claim, r.estimate, r.p_holm, r.level, r.baseline);
     }
     if written {
         // The figure data before the summary it must match: a write that fails between them leaves the

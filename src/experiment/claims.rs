@@ -172,6 +172,10 @@ pub struct ClaimResult {
     /// of the experiment (all presets).
     pub p: Option<f64>,
     pub p_holm: Option<f64>,
+    /// For an effect: the level α_k at which its interval is shown, so that the interval excludes zero
+    /// exactly when Holm's procedure detects it ([`super::stats::holm_levels`]); for a claim of no effect
+    /// its TOST interval is the (1 − 2α_k) one.
+    pub level: Option<f64>,
     /// For a level: the value chance alone gives ([`chance_level`]).
     pub baseline: Option<f64>,
     pub verdict: String,
@@ -239,70 +243,116 @@ pub fn chance_level(exp: &Experiment, claim: &Claim, scene: Option<&crate::scene
     }
 }
 
-/// The verdict on a claim, defined in REPRODUCTION.md's preamble: *reproduced*, *not reproduced* or
-/// *inconclusive* for a claim of the paper; for a quantity the paper gives no number of, whether an effect
-/// was detected or a level differs from chance. An effect counts as detected only when its Holm-adjusted
-/// p-value is below [`ALPHA`]; an interval that contains zero is never called a result.
-pub fn verdict(claim: &Claim, e: Option<Estimate>, p_holm: Option<f64>, baseline: Option<f64>) -> String {
+impl ClaimResult {
+    /// The half-width of the interval shown for this claim: at its family-adjusted level for an effect
+    /// (the (1 − 2α_k) interval of TOST for a claim of no effect), the plain 95 % interval for a level.
+    pub fn shown_half_width(&self) -> Option<f64> {
+        let e = self.estimate?;
+        match (self.level, self.claim.margin) {
+            (Some(level), Some(_)) => e.half_width(2.0 * level),
+            (Some(level), None) => e.half_width(level),
+            (None, _) => e.ci,
+        }
+    }
+}
+
+/// Half a unit of the last decimal the paper's number is written with: the precision it states ("22 %"
+/// is 0.22 ± 0.005).
+pub fn paper_precision(paper: f64) -> f64 {
+    let text = format!("{}", paper.abs());
+    let decimals = text.split_once('.').map_or(0, |(_, d)| d.len());
+    0.5 * 10f64.powi(-(decimals as i32))
+}
+
+/// The verdict on a claim, defined in REPRODUCTION.md's preamble. An effect is *detected* when its
+/// Holm-adjusted p-value is below [`ALPHA`], which is exactly when its interval at `level` (the family's
+/// stepped level, [`super::stats::holm_levels`]) excludes zero; an interval that contains zero is never
+/// called a result. Effects: *reproduced* (detected in the paper's direction, the paper's value inside the
+/// interval), *direction reproduced, smaller/larger than the paper*, *not reproduced* (detected the other
+/// way, or an effect shown where the claim is of none), *equivalent within ±m* (TOST, adjusted),
+/// *inconclusive*. Levels: the plain 95 % interval against the paper's value at the precision it states,
+/// and against chance.
+pub fn verdict(
+    claim: &Claim,
+    e: Option<Estimate>,
+    p_holm: Option<f64>,
+    level: Option<f64>,
+    baseline: Option<f64>,
+) -> String {
     let Some(e) = e else { return "not run yet".into() };
     let Some(ci) = e.ci else { return "one seed: no interval".into() };
-    let (lo, hi) = (e.mean - ci, e.mean + ci);
-    let inside = |x: f64| lo <= x && x <= hi;
-    let power = || match e.detectable() {
-        Some(d) => format!("80 % power only for effects of ±{d:.3} or more with {} seeds", e.n),
-        None => String::new(),
-    };
     if is_effect(claim) {
+        let level = level.unwrap_or(ALPHA);
         let detected = p_holm.is_some_and(|p| p < ALPHA);
         let p_text = p_holm.map_or(String::new(), |p| format!("Holm p = {}", p_shown(p)));
+        let power = || match e.detectable_at(level) {
+            Some(d) => format!(
+                "80 % power at its level (α = {}) only for effects of ±{d:.3} or more with {} seeds",
+                alpha_shown(level),
+                e.n
+            ),
+            None => String::new(),
+        };
         if let Some(m) = claim.margin {
-            let (tlo, thi) = e.tost_interval().unwrap_or((lo, hi));
-            return if -m < tlo && thi < m {
-                format!("reproduced: no effect beyond ±{m} (TOST, 90 % CI [{tlo:.3}, {thi:.3}])")
-            } else if detected {
-                format!("not reproduced: an effect of {:+.3} ({p_text})", e.mean)
+            let h = e.half_width(2.0 * level).unwrap_or(ci);
+            let (lo, hi) = (e.mean - h, e.mean + h);
+            let two_sided = e.half_width(level).unwrap_or(ci);
+            return if detected {
+                format!("equivalent within ±{m}: the adjusted interval [{lo:.3}, {hi:.3}] lies inside (TOST, {p_text})")
+            } else if e.mean.abs() > two_sided {
+                format!("not reproduced: an effect of {:+.3}, no equivalence within ±{m}", e.mean)
             } else {
-                format!("inconclusive: neither an effect nor equivalence within ±{m}; {}", power())
+                format!("inconclusive: neither equivalence within ±{m} (adjusted interval [{lo:.3}, {hi:.3}]) nor an effect shown")
             };
         }
-        match claim.paper {
+        let h = e.half_width(level).unwrap_or(ci);
+        let inside = |x: f64| e.mean - h <= x && x <= e.mean + h;
+        return match claim.paper {
             Some(paper) if detected && e.mean.signum() == paper.signum() => {
-                format!("reproduced: detected in the paper's direction ({p_text})")
+                if claim.direction_only || inside(paper) {
+                    format!("reproduced: detected in the paper's direction ({p_text})")
+                } else {
+                    let size = if e.mean.abs() < paper.abs() { "smaller" } else { "larger" };
+                    format!("direction reproduced, {size} than the paper's {paper:+.3} ({p_text})")
+                }
             }
-            Some(_) if detected => format!("not reproduced: the effect goes the other way ({p_text})"),
+            Some(_) if detected => format!("not reproduced: detected the other way ({p_text})"),
             Some(_) if claim.direction_only => format!("inconclusive: no effect detected; {}", power()),
-            Some(paper) if !inside(paper) => format!("not reproduced: the 95 % CI excludes the paper's {paper:+.3}"),
-            Some(paper) => {
-                let need = e.seeds_for(paper).map_or(String::new(), |n| {
-                    format!(
-                        "; the paper's {paper:+.3} needs ≈ {n} seeds{}",
-                        if e.two_groups { " per variant" } else { "" }
-                    )
-                });
-                format!("inconclusive: {}{need}", power())
-            }
+            Some(paper) if !inside(paper) => format!(
+                "inconclusive: no effect detected, and the paper's {paper:+.3} is outside the adjusted interval (an effect of its size is excluded)"
+            ),
+            Some(_) => format!("inconclusive: no effect detected; {}", power()),
             None if detected => format!("effect detected: {:+.3} ({p_text})", e.mean),
             None => format!("no effect detected (inconclusive): {}", power()),
+        };
+    }
+    let (lo, hi) = (e.mean - ci, e.mean + ci);
+    let inside = |x: f64| lo <= x && x <= hi;
+    let chance = baseline.map(|b| (b, inside(b)));
+    match (claim.paper, chance) {
+        (Some(paper), _) if hi < paper - paper_precision(paper) || lo > paper + paper_precision(paper) => {
+            format!("not reproduced: the 95 % CI excludes the paper's {paper} (±{} as written)", paper_precision(paper))
         }
-    } else {
-        let chance = baseline.map(|b| (b, inside(b)));
-        match (claim.paper, chance) {
-            (Some(paper), _) if !inside(paper) => {
-                format!("not reproduced: the 95 % CI excludes the paper's {paper:.3}")
-            }
-            (Some(_), Some((b, false))) => {
-                format!("reproduced: the paper's value is inside the 95 % CI, which excludes chance ({b:.3})")
-            }
-            (Some(_), Some((b, true))) => {
-                format!("inconclusive: the 95 % CI holds both the paper's value and chance ({b:.3})")
-            }
-            (Some(_), None) => {
-                "inconclusive: the paper's value is inside the 95 % CI; no chance level to tell it from".into()
-            }
-            (None, Some((b, false))) => format!("measured: differs from chance ({b:.3})"),
-            (None, Some((b, true))) => format!("measured: not told apart from chance ({b:.3})"),
-            (None, None) => "measured (the paper gives no number)".into(),
+        (Some(_), Some((b, false))) => {
+            format!("reproduced: the paper's value is inside the 95 % CI, which excludes chance ({b:.3})")
         }
+        (Some(_), Some((b, true))) => {
+            format!("inconclusive: the 95 % CI holds both the paper's value and chance ({b:.3})")
+        }
+        (Some(_), None) => {
+            "inconclusive: the paper's value is inside the 95 % CI; no chance level to tell it from".into()
+        }
+        (None, Some((b, false))) => format!("measured: differs from chance ({b:.3})"),
+        (None, Some((b, true))) => format!("measured: not told apart from chance ({b:.3})"),
+        (None, None) => "measured (the paper gives no number)".into(),
+    }
+}
+
+/// A test's level as reports show it: [`ALPHA`] over the Holm step's divisor (`0.05/44`; `0.05` alone).
+pub fn alpha_shown(level: f64) -> String {
+    match (ALPHA / level).round() as usize {
+        0 | 1 => format!("{ALPHA}"),
+        d => format!("{ALPHA}/{d}"),
     }
 }
 
@@ -385,40 +435,56 @@ mod tests {
             margin,
             baseline: None,
             direction_only: false,
+            family: None,
         }
     }
 
-    /// The verdict on one effect claim of its own family (so Holm's adjustment is the p-value itself).
+    /// The verdict on one effect claim of its own family (so Holm's adjustment is the p-value itself and
+    /// its level α): TOST for a claim of no effect.
     fn judged(c: &Claim, samples: &[f64]) -> String {
         let e = crate::experiment::stats::estimate(samples);
-        verdict(c, e, e.and_then(|e| e.p_value()), None)
+        let p = e.and_then(|e| match c.margin {
+            Some(m) => e.tost_p(m),
+            None => e.p_value(),
+        });
+        verdict(c, e, p, Some(ALPHA), None)
     }
 
     #[test]
     fn verdicts_on_hand_made_samples() {
         let rises = claim(Quantity::DoaChange, Some(0.17), None);
-        // A clear effect in the paper's direction.
+        // A clear effect in the paper's direction, the paper's value inside the interval.
         let clear = [0.15, 0.18, 0.20, 0.16, 0.19];
         assert!(
             judged(&rises, &clear).starts_with("reproduced: detected in the paper's direction"),
             "{}",
             judged(&rises, &clear)
         );
+        // Detected in the paper's direction, the paper's value outside: the direction only.
+        let small = [0.05, 0.06, 0.04, 0.05, 0.055];
+        assert!(
+            judged(&rises, &small).starts_with("direction reproduced, smaller than the paper's +0.170"),
+            "{}",
+            judged(&rises, &small)
+        );
         // The same effect the other way.
         let opposite: Vec<f64> = clear.iter().map(|x| -x).collect();
-        assert!(judged(&rises, &opposite).starts_with("not reproduced: the effect goes the other way"));
-        // A wide interval holding both zero and the paper's value: inconclusive, with the power it had.
+        assert!(judged(&rises, &opposite).starts_with("not reproduced: detected the other way"));
+        // A wide interval holding both zero and the paper's value: inconclusive, with the power at its level.
         let wide = [0.4, -0.3, 0.25, -0.2, 0.1];
         let v = judged(&rises, &wide);
-        assert!(v.starts_with("inconclusive: 80 % power only for effects of ±") && v.contains("needs ≈"), "{v}");
-        // Tight around zero, excluding the paper's +0.17: not reproduced.
+        assert!(v.starts_with("inconclusive: no effect detected; 80 % power at its level (α = 0.05)"), "{v}");
+        // Tight around zero, excluding the paper's +0.17: no effect detected, an effect of its size excluded
+        // (inconclusive: only an equivalence test shows no effect).
         let null = [0.01, -0.01, 0.0, 0.02, -0.02];
-        assert!(judged(&rises, &null).starts_with("not reproduced: the 95 % CI excludes the paper's +0.170"));
+        assert!(
+            judged(&rises, &null).starts_with("inconclusive: no effect detected, and the paper's +0.170 is outside")
+        );
         // A claim of no change with a margin: tight around zero is equivalent, the clear effect is not.
         let flat = claim(Quantity::DosChange, None, Some(0.05));
-        assert!(judged(&flat, &null).starts_with("reproduced: no effect beyond ±0.05"), "{}", judged(&flat, &null));
-        assert!(judged(&flat, &clear).starts_with("not reproduced: an effect of +0.176"));
-        assert!(judged(&flat, &wide).starts_with("inconclusive: neither an effect nor equivalence"));
+        assert!(judged(&flat, &null).starts_with("equivalent within ±0.05"), "{}", judged(&flat, &null));
+        assert!(judged(&flat, &clear).starts_with("not reproduced: an effect of +0.176"), "{}", judged(&flat, &clear));
+        assert!(judged(&flat, &wide).starts_with("inconclusive: neither equivalence"));
         // No number from the paper: detected or not, never "holds".
         let free = claim(Quantity::InteractionDoa("x".into()), None, None);
         assert!(judged(&free, &clear).starts_with("effect detected: +0.176"));
@@ -430,11 +496,51 @@ mod tests {
             ..claim(Quantity::Reach90("doa".into()), Some(-1.0), None)
         };
         assert!(judged(&faster, &opposite).starts_with("reproduced: detected in the paper's direction"));
-        assert!(judged(&faster, &clear).starts_with("not reproduced: the effect goes the other way"));
+        assert!(judged(&faster, &clear).starts_with("not reproduced: detected the other way"));
         assert!(judged(&faster, &null).starts_with("inconclusive: no effect detected"), "{}", judged(&faster, &null));
-        // A detected effect that does not survive Holm's adjustment is not detected.
+        // A detected effect that does not survive Holm's adjustment is not detected, and its power is
+        // stated at the level it was tested at.
         let e = crate::experiment::stats::estimate(&clear);
-        assert!(verdict(&free, e, Some(0.2), None).starts_with("no effect detected"));
+        let v = verdict(&free, e, Some(0.2), Some(ALPHA / 44.0), None);
+        assert!(v.starts_with("no effect detected (inconclusive): 80 % power at its level (α = 0.05/44)"), "{v}");
+    }
+
+    #[test]
+    fn the_shown_interval_agrees_with_the_verdict() {
+        // A family of four: each interval at its Holm level excludes zero exactly when the verdict says
+        // detected.
+        let samples: [&[f64]; 4] = [
+            &[0.15, 0.18, 0.20, 0.16, 0.19],
+            &[0.05, -0.01, 0.08, 0.02, 0.04],
+            &[0.4, -0.3, 0.25, -0.2, 0.1],
+            &[0.03, 0.05, 0.02, 0.06, 0.04],
+        ];
+        let e: Vec<Estimate> = samples.iter().map(|s| crate::experiment::stats::estimate(s).unwrap()).collect();
+        let p: Vec<f64> = e.iter().map(|e| e.p_value().unwrap()).collect();
+        let (adjusted, levels) = (crate::experiment::stats::holm(&p), crate::experiment::stats::holm_levels(&p, ALPHA));
+        let free = claim(Quantity::InteractionDoa("x".into()), None, None);
+        for i in 0..4 {
+            let r = ClaimResult {
+                experiment: "e".into(),
+                preset: "p".into(),
+                claim: free.clone(),
+                estimate: Some(e[i]),
+                p: Some(p[i]),
+                p_holm: Some(adjusted[i]),
+                level: Some(levels[i]),
+                baseline: None,
+                verdict: verdict(&free, Some(e[i]), Some(adjusted[i]), Some(levels[i]), None),
+            };
+            let h = r.shown_half_width().unwrap();
+            let excludes_zero = e[i].mean.abs() > h;
+            assert_eq!(
+                excludes_zero,
+                r.verdict.starts_with("effect detected"),
+                "test {i}: {} ± {h}: {}",
+                e[i].mean,
+                r.verdict
+            );
+        }
     }
 
     #[test]
@@ -443,14 +549,23 @@ mod tests {
         let e = |s: &[f64]| crate::experiment::stats::estimate(s);
         let chance = Some(std::f64::consts::FRAC_2_PI);
         let high = [0.80, 0.83, 0.84, 0.81, 0.82];
-        assert!(verdict(&level, e(&high), None, chance).starts_with("reproduced: the paper's value is inside"));
+        assert!(verdict(&level, e(&high), None, None, chance).starts_with("reproduced: the paper's value is inside"));
         let wide = [0.95, 0.55, 0.85, 0.6, 0.9];
-        assert!(verdict(&level, e(&wide), None, chance).starts_with("inconclusive: the 95 % CI holds both"));
+        assert!(verdict(&level, e(&wide), None, None, chance).starts_with("inconclusive: the 95 % CI holds both"));
         let low = [0.63, 0.64, 0.62, 0.64, 0.63];
-        assert!(verdict(&level, e(&low), None, chance)
-            .starts_with("not reproduced: the 95 % CI excludes the paper's 0.820"));
-        assert_eq!(verdict(&level, None, None, chance), "not run yet");
-        assert_eq!(verdict(&level, e(&[0.8]), None, chance), "one seed: no interval");
+        assert!(verdict(&level, e(&low), None, None, chance)
+            .starts_with("not reproduced: the 95 % CI excludes the paper's 0.82 (±0.005 as written)"));
+        assert_eq!(verdict(&level, None, None, None, chance), "not run yet");
+        assert_eq!(verdict(&level, e(&[0.8]), None, None, chance), "one seed: no interval");
+        // The paper's rounding counts: "22 %" is 0.215 to 0.225, so 0.217 ± 0.003 reaches it.
+        let starts = claim(Quantity::DosFirst, Some(0.22), None);
+        let near = [0.214, 0.217, 0.220, 0.216, 0.218];
+        assert!(
+            verdict(&starts, e(&near), None, None, Some(0.1)).starts_with("reproduced"),
+            "{}",
+            verdict(&starts, e(&near), None, None, Some(0.1))
+        );
+        assert_eq!((paper_precision(0.22), paper_precision(0.96), paper_precision(3.0)), (0.005, 0.005, 0.5));
     }
 
     #[test]

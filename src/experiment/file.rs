@@ -154,6 +154,10 @@ pub struct Claim {
     /// its sign (+1 or −1), never a size the interval could exclude.
     #[serde(default)]
     pub direction_only: bool,
+    /// The family whose tests are adjusted together (Holm), fixed with the hypothesis: claims of one file
+    /// with the same family name are one family; claims without one are the file's family.
+    #[serde(default)]
+    pub family: Option<String>,
 }
 
 /// A number the aggregate computes per run (prey, or the experiment's headline species).

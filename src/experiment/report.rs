@@ -54,17 +54,24 @@ const METHOD: &str = "Each number is the mean over seeds of the prey's 100-episo
      trained actors' alignment that the control removes, computed run by run. Nothing in the metrics, rewards or physics \
      was tuned toward a claim.\n\n\
      **Verdicts.** An *effect* (a change over training, what a control removes, a difference of two variants) is \
-     *detected* when its two-sided t test gives p < 0.05 after Holm's adjustment over every effect of its experiment \
-     (both presets; the column *p (Holm)*), which implies that its 95 % interval excludes 0. A claim of the paper is \
-     **reproduced** when the claimed effect is detected in the claimed direction, or, for a level, when the paper's value \
-     is inside the interval and chance is not (DoA by chance: 2/π ≈ 0.637; DoS by chance: uniform random positions at \
+     *detected* when its two-sided t test gives p < 0.05 after Holm's adjustment over its family (the column *p (Holm)*; \
+     a family is the claims of one experiment file, both presets, unless the file names families). Its interval is \
+     shown at the level Holm's procedure tested it at (*level*: 0.05/k, Bonferroni's for the smallest p-value; from the \
+     first test Holm does not reject on, that test's level), so **the interval excludes 0 exactly when the effect is \
+     detected**; the plain 95 % interval is beside it, secondary, and never a result. For an effect the paper states: \
+     **reproduced** when it is detected in the paper's direction and the paper's value is inside the adjusted interval; \
+     **direction reproduced, smaller (larger) than the paper** when it is detected in the paper's direction but the \
+     paper's value is outside; **not reproduced** when it is detected the other way; otherwise **inconclusive**, saying \
+     whether the paper's value is outside the adjusted interval (an effect of its size excluded) and the smallest effect \
+     the seeds detect with 80 % power at the level used. A claim of no effect is tested for equivalence within the \
+     margin its experiment file states (TOST, its p-value in the family like any test): **equivalent within ±m** when \
+     the (1 − 2α) interval at its level lies inside ± m, **not reproduced** when an effect is shown instead. A *level* \
+     is **reproduced** when its 95 % interval reaches the paper's value at the precision the paper writes it with (0.22 \
+     is 0.215–0.225) and excludes chance (DoA by chance: 2/π ≈ 0.637; DoS by chance: uniform random positions at \
      the same density, e.g. 0.227 for 10 prey and 0.100 for 50 in the 2 m torus; the mean edge rank of caught prey by \
-     chance: 0.5; C_nn by chance: 0); **not reproduced** when the effect is \
-     detected the other way or the interval excludes the paper's value; **inconclusive** when the data are compatible with \
-     both, with the smallest effect the seeds could detect (80 % power at α = 0.05 before the adjustment) and the seeds the paper's effect would need. A \
-     claim of no effect is tested for equivalence within the margin its experiment file states (TOST: the 90 % interval \
-     inside ± margin). For a quantity the paper gives no number of, the verdict says whether an effect was detected or \
-     the level differs from chance; *no effect detected* is not evidence of no effect.\n\n";
+     chance: 0.5; C_nn by chance: 0), **not reproduced** when the interval misses the paper's value so written. For a \
+     quantity the paper gives no number of, the verdict says whether an effect was detected or the level differs from \
+     chance; *no effect detected* is not evidence of no effect: only an equivalence verdict is.\n\n";
 
 /// The head of the contents table of experiments ([`contents_row`]).
 const CONTENTS: &str =
@@ -201,10 +208,24 @@ fn section(md: &mut String, Reported { exp, results, finished, .. }: &Reported, 
         .unwrap();
     }
     if !results.is_empty() {
-        md.push_str("| preset | claim (the paper) | quantity | paper | coevo (mean ± 95 % CI, seeds) | p (Holm) | verdict |\n|---|---|---|---|---|---|---|\n");
+        md.push_str("| preset | claim (the paper) | quantity | paper | coevo (mean ± adjusted CI, seeds) | level | unadjusted 95 % CI | p (Holm) | verdict |\n|---|---|---|---|---|---|---|---|---|\n");
     }
     for r in results {
-        let ours = estimate_shown(r.estimate, 3);
+        let ours = match (r.estimate, r.shown_half_width()) {
+            (Some(e), Some(h)) => format!("{:.3} ± {h:.3} ({})", e.mean, e.n),
+            (e, _) => estimate_shown(e, 3),
+        };
+        // The level the interval is shown at: the Holm step's for a test (TOST: twice it, one-sided
+        // each way), 95 % for a level; the plain 95 % interval beside it, secondary.
+        let level = match (r.level, r.claim.margin) {
+            (Some(l), Some(_)) => format!("TOST, α = {}", super::claims::alpha_shown(l)),
+            (Some(l), None) => format!("α = {}", super::claims::alpha_shown(l)),
+            (None, _) => "95 %".into(),
+        };
+        let plain = match r.estimate.and_then(|e| e.ci.map(|c| (e.mean, c))) {
+            Some((m, c)) if r.level.is_some() => format!("[{:.3}, {:.3}]", m - c, m + c),
+            _ => "–".into(),
+        };
         let paper = r.claim.paper.map_or("–".into(), |p| format!("{p:.3}"));
         let of = match &r.claim.versus {
             Some(base) => format!("`{}` minus `{base}` (Welch)", r.claim.variant),
@@ -213,7 +234,7 @@ fn section(md: &mut String, Reported { exp, results, finished, .. }: &Reported, 
         let p = r.p_holm.map_or("–".into(), p_shown);
         writeln!(
             md,
-            "| {} | {} | {} of {of} | {paper} | {ours} | {p} | {} |",
+            "| {} | {} | {} of {of} | {paper} | {ours} | {level} | {plain} | {p} | {} |",
             r.preset,
             cell(&r.claim.text),
             cell(&quantity_name(&r.claim.quantity)),

@@ -134,6 +134,63 @@ pub fn holm(p: &[f64]) -> Vec<f64> {
     adjusted
 }
 
+/// The level α_k at which each test of a family is shown as an interval so that its interval excludes zero
+/// exactly when Holm's procedure at `alpha` rejects it (same order as `p`). Holm tests the k-th smallest
+/// p-value (k from 0) at α/(m − k) and stops at the first that fails; a rejected test is shown at its own
+/// step's level, every test from the first failure on at the failed step's level (its p-value is at least
+/// the failed one's, so its interval holds zero). Bonferroni's α/m for the smallest p-value, and never
+/// wider than Bonferroni's interval for a rejected test.
+pub fn holm_levels(p: &[f64], alpha: f64) -> Vec<f64> {
+    let m = p.len();
+    let mut order: Vec<usize> = (0..m).collect();
+    order.sort_by(|&a, &b| p[a].total_cmp(&p[b]));
+    let mut levels = vec![alpha; m];
+    let mut failed: Option<f64> = None;
+    for (k, &i) in order.iter().enumerate() {
+        let step = alpha / (m - k) as f64;
+        let level = match failed {
+            Some(level) => level,
+            None if p[i] < step => step,
+            None => {
+                failed = Some(step);
+                step
+            }
+        };
+        levels[i] = level;
+    }
+    levels
+}
+
+impl Estimate {
+    /// The two-sided (1 − `alpha`) interval's half-width: Student (one group) or Welch (two), at this
+    /// estimate's degrees of freedom. None without spread information (one sample).
+    pub fn half_width(&self, alpha: f64) -> Option<f64> {
+        Some(t_quantile(1.0 - alpha / 2.0, self.df?) * self.se?)
+    }
+
+    /// The p-value of the two one-sided tests (TOST) of equivalence within ±`margin`: the larger of the
+    /// p-values of "effect ≤ −margin" and "effect ≥ +margin". Equivalence holds at level α when it is
+    /// below α, which is when the (1 − 2α) interval lies inside (−margin, margin).
+    pub fn tost_p(&self, margin: f64) -> Option<f64> {
+        use statrs::distribution::{ContinuousCDF, StudentsT};
+        let (se, df) = (self.se?, self.df?);
+        if se == 0.0 {
+            return Some(if self.mean.abs() < margin { 0.0 } else { 1.0 });
+        }
+        let t = StudentsT::new(0.0, 1.0, df).ok()?;
+        let lower = 1.0 - t.cdf((self.mean + margin) / se);
+        let upper = t.cdf((self.mean - margin) / se);
+        Some(lower.max(upper))
+    }
+
+    /// The smallest |effect| a two-sided test at `alpha` detects with 80 % power:
+    /// (t_{1−α/2} + t₀.₈₀) · standard error.
+    pub fn detectable_at(&self, alpha: f64) -> Option<f64> {
+        let (se, df) = (self.se?, self.df?);
+        Some((t_quantile(1.0 - alpha / 2.0, df) + t_quantile(0.80, df)) * se)
+    }
+}
+
 /// Kendall's rank correlation τ_b of paired values (ties counted as in τ_b): +1 when `y` rises with `x`
 /// in every pair, −1 when it always falls. None with fewer than two pairs, a non-finite value, or no
 /// untied pair in `x` or in `y`.
@@ -157,6 +214,45 @@ pub fn kendall_tau(x: &[f64], y: &[f64]) -> Option<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn holm_levels_agree_with_holm_and_bonferroni() {
+        // Textbook Bonferroni: a family of 5 at α = 0.05, 9 degrees of freedom: t at 1 − 0.005 is 3.2498.
+        let e = Estimate { mean: 1.0, ci: None, n: 10, se: Some(0.1), df: Some(9.0), two_groups: false };
+        assert!((e.half_width(0.05 / 5.0).unwrap() - 0.32498).abs() < 1e-4);
+        assert!((e.half_width(0.05).unwrap() - 0.2262).abs() < 1e-4, "the plain 95 % interval");
+        // The interval at each test's level excludes zero exactly when Holm rejects it.
+        let cases: [&[f64]; 4] = [
+            &[0.001, 0.012, 0.02, 0.04],
+            &[0.04, 0.001, 0.3, 0.011],
+            &[0.2, 0.5, 0.9],
+            &[0.0126, 0.0124, 0.02, 0.03, 0.049],
+        ];
+        for p in cases {
+            let (levels, adjusted) = (holm_levels(p, 0.05), holm(p));
+            for i in 0..p.len() {
+                assert_eq!(p[i] < levels[i], adjusted[i] < 0.05, "p {p:?}, test {i}: level {}", levels[i]);
+            }
+            let smallest = (0..p.len()).min_by(|&a, &b| p[a].total_cmp(&p[b])).unwrap();
+            assert_eq!(levels[smallest], 0.05 / p.len() as f64, "Bonferroni's level first");
+        }
+        // A p-value below its own step but after a failed step is not rejected, and its level says so:
+        // 0.04 fails step 1 (0.05/3), so 0.045 < 0.05/1 is never reached.
+        let p = [0.04, 0.045, 0.049];
+        assert!(holm_levels(&p, 0.05).iter().zip(&p).all(|(l, p)| p >= l));
+    }
+
+    #[test]
+    fn tost_of_a_known_example() {
+        // Mean 0.01, se 0.02, 20 df, margin 0.05: t = (0.05 − 0.01)/0.02 = 2 on the upper side (the larger
+        // p) and 3 on the lower: p = P(T₂₀ > 2) = 0.02963.
+        let e = Estimate { mean: 0.01, ci: None, n: 11, se: Some(0.02), df: Some(20.0), two_groups: true };
+        assert!((e.tost_p(0.05).unwrap() - 0.029633).abs() < 1e-5, "{:?}", e.tost_p(0.05));
+        // Below α = 0.05 exactly when the 90 % interval lies inside the margin.
+        let (lo, hi) = e.tost_interval().unwrap();
+        assert!(-0.05 < lo && hi < 0.05);
+        assert!(e.tost_p(0.04).unwrap() > 0.05 && e.tost_interval().unwrap().1 > 0.04);
+    }
 
     #[test]
     fn kendall_tau_of_known_orders() {

@@ -162,9 +162,10 @@ fn claim_rows(md: &str) -> std::collections::BTreeMap<(String, String, String), 
             }
         }
         let cells: Vec<String> = cells.into_iter().map(|c| c.trim().to_string()).collect();
-        if cells.len() == 7 && cells[0] != "preset" {
+        // preset | claim | quantity | paper | ours (adjusted) | level | unadjusted 95 % | p (Holm) | verdict
+        if cells.len() == 9 && cells[0] != "preset" {
             let key = (experiment.clone(), cells[0].clone(), cells[1].clone());
-            let row = ClaimRow { ours: cells[4].clone(), p: cells[5].clone(), verdict: cells[6].clone() };
+            let row = ClaimRow { ours: cells[4].clone(), p: cells[7].clone(), verdict: cells[8].clone() };
             rows.entry(key).or_insert_with(Vec::new).push(row);
         }
     }
@@ -290,10 +291,26 @@ fn check_cited_claims(
             if before.trim_end().ends_with("**") && !detected {
                 wrong.push(format!("line {}: in bold, but the verdict is {:?}", i + 1, row.verdict));
             }
+            // "reproduced", "direction reproduced" and "not reproduced" are three verdicts: each word said is
+            // the verdict's own (a direction-only result is never called reproduced).
             let reproduced = row.verdict.starts_with("reproduced");
-            if said.contains("not reproduced") && reproduced {
+            let direction = row.verdict.starts_with("direction reproduced");
+            let not = row.verdict.starts_with("not reproduced");
+            let says_direction = said.contains("direction reproduced");
+            let says_not = said.contains("not reproduced");
+            let says_plain =
+                said.replace("direction reproduced", "").replace("not reproduced", "").contains("reproduced");
+            if says_not && !not {
                 wrong.push(format!("line {}: called not reproduced, but the verdict is {:?}", i + 1, row.verdict));
-            } else if said.contains("reproduced") && !said.contains("not reproduced") && !reproduced {
+            }
+            if says_direction && !direction {
+                wrong.push(format!(
+                    "line {}: called direction reproduced, but the verdict is {:?}",
+                    i + 1,
+                    row.verdict
+                ));
+            }
+            if says_plain && !reproduced {
                 wrong.push(format!("line {}: called reproduced, but the verdict is {:?}", i + 1, row.verdict));
             }
             if negative && detected {
@@ -419,7 +436,7 @@ fn no_sentence_claims_equivalence_without_an_equivalence_verdict() {
     rows.insert(("e".into(), "gym-pps".into(), "a".into()), vec![row("no effect detected (inconclusive)")]);
     rows.insert(
         ("e".into(), "gym-pps".into(), "b".into()),
-        vec![row("reproduced: no effect beyond ±0.05 (TOST, 90 % CI [-0.03, 0.03])")],
+        vec![row("equivalent within ±0.05: the adjusted interval [-0.030, 0.030] lies inside (TOST, Holm p = 0.010)")],
     );
     let said = |text: &str| unsupported_equivalence(text, &rows).len();
     assert_eq!(said("Blind prey align as much (+0.00 ± 0.07<!-- claim: e / gym-pps / a -->). Next."), 1);
