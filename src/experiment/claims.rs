@@ -348,6 +348,26 @@ pub fn verdict(
     }
 }
 
+/// The hypothesis a claim tests, as reports print it beside its verdict: an effect in the paper's
+/// direction, any effect (two-sided), equivalence within a margin, or a level against the paper's value at
+/// its precision and against chance.
+pub fn hypothesis(claim: &Claim, baseline: Option<f64>) -> String {
+    if is_effect(claim) {
+        return match (claim.margin, claim.paper) {
+            (Some(m), _) => format!("no effect: equivalence within ±{m}"),
+            (None, Some(p)) if claim.direction_only => format!("an effect {}", if p < 0.0 { "< 0" } else { "> 0" }),
+            (None, Some(p)) => format!("an effect {} (the paper: {p:+})", if p < 0.0 { "< 0" } else { "> 0" }),
+            (None, None) => "any effect (two-sided)".into(),
+        };
+    }
+    let chance = baseline.map_or(String::new(), |b| format!(", apart from chance {b:.3}"));
+    match claim.paper {
+        Some(p) => format!("the level {p} (±{}){chance}", paper_precision(p)),
+        None if baseline.is_some() => format!("a level apart from chance {:.3}", baseline.unwrap_or_default()),
+        None => "a level (measured)".into(),
+    }
+}
+
 /// A test's level as reports show it: [`ALPHA`] over the Holm step's divisor (`0.05/44`; `0.05` alone).
 pub fn alpha_shown(level: f64) -> String {
     match (ALPHA / level).round() as usize {

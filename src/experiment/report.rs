@@ -212,7 +212,7 @@ fn section(md: &mut String, Reported { exp, results, finished, .. }: &Reported, 
         .unwrap();
     }
     if !results.is_empty() {
-        md.push_str("| preset | claim (the paper) | quantity | paper | coevo (mean ± adjusted CI, seeds) | level | unadjusted 95 % CI | p (Holm) | verdict |\n|---|---|---|---|---|---|---|---|---|\n");
+        md.push_str("| preset | claim (the paper) | quantity | paper | coevo (mean ± adjusted CI, seeds) | level | unadjusted 95 % CI | p (Holm) | verdict | hypothesis | family |\n|---|---|---|---|---|---|---|---|---|---|---|\n");
     }
     for r in results {
         let ours = match (r.estimate, r.shown_half_width()) {
@@ -238,11 +238,17 @@ fn section(md: &mut String, Reported { exp, results, finished, .. }: &Reported, 
         let p = r.p_holm.map_or("–".into(), p_shown);
         writeln!(
             md,
-            "| {} | {} | {} of {of} | {paper} | {ours} | {level} | {plain} | {p} | {} |",
+            "| {} | {} | {} of {of} | {paper} | {ours} | {level} | {plain} | {p} | {} | {} | {} |",
             r.preset,
             cell(&r.claim.text),
             cell(&quantity_name(&r.claim.quantity)),
-            cell(&r.verdict)
+            cell(&r.verdict),
+            cell(&super::claims::hypothesis(&r.claim, r.baseline)),
+            match (&r.claim.family, r.p.is_some()) {
+                (Some(name), _) => cell(name),
+                (None, true) => "this file's".to_string(),
+                (None, false) => "–".to_string(),
+            }
         )
         .unwrap();
     }

@@ -162,8 +162,9 @@ fn claim_rows(md: &str) -> std::collections::BTreeMap<(String, String, String), 
             }
         }
         let cells: Vec<String> = cells.into_iter().map(|c| c.trim().to_string()).collect();
-        // preset | claim | quantity | paper | ours (adjusted) | level | unadjusted 95 % | p (Holm) | verdict
-        if cells.len() == 9 && cells[0] != "preset" {
+        // preset | claim | quantity | paper | ours (adjusted) | level | unadjusted 95 % | p (Holm) | verdict |
+        // hypothesis | family
+        if cells.len() == 11 && cells[0] != "preset" {
             let key = (experiment.clone(), cells[0].clone(), cells[1].clone());
             let row = ClaimRow { ours: cells[4].clone(), p: cells[7].clone(), verdict: cells[8].clone() };
             rows.entry(key).or_insert_with(Vec::new).push(row);
