@@ -257,7 +257,8 @@ impl ClaimResult {
 }
 
 /// Half a unit of the last decimal the paper's number is written with: the precision it states ("22 %"
-/// is 0.22 ± 0.005).
+/// is 0.22 ± 0.005). Read from the number as stored, so a number the paper writes with trailing zeros
+/// ("0.20") would be taken as coarser ("0.2" ± 0.05); no claim of the paper's has one.
 pub fn paper_precision(paper: f64) -> f64 {
     let text = format!("{}", paper.abs());
     let decimals = text.split_once('.').map_or(0, |(_, d)| d.len());
@@ -299,8 +300,8 @@ pub fn verdict(
             let two_sided = e.half_width(level).unwrap_or(ci);
             return if detected {
                 format!("equivalent within ±{m}: the adjusted interval [{lo:.3}, {hi:.3}] lies inside (TOST, {p_text})")
-            } else if e.mean.abs() > two_sided {
-                format!("not reproduced: an effect of {:+.3}, no equivalence within ±{m}", e.mean)
+            } else if e.mean.abs() - two_sided >= m {
+                format!("not reproduced: an effect beyond ±{m} ({:+.3})", e.mean)
             } else {
                 format!("inconclusive: neither equivalence within ±{m} (adjusted interval [{lo:.3}, {hi:.3}]) nor an effect shown")
             };
@@ -333,8 +334,13 @@ pub fn verdict(
         (Some(paper), _) if hi < paper - paper_precision(paper) || lo > paper + paper_precision(paper) => {
             format!("not reproduced: the 95 % CI excludes the paper's {paper} (±{} as written)", paper_precision(paper))
         }
-        (Some(_), Some((b, false))) => {
-            format!("reproduced: the paper's value is inside the 95 % CI, which excludes chance ({b:.3})")
+        (Some(paper), Some((b, false))) => {
+            let h = paper_precision(paper);
+            format!(
+                "reproduced: the 95 % CI reaches the paper's {paper} as written ({}–{}) and excludes chance ({b:.3})",
+                paper - h,
+                paper + h
+            )
         }
         (Some(_), Some((b, true))) => {
             format!("inconclusive: the 95 % CI holds both the paper's value and chance ({b:.3})")
@@ -380,6 +386,9 @@ pub fn alpha_shown(level: f64) -> String {
 pub fn p_shown(p: f64) -> String {
     if p < 0.001 {
         "< 0.001".into()
+    } else if (0.0445..0.0555).contains(&p) {
+        // Near α, a third decimal could round across it (0.0496 as "0.050" beside "detected").
+        format!("{p:.4}")
     } else {
         format!("{p:.3}")
     }
@@ -503,7 +512,14 @@ mod tests {
         // A claim of no change with a margin: tight around zero is equivalent, the clear effect is not.
         let flat = claim(Quantity::DosChange, None, Some(0.05));
         assert!(judged(&flat, &null).starts_with("equivalent within ±0.05"), "{}", judged(&flat, &null));
-        assert!(judged(&flat, &clear).starts_with("not reproduced: an effect of +0.176"), "{}", judged(&flat, &clear));
+        assert!(
+            judged(&flat, &clear).starts_with("not reproduced: an effect beyond ±0.05"),
+            "{}",
+            judged(&flat, &clear)
+        );
+        // An effect detected but smaller than the margin is no evidence against "no effect beyond ±m".
+        let inside = [0.03, 0.06, 0.04, 0.055, 0.04];
+        assert!(judged(&flat, &inside).starts_with("inconclusive: neither equivalence"), "{}", judged(&flat, &inside));
         assert!(judged(&flat, &wide).starts_with("inconclusive: neither equivalence"));
         // No number from the paper: detected or not, never "holds".
         let free = claim(Quantity::InteractionDoa("x".into()), None, None);
@@ -529,17 +545,21 @@ mod tests {
     fn the_shown_interval_agrees_with_the_verdict() {
         // A family of four: each interval at its Holm level excludes zero exactly when the verdict says
         // detected.
-        let samples: [&[f64]; 4] = [
+        let samples: [&[f64]; 5] = [
             &[0.15, 0.18, 0.20, 0.16, 0.19],
             &[0.05, -0.01, 0.08, 0.02, 0.04],
             &[0.4, -0.3, 0.25, -0.2, 0.1],
             &[0.03, 0.05, 0.02, 0.06, 0.04],
+            // p ≈ 0.03: below 0.05 but not rejected in a family of five, so its plain 95 % interval would
+            // exclude zero while the adjusted one must not.
+            &[0.09, 0.01, 0.06, 0.1, 0.03],
         ];
         let e: Vec<Estimate> = samples.iter().map(|s| crate::experiment::stats::estimate(s).unwrap()).collect();
         let p: Vec<f64> = e.iter().map(|e| e.p_value().unwrap()).collect();
         let (adjusted, levels) = (crate::experiment::stats::holm(&p), crate::experiment::stats::holm_levels(&p, ALPHA));
         let free = claim(Quantity::InteractionDoa("x".into()), None, None);
-        for i in 0..4 {
+        assert!(p.iter().any(|&p| (0.017..0.05).contains(&p)), "{p:?}");
+        for i in 0..samples.len() {
             let r = ClaimResult {
                 experiment: "e".into(),
                 preset: "p".into(),
@@ -569,7 +589,8 @@ mod tests {
         let e = |s: &[f64]| crate::experiment::stats::estimate(s);
         let chance = Some(std::f64::consts::FRAC_2_PI);
         let high = [0.80, 0.83, 0.84, 0.81, 0.82];
-        assert!(verdict(&level, e(&high), None, None, chance).starts_with("reproduced: the paper's value is inside"));
+        assert!(verdict(&level, e(&high), None, None, chance)
+            .starts_with("reproduced: the 95 % CI reaches the paper's 0.82 as written"));
         let wide = [0.95, 0.55, 0.85, 0.6, 0.9];
         assert!(verdict(&level, e(&wide), None, None, chance).starts_with("inconclusive: the 95 % CI holds both"));
         let low = [0.63, 0.64, 0.62, 0.64, 0.63];

@@ -63,18 +63,20 @@ const METHOD: &str = "Each number is the mean over seeds of the prey's 100-episo
      **direction reproduced, smaller (larger) than the paper** when it is detected in the paper's direction but the \
      paper's value is outside; **not reproduced** when it is detected the other way; otherwise **inconclusive**, saying \
      whether the paper's value is outside the adjusted interval (an effect of its size excluded) and the smallest effect \
-     the seeds detect with 80 % power at the level used. A claim of no effect is tested for equivalence within the \
+     the seeds detect with 80 % power at the level used. The family-wise guarantee covers the detections; the \
+     comparisons of size (smaller or larger than the paper, an effect of its size excluded) read the same intervals \
+     and are descriptive, since stepped intervals are not simultaneous ones. A claim of no effect is tested for equivalence within the \
      margin its experiment file states (TOST, its p-value in the family like any test): **equivalent within ±m** when \
-     the (1 − 2α) interval at its level lies inside ± m, **not reproduced** when an effect is shown instead. A *level* \
+     the (1 − 2α) interval at its level lies inside ± m, **not reproduced** when the interval lies beyond the margin. A *level* \
      is **reproduced** when its 95 % interval reaches the paper's value at the precision the paper writes it with (0.22 \
      is 0.215–0.225) and excludes chance (DoA by chance: 2/π ≈ 0.637; DoS by chance: uniform random positions at \
-     the same density, e.g. 0.227 for 10 prey and 0.100 for 50 in the 2 m torus; the mean edge rank of caught prey by \
+     the same density, e.g. 0.226 for 10 prey and 0.100 for 50 in the 2 m torus; the mean edge rank of caught prey by \
      chance: 0.5; C_nn by chance: 0), **not reproduced** when the interval misses the paper's value so written. For a \
      quantity the paper gives no number of, the verdict says whether an effect was detected or the level differs from \
      chance; *no effect detected* is not evidence of no effect: only an equivalence verdict is. The paper's per-step \
      levels of trained prey (DoS about 15 %, DoA about 0.96) are judged at the training density, 10 prey, and the \
      50-prey evaluation is a secondary row without the paper's number: DoS depends on density (uniform random \
-     positions give 0.227 at 10 prey and 0.100 at 50, so a DoS of 15 % is clustering at 10 prey but more spread than \
+     positions give 0.226 at 10 prey and 0.100 at 50, so a DoS of 15 % is clustering at 10 prey but more spread than \
      random at 50), and the paper's values match its 10-prey state.\n\n";
 
 /// The head of the contents table of experiments ([`contents_row`]).
@@ -224,6 +226,8 @@ fn section(md: &mut String, Reported { exp, results, finished, .. }: &Reported, 
         let level = match (r.level, r.claim.margin) {
             (Some(l), Some(_)) => format!("TOST, α = {}", super::claims::alpha_shown(l)),
             (Some(l), None) => format!("α = {}", super::claims::alpha_shown(l)),
+            // An effect not tested (not run yet, one seed, identical runs) has no level.
+            (None, _) if super::claims::is_effect(&r.claim) => "–".into(),
             (None, _) => "95 %".into(),
         };
         let plain = match r.estimate.and_then(|e| e.ci.map(|c| (e.mean, c))) {

@@ -142,21 +142,21 @@ pub fn holm(p: &[f64]) -> Vec<f64> {
 /// wider than Bonferroni's interval for a rejected test.
 pub fn holm_levels(p: &[f64], alpha: f64) -> Vec<f64> {
     let m = p.len();
+    // The decisions are holm()'s own (so a p-value one rounding away from a step boundary is judged the
+    // same way in both); a NaN p-value counts as 1.
+    let p: Vec<f64> = p.iter().map(|&x| if x.is_nan() { 1.0 } else { x }).collect();
+    let adjusted = holm(&p);
     let mut order: Vec<usize> = (0..m).collect();
     order.sort_by(|&a, &b| p[a].total_cmp(&p[b]));
     let mut levels = vec![alpha; m];
     let mut failed: Option<f64> = None;
     for (k, &i) in order.iter().enumerate() {
         let step = alpha / (m - k) as f64;
-        let level = match failed {
+        levels[i] = match failed {
             Some(level) => level,
-            None if p[i] < step => step,
-            None => {
-                failed = Some(step);
-                step
-            }
+            None if adjusted[i] < alpha => step,
+            None => *failed.insert(step),
         };
-        levels[i] = level;
     }
     levels
 }
@@ -237,9 +237,15 @@ mod tests {
             assert_eq!(levels[smallest], 0.05 / p.len() as f64, "Bonferroni's level first");
         }
         // A p-value below its own step but after a failed step is not rejected, and its level says so:
-        // 0.04 fails step 1 (0.05/3), so 0.045 < 0.05/1 is never reached.
+        // 0.04 fails the first step (0.05/3), so 0.049 < 0.05/1 is never reached.
         let p = [0.04, 0.045, 0.049];
         assert!(holm_levels(&p, 0.05).iter().zip(&p).all(|(l, p)| p >= l));
+        // Ties, a p-value exactly at its step (not below it: not rejected), and a NaN (counted as 1).
+        let p = [0.01, 0.01, 0.0125, f64::NAN];
+        let (levels, adjusted) = (holm_levels(&p, 0.05), holm(&[0.01, 0.01, 0.0125, 1.0]));
+        for i in 0..4 {
+            assert_eq!(p[i] < levels[i], adjusted[i] < 0.05, "test {i}: level {}", levels[i]);
+        }
     }
 
     #[test]
@@ -252,6 +258,12 @@ mod tests {
         let (lo, hi) = e.tost_interval().unwrap();
         assert!(-0.05 < lo && hi < 0.05);
         assert!(e.tost_p(0.04).unwrap() > 0.05 && e.tost_interval().unwrap().1 > 0.04);
+        // The same, mirrored: a negative mean gives the same p-value.
+        let mirrored = Estimate { mean: -0.01, ..e };
+        assert!((mirrored.tost_p(0.05).unwrap() - e.tost_p(0.05).unwrap()).abs() < 1e-12);
+        // No spread: equivalent exactly when the mean is inside the margin.
+        let exact = Estimate { se: Some(0.0), ..e };
+        assert_eq!((exact.tost_p(0.05), exact.tost_p(0.005)), (Some(0.0), Some(1.0)));
     }
 
     #[test]
