@@ -5,6 +5,7 @@ use super::claims::{p_shown, quantity_name, ClaimResult};
 use super::file::{Experiment, Quantity, EVAL_ORDER, EVAL_ORDER_DIGITS, EVAL_ORDER_LABELS};
 use super::summary;
 use crate::sim::metrics::Swarming;
+use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
@@ -101,20 +102,46 @@ pub fn reproduction(experiments: &[Reported]) -> String {
     for r in experiments {
         section(&mut md, r, &shown_paths(&r.exp).1.join("figures"));
     }
-    let (seconds, finished, runs) = experiments.iter().fold((0.0, 0, 0), |(s, f, r), e| {
-        let own = e.exp.runs.iter().filter(|run| run.shared_from.is_none()).count();
-        (s + e.seconds, f + e.finished - e.shared, r + own)
-    });
+    let runs: usize = experiments.iter().map(|e| e.exp.runs.iter().filter(|r| r.shared_from.is_none()).count()).sum();
+    let (finished, distinct, seconds) = trainings(experiments);
     writeln!(
         md,
-        "\n## The whole suite\n\n`coevo --experiment all --jobs 2`: {finished} of {runs} trainings finished, {:.1} h of training summed over \
-         runs, each timed by its own `metrics.csv` (`wall_seconds`, the run's own wall clock). A run shared between \
-         experiments (`shared_from`) is one training, counted and timed once; runs copied by hand before shared runs existed \
-         still count once per experiment that holds a copy.",
-        seconds / 3600.0
+        "\n## The whole suite\n\n`coevo --experiment all --jobs 2`: {finished} of {runs} trainings finished, of which {distinct} \
+         distinct, {:.1} h of training summed over the distinct ones, each timed by its own `metrics.csv` (`wall_seconds`, \
+         the run's own wall clock). A run shared between experiments (`shared_from`) is one training, counted and timed \
+         once; so is a run trained again in another experiment without `shared_from`, from the same resolved scene and \
+         seed by the same binary (a deterministic re-training: {}).",
+        seconds / 3600.0,
+        match finished - distinct {
+            0 => "none".to_string(),
+            1 => "1 run".to_string(),
+            n => format!("{n} runs"),
+        }
     )
     .unwrap();
     md
+}
+
+/// The finished trainings of every experiment (shared runs counted by their owner), how many of them are
+/// distinct (the same resolved scene, seed included, by the same binary is one training, whichever
+/// experiments hold it), and the wall-clock seconds of the distinct ones.
+fn trainings(experiments: &[Reported]) -> (usize, usize, f64) {
+    let mut distinct: BTreeMap<(String, String), f64> = BTreeMap::new();
+    let mut finished = 0;
+    for e in experiments {
+        let wall = e.summary.columns.iter().position(|c| c == "wall_seconds");
+        for (i, row) in e.summary.runs(&e.exp) {
+            if e.exp.runs[i].shared_from.is_some() || !row.shared_from.is_empty() {
+                continue;
+            }
+            finished += 1;
+            let key = (crate::learning::tensors::scene_id(&e.exp.runs[i].scene), row.binary.clone());
+            let seconds = wall.map_or(0.0, |w| row.values[w]).max(0.0);
+            distinct.entry(key).or_insert(if seconds.is_finite() { seconds } else { 0.0 });
+        }
+    }
+    // + 0.0: an empty f64 sum is −0.0, which would print as "-0.0 h".
+    (finished, distinct.len(), distinct.values().sum::<f64>() + 0.0)
 }
 
 /// `results/<experiment>/REPORT.md`: one experiment's claims and verdicts, as REPRODUCTION.md gives them,

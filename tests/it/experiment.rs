@@ -601,6 +601,14 @@ fn a_shared_variant_is_the_other_experiments_runs_trained_once_and_never_compare
     let md = std::fs::read_to_string(dir.path().join("results/share/REPORT.md")).unwrap();
     assert!(md.contains("| – | not a comparison: the two variants' runs are identical"), "{md}");
     assert!(md.contains("| 4 of 4 (2 shared) |"), "{md}");
+    // The suite's totals count that re-training once: the same resolved scene and seed by the same binary
+    // is one training, whichever experiments hold it.
+    let out = coevo(dir.path(), &["--plot", "all"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let suite = std::fs::read_to_string(dir.path().join("REPRODUCTION.md")).unwrap();
+    let suite = suite.split("## The whole suite").nth(1).unwrap();
+    assert!(suite.contains("6 of 6 trainings finished, of which 4 distinct"), "{suite}");
+    assert!(suite.contains("(a deterministic re-training: 2 runs)"), "{suite}");
     // A shared reference to another scene, or two variants shared from the same runs, are refused.
     for (text, says) in [
         (
