@@ -169,9 +169,16 @@ impl SceneArgs {
             .collect()
     }
 
-    /// The scene file of the call (--scene, else `default`) with `overrides` applied and validated.
+    /// The scene file of the call (--scene, else `default`) with `overrides` applied and validated. The
+    /// default scene is built into the binary too, so a call without --scene works outside the clone (a
+    /// `scenes/standard.ron` in the working folder still wins).
     pub fn load(&self, default: &Path, overrides: &Overrides) -> crate::error::Result<(Scene, PathBuf)> {
         let path = self.scene.clone().unwrap_or_else(|| default.to_path_buf());
+        if self.scene.is_none() && path == Path::new(STANDARD_SCENE) && !path.exists() {
+            let mut scene = Scene::parse(STANDARD_SCENE_TEXT, &format!("{STANDARD_SCENE} (built in)"))?;
+            overrides.apply(&mut scene, &path)?;
+            return Ok((scene, path));
+        }
         Ok((overrides.load(&path)?, path))
     }
 }
@@ -223,3 +230,6 @@ pub fn describe(path: &Path, shared: &Shared) -> crate::error::Result<()> {
 
 /// The default scene of every mode that loads one.
 pub const STANDARD_SCENE: &str = "scenes/standard.ron";
+
+/// The default scene's text, built into the binary ([`SceneArgs::load`]).
+const STANDARD_SCENE_TEXT: &str = include_str!("../../scenes/standard.ron");

@@ -112,3 +112,21 @@ fn errors_name_file_line_and_field() {
     let missing = Scene::load(Path::new("scenes/nope.ron")).unwrap_err().to_string();
     assert!(missing.starts_with("scenes/nope.ron: cannot read scene"), "{missing}");
 }
+
+/// The default scene is built into the binary: `coevo --train` works from a folder outside the clone
+/// and trains exactly scenes/standard.ron; a scene named on the command line is still read from disk.
+#[test]
+fn the_default_scene_works_outside_the_clone() {
+    let dir = tempfile::tempdir().unwrap();
+    let coevo = |args: &[&str]| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_coevo")).args(args).current_dir(dir.path()).output().unwrap()
+    };
+    let out = coevo(&["--train", "--episodes", "1", "--quiet", "--out", "run"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let trained = coevo::scene::Scene::load(&dir.path().join("run/scene.ron")).unwrap();
+    let standard = coevo::scene::Scene::load(std::path::Path::new("scenes/standard.ron")).unwrap();
+    assert_eq!(trained.to_ron(), standard.to_ron());
+    let out = coevo(&["--train", "--episodes", "1", "--scene", "scenes/standard.ron", "--out", "other"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && stderr.contains("scenes/standard.ron: cannot read scene"), "{stderr}");
+}
