@@ -254,7 +254,9 @@ impl Accumulated {
     }
 
     /// The means over the evaluation, in words.
-    fn summary(&self, name: &str, correlation_length: Option<f64>) -> String {
+    /// The summary line's means, each beside its value by chance (`random_dos`: DoS of uniform random
+    /// positions at this count and arena): a level is read against chance, not alone.
+    fn summary(&self, name: &str, correlation_length: Option<f64>, random_dos: Option<f64>) -> String {
         if self.steps == 0 {
             return format!("no DoS/DoA: fewer than two {name}");
         }
@@ -263,14 +265,15 @@ impl Accumulated {
             "no ranked catch".to_string()
         } else {
             format!(
-                "edge rank of caught {name} {:.3} ({} catches)",
+                "edge rank of caught {name} {:.3} (at random 0.5; {} catches)",
                 self.ranks.iter().sum::<f64>() / self.ranks.len() as f64,
                 self.ranks.len()
             )
         };
+        let random = random_dos.map_or(String::new(), |r| format!(" (random positions {r:.3})"));
         format!(
-            "mean DoS {dos:.4}, DoA {doa:.4}, polarization {polarization:.3}, milling {milling:.3}, \
-             {clusters:.1} clusters (largest {:.0} %), C_nn {c_nn:.3}, correlation length {}, {edge} ({name})",
+            "mean DoS {dos:.4}{random}, DoA {doa:.4} (random headings 0.637), polarization {polarization:.3}, milling {milling:.3}, \
+             {clusters:.1} clusters (largest {:.0} %), C_nn {c_nn:.3} (independent headings 0), correlation length {}, {edge} ({name})",
             100.0 * largest,
             correlation_length.map_or("beyond half the arena".to_string(), |xi| format!("{xi:.3} m"))
         )
@@ -400,7 +403,11 @@ pub fn evaluate(opts: &EvalOptions) -> crate::error::Result<String> {
         opts.episodes,
         scene.episode_steps,
         counts.join(" + "),
-        acc.summary(name, correlation_length),
+        acc.summary(
+            name,
+            correlation_length,
+            crate::sim::metrics::random_dos(sim.world().resource::<Arena>(), registry.defs[prey].count)
+        ),
         path.display()
     ) + &twin.map_or(String::new(), |(_, r)| format!("; {}", r.summary())))
 }

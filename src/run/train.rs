@@ -378,6 +378,30 @@ pub(crate) fn save_checkpoint(
         .map_err(|e| format!("{}: cannot save checkpoint: {e}", run.display()))?)
 }
 
+/// One plain sentence on the course of a quantity's 100-episode running mean over training: where it
+/// peaked (the highest, or with `highest` false the lowest, full window) and how far it moved back by the
+/// last episode, or that the extreme is at the end.
+fn course(what: &str, values: &[f64], highest: bool, digits: usize) -> String {
+    use crate::sim::metrics::WINDOW;
+    let rm = crate::sim::metrics::running_mean(values, WINDOW);
+    let full: Vec<(usize, f64)> =
+        rm.iter().copied().enumerate().skip(WINDOW - 1).filter(|(_, x)| x.is_finite()).collect();
+    let pick = |a: &&(usize, f64), b: &&(usize, f64)| if highest { a.1.total_cmp(&b.1) } else { b.1.total_cmp(&a.1) };
+    let (Some(&(at, extreme)), Some(&(_, last))) = (full.iter().max_by(pick), full.last()) else {
+        return String::new();
+    };
+    let (word, moved) = if highest { ("highest", "fell") } else { ("lowest", "rose") };
+    let (from, to) = (at + 2 - WINDOW, at + 1);
+    if to + WINDOW / 2 >= values.len() {
+        format!("  {what}: its 100-episode mean is {word} near the end ({extreme:.digits$}, episodes {from}–{to})\n")
+    } else {
+        format!(
+            "  {what}: its 100-episode mean was {word} in episodes {from}–{to} ({extreme:.digits$}), then {moved} by {:.digits$} to {last:.digits$}\n",
+            (extreme - last).abs()
+        )
+    }
+}
+
 /// What a finished `--train` says about its run: first → last DoS, DoA and catches with the baselines of
 /// no swarming at that density, overlapping windows named as such, and the next commands for this run.
 pub fn explain(run: &Path) -> crate::error::Result<String> {
@@ -419,6 +443,11 @@ pub fn explain(run: &Path) -> crate::error::Result<String> {
             2 * window - n.min(2 * window),
             2 * WINDOW
         ));
+    }
+    if n >= 2 * WINDOW {
+        out.push_str(&course("DoA", &doa, true, 3));
+        out.push_str(&course("DoS", &dos, false, 3));
+        out.push_str(&course("catches per episode", &catches, true, 1));
     }
     out.push_str("  one run is one sample: seeds of the same scene differ widely; compare seeds with an experiment file (docs/src/guide/experiments.md)\n");
     let r = run.display();

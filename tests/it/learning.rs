@@ -252,6 +252,10 @@ fn evaluation_deploys_on_fifty_prey_and_without_predators() {
     };
     let line = one(vec![]);
     assert!(!line.contains("mean DoS 0.0000"), "{line}");
+    // Each level beside its value by chance.
+    for chance in ["(random positions 0.", "(random headings 0.637)", "(independent headings 0)"] {
+        assert!(line.contains(chance), "{chance} not in {line}");
+    }
     let csv = std::fs::read_to_string(run.join("eval.csv")).unwrap();
     assert!(csv.lines().nth(1).unwrap().split(',').nth(2).unwrap().parse::<f64>().unwrap() > 0.0);
     let line = one(vec![("prey".into(), 1), ("predator".into(), 1)]);
@@ -399,6 +403,15 @@ fn a_finished_training_run_explains_itself() {
     // 210 episodes: first and last 100 apart, no overlap note.
     let long = train("210", "long");
     assert!(long.contains("first → last 100 of 210 episodes") && !long.contains("overlap"), "{long}");
+    // And the course of each running mean in a sentence: where it peaked, and how far it moved back.
+    for what in ["DoA", "DoS", "catches per episode"] {
+        let line = long
+            .lines()
+            .find(|l| l.trim_start().starts_with(&format!("{what}: its 100-episode mean")))
+            .unwrap_or_else(|| panic!("{what}: {long}"));
+        assert!(line.contains("near the end") || line.contains(", then "), "{line}");
+    }
+    assert!(!short.contains("its 100-episode mean"), "no course without two full windows: {short}");
 }
 
 #[test]
