@@ -102,9 +102,6 @@ impl EvalArgs {
         if self.untrained && !snapshots.is_empty() {
             return Err("--untrained: deploys the networks the run was initialised with; --snapshot deploys others (the initial ones are --snapshot NAME=0)".into());
         }
-        if self.perturb.is_none() && self.perturb_step.is_some() {
-            return Err("--perturb-step: needs --perturb RADIANS".into());
-        }
         Ok(EvalOptions {
             run: run.to_path_buf(),
             out: self.eval_out.clone(),
@@ -283,6 +280,9 @@ impl Accumulated {
 /// Deploys a run's policies without noise and streams per-step DoS/DoA to `RUN/eval.csv` (replaced
 /// whole, when complete); returns the summary line.
 pub fn evaluate(opts: &EvalOptions) -> crate::error::Result<String> {
+    if opts.perturb.is_none() && opts.perturb_step.is_some() {
+        return Err("--perturb-step: needs --perturb RADIANS".into());
+    }
     let dir = RunDir::new(&opts.run);
     let path = dir.eval_output(opts.out.as_deref())?;
     if !dir.is_run() {

@@ -180,6 +180,17 @@ fn shown_number(text: &str) -> Option<(f64, usize)> {
     text.parse().ok().map(|x| (x, decimals))
 }
 
+/// The REPRODUCTION.md rows a citation `EXPERIMENT / PRESET / CLAIM` names (None when it names none).
+fn cited_rows<'r>(
+    cited: &str,
+    rows: &'r std::collections::BTreeMap<(String, String, String), Vec<ClaimRow>>,
+) -> Option<&'r Vec<ClaimRow>> {
+    match cited.splitn(3, " / ").collect::<Vec<_>>()[..] {
+        [e, p, c] => rows.get(&(e.to_string(), p.to_string(), c.to_string())),
+        _ => None,
+    }
+}
+
 /// Every `MEAN ± CI<!-- claim: EXPERIMENT / PRESET / CLAIM -->` in `text` checked against REPRODUCTION.md:
 /// the numbers are the claim's estimate rounded to the decimals shown, and a "detected" or "not detected"
 /// written right after it is what the verdict says. Returns one line per disagreement.
@@ -201,12 +212,7 @@ fn check_cited_claims(
             };
             let cited = after_open[..close].trim();
             let after = &after_open[close + 3..];
-            let parts: Vec<&str> = cited.splitn(3, " / ").collect();
-            let row = match parts[..] {
-                [e, p, c] => rows.get(&(e.to_string(), p.to_string(), c.to_string())),
-                _ => None,
-            };
-            let row = match row.map(Vec::as_slice) {
+            let row = match cited_rows(cited, rows).map(Vec::as_slice) {
                 Some([one]) => one,
                 found => {
                     let why = if found.is_some() { "names more than one row of" } else { "is not a claim of" };
@@ -406,13 +412,7 @@ fn unsupported_equivalence(
         let Some(word) = EQUIVALENCE_WORDS.iter().find(|w| lower.contains(&w.to_lowercase())) else { continue };
         let equivalent = sentence.split("<!-- claim: ").skip(1).any(|c| {
             let cited = c.split("-->").next().unwrap_or("").trim();
-            let parts: Vec<&str> = cited.splitn(3, " / ").collect();
-            match parts[..] {
-                [e, p, c] => rows.get(&(e.to_string(), p.to_string(), c.to_string())).is_some_and(|r| {
-                    r.iter().all(|r| r.verdict.contains("TOST") && !r.verdict.contains("inconclusive"))
-                }),
-                _ => false,
-            }
+            cited_rows(cited, rows).is_some_and(|r| r.iter().all(|r| r.verdict.starts_with("equivalent within")))
         });
         if !equivalent {
             let shown: String = sentence.chars().take(120).collect();
