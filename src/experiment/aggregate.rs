@@ -10,8 +10,9 @@ use super::stats::{difference, estimate, holm, holm_levels};
 use super::summary::{self, Summary};
 use std::collections::BTreeMap;
 
-/// Checks an experiment's claims on the `data` of its finished runs ([`load`]) and, when there are any,
-/// writes its summaries and figures. Claims with no run yet say so.
+/// Estimates an experiment's claims on the `data` of its finished runs ([`super::data::load`]) and, when
+/// there are any, writes its summaries and figures. The results are not yet judged: [`adjust`] does that
+/// over their families, which may span experiment files. Claims with no run yet say so.
 pub fn aggregate(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> crate::error::Result<Aggregated> {
     check_complete(exp, data)?;
     let written = !data.is_empty();
@@ -30,8 +31,47 @@ pub fn aggregate(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> crate::er
         crate::io::own_dir(&exp.root.join("figures"))?;
     }
     let means = summary::means_text(exp, data, &quantities);
-    let mut results = Vec::new();
+    let results = tests(exp, &table);
     let mut saved = 0;
+    if let Some(drawn) = &drawn {
+        for preset in &exp.spec.presets {
+            figures::draw(exp, preset, &table, drawn, &mut saved)?;
+        }
+    }
+    if written {
+        // The figure data before the summary it must match: a write that fails between them leaves the
+        // old summary, which the next aggregation finds incomplete, never a new summary beside old curves.
+        figure_data::write(exp, drawn.as_ref().expect("drawn from the run folders"))?;
+        crate::io::write_file(&exp.root.join("summary.csv"), crate::io::Existing::Replace, summary.as_bytes())?;
+        crate::io::write_file(&exp.root.join("summary-mean.csv"), crate::io::Existing::Replace, means.as_bytes())?;
+    }
+    Ok(Aggregated { results, summary: table, figures: drawn.is_some().then_some(saved), from_folders: written })
+}
+
+/// What [`aggregate`] found, and what it wrote.
+pub struct Aggregated {
+    /// Estimated and tested, not yet adjusted or judged ([`adjust`]).
+    pub results: Vec<ClaimResult>,
+    /// The per-run values the claims were computed from (written now, or the committed summary.csv).
+    pub summary: Summary,
+    /// How many figures it drew (each as .svg and .png): from the run folders, or in a clone from the
+    /// committed figure data. None when it drew none (a clone of a commit without figure data).
+    pub figures: Option<usize>,
+    /// Whether the run folders were here, so summary.csv, summary-mean.csv and figure-data.ron.gz were
+    /// written from them (else the committed ones were read and left as they are).
+    pub from_folders: bool,
+}
+
+/// The verdict on a change over training of runs shorter than two windows.
+const OVERLAP: &str = "not measured: runs shorter than 200 episodes, so the first and last 100 episodes overlap";
+
+/// The verdict on a comparison of two variants whose runs are identical.
+const IDENTICAL: &str = "not a comparison: the two variants' runs are identical (one training, run twice)";
+
+/// Every claim of `exp` on every preset, estimated and tested on the per-run values of `table` (the
+/// experiment's summary.csv): its estimate and unadjusted p-value, not yet adjusted or judged.
+pub fn tests(exp: &Experiment, table: &Summary) -> Vec<ClaimResult> {
+    let mut results = Vec::new();
     for preset in &exp.spec.presets {
         for claim in &exp.spec.claims {
             let samples = |variant: &str| table.values(exp, preset, variant, &claim.quantity);
@@ -50,18 +90,28 @@ pub fn aggregate(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> crate::er
                 None => estimate(&ours),
             };
             let scene = exp.runs.iter().find(|r| r.preset == *preset && r.variant == claim.variant).map(|r| &r.scene);
+            // The claim's own test: TOST for a claim of no effect, else the two-sided test of none.
+            let p = e.filter(|_| is_effect(claim) && !identical).and_then(|e| match claim.margin {
+                Some(m) => e.tost_p(m),
+                None => e.p_value(),
+            });
+            // What the test reads, to the bit: two claims of one family that read the same samples in the
+            // same way are one test.
+            let same_test = p.map(|_| {
+                let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                (bits(&ours), theirs.as_deref().map(bits), claim.margin.map(f64::to_bits))
+            });
             results.push(ClaimResult {
                 experiment: exp.name.clone(),
                 preset: preset.clone(),
                 claim: claim.clone(),
                 estimate: e,
-                // The claim's own test: TOST for a claim of no effect, else the two-sided test of none.
-                p: e.filter(|_| is_effect(claim) && !identical).and_then(|e| match claim.margin {
-                    Some(m) => e.tost_p(m),
-                    None => e.p_value(),
-                }),
+                p,
                 p_holm: None,
                 level: None,
+                family_tests: 0,
+                same_test,
+                same_as: None,
                 baseline: chance_level(exp, claim, scene),
                 verdict: match (overlap, identical) {
                     (true, _) => OVERLAP.into(),
@@ -70,50 +120,98 @@ pub fn aggregate(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> crate::er
                 },
             });
         }
-        if let Some(drawn) = &drawn {
-            figures::draw(exp, preset, &table, drawn, &mut saved)?;
-        }
     }
-    // Families: the claims of one `family` name, all presets, adjusted together (Holm); claims without a
-    // name are the experiment's family. Each test's interval is shown at its Holm step's level.
-    let families: std::collections::BTreeSet<Option<String>> = results.iter().map(|r| r.claim.family.clone()).collect();
+    results
+}
+
+/// Adjusts every tested claim of `results` within its family and judges every claim. A family is the
+/// claims of one `family` name, whichever experiment files and presets they are in (a claim without a name
+/// is its own experiment's family); Holm's procedure runs over it, and each test's interval is shown at
+/// its Holm step's level. A test that reads the same samples in the same way as an earlier test of its
+/// family (the same runs, the same quantity: e.g. a variant shared from another experiment) is that test,
+/// counted once: the first of them in `results`' order (the files' order) is tested, the others name it.
+pub fn adjust(results: &mut [ClaimResult]) {
+    let key = |r: &ClaimResult| match &r.claim.family {
+        Some(name) => (name.clone(), String::new()),
+        None => (String::new(), r.experiment.clone()),
+    };
+    let families: std::collections::BTreeSet<(String, String)> = results.iter().map(key).collect();
     for family in families {
-        let tested: Vec<usize> =
-            (0..results.len()).filter(|&i| results[i].p.is_some() && results[i].claim.family == family).collect();
+        let members: Vec<usize> =
+            (0..results.len()).filter(|&i| results[i].p.is_some() && key(&results[i]) == family).collect();
+        let mut tested: Vec<usize> = Vec::new();
+        let mut repeats: Vec<(usize, usize)> = Vec::new();
+        for &i in &members {
+            match tested.iter().find(|&&j| results[j].same_test == results[i].same_test) {
+                Some(&j) => repeats.push((i, j)),
+                None => tested.push(i),
+            }
+        }
         let p: Vec<f64> = tested.iter().map(|&i| results[i].p.unwrap_or(1.0)).collect();
         for ((&i, adjusted), level) in tested.iter().zip(holm(&p)).zip(holm_levels(&p, ALPHA)) {
             results[i].p_holm = Some(adjusted);
             results[i].level = Some(level);
         }
+        for &i in &members {
+            results[i].family_tests = tested.len();
+        }
+        for (i, j) in repeats {
+            let (p_holm, level) = (results[j].p_holm, results[j].level);
+            let first = format!("{} / {} / {}", results[j].experiment, results[j].preset, results[j].claim.text);
+            let r = &mut results[i];
+            (r.p_holm, r.level, r.same_as) = (p_holm, level, Some(first));
+        }
     }
     for r in results.iter_mut().filter(|r| r.verdict != IDENTICAL && r.verdict != OVERLAP) {
         r.verdict = verdict(&r.claim, r.estimate, r.p_holm, r.level, r.baseline);
+        if let Some(first) = &r.same_as {
+            r.verdict.push_str(&format!("; the same test as {first}, counted once in its family"));
+        }
     }
-    if written {
-        // The figure data before the summary it must match: a write that fails between them leaves the
-        // old summary, which the next aggregation finds incomplete, never a new summary beside old curves.
-        figure_data::write(exp, drawn.as_ref().expect("drawn from the run folders"))?;
-        crate::io::write_file(&exp.root.join("summary.csv"), crate::io::Existing::Replace, summary.as_bytes())?;
-        crate::io::write_file(&exp.root.join("summary-mean.csv"), crate::io::Existing::Replace, means.as_bytes())?;
-    }
-    Ok(Aggregated { results, summary: table, figures: drawn.is_some().then_some(saved), from_folders: written })
 }
 
-/// What [`aggregate`] found, and what it wrote.
-pub struct Aggregated {
-    pub results: Vec<ClaimResult>,
-    /// The per-run values the claims were computed from (written now, or the committed summary.csv).
-    pub summary: Summary,
-    /// How many figures it drew (each as .svg and .png): from the run folders, or in a clone from the
-    /// committed figure data. None when it drew none (a clone of a commit without figure data).
-    pub figures: Option<usize>,
-    /// Whether the run folders were here, so summary.csv, summary-mean.csv and figure-data.ron.gz were
-    /// written from them (else the committed ones were read and left as they are).
-    pub from_folders: bool,
+#[cfg(test)]
+mod tests {
+    use super::adjust;
+    use crate::experiment::claims::tests::{claim, tested};
+    use crate::experiment::file::Quantity;
+    use crate::experiment::stats::holm;
+
+    #[test]
+    fn a_named_family_spans_files_and_a_repeated_test_counts_once() {
+        let named = |text: &str, family: Option<&str>| {
+            let mut c = claim(Quantity::InteractionDoa("x".into()), None, None);
+            c.text = text.into();
+            c.family = family.map(String::from);
+            c
+        };
+        let samples: [&[f64]; 4] = [
+            &[0.15, 0.18, 0.20, 0.16, 0.19],
+            &[0.05, -0.01, 0.08, 0.02, 0.04],
+            &[0.09, 0.01, 0.06, 0.1, 0.03],
+            &[0.4, -0.3, 0.25, -0.2, 0.1],
+        ];
+        let mut results = vec![
+            // "shared" in two files: a, b and b's repeat of a's first test (the same samples).
+            tested(&named("a1", Some("shared")), "a", samples[0]),
+            tested(&named("a2", Some("shared")), "a", samples[1]),
+            tested(&named("b1", Some("shared")), "b", samples[2]),
+            tested(&named("b2", Some("shared")), "b", samples[0]),
+            // Unnamed: each file its own family, although b's test is the same as a's.
+            tested(&named("a3", None), "a", samples[3]),
+            tested(&named("b3", None), "b", samples[3]),
+        ];
+        let p: Vec<f64> = results.iter().map(|r| r.p.unwrap()).collect();
+        adjust(&mut results);
+        let across = holm(&[p[0], p[1], p[2]]);
+        for (i, expected) in [(0, across[0]), (1, across[1]), (2, across[2]), (3, across[0]), (4, p[4]), (5, p[5])] {
+            assert_eq!(results[i].p_holm, Some(expected), "{}", results[i].claim.text);
+        }
+        assert_eq!(results.iter().map(|r| r.family_tests).collect::<Vec<_>>(), [3, 3, 3, 3, 1, 1]);
+        assert_eq!(results[3].same_as.as_deref(), Some("a / p / a1"));
+        assert_eq!(results[3].level, results[0].level);
+        assert!(results[3].verdict.ends_with("the same test as a / p / a1, counted once in its family"));
+        assert!(results[5].same_as.is_none(), "another family's test is not a repeat");
+        assert!(results.iter().all(|r| !r.verdict.is_empty()), "every claim judged");
+    }
 }
-
-/// The verdict on a change over training of runs shorter than two windows.
-const OVERLAP: &str = "not measured: runs shorter than 200 episodes, so the first and last 100 episodes overlap";
-
-/// The verdict on a comparison of two variants whose runs are identical.
-const IDENTICAL: &str = "not a comparison: the two variants' runs are identical (one training, run twice)";

@@ -168,18 +168,28 @@ pub struct ClaimResult {
     pub preset: String,
     pub claim: Claim,
     pub estimate: Option<Estimate>,
-    /// For an effect: the two-sided p-value of "no effect", and Holm's adjustment of it over every effect
-    /// of the experiment (all presets).
+    /// For an effect: the two-sided p-value of "no effect" (TOST's for a claim of no effect), and Holm's
+    /// adjustment of it over its family ([`super::aggregate::adjust`]).
     pub p: Option<f64>,
     pub p_holm: Option<f64>,
     /// For an effect: the level α_k at which its interval is shown, so that the interval excludes zero
     /// exactly when Holm's procedure detects it ([`super::stats::holm_levels`]); for a claim of no effect
     /// its TOST interval is the (1 − 2α_k) one.
     pub level: Option<f64>,
+    /// How many tests its family holds, across every experiment file that names it (0 when untested).
+    pub family_tests: usize,
+    /// What its test reads, to the bit (its samples and margin): tests of one family that read the same
+    /// are one test ([`super::aggregate::adjust`]). None when untested.
+    pub same_test: Option<SameTest>,
+    /// The test of its family it repeats ("experiment / preset / claim"), counted once.
+    pub same_as: Option<String>,
     /// For a level: the value chance alone gives ([`chance_level`]).
     pub baseline: Option<f64>,
     pub verdict: String,
 }
+
+/// A test's samples (this variant's, and the compared variant's) and margin, as bits.
+pub type SameTest = (Vec<u64>, Option<Vec<u64>>, Option<u64>);
 
 /// Significance level of every test, after Holm's adjustment.
 pub const ALPHA: f64 = 0.05;
@@ -420,7 +430,7 @@ pub fn quantity_name(q: &Quantity) -> String {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use std::path::Path;
 
@@ -454,7 +464,7 @@ mod tests {
         }
     }
 
-    fn claim(quantity: Quantity, paper: Option<f64>, margin: Option<f64>) -> Claim {
+    pub(crate) fn claim(quantity: Quantity, paper: Option<f64>, margin: Option<f64>) -> Claim {
         Claim {
             text: "t".into(),
             variant: "v".into(),
@@ -541,6 +551,25 @@ mod tests {
         assert!(v.starts_with("no effect detected (inconclusive): 80 % power at its level (α = 0.05/44)"), "{v}");
     }
 
+    /// A claim of experiment `experiment` tested on one sample, not yet adjusted or judged.
+    pub(crate) fn tested(c: &Claim, experiment: &str, sample: &[f64]) -> ClaimResult {
+        let e = crate::experiment::stats::estimate(sample).unwrap();
+        ClaimResult {
+            experiment: experiment.into(),
+            preset: "p".into(),
+            claim: c.clone(),
+            estimate: Some(e),
+            p: e.p_value(),
+            p_holm: None,
+            level: None,
+            family_tests: 0,
+            same_test: Some((sample.iter().map(|x| x.to_bits()).collect(), None, None)),
+            same_as: None,
+            baseline: None,
+            verdict: String::new(),
+        }
+    }
+
     #[test]
     fn the_shown_interval_agrees_with_the_verdict() {
         // A family of four: each interval at its Holm level excludes zero exactly when the verdict says
@@ -556,21 +585,16 @@ mod tests {
         ];
         let e: Vec<Estimate> = samples.iter().map(|s| crate::experiment::stats::estimate(s).unwrap()).collect();
         let p: Vec<f64> = e.iter().map(|e| e.p_value().unwrap()).collect();
-        let (adjusted, levels) = (crate::experiment::stats::holm(&p), crate::experiment::stats::holm_levels(&p, ALPHA));
         let free = claim(Quantity::InteractionDoa("x".into()), None, None);
         assert!(p.iter().any(|&p| (0.017..0.05).contains(&p)), "{p:?}");
-        for i in 0..samples.len() {
-            let r = ClaimResult {
-                experiment: "e".into(),
-                preset: "p".into(),
-                claim: free.clone(),
-                estimate: Some(e[i]),
-                p: Some(p[i]),
-                p_holm: Some(adjusted[i]),
-                level: Some(levels[i]),
-                baseline: None,
-                verdict: verdict(&free, Some(e[i]), Some(adjusted[i]), Some(levels[i]), None),
-            };
+        let mut results: Vec<ClaimResult> = (0..samples.len()).map(|i| tested(&free, "e", samples[i])).collect();
+        crate::experiment::aggregate::adjust(&mut results);
+        assert_eq!(
+            results.iter().map(|r| r.p_holm.unwrap()).collect::<Vec<_>>(),
+            crate::experiment::stats::holm(&p),
+            "one file's claims without a family name are one family"
+        );
+        for (i, r) in results.iter().enumerate() {
             let h = r.shown_half_width().unwrap();
             let excludes_zero = e[i].mean.abs() > h;
             assert_eq!(

@@ -131,7 +131,7 @@ pub fn experiment(request: &Request) -> crate::error::Result<()> {
     }
     for exp in experiments {
         let data = data::load(&exp)?;
-        report(exp, &data)?;
+        report_alone(exp, &data)?;
     }
     Ok(())
 }
@@ -167,20 +167,58 @@ pub fn write_reproduction(partial: bool) -> crate::error::Result<()> {
         }
         loaded.push((exp, data));
     }
-    let mut all = Vec::new();
+    let mut aggregated = Vec::new();
     for (exp, data) in loaded {
-        all.push(report(exp, &data)?);
+        let a = aggregate::aggregate(&exp, &data)?;
+        aggregated.push((exp, a));
+    }
+    // The families span the files: every experiment's tests adjusted together, then each reported.
+    let counts: Vec<usize> = aggregated.iter().map(|(_, a)| a.results.len()).collect();
+    let mut results: Vec<_> = aggregated.iter_mut().flat_map(|(_, a)| std::mem::take(&mut a.results)).collect();
+    aggregate::adjust(&mut results);
+    let mut all = Vec::new();
+    for ((exp, mut a), n) in aggregated.into_iter().zip(counts) {
+        a.results = results.drain(..n).collect();
+        all.push(report(exp, a)?);
     }
     crate::io::write_file(Path::new("REPRODUCTION.md"), Existing::Replace, reproduction(&all).as_bytes())?;
     crate::errln!("coevo: wrote REPRODUCTION.md")?;
     Ok(())
 }
 
-/// One experiment's claims checked, from its run folders (writing its summaries and figures) or, in a
-/// clone without them, from its committed summary.csv; then its REPORT.md, which holds only what the
-/// summary holds, so a clone regenerates it byte for byte. Says on stderr exactly what it wrote.
-fn report(exp: Experiment, data: &BTreeMap<usize, super::claims::RunData>) -> crate::error::Result<Reported> {
-    let aggregate::Aggregated { results, summary, figures, from_folders } = aggregate::aggregate(&exp, data)?;
+/// One experiment reported on its own ([`report`]): its tests adjusted together with the tests of its named
+/// families in the other experiment files of `experiments/`, read from their committed summaries (a family
+/// spans files), when the file is one of them; alone otherwise.
+fn report_alone(exp: Experiment, data: &BTreeMap<usize, super::claims::RunData>) -> crate::error::Result<Reported> {
+    let mut a = aggregate::aggregate(&exp, data)?;
+    let own = a.results.len();
+    let named = exp.spec.claims.iter().any(|c| c.family.is_some());
+    if named && in_suite(&exp) {
+        for file in Experiment::files(Path::new(EXPERIMENTS))? {
+            let other = Experiment::load(&file, Path::new(RESULTS))?;
+            if other.name != exp.name {
+                let summary = Summary::read(&other.root.join("summary.csv"))?.unwrap_or_default();
+                a.results.extend(aggregate::tests(&other, &summary));
+            }
+        }
+    }
+    aggregate::adjust(&mut a.results);
+    a.results.truncate(own);
+    report(exp, a)
+}
+
+/// Whether an experiment's file is one of `experiments/`, the suite whose files share named families.
+fn in_suite(exp: &Experiment) -> bool {
+    let dir = exp.file.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    matches!((std::fs::canonicalize(dir), std::fs::canonicalize(EXPERIMENTS)), (Ok(a), Ok(b)) if a == b)
+}
+
+/// One experiment's claims, estimated ([`aggregate::aggregate`]: from its run folders, writing its
+/// summaries and figures, or in a clone without them from its committed summary.csv) and judged
+/// ([`aggregate::adjust`]); then its REPORT.md, which holds only what the summary holds, so a clone
+/// regenerates it byte for byte. Says on stderr exactly what it wrote.
+fn report(exp: Experiment, aggregated: aggregate::Aggregated) -> crate::error::Result<Reported> {
+    let aggregate::Aggregated { results, summary, figures, from_folders } = aggregated;
     let wall = summary.columns.iter().position(|c| c == "wall_seconds");
     // + 0.0: an empty f64 sum is −0.0, which would print as "-0.0 h".
     // Shared runs are another experiment's trainings: counted there.
@@ -261,7 +299,7 @@ pub fn plot(dir: &Path, partial: bool) -> crate::error::Result<()> {
         )
         .into());
     }
-    report(exp, &data)?;
+    report_alone(exp, &data)?;
     Ok(())
 }
 

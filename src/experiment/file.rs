@@ -26,6 +26,10 @@ pub struct ExperimentFile {
     pub evaluations: Vec<Evaluation>,
     #[serde(default)]
     pub claims: Vec<Claim>,
+    /// The family of every claim that names none ([`Claim::family`]); without it, such claims are the
+    /// file's own family.
+    #[serde(default)]
+    pub family: Option<String>,
     /// Compare runs made by different executables (`provenance.ron`'s `binary` and `also_by`). Off by
     /// default: every number of an experiment comes from one binary, and aggregation refuses otherwise.
     #[serde(default)]
@@ -154,8 +158,11 @@ pub struct Claim {
     /// its sign (+1 or −1), never a size the interval could exclude.
     #[serde(default)]
     pub direction_only: bool,
-    /// The family whose tests are adjusted together (Holm), fixed with the hypothesis: claims of one file
-    /// with the same family name are one family; claims without one are the file's family.
+    /// The family whose tests are adjusted together (Holm), fixed with the hypothesis. A family is named
+    /// by its hypotheses, not by its file: every claim of that name in the files of `experiments/` is one
+    /// family (the project's are "the paper's claims", "mechanism and controls", "exploratory", and the
+    /// pre-registered confirmatory ones). Without a name, the file's `family`; without that, the claim is
+    /// in its own file's family. Resolved when the file is loaded, so after loading None means the file's.
     #[serde(default)]
     pub family: Option<String>,
 }

@@ -74,7 +74,10 @@ impl Experiment {
     fn load_with(file: &Path, results: &Path, share: bool) -> Result<Experiment> {
         let shown = file.display().to_string();
         let text = crate::io::read_text(file, crate::scene::MAX_SCENE_BYTES)?;
-        let spec: ExperimentFile = parse_ron(&text, &shown)?;
+        let mut spec: ExperimentFile = parse_ron(&text, &shown)?;
+        for claim in spec.claims.iter_mut().filter(|c| c.family.is_none()) {
+            claim.family.clone_from(&spec.family);
+        }
         let name = file.file_stem().map_or(String::new(), |s| s.to_string_lossy().into_owned());
         let err = |field: &str, message: String| Error::field(field.to_string(), message).in_file(file);
         // The name is a folder under results/: one safe component, never `.`, `..` or hidden.
@@ -162,6 +165,9 @@ impl Experiment {
             // A claim is cited by its text (REPRODUCTION.md's rows, the book's citations): one row per text.
             if spec.claims[..i].iter().any(|d| d.text == c.text) {
                 return Err(err("claims", format!("{:?} is the text of two claims", c.text)));
+            }
+            if c.family.as_ref().is_some_and(|f| f.trim().is_empty()) {
+                return Err(err("claims", format!("{:?}: family must name a family (got an empty name)", c.text)));
             }
             if let Some(v) = c.paper.filter(|v| !v.is_finite()) {
                 return Err(err("claims", format!("{:?}: paper must be a finite number (got {v})", c.text)));

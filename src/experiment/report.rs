@@ -55,8 +55,13 @@ const METHOD: &str = "Each number is the mean over seeds of the prey's 100-episo
      trained actors' alignment that the control removes, computed run by run. Nothing in the metrics, rewards or physics \
      was tuned toward a claim.\n\n\
      **Verdicts.** An *effect* (a change over training, what a control removes, a difference of two variants) is \
-     *detected* when its two-sided t test gives p < 0.05 after Holm's adjustment over its family (the column *p (Holm)*; \
-     a family is the claims of one experiment file, both presets, unless the file names families). Its interval is \
+     *detected* when its two-sided t test gives p < 0.05 after Holm's adjustment over its family (the column *p (Holm)*). \
+     A family is named by its hypotheses, not by its file, and spans every experiment file that names it (column \
+     *family*, with how many tests it holds): **the paper's claims** (the paper's own statements, in its setting), \
+     **mechanism and controls** (the controls that ask why, e.g. flocking or herding), **exploratory** (questions the \
+     paper does not ask and findings seen before they were stated: reported, never counted as confirmations), and \
+     each pre-registered confirmatory test's own family; a claim of a file that names no family is that file's. A \
+     test that repeats another of its family on the same runs (a shared variant) is that test, counted once. Its interval is \
      shown at the level Holm's procedure tested it at (*level*: 0.05/k, Bonferroni's for the smallest p-value; from the \
      first test Holm does not reject on, that test's level), so **the interval excludes 0 exactly when the effect is \
      detected**; the plain 95 % interval is beside it, secondary, and never a result. For an effect the paper states: \
@@ -275,10 +280,17 @@ fn section(md: &mut String, Reported { exp, results, finished, .. }: &Reported, 
             cell(&quantity_name(&r.claim.quantity)),
             cell(&r.verdict),
             cell(&super::claims::hypothesis(&r.claim, r.baseline)),
-            match (&r.claim.family, r.p.is_some()) {
-                (Some(name), _) => cell(name),
-                (None, true) => "this file's".to_string(),
-                (None, false) => "–".to_string(),
+            {
+                let size = match r.family_tests {
+                    0 => String::new(),
+                    1 => " (1 test)".into(),
+                    n => format!(" ({n} tests)"),
+                };
+                match (&r.claim.family, r.p.is_some()) {
+                    (Some(name), _) => format!("{}{size}", cell(name)),
+                    (None, true) => format!("this file's{size}"),
+                    (None, false) => "–".to_string(),
+                }
             }
         )
         .unwrap();

@@ -91,6 +91,10 @@ fn experiment_files_expand_to_runs_and_bad_ones_are_one_line() {
             TINY.replace("(text: \"catches\"", "(text: \"DoS falls\""),
             "bad.ron: claims: \"DoS falls\" is the text of two claims",
         ),
+        (
+            TINY.replace("claims: [", "family: Some(\" \"),\n    claims: ["),
+            "bad.ron: claims: \"DoS falls\": family must name a family (got an empty name)",
+        ),
         (TINY.replace("(\"prey\", 50)", "(\"hawk\", 50)"), "evaluations[50 prey]: no species named \"hawk\""),
         (
             TINY.replace("counts: [(\"prey\", 50)],", "counts: [(\"prey\", 50)], policies: [(\"hawk\", Still)],"),
@@ -609,6 +613,56 @@ fn a_shared_variant_is_the_other_experiments_runs_trained_once_and_never_compare
     let suite = suite.split("## The whole suite").nth(1).unwrap();
     assert!(suite.contains("6 of 6 trainings finished, of which 4 distinct"), "{suite}");
     assert!(suite.contains("(a deterministic re-training: 2 runs)"), "{suite}");
+    // A named family spans files: tiny's two seeing-minus-blind tests and share's, which reads tiny's 1:1
+    // runs the same way as one of them, are one family of two tests, adjusted together whether the suite
+    // is reported (`--plot all`) or share alone (`--plot results/share`, reading tiny's summary).
+    let tiny = TINY.replace(
+        "(text: \"seeing minus blind\", variant: \"5:3\", quantity: InteractionDoa(\"50 prey, blind\")),",
+        "(text: \"seeing minus blind\", variant: \"5:3\", quantity: InteractionDoa(\"50 prey, blind\"), family: Some(\"both\")),
+        (text: \"seeing minus blind, 1:1\", variant: \"1:1\", quantity: InteractionDoa(\"50 prey, blind\"), family: Some(\"both\")),",
+    );
+    assert_ne!(tiny, TINY);
+    std::fs::write(dir.path().join("experiments/tiny.ron"), tiny).unwrap();
+    let share = SHARE
+        .replace(
+            "evaluations: [(name: \"50 prey\", counts: [(\"prey\", 50)], episodes: 2, steps: 20)],",
+            "evaluations: [(name: \"50 prey\", counts: [(\"prey\", 50)], episodes: 2, steps: 20), (name: \"50 prey, blind\", counts: [(\"prey\", 50)], episodes: 2, steps: 20, control: Blind)],",
+        )
+        .replace(
+            "claims: [",
+            "family: Some(\"both\"),\n    claims: [(text: \"shared: seeing minus blind\", variant: \"shared\", quantity: InteractionDoa(\"50 prey, blind\")),",
+        );
+    std::fs::write(dir.path().join("experiments/share.ron"), &share).unwrap();
+    // The new evaluation runs on share's own runs; tiny's runs have it already.
+    let out = coevo(dir.path(), &["--experiment", "experiments/share.ron", "--jobs", "2"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let out = coevo(dir.path(), &["--plot", "all"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let row = |experiment: &str, claim: &str| -> String {
+        let md = std::fs::read_to_string(dir.path().join(format!("results/{experiment}/REPORT.md"))).unwrap();
+        md.lines()
+            .find(|l| l.starts_with(&format!("| paper | {claim} |")))
+            .unwrap_or_else(|| panic!("{md}"))
+            .to_string()
+    };
+    let p_of = |row: &str| row.split(" | ").nth(7).unwrap().to_string();
+    let (five, one, shared) = (
+        row("tiny", "seeing minus blind"),
+        row("tiny", "seeing minus blind, 1:1"),
+        row("share", "shared: seeing minus blind"),
+    );
+    for r in [&five, &one, &shared] {
+        assert!(r.ends_with("| both (2 tests) |"), "{r}");
+    }
+    // The first in the files' order (share before tiny) is the test; the other names it.
+    assert!(one.contains("the same test as share / paper / shared: seeing minus blind, counted once"), "{one}");
+    assert!(!shared.contains("the same test") && !five.contains("the same test"), "{shared}\n{five}");
+    assert_eq!(p_of(&shared), p_of(&one));
+    let alone = std::fs::read(dir.path().join("results/share/REPORT.md")).unwrap();
+    let out = coevo(dir.path(), &["--plot", "results/share"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert_eq!(std::fs::read(dir.path().join("results/share/REPORT.md")).unwrap(), alone, "share reported alone");
+    std::fs::write(dir.path().join("experiments/share.ron"), SHARE).unwrap();
     // A shared reference to another scene, or two variants shared from the same runs, are refused.
     for (text, says) in [
         (
