@@ -6,6 +6,7 @@ use super::data::check_complete;
 use super::figure_data;
 use super::figures;
 use super::file::Experiment;
+use super::registry;
 use super::stats::{difference, estimate, holm, holm_levels};
 use super::summary::{self, Summary};
 use std::collections::BTreeMap;
@@ -21,6 +22,8 @@ pub fn aggregate(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> crate::er
 
     // The claims are computed from the per-run values alone (summary.csv), so that a clone without run
     // folders recomputes them from the committed summary exactly.
+    // The summary as it was, to tell new results from the same results aggregated again.
+    let before = if written { std::fs::read(exp.root.join("summary.csv")).ok() } else { None };
     let table = if written {
         Summary::parse(&summary, &exp.root.join("summary.csv"))?
     } else {
@@ -31,7 +34,7 @@ pub fn aggregate(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> crate::er
         crate::io::own_dir(&exp.root.join("figures"))?;
     }
     let means = summary::means_text(exp, data, &quantities);
-    let results = tests(exp, &table);
+    let mut results = tests(exp, &table);
     let mut saved = 0;
     if let Some(drawn) = &drawn {
         for preset in &exp.spec.presets {
@@ -44,6 +47,18 @@ pub fn aggregate(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> crate::er
         figure_data::write(exp, drawn.as_ref().expect("drawn from the run folders"))?;
         crate::io::write_file(&exp.root.join("summary.csv"), crate::io::Existing::Replace, summary.as_bytes())?;
         crate::io::write_file(&exp.root.join("summary-mean.csv"), crate::io::Existing::Replace, means.as_bytes())?;
+    }
+    // The claims are recorded with new results, and, where nothing was recorded yet (results aggregated
+    // before coevo kept the record), as they stand now; the same results aggregated again keep the record,
+    // so a claim edited after it leaves its flag.
+    let new_results = written && before.as_deref() != Some(summary.as_bytes());
+    let unrecorded = !table.rows.is_empty() && !exp.root.join(registry::FILE).exists();
+    if new_results || unrecorded {
+        registry::write(exp)?;
+    }
+    let recorded = registry::read(&exp.root)?;
+    for r in &mut results {
+        r.stated = registry::stated(&r.claim, recorded.as_ref());
     }
     Ok(Aggregated { results, summary: table, figures: drawn.is_some().then_some(saved), from_folders: written })
 }
@@ -112,6 +127,7 @@ pub fn tests(exp: &Experiment, table: &Summary) -> Vec<ClaimResult> {
                 family_tests: 0,
                 same_test,
                 same_as: None,
+                stated: registry::Stated::Unknown,
                 baseline: chance_level(exp, claim, scene),
                 verdict: match (overlap, identical) {
                     (true, _) => OVERLAP.into(),

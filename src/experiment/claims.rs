@@ -183,6 +183,8 @@ pub struct ClaimResult {
     pub same_test: Option<SameTest>,
     /// The test of its family it repeats ("experiment / preset / claim"), counted once.
     pub same_as: Option<String>,
+    /// Whether it stands as recorded with its results ([`super::registry`]).
+    pub stated: super::registry::Stated,
     /// For a level: the value chance alone gives ([`chance_level`]).
     pub baseline: Option<f64>,
     pub verdict: String,
@@ -565,6 +567,7 @@ pub(crate) mod tests {
             family_tests: 0,
             same_test: Some((sample.iter().map(|x| x.to_bits()).collect(), None, None)),
             same_as: None,
+            stated: crate::experiment::registry::Stated::Unknown,
             baseline: None,
             verdict: String::new(),
         }

@@ -35,6 +35,7 @@ pub mod figures;
 pub mod file;
 mod load;
 pub mod plot;
+pub mod registry;
 pub mod report;
 pub mod runner;
 pub mod stats;

@@ -61,7 +61,10 @@ const METHOD: &str = "Each number is the mean over seeds of the prey's 100-episo
      **mechanism and controls** (the controls that ask why, e.g. flocking or herding), **exploratory** (questions the \
      paper does not ask and findings seen before they were stated: reported, never counted as confirmations), and \
      each pre-registered confirmatory test's own family; a claim of a file that names no family is that file's. A \
-     test that repeats another of its family on the same runs (a shared variant) is that test, counted once. Its interval is \
+     test that repeats another of its family on the same runs (a shared variant) is that test, counted once. Each \
+     claim's statement (text, variants, quantity, the paper's value, margin, baseline) is recorded with its results in \
+     `results/<experiment>/claims.csv` (results aggregated before coevo kept this record start it with the claims as they \
+     stood then); a claim edited or added after its results existed is flagged post hoc beside its hypothesis. Its interval is \
      shown at the level Holm's procedure tested it at (*level*: 0.05/k, Bonferroni's for the smallest p-value; from the \
      first test Holm does not reject on, that test's level), so **the interval excludes 0 exactly when the effect is \
      detected**; the plain 95 % interval is beside it, secondary, and never a result. For an effect the paper states: \
@@ -279,7 +282,7 @@ fn section(md: &mut String, Reported { exp, results, finished, .. }: &Reported, 
             cell(&r.claim.text),
             cell(&quantity_name(&r.claim.quantity)),
             cell(&r.verdict),
-            cell(&super::claims::hypothesis(&r.claim, r.baseline)),
+            cell(&format!("{}{}", super::claims::hypothesis(&r.claim, r.baseline), r.stated.flag())),
             {
                 let size = match r.family_tests {
                     0 => String::new(),

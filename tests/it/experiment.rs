@@ -654,6 +654,10 @@ fn a_shared_variant_is_the_other_experiments_runs_trained_once_and_never_compare
     for r in [&five, &one, &shared] {
         assert!(r.ends_with("| both (2 tests) |"), "{r}");
     }
+    // Claims are recorded with their results (claims.csv): a claim added after them is flagged, one only
+    // sorted into a family is not (a family states no expectation).
+    assert!(one.contains("added after its results existed"), "{one}");
+    assert!(!five.contains("after its results existed"), "{five}");
     // The first in the files' order (share before tiny) is the test; the other names it.
     assert!(one.contains("the same test as share / paper / shared: seeing minus blind, counted once"), "{one}");
     assert!(!shared.contains("the same test") && !five.contains("the same test"), "{shared}\n{five}");
@@ -663,6 +667,16 @@ fn a_shared_variant_is_the_other_experiments_runs_trained_once_and_never_compare
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     assert_eq!(std::fs::read(dir.path().join("results/share/REPORT.md")).unwrap(), alone, "share reported alone");
     std::fs::write(dir.path().join("experiments/share.ron"), SHARE).unwrap();
+    // A claim edited after its results is flagged, also when its run folders are aggregated again (the
+    // same results keep their record).
+    let edited = TINY.replace("quantity: DosChange, paper: -0.03)", "quantity: DosChange, paper: -0.05)");
+    assert_ne!(edited, TINY);
+    std::fs::write(dir.path().join("experiments/tiny.ron"), edited).unwrap();
+    let out = coevo(dir.path(), &["--plot", "results/tiny"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(row("tiny", "DoS falls").contains("edited after its results existed"), "{}", row("tiny", "DoS falls"));
+    assert!(!row("tiny", "catches").contains("after its results existed"), "{}", row("tiny", "catches"));
+    std::fs::write(dir.path().join("experiments/tiny.ron"), TINY).unwrap();
     // A shared reference to another scene, or two variants shared from the same runs, are refused.
     for (text, says) in [
         (
