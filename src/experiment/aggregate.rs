@@ -33,6 +33,23 @@ pub fn aggregate(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> crate::er
     if drawn.is_some() {
         crate::io::own_dir(&exp.root.join("figures"))?;
     }
+    // A committed summary written before the curve columns existed gains them from the committed curves.
+    let extended = match (&drawn, written) {
+        (Some(curves), false) => {
+            let path = exp.root.join("summary.csv");
+            let text = crate::io::read_text(&path, crate::io::MAX_TEXT_BYTES)?;
+            summary::extend(exp, &text, &table, curves).map(|text| (path, text))
+        }
+        _ => None,
+    };
+    let extended_summary = extended.is_some();
+    let table = match extended {
+        Some((path, text)) => {
+            crate::io::write_file(&path, crate::io::Existing::Replace, text.as_bytes())?;
+            Summary::parse(&text, &path)?
+        }
+        None => table,
+    };
     let means = summary::means_text(exp, data, &quantities);
     let mut results = tests(exp, &table);
     let mut saved = 0;
@@ -60,7 +77,13 @@ pub fn aggregate(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> crate::er
     for r in &mut results {
         r.stated = registry::stated(&r.claim, recorded.as_ref());
     }
-    Ok(Aggregated { results, summary: table, figures: drawn.is_some().then_some(saved), from_folders: written })
+    Ok(Aggregated {
+        results,
+        summary: table,
+        figures: drawn.is_some().then_some(saved),
+        from_folders: written,
+        extended: extended_summary,
+    })
 }
 
 /// What [`aggregate`] found, and what it wrote.
@@ -75,6 +98,8 @@ pub struct Aggregated {
     /// Whether the run folders were here, so summary.csv, summary-mean.csv and figure-data.ron.gz were
     /// written from them (else the committed ones were read and left as they are).
     pub from_folders: bool,
+    /// Whether a committed summary.csv was extended with its curve columns ([`summary::extend`]).
+    pub extended: bool,
 }
 
 /// The verdict on a change over training of runs shorter than two windows.

@@ -91,6 +91,14 @@ fn primitive(d: &RunData, q: &Quantity) -> f64 {
         Quantity::EvalOrder(e, name) if name == "edge_rank" => d.evals.get(e).map_or(f64::NAN, |x| x.edge_rank),
         Quantity::EvalOrder(e, name) => eval(e, name),
         Quantity::Reach90(name) => reach90(if name == "dos" { &d.dos } else { &d.doa }),
+        Quantity::Start(o) | Quantity::Extreme(o) | Quantity::ExtremeEpisode(o) | Quantity::AfterExtreme(o) => {
+            let series = match o.as_str() {
+                "dos" => &d.dos,
+                "doa" => &d.doa,
+                _ => &d.catches,
+            };
+            curve_shape(q, &super::figure_data::stored(series))
+        }
         Quantity::Crossplay(name) => d.crossplay.get(name).copied().unwrap_or(f64::NAN),
         Quantity::Response(e, which) => d.evals.get(e).map_or(f64::NAN, |x| x.response[usize::from(which == "far")]),
         _ => f64::NAN,
@@ -110,6 +118,10 @@ pub fn column(q: &Quantity) -> Option<String> {
         Quantity::TrainingFirst(o) => format!("{o}_first100"),
         Quantity::TrainingLast(o) => format!("{o}_last100"),
         Quantity::Reach90(o) => format!("{o}_reach90"),
+        Quantity::Start(o) => format!("{o}_start{START}"),
+        Quantity::Extreme(o) => format!("{o}_{}", extreme_word(o)),
+        Quantity::ExtremeEpisode(o) => format!("{o}_{}_episode", extreme_word(o)),
+        Quantity::AfterExtreme(o) => format!("{o}_after_{}", extreme_word(o)),
         Quantity::EvalDos(e) => format!("eval_{}_dos_settled", super::file::slug(e)),
         Quantity::EvalDoa(e) => format!("eval_{}_doa_settled", super::file::slug(e)),
         Quantity::EvalOrder(e, o) => format!("eval_{}_{o}", super::file::slug(e)),
@@ -133,6 +145,14 @@ pub fn derive(exp: &Experiment, q: &Quantity, primitive: &dyn Fn(&Quantity) -> f
         Quantity::DosChange => primitive(&Quantity::DosLast) - primitive(&Quantity::DosFirst),
         Quantity::DoaChange => primitive(&Quantity::DoaLast) - primitive(&Quantity::DoaFirst),
         Quantity::CatchesChange => primitive(&Quantity::CatchesLast) - primitive(&Quantity::CatchesFirst),
+        Quantity::FromStart(o) => {
+            let last = match o.as_str() {
+                "dos" => Quantity::DosLast,
+                "doa" => Quantity::DoaLast,
+                _ => Quantity::CatchesLast,
+            };
+            primitive(&last) - primitive(&Quantity::Start(o.clone()))
+        }
         Quantity::InteractionDoa(e) => seeing(e).map_or(f64::NAN, |s| of_eval(&s, "doa") - of_eval(e, "doa")),
         Quantity::Interaction(e, o) => seeing(e).map_or(f64::NAN, |s| of_eval(&s, o) - of_eval(e, o)),
         Quantity::Learned(e, o) => match super::file::untrained_partner(&exp.spec.evaluations, e) {
@@ -159,6 +179,57 @@ pub fn reach90(series: &[f64]) -> f64 {
         // A running sum carries rounding: within 1e-9 of the change counts as reached.
         .find(|(_, m)| (**m - target) * (end - start).signum() >= -1e-9 * (end - start).abs())
         .map_or(f64::NAN, |(t, _)| (t + 1) as f64)
+}
+
+/// The training episodes whose mean is a curve's start ([`Quantity::Start`]).
+pub const START: usize = 10;
+
+/// The per-episode training series a curve quantity reads: `dos`, `doa` or `catches`.
+pub const CURVES: [&str; 3] = ["dos", "doa", "catches"];
+
+/// A quantity of a training curve's shape ([`Quantity::Start`], [`Quantity::Extreme`],
+/// [`Quantity::ExtremeEpisode`], [`Quantity::AfterExtreme`]) from its per-episode `series` as the figure
+/// data keeps it (single precision), so that a summary written before these quantities existed is
+/// extended from the committed figure data to the same bits as from the run folders. NaN for other
+/// quantities, and where a run is too short: a start needs [`START`] episodes, an extreme two windows.
+pub fn curve_shape(q: &Quantity, series: &[f64]) -> f64 {
+    let mean = |v: &mut dyn Iterator<Item = f64>| super::stats::mean(&v.filter(|x| x.is_finite()).collect::<Vec<_>>());
+    match q {
+        Quantity::Start(_) if series.len() >= START => mean(&mut series[..START].iter().copied()).unwrap_or(f64::NAN),
+        Quantity::Extreme(o) | Quantity::ExtremeEpisode(o) | Quantity::AfterExtreme(o)
+            if series.len() >= 2 * WINDOW =>
+        {
+            // Windows end at episode t (1-based) for t in WINDOW..=len; within one, the odd episodes choose
+            // and the even ones measure. Episode e (1-based) is series[e - 1].
+            let half = |end: usize, odd: bool| {
+                mean(&mut (end + 1 - WINDOW..=end).filter(|e| (e % 2 == 1) == odd).map(|e| series[e - 1]))
+                    .unwrap_or(f64::NAN)
+            };
+            let peak = o == "doa";
+            let better = |a: f64, b: f64| if peak { a > b } else { a < b };
+            let mut best = WINDOW;
+            for end in WINDOW + 1..=series.len() {
+                if better(half(end, true), half(best, true)) {
+                    best = end;
+                }
+            }
+            match q {
+                Quantity::Extreme(_) => half(best, false),
+                Quantity::ExtremeEpisode(_) => best as f64,
+                _ => half(series.len(), false) - half(best, false),
+            }
+        }
+        _ => f64::NAN,
+    }
+}
+
+/// What a curve's extreme is called: DoA's peak, DoS's trough.
+pub fn extreme_word(curve: &str) -> &'static str {
+    if curve == "doa" {
+        "peak"
+    } else {
+        "trough"
+    }
 }
 
 /// A claim checked on one preset.
@@ -205,6 +276,8 @@ pub fn is_effect(claim: &Claim) -> bool {
             Quantity::DosChange
                 | Quantity::DoaChange
                 | Quantity::CatchesChange
+                | Quantity::FromStart(_)
+                | Quantity::AfterExtreme(_)
                 | Quantity::InteractionDoa(_)
                 | Quantity::Interaction(..)
                 | Quantity::Learned(..)
@@ -214,7 +287,17 @@ pub fn is_effect(claim: &Claim) -> bool {
 
 /// Whether a quantity compares the first and last 100 training episodes (meaningless when they overlap).
 pub fn compares_windows(q: &Quantity) -> bool {
-    matches!(q, Quantity::DosChange | Quantity::DoaChange | Quantity::CatchesChange | Quantity::Reach90(_))
+    matches!(
+        q,
+        Quantity::DosChange
+            | Quantity::DoaChange
+            | Quantity::CatchesChange
+            | Quantity::Reach90(_)
+            | Quantity::FromStart(_)
+            | Quantity::Extreme(_)
+            | Quantity::ExtremeEpisode(_)
+            | Quantity::AfterExtreme(_)
+    )
 }
 
 /// The value a level has by chance alone, which a level must be told apart from: the claim's `baseline`,
@@ -238,7 +321,9 @@ pub fn chance_level(exp: &Experiment, claim: &Claim, scene: Option<&crate::scene
     };
     match &claim.quantity {
         Quantity::DoaFirst | Quantity::DoaLast | Quantity::EvalDoa(_) => Some(std::f64::consts::FRAC_2_PI),
+        Quantity::Start(o) | Quantity::Extreme(o) if o == "doa" => Some(std::f64::consts::FRAC_2_PI),
         Quantity::DosFirst | Quantity::DosLast => random_dos(None),
+        Quantity::Start(o) | Quantity::Extreme(o) if o == "dos" => random_dos(None),
         Quantity::EvalDos(e) => random_dos(Some(e)),
         Quantity::Crossplay(r) => super::crossplay_readouts::chance(r),
         // Caught prey ranked at random within their group: the mean edge rank of no marginal predation.
@@ -428,6 +513,13 @@ pub fn quantity_name(q: &Quantity) -> String {
         Quantity::Interaction(e, q) => format!("{q} seeing minus \"{e}\""),
         Quantity::Learned(e, q) => format!("{q} in evaluation \"{e}\", trained minus untrained actors"),
         Quantity::Reach90(q) => format!("episode at which {q}'s running mean completes 90 % of its change"),
+        Quantity::Start(q) => format!("{q}, first {START} episodes (the untrained start)"),
+        Quantity::FromStart(q) => format!("{q}, last 100 episodes minus the first {START}"),
+        Quantity::Extreme(q) => {
+            format!("{q}'s {} 100-episode mean (window chosen on odd episodes, measured on even)", extreme_word(q))
+        }
+        Quantity::ExtremeEpisode(q) => format!("episode ending {q}'s {} 100-episode window", extreme_word(q)),
+        Quantity::AfterExtreme(q) => format!("{q}, last 100 episodes minus its {} (even episodes)", extreme_word(q)),
     }
 }
 
@@ -634,6 +726,38 @@ pub(crate) mod tests {
             verdict(&starts, e(&near), None, None, Some(0.1))
         );
         assert_eq!((paper_precision(0.22), paper_precision(0.96), paper_precision(3.0)), (0.005, 0.005, 0.5));
+    }
+
+    #[test]
+    fn a_curves_start_extreme_and_fall_back_are_cross_fitted() {
+        let q = |f: fn(String) -> Quantity, curve: &str, series: &[f64]| curve_shape(&f(curve.into()), series);
+        // Constant: the start and the extreme are the constant, the first window wins ties, no fall back.
+        let flat = vec![0.75; 250];
+        assert_eq!(q(Quantity::Start, "doa", &flat), 0.75);
+        assert_eq!(q(Quantity::Extreme, "doa", &flat), 0.75);
+        assert_eq!(q(Quantity::ExtremeEpisode, "doa", &flat), WINDOW as f64);
+        assert_eq!(q(Quantity::AfterExtreme, "doa", &flat), 0.0);
+        // Odd episodes choose, even ones measure: a curve whose odd episodes sit 0.5 above its even ones
+        // has an extreme of the even level, not of the odd one.
+        let zigzag: Vec<f64> = (1..=250).map(|e| if e % 2 == 1 { 1.0 } else { 0.5 }).collect();
+        assert_eq!(q(Quantity::Extreme, "doa", &zigzag), 0.5);
+        // A ramp e (episode e holds e): DoA's peak is chosen on the odd episodes 151, …, 249, which the
+        // windows ending at 249 and 250 share: the first, 150–249, wins, measured on 150, …, 248 (mean
+        // 199), 2 below the last window's even episodes. DoS's trough is the first window, episodes
+        // 1–100, measured on its even episodes 2, 4, …, 100 (mean 51).
+        let ramp: Vec<f64> = (1..=250).map(f64::from).collect();
+        assert_eq!(q(Quantity::ExtremeEpisode, "doa", &ramp), 249.0);
+        assert_eq!(q(Quantity::Extreme, "doa", &ramp), 199.0);
+        assert_eq!(q(Quantity::AfterExtreme, "doa", &ramp), 2.0);
+        assert_eq!(q(Quantity::ExtremeEpisode, "dos", &ramp), 100.0);
+        assert_eq!(q(Quantity::Extreme, "dos", &ramp), 51.0);
+        // Last window's even episodes 152, …, 250 (mean 201) minus 51.
+        assert_eq!(q(Quantity::AfterExtreme, "dos", &ramp), 150.0);
+        assert_eq!(q(Quantity::Start, "dos", &ramp), 5.5);
+        // Too short: a start needs ten episodes, an extreme two windows.
+        assert!(q(Quantity::Start, "doa", &ramp[..9]).is_nan());
+        assert!(q(Quantity::Extreme, "doa", &ramp[..199]).is_nan());
+        assert!(q(Quantity::Extreme, "doa", &ramp[..200]).is_finite());
     }
 
     #[test]

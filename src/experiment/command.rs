@@ -218,7 +218,14 @@ fn in_suite(exp: &Experiment) -> bool {
 /// ([`aggregate::adjust`]); then its REPORT.md, which holds only what the summary holds, so a clone
 /// regenerates it byte for byte. Says on stderr exactly what it wrote.
 fn report(exp: Experiment, aggregated: aggregate::Aggregated) -> crate::error::Result<Reported> {
-    let aggregate::Aggregated { results, summary, figures, from_folders } = aggregated;
+    let aggregate::Aggregated { results, summary, figures, from_folders, extended } = aggregated;
+    if extended {
+        crate::errln!(
+            "coevo: extended {}/summary.csv with the training curves' shape columns, from {} (every byte it held kept)",
+            exp.root.display(),
+            super::figure_data::FILE
+        )?;
+    }
     let wall = summary.columns.iter().position(|c| c == "wall_seconds");
     // + 0.0: an empty f64 sum is −0.0, which would print as "-0.0 h".
     // Shared runs are another experiment's trainings: counted there.

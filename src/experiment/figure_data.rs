@@ -152,6 +152,23 @@ impl CrossplayCells {
     }
 }
 
+/// Values as the file keeps them (single precision), e.g. a training curve the claims read as the
+/// figures do ([`super::claims::curve_shape`]).
+pub fn stored(values: &[f64]) -> Vec<f64> {
+    single::round(&values.to_vec())
+}
+
+impl FigureData {
+    /// A training series by name: `dos`, `doa` or `catches`.
+    pub fn curve(&self, name: &str) -> &[f64] {
+        match name {
+            "dos" => &self.dos,
+            "doa" => &self.doa,
+            _ => &self.catches,
+        }
+    }
+}
+
 /// A run's key in the file.
 pub fn key(run: &Run) -> String {
     format!("{}/{}/seed{}", run.preset, run.variant, run.seed)

@@ -207,6 +207,22 @@ pub enum Quantity {
     /// The episode at which the 100-episode running mean of `dos` or `doa` first completes 90 % of its
     /// change from the first 100 episodes to the last 100 (the paper's time course, Fig. 3).
     Reach90(String),
+    /// Mean of the first [`START`](super::claims::START) training episodes of `dos`, `doa` or `catches`:
+    /// the untrained level the paper's curves start from (the actors learn from the first episodes on,
+    /// so this is the nearest a training run gives; `Learned` evaluations measure untrained actors directly).
+    Start(String),
+    /// The last 100 training episodes minus [`Quantity::Start`]: the paper's rise or fall over training,
+    /// from where its curves start (`DoaChange` and `DosChange` measure it from the first 100 episodes).
+    FromStart(String),
+    /// The extreme of the 100-episode running mean of `doa` (its peak) or `dos` (its trough), cross-fitted
+    /// so that picking the extreme does not bias it: the window is chosen on the odd episodes and its mean
+    /// taken over the even ones.
+    Extreme(String),
+    /// The episode ending that window.
+    ExtremeEpisode(String),
+    /// The last 100 episodes minus the extreme, both over the even episodes: how far the curve moved
+    /// back after its peak (DoA) or trough (DoS).
+    AfterExtreme(String),
     /// The information-transfer response of an evaluation with `perturb:`: `"near"`, the mean |Δheading|
     /// of the turned prey's 6 nearest over the 10 steps after the turn, or `"far"`, the same for ranks 25
     /// and beyond (radians).

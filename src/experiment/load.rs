@@ -226,6 +226,23 @@ impl Experiment {
                     ));
                 }
             }
+            match &c.quantity {
+                Quantity::Start(q) | Quantity::FromStart(q) if !super::claims::CURVES.contains(&q.as_str()) => {
+                    return Err(err(
+                        "claims",
+                        format!("Start and FromStart take \"dos\", \"doa\" or \"catches\" (got {q:?})"),
+                    ));
+                }
+                Quantity::Extreme(q) | Quantity::ExtremeEpisode(q) | Quantity::AfterExtreme(q)
+                    if q != "dos" && q != "doa" =>
+                {
+                    return Err(err(
+                        "claims",
+                        format!("Extreme, ExtremeEpisode and AfterExtreme take \"dos\" or \"doa\" (got {q:?})"),
+                    ));
+                }
+                _ => {}
+            }
             if let Quantity::Reach90(q) = &c.quantity {
                 if !["dos", "doa"].contains(&q.as_str()) {
                     return Err(err("claims", format!("Reach90 takes \"dos\" or \"doa\" (got {q:?})")));

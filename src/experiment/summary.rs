@@ -45,28 +45,101 @@ pub fn columns(exp: &Experiment) -> Vec<(String, Quantity)> {
     quantities
 }
 
+/// The columns of `summary.csv` after `shared_from`: the shape of each training curve (its start, and
+/// DoS's trough and DoA's peak with where they were and how far the curve moved back after them). Kept
+/// last because they came last (session 17): a summary written before them is extended ([`extend`]) from
+/// the committed figure data, which holds the curves, without rewriting a byte of what it held.
+pub fn curve_columns() -> Vec<(String, Quantity)> {
+    let mut quantities = Vec::new();
+    for curve in super::claims::CURVES {
+        quantities.push(Quantity::Start(curve.into()));
+    }
+    for curve in ["dos", "doa"] {
+        quantities.push(Quantity::Extreme(curve.into()));
+        quantities.push(Quantity::ExtremeEpisode(curve.into()));
+        quantities.push(Quantity::AfterExtreme(curve.into()));
+    }
+    quantities.into_iter().map(|q| (column(&q).expect("a curve quantity has a column"), q)).collect()
+}
+
 /// `summary.csv`: one row per finished run in `data`, its values of `quantities` ([`columns`]), blank
-/// where a run has none, then its returns, wall time, binaries and the experiment it is shared from.
+/// where a run has none, then its returns, wall time, binaries and the experiment it is shared from, then
+/// its [`curve_columns`].
 pub fn text(exp: &Experiment, data: &BTreeMap<usize, RunData>, quantities: &[(String, Quantity)]) -> String {
     let mut summary = String::from("preset,variant,seed,episodes");
     for (name, _) in quantities {
         write!(summary, ",{name}").unwrap();
     }
-    summary.push_str(",return_first100,return_last100,wall_seconds,binary,shared_from\n");
+    summary.push_str(",return_first100,return_last100,wall_seconds,binary,shared_from");
+    let curves = curve_columns();
+    for (name, _) in &curves {
+        write!(summary, ",{name}").unwrap();
+    }
+    summary.push('\n');
     for (i, d) in data {
         let r = &exp.runs[*i];
         write!(summary, "{},{},{},{}", csv_text(&r.preset), csv_text(&r.variant), r.seed, d.dos.len()).unwrap();
         for (_, q) in quantities {
-            // Blank, never NaN, where a run has no value (an evaluation without a catch has no edge rank).
-            let v = quantity(exp, d, q);
-            write!(summary, ",{}", if v.is_finite() { v.to_string() } else { String::new() }).unwrap();
+            summary.push_str(&field(quantity(exp, d, q)));
         }
         let (r0, r1) = (window_mean(&d.returns, true), window_mean(&d.returns, false));
         let shared = r.shared_from.as_deref().unwrap_or("");
-        writeln!(summary, ",{r0},{r1},{},{},{shared}", d.wall_seconds, csv_text(&d.binaries.join(" "))).unwrap();
+        write!(summary, ",{r0},{r1},{},{},{shared}", d.wall_seconds, csv_text(&d.binaries.join(" "))).unwrap();
+        for (_, q) in &curves {
+            summary.push_str(&field(quantity(exp, d, q)));
+        }
+        summary.push('\n');
     }
 
     summary
+}
+
+/// One value as a field of summary.csv, with its comma: blank, never NaN, where a run has no value (an
+/// evaluation without a catch has no edge rank).
+fn field(v: f64) -> String {
+    if v.is_finite() {
+        format!(",{v}")
+    } else {
+        ",".into()
+    }
+}
+
+/// A summary.csv `text` written before its [`curve_columns`] existed, extended with them from the
+/// committed figure data's training curves (`curves`, by run index): every byte it held is kept, and each
+/// row gains the values a summary written from the run folders has. None when it has them already.
+pub fn extend(
+    exp: &Experiment,
+    text: &str,
+    table: &Summary,
+    curves: &BTreeMap<usize, super::figure_data::FigureData>,
+) -> Option<String> {
+    let added = curve_columns();
+    if table.columns.iter().any(|c| *c == added[0].0) || !text.ends_with('\n') {
+        return None;
+    }
+    let of_run: BTreeMap<(&str, &str, u64), usize> =
+        table.runs(exp).into_iter().map(|(i, r)| ((r.preset.as_str(), r.variant.as_str(), r.seed), i)).collect();
+    let mut lines = text.lines();
+    let mut out = lines.next().unwrap_or_default().to_string();
+    for (name, _) in &added {
+        write!(out, ",{name}").unwrap();
+    }
+    out.push('\n');
+    for (line, row) in lines.zip(&table.rows) {
+        out.push_str(line);
+        let run = of_run.get(&(row.preset.as_str(), row.variant.as_str(), row.seed)).and_then(|i| curves.get(i));
+        for (_, q) in &added {
+            let v = run.map_or(f64::NAN, |d| match q {
+                Quantity::Start(o) | Quantity::Extreme(o) | Quantity::ExtremeEpisode(o) | Quantity::AfterExtreme(o) => {
+                    super::claims::curve_shape(q, d.curve(o))
+                }
+                _ => f64::NAN,
+            });
+            out.push_str(&field(v));
+        }
+        out.push('\n');
+    }
+    Some(out)
 }
 
 /// `summary-mean.csv`: per preset, variant and quantity, the mean over seeds and its 95 % interval.
@@ -81,7 +154,7 @@ pub fn means_text(exp: &Experiment, data: &BTreeMap<usize, RunData>, quantities:
         };
         for v in &exp.spec.variants {
             let runs = of_variant(&v.name);
-            for (name, q) in quantities {
+            for (name, q) in quantities.iter().chain(&curve_columns()) {
                 if let Some(e) = estimate(&values(exp, &runs, q)) {
                     let ci = e.ci.map_or(String::new(), |c| c.to_string());
                     writeln!(means, "{},{},{name},{},{},{ci}", csv_text(preset), csv_text(&v.name), e.n, e.mean)
@@ -207,6 +280,70 @@ pub(super) fn csv_text(s: &str) -> String {
 
 #[cfg(test)]
 mod tests {
+    use super::super::claims::RunData;
+    use super::super::figure_data::{stored, FigureData};
+    use super::super::file::Experiment;
+    use std::collections::BTreeMap;
+
+    #[test]
+    fn an_old_summary_gains_the_curve_columns_a_new_one_is_written_with() {
+        let dir = tempfile::tempdir().unwrap();
+        let file = dir.path().join("old.ron");
+        std::fs::write(
+            &file,
+            r#"(base: "scenes/paper.ron", seeds: [1, 2], variants: [(name: "a"), (name: "b, c")], claims: [])"#,
+        )
+        .unwrap();
+        let exp = Experiment::load(&file, dir.path()).unwrap();
+        // Four runs of 250 episodes, each curve its own wave, one run too short for an extreme.
+        let data: BTreeMap<usize, RunData> = (0..exp.runs.len())
+            .map(|i| {
+                let episodes = if i == 3 { 150 } else { 250 };
+                let curve = |phase: f64| {
+                    (0..episodes).map(|e| 0.5 + 0.3 * (e as f64 / 40.0 + phase + i as f64).sin()).collect()
+                };
+                let d = RunData {
+                    dos: curve(0.0),
+                    doa: curve(1.0),
+                    catches: curve(2.0),
+                    binaries: vec!["x".into()],
+                    ..Default::default()
+                };
+                (i, d)
+            })
+            .collect();
+        let written = super::text(&exp, &data, &super::columns(&exp));
+        // The same summary as a coevo before the curve columns wrote it.
+        let added = super::curve_columns().len();
+        let old: String = written
+            .lines()
+            .map(|l| {
+                let keep = l.split(',').count() - added;
+                format!("{}\n", l.split(',').take(keep).collect::<Vec<_>>().join(","))
+            })
+            .collect();
+        assert!(written.starts_with(old.lines().next().unwrap()) && old.len() < written.len());
+        let table = super::Summary::parse(&old, &file).unwrap();
+        let curves: BTreeMap<usize, FigureData> = data
+            .iter()
+            .map(|(i, d)| {
+                let f = FigureData {
+                    dos: stored(&d.dos),
+                    doa: stored(&d.doa),
+                    catches: stored(&d.catches),
+                    ..Default::default()
+                };
+                (*i, f)
+            })
+            .collect();
+        let extended = super::extend(&exp, &old, &table, &curves).expect("extended");
+        assert_eq!(extended, written, "the same bytes as written from the run folders");
+        assert!(written.lines().nth(1).unwrap().split(',').next_back().unwrap().parse::<f64>().is_ok());
+        assert!(written.lines().nth(4).unwrap().ends_with(','), "too short for an extreme: blank");
+        let table = super::Summary::parse(&written, &file).unwrap();
+        assert_eq!(super::extend(&exp, &written, &table, &curves), None, "extended once");
+    }
+
     #[test]
     fn names_with_commas_stay_one_csv_field() {
         assert_eq!(super::csv_text("5:3"), "5:3");
