@@ -209,6 +209,55 @@ pub fn adjust(results: &mut [ClaimResult]) {
             r.verdict.push_str(&format!("; the same test as {first}, counted once in its family"));
         }
     }
+    say_where_a_level_and_its_contrast_disagree(results);
+}
+
+/// One sentence of the paper often gives a level and the contrast it implies ("at R = D/3, DoA drops to
+/// 0.75", against 0.82 at R = D): the contrast (the variant against its base, the same quantity) is the
+/// primary test and the level a secondary row, which must not contradict it silently. Where one is
+/// reproduced and the other is not, both rows say so.
+fn say_where_a_level_and_its_contrast_disagree(results: &mut [ClaimResult]) {
+    let reproduced =
+        |r: &ClaimResult| r.verdict.starts_with("reproduced") || r.verdict.starts_with("direction reproduced");
+    let word = |r: &ClaimResult| r.verdict.split([':', '(']).next().unwrap_or_default().trim().to_string();
+    let mut notes: Vec<(usize, String)> = Vec::new();
+    for (i, level) in results.iter().enumerate() {
+        if level.claim.versus.is_some() || level.claim.paper.is_none() || is_effect(&level.claim) {
+            continue;
+        }
+        let contrast = results.iter().position(|c| {
+            c.experiment == level.experiment
+                && c.preset == level.preset
+                && c.claim.variant == level.claim.variant
+                && c.claim.versus.is_some()
+                && c.claim.paper.is_some()
+                && c.claim.quantity == level.claim.quantity
+        });
+        if let Some(j) = contrast {
+            let c = &results[j];
+            if reproduced(level) != reproduced(c) {
+                notes.push((
+                    i,
+                    format!(
+                        "; disagrees with the primary contrast \"{}\" ({}): the contrast decides the paper's sentence",
+                        c.claim.text,
+                        word(c)
+                    ),
+                ));
+                notes.push((
+                    j,
+                    format!(
+                        "; its secondary level row \"{}\" is {} (the contrast decides)",
+                        level.claim.text,
+                        word(level)
+                    ),
+                ));
+            }
+        }
+    }
+    for (i, note) in notes {
+        results[i].verdict.push_str(&note);
+    }
 }
 
 #[cfg(test)]
@@ -254,5 +303,39 @@ mod tests {
         assert!(results[3].verdict.ends_with("the same test as a / p / a1, counted once in its family"));
         assert!(results[5].same_as.is_none(), "another family's test is not a repeat");
         assert!(results.iter().all(|r| !r.verdict.is_empty()), "every claim judged");
+    }
+
+    #[test]
+    fn a_level_that_contradicts_its_contrast_says_so() {
+        // "At R = D/3 DoA drops to 0.75, against 0.82 at R = D": a level that reaches 0.75 and a contrast
+        // that goes the other way.
+        let mut level = claim(Quantity::DoaLast, Some(0.75), None);
+        level.text = "R = D/3: DoA drops to 0.75".into();
+        let mut contrast = claim(Quantity::DoaLast, Some(-0.07), None);
+        contrast.text = "R = D/3 against R = D: DoA lower".into();
+        contrast.versus = Some("R = D".into());
+        let mut results = vec![
+            tested(&level, "perception", &[0.74, 0.75, 0.76, 0.75, 0.755]),
+            tested(&contrast, "perception", &[0.10, 0.12, 0.09, 0.11, 0.1]),
+        ];
+        results[0].p = None;
+        results[0].baseline = Some(std::f64::consts::FRAC_2_PI);
+        adjust(&mut results);
+        assert!(results[0].verdict.starts_with("reproduced"), "{}", results[0].verdict);
+        assert!(results[1].verdict.starts_with("not reproduced"), "{}", results[1].verdict);
+        assert!(
+            results[0].verdict.ends_with(
+                "disagrees with the primary contrast \"R = D/3 against R = D: DoA lower\" (not reproduced): the contrast decides the paper's sentence"
+            ),
+            "{}",
+            results[0].verdict
+        );
+        assert!(results[1].verdict.contains("its secondary level row \"R = D/3: DoA drops to 0.75\" is reproduced"));
+        // When both agree, neither says more.
+        let mut agreeing =
+            vec![results[0].clone(), tested(&contrast, "perception", &[-0.06, -0.08, -0.07, -0.075, -0.065])];
+        agreeing[0].verdict.clear();
+        adjust(&mut agreeing);
+        assert!(!agreeing.iter().any(|r| r.verdict.contains("disagrees") || r.verdict.contains("secondary level")));
     }
 }

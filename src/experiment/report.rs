@@ -80,7 +80,10 @@ const METHOD: &str = "Each number is the mean over seeds of the prey's 100-episo
      is **reproduced** when its 95 % interval reaches the paper's value at the precision the paper writes it with (0.22 \
      is 0.215–0.225) and excludes chance (DoA by chance: 2/π ≈ 0.637; DoS by chance: uniform random positions at \
      the same density, e.g. 0.226 for 10 prey and 0.100 for 50 in the 2 m torus; the mean edge rank of caught prey by \
-     chance: 0.5; C_nn by chance: 0), **not reproduced** when the interval misses the paper's value so written. For a \
+     chance: 0.5; C_nn by chance: 0), **not reproduced** when the interval misses the paper's value so written. Where one sentence of the paper gives a level \
+     and the contrast it implies (a variant against its base, the same quantity), the contrast is the primary test and the \
+     level a secondary row: when one is reproduced and the other is not, both rows say that they disagree and that the \
+     contrast decides. For a \
      quantity the paper gives no number of, the verdict says whether an effect was detected or the level differs from \
      chance; *no effect detected* is not evidence of no effect: only an equivalence verdict is. The paper's per-step \
      levels of trained prey (DoS about 15 %, DoA about 0.96) are judged at the training density, 10 prey, and the \
