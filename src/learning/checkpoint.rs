@@ -88,6 +88,10 @@ pub struct SpeciesState {
     /// checkpoints of coevo before saved buffers: a resumed run then refills its buffer).
     #[serde(default)]
     pub transitions: Option<u64>,
+    /// Transitions offered to the buffer, kept or not, where they differ from those stored (the authors'
+    /// replay window, `learning.replay_window`); absent otherwise.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub offered: Option<u64>,
 }
 
 /// The manifest of a checkpoint folder, and a damaged checkpoint where it should have one: its
@@ -363,6 +367,7 @@ pub fn load(
                     l.buffer = load_replay(&dir, name, &l.buffer, transitions, manifest)?;
                 }
             }
+            l.offered = s.offered.unwrap_or(l.buffer.pushed);
         }
         for s in state.species.iter_mut().flatten().filter(|s| dropped.contains(&s.name)) {
             s.transitions = None;

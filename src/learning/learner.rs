@@ -5,10 +5,44 @@
 use super::ddpg::{Ddpg, Losses};
 use super::nets::Dev;
 use super::replay::{Batch, ReplayBuffer};
-use crate::scene::LearningParams;
+use crate::scene::{BatchDraw, LearningParams, ReplayWindow, StoredAction};
 use crate::sim::perception::SpeciesBatch;
 use crate::sim::species::ACTION_DIM;
 use rand_chacha::ChaCha8Rng;
+
+/// How a species stores and draws its transitions, where the authors' code differs from coevo's default
+/// (issue 37; each switch of [`LearningParams`]). The defaults store what the actor outputs into a ring of
+/// the last `buffer_capacity` transitions and draw mini-batches with replacement.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Storing {
+    /// [`ReplayWindow::AuthorsFirstRows`]: (rows, first rows): transition k of the species goes to row
+    /// k mod rows, and only the first rows are drawn from, so only those are kept.
+    pub first_rows: Option<(u64, u64)>,
+    /// [`StoredAction::AuthorsRescaled`]: the physical scale of each action component (thrust in N, turn
+    /// in rad per step) the stored action is rescaled to.
+    pub rescaled: Option<[f32; ACTION_DIM]>,
+    pub draw: BatchDraw,
+}
+
+impl Storing {
+    /// A species of `count` individuals with `max_thrust` (N) and `turn_per_step` (rad).
+    pub fn of(p: &LearningParams, count: usize, max_thrust: f64, turn_per_step: f64) -> Storing {
+        let n = count.max(1) as u64;
+        let rows = p.buffer_capacity as u64;
+        Storing {
+            // `filled_i` grows by n until it reaches the capacity: the first rows are a multiple of n.
+            first_rows: (p.replay_window == ReplayWindow::AuthorsFirstRows).then(|| (rows * n, rows.div_ceil(n) * n)),
+            rescaled: (p.stored_action == StoredAction::AuthorsRescaled)
+                .then_some([max_thrust as f32, turn_per_step as f32]),
+            draw: p.batch_draw,
+        }
+    }
+
+    /// How many transitions the buffer holds at most.
+    pub fn capacity(&self, p: &LearningParams) -> usize {
+        self.first_rows.map_or(p.buffer_capacity, |(_, first)| first as usize)
+    }
+}
 
 /// One species' learner.
 #[derive(Clone, Debug)]
@@ -33,18 +67,29 @@ pub struct SpeciesLearner {
     /// Sum and count of losses since the last episode summary.
     pub loss_sum: Losses,
     pub updates: usize,
+    pub storing: Storing,
+    /// Transitions offered to the buffer so far, kept or not ([`Storing::first_rows`] keeps only those
+    /// whose row is drawn from); equal to the buffer's `pushed` when every transition is kept.
+    pub offered: u64,
 }
 
 impl SpeciesLearner {
     /// A species' fresh learner: networks drawn from `init_rng` (the scene's initialization stream, shared
     /// by the species in registry order), an empty buffer, exploration at its initial σ and ε, and `rng`
     /// its own stream ([`super::species_stream`]).
-    pub fn new(obs_dim: usize, p: &LearningParams, frozen: bool, init_rng: &mut ChaCha8Rng, rng: ChaCha8Rng) -> Self {
+    pub fn new(
+        obs_dim: usize,
+        p: &LearningParams,
+        storing: Storing,
+        frozen: bool,
+        init_rng: &mut ChaCha8Rng,
+        rng: ChaCha8Rng,
+    ) -> Self {
         let dev = Dev::default();
         SpeciesLearner {
             ddpg: Ddpg::new(&dev, obs_dim, p, init_rng),
             dev,
-            buffer: ReplayBuffer::new(p.buffer_capacity, obs_dim, ACTION_DIM),
+            buffer: ReplayBuffer::new(storing.capacity(p), obs_dim, ACTION_DIM),
             frozen,
             noise_std: p.noise_std,
             epsilon: p.epsilon,
@@ -53,6 +98,8 @@ impl SpeciesLearner {
             batch: Batch::default(),
             loss_sum: Losses::default(),
             updates: 0,
+            storing,
+            offered: 0,
         }
     }
 
@@ -70,6 +117,8 @@ impl SpeciesLearner {
             batch: Batch::default(),
             loss_sum: self.loss_sum,
             updates: self.updates,
+            storing: self.storing,
+            offered: self.offered,
         }
     }
 }
@@ -83,12 +132,20 @@ impl SpeciesLearner {
             return;
         }
         for row in 0..b.n {
-            self.buffer.push(
-                &self.pending_obs[row * d..(row + 1) * d],
-                &b.actions[row * ACTION_DIM..(row + 1) * ACTION_DIM],
-                b.rewards[row],
-                b.observation(row),
-            );
+            let k = self.offered;
+            self.offered += 1;
+            if let Some((rows, first)) = self.storing.first_rows {
+                if k % rows >= first {
+                    continue;
+                }
+            }
+            let mut action: [f32; ACTION_DIM] =
+                b.actions[row * ACTION_DIM..(row + 1) * ACTION_DIM].try_into().expect("an action per row");
+            if let Some(scale) = self.storing.rescaled {
+                // As the authors' env.step leaves the array it stores: thrust to [0, max], turn to ±max.
+                action = [(action[0] + 1.0) / 2.0 * scale[0], action[1] * scale[1]];
+            }
+            self.buffer.push(&self.pending_obs[row * d..(row + 1) * d], &action, b.rewards[row], b.observation(row));
         }
     }
 
@@ -96,7 +153,12 @@ impl SpeciesLearner {
     /// stream. Err (the losses) when a loss or, at the end, a parameter is not finite.
     pub(super) fn update(&mut self, n: usize, batch_size: usize) -> Result<(), Losses> {
         for _ in 0..n {
-            self.buffer.sample_into(&mut self.batch, batch_size, &mut self.rng);
+            match self.storing.draw {
+                BatchDraw::WithReplacement => self.buffer.sample_into(&mut self.batch, batch_size, &mut self.rng),
+                BatchDraw::WithoutReplacement => {
+                    self.buffer.sample_distinct_into(&mut self.batch, batch_size, &mut self.rng)
+                }
+            }
             let losses = self.ddpg.update(&self.batch);
             self.loss_sum.critic += losses.critic;
             self.loss_sum.actor += losses.actor;
@@ -109,5 +171,110 @@ impl SpeciesLearner {
             true => Err(self.loss_sum),
             false => Ok(()),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::NoiseDraw;
+    use rand::SeedableRng;
+
+    fn learner(storing: Storing, capacity: usize) -> SpeciesLearner {
+        let mut p = crate::scene::Scene::preset("paper").unwrap().learning;
+        (p.hidden, p.buffer_capacity) = (4, capacity);
+        let mut init = ChaCha8Rng::seed_from_u64(1);
+        SpeciesLearner::new(1, &p, storing, false, &mut init, ChaCha8Rng::seed_from_u64(2))
+    }
+
+    /// Steps of a species of two whose observation, action and reward all say which transition it is.
+    fn offer(l: &mut SpeciesLearner, steps: usize) {
+        for _ in 0..steps {
+            let k = l.offered as f32;
+            l.pending_obs = vec![k, k + 1.0];
+            let b = SpeciesBatch {
+                n: 2,
+                obs_dim: 1,
+                observations: vec![k + 0.5, k + 1.5],
+                actions: vec![0.5, -0.5, 0.5, -0.5],
+                rewards: vec![k, k + 1.0],
+            };
+            l.store(&b);
+        }
+    }
+
+    #[test]
+    fn the_authors_replay_window_keeps_only_the_first_rows_of_each_block() {
+        // Rows for 4 × 2 transitions, drawn from the first 4 (a multiple of n = 2 covering the capacity 3).
+        let storing = Storing::of(
+            &crate::scene::LearningParams {
+                buffer_capacity: 3,
+                replay_window: ReplayWindow::AuthorsFirstRows,
+                ..crate::scene::Scene::preset("paper").unwrap().learning
+            },
+            2,
+            1.0,
+            0.5,
+        );
+        assert_eq!(storing.first_rows, Some((6, 4)));
+        let mut l = learner(storing, 3);
+        assert_eq!(l.buffer.capacity, 4);
+        offer(&mut l, 10);
+        assert_eq!(l.offered, 20);
+        // Transitions 0–3 (rows 0–3), 4–5 dropped (rows 4–5), 6–9 kept, 10–11 dropped, 12–15, 16–17 dropped,
+        // 18–19 kept: the buffer holds the last four kept, 14–15 and 18–19 in rows 2, 3, 0, 1.
+        let mut held: Vec<f32> = (l.buffer.first_held()..l.buffer.pushed).map(|k| l.buffer.transition(k).2).collect();
+        held.sort_by(f32::total_cmp);
+        assert_eq!(held, [14.0, 15.0, 18.0, 19.0]);
+        // By default every transition is kept: the last three.
+        let mut l = learner(Storing::default(), 3);
+        offer(&mut l, 10);
+        let held: Vec<f32> = (l.buffer.first_held()..l.buffer.pushed).map(|k| l.buffer.transition(k).2).collect();
+        assert_eq!(held, [17.0, 18.0, 19.0]);
+    }
+
+    #[test]
+    fn the_authors_stored_action_is_rescaled_and_nothing_else_changes() {
+        let rescaled = Storing { rescaled: Some([1.0, 0.5]), ..Storing::default() };
+        let (mut a, mut b) = (learner(rescaled, 10), learner(Storing::default(), 10));
+        offer(&mut a, 1);
+        offer(&mut b, 1);
+        let (oa, act_a, ra, na) = a.buffer.transition(0);
+        let (ob, act_b, rb, nb) = b.buffer.transition(0);
+        assert_eq!((oa, ra, na), (ob, rb, nb));
+        assert_eq!(act_b, [0.5, -0.5], "normalized as the actor gave it");
+        // Thrust (0.5 + 1) / 2 × 1 N, turn −0.5 × 0.5 rad per step.
+        assert_eq!(act_a, [0.75, -0.25]);
+    }
+
+    #[test]
+    fn a_batch_without_replacement_holds_distinct_transitions() {
+        let mut l = learner(Storing::default(), 64);
+        offer(&mut l, 16);
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        let mut batch = Batch::default();
+        l.buffer.sample_distinct_into(&mut batch, 32, &mut rng);
+        let mut seen = batch.rewards.clone();
+        seen.sort_by(f32::total_cmp);
+        assert_eq!(seen, (0..32).map(|k| k as f32).collect::<Vec<_>>(), "all 32 held, each once");
+        // With replacement, 32 draws of 32 repeat one (all distinct has probability 32!/32^32).
+        l.buffer.sample_into(&mut batch, 32, &mut rng);
+        let mut seen = batch.rewards.clone();
+        seen.sort_by(f32::total_cmp);
+        seen.dedup();
+        assert!(seen.len() < 32);
+    }
+
+    #[test]
+    fn noise_per_species_is_one_vector_for_every_individual() {
+        let deltas = |draw: NoiseDraw| {
+            let mut actions = vec![0.0f32; 2 * 5];
+            crate::learning::explore_actions(&mut actions, 0.0, 0.1, draw, &mut ChaCha8Rng::seed_from_u64(4));
+            actions.chunks(2).map(|a| [a[0], a[1]]).collect::<Vec<_>>()
+        };
+        let shared = deltas(NoiseDraw::PerSpecies);
+        assert!(shared.iter().all(|a| *a == shared[0]) && shared[0] != [0.0, 0.0], "{shared:?}");
+        let own = deltas(NoiseDraw::PerIndividual);
+        assert!(own.iter().skip(1).all(|a| *a != own[0]), "{own:?}");
     }
 }

@@ -25,11 +25,11 @@ pub mod replay_segments;
 pub mod snapshots;
 pub mod tensors;
 
-use crate::scene::{LearningParams, Policy, Scene};
+use crate::scene::{LearningParams, NoiseDraw, Policy, Scene};
 use crate::sim::clock::Episode;
 use crate::sim::episode::SimRng;
 use crate::sim::perception::Batches;
-use crate::sim::species::SpeciesRegistry;
+use crate::sim::species::{SpeciesRegistry, ACTION_DIM};
 use crate::sim::Simulation;
 use crate::sim::{ActiveScene, SimSet};
 use bevy::prelude::*;
@@ -40,7 +40,7 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 use std::path::{Path, PathBuf};
 
-pub use learner::SpeciesLearner;
+pub use learner::{SpeciesLearner, Storing};
 
 /// Train (explore, store, update) or only act (evaluation: no noise, no updates).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -100,7 +100,9 @@ impl Learners {
                     _ => return None,
                 };
                 let d = registry.observation_dim(s);
-                Some(SpeciesLearner::new(d, &p, frozen, &mut init_rng, species_stream(scene.seed, s)))
+                let def = &registry.defs[s];
+                let storing = Storing::of(&p, def.count, def.max_thrust, def.max_turn_rate * scene.world.dt);
+                Some(SpeciesLearner::new(d, &p, storing, frozen, &mut init_rng, species_stream(scene.seed, s)))
             })
             .collect();
         Learners {
@@ -220,6 +222,7 @@ pub fn species_stream(seed: u64, s: usize) -> ChaCha8Rng {
 fn decide_learned(mut learners: ResMut<Learners>, mut batches: ResMut<Batches>, control: Option<Res<ResolvedControl>>) {
     let l = &mut *learners;
     let explore = l.mode == Mode::Train;
+    let noise_draw = l.params.noise_draw;
     for (s, learner) in l.species.iter_mut().enumerate() {
         let Some(learner) = learner else { continue };
         let batch = &mut batches.species[s];
@@ -234,16 +237,31 @@ fn decide_learned(mut learners: ResMut<Learners>, mut batches: ResMut<Batches>, 
             }
         }
         if explore && !learner.frozen {
-            let rng = &mut learner.rng;
-            if rng.gen_bool(learner.epsilon.clamp(0.0, 1.0)) {
-                batch.actions.iter_mut().for_each(|a| *a = rng.gen_range(-1.0..=1.0));
-            } else if learner.noise_std > 0.0 {
-                let noise = Normal::new(0.0, learner.noise_std as f32).expect("σ is finite and ≥ 0");
-                // Independent noise for every individual and action component.
-                batch.actions.iter_mut().for_each(|a| *a = (*a + noise.sample(rng)).clamp(-1.0, 1.0));
-            }
+            explore_actions(&mut batch.actions, learner.epsilon, learner.noise_std, noise_draw, &mut learner.rng);
         }
         learner.pending_obs.clone_from(&batch.observations);
+    }
+}
+
+/// Exploration (Algorithm 1, "a_i = μ(o_i) + N_t"): with probability ε the species acts uniformly at
+/// random for the step (each individual and component drawn), else Gaussian noise of std σ is added to
+/// the actors' `actions` (normalized, then clamped to [−1, 1]), drawn as `draw` says.
+pub fn explore_actions(actions: &mut [f32], epsilon: f64, noise_std: f64, draw: NoiseDraw, rng: &mut ChaCha8Rng) {
+    if rng.gen_bool(epsilon.clamp(0.0, 1.0)) {
+        actions.iter_mut().for_each(|a| *a = rng.gen_range(-1.0..=1.0));
+    } else if noise_std > 0.0 {
+        let noise = Normal::new(0.0, noise_std as f32).expect("σ is finite and ≥ 0");
+        match draw {
+            // Independent noise for every individual and action component.
+            NoiseDraw::PerIndividual => actions.iter_mut().for_each(|a| *a = (*a + noise.sample(rng)).clamp(-1.0, 1.0)),
+            // One vector for the species, added to every individual (the authors' code).
+            NoiseDraw::PerSpecies => {
+                let shared: [f32; ACTION_DIM] = std::array::from_fn(|_| noise.sample(rng));
+                for action in actions.chunks_mut(ACTION_DIM) {
+                    action.iter_mut().zip(&shared).for_each(|(a, n)| *a = (*a + n).clamp(-1.0, 1.0));
+                }
+            }
+        }
     }
 }
 

@@ -142,6 +142,26 @@ impl ReplayBuffer {
     }
 }
 
+impl ReplayBuffer {
+    /// `n` distinct transitions drawn uniformly without replacement into `b` (the authors' buffer.py);
+    /// `n` must not exceed what the buffer holds.
+    pub fn sample_distinct_into(&self, b: &mut Batch, n: usize, rng: &mut ChaCha8Rng) {
+        assert!(n <= self.len, "drawing {n} distinct transitions from {}", self.len);
+        let (d, a) = (self.obs_dim, self.act_dim);
+        b.n = n;
+        b.obs.clear();
+        b.actions.clear();
+        b.rewards.clear();
+        b.next_obs.clear();
+        for i in rand::seq::index::sample(rng, self.len, n) {
+            b.obs.extend_from_slice(&self.obs[i * d..(i + 1) * d]);
+            b.actions.extend_from_slice(&self.actions[i * a..(i + 1) * a]);
+            b.rewards.push(self.rewards[i]);
+            b.next_obs.extend_from_slice(&self.next_obs[i * d..(i + 1) * d]);
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -369,6 +369,7 @@ pub(crate) fn save_checkpoint(
                     critic_adam_step: l.ddpg.critic_opt.step,
                     rng: Some(l.rng.clone()),
                     transitions: (!l.frozen).then_some(l.buffer.pushed),
+                    offered: (!l.frozen && l.storing.first_rows.is_some()).then_some(l.offered),
                 })
             })
             .collect(),

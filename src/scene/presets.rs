@@ -36,6 +36,7 @@ pub(super) fn paper() -> Scene {
             wall_damping: 0.0,
             speed_clip: SpeedClip::Norm,
             energy_budget: false,
+            spawn: Spawn::Anywhere,
         },
         rewards: RewardParams {
             contact: 1.0,
@@ -66,6 +67,10 @@ pub(super) fn paper() -> Scene {
             exploration_floor: 0.05,
             checkpoint_every: 100,
             snapshot_every: default_snapshot_every(),
+            replay_window: ReplayWindow::Latest,
+            stored_action: StoredAction::Normalized,
+            noise_draw: NoiseDraw::PerIndividual,
+            batch_draw: BatchDraw::WithReplacement,
         },
         observation_frame: ObservationFrame::World,
         cluster_link: default_cluster_link(),

@@ -95,6 +95,76 @@ pub enum Policy {
     Plugin(String),
 }
 
+/// Whether a field holds its default, so a scene file written by coevo leaves it out: a switch added
+/// later (the authors' code's behaviours, issue 37) changes neither the `scene.ron` of a run that leaves
+/// it off nor the scene's identity its checkpoints are sealed with.
+pub fn is_default<T: Default + PartialEq>(value: &T) -> bool {
+    *value == T::default()
+}
+
+/// Where a population is spawned (issue 37, row 7).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Spawn {
+    /// Uniform over the arena (inset by each body's radius with walls), overlaps allowed: coevo's default.
+    #[default]
+    Anywhere,
+    /// As WindyLab/Gym-PPS `gym/envs/pps/pps.py` `reset()`: every position uniform in the arena inset by
+    /// the largest body radius of any species (±0.94 m for 0.06 m predators), on either boundary, the
+    /// whole population drawn again until no two bodies overlap (at most 100 draws, the last kept), then
+    /// the headings.
+    AuthorsNoOverlap,
+}
+
+/// Which of a species' stored transitions a mini-batch is drawn from (issue 37, row 1).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub enum ReplayWindow {
+    /// The last `buffer_capacity` transitions, a ring (coevo's default; the paper's "5e5").
+    #[default]
+    Latest,
+    /// As WindyLab/Gym-PPS `NJP_algorithm/utils/buffer.py`: rows for `buffer_capacity` × n transitions
+    /// (n the species' count), written in turn and overwritten from the first when full, and mini-batches
+    /// drawn only from the first `buffer_capacity` rows (rounded up to a multiple of n, as `filled_i`
+    /// counts in steps of n). With 10 prey and 500 steps, prey learn from episodes 1–100 until episode
+    /// 1000, then from 1001–1100; predators (n = 3) from 1–333, then 1001–1333.
+    AuthorsFirstRows,
+}
+
+/// The action a transition stores (issue 37, row 2).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub enum StoredAction {
+    /// The normalized action the actor outputs (after noise), in [−1, 1], which is also what the critic
+    /// is queried at: coevo's default.
+    #[default]
+    Normalized,
+    /// As WindyLab/Gym-PPS: `env.step` (`gym/envs/pps/pps.py`) rescales the action array in place to
+    /// physical units (turn × the maximum turn per step, thrust to [min, max] acceleration), and
+    /// `NJP_algorithm/main.py` then stores that array, while the actor and target actor are still
+    /// queried at normalized outputs.
+    AuthorsRescaled,
+}
+
+/// How the Gaussian exploration noise is drawn (issue 37, row 3).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub enum NoiseDraw {
+    /// Independently for every individual and action component: coevo's default.
+    #[default]
+    PerIndividual,
+    /// As WindyLab/Gym-PPS `NJP_algorithm/utils/agents.py` `step()`: one noise vector per species and
+    /// step (`GaussianNoise.noise()` has the action's size), added to every individual's action.
+    PerSpecies,
+}
+
+/// How a mini-batch is drawn from the transitions it may use (issue 37, row 8).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub enum BatchDraw {
+    /// Uniformly with replacement: coevo's default.
+    #[default]
+    WithReplacement,
+    /// Uniformly without replacement, as WindyLab/Gym-PPS `NJP_algorithm/utils/buffer.py` `sample()`
+    /// (`np.random.choice(..., replace=False)`); needs `warmup_transitions` ≥ `batch_size`.
+    WithoutReplacement,
+}
+
 patchable! {
     /// The physical world: Eq. (1), Appendix B and the environment table.
     pub struct WorldParams / WorldParamsPatch {
@@ -114,6 +184,9 @@ patchable! {
         pub speed_clip: SpeedClip,
         /// The authors' energy budget (1000 units, −|v| per step, +0.1 when resting): `gym-pps` only.
         pub energy_budget: bool,
+        /// Where a population is spawned ([`Spawn`]; issue 37): left out of scene files at its default.
+        #[serde(default, skip_serializing_if = "is_default")]
+        pub spawn: Spawn,
     }
 }
 
@@ -204,6 +277,20 @@ patchable! {
         /// in `RUN/snapshots/`, for cross-play (`coevo --crossplay`); 0 keeps none. Not in the paper.
         #[serde(default = "default_snapshot_every")]
         pub snapshot_every: usize,
+        /// The authors' code's learning details, each a switch left out of scene files at coevo's default
+        /// (issue 37; `scenes/gym-pps-code.ron` turns them all on): which transitions a mini-batch is
+        /// drawn from ([`ReplayWindow`]), ...
+        #[serde(default, skip_serializing_if = "is_default")]
+        pub replay_window: ReplayWindow,
+        /// ... the action a transition stores ([`StoredAction`]), ...
+        #[serde(default, skip_serializing_if = "is_default")]
+        pub stored_action: StoredAction,
+        /// ... how exploration noise is drawn ([`NoiseDraw`]) ...
+        #[serde(default, skip_serializing_if = "is_default")]
+        pub noise_draw: NoiseDraw,
+        /// ... and how a mini-batch is drawn ([`BatchDraw`]).
+        #[serde(default, skip_serializing_if = "is_default")]
+        pub batch_draw: BatchDraw,
     }
 }
 

@@ -149,6 +149,11 @@ impl Scene {
         check(l.buffer_capacity >= l.batch_size, "learning.buffer_capacity", || {
             format!("must hold at least one batch ({} transitions)", l.batch_size)
         })?;
+        check(
+            l.batch_draw != BatchDraw::WithoutReplacement || l.warmup_transitions >= l.batch_size,
+            "learning.warmup_transitions",
+            || format!("must be ≥ batch_size ({}) to draw a batch without replacement (batch_draw)", l.batch_size),
+        )?;
         for (v, f) in [
             (l.noise_std, "learning.noise_std"),
             (l.epsilon, "learning.epsilon"),

@@ -3,10 +3,12 @@
 //!
 //! Spawning: positions uniform over the arena (inset by the body radius with walls, so no body starts
 //! inside a wall), headings uniform in (−π, π], velocities zero. Overlaps at spawn are allowed; the
-//! contact springs separate them. The paper is silent on this; it is what the authors' code does.
+//! contact springs separate them. The paper is silent on this. The authors' code differs (issue 37, row
+//! 7): it insets every position by the largest body radius on either boundary and draws the whole
+//! population again until no two bodies overlap: `world.spawn: AuthorsNoOverlap`.
 
 use super::schedule::{ActiveScene, SimSet};
-use crate::scene::Boundary;
+use crate::scene::{Boundary, Spawn};
 use crate::sim::clock::Episode;
 use crate::sim::components::*;
 use crate::sim::metrics::{EpisodeLog, SwarmMetrics};
@@ -77,6 +79,26 @@ pub fn next_episode(world: &mut World) {
 }
 
 /// Despawns every agent, spawns the scene's population anew and perceives the new state.
+/// The authors' spawn (`gym/envs/pps/pps.py`, `reset()`): every position uniform in the arena inset by
+/// the largest body radius of the population, the whole population drawn again until no two bodies
+/// overlap (centres closer than the sum of their radii, across the periodic edges on a torus), at most
+/// 100 times, the last draw kept as the authors' code keeps it. Headings are drawn after, per agent.
+fn authors_positions(registry: &SpeciesRegistry, arena: &Arena, rng: &mut ChaCha8Rng) -> Vec<DVec2> {
+    let radii: Vec<f64> = registry.defs.iter().flat_map(|d| std::iter::repeat_n(d.radius, d.count)).collect();
+    let reach = arena.half() - radii.iter().copied().fold(0.0, f64::max);
+    let mut positions = Vec::new();
+    for _ in 0..100 {
+        positions =
+            radii.iter().map(|_| DVec2::new(rng.gen_range(-reach..reach), rng.gen_range(-reach..reach))).collect();
+        let overlap = (0..positions.len())
+            .any(|i| (0..i).any(|j| arena.delta(positions[i], positions[j]).length() < radii[i] + radii[j]));
+        if !overlap {
+            break;
+        }
+    }
+    positions
+}
+
 pub fn spawn_population(world: &mut World) {
     let agents: Vec<Entity> = world.query_filtered::<Entity, With<AgentId>>().iter(world).collect();
     for e in agents {
@@ -84,17 +106,27 @@ pub fn spawn_population(world: &mut World) {
     }
     let registry = world.resource::<SpeciesRegistry>().clone();
     let arena = *world.resource::<Arena>();
-    let energy_budget = world.resource::<ActiveScene>().0.world.energy_budget;
+    let (energy_budget, spawn) = {
+        let w = &world.resource::<ActiveScene>().0.world;
+        (w.energy_budget, w.spawn)
+    };
     let mut bundles = Vec::new();
     let before = world.resource::<SimRng>().0.clone();
     world.insert_resource(SpawnedFrom(before));
     {
         let mut rng = world.resource_mut::<SimRng>();
+        let placed = match spawn {
+            Spawn::Anywhere => None,
+            Spawn::AuthorsNoOverlap => Some(authors_positions(&registry, &arena, &mut rng.0)),
+        };
         for (s, def) in registry.defs.iter().enumerate() {
             let margin = if arena.boundary == Boundary::Walls { def.radius } else { 0.0 };
             let reach = arena.half() - margin;
             for _ in 0..def.count {
-                let x = DVec2::new(rng.0.gen_range(-reach..reach), rng.0.gen_range(-reach..reach));
+                let x = match &placed {
+                    Some(placed) => placed[bundles.len()],
+                    None => DVec2::new(rng.0.gen_range(-reach..reach), rng.0.gen_range(-reach..reach)),
+                };
                 let theta = crate::sim::physics::wrap_angle(rng.0.gen_range(-PI..PI));
                 bundles.push(AgentBundle {
                     id: AgentId(bundles.len() as u32),

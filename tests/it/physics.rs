@@ -190,3 +190,37 @@ fn an_unphysical_state_stops_the_run_with_one_line_naming_agent_and_step() {
     let error = first_fault(&mut sim).expect("the escape is caught").to_string();
     assert!(error.contains("(prey): left the arena"), "{error}");
 }
+
+#[test]
+fn the_authors_spawn_insets_by_the_largest_body_and_never_overlaps() {
+    // 3 predators (radius 0.06) and `prey` (0.035) on the 2 m torus, seed by seed.
+    let bodies = |spawn: coevo::scene::Spawn, prey: usize, seed: u64| {
+        let mut s = scene(3, prey, Policy::Still, Boundary::Periodic);
+        (s.world.spawn, s.seed) = (spawn, seed);
+        let mut sim = Simulation::new(s);
+        let world = sim.world_mut();
+        let mut q = world.query::<(&Position, &Body)>();
+        q.iter(world).map(|(p, b)| (p.0, b.radius)).collect::<Vec<_>>()
+    };
+    let overlaps = |bodies: &[(DVec2, f64)]| {
+        let arena = coevo::sim::space::Arena { edge: 2.0, boundary: Boundary::Periodic };
+        (0..bodies.len())
+            .flat_map(|i| (0..i).map(move |j| (i, j)))
+            .filter(|&(i, j)| arena.delta(bodies[i].0, bodies[j].0).length() < bodies[i].1 + bodies[j].1)
+            .count()
+    };
+    // At 20 prey about one pair overlaps per uniform draw: most seeds overlap anywhere, none the authors'
+    // way, which stays inside ±0.94 m (inset by the predators' 0.06 m).
+    let (mut anywhere_overlapping, mut outside) = (0, 0);
+    for seed in 1..=10 {
+        let authors = bodies(coevo::scene::Spawn::AuthorsNoOverlap, 20, seed);
+        assert_eq!(overlaps(&authors), 0, "seed {seed}");
+        assert!(authors.iter().all(|(p, _)| p.x.abs() <= 0.94 && p.y.abs() <= 0.94), "seed {seed}");
+        let anywhere = bodies(coevo::scene::Spawn::Anywhere, 20, seed);
+        anywhere_overlapping += usize::from(overlaps(&anywhere) > 0);
+        outside += anywhere.iter().filter(|(p, _)| p.x.abs() > 0.94 || p.y.abs() > 0.94).count();
+    }
+    assert!(anywhere_overlapping >= 3 && outside > 0, "{anywhere_overlapping} seeds overlap, {outside} bodies outside");
+    // Too crowded for any draw to be free of overlaps: the 100th draw is kept, as the authors' code keeps it.
+    assert!(overlaps(&bodies(coevo::scene::Spawn::AuthorsNoOverlap, 150, 1)) > 0);
+}

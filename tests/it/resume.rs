@@ -19,12 +19,22 @@ fn standard() -> PathBuf {
 /// A small training scene with checkpoints every 2 episodes, snapshots every 5 (out of step with the
 /// checkpoints, so a kill can fall between a snapshot and the checkpoint after it) and replay buffers that wrap (1 000
 /// transitions; prey store 1 800 per episode, predators 450, so the predators' buffer spans two
-/// checkpoints' segments), under either update schedule.
-fn scene_text(per_step: bool) -> String {
+/// checkpoints' segments), under either update schedule; with `authors`, every switch of the authors'
+/// code on (issue 37): the replay window keeps only the first rows of each block, so a resume must know
+/// how many transitions were offered, not only how many were kept.
+fn scene_text(per_step: bool, authors: bool) -> String {
     let schedule = if per_step {
         "updates_per_episode: 0, updates_per_step: 1"
     } else {
         "updates_per_episode: 20, updates_per_step: 0"
+    };
+    let (world, switches) = if authors {
+        (
+            "world: (spawn: AuthorsNoOverlap),",
+            "replay_window: AuthorsFirstRows, stored_action: AuthorsRescaled, noise_draw: PerSpecies, batch_draw: WithoutReplacement,",
+        )
+    } else {
+        ("", "")
     };
     format!(
         r#"(
@@ -32,9 +42,10 @@ fn scene_text(per_step: bool) -> String {
     seed: 11,
     episode_steps: 150,
     episodes: 24,
+    {world}
     species: [(name: "prey", count: 12)],
     learning: (hidden: 16, batch_size: 32, warmup_transitions: 32, buffer_capacity: 1000,
-               {schedule}, checkpoint_every: 2, snapshot_every: 5),
+               {schedule}, checkpoint_every: 2, snapshot_every: 5, {switches}),
 )"#
     )
 }
@@ -102,9 +113,10 @@ fn finish(child: Child) {
 #[test]
 fn a_run_killed_at_any_moment_and_resumed_equals_the_uninterrupted_run() {
     let dir = tempfile::tempdir().unwrap();
-    for per_step in [true, false] {
-        let scene = dir.path().join(format!("scene-{per_step}.ron"));
-        std::fs::write(&scene, scene_text(per_step)).unwrap();
+    for (per_step, authors) in [(true, false), (false, false), (false, true)] {
+        let scene = dir.path().join(format!("scene-{per_step}-{authors}.ron"));
+        std::fs::write(&scene, scene_text(per_step, authors)).unwrap();
+        let per_step = if authors { "authors".to_string() } else { per_step.to_string() };
         let whole = dir.path().join(format!("whole-{per_step}"));
         finish(train(&scene, &whole));
         assert_eq!(rows(&whole), 24);
@@ -207,7 +219,7 @@ fn running(pid: u32) -> bool {
 fn a_killed_experiment_leaves_no_child_running_and_can_be_run_again() {
     let dir = tempfile::tempdir().unwrap();
     let root = dir.path();
-    std::fs::write(root.join("long.ron"), scene_text(true).replace("episodes: 24", "episodes: 100000")).unwrap();
+    std::fs::write(root.join("long.ron"), scene_text(true, false).replace("episodes: 24", "episodes: 100000")).unwrap();
     std::fs::create_dir(root.join("exp")).unwrap();
     // An experiment file outside experiments/, its base beside it.
     std::fs::write(
@@ -347,7 +359,7 @@ fn interrupted_writes_leave_no_temporary_behind() {
 fn a_run_names_every_executable_that_trained_or_evaluated_it() {
     let dir = tempfile::tempdir().unwrap();
     let scene = dir.path().join("scene.ron");
-    std::fs::write(&scene, scene_text(false).replace("episodes: 24", "episodes: 3")).unwrap();
+    std::fs::write(&scene, scene_text(false, false).replace("episodes: 24", "episodes: 3")).unwrap();
     // Another build of coevo: the same program with bytes appended, so its file (its identity) differs.
     let other = dir.path().join("coevo-other");
     let mut bytes = std::fs::read(env!("CARGO_BIN_EXE_coevo")).unwrap();
@@ -386,7 +398,7 @@ fn a_live_run_saved_between_episodes_resumes_to_the_train_run() {
     use coevo::run::live::LiveRun;
     let dir = tempfile::tempdir().unwrap();
     let scene_path = dir.path().join("scene.ron");
-    std::fs::write(&scene_path, scene_text(false)).unwrap();
+    std::fs::write(&scene_path, scene_text(false, false)).unwrap();
     let whole = dir.path().join("whole");
     finish(train(&scene_path, &whole));
     // The world stepped as the viewer's live training steps it, its episodes recorded (and then taken by
@@ -458,7 +470,8 @@ fn a_signal_at_any_moment_leaves_nothing_half_done_and_says_so_once() {
     let scene = dir.path().join("scene.ron");
     std::fs::write(
         &scene,
-        scene_text(false).replace("checkpoint_every: 2, snapshot_every: 5", "checkpoint_every: 1, snapshot_every: 1"),
+        scene_text(false, false)
+            .replace("checkpoint_every: 2, snapshot_every: 5", "checkpoint_every: 1, snapshot_every: 1"),
     )
     .unwrap();
     let whole = dir.path().join("whole");
