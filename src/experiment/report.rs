@@ -238,7 +238,7 @@ fn contents_row(md: &mut String, Reported { exp, seconds, finished, shared, bina
 /// One experiment's section: its claims, and its figures (the comparison of variants and the learning
 /// curves shown, the rest linked), the figures' links under `figures` (they are looked up in the
 /// experiment's own figures folder).
-fn section(md: &mut String, Reported { exp, results, finished, .. }: &Reported, figures: &Path) {
+fn section(md: &mut String, Reported { exp, results, finished, summary, .. }: &Reported, figures: &Path) {
     let what = if exp.spec.description.is_empty() { String::new() } else { format!("{}. ", exp.spec.description) };
     let (file, root) = shown_paths(exp);
     writeln!(md, "\n## {}\n\n{what}`{}`, results in `{}/`.\n", exp.name, file.display(), root.display()).unwrap();
@@ -248,6 +248,25 @@ fn section(md: &mut String, Reported { exp, results, finished, .. }: &Reported, 
             "**Partial: {finished} of the {} runs are finished.** Every number, verdict and figure of this experiment \
              is from those runs alone and provisional until the rest finish (reported with `--partial`).\n",
             exp.runs.len()
+        )
+        .unwrap();
+    }
+    // Runs shorter than two windows: every first- and last-100 value reads overlapping episodes.
+    let shortest = exp
+        .spec
+        .presets
+        .iter()
+        .flat_map(|p| exp.spec.variants.iter().filter_map(move |v| summary.episodes(p, &v.name)))
+        .min();
+    if let Some(n) = shortest.filter(|&n| n < 2 * super::claims::WINDOW) {
+        writeln!(
+            md,
+            "**Runs of {n} episodes:** shorter than {} episodes, so their first and last {} episodes overlap: every \
+             first- or last-100 value below reads overlapping episodes (all of them, at {} episodes or fewer), and changes \
+             over training are not measured.\n",
+            2 * super::claims::WINDOW,
+            super::claims::WINDOW,
+            super::claims::WINDOW
         )
         .unwrap();
     }

@@ -456,3 +456,76 @@ fn no_sentence_claims_equivalence_without_an_equivalence_verdict() {
     assert_eq!(said("No difference is detected (+0.00 ± 0.07<!-- claim: e / gym-pps / a -->)."), 0);
     assert_eq!(said("The answer is **herding**. It is."), 1);
 }
+
+/// The relative link targets of a Markdown text (`[text](target)` and `![alt](target)`), without anchors;
+/// web and mail links, and links inside code spans or blocks, are left out.
+fn link_targets(text: &str) -> Vec<String> {
+    let mut out = vec![];
+    let mut in_block = false;
+    for line in text.lines() {
+        if line.trim_start().starts_with("```") {
+            in_block = !in_block;
+            continue;
+        }
+        if in_block {
+            continue;
+        }
+        // Code spans hold no links: drop every other backtick-delimited piece.
+        let prose: String = line.split('`').step_by(2).collect::<Vec<_>>().join(" ");
+        let mut rest = prose.as_str();
+        while let Some(i) = rest.find("](") {
+            rest = &rest[i + 2..];
+            let end = rest.find(')').unwrap_or(rest.len());
+            let target = rest[..end].split('#').next().unwrap_or_default().trim();
+            if !target.is_empty() && !target.contains("://") && !target.starts_with("mailto:") {
+                out.push(target.to_string());
+            }
+            rest = &rest[end..];
+        }
+    }
+    out
+}
+
+/// Every link and image of the README and the book points at a file of the repository, and no page of
+/// the book links a Markdown file outside it: mdbook rewrites such a link to an `.html` page that the
+/// built book does not have (the pages mirror `docs/src`, so other relative links still resolve in a
+/// checkout's `docs/book/`).
+fn broken_links(files: &[PathBuf]) -> Vec<String> {
+    let book = std::fs::canonicalize("docs/src").unwrap();
+    let mut broken = vec![];
+    for file in files {
+        let text = std::fs::read_to_string(file).unwrap();
+        for target in link_targets(&text) {
+            let path = file.parent().unwrap().join(&target);
+            match std::fs::canonicalize(&path) {
+                Err(_) => broken.push(format!("{}: {target} does not exist", file.display())),
+                Ok(p) if file.starts_with("docs/src") && !p.starts_with(&book) && target.ends_with(".md") => broken
+                    .push(format!(
+                        "{}: {target} is outside the book (mdbook would link a missing .html)",
+                        file.display()
+                    )),
+                Ok(_) => {}
+            }
+        }
+    }
+    broken
+}
+
+#[test]
+fn every_link_and_image_of_the_readme_and_the_book_resolves() {
+    let files = markdown_files();
+    let broken = broken_links(&files);
+    assert!(broken.is_empty(), "{}", broken.join("\n"));
+    // The book shows its pictures: the GIFs and one figure per results chapter at least.
+    let intro = std::fs::read_to_string("docs/src/introduction.md").unwrap();
+    assert!(intro.contains("](../../assets/standard.gif)") && intro.contains("](../../assets/confined-penalty.gif)"));
+    for page in ["does-it-learn", "flocking-or-herding", "coevolution"] {
+        let text = std::fs::read_to_string(format!("docs/src/results/{page}.md")).unwrap();
+        assert!(link_targets(&text).iter().any(|t| t.ends_with(".svg")), "{page} shows no figure");
+    }
+    // The check finds what it is for.
+    let dir = tempfile::tempdir().unwrap();
+    let page = dir.path().join("page.md");
+    std::fs::write(&page, "See [this](missing.md), `[not](a-link)` and ![x](gone.png).\n").unwrap();
+    assert_eq!(broken_links(&[page]).len(), 2);
+}

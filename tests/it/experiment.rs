@@ -633,6 +633,11 @@ fn a_shared_variant_is_the_other_experiments_runs_trained_once_and_never_compare
     // the contents count the shared runs once (under tiny) and say so.
     let md = std::fs::read_to_string(dir.path().join("results/share/REPORT.md")).unwrap();
     assert!(md.contains("| – | not a comparison: the two variants' runs are identical"), "{md}");
+    // Three-episode runs: the report says their first and last 100 episodes overlap.
+    assert!(
+        md.contains("**Runs of 3 episodes:** shorter than 200 episodes, so their first and last 100 episodes overlap"),
+        "{md}"
+    );
     assert!(md.contains("| 4 of 4 (2 shared) |"), "{md}");
     // The suite's totals count that re-training once: the same resolved scene and seed by the same binary
     // is one training, whichever experiments hold it.
