@@ -71,3 +71,23 @@ impl Provenance {
         }
     }
 }
+
+/// How a printed command should spell coevo so that it runs where the user is: `coevo` when that name on
+/// the `PATH` is this executable (installed with `cargo install`), else this executable's path, relative
+/// to the working folder when inside it (`target/release/coevo` after `cargo run --release`).
+pub fn spelled() -> String {
+    let Some(exe) = std::env::current_exe().ok().and_then(|e| std::fs::canonicalize(e).ok()) else {
+        return "coevo".into();
+    };
+    let on_path = std::env::var_os("PATH").is_some_and(|path| {
+        std::env::split_paths(&path)
+            .any(|dir| std::fs::canonicalize(dir.join("coevo")).is_ok_and(|found| found == exe))
+    });
+    if on_path {
+        return "coevo".into();
+    }
+    let here = std::env::current_dir().ok().and_then(|d| std::fs::canonicalize(d).ok());
+    let shown = here.and_then(|d| exe.strip_prefix(d).ok().map(std::path::Path::to_path_buf)).unwrap_or(exe);
+    let shown = shown.to_string_lossy().into_owned();
+    shlex::try_quote(&shown).map_or(shown.clone(), |q| q.into_owned())
+}

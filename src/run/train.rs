@@ -452,15 +452,16 @@ pub fn explain(run: &Path) -> crate::error::Result<String> {
     }
     out.push_str("  one run is one sample: seeds of the same scene differ widely; compare seeds with an experiment file (docs/src/guide/experiments.md)\n");
     let r = run.display();
-    // Each next command with what it does, the comments in one column.
+    // Each next command with what it does, the comments in one column, coevo spelled as it runs here.
+    let coevo = super::provenance::spelled();
     let next = [
-        (format!("coevo --eval {r} --prey 50 --episodes 10"), format!("the trained actors, no noise, on 50 {name}")),
+        (format!("{coevo} --eval {r} --prey 50 --episodes 10"), format!("the trained actors, no noise, on 50 {name}")),
         (
-            format!("coevo --eval {r} --prey 50 --episodes 10 --control blind:{name}:{name} --eval-out eval-blind.csv"),
+            format!("{coevo} --eval {r} --prey 50 --episodes 10 --control blind:{name}:{name} --eval-out eval-blind.csv"),
             format!("{name} blind to each other (still seeing the rest)"),
         ),
-        (format!("coevo --plot {r}"), format!("learning curves, {r}/figures/")),
-        (format!("coevo --animate {r}/clip.gif --run {r} --prey 50"), "a GIF of the trained swarm".to_string()),
+        (format!("{coevo} --plot {r}"), format!("learning curves, {r}/figures/")),
+        (format!("{coevo} --animate {r}/clip.gif --run {r} --prey 50"), "a GIF of the trained swarm".to_string()),
         (format!("cargo run --release --features viewer -- --watch {r}"), "watch it live".to_string()),
     ];
     let width = next.iter().map(|(command, _)| command.chars().count()).max().unwrap_or(0);

@@ -391,7 +391,23 @@ fn a_finished_training_run_explains_itself() {
     ] {
         assert!(short.contains(expected), "{expected:?} not in:\n{short}");
     }
-    assert!(short.contains(&format!("coevo --eval {}", dir.path().join("short").display())), "{short}");
+    // coevo spelled as it runs from here: not on the PATH, so the executable's path (relative to the
+    // working folder, where it lies under target/)...
+    let exe = std::path::Path::new(env!("CARGO_BIN_EXE_coevo"));
+    let here = std::fs::canonicalize(std::env::current_dir().unwrap()).unwrap();
+    let relative = std::fs::canonicalize(exe).unwrap().strip_prefix(&here).unwrap().display().to_string();
+    assert!(short.contains(&format!("\n  {relative} --eval {}", dir.path().join("short").display())), "{short}");
+    // ... and `coevo` when that name on the PATH is this executable.
+    let on_path = std::process::Command::new(exe)
+        .env("PATH", exe.parent().unwrap())
+        .args(["--train", "--scene"])
+        .arg(&scene)
+        .args(["--episodes", "1", "--out"])
+        .arg(dir.path().join("on-path"))
+        .output()
+        .unwrap();
+    let said = String::from_utf8_lossy(&on_path.stderr);
+    assert!(said.contains(&format!("\n  coevo --eval {}", dir.path().join("on-path").display())), "{said}");
     // The comments of the next commands stand in one column.
     let columns: Vec<usize> = short
         .lines()
