@@ -326,6 +326,14 @@ fn a_live_run_saved_from_the_window_resumes_to_the_headless_run() {
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(out.status.success(), "{}\n{stdout}", String::from_utf8_lossy(&out.stderr));
     assert!(stdout.contains(&format!("coevo: saved 1 episodes into {saved_s}")), "{stdout}");
+    // --save-run keeps the whole run: every episode the window trained is in its metrics.csv, and the
+    // exit says how far it goes and where its last checkpoint is.
+    let trained = std::fs::read_to_string(saved.join("metrics.csv")).unwrap().lines().count() - 1;
+    assert!(trained > 3, "{trained} episodes kept\n{stdout}");
+    assert!(
+        stdout.contains(&format!("coevo: {saved_s} holds the live run's {trained} episodes, checkpointed at episode 1")),
+        "{stdout}"
+    );
     // A run folder: --eval takes it, and --resume continues it to the headless run, to the last digit.
     let eval = Command::new(BIN).args(["--eval", saved_s, "--episodes", "1", "--steps", "10"]).output().unwrap();
     assert!(eval.status.success(), "{}", String::from_utf8_lossy(&eval.stderr));

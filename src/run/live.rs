@@ -28,6 +28,10 @@ pub struct LiveRun {
     /// Why the world is no longer the `--train` run of its scene and seed (its population was changed
     /// while it trained): such a run is not saved.
     pub altered: Option<String>,
+    /// Snapshots already written into the folder the run is kept in ([`LiveRun::keep`]).
+    snapshots_written: usize,
+    /// The episode of the last checkpoint written there.
+    checkpointed: usize,
 }
 
 impl LiveRun {
@@ -40,6 +44,8 @@ impl LiveRun {
             snapshots: vec![],
             started: Instant::now(),
             altered: None,
+            snapshots_written: 0,
+            checkpointed: 0,
         };
         if world.resource::<ActiveScene>().0.learning.snapshot_every > 0 {
             run.snapshot(world, 0);
@@ -50,6 +56,48 @@ impl LiveRun {
     /// Episodes trained so far.
     pub fn episodes(&self) -> usize {
         self.episodes
+    }
+
+    /// The episode of the last checkpoint written into the folder the run is kept in.
+    pub fn checkpointed(&self) -> usize {
+        self.checkpointed
+    }
+
+    /// Keeps the run, saved into `dir` by [`LiveRun::save`], up to date there at an episode boundary, as
+    /// `--train` writes its folder: every episode's `metrics.csv` row and snapshots, the checkpoint every
+    /// `checkpoint_every` episodes. A window closed mid-training leaves what a `--train` killed there leaves:
+    /// rows past the last checkpoint, which `--resume` drops and trains again.
+    pub fn keep(&mut self, world: &World, dir: &Path) -> crate::error::Result<()> {
+        let episode = world.resource::<Episode>();
+        if episode.step != 0 || episode.index != self.episodes || self.episodes == self.checkpointed {
+            return Ok(());
+        }
+        if let Some(why) = &self.altered {
+            return Err(format!("{}: no longer kept: {why}", dir.display()).into());
+        }
+        if let Some(failure) = &world.resource::<Learners>().failure {
+            return Err(format!("{}: no longer kept: training stopped: {failure}", dir.display()).into());
+        }
+        let run = RunDir::new(dir);
+        let scene = &world.resource::<ActiveScene>().0;
+        let lock = run.lock()?;
+        let written = (|| -> crate::error::Result<()> {
+            for (name, episode, actor) in &self.snapshots[self.snapshots_written..] {
+                crate::learning::snapshots::save_snapshot(dir, scene, name, *episode, actor)?;
+            }
+            // Snapshots first, then the rows: a row never stands for an episode whose snapshot is missing.
+            crate::io::write_file(&run.metrics(), Existing::Replace, self.metrics_text.as_bytes())?;
+            let every = scene.learning.checkpoint_every.max(1);
+            if self.episodes.is_multiple_of(every) || self.episodes == scene.episodes {
+                let metrics = crate::learning::manifest::Digest::of(self.metrics_text.as_bytes());
+                super::train::save_checkpoint(dir, world, scene, None, metrics)?;
+                self.checkpointed = self.episodes;
+            }
+            Ok(())
+        })();
+        drop(lock);
+        self.snapshots_written = self.snapshots.len();
+        written
     }
 
     fn snapshot(&mut self, world: &World, episode: usize) {
@@ -87,7 +135,7 @@ impl LiveRun {
     /// Saves the run into a new folder `dir` (never over anything): `scene.ron`, `provenance.ron`,
     /// `metrics.csv`, the snapshots and the checkpoint, as `--train` leaves a run it was stopped in at
     /// this episode. Only at an episode boundary, and only a run whose population was never changed.
-    pub fn save(&self, world: &World, dir: &Path) -> crate::error::Result<()> {
+    pub fn save(&mut self, world: &World, dir: &Path) -> crate::error::Result<()> {
         if dir.as_os_str().is_empty() {
             return Err("not saved: name a folder to save the run into".into());
         }
@@ -123,6 +171,9 @@ impl LiveRun {
             super::train::save_checkpoint(dir, world, scene, None, metrics)
         })();
         drop(lock);
+        if written.is_ok() {
+            (self.snapshots_written, self.checkpointed) = (self.snapshots.len(), self.episodes);
+        }
         if written.is_err() {
             // Nothing half-written stays behind: the folder was new (removed again) or empty (emptied).
             let _ = run.clear();

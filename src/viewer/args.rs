@@ -19,7 +19,9 @@ pub struct ViewerArgs {
     #[arg(long, help_heading = "Viewer", value_name = "PATH.png")]
     pub screenshot: Option<PathBuf>,
     /// Viewer, live training: save the run into this new folder when its current episode ends (what the
-    /// panel's "Save this run" does): a run folder that --resume, --eval and --watch take.
+    /// panel's "Save this run" does), then keep it there as it trains, as --train writes a run (every
+    /// episode's row and snapshots, a checkpoint every checkpoint_every episodes): a run folder that
+    /// --resume, --eval and --watch take.
     #[arg(long, help_heading = "Viewer", value_name = "DIR")]
     pub save_run: Option<PathBuf>,
     /// Viewer: frames to render before --screenshot [default: 60].

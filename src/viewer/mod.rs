@@ -90,6 +90,8 @@ impl Plugin for ViewerPlugin {
             error: None,
             save_folder: setup::save_folder(&o.setup),
             save_pending: o.save_run.clone(),
+            keep_in: o.save_run.clone(),
+            keeping: false,
             notice: None,
         })
         .insert_resource(ClearColor(draw::OUTSIDE));
@@ -158,6 +160,8 @@ fn apply_control(world: &mut World) {
                 let mut c = world.resource_mut::<Control>();
                 c.save_folder = setup::save_folder(&setup);
                 c.save_pending = None;
+                // A restarted world is another run: the kept folder stays as it was.
+                (c.keep_in, c.keeping) = (None, false);
                 c.current = setup;
                 c.error = None;
                 track_live_run(world);
@@ -197,9 +201,17 @@ fn respawn_with_counts(world: &mut World, counts: &[usize]) {
 
 /// A save asked for (`--save-run` or the panel) that the window is closing before: said, with a non-zero
 /// exit, never silent.
-fn unsaved_on_exit(mut exits: ResMut<Messages<AppExit>>, mut control: ResMut<Control>) {
+fn unsaved_on_exit(mut exits: ResMut<Messages<AppExit>>, mut control: ResMut<Control>, live: Option<Res<LiveRun>>) {
     if exits.is_empty() {
         return;
+    }
+    if let (Some(dir), true, Some(live)) = (&control.keep_in, control.keeping, live) {
+        println!(
+            "coevo: {} holds the live run's {} episodes, checkpointed at episode {} (--resume continues from there)",
+            dir.display(),
+            live.episodes(),
+            live.checkpointed()
+        );
     }
     if let Some(dir) = control.save_pending.take() {
         *EXIT_REASON.lock().unwrap_or_else(|e| e.into_inner()) = Some(format!(
@@ -233,10 +245,29 @@ fn track_live_run(world: &mut World) {
 /// Saves the live run into the folder asked for, now that an episode has ended; says what happened in
 /// the panel (and on stdout, for scripts).
 fn save_live_run(world: &mut World) {
-    let Some(dir) = world.resource_mut::<Control>().save_pending.take() else { return };
-    let saved = match world.get_resource::<LiveRun>() {
-        Some(run) => run.save(world, &dir).map(|()| run.episodes()),
-        None => Err("only live training is saved as a run".into()),
+    let (pending, kept) = {
+        let mut c = world.resource_mut::<Control>();
+        (c.save_pending.take(), c.keep_in.clone().filter(|_| c.keeping))
+    };
+    if pending.is_none() {
+        // `--save-run` keeps the whole run: each episode into the folder its first save made.
+        if let Some(dir) = kept {
+            let kept = match world.contains_resource::<LiveRun>() {
+                true => world.resource_scope(|world, mut run: Mut<LiveRun>| run.keep(world, &dir)),
+                false => Ok(()),
+            };
+            if let Err(e) = kept {
+                eprintln!("coevo: error: {e}");
+                let mut c = world.resource_mut::<Control>();
+                (c.error, c.keeping, c.keep_in) = (Some(e.to_string()), false, None);
+            }
+        }
+        return;
+    }
+    let Some(dir) = pending else { return };
+    let saved = match world.contains_resource::<LiveRun>() {
+        true => world.resource_scope(|world, mut run: Mut<LiveRun>| run.save(world, &dir).map(|()| run.episodes())),
+        false => Err("only live training is saved as a run".into()),
     };
     let mut c = world.resource_mut::<Control>();
     match saved {
@@ -246,6 +277,7 @@ fn save_live_run(world: &mut World) {
             println!("coevo: {notice}");
             c.notice = Some(notice);
             c.error = None;
+            c.keeping = c.keep_in.as_ref() == Some(&dir);
         }
         Err(e) => {
             eprintln!("coevo: error: {e}");

@@ -106,6 +106,12 @@ pub struct Control {
     /// the current episode ends (a run is saved between episodes, as `--train` checkpoints it).
     pub save_folder: String,
     pub save_pending: Option<PathBuf>,
+    /// `--save-run`: the folder the whole live run is kept in. Once the first save has made it, every
+    /// episode's metrics row, snapshot and checkpoint go there as `--train` writes them, until the window
+    /// closes or the world restarts.
+    pub keep_in: Option<PathBuf>,
+    /// Set when the first save into `keep_in` succeeded.
+    pub keeping: bool,
     /// What was last saved, shown in the panel.
     pub notice: Option<String>,
 }

@@ -408,24 +408,26 @@ fn a_live_run_saved_between_episodes_resumes_to_the_train_run() {
     let live = LiveRun::new(sim.world());
     sim.world_mut().insert_resource(live);
     let saved = dir.path().join("saved");
-    let save = |sim: &coevo::sim::Simulation, to: &Path| sim.world().resource::<LiveRun>().save(sim.world(), to);
+    let save = |sim: &mut coevo::sim::Simulation, to: &Path| {
+        sim.world_mut().resource_scope(|world, mut run: bevy::prelude::Mut<LiveRun>| run.save(world, to))
+    };
     while sim.episode().index < 7 {
         sim.step();
         LiveRun::record(sim.world_mut());
         sim.world_mut().resource_mut::<coevo::sim::metrics::EpisodeLog>().episodes.clear();
         if sim.episode().index == 3 && sim.episode().step == 10 {
-            let e = save(&sim, &saved).unwrap_err().to_string();
+            let e = save(&mut sim, &saved).unwrap_err().to_string();
             assert!(e.contains("runs are saved between episodes"), "{e}");
             assert!(!saved.exists(), "a refused save writes nothing");
         }
     }
     assert_eq!(sim.world().resource::<LiveRun>().episodes(), 7);
-    save(&sim, &saved).unwrap();
+    save(&mut sim, &saved).unwrap();
     assert_eq!(rows(&saved), 7);
     // Never into no folder (the current one), never over another run.
-    let e = save(&sim, Path::new("")).unwrap_err().to_string();
+    let e = save(&mut sim, Path::new("")).unwrap_err().to_string();
     assert!(e.contains("name a folder"), "{e}");
-    let e = save(&sim, &saved).unwrap_err().to_string();
+    let e = save(&mut sim, &saved).unwrap_err().to_string();
     assert!(e.contains("already holds a run"), "{e}");
     // `--resume` continues it exactly as the uninterrupted `--train` run.
     let resumed = coevo().arg("--resume").arg(&saved).args(["--quiet", "--threads", "1"]).output().unwrap();
@@ -438,9 +440,42 @@ fn a_live_run_saved_between_episodes_resumes_to_the_train_run() {
     assert!(eval.status.success(), "{}", String::from_utf8_lossy(&eval.stderr));
     // A world whose population changed while it trained is no longer the run of its scene: not saved.
     sim.world_mut().resource_mut::<LiveRun>().altered = Some("the population changed at episode 7".into());
-    let e = save(&sim, &dir.path().join("altered")).unwrap_err().to_string();
+    let e = save(&mut sim, &dir.path().join("altered")).unwrap_err().to_string();
     assert!(e.contains("not saved: the population changed"), "{e}");
     assert!(!dir.path().join("altered").exists());
+    // `--save-run` keeps the whole run: saved after episode 1, then kept as it trains (every row and
+    // snapshot, a checkpoint every 2 episodes), and left after episode 15 as a window closing mid-episode
+    // leaves it: 15 rows, checkpointed at 14. `--resume` drops the row past the checkpoint and continues
+    // to the uninterrupted run.
+    let scene = coevo::scene::Scene::load(&scene_path).unwrap();
+    let mut sim = coevo::learning::simulation(scene, coevo::learning::Mode::Train, None).unwrap();
+    let live = LiveRun::new(sim.world());
+    sim.world_mut().insert_resource(live);
+    let kept = dir.path().join("kept");
+    while sim.episode().index < 15 || sim.episode().step < 40 {
+        sim.step();
+        LiveRun::record(sim.world_mut());
+        sim.world_mut().resource_mut::<coevo::sim::metrics::EpisodeLog>().episodes.clear();
+        if sim.episode().step == 0 {
+            let (index, kept) = (sim.episode().index, kept.clone());
+            sim.world_mut()
+                .resource_scope(|world, mut run: bevy::prelude::Mut<LiveRun>| match index {
+                    1 => run.save(world, &kept),
+                    _ => run.keep(world, &kept),
+                })
+                .unwrap();
+        }
+    }
+    assert_eq!(rows(&kept), 15);
+    assert_eq!(sim.world().resource::<LiveRun>().checkpointed(), 14);
+    let (kept_snapshots, whole_snapshots) = (snapshots(&kept), snapshots(&whole));
+    let names: Vec<&str> = kept_snapshots.iter().map(|(name, _)| name.as_str()).collect();
+    assert_eq!(names.len(), 2 * 4, "ep 0, 5, 10 and 15 of both species: {names:?}");
+    assert!(kept_snapshots.iter().all(|k| whole_snapshots.contains(k)), "each as the --train run wrote it");
+    let resumed = coevo().arg("--resume").arg(&kept).args(["--quiet", "--threads", "1"]).output().unwrap();
+    assert!(resumed.status.success(), "{}", String::from_utf8_lossy(&resumed.stderr));
+    assert_eq!(metrics(&kept), metrics(&whole));
+    assert!(checkpoint(&kept) == checkpoint(&whole), "the checkpoint of the resumed kept run");
 }
 
 /// Every file and folder under `dir` whose name marks it as a temporary or a leftover of a checkpoint
