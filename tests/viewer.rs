@@ -331,7 +331,8 @@ fn a_live_run_saved_from_the_window_resumes_to_the_headless_run() {
     let trained = std::fs::read_to_string(saved.join("metrics.csv")).unwrap().lines().count() - 1;
     assert!(trained > 3, "{trained} episodes kept\n{stdout}");
     assert!(
-        stdout.contains(&format!("coevo: {saved_s} holds the live run's {trained} episodes, checkpointed at episode 1")),
+        stdout
+            .contains(&format!("coevo: {saved_s} holds the live run's {trained} episodes, checkpointed at episode 1")),
         "{stdout}"
     );
     // A run folder: --eval takes it, and --resume continues it to the headless run, to the last digit.

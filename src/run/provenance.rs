@@ -80,8 +80,7 @@ pub fn spelled() -> String {
         return "coevo".into();
     };
     let on_path = std::env::var_os("PATH").is_some_and(|path| {
-        std::env::split_paths(&path)
-            .any(|dir| std::fs::canonicalize(dir.join("coevo")).is_ok_and(|found| found == exe))
+        std::env::split_paths(&path).any(|dir| std::fs::canonicalize(dir.join("coevo")).is_ok_and(|found| found == exe))
     });
     if on_path {
         return "coevo".into();

@@ -457,7 +457,9 @@ pub fn explain(run: &Path) -> crate::error::Result<String> {
     let next = [
         (format!("{coevo} --eval {r} --prey 50 --episodes 10"), format!("the trained actors, no noise, on 50 {name}")),
         (
-            format!("{coevo} --eval {r} --prey 50 --episodes 10 --control blind:{name}:{name} --eval-out eval-blind.csv"),
+            format!(
+                "{coevo} --eval {r} --prey 50 --episodes 10 --control blind:{name}:{name} --eval-out eval-blind.csv"
+            ),
             format!("{name} blind to each other (still seeing the rest)"),
         ),
         (format!("{coevo} --plot {r}"), format!("learning curves, {r}/figures/")),
