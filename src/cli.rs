@@ -176,11 +176,13 @@ fn run(cli: Cli) -> crate::error::Result<()> {
     let shared = Shared { scene: cli.scene, common: cli.common };
     if cli.train.train {
         let (scene, opts) = cli.train.options(&shared)?;
-        return train::main(scene, &opts);
+        // One run is one sample: beside it, how far the seeds of its scene differ in the committed results.
+        let spread = opts.progress.then(|| crate::experiment::spread::seeds_like(&scene)).flatten();
+        return train::main(scene, &opts, spread.as_deref());
     }
     if let Some(run) = &cli.resume.resume {
         let (scene, opts) = cli.resume.options(run, &shared);
-        return train::main(scene, &opts);
+        return train::main(scene, &opts, None);
     }
     if let Some(run) = &cli.eval.eval {
         let report = crate::run::evaluate::evaluate(&cli.eval.options(run, &shared)?)?;

@@ -38,6 +38,7 @@ pub mod plot;
 pub mod registry;
 pub mod report;
 pub mod runner;
+pub mod spread;
 pub mod stats;
 pub mod summary;
 

@@ -125,12 +125,13 @@ impl ResumeArgs {
     }
 }
 
-/// `--train` or `--resume`: trains, says where and what came out.
-pub fn main(scene: Scene, opts: &TrainOptions) -> crate::error::Result<()> {
+/// `--train` or `--resume`: trains, says where and what came out; `spread`, a line on how far seeds of the
+/// scene differ, goes beside "one run is one sample".
+pub fn main(scene: Scene, opts: &TrainOptions, spread: Option<&str>) -> crate::error::Result<()> {
     let trained = train(scene, opts)?;
     crate::errln!("coevo: trained {trained} episodes into {}", opts.run.display())?;
     if opts.progress {
-        crate::io::err_text(format_args!("{}", explain(&opts.run)?))?;
+        crate::io::err_text(format_args!("{}", explain(&opts.run, spread)?))?;
     }
     Ok(())
 }
@@ -405,7 +406,7 @@ fn course(what: &str, values: &[f64], highest: bool, digits: usize) -> String {
 
 /// What a finished `--train` says about its run: first → last DoS, DoA and catches with the baselines of
 /// no swarming at that density, overlapping windows named as such, and the next commands for this run.
-pub fn explain(run: &Path) -> crate::error::Result<String> {
+pub fn explain(run: &Path, spread: Option<&str>) -> crate::error::Result<String> {
     use crate::sim::metrics::WINDOW;
     let dir = RunDir::new(run);
     let scene = Scene::load(&dir.scene())?;
@@ -451,6 +452,7 @@ pub fn explain(run: &Path) -> crate::error::Result<String> {
         out.push_str(&course("catches per episode", &catches, true, 1));
     }
     out.push_str("  one run is one sample: seeds of the same scene differ widely; compare seeds with an experiment file (docs/src/guide/experiments.md)\n");
+    out.push_str(spread.unwrap_or_default());
     let r = run.display();
     // Each next command with what it does, the comments in one column, coevo spelled as it runs here.
     let coevo = super::provenance::spelled();

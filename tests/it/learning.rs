@@ -441,3 +441,37 @@ fn random_positions_give_the_known_dos_baselines() {
     assert!((ten - 0.227).abs() < 0.005 && (fifty - 0.100).abs() < 0.003, "{ten} {fifty}");
     assert_eq!(coevo::sim::metrics::random_dos(&torus, 1), None);
 }
+
+#[test]
+fn a_training_of_a_scene_the_project_ran_says_how_far_its_seeds_differ() {
+    // The default scene, trained from the clone (experiments/ and the committed results here): the
+    // explanation gives the range of the 10 seeds of results/flocking-or-herding, the experiment that ran
+    // it on the most seeds.
+    let dir = tempfile::tempdir().unwrap();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_coevo"))
+        .args(["--train", "--episodes", "1", "--out"])
+        .arg(dir.path().join("run"))
+        .output()
+        .unwrap();
+    let said = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{said}");
+    let line = said.lines().find(|l| l.contains("how far seeds differ")).unwrap_or_else(|| panic!("{said}"));
+    assert!(
+        line.contains(
+            "the 10 seeds of this scene in results/flocking-or-herding (gym-pps preset, variant \"with predators\")"
+        ),
+        "{line}"
+    );
+    // A scene no experiment ran: nothing to compare with, nothing said.
+    let scene = dir.path().join("odd.ron");
+    std::fs::write(&scene, "(episode_steps: 5, species: [(name: \"prey\", count: 7)])").unwrap();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_coevo"))
+        .args(["--train", "--episodes", "1", "--scene"])
+        .arg(&scene)
+        .arg("--out")
+        .arg(dir.path().join("odd"))
+        .output()
+        .unwrap();
+    let said = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success() && !said.contains("how far seeds differ"), "{said}");
+}

@@ -1,0 +1,52 @@
+//! How widely seeds of one scene differ, from the project's committed results: what `--train` adds to its
+//! explanation so that one run is read as one sample (issue 42, item 4).
+
+use super::file::Experiment;
+use super::report::{EXPERIMENTS, RESULTS};
+use super::summary::Summary;
+use crate::scene::Scene;
+use std::path::Path;
+
+/// A sentence on the spread across the seeds of `scene` (seed and episodes aside) in the experiment of
+/// `experiments/` (in the working folder) that trained it on the most seeds, read from its committed
+/// summary.csv: the range of the last-100 DoA, DoS and catches per episode. None when no experiment here
+/// trained it.
+pub fn seeds_like(scene: &Scene) -> Option<String> {
+    let files = Experiment::files(Path::new(EXPERIMENTS)).ok()?;
+    let mut best: Option<(usize, String)> = None;
+    for file in files {
+        let Ok(exp) = Experiment::load(&file, Path::new(RESULTS)) else { continue };
+        let same = |other: &Scene| {
+            let mut other = other.clone();
+            (other.seed, other.episodes) = (scene.seed, scene.episodes);
+            other == *scene
+        };
+        let Some(run) = exp.runs.iter().find(|r| r.shared_from.is_none() && same(&r.scene)) else { continue };
+        let Ok(Some(summary)) = Summary::read(&exp.root.join("summary.csv")) else { continue };
+        let rows: Vec<_> = summary.rows.iter().filter(|r| r.preset == run.preset && r.variant == run.variant).collect();
+        if rows.len() < 2 {
+            continue;
+        }
+        let range = |column: &str, digits: usize| {
+            let values: Vec<f64> = rows.iter().map(|r| summary.value(r, column)).filter(|x| x.is_finite()).collect();
+            let (lo, hi) =
+                values.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &x| (lo.min(x), hi.max(x)));
+            format!("{lo:.digits$}–{hi:.digits$}")
+        };
+        if best.as_ref().is_some_and(|(n, _)| *n >= rows.len()) {
+            continue;
+        }
+        let line = format!(
+            "  how far seeds differ: the {} seeds of this scene in {} ({} preset, variant \"{}\") ended at DoA {}, DoS {} and {} catches per episode (last 100 episodes)\n",
+            rows.len(),
+            exp.root.display(),
+            run.preset,
+            run.variant,
+            range("doa_last100", 3),
+            range("dos_last100", 3),
+            range("catches_last100", 1),
+        );
+        best = Some((rows.len(), line));
+    }
+    best.map(|(_, line)| line)
+}
