@@ -22,8 +22,6 @@ pub fn aggregate(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> crate::er
 
     // The claims are computed from the per-run values alone (summary.csv), so that a clone without run
     // folders recomputes them from the committed summary exactly.
-    // The summary as it was, to tell new results from the same results aggregated again.
-    let before = if written { std::fs::read(exp.root.join("summary.csv")).ok() } else { None };
     let table = if written {
         Summary::parse(&summary, &exp.root.join("summary.csv"))?
     } else {
@@ -65,17 +63,14 @@ pub fn aggregate(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> crate::er
         crate::io::write_file(&exp.root.join("summary.csv"), crate::io::Existing::Replace, summary.as_bytes())?;
         crate::io::write_file(&exp.root.join("summary-mean.csv"), crate::io::Existing::Replace, means.as_bytes())?;
     }
-    // The claims are recorded with new results, and, where nothing was recorded yet (results aggregated
-    // before coevo kept the record), as they stand now; the same results aggregated again keep the record,
-    // so a claim edited after it leaves its flag.
-    let new_results = written && before.as_deref() != Some(summary.as_bytes());
-    let unrecorded = !table.rows.is_empty() && !exp.root.join(registry::FILE).exists();
-    if new_results || unrecorded {
-        registry::write(exp)?;
+    // Results without a record of their claims (aggregated before coevo kept one): the record begins with
+    // the claims as they stand now. Otherwise the record is the runner's, made when the runs started.
+    if !table.rows.is_empty() && !exp.root.join(registry::FILE).exists() {
+        registry::record(exp, &|_| false)?;
     }
     let recorded = registry::read(&exp.root)?;
     for r in &mut results {
-        r.stated = registry::stated(&r.claim, recorded.as_ref());
+        r.stated = registry::stated(&r.claim, recorded.as_deref());
     }
     Ok(Aggregated {
         results,
@@ -102,8 +97,9 @@ pub struct Aggregated {
     pub extended: bool,
 }
 
-/// The verdict on a change over training of runs shorter than two windows.
-const OVERLAP: &str = "not measured: runs shorter than 200 episodes, so the first and last 100 episodes overlap";
+/// The verdict on a change over training (or a curve's shape) of runs shorter than two windows.
+const OVERLAP: &str =
+    "not measured: runs shorter than 200 episodes, too short for a change over training (windows that overlap)";
 
 /// The verdict on a comparison of two variants whose runs are identical.
 const IDENTICAL: &str = "not a comparison: the two variants' runs are identical (one training, run twice)";

@@ -214,9 +214,11 @@ pub enum Quantity {
     /// The last 100 training episodes minus [`Quantity::Start`]: the paper's rise or fall over training,
     /// from where its curves start (`DoaChange` and `DosChange` measure it from the first 100 episodes).
     FromStart(String),
-    /// The extreme of the 100-episode running mean of `doa` (its peak) or `dos` (its trough), cross-fitted
-    /// so that picking the extreme does not bias it: the window is chosen on the odd episodes and its mean
-    /// taken over the even ones.
+    /// The extreme of the 100-episode running mean of `doa` (its peak) or `dos` (its trough), the window
+    /// chosen on the odd episodes and its mean taken over the even ones. That removes the bias of picking
+    /// the best window from episode-to-episode noise, not from the policy's slow drift, which neighbouring
+    /// episodes share: a curve that only wanders also shows a fall back after its peak, so
+    /// [`Quantity::AfterExtreme`] measures how far the curve ended from its best, not that it declined.
     Extreme(String),
     /// The episode ending that window.
     ExtremeEpisode(String),

@@ -3,7 +3,6 @@
 //! (issue 36: hypotheses fixed before the runs). The one owner of that file.
 
 use super::file::{Claim, Experiment};
-use std::collections::BTreeMap;
 use std::path::Path;
 
 /// The file, beside `summary.csv`.
@@ -31,12 +30,14 @@ pub fn fingerprint(claim: &Claim) -> String {
 /// How a claim stands against the fingerprints recorded with its experiment's results.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Stated {
-    /// As recorded when its runs were aggregated.
+    /// As recorded before (or, for a record begun late, when) its results existed.
     AsRecorded,
     /// Its text is recorded with another fingerprint: edited after its results existed.
     Edited,
     /// Its text is not recorded: added after its results existed.
     Added,
+    /// As recorded, but in another family than the one recorded: moved after its results existed.
+    Moved,
     /// Nothing recorded (no results yet).
     Unknown,
 }
@@ -47,13 +48,26 @@ impl Stated {
         match self {
             Stated::Edited => " — **edited after its results existed** (post hoc)",
             Stated::Added => " — **added after its results existed** (post hoc)",
+            Stated::Moved => " — **moved to this family after its results existed** (post hoc)",
             Stated::AsRecorded | Stated::Unknown => "",
         }
     }
 }
 
-/// The recorded fingerprints, by claim text; None without the file.
-pub fn read(root: &Path) -> crate::error::Result<Option<BTreeMap<String, String>>> {
+/// A claim as recorded: its fingerprint and its family ("" for its file's own; None in a record written
+/// before families were recorded).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Recorded {
+    pub fingerprint: String,
+    pub family: Option<String>,
+}
+
+fn family_of(claim: &Claim) -> String {
+    claim.family.clone().unwrap_or_default()
+}
+
+/// The recorded claims, by text, in the record's order; None without the file.
+pub fn read(root: &Path) -> crate::error::Result<Option<Vec<(String, Recorded)>>> {
     let path = root.join(FILE);
     let text = match std::fs::read_to_string(&path) {
         Ok(text) => text,
@@ -61,35 +75,63 @@ pub fn read(root: &Path) -> crate::error::Result<Option<BTreeMap<String, String>
         Err(e) => return Err(format!("{}: {e}", path.display()).into()),
     };
     let bad = |e: csv::Error| format!("{}: {e}", path.display());
-    let mut recorded = BTreeMap::new();
-    for row in csv::Reader::from_reader(text.as_bytes()).records() {
+    let mut recorded = Vec::new();
+    for row in csv::ReaderBuilder::new().flexible(true).from_reader(text.as_bytes()).records() {
         let row = row.map_err(bad)?;
         match (row.get(0), row.get(1)) {
-            (Some(claim), Some(fingerprint)) => recorded.insert(claim.to_string(), fingerprint.to_string()),
+            (Some(claim), Some(fingerprint)) => recorded.push((
+                claim.to_string(),
+                Recorded { fingerprint: fingerprint.to_string(), family: row.get(2).map(str::to_string) },
+            )),
             _ => return Err(format!("{}: a row without claim and fingerprint", path.display()).into()),
         };
     }
     Ok(Some(recorded))
 }
 
-/// Records every claim of `exp` as it stands now.
-pub fn write(exp: &Experiment) -> crate::error::Result<()> {
+fn write(exp: &Experiment, recorded: &[(String, Recorded)]) -> crate::error::Result<()> {
     let mut writer = csv::Writer::from_writer(Vec::new());
-    let row = |w: &mut csv::Writer<Vec<u8>>, fields: [&str; 2]| w.write_record(fields).map_err(|e| e.to_string());
-    row(&mut writer, ["claim", "fingerprint"])?;
-    for claim in &exp.spec.claims {
-        row(&mut writer, [&claim.text, &fingerprint(claim)])?;
+    let row = |w: &mut csv::Writer<Vec<u8>>, fields: [&str; 3]| w.write_record(fields).map_err(|e| e.to_string());
+    row(&mut writer, ["claim", "fingerprint", "family"])?;
+    for (claim, r) in recorded {
+        row(&mut writer, [claim, &r.fingerprint, r.family.as_deref().unwrap_or_default()])?;
     }
     let bytes = writer.into_inner().map_err(|e| e.to_string())?;
     crate::io::write_file(&exp.root.join(FILE), crate::io::Existing::Replace, &bytes)
 }
 
+/// Records the claims of `exp` that are not recorded yet and may still be stated before their results:
+/// every claim when nothing is recorded (a record begun late records the claims as they stand), else each
+/// new text whose variants (`unfinished`: a variant some run of which has not finished) still have runs to
+/// come. A recorded claim is never rewritten, so an edit after its results stays flagged. Called when an
+/// experiment's runs start, and by the aggregation when it finds results without a record.
+pub fn record(exp: &Experiment, unfinished: &dyn Fn(&str) -> bool) -> crate::error::Result<()> {
+    let old = read(&exp.root)?;
+    let mut recorded = old.clone().unwrap_or_default();
+    for claim in &exp.spec.claims {
+        let known = recorded.iter().any(|(text, _)| *text == claim.text);
+        let to_come = unfinished(&claim.variant) || claim.versus.as_deref().is_some_and(unfinished);
+        if !known && (old.is_none() || to_come) {
+            recorded.push((
+                claim.text.clone(),
+                Recorded { fingerprint: fingerprint(claim), family: Some(family_of(claim)) },
+            ));
+        }
+    }
+    if old.as_ref() != Some(&recorded) {
+        std::fs::create_dir_all(&exp.root).map_err(|e| format!("{}: {e}", exp.root.display()))?;
+        write(exp, &recorded)?;
+    }
+    Ok(())
+}
+
 /// How `claim` stands against `recorded` ([`read`]).
-pub fn stated(claim: &Claim, recorded: Option<&BTreeMap<String, String>>) -> Stated {
-    match recorded.map(|r| r.get(&claim.text)) {
-        None => Stated::Unknown,
-        Some(None) => Stated::Added,
-        Some(Some(f)) if *f != fingerprint(claim) => Stated::Edited,
-        Some(Some(_)) => Stated::AsRecorded,
+pub fn stated(claim: &Claim, recorded: Option<&[(String, Recorded)]>) -> Stated {
+    let Some(recorded) = recorded else { return Stated::Unknown };
+    match recorded.iter().find(|(text, _)| *text == claim.text) {
+        None => Stated::Added,
+        Some((_, r)) if r.fingerprint != fingerprint(claim) => Stated::Edited,
+        Some((_, r)) if r.family.as_ref().is_some_and(|f| *f != family_of(claim)) => Stated::Moved,
+        Some(_) => Stated::AsRecorded,
     }
 }

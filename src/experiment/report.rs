@@ -62,9 +62,10 @@ const METHOD: &str = "Each number is the mean over seeds of the prey's 100-episo
      paper does not ask and findings seen before they were stated: reported, never counted as confirmations), and \
      each pre-registered confirmatory test's own family; a claim of a file that names no family is that file's. A \
      test that repeats another of its family on the same runs (a shared variant) is that test, counted once. Each \
-     claim's statement (text, variants, quantity, the paper's value, margin, baseline) is recorded with its results in \
-     `results/<experiment>/claims.csv` (results aggregated before coevo kept this record start it with the claims as they \
-     stood then); a claim edited or added after its results existed is flagged post hoc beside its hypothesis. Its interval is \
+     claim's statement (text, variants, quantity, the paper's value, margin, baseline) and family are recorded in \
+     `results/<experiment>/claims.csv` when its runs start (results aggregated before coevo kept this record start it \
+     with the claims as they stood then), and never rewritten: a claim edited, added or moved to another family after \
+     its results existed is flagged post hoc beside its hypothesis. Its interval is \
      shown at the level Holm's procedure tested it at (*level*: 0.05/k, Bonferroni's for the smallest p-value; from the \
      first test Holm does not reject on, that test's level), so **the interval excludes 0 exactly when the effect is \
      detected**; the plain 95 % interval is beside it, secondary, and never a result. For an effect the paper states: \

@@ -271,6 +271,9 @@ fn prepare(exp: &Experiment) -> crate::error::Result<()> {
 /// does), `jobs` at a time. Every run is attempted; Err lists the ones that failed.
 pub fn run(exp: &Experiment, opts: &RunnerOptions, only: Option<usize>) -> crate::error::Result<()> {
     prepare(exp)?;
+    // The claims are recorded before the runs they are judged on (the registry flags later edits).
+    let unfinished = |variant: &str| exp.runs.iter().any(|r| r.variant == variant && !finished(exp, r));
+    super::registry::record(exp, &unfinished)?;
     let runs: Vec<&Run> = match only {
         Some(i) => vec![exp
             .runs

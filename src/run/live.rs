@@ -78,6 +78,7 @@ impl LiveRun {
         if let Some(failure) = &world.resource::<Learners>().failure {
             return Err(format!("{}: no longer kept: training stopped: {failure}", dir.display()).into());
         }
+        crate::sim::check_state(world).map_err(|e| format!("{}: no longer kept: {e}", dir.display()))?;
         let run = RunDir::new(dir);
         let scene = &world.resource::<ActiveScene>().0;
         let lock = run.lock()?;

@@ -78,7 +78,6 @@ pub fn next_episode(world: &mut World) {
     spawn_population(world);
 }
 
-/// Despawns every agent, spawns the scene's population anew and perceives the new state.
 /// The authors' spawn (`gym/envs/pps/pps.py`, `reset()`): every position uniform in the arena inset by
 /// the largest body radius of the population, the whole population drawn again until no two bodies
 /// overlap (centres closer than the sum of their radii, across the periodic edges on a torus), at most
@@ -99,6 +98,7 @@ fn authors_positions(registry: &SpeciesRegistry, arena: &Arena, rng: &mut ChaCha
     positions
 }
 
+/// Despawns every agent, spawns the scene's population anew and perceives the new state.
 pub fn spawn_population(world: &mut World) {
     let agents: Vec<Entity> = world.query_filtered::<Entity, With<AgentId>>().iter(world).collect();
     for e in agents {

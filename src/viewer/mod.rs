@@ -277,7 +277,8 @@ fn save_live_run(world: &mut World) {
             println!("coevo: {notice}");
             c.notice = Some(notice);
             c.error = None;
-            c.keeping = c.keep_in.as_ref() == Some(&dir);
+            // A panel save into another folder is a one-shot copy; the `--save-run` folder is still kept.
+            c.keeping = c.keeping || c.keep_in.as_ref() == Some(&dir);
         }
         Err(e) => {
             eprintln!("coevo: error: {e}");
