@@ -104,6 +104,27 @@ const OVERLAP: &str =
 /// The verdict on a comparison of two variants whose runs are identical.
 const IDENTICAL: &str = "not a comparison: the two variants' runs are identical (one training, run twice)";
 
+/// The tests of an experiment from its committed summary.csv (extended in memory with its curve columns
+/// from the committed figure data, as [`aggregate`] extends it), without writing anything: another file's
+/// tests, for the families a report shares with it.
+pub fn committed_tests(exp: &Experiment) -> crate::error::Result<Vec<ClaimResult>> {
+    let path = exp.root.join("summary.csv");
+    let Some(table) = Summary::read(&path)? else { return Ok(tests(exp, &Summary::default())) };
+    let indices: Vec<usize> = table.runs(exp).iter().map(|(i, _)| *i).collect();
+    let curves = if indices.is_empty() { None } else { super::figure_data::read(exp, &indices)? };
+    let table = match curves {
+        Some(curves) => {
+            let text = crate::io::read_text(&path, crate::io::MAX_TEXT_BYTES)?;
+            match summary::extend(exp, &text, &table, &curves) {
+                Some(text) => Summary::parse(&text, &path)?,
+                None => table,
+            }
+        }
+        None => table,
+    };
+    Ok(tests(exp, &table))
+}
+
 /// Every claim of `exp` on every preset, estimated and tested on the per-run values of `table` (the
 /// experiment's summary.csv): its estimate and unadjusted p-value, not yet adjusted or judged.
 pub fn tests(exp: &Experiment, table: &Summary) -> Vec<ClaimResult> {

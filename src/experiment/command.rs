@@ -191,19 +191,30 @@ pub fn write_reproduction(partial: bool) -> crate::error::Result<()> {
 /// spans files), when the file is one of them; alone otherwise.
 fn report_alone(exp: Experiment, data: &BTreeMap<usize, super::claims::RunData>) -> crate::error::Result<Reported> {
     let mut a = aggregate::aggregate(&exp, data)?;
-    let own = a.results.len();
     let named = exp.spec.claims.iter().any(|c| c.family.is_some());
     if named && in_suite(&exp) {
+        // Every file's tests in the files' order, as the suite adjusts them (the first of a repeated test
+        // is the one tested), this experiment's own among them.
+        let own = std::mem::take(&mut a.results);
+        let (mut all, mut at) = (Vec::new(), None);
         for file in Experiment::files(Path::new(EXPERIMENTS))? {
             let other = Experiment::load(&file, Path::new(RESULTS))?;
-            if other.name != exp.name {
-                let summary = Summary::read(&other.root.join("summary.csv"))?.unwrap_or_default();
-                a.results.extend(aggregate::tests(&other, &summary));
+            if other.name == exp.name {
+                at = Some(all.len());
+                all.extend(own.iter().cloned());
+            } else {
+                all.extend(aggregate::committed_tests(&other)?);
             }
         }
+        let at = at.unwrap_or_else(|| {
+            all.extend(own.iter().cloned());
+            all.len() - own.len()
+        });
+        aggregate::adjust(&mut all);
+        a.results = all.drain(at..at + own.len()).collect();
+    } else {
+        aggregate::adjust(&mut a.results);
     }
-    aggregate::adjust(&mut a.results);
-    a.results.truncate(own);
     report(exp, a)
 }
 
