@@ -126,34 +126,25 @@ impl ReplayBuffer {
     /// `n` transitions drawn uniformly with replacement into `b`, whose buffers are reused.
     pub fn sample_into(&self, b: &mut Batch, n: usize, rng: &mut ChaCha8Rng) {
         assert!(self.len > 0, "sampling an empty replay buffer");
-        let (d, a) = (self.obs_dim, self.act_dim);
-        b.n = n;
-        b.obs.clear();
-        b.actions.clear();
-        b.rewards.clear();
-        b.next_obs.clear();
-        for _ in 0..n {
-            let i = rng.gen_range(0..self.len);
-            b.obs.extend_from_slice(&self.obs[i * d..(i + 1) * d]);
-            b.actions.extend_from_slice(&self.actions[i * a..(i + 1) * a]);
-            b.rewards.push(self.rewards[i]);
-            b.next_obs.extend_from_slice(&self.next_obs[i * d..(i + 1) * d]);
-        }
+        self.fill(b, (0..n).map(|_| rng.gen_range(0..self.len)).collect::<Vec<_>>());
     }
-}
 
-impl ReplayBuffer {
     /// `n` distinct transitions drawn uniformly without replacement into `b` (the authors' buffer.py);
     /// `n` must not exceed what the buffer holds.
     pub fn sample_distinct_into(&self, b: &mut Batch, n: usize, rng: &mut ChaCha8Rng) {
         assert!(n <= self.len, "drawing {n} distinct transitions from {}", self.len);
+        self.fill(b, rand::seq::index::sample(rng, self.len, n).into_vec());
+    }
+
+    /// `b` holds the transitions in `slots`, in that order.
+    fn fill(&self, b: &mut Batch, slots: Vec<usize>) {
         let (d, a) = (self.obs_dim, self.act_dim);
-        b.n = n;
+        b.n = slots.len();
         b.obs.clear();
         b.actions.clear();
         b.rewards.clear();
         b.next_obs.clear();
-        for i in rand::seq::index::sample(rng, self.len, n) {
+        for i in slots {
             b.obs.extend_from_slice(&self.obs[i * d..(i + 1) * d]);
             b.actions.extend_from_slice(&self.actions[i * a..(i + 1) * a]);
             b.rewards.push(self.rewards[i]);
