@@ -97,7 +97,9 @@ fn primitive(d: &RunData, q: &Quantity) -> f64 {
                 "doa" => &d.doa,
                 _ => &d.catches,
             };
-            curve_shape(q, &super::figure_data::stored(series))
+            // At single precision, as figure-data.ron.gz keeps the curve (its `single` values): a summary
+            // extended from that file gets the same bits.
+            curve_shape(q, &series.iter().map(|&x| x as f32 as f64).collect::<Vec<_>>())
         }
         Quantity::Crossplay(name) => d.crossplay.get(name).copied().unwrap_or(f64::NAN),
         Quantity::Response(e, which) => d.evals.get(e).map_or(f64::NAN, |x| x.response[usize::from(which == "far")]),

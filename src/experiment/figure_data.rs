@@ -152,12 +152,6 @@ impl CrossplayCells {
     }
 }
 
-/// Values as the file keeps them (single precision), e.g. a training curve the claims read as the
-/// figures do ([`super::claims::curve_shape`]).
-pub fn stored(values: &[f64]) -> Vec<f64> {
-    single::round(&values.to_vec())
-}
-
 impl FigureData {
     /// A training series by name: `dos`, `doa` or `catches`.
     pub fn curve(&self, name: &str) -> &[f64] {

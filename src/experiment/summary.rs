@@ -281,7 +281,7 @@ pub(super) fn csv_text(s: &str) -> String {
 #[cfg(test)]
 mod tests {
     use super::super::claims::RunData;
-    use super::super::figure_data::{stored, FigureData};
+    use super::super::figure_data::FigureData;
     use super::super::file::Experiment;
     use std::collections::BTreeMap;
 
@@ -324,18 +324,25 @@ mod tests {
             .collect();
         assert!(written.starts_with(old.lines().next().unwrap()) && old.len() < written.len());
         let table = super::Summary::parse(&old, &file).unwrap();
-        let curves: BTreeMap<usize, FigureData> = data
+        // The curves through the figure-data file itself (which keeps them at single precision), as a
+        // clone reads them.
+        let full: BTreeMap<usize, FigureData> = data
             .iter()
             .map(|(i, d)| {
                 let f = FigureData {
-                    dos: stored(&d.dos),
-                    doa: stored(&d.doa),
-                    catches: stored(&d.catches),
+                    dos: d.dos.clone(),
+                    doa: d.doa.clone(),
+                    catches: d.catches.clone(),
                     ..Default::default()
                 };
                 (*i, f)
             })
             .collect();
+        std::fs::create_dir_all(&exp.root).unwrap();
+        super::super::figure_data::write(&exp, &full).unwrap();
+        let indices: Vec<usize> = full.keys().copied().collect();
+        let curves = super::super::figure_data::read(&exp, &indices).unwrap().unwrap();
+        assert_ne!(curves[&0].doa, full[&0].doa, "the file rounds");
         let extended = super::extend(&exp, &old, &table, &curves).expect("extended");
         assert_eq!(extended, written, "the same bytes as written from the run folders");
         assert!(written.lines().nth(1).unwrap().split(',').next_back().unwrap().parse::<f64>().is_ok());
