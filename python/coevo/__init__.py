@@ -162,7 +162,8 @@ class VecEnv:
         self.obs_dim = self._env.obs_dim
 
     def reset(self) -> np.ndarray:
-        """The next episode in every world: observations ``[num_envs, agents, d_o]``."""
+        """The next episode in every world (the first call: world i's first episode, that of seed + i, as
+        ``parallel_env(seed=seed + i)`` starts): observations ``[num_envs, agents, d_o]``."""
         return self._env.reset()
 
     def step(self, actions: np.ndarray):

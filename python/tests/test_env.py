@@ -52,10 +52,15 @@ def test_the_same_seed_and_actions_give_the_same_episode():
 
 def test_vecenv_worlds_are_the_single_envs():
     vec = coevo.VecEnv(STANDARD, num_envs=4, seed=5, episode_steps=6)
-    assert vec.reset().shape == (4, 13, vec.obs_dim)
     single = [coevo._coevo.Env(STANDARD, 5 + i, None, 6) for i in range(4)]
-    for s in single:
-        s.reset(None)
+    # World i's first episode is the first episode of seed 5 + i, as parallel_env(seed=5 + i) starts.
+    first = vec.reset()
+    assert first.shape == (4, 13, vec.obs_dim)
+    for i, s in enumerate(single):
+        assert np.array_equal(first[i], s.reset(5 + i)), i
+    par = coevo.parallel_env(STANDARD, seed=5, episode_steps=6)
+    obs, _ = par.reset(seed=5)
+    assert np.array_equal(first[0], np.stack([obs[a] for a in par.agents])), "world 0 is parallel_env(seed=5)"
     rng = np.random.default_rng(1)
     for t in range(8):
         actions = rng.uniform(-1, 1, (4, 13, 2)).astype(np.float32)
@@ -135,9 +140,8 @@ def test_vecenv_infos_and_metrics_rows():
     learner = [c for c in header if c.startswith(("critic_loss_", "actor_loss_", "noise_std_", "epsilon_"))]
     assert len(learner) == 8  # both species learn, four columns each
     vec.reset()
+    # The first reset is each world's first episode: the single envs' own first episodes.
     single = [coevo._coevo.Env(STANDARD, 2 + i, None, 5) for i in range(3)]
-    for s in single:
-        s.reset(None)
     actions = np.full((3, 13, 2), 0.3, np.float32)
     rows = []
     for t in range(5):

@@ -263,6 +263,9 @@ pub struct VecEnv {
     finished: Vec<EpisodeSummary>,
     /// Episodes finished so far in all worlds: the next finished episode's number in `metrics.csv`.
     numbered: usize,
+    /// No step since the worlds were made: the first `reset` returns their first episode (world i's is
+    /// the first episode of seed + i, as a single env's `reset(seed + i)`) rather than starting a second.
+    fresh: bool,
 }
 
 /// What a [`VecEnv`] step returned: `[worlds × agents × d_o]` observations (of the next episode's first
@@ -306,7 +309,7 @@ impl VecEnv {
             })
             .collect::<crate::error::Result<Vec<_>>>()?;
         let agents = envs[0].agents().len();
-        Ok(VecEnv { envs, agents, finished: vec![], numbered: 0 })
+        Ok(VecEnv { envs, agents, finished: vec![], numbered: 0, fresh: true })
     }
 
     /// `metrics.csv`'s header ([`Env::metrics_header`]).
@@ -350,10 +353,13 @@ impl VecEnv {
         self.envs[0].agents()
     }
 
-    /// Starts the next episode in every world; returns the observations.
+    /// Starts the next episode in every world (the first call after the worlds were made: their first
+    /// episode, already spawned); returns the observations.
     pub fn reset(&mut self) -> crate::error::Result<Vec<f32>> {
-        for env in &mut self.envs {
-            env.reset(None)?;
+        if !std::mem::take(&mut self.fresh) {
+            for env in &mut self.envs {
+                env.reset(None)?;
+            }
         }
         Ok(self.observations())
     }
@@ -366,6 +372,7 @@ impl VecEnv {
     /// One step of every world (`actions`: `[worlds × agents × 2]`), on all cores; a world whose episode
     /// ends starts its next one.
     pub fn step(&mut self, actions: &[f32]) -> crate::error::Result<VecStep> {
+        self.fresh = false;
         let per = self.agents * ACTION_DIM;
         if actions.len() != per * self.envs.len() {
             return Err(format!(
