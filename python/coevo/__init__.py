@@ -121,7 +121,18 @@ class CoevoParallelEnv(_ParallelEnv):
         missing = [a for a in self.agents if a not in actions]
         if missing:
             raise ValueError(f"actions: no action for {missing[0]} ({len(missing)} agents missing)")
-        batch = np.stack([np.asarray(actions[a], dtype=np.float32).reshape(2) for a in self.agents])
+        unknown = [a for a in actions if a not in self.agents]
+        if unknown:
+            raise ValueError(f"actions: no agent named {unknown[0]!r} (agents: {self.agents[0]} … {self.agents[-1]})")
+        rows = []
+        for a in self.agents:
+            row = np.asarray(actions[a], dtype=np.float32)
+            # One action is exactly two numbers, (thrust, turn): a (1, 2) or (2, 1) array is refused rather
+            # than flattened, as it most likely comes from a batch mixed up with one agent's action.
+            if row.shape != (2,):
+                raise ValueError(f"actions[{a!r}]: expected shape (2,), got {row.shape}")
+            rows.append(row)
+        batch = np.stack(rows)
         obs, rewards, truncated, info = self._env.step(batch)
         agents = self.agents
         observations = {a: obs[i] for i, a in enumerate(agents)}

@@ -281,3 +281,19 @@ def test_version_is_the_crates():
         version = re.search(r'^version = "([^"]+)"', f.read(), re.M).group(1)
     assert coevo.__version__ == version
     assert coevo.git_commit  # the commit the extension was built from ("unknown" outside git)
+
+
+def test_unknown_agents_and_misshapen_actions_are_refused():
+    env = coevo.parallel_env(STANDARD, seed=3, episode_steps=5)
+    env.reset()
+    good = {a: np.zeros(2, np.float32) for a in env.agents}
+    with pytest.raises(ValueError, match="no agent named 'predatr_0'"):
+        env.step({**good, "predatr_0": np.zeros(2, np.float32)})
+    for shape in [(1, 2), (2, 1), (3,)]:
+        with pytest.raises(ValueError, match=r"expected shape \(2,\)"):
+            env.step({**good, env.agents[0]: np.zeros(shape, np.float32)})
+    # A refused step changes nothing: the same actions then step as on a fresh env.
+    twin = coevo.parallel_env(STANDARD, seed=3, episode_steps=5)
+    twin.reset()
+    a, b = env.step(good), twin.step(good)
+    assert all(np.array_equal(a[0][k], b[0][k]) for k in a[0])
