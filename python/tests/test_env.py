@@ -297,3 +297,12 @@ def test_unknown_agents_and_misshapen_actions_are_refused():
     twin.reset()
     a, b = env.step(good), twin.step(good)
     assert all(np.array_equal(a[0][k], b[0][k]) for k in a[0])
+
+
+def test_infos_keep_their_meaning_with_one_prey():
+    # With one prey, its DoS and DoA are undefined: NaN, never the predators'.
+    env = coevo.parallel_env(STANDARD, seed=3, counts={"prey": 1}, episode_steps=5)
+    env.reset()
+    _, _, _, _, infos = env.step({a: np.zeros(2, np.float32) for a in env.agents})
+    info = next(iter(infos.values()))
+    assert np.isnan(info["doa"]) and np.isnan(info["dos"]), info
