@@ -306,3 +306,16 @@ def test_infos_keep_their_meaning_with_one_prey():
     _, _, _, _, infos = env.step({a: np.zeros(2, np.float32) for a in env.agents})
     info = next(iter(infos.values()))
     assert np.isnan(info["doa"]) and np.isnan(info["dos"]), info
+
+
+def test_a_refused_vector_step_changes_no_world():
+    vec = coevo.VecEnv(STANDARD, num_envs=4, seed=1, episode_steps=5)
+    twin = coevo.VecEnv(STANDARD, num_envs=4, seed=1, episode_steps=5)
+    vec.reset(), twin.reset()
+    good = np.full((4, 13, 2), 0.2, np.float32)
+    bad = good.copy()
+    bad[2, 10, 0] = np.nan  # world 2, the eighth prey (after 3 predators): prey_7
+    with pytest.raises(ValueError, match=r"world 2, prey_7: NaN is not a finite number"):
+        vec.step(bad)
+    a, b = vec.step(good), twin.step(good)
+    assert np.array_equal(a[0], b[0]) and np.array_equal(a[1], b[1]), "no world stepped on the refused call"

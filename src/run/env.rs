@@ -395,6 +395,13 @@ impl VecEnv {
             ))
             .kind(Kind::Input);
         }
+        // Every world's actions are checked before any world steps: a refused call changes nothing.
+        if let Some(i) = actions.iter().position(|a| !a.is_finite()) {
+            let names = self.envs[0].agents();
+            let (world, agent) = (i / per, (i % per) / ACTION_DIM);
+            return Err(format!("world {world}, {}: {} is not a finite number", names[agent], actions[i]))
+                .kind(Kind::Input);
+        }
         let mut work: Vec<(&mut Env, &[f32], Option<WorldStep>)> =
             self.envs.iter_mut().zip(actions.chunks(per)).map(|(e, a)| (e, a, None)).collect();
         crate::parallel::for_each_mut(&mut work, |(env, a, out)| {
