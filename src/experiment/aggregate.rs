@@ -33,18 +33,14 @@ pub fn aggregate(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> crate::er
     }
     // A committed summary written before the curve columns existed gains them from the committed curves.
     let extended = match (&drawn, written) {
-        (Some(curves), false) => {
-            let path = exp.root.join("summary.csv");
-            let text = crate::io::read_text(&path, crate::io::MAX_TEXT_BYTES)?;
-            summary::extend(exp, &text, &table, curves).map(|text| (path, text))
-        }
+        (Some(curves), false) => with_curve_columns(exp, &table, curves)?,
         _ => None,
     };
     let extended_summary = extended.is_some();
     let table = match extended {
-        Some((path, text)) => {
-            crate::io::write_file(&path, crate::io::Existing::Replace, text.as_bytes())?;
-            Summary::parse(&text, &path)?
+        Some((text, extended)) => {
+            crate::io::write_file(&exp.root.join("summary.csv"), crate::io::Existing::Replace, text.as_bytes())?;
+            extended
         }
         None => table,
     };
@@ -108,21 +104,35 @@ const IDENTICAL: &str = "not a comparison: the two variants' runs are identical 
 /// from the committed figure data, as [`aggregate`] extends it), without writing anything: another file's
 /// tests, for the families a report shares with it.
 pub fn committed_tests(exp: &Experiment) -> crate::error::Result<Vec<ClaimResult>> {
-    let path = exp.root.join("summary.csv");
-    let Some(table) = Summary::read(&path)? else { return Ok(tests(exp, &Summary::default())) };
+    let Some(table) = Summary::read(&exp.root.join("summary.csv"))? else {
+        return Ok(tests(exp, &Summary::default()));
+    };
     let indices: Vec<usize> = table.runs(exp).iter().map(|(i, _)| *i).collect();
     let curves = if indices.is_empty() { None } else { super::figure_data::read(exp, &indices)? };
     let table = match curves {
-        Some(curves) => {
-            let text = crate::io::read_text(&path, crate::io::MAX_TEXT_BYTES)?;
-            match summary::extend(exp, &text, &table, &curves) {
-                Some(text) => Summary::parse(&text, &path)?,
-                None => table,
-            }
-        }
+        Some(curves) => with_curve_columns(exp, &table, &curves)?.map_or(table, |(_, extended)| extended),
         None => table,
     };
     Ok(tests(exp, &table))
+}
+
+/// The committed summary.csv (`table`) with its curve columns, when it was written before them
+/// ([`summary::extend`], from the committed `curves`): the extended text and its table; None when it has
+/// them already.
+fn with_curve_columns(
+    exp: &Experiment,
+    table: &Summary,
+    curves: &BTreeMap<usize, figure_data::FigureData>,
+) -> crate::error::Result<Option<(String, Summary)>> {
+    let path = exp.root.join("summary.csv");
+    let text = crate::io::read_text(&path, crate::io::MAX_TEXT_BYTES)?;
+    match summary::extend(exp, &text, table, curves) {
+        Some(text) => {
+            let extended = Summary::parse(&text, &path)?;
+            Ok(Some((text, extended)))
+        }
+        None => Ok(None),
+    }
 }
 
 /// Every claim of `exp` on every preset, estimated and tested on the per-run values of `table` (the

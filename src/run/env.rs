@@ -121,7 +121,7 @@ impl Env {
         }
         let external = learned.iter().map(|&s| (s, registry.defs[s].count)).collect();
         let mut env =
-            Env { world, scene, control, resolved, external, obs_dim: dims[0], headline: info_species(&registry) };
+            Env { world, scene, control, resolved, external, obs_dim: dims[0], headline: registry.headline_by_kind() };
         env.world.resource_mut::<Episode>().auto_reset = false;
         Ok(env)
     }
@@ -253,17 +253,6 @@ impl Env {
         by_id.sort_by_key(|&(id, _)| id);
         by_id.into_iter().map(|(_, p)| p).collect()
     }
-}
-
-/// The species whose DoS and DoA a step reports: the scene's headline species as its species define it,
-/// whatever their counts (the bottom of the food chain, else anything caught), so that the numbers never
-/// change meaning: with fewer than two of it they are NaN, never another species' (issue 41).
-fn info_species(registry: &SpeciesRegistry) -> usize {
-    let caught = |s: usize| registry.predators_of(s).next().is_some();
-    (0..registry.len())
-        .find(|&s| caught(s) && registry.prey_of(s).next().is_none())
-        .or_else(|| (0..registry.len()).find(|&s| caught(s)))
-        .unwrap_or_else(|| registry.headline())
 }
 
 /// Many worlds of one scene, world i from seed `seed + i`, stepped together on flat arrays.

@@ -82,23 +82,29 @@ impl LiveRun {
         let run = RunDir::new(dir);
         let scene = &world.resource::<ActiveScene>().0;
         let lock = run.lock()?;
-        let written = (|| -> crate::error::Result<()> {
-            for (name, episode, actor) in &self.snapshots[self.snapshots_written..] {
-                crate::learning::snapshots::save_snapshot(dir, scene, name, *episode, actor)?;
-            }
-            // Snapshots first, then the rows: a row never stands for an episode whose snapshot is missing.
-            crate::io::write_file(&run.metrics(), Existing::Replace, self.metrics_text.as_bytes())?;
-            let every = scene.learning.checkpoint_every.max(1);
-            if self.episodes.is_multiple_of(every) || self.episodes == scene.episodes {
-                let metrics = crate::learning::manifest::Digest::of(self.metrics_text.as_bytes());
-                super::train::save_checkpoint(dir, world, scene, None, metrics)?;
-                self.checkpointed = self.episodes;
-            }
-            Ok(())
-        })();
+        let every = scene.learning.checkpoint_every.max(1);
+        let checkpoint = self.episodes.is_multiple_of(every) || self.episodes == scene.episodes;
+        let written = self.write_since(world, &run, checkpoint);
         drop(lock);
-        self.snapshots_written = self.snapshots.len();
         written
+    }
+
+    /// Into the run folder `run` (locked by the caller): the snapshots not written there yet, `metrics.csv`
+    /// and, with `checkpoint`, the checkpoint, as `--train` writes them at an episode boundary. Snapshots
+    /// first, then the rows: a row never stands for an episode whose snapshot is missing.
+    fn write_since(&mut self, world: &World, run: &RunDir, checkpoint: bool) -> crate::error::Result<()> {
+        let (dir, scene) = (run.path(), &world.resource::<ActiveScene>().0);
+        for (name, episode, actor) in &self.snapshots[self.snapshots_written..] {
+            crate::learning::snapshots::save_snapshot(dir, scene, name, *episode, actor)?;
+        }
+        self.snapshots_written = self.snapshots.len();
+        crate::io::write_file(&run.metrics(), Existing::Replace, self.metrics_text.as_bytes())?;
+        if checkpoint {
+            let metrics = crate::learning::manifest::Digest::of(self.metrics_text.as_bytes());
+            super::train::save_checkpoint(dir, world, scene, None, metrics)?;
+            self.checkpointed = self.episodes;
+        }
+        Ok(())
     }
 
     fn snapshot(&mut self, world: &World, episode: usize) {
@@ -164,17 +170,10 @@ impl LiveRun {
         let written = (|| -> crate::error::Result<()> {
             crate::io::write_file(&run.scene(), Existing::Replace, scene.to_ron().as_bytes())?;
             run.write_provenance(scene)?;
-            crate::io::write_file(&run.metrics(), Existing::Replace, self.metrics_text.as_bytes())?;
-            for (name, episode, actor) in &self.snapshots {
-                crate::learning::snapshots::save_snapshot(dir, scene, name, *episode, actor)?;
-            }
-            let metrics = crate::learning::manifest::Digest::of(self.metrics_text.as_bytes());
-            super::train::save_checkpoint(dir, world, scene, None, metrics)
+            self.snapshots_written = 0;
+            self.write_since(world, &run, true)
         })();
         drop(lock);
-        if written.is_ok() {
-            (self.snapshots_written, self.checkpointed) = (self.snapshots.len(), self.episodes);
-        }
         if written.is_err() {
             // Nothing half-written stays behind: the folder was new (removed again) or empty (emptied).
             let _ = run.clear();

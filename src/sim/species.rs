@@ -111,7 +111,18 @@ impl SpeciesRegistry {
     /// (the prey, also in a scene where hawks catch predators), else the first that something catches, else
     /// the first with at least two agents.
     pub fn headline(&self) -> usize {
-        let caught = |s: usize| self.predators_of(s).next().is_some() && self.defs[s].count >= 2;
+        self.headline_counting(true)
+    }
+
+    /// The headline species as the species define it, whatever their counts: [`SpeciesRegistry::headline`]
+    /// without its "two or more" condition on caught species, so it never moves to another species when the
+    /// prey are few (a step's reported DoS and DoA are then NaN, not the predators').
+    pub fn headline_by_kind(&self) -> usize {
+        self.headline_counting(false)
+    }
+
+    fn headline_counting(&self, counts: bool) -> usize {
+        let caught = |s: usize| self.predators_of(s).next().is_some() && (!counts || self.defs[s].count >= 2);
         // The bottom of the food chain first (prey, also when hawks catch predators), then anything caught.
         (0..self.len())
             .find(|&s| caught(s) && self.prey_of(s).next().is_none())
