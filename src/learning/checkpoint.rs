@@ -71,6 +71,10 @@ pub struct TrainingState {
     /// not written, since: the manifest hashes `metrics.csv` itself up to the checkpoint).
     #[serde(default, skip_serializing_if = "String::is_empty")]
     pub metrics_csv: String,
+    /// Opponents from the past (`learning.opponents`): the league's draws and record; absent in runs
+    /// without a pool, so their checkpoints are as before.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub league: Option<super::league::LeagueState>,
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize)]

@@ -87,15 +87,7 @@ impl Ddpg {
     /// kept per thread): the same products and sums as dfdx's, so the same actions to the bit, without
     /// dfdx's per-op allocations and broadcast kernels (which took half of a 10 000-agent step).
     pub fn act_into(&self, _dev: &Dev, observations: &[f32], actions: &mut [f32]) {
-        let d = self.obs_dim();
-        crate::parallel::for_each_chunk(actions, ACT_CHUNK * ACTION_DIM, |i, out| {
-            let rows = out.len() / ACTION_DIM;
-            let obs = &observations[i * ACT_CHUNK * d..(i * ACT_CHUNK + rows) * d];
-            super::fused::with_pass(|pass| {
-                pass.forward(&self.actor, rows, obs, &[]);
-                out.copy_from_slice(pass.output());
-            });
-        });
+        act_with(&self.actor, observations, actions);
     }
 
     /// One DDPG update on a mini-batch (the body of Algorithm 1's inner loop after sampling), in the
@@ -179,6 +171,20 @@ impl Ddpg {
     pub fn is_finite(&self) -> bool {
         [&self.actor, &self.critic, &self.target_actor, &self.target_critic].iter().all(|n| n.is_finite())
     }
+}
+
+/// `actor`'s μ(o) into `actions`, as [`Ddpg::act_into`] computes it: any actor of the species' shape (a
+/// snapshot standing in for the species, `league.rs`) acts to the bit as it did when it was kept.
+pub fn act_with(actor: &Mlp, observations: &[f32], actions: &mut [f32]) {
+    let d = actor.input_width();
+    crate::parallel::for_each_chunk(actions, ACT_CHUNK * ACTION_DIM, |i, out| {
+        let rows = out.len() / ACTION_DIM;
+        let obs = &observations[i * ACT_CHUNK * d..(i * ACT_CHUNK + rows) * d];
+        super::fused::with_pass(|pass| {
+            pass.forward(actor, rows, obs, &[]);
+            out.copy_from_slice(pass.output());
+        });
+    });
 }
 
 #[cfg(test)]

@@ -17,6 +17,7 @@ pub mod control;
 pub mod ddpg;
 pub mod files;
 pub mod fused;
+pub mod league;
 pub mod learner;
 pub mod manifest;
 pub mod nets;
@@ -65,6 +66,8 @@ pub struct Learners {
     pub last_good: Option<Vec<Option<SpeciesLearner>>>,
     /// Species names, registry order.
     pub names: Vec<String>,
+    /// Opponents from the past (`learning.opponents`), when training and a species has a pool.
+    pub league: Option<league::League>,
 }
 
 impl Learners {
@@ -104,8 +107,9 @@ impl Learners {
                 let storing = Storing::of(&p, def.count, def.max_thrust, def.max_turn_rate * scene.world.dt);
                 Some(SpeciesLearner::new(d, &p, storing, frozen, &mut init_rng, species_stream(scene.seed, s)))
             })
-            .collect();
+            .collect::<Vec<_>>();
         Learners {
+            league: (mode == Mode::Train).then(|| league::League::new(scene, &species)).flatten(),
             species,
             mode,
             params: p,
@@ -219,14 +223,27 @@ pub fn species_stream(seed: u64, s: usize) -> ChaCha8Rng {
 }
 
 /// Batched actor inference for every learned species, plus exploration while training.
-fn decide_learned(mut learners: ResMut<Learners>, mut batches: ResMut<Batches>, control: Option<Res<ResolvedControl>>) {
+fn decide_learned(
+    mut learners: ResMut<Learners>,
+    mut batches: ResMut<Batches>,
+    control: Option<Res<ResolvedControl>>,
+    episode: Res<Episode>,
+) {
     let l = &mut *learners;
     let explore = l.mode == Mode::Train;
     let noise_draw = l.params.noise_draw;
+    if let Some(league) = l.league.as_mut() {
+        league.play(episode.index);
+    }
     for (s, learner) in l.species.iter_mut().enumerate() {
         let Some(learner) = learner else { continue };
         let batch = &mut batches.species[s];
         if batch.n == 0 {
+            continue;
+        }
+        // A snapshot playing the species this episode acts as it was kept: no noise, nothing stored.
+        if let Some(actor) = l.league.as_ref().and_then(|g| g.stand_in(s)) {
+            ddpg::act_with(actor, &batch.observations, &mut batch.actions);
             continue;
         }
         match control.as_deref().filter(|c| c.touches(s) && !explore) {
@@ -278,10 +295,15 @@ fn learn(mut learners: ResMut<Learners>, batches: Res<Batches>, episode: Res<Epi
         l.last_good = Some(l.species.iter().map(|x| x.as_ref().map(SpeciesLearner::without_buffer)).collect());
     }
     let updates = p.updates_per_step + if episode_done { p.updates_per_episode } else { 0 };
+    if let Some(league) = l.league.as_mut() {
+        (0..batches.species.len()).for_each(|s| league.add_rewards(s, &batches.species[s].rewards));
+    }
+    let league = l.league.as_ref();
     let mut work: Vec<(usize, &mut SpeciesLearner, Result<(), Losses>)> = l
         .species
         .iter_mut()
         .enumerate()
+        .filter(|(s, _)| league.is_none_or(|g| g.stand_in(*s).is_none()))
         .filter_map(|(s, x)| x.as_mut().filter(|x| !x.frozen).map(|x| (s, x, Ok(()))))
         .collect();
     for (s, learner, _) in &mut work {
@@ -304,6 +326,9 @@ fn learn(mut learners: ResMut<Learners>, batches: Res<Batches>, episode: Res<Epi
             learner.noise_std = (learner.noise_std - p.exploration_decay).max(p.exploration_floor.min(p.noise_std));
             learner.epsilon = (learner.epsilon - p.exploration_decay).max(p.exploration_floor.min(p.epsilon));
         }
+    }
+    if let (true, Some(league)) = (episode_done, l.league.as_mut()) {
+        league.end_episode(episode.index, &l.species);
     }
 }
 

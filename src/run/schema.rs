@@ -57,7 +57,8 @@ fn species_cells(swarming: Option<Swarming>, edge_rank: Option<f64>) -> impl Ite
 pub fn metrics_header(registry: &SpeciesRegistry, learners: &Learners) -> String {
     let learning: Vec<usize> =
         (0..learners.species.len()).filter(|&s| learners.species[s].as_ref().is_some_and(|l| !l.frozen)).collect();
-    metrics_header_for(registry, &learning)
+    let league = learners.league.as_ref().map(|g| g.columns()).unwrap_or_default();
+    header(registry, &learning, &league)
 }
 
 /// `metrics.csv`'s header when the species `learning` (registry indices) learn, by coevo's learners or by
@@ -65,6 +66,11 @@ pub fn metrics_header(registry: &SpeciesRegistry, learners: &Learners) -> String
 /// ([`episode_cells`]), then per learning species `critic_loss`, `actor_loss`, `noise_std`, `epsilon`,
 /// then `wall_seconds`.
 pub fn metrics_header_for(registry: &SpeciesRegistry, learning: &[usize]) -> String {
+    header(registry, learning, &[])
+}
+
+/// The header with `league`'s columns (`learning::league::League::columns`) before `wall_seconds`.
+fn header(registry: &SpeciesRegistry, learning: &[usize], league: &[String]) -> String {
     let mut cols = vec![EPISODE.to_string(), STEPS.into()];
     for d in &registry.defs {
         cols.extend(species_columns(&d.name));
@@ -78,6 +84,7 @@ pub fn metrics_header_for(registry: &SpeciesRegistry, learning: &[usize]) -> Str
         let n = &registry.defs[s].name;
         cols.extend(["critic_loss", "actor_loss", "noise_std", "epsilon"].map(|q| of(q, n)));
     }
+    cols.extend(league.iter().cloned());
     cols.push(WALL_SECONDS.into());
     cols.join(",")
 }
@@ -99,6 +106,7 @@ pub fn metrics_row(
             cols.push(l.epsilon.to_string());
         }
     }
+    cols.extend(learners.league.as_ref().map(|g| g.cells()).unwrap_or_default());
     cols.push(format!("{wall_seconds:.3}"));
     cols.join(",")
 }

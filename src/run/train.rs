@@ -234,7 +234,12 @@ pub fn train(scene: Scene, opts: &TrainOptions) -> crate::error::Result<usize> {
         let world = sim.world_mut();
         let (state, manifest) = {
             let mut learners = world.resource_mut::<Learners>();
-            checkpoint::load(run, &mut learners.species, &names)?
+            let l = &mut *learners;
+            let (state, manifest) = checkpoint::load(run, &mut l.species, &names)?;
+            if let Some(league) = l.league.as_mut() {
+                league.restore(run, &l.species, state.episodes_done, state.league.clone())?;
+            }
+            (state, manifest)
         };
         let rows = match &manifest {
             Some(m) => dir.metrics_up_to(&m.metrics)?,
@@ -375,6 +380,7 @@ pub(crate) fn save_checkpoint(
             })
             .collect(),
         metrics_csv: String::new(),
+        league: learners.league.as_ref().map(|g| g.state.clone()),
     };
     Ok(checkpoint::save(run, species, &names, &state, metrics)
         .map_err(|e| format!("{}: cannot save checkpoint: {e}", run.display()))?)

@@ -71,6 +71,7 @@ pub(super) fn paper() -> Scene {
             stored_action: StoredAction::Normalized,
             noise_draw: NoiseDraw::PerIndividual,
             batch_draw: BatchDraw::WithReplacement,
+            opponents: vec![],
         },
         observation_frame: ObservationFrame::World,
         cluster_link: default_cluster_link(),

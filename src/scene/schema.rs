@@ -165,6 +165,31 @@ pub enum BatchDraw {
     WithoutReplacement,
 }
 
+/// Who a learning species trains against (issue 38; not in the paper): `learning.opponents` names the
+/// species that do not train against the latest opponents only.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub enum Opponents {
+    /// The other species' current actors, every episode: Algorithm 1 as printed, coevo's default.
+    #[default]
+    Latest,
+    /// With probability `p` an episode is played by snapshots of every other learning species kept
+    /// earlier in the run (`snapshot_every`), drawn as `pick` says; they act without noise, and only this
+    /// species stores transitions and updates in that episode (`learning::league`).
+    Pool { p: f64, pick: Pick },
+}
+
+/// How a pool episode's snapshot is drawn from those kept so far.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Pick {
+    /// Every kept snapshot equally likely (fictitious self-play).
+    #[default]
+    Uniform,
+    /// By rank of the training species' mean return against each snapshot, worst first, weights n, n−1,
+    /// …, 1 (snapshots not yet played rank first): prioritised fictitious self-play, as in AlphaStar's
+    /// league (Vinyals et al. 2019), on ranks so the weights do not depend on the reward's scale.
+    Prioritised,
+}
+
 patchable! {
     /// The physical world: Eq. (1), Appendix B and the environment table.
     pub struct WorldParams / WorldParamsPatch {
@@ -291,6 +316,10 @@ patchable! {
         /// ... and how a mini-batch is drawn ([`BatchDraw`]).
         #[serde(default, skip_serializing_if = "is_default")]
         pub batch_draw: BatchDraw,
+        /// Who each named species trains against ([`Opponents`]; issue 38, not in the paper): `[("predator",
+        /// Pool(p: 0.5, pick: Uniform))]`. A species not named trains against the latest opponents.
+        #[serde(default, skip_serializing_if = "Vec::is_empty")]
+        pub opponents: Vec<(String, Opponents)>,
     }
 }
 

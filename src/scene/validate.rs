@@ -167,6 +167,23 @@ impl Scene {
         check(l.noise_std <= 10.0, "learning.noise_std", || {
             format!("must be ≤ 10 on actions in [−1, 1] (got {})", l.noise_std)
         })?;
+        for (i, (name, opponents)) in l.opponents.iter().enumerate() {
+            let field = format!("learning.opponents[{name}]");
+            let species = self.species.iter().find(|s| &s.name == name);
+            check(species.is_some(), &field, || format!("no species named {name:?} in this scene"))?;
+            check(!l.opponents[..i].iter().any(|(n, _)| n == name), &field, || "named twice".into())?;
+            let Opponents::Pool { p, .. } = *opponents else { continue };
+            check(species.is_some_and(|s| s.policy == Policy::Learned), &field, || {
+                "only a Learned species trains against a pool".into()
+            })?;
+            check((0.0..=1.0).contains(&p), &field, || format!("p is a probability (got {p})"))?;
+            check(self.species.iter().any(|s| &s.name != name && s.policy == Policy::Learned), &field, || {
+                "no other Learned species to draw past opponents from".into()
+            })?;
+            check(l.snapshot_every > 0, "learning.snapshot_every", || {
+                format!("must be ≥ 1: the pool of {name} is the snapshots kept every snapshot_every episodes")
+            })?;
+        }
         self.check_stability()?;
         self.check_memory(crate::io::memory_bytes())
     }

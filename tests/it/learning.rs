@@ -475,3 +475,51 @@ fn a_training_of_a_scene_the_project_ran_says_how_far_its_seeds_differ() {
     let said = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success() && !said.contains("how far seeds differ"), "{said}");
 }
+
+#[test]
+fn prey_trained_only_against_past_predators_leave_the_predators_untrained() {
+    use coevo::scene::{Opponents, Pick};
+    // p = 1: every episode the prey train against snapshots of the predators kept every 2 episodes, so
+    // the predators never store, update or lower their exploration, and their actor stays as initialised.
+    let dir = tempfile::tempdir().unwrap();
+    let run = dir.path().join("run");
+    let mut scene = tiny(6);
+    scene.learning.snapshot_every = 2;
+    scene.learning.opponents = vec![("prey".into(), Opponents::Pool { p: 1.0, pick: Pick::Uniform })];
+    train(scene, &opts(&run, false, None)).unwrap();
+    let lines = metrics_without_wall_clock(&run);
+    let header: Vec<&str> = lines[0].split(',').collect();
+    let column = |name: &str| -> Vec<String> {
+        let at = header.iter().position(|h| *h == name).unwrap_or_else(|| panic!("{name} in {}", lines[0]));
+        lines[1..].iter().map(|l| l.split(',').nth(at).unwrap().to_string()).collect()
+    };
+    // The snapshot each episode drew: one kept by then (0 before episode 2, 0 or 2 before episode 4, …).
+    let drawn: Vec<usize> = column("stand_in_predator").iter().map(|c| c.parse().unwrap()).collect();
+    for (episode, snapshot) in drawn.iter().enumerate() {
+        assert!(snapshot % 2 == 0 && *snapshot <= episode, "episode {episode} drew {snapshot}");
+    }
+    assert!(!header.contains(&"stand_in_prey"), "no pool draws from the prey");
+    assert!(column("critic_loss_predator").iter().all(String::is_empty), "predators never updated");
+    assert!(column("critic_loss_prey")[5].parse::<f64>().unwrap().is_finite(), "prey updated");
+    assert!(column("noise_std_predator").iter().all(|s| s == "0.1"), "predators' σ never fell");
+    let snapshot = |name: &str| std::fs::read(run.join("snapshots").join(name)).unwrap();
+    assert!(snapshot("predator-ep00006.safetensors") == snapshot("predator-ep00000.safetensors"));
+    assert!(snapshot("prey-ep00006.safetensors") != snapshot("prey-ep00000.safetensors"));
+    // A pool needs snapshots to draw from, and a species to draw.
+    for (edit, says) in [
+        ("snapshot_every: 0", "learning.snapshot_every: must be ≥ 1"),
+        ("p: 1.5", "learning.opponents[prey]: p is a probability (got 1.5)"),
+    ] {
+        let mut scene = tiny(2);
+        let pool = match edit {
+            "p: 1.5" => Opponents::Pool { p: 1.5, pick: Pick::Uniform },
+            _ => Opponents::Pool { p: 0.5, pick: Pick::Prioritised },
+        };
+        scene.learning.opponents = vec![("prey".into(), pool)];
+        if edit == "snapshot_every: 0" {
+            scene.learning.snapshot_every = 0;
+        }
+        let err = scene.validate().unwrap_err().to_string();
+        assert!(err.contains(says), "{edit}: {err}");
+    }
+}

@@ -21,8 +21,14 @@ fn standard() -> PathBuf {
 /// transitions; prey store 1 800 per episode, predators 450, so the predators' buffer spans two
 /// checkpoints' segments), under either update schedule; with `authors`, every switch of the authors'
 /// code on (issue 37): the replay window keeps only the first rows of each block, so a resume must know
-/// how many transitions were offered, not only how many were kept.
+/// how many transitions were offered, not only how many were kept; with `league`, both species train
+/// against pools of past opponents (issue 38), so a resume must restore the pool from the snapshots and
+/// the draws and returns from the checkpoint.
 fn scene_text(per_step: bool, authors: bool) -> String {
+    scene_of(per_step, authors, false)
+}
+
+fn scene_of(per_step: bool, authors: bool, league: bool) -> String {
     let schedule = if per_step {
         "updates_per_episode: 0, updates_per_step: 1"
     } else {
@@ -33,6 +39,8 @@ fn scene_text(per_step: bool, authors: bool) -> String {
             "world: (spawn: AuthorsNoOverlap),",
             "replay_window: AuthorsFirstRows, stored_action: AuthorsRescaled, noise_draw: PerSpecies, batch_draw: WithoutReplacement,",
         )
+    } else if league {
+        ("", r#"opponents: [("predator", Pool(p: 0.5, pick: Prioritised)), ("prey", Pool(p: 0.3, pick: Uniform))],"#)
     } else {
         ("", "")
     };
@@ -113,13 +121,31 @@ fn finish(child: Child) {
 #[test]
 fn a_run_killed_at_any_moment_and_resumed_equals_the_uninterrupted_run() {
     let dir = tempfile::tempdir().unwrap();
-    for (per_step, authors) in [(true, false), (false, false), (false, true)] {
-        let scene = dir.path().join(format!("scene-{per_step}-{authors}.ron"));
-        std::fs::write(&scene, scene_text(per_step, authors)).unwrap();
-        let per_step = if authors { "authors".to_string() } else { per_step.to_string() };
+    for (per_step, authors, league) in
+        [(true, false, false), (false, false, false), (false, true, false), (true, false, true)]
+    {
+        let scene = dir.path().join(format!("scene-{per_step}-{authors}-{league}.ron"));
+        std::fs::write(&scene, scene_of(per_step, authors, league)).unwrap();
+        let per_step = match (authors, league) {
+            (true, _) => "authors".to_string(),
+            (_, true) => "league".to_string(),
+            _ => per_step.to_string(),
+        };
         let whole = dir.path().join(format!("whole-{per_step}"));
         finish(train(&scene, &whole));
         assert_eq!(rows(&whole), 24);
+        if league {
+            // Past opponents played some episodes, and the checkpoint holds the league's record.
+            let table = metrics(&whole);
+            let header: Vec<&str> = table[0].split(',').collect();
+            for name in ["stand_in_predator", "stand_in_prey"] {
+                let at = header.iter().position(|h| *h == name).expect(name);
+                let played = table[1..].iter().filter(|r| !r.split(',').nth(at).unwrap().is_empty()).count();
+                assert!((1..24).contains(&played), "{name}: {played} of 24 episodes");
+            }
+            let state = std::fs::read_to_string(whole.join("checkpoint/state.ron")).unwrap();
+            assert!(state.contains("league:") && state.contains("return_sum"), "{state}");
+        }
         let kept: Vec<String> = snapshots(&whole).into_iter().map(|(name, _)| name).collect();
         let expected: Vec<String> = ["predator", "prey"]
             .iter()

@@ -57,6 +57,24 @@ fn one_two_and_three_threads_train_identical_networks_and_metrics() {
     }
 }
 
+#[test]
+fn a_league_trains_identically_on_one_and_two_threads() {
+    // Both species against pools of past opponents (issue 38), a snapshot every episode.
+    let dir = tempfile::tempdir().unwrap();
+    let league = SCENE.replace(
+        "checkpoint_every: 2)",
+        r#"checkpoint_every: 2, snapshot_every: 1,
+               opponents: [("prey", Pool(p: 0.5, pick: Prioritised)), ("predator", Pool(p: 0.5, pick: Uniform))])"#,
+    );
+    assert_ne!(league, SCENE);
+    std::fs::write(dir.path().join("scene.ron"), league.replace("episodes: 3", "episodes: 6")).unwrap();
+    let (metrics, networks) = train(dir.path(), "one", "1");
+    assert!(metrics[0].contains("stand_in_prey") && metrics.len() == 7, "{metrics:?}");
+    let (m, n) = train(dir.path(), "two", "2");
+    assert_eq!(m, metrics);
+    assert!(n == networks, "networks with 2 threads differ from one thread's");
+}
+
 /// The kernel families this CPU can run, as `--kernels` names them.
 fn families() -> Vec<&'static str> {
     let mut families = vec!["portable"];
