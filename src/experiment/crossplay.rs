@@ -10,12 +10,13 @@
 //! cores; a cell computes the same numbers at any thread count.
 //!
 //! Writes, in the run folder: `crossplay.csv` (one row per cell; `crossplay-<prey>-<predator>.csv` when
-//! the scene has more than one predator–prey pair of learning species), `crossplay-readouts.csv`, and
-//! heat maps in `figures/`. The matrix and its CSV are `crossplay_matrix.rs`; the read-outs
+//! the scene has more than one predator–prey pair of learning species), `crossplay-readouts.csv`,
+//! `crossplay-ratings.csv` (every snapshot's rating, `crossplay_readouts::ratings`), and heat maps in
+//! `figures/`. The matrix and its CSV are `crossplay_matrix.rs`; the read-outs
 //! `crossplay_readouts.rs`.
 
 use super::crossplay_matrix::{cells_csv, pairs, Cell, Matrix, Pair};
-use super::crossplay_readouts::{readouts, readouts_csv};
+use super::crossplay_readouts::{ratings_csv, readouts, readouts_csv};
 use super::plot;
 use crate::learning::{Learners, Mode};
 use crate::run::args::Shared;
@@ -277,5 +278,8 @@ fn write(run: &std::path::Path, matrices: &[Matrix]) -> crate::error::Result<Vec
     let readouts = dir.crossplay(crate::run::CROSSPLAY_READOUTS);
     crate::io::write_file(&readouts, Existing::Replace, readouts_csv(matrices).as_bytes())?;
     written.push(readouts.display().to_string());
+    let ratings = dir.crossplay(crate::run::CROSSPLAY_RATINGS);
+    crate::io::write_file(&ratings, Existing::Replace, ratings_csv(matrices).as_bytes())?;
+    written.push(ratings.display().to_string());
     Ok(written)
 }

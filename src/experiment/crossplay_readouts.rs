@@ -33,8 +33,54 @@ fn decompose(q: impl Fn(usize, usize) -> f64, a: usize, b: usize) -> [f64; 3] {
     [q(b, b) - q(a, a), prey, predator]
 }
 
+/// Pseudo-count (catches per episode) added to every mean before its logarithm in [`ratings`], so a
+/// snapshot that never catches (or is never caught) has a finite rating.
+const RATING_PSEUDO_COUNT: f64 = 0.5;
+
+/// Every snapshot's rating from the matrix (issue 38): the main effects of a Poisson log-linear model of
+/// the catches, E[catches of prey i by predator j] = exp(μ + a_j − b_i), the count-data analogue of
+/// Bradley–Terry/Elo. For a complete matrix its maximum-likelihood fit has a closed form: a_j is the log
+/// of predator j's mean catches over every prey snapshot, b_i minus the log of prey i's mean catches by
+/// every predator snapshot, each against the log of the grand mean (pseudo-count
+/// [`RATING_PSEUDO_COUNT`]). Units: natural log of the catch rate; +0.69 = twice the catches against the
+/// same opponents. Higher is better for both species. Every opponent snapshot counts alike, so many near
+/// copies of one opponent weigh as much as they are many (Nash averaging, Balduzzi et al. 2018, would not;
+/// it needs the game's maximum-entropy Nash equilibrium and is not computed here).
+/// Returns (prey ratings by prey snapshot, predator ratings by predator snapshot).
+pub fn ratings(m: &Matrix) -> (Vec<f64>, Vec<f64>) {
+    let log_mean = |v: &mut dyn Iterator<Item = f64>| {
+        let finite: Vec<f64> = v.filter(|x| x.is_finite()).collect();
+        match finite.is_empty() {
+            true => f64::NAN,
+            false => (finite.iter().sum::<f64>() / finite.len() as f64 + RATING_PSEUDO_COUNT).ln(),
+        }
+    };
+    let grand = log_mean(&mut m.cells.iter().flatten().map(|c| c.catches));
+    let prey = m.cells.iter().map(|r| grand - log_mean(&mut r.iter().map(|c| c.catches))).collect();
+    let predators =
+        (0..m.predator_episodes.len()).map(|j| log_mean(&mut m.cells.iter().map(|r| r[j].catches)) - grand).collect();
+    (prey, predators)
+}
+
+/// The ratings as CSV: one row per snapshot.
+pub fn ratings_csv(matrices: &[Matrix]) -> String {
+    let mut out = String::from("prey,predator,species,episode,rating\n");
+    for m in matrices {
+        let (prey, predators) = ratings(m);
+        let rows =
+            [(&m.pair.prey_name, &m.prey_episodes, prey), (&m.pair.predator_name, &m.predator_episodes, predators)];
+        for (species, episodes, values) in rows {
+            for (e, v) in episodes.iter().zip(values) {
+                let v = if v.is_finite() { v.to_string() } else { String::new() };
+                out.push_str(&format!("{},{},{species},{e},{v}\n", m.pair.prey_name, m.pair.predator_name));
+            }
+        }
+    }
+    out
+}
+
 /// The names of [`readouts`], in order (summary.csv has a column `crossplay_<name>` for each).
-pub const READOUTS: [&str; 14] = [
+pub const READOUTS: [&str; 19] = [
     "predator_progress_vs_fixed_prey",
     "prey_progress_vs_fixed_predators",
     "catches_vs_current",
@@ -49,6 +95,11 @@ pub const READOUTS: [&str; 14] = [
     "doa_late",
     "doa_late_prey_part",
     "doa_late_predator_part",
+    "final_predators_vs_naive_prey",
+    "naive_prey_final_minus_peak",
+    "predator_rating_trend",
+    "prey_rating_trend",
+    "predator_rating_final_minus_peak",
 ];
 
 /// The value a read-out that is a share takes without any order (0.5 for the regress shares): in claims
@@ -116,6 +167,11 @@ pub fn readouts(m: &Matrix) -> Vec<Readout> {
         (worse.1 > 0).then(|| worse.0 as f64 / worse.1 as f64)
     };
     let diagonal = |q: &dyn Fn(usize, usize) -> f64| -> Vec<f64> { (0..n).map(|k| q(k, k)).collect() };
+    // Forgetting: the naive prey (the first prey snapshot) against every predator snapshot.
+    let naive: Vec<f64> = m.cells.first().map_or(vec![], |r| r.iter().map(|c| c.catches).collect());
+    let peak = |v: &[f64]| v.iter().copied().filter(|x| x.is_finite()).reduce(f64::max);
+    let final_minus_peak = |v: &[f64]| Some(*v.last()? - peak(v)?).filter(|x| x.is_finite());
+    let (prey_ratings, predator_ratings) = ratings(m);
     let (rise, late) = match n {
         0 | 1 => ([None; 3], [None; 3]),
         2 => (decompose(doa, 0, 1).map(Some), [None; 3]),
@@ -168,6 +224,31 @@ pub fn readouts(m: &Matrix) -> Vec<Readout> {
         Readout { name: "doa_late", value: late[0], meaning: "diagonal DoA change from the first trained snapshots to the last" },
         Readout { name: "doa_late_prey_part", value: late[1], meaning: "the part of doa_late the prey's policy change makes (symmetric decomposition)" },
         Readout { name: "doa_late_predator_part", value: late[2], meaning: "the part of doa_late the predators' policy change makes" },
+        Readout {
+            name: "final_predators_vs_naive_prey",
+            value: naive.last().copied().filter(|x| x.is_finite()),
+            meaning: "catches per episode of the first prey snapshot (untrained) by the last predator snapshot: what the final predators can still do against naive prey",
+        },
+        Readout {
+            name: "naive_prey_final_minus_peak",
+            value: final_minus_peak(&naive),
+            meaning: "catches of the naive prey by the last predator snapshot minus by the best one: forgetting (≤ 0; the peak is picked on noise too, so compare it between conditions, not with 0)",
+        },
+        Readout {
+            name: "predator_rating_trend",
+            value: trend(&predator_ratings),
+            meaning: "Kendall tau of the predator snapshots' ratings (Poisson main effects of the matrix, ratings()) against age: +1 = every generation rates above the one before",
+        },
+        Readout {
+            name: "prey_rating_trend",
+            value: trend(&prey_ratings),
+            meaning: "Kendall tau of the prey snapshots' ratings against age",
+        },
+        Readout {
+            name: "predator_rating_final_minus_peak",
+            value: final_minus_peak(&predator_ratings),
+            meaning: "the last predator snapshot's rating minus the best one's (log catch rate; ≤ 0; compare between conditions)",
+        },
     ]
 }
 
@@ -187,4 +268,53 @@ pub fn readouts_csv(matrices: &[Matrix]) -> String {
         }
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::experiment::crossplay_matrix::Pair;
+
+    /// A matrix whose catches follow the rating model exactly: exp(μ + a_j − b_i) − the pseudo-count's
+    /// share, so the ratings come back as a and b, centred.
+    fn matrix(catches: impl Fn(usize, usize) -> f64, rows: usize, columns: usize) -> Matrix {
+        Matrix {
+            pair: Pair { prey: 1, predator: 0, prey_name: "prey".into(), predator_name: "predator".into() },
+            prey_episodes: (0..rows).map(|i| 100 * i).collect(),
+            predator_episodes: (0..columns).map(|j| 100 * j).collect(),
+            cells: (0..rows)
+                .map(|i| (0..columns).map(|j| Cell { catches: catches(i, j), ..Cell::default() }).collect())
+                .collect(),
+        }
+    }
+
+    #[test]
+    fn ratings_are_log_catch_rates_against_every_opponent() {
+        // Predator j catches twice as many as predator j − 1 of every prey; prey differ by a factor 3.
+        let m = matrix(|i, j| 10.0 * 2f64.powi(j as i32) / 3f64.powi(i as i32) - RATING_PSEUDO_COUNT, 1, 3);
+        let (prey, predators) = ratings(&m);
+        assert_eq!(prey, [0.0]);
+        let steps: Vec<f64> = predators.windows(2).map(|w| w[1] - w[0]).collect();
+        assert!(steps.iter().all(|s| (s - 2f64.ln()).abs() < 1e-12), "{predators:?}");
+        // Two prey a factor 3 apart (one predator): the better-escaping prey rates ln 3 higher.
+        let m = matrix(|i, _| 9.0 / 3f64.powi(i as i32) - RATING_PSEUDO_COUNT, 2, 1);
+        let (prey, _) = ratings(&m);
+        assert!((prey[1] - prey[0] - 3f64.ln()).abs() < 1e-12, "{prey:?}");
+    }
+
+    #[test]
+    fn forgetting_is_read_off_the_naive_prey_row() {
+        // Predators of episodes 0..=400 catch naive prey 1, 5, 9, 4, 2 times per episode; later prey
+        // are never caught.
+        let naive = [1.0, 5.0, 9.0, 4.0, 2.0];
+        let m = matrix(|i, j| if i == 0 { naive[j] } else { 0.0 }, 3, 5);
+        let value = |name: &str| readouts(&m).into_iter().find(|r| r.name == name).unwrap().value;
+        assert_eq!(value("final_predators_vs_naive_prey"), Some(2.0));
+        assert_eq!(value("naive_prey_final_minus_peak"), Some(-7.0));
+        // The predator ratings follow the naive row (the only one with catches): peak at episode 200.
+        let (_, predators) = ratings(&m);
+        let final_minus_peak = predators[4] - predators[2];
+        assert_eq!(value("predator_rating_final_minus_peak"), Some(final_minus_peak));
+        assert!(final_minus_peak < 0.0);
+    }
 }

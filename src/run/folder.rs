@@ -41,6 +41,8 @@ pub const FIGURES: &str = "figures";
 pub const CROSSPLAY: &str = "crossplay";
 /// The stem of the cross-play read-outs (`crossplay-readouts.csv`).
 pub const CROSSPLAY_READOUTS: &str = "crossplay-readouts";
+/// The stem of every snapshot's rating from the cross-play matrix (`crossplay-ratings.csv`).
+pub const CROSSPLAY_RATINGS: &str = "crossplay-ratings";
 /// The checkpoint folders are the checkpoint's own (`learning::checkpoint`).
 pub use crate::learning::files::{CHECKPOINT, CHECKPOINT_OLD, CHECKPOINT_TMP, SNAPSHOTS};
 /// The files an evaluation writes beside its per-step CSV (`OUT-nn.csv`, ...); the confusion curve last.

@@ -102,10 +102,16 @@ fn a_run_against_itself_with_identical_snapshots_gives_identical_cells() {
     assert!(first.catches > 0.0 && first.doa > 0.0, "{first:?}");
     assert!(m.cells.iter().flatten().all(|c| *c == first), "{:?}", m.cells);
     assert_eq!(readouts(&m).iter().map(|r| r.name).collect::<Vec<_>>(), READOUTS);
-    // Nothing changes, so no read-out finds an order, and no part of a change.
+    // Nothing changes, so no read-out finds an order, and no part of a change; the one level, the final
+    // predators' catches of naive prey, is the one cell.
     for r in readouts(&m) {
-        assert!(r.value.is_none_or(|v| v == 0.0), "{} = {:?}", r.name, r.value);
+        match r.name {
+            "final_predators_vs_naive_prey" => assert_eq!(r.value, Some(first.catches)),
+            _ => assert!(r.value.is_none_or(|v| v == 0.0), "{} = {:?}", r.name, r.value),
+        }
     }
+    let (prey, predators) = coevo::experiment::crossplay_readouts::ratings(&m);
+    assert!(prey.iter().chain(&predators).all(|r| *r == 0.0), "{prey:?} {predators:?}");
 }
 
 #[test]
