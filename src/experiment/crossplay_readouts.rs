@@ -79,6 +79,30 @@ pub fn ratings_csv(matrices: &[Matrix]) -> String {
     out
 }
 
+/// A run's ratings as `crossplay-ratings.csv` holds them, of the pair whose prey is its first: per
+/// species (prey, then predator) its (snapshot episode, rating) points; None without the file.
+pub fn read_ratings(run: &std::path::Path) -> Option<Vec<(String, Vec<[f64; 2]>)>> {
+    let path = RunDir::new(run).crossplay(crate::run::CROSSPLAY_RATINGS);
+    let text = crate::io::read_text(&path, crate::io::MAX_TEXT_BYTES).ok()?;
+    let mut reader = csv::Reader::from_reader(text.as_bytes());
+    let mut out: Vec<(String, Vec<[f64; 2]>)> = Vec::new();
+    let mut pair: Option<(String, String)> = None;
+    for record in reader.records() {
+        let record = record.ok()?;
+        let this = (record.get(0)?.to_string(), record.get(1)?.to_string());
+        if pair.get_or_insert_with(|| this.clone()) != &this {
+            break;
+        }
+        let (species, episode, rating) = (record.get(2)?, record.get(3)?.parse().ok()?, record.get(4)?);
+        let point = [episode, rating.parse().unwrap_or(f64::NAN)];
+        match out.iter_mut().find(|(s, _)| s == species) {
+            Some((_, points)) => points.push(point),
+            None => out.push((species.to_string(), vec![point])),
+        }
+    }
+    (!out.is_empty()).then_some(out)
+}
+
 /// The names of [`readouts`], in order (summary.csv has a column `crossplay_<name>` for each).
 pub const READOUTS: [&str; 19] = [
     "predator_progress_vs_fixed_prey",

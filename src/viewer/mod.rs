@@ -226,7 +226,8 @@ fn unsaved_on_exit(mut exits: ResMut<Messages<AppExit>>, mut control: ResMut<Con
 static EXIT_REASON: std::sync::Mutex<Option<String>> = std::sync::Mutex::new(None);
 
 /// Live training keeps its run ([`LiveRun`]) from its first step, so that it can be saved; other modes
-/// train nothing. Watching a run shows its training curves (its `metrics.csv`) in the per-episode plots.
+/// train nothing. Watching a run shows its training curves (its `metrics.csv`) in the per-episode plots,
+/// and, once it was cross-played, its snapshots' ratings.
 fn track_live_run(world: &mut World) {
     world.remove_resource::<LiveRun>();
     let mode = world.resource::<Control>().current.mode.clone();
@@ -236,9 +237,12 @@ fn track_live_run(world: &mut World) {
     }
     let registry = world.resource::<SpeciesRegistry>();
     let prey = registry.defs[registry.headline()].name.clone();
-    world.resource_mut::<plots::History>().training = match &mode {
-        RunMode::Watch(run) => plots::training_curves(run, &prey),
-        _ => None,
+    let mut history = world.resource_mut::<plots::History>();
+    (history.training, history.ratings) = match &mode {
+        RunMode::Watch(run) => {
+            (plots::training_curves(run, &prey), crate::experiment::crossplay_readouts::read_ratings(run))
+        }
+        _ => (None, None),
     };
 }
 

@@ -29,6 +29,9 @@ pub struct History {
     /// Watching a run: its training curves from its `metrics.csv` ([episode, value] for DoS, DoA,
     /// catches), shown before the episodes watched here.
     pub training: Option<[Vec<[f64; 2]>; 3]>,
+    /// Watching a run that was cross-played: every snapshot's rating per species ([episode, rating],
+    /// `crossplay-ratings.csv`), the arms race over training.
+    pub ratings: Option<Vec<(String, Vec<[f64; 2]>)>>,
 }
 
 impl History {
@@ -202,6 +205,19 @@ pub fn show(ui: &mut egui::Ui, h: &History, species: &str) {
             None => p.line(line("catches", &h.catches, CATCHES, 1.5)),
         }
     });
+    if let Some(ratings) = &h.ratings {
+        ui.label("rating of each snapshot from the run's cross-play (log catch rate against every opponent snapshot; higher is better for both)");
+        let colours = [DOS, CATCHES, POLARIZATION, MILLING];
+        let entries: Vec<(&str, egui::Color32)> =
+            ratings.iter().zip(colours.iter().cycle()).map(|((s, _), c)| (s.as_str(), *c)).collect();
+        key(ui, &entries);
+        Plot::new("ratings").height(height).x_axis_label("snapshot (episode)").y_axis_label("rating").show(ui, |p| {
+            for ((species, points), colour) in ratings.iter().zip(colours.iter().cycle()) {
+                p.line(line(species, points, *colour, 1.5));
+                p.points(Points::new(species.clone(), points.clone()).color(*colour).radius(2.5));
+            }
+        });
+    }
 }
 
 #[cfg(test)]

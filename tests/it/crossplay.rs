@@ -112,6 +112,11 @@ fn a_run_against_itself_with_identical_snapshots_gives_identical_cells() {
     }
     let (prey, predators) = coevo::experiment::crossplay_readouts::ratings(&m);
     assert!(prey.iter().chain(&predators).all(|r| *r == 0.0), "{prey:?} {predators:?}");
+    // crossplay-ratings.csv reads back as the ratings, per species (what the viewer plots).
+    let read = coevo::experiment::crossplay_readouts::read_ratings(&run).expect("crossplay-ratings.csv");
+    let names: Vec<&str> = read.iter().map(|(s, _)| s.as_str()).collect();
+    assert_eq!(names, ["prey", "predator"]);
+    assert_eq!(read[1].1, [[0.0, 0.0], [2.0, 0.0], [4.0, 0.0], [5.0, 0.0]]);
 }
 
 #[test]
