@@ -14,7 +14,6 @@
 //! nothing and trains as before, to the byte.
 
 use super::nets::Mlp;
-use super::snapshots::load_snapshot;
 use super::SpeciesLearner;
 use crate::scene::{Opponents, Pick, Policy, Scene};
 use crate::sim::episode::SimRng;
@@ -111,13 +110,15 @@ impl League {
     }
 
     /// The league as a checkpoint after `episodes` episodes left it: `state` from the checkpoint, the
-    /// pool read back from the run's snapshots of those episodes (sealed by the checkpoint's manifest).
+    /// pool read back from the run's snapshots of those episodes by `load` (species, episode, an actor of
+    /// its shape: `snapshots::load_snapshot`, which checks them against the checkpoint's manifest).
     pub fn restore(
         &mut self,
         run: &Path,
         species: &[Option<SpeciesLearner>],
         episodes: usize,
         state: Option<LeagueState>,
+        load: impl Fn(&str, usize, &Mlp) -> crate::error::Result<Mlp>,
     ) -> crate::error::Result<()> {
         let state = state.ok_or_else(|| {
             format!(
@@ -129,7 +130,7 @@ impl League {
         for (o, kept) in history.iter_mut().enumerate() {
             let Some(l) = species[o].as_ref().filter(|_| drawn_from(&self.pools, species, o)) else { continue };
             for episode in (0..=episodes).step_by(self.every) {
-                kept.push((episode, load_snapshot(run, &self.names[o], episode, &l.ddpg.actor)?));
+                kept.push((episode, load(&self.names[o], episode, &l.ddpg.actor)?));
             }
         }
         (self.history, self.state, self.current, self.last) = (history, state, None, None);

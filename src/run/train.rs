@@ -237,7 +237,9 @@ pub fn train(scene: Scene, opts: &TrainOptions) -> crate::error::Result<usize> {
             let l = &mut *learners;
             let (state, manifest) = checkpoint::load(run, &mut l.species, &names)?;
             if let Some(league) = l.league.as_mut() {
-                league.restore(run, &l.species, state.episodes_done, state.league.clone())?;
+                let load =
+                    |name: &str, episode, like: &_| crate::learning::snapshots::load_snapshot(run, name, episode, like);
+                league.restore(run, &l.species, state.episodes_done, state.league.clone(), load)?;
             }
             (state, manifest)
         };
