@@ -1,8 +1,8 @@
 //! From the runs' CSV files alone (never retraining): the paper's claims checked on the per-run values,
 //! with the summaries (`summary.rs`) and figures (`figures.rs`) written beside them.
 
+use super::carry;
 use super::claims::{chance_level, is_effect, verdict, ClaimResult, RunData, ALPHA, WINDOW};
-use super::data::check_complete;
 use super::figure_data;
 use super::figures;
 use super::file::Experiment;
@@ -15,10 +15,11 @@ use std::collections::BTreeMap;
 /// there are any, writes its summaries and figures. The results are not yet judged: [`adjust`] does that
 /// over their families, which may span experiment files. Claims with no run yet say so.
 pub fn aggregate(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> crate::error::Result<Aggregated> {
-    check_complete(exp, data)?;
     let written = !data.is_empty();
     let quantities = summary::columns(exp);
-    let summary = summary::text(exp, data, &quantities);
+    // The committed runs finished elsewhere, carried beside the folders here (refused when one cannot be).
+    let carried = carry::carried(exp, data, &summary::header(&quantities))?;
+    let summary = summary::text(exp, data, &quantities, &carried.lines);
 
     // The claims are computed from the per-run values alone (summary.csv), so that a clone without run
     // folders recomputes them from the committed summary exactly.
@@ -27,7 +28,7 @@ pub fn aggregate(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> crate::er
     } else {
         Summary::read(&exp.root.join("summary.csv"))?.unwrap_or_default()
     };
-    let drawn = figures::data(exp, data, &table, written)?;
+    let drawn = figures::data(exp, data, carried.figures, &table, written)?;
     if drawn.is_some() {
         crate::io::own_dir(&exp.root.join("figures"))?;
     }
@@ -44,7 +45,7 @@ pub fn aggregate(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> crate::er
         }
         None => table,
     };
-    let means = summary::means_text(exp, data, &quantities);
+    let means = summary::means_text(exp, &table, &quantities);
     let mut results = tests(exp, &table);
     let mut saved = 0;
     if let Some(drawn) = &drawn {
@@ -58,6 +59,8 @@ pub fn aggregate(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> crate::er
         figure_data::write(exp, drawn.as_ref().expect("drawn from the run folders"))?;
         crate::io::write_file(&exp.root.join("summary.csv"), crate::io::Existing::Replace, summary.as_bytes())?;
         crate::io::write_file(&exp.root.join("summary-mean.csv"), crate::io::Existing::Replace, means.as_bytes())?;
+        let ledger = carry::text(exp, table.runs(exp).into_iter().map(|(i, _)| i));
+        crate::io::write_file(&exp.root.join(carry::FILE), crate::io::Existing::Replace, ledger.as_bytes())?;
     }
     // Results without a record of their claims (aggregated before coevo kept one): the record begins with
     // the claims as they stand now. Otherwise the record is the runner's, made when the runs started.

@@ -321,11 +321,12 @@ pub fn plot(dir: &Path, partial: bool) -> crate::error::Result<()> {
     Ok(())
 }
 
-/// How many of the experiment's runs are finished: its run folders here (`data`), or, with none here (a
-/// clone), the rows of its committed summary.csv that are runs of the file.
+/// How many of the experiment's runs are finished: its run folders here (`data`) and the committed runs
+/// finished elsewhere ([`super::carry`]), or, with no folder here (a clone), the rows of its committed summary.csv that are runs of the file.
 fn finished(exp: &Experiment, data: &BTreeMap<usize, super::claims::RunData>) -> crate::error::Result<usize> {
     if !data.is_empty() {
-        return Ok(data.len());
+        // With the committed runs finished elsewhere, which aggregation carries.
+        return Ok(data.len() + super::carry::finished_elsewhere(exp)?.len());
     }
     Ok(Summary::read(&exp.root.join("summary.csv"))?.map_or(0, |s| s.runs(exp).len()))
 }

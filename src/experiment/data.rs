@@ -5,7 +5,6 @@ use super::claims::{EvalData, RunData};
 use super::file::Experiment;
 use super::runner::{eval_file, stage, Stage};
 use super::stats::mean;
-use super::summary::Summary;
 use crate::run::schema::{self, Table};
 use crate::run::RunDir;
 use crate::sim::metrics::Swarming;
@@ -151,31 +150,12 @@ fn check_one_binary(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> crate:
     Ok(())
 }
 
-/// Refuses to aggregate unless every run of the experiment's committed `summary.csv` (that the experiment
-/// file still has) is among the run folders here, unless there are none: run folders are not committed, so
-/// after some runs were moved away, or while an experiment is re-run, aggregating would replace the
-/// committed summaries and figures with a part of them (also when the part holds as many runs, of other
-/// variants). Nothing is written then. With no run folder at all (a fresh clone) the committed
-/// summary.csv is read as it is and nothing of it is rewritten.
+/// Refuses to aggregate when a run of the committed `summary.csv` (that the experiment file still has)
+/// has no folder here and cannot be carried ([`super::carry::carried`]: no record of its scene, another
+/// scene, another binary, its figure data missing): aggregating would drop it from the summary and the
+/// figures. Nothing is written then. With no run folder at all (a fresh clone) the committed summary.csv is
+/// read as it is and nothing of it is rewritten.
 pub fn check_complete(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> crate::error::Result<()> {
-    let path = exp.root.join("summary.csv");
-    let Some(summary) = Summary::read(&path)? else { return Ok(()) };
-    if data.is_empty() {
-        return Ok(());
-    }
-    let held: Vec<usize> = summary.runs(exp).into_iter().map(|(i, _)| i).collect();
-    let missing: Vec<String> =
-        held.iter().filter(|i| !data.contains_key(i)).map(|&i| super::figure_data::key(&exp.runs[i])).collect();
-    if let Some(first) = missing.first() {
-        return Err(format!(
-            "{}: holds {} runs but only {} of their run folders are here (missing {first}{}; run folders are not committed); nothing written: run `coevo --experiment {}` to rebuild them, or move the summary away",
-            path.display(),
-            held.len(),
-            held.len() - missing.len(),
-            if missing.len() > 1 { format!(" and {} more", missing.len() - 1) } else { String::new() },
-            exp.file.display()
-        )
-        .into());
-    }
-    Ok(())
+    let header = super::summary::header(&super::summary::columns(exp));
+    super::carry::carried(exp, data, &header).map(|_| ())
 }

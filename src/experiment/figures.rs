@@ -13,18 +13,23 @@ use crate::sim::species::SpeciesRegistry;
 use std::collections::BTreeMap;
 use std::path::Path;
 
-/// What the figures plot: from the run folders when `written` (and kept in figure-data.ron.gz), or in a
-/// clone from that committed file, checked against the committed summary `table`, so both draw the same
+/// What the figures plot: from the run folders when `written` (and kept in figure-data.ron.gz), with the
+/// `carried` figure data of the runs finished elsewhere ([`super::carry`]), or in a clone from that
+/// committed file, checked against the committed summary `table`, so both draw the same
 /// figures byte for byte. None when there is nothing to draw.
 pub fn data(
     exp: &Experiment,
     data: &BTreeMap<usize, RunData>,
+    carried: BTreeMap<usize, FigureData>,
     table: &Summary,
     written: bool,
 ) -> crate::error::Result<Option<BTreeMap<usize, FigureData>>> {
     Ok(if written {
-        let of_runs = data.iter().map(|(i, d)| Ok((*i, figure_data::of_run(exp, &exp.runs[*i], d)?)));
-        Some(of_runs.collect::<crate::error::Result<_>>()?)
+        let mut of_runs = carried;
+        for (i, d) in data {
+            of_runs.insert(*i, figure_data::of_run(exp, &exp.runs[*i], d)?);
+        }
+        Some(of_runs)
     } else {
         let committed = table.runs(exp);
         let indices: Vec<usize> = committed.iter().map(|(i, _)| *i).collect();

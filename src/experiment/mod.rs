@@ -24,6 +24,7 @@
 //! `summary.csv`, `summary-mean.csv` and the figures ([`plot`]).
 
 pub mod aggregate;
+pub mod carry;
 pub mod claims;
 pub mod command;
 pub mod crossplay;

@@ -271,15 +271,22 @@ fn prepare(exp: &Experiment) -> crate::error::Result<()> {
 /// does), `jobs` at a time. Every run is attempted; Err lists the ones that failed.
 pub fn run(exp: &Experiment, opts: &RunnerOptions, only: Option<usize>) -> crate::error::Result<()> {
     prepare(exp)?;
+    // Runs finished on another machine: their rows are committed, and aggregation carries them.
+    let elsewhere = super::carry::finished_elsewhere(exp)?;
+    let done = |i: usize| elsewhere.contains(&i) || finished(exp, &exp.runs[i]);
     // The claims are recorded before the runs they are judged on (the registry flags later edits).
-    let unfinished = |variant: &str| exp.runs.iter().any(|r| r.variant == variant && !finished(exp, r));
+    let unfinished = |variant: &str| (0..exp.runs.len()).any(|i| exp.runs[i].variant == variant && !done(i));
     super::registry::record(exp, &unfinished)?;
-    let runs: Vec<&Run> = match only {
-        Some(i) => vec![exp
-            .runs
-            .get(i)
-            .ok_or_else(|| format!("--task {i}: the experiment has runs 0 to {}", exp.runs.len() - 1))?],
-        None => exp.runs.iter().collect(),
+    let runs: Vec<usize> = match only {
+        Some(i) if i < exp.runs.len() => vec![i],
+        Some(i) => return Err(format!("--task {i}: the experiment has runs 0 to {}", exp.runs.len() - 1).into()),
+        // Seed by seed (every preset and variant of a seed before the next seed), so a stop at any point
+        // leaves every variant with about as many finished seeds as the others.
+        None => {
+            let mut all: Vec<usize> = (0..exp.runs.len()).collect();
+            all.sort_by_key(|&i| (exp.spec.seeds.iter().position(|&s| s == exp.runs[i].seed), i));
+            all
+        }
     };
     let bar = if opts.progress { ProgressBar::new(runs.len() as u64) } else { ProgressBar::hidden() };
     bar.set_style(
@@ -287,7 +294,7 @@ pub fn run(exp: &Experiment, opts: &RunnerOptions, only: Option<usize>) -> crate
             .expect("valid template"),
     );
     bar.set_message(exp.name.clone());
-    let already = runs.iter().filter(|r| finished(exp, r)).count();
+    let already = runs.iter().filter(|&&i| done(i)).count();
     bar.set_position(already as u64);
     bar.reset_eta();
     let next = AtomicUsize::new(0);
@@ -296,7 +303,11 @@ pub fn run(exp: &Experiment, opts: &RunnerOptions, only: Option<usize>) -> crate
         for _ in 0..opts.jobs.clamp(1, runs.len().max(1)) {
             scope.spawn(|| loop {
                 let i = next.fetch_add(1, Ordering::SeqCst);
-                let Some(run) = runs.get(i) else { break };
+                let Some(&i) = runs.get(i) else { break };
+                let run = &exp.runs[i];
+                if elsewhere.contains(&i) {
+                    continue;
+                }
                 if finished(exp, run) {
                     // Finished by an earlier invocation, perhaps of a coevo that kept the buffers.
                     if let Err(e) = drop_replay(exp, run) {

@@ -2,7 +2,7 @@
 //! written and read by one definition of their columns ([`columns`]). The claims are computed from
 //! `summary.csv` alone, so a clone without run folders recomputes them exactly.
 
-use super::claims::{column, derive, quantity, values, window_mean, RunData};
+use super::claims::{column, derive, quantity, window_mean, RunData};
 use super::file::{slug, Experiment, Quantity};
 use super::stats::estimate;
 use std::collections::BTreeMap;
@@ -62,35 +62,49 @@ pub fn curve_columns() -> Vec<(String, Quantity)> {
     quantities.into_iter().map(|q| (column(&q).expect("a curve quantity has a column"), q)).collect()
 }
 
-/// `summary.csv`: one row per finished run in `data`, its values of `quantities` ([`columns`]), blank
-/// where a run has none, then its returns, wall time, binaries and the experiment it is shared from, then
-/// its [`curve_columns`].
-pub fn text(exp: &Experiment, data: &BTreeMap<usize, RunData>, quantities: &[(String, Quantity)]) -> String {
-    let mut summary = String::from("preset,variant,seed,episodes");
-    for (name, _) in quantities {
-        write!(summary, ",{name}").unwrap();
-    }
-    summary.push_str(",return_first100,return_last100,wall_seconds,binary,shared_from");
+/// The header of `summary.csv` for `quantities` ([`columns`]): preset, variant, seed, episodes, the
+/// quantities, returns, wall time, binaries, the experiment a run is shared from, then the
+/// [`curve_columns`].
+pub fn header(quantities: &[(String, Quantity)]) -> Vec<String> {
+    let mut header: Vec<String> = ["preset", "variant", "seed", "episodes"].map(String::from).into();
+    header.extend(quantities.iter().map(|(name, _)| name.clone()));
+    header.extend(["return_first100", "return_last100", "wall_seconds", "binary", "shared_from"].map(String::from));
+    header.extend(curve_columns().into_iter().map(|(name, _)| name));
+    header
+}
+
+/// `summary.csv`: one row per finished run, in the order of the experiment's runs: each run of `data`
+/// (its folder here) with its values of `quantities` ([`columns`]), blank where a run has none, then its
+/// returns, wall time, binaries and the experiment it is shared from, then its [`curve_columns`]; and
+/// the `carried` lines of runs finished elsewhere ([`super::carry`]), as committed.
+pub fn text(
+    exp: &Experiment,
+    data: &BTreeMap<usize, RunData>,
+    quantities: &[(String, Quantity)],
+    carried: &BTreeMap<usize, String>,
+) -> String {
+    let mut lines: BTreeMap<usize, String> = carried.clone();
     let curves = curve_columns();
-    for (name, _) in &curves {
-        write!(summary, ",{name}").unwrap();
-    }
-    summary.push('\n');
     for (i, d) in data {
         let r = &exp.runs[*i];
-        write!(summary, "{},{},{},{}", csv_text(&r.preset), csv_text(&r.variant), r.seed, d.dos.len()).unwrap();
+        let mut line = format!("{},{},{},{}", csv_text(&r.preset), csv_text(&r.variant), r.seed, d.dos.len());
         for (_, q) in quantities {
-            summary.push_str(&field(quantity(exp, d, q)));
+            line.push_str(&field(quantity(exp, d, q)));
         }
         let (r0, r1) = (window_mean(&d.returns, true), window_mean(&d.returns, false));
         let shared = r.shared_from.as_deref().unwrap_or("");
-        write!(summary, ",{r0},{r1},{},{},{shared}", d.wall_seconds, csv_text(&d.binaries.join(" "))).unwrap();
+        write!(line, ",{r0},{r1},{},{},{shared}", d.wall_seconds, csv_text(&d.binaries.join(" "))).unwrap();
         for (_, q) in &curves {
-            summary.push_str(&field(quantity(exp, d, q)));
+            line.push_str(&field(quantity(exp, d, q)));
         }
+        lines.insert(*i, line);
+    }
+    let mut summary = header(quantities).join(",");
+    summary.push('\n');
+    for line in lines.into_values() {
+        summary.push_str(&line);
         summary.push('\n');
     }
-
     summary
 }
 
@@ -143,19 +157,13 @@ pub fn extend(
 }
 
 /// `summary-mean.csv`: per preset, variant and quantity, the mean over seeds and its 95 % interval.
-pub fn means_text(exp: &Experiment, data: &BTreeMap<usize, RunData>, quantities: &[(String, Quantity)]) -> String {
+/// From the summary's rows (`table`), so runs carried from elsewhere count as the run folders here do.
+pub fn means_text(exp: &Experiment, table: &Summary, quantities: &[(String, Quantity)]) -> String {
     let mut means = String::from("preset,variant,quantity,seeds,mean,ci95\n");
     for preset in &exp.spec.presets {
-        let of_variant = |variant: &str| -> Vec<&RunData> {
-            data.iter()
-                .filter(|(i, _)| exp.runs[**i].preset == *preset && exp.runs[**i].variant == variant)
-                .map(|(_, d)| d)
-                .collect()
-        };
         for v in &exp.spec.variants {
-            let runs = of_variant(&v.name);
             for (name, q) in quantities.iter().chain(&curve_columns()) {
-                if let Some(e) = estimate(&values(exp, &runs, q)) {
+                if let Some(e) = estimate(&table.values(exp, preset, &v.name, q)) {
                     let ci = e.ci.map_or(String::new(), |c| c.to_string());
                     writeln!(means, "{},{},{name},{},{},{ci}", csv_text(preset), csv_text(&v.name), e.n, e.mean)
                         .unwrap();
@@ -270,7 +278,7 @@ impl Summary {
 
 /// A name as one CSV field: quoted (RFC 4180) when it holds a comma or a quote, as variant names may
 /// ("body frame, no predators").
-pub(super) fn csv_text(s: &str) -> String {
+pub(crate) fn csv_text(s: &str) -> String {
     if s.contains([',', '"', '\n']) {
         format!("\"{}\"", s.replace('"', "\"\""))
     } else {
@@ -312,7 +320,7 @@ mod tests {
                 (i, d)
             })
             .collect();
-        let written = super::text(&exp, &data, &super::columns(&exp));
+        let written = super::text(&exp, &data, &super::columns(&exp), &BTreeMap::new());
         // The same summary as a coevo before the curve columns wrote it.
         let added = super::curve_columns().len();
         let old: String = written

@@ -421,36 +421,82 @@ fn a_tiny_experiment_runs_resumes_and_gives_the_same_summary_at_one_or_two_jobs(
     assert!(coevo(one.path(), &["--plot", "all"]).status.success());
     assert_eq!(committed("results/tiny/REPORT.md"), before.2);
     assert!(coevo(one.path(), &["--experiment", "experiments/tiny.ron", "--emit-slurm"]).status.success());
-    // Some run folders but fewer than the summary holds (an experiment being re-run): aggregating would
-    // drop runs, so the experiment alone is refused, and REPRODUCTION.md reports it from its committed
-    // summary, saying so, with its files untouched.
+    // Some run folders but fewer than the summary holds (the others finished on another machine: run
+    // folders are not committed): the committed rows and curves of the runs not here are carried, so the
+    // experiment runs nothing again and aggregating writes the summaries the whole set of folders wrote,
+    // byte for byte.
+    let means = committed("results/tiny/summary-mean.csv");
+    assert!(String::from_utf8(committed("results/tiny/runs.csv"))
+        .unwrap()
+        .starts_with("preset,variant,seed,scene\npaper,1:1,1,"));
     std::fs::create_dir_all(one.path().join("results/tiny/paper/5-3")).unwrap();
     std::fs::rename(one.path().join("elsewhere/5-3/seed2"), one.path().join("results/tiny/paper/5-3/seed2")).unwrap();
-    let out = coevo(one.path(), &["--plot", "results/tiny"]);
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success() && stderr.lines().count() == 1, "{stderr}");
-    assert!(stderr.contains("results/tiny/summary.csv: holds 4 runs but only 1"), "{stderr}");
-    // As many run folders as the summary holds, but not the same runs (a third seed trained, two committed
-    // runs away): aggregating would replace them, so it is refused too, naming one.
+    let out = coevo(one.path(), &["--experiment", "experiments/tiny.ron", "--quiet"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(!one.path().join("results/tiny/paper/1-1/seed1").exists(), "the runs finished elsewhere are not run again");
+    assert_eq!(
+        (
+            committed("results/tiny/summary.csv"),
+            committed("results/tiny/summary-mean.csv"),
+            committed("results/tiny/REPORT.md")
+        ),
+        (before.1.clone(), means.clone(), before.2.clone())
+    );
+    // A third seed trained here, beside one more committed run back: the summary gains the new rows and
+    // keeps the committed ones as they were.
     let tiny = one.path().join("experiments/tiny.ron");
     std::fs::write(&tiny, TINY.replacen("seeds: [1, 2],", "seeds: [1, 2, 3],", 1)).unwrap();
-    for task in ["2", "5"] {
-        let out = coevo(one.path(), &["--experiment", "experiments/tiny.ron", "--task", task]);
-        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    }
     std::fs::rename(one.path().join("elsewhere/5-3/seed1"), one.path().join("results/tiny/paper/5-3/seed1")).unwrap();
+    let out = coevo(one.path(), &["--experiment", "experiments/tiny.ron", "--quiet"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        one.path().join("results/tiny/paper/1-1/seed3").exists()
+            && !one.path().join("results/tiny/paper/1-1/seed1").exists()
+    );
+    let six: Vec<String> = std::fs::read_to_string(&summary).unwrap().lines().map(String::from).collect();
+    assert_eq!(six.len(), 7, "{six:?}");
+    let old: Vec<String> = String::from_utf8(before.1.clone()).unwrap().lines().map(String::from).collect();
+    assert!(old[1..].iter().all(|row| six.contains(row)), "the committed rows kept: {six:?}");
+    assert!(
+        six[3].starts_with("paper,1:1,3,3,") && six[6].starts_with("paper,5:3,3,3,"),
+        "in the runs' order: {six:?}"
+    );
+    // A committed run whose scene the file has changed since is not carried: refused in one line naming
+    // it, with nothing written, and the runner trains it anew.
+    let summary_before = committed("results/tiny/summary.csv");
+    let changed = TINY.replacen("seeds: [1, 2],", "seeds: [1, 2, 3],", 1).replacen("hidden: 16", "hidden: 8", 1);
+    std::fs::write(&tiny, &changed).unwrap();
+    std::fs::rename(one.path().join("results/tiny/paper/1-1"), one.path().join("elsewhere-1-1")).unwrap();
     let out = coevo(one.path(), &["--plot", "results/tiny"]);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && stderr.lines().count() == 1, "{stderr}");
     assert!(
-        stderr.contains("holds 4 runs but only 2 of their run folders are here (missing paper/1:1/seed1 and 1 more"),
+        stderr.contains("results/tiny/summary.csv: holds 3 runs whose folders are not here, and paper/1:1/seed1's committed row is of another scene or evaluations than experiments/tiny.ron asks for now"),
         "{stderr}"
     );
-    assert_eq!(committed("results/tiny/summary.csv"), before.1);
+    assert_eq!(committed("results/tiny/summary.csv"), summary_before, "nothing written");
+    std::fs::write(&tiny, TINY.replacen("seeds: [1, 2],", "seeds: [1, 2, 3],", 1)).unwrap();
+    // Another binary's committed rows are not mixed with this one's folders.
+    let ledger = committed("results/tiny/summary.csv");
+    let mut lines: Vec<String> = String::from_utf8(ledger.clone()).unwrap().lines().map(String::from).collect();
+    let binary = lines[0].split(',').position(|c| c == "binary").unwrap();
+    let mut cells: Vec<String> = lines[1].split(',').map(String::from).collect();
+    cells[binary] = "0123456789abcdef".into();
+    lines[1] = cells.join(",");
+    std::fs::write(&summary, lines.join("\n") + "\n").unwrap();
+    let out = coevo(one.path(), &["--plot", "results/tiny"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && stderr.lines().count() == 1, "{stderr}");
+    assert!(
+        stderr.contains("runs of more than one binary (the committed paper/1:1/seed1 by 0123456789abcdef"),
+        "{stderr}"
+    );
+    std::fs::write(&summary, &ledger).unwrap();
+    std::fs::rename(one.path().join("elsewhere-1-1"), one.path().join("results/tiny/paper/1-1")).unwrap();
     std::fs::write(&tiny, TINY).unwrap();
     let out = coevo(one.path(), &["--plot", "all"]);
     let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success() && stderr.contains("(reported from the committed summary)"), "{stderr}");
+    assert!(out.status.success(), "{stderr}");
     assert_eq!(
         (committed("REPRODUCTION.md"), committed("results/tiny/summary.csv"), committed("results/tiny/REPORT.md")),
         before
@@ -976,4 +1022,24 @@ fn the_committed_results_are_what_plot_all_regenerates_from_them() {
     let differing: Vec<_> = regenerated.keys().filter(|f| committed.get(*f) != regenerated.get(*f)).collect();
     assert!(differing.is_empty(), "regenerated differently from the committed results: {differing:?}");
     assert_eq!(regenerated.len(), committed.len(), "no file added or removed");
+}
+
+#[test]
+fn every_committed_mean_rederives_from_its_summary() {
+    // summary-mean.csv is written from the summary's rows (so that runs carried from another machine count
+    // as the folders here do): every line of each committed summary-mean.csv, written from run folders,
+    // comes out of the committed summary.csv to the byte.
+    let mut checked = 0;
+    for file in Experiment::files(Path::new("experiments")).unwrap() {
+        let exp = Experiment::load(&file, Path::new("results")).unwrap();
+        let Ok(committed) = std::fs::read_to_string(exp.root.join("summary-mean.csv")) else { continue };
+        let table = coevo::experiment::summary::Summary::read(&exp.root.join("summary.csv")).unwrap().unwrap();
+        let means = coevo::experiment::summary::means_text(&exp, &table, &coevo::experiment::summary::columns(&exp));
+        let derived: std::collections::BTreeSet<&str> = means.lines().collect();
+        for line in committed.lines() {
+            assert!(derived.contains(line), "{}: {line} is not what its summary gives", exp.name);
+            checked += 1;
+        }
+    }
+    assert!(checked > 1000, "{checked} lines");
 }

@@ -1,0 +1,205 @@
+//! Finished runs carried from machine to machine. Run folders are not committed (they are one machine's),
+//! so what outlives a machine is an experiment's committed `summary.csv` (a row per finished run) and
+//! `figure-data.ron.gz` (its curves). `runs.csv` beside them records the scene each row was trained on
+//! and the evaluations it holds ([`identity`]).
+//! A run whose folder is not here but whose row is committed, of the scene the experiment file gives it
+//! now, is finished: the runner skips it, and aggregation carries its row and curves, byte for byte,
+//! beside the rows it writes from the folders that are here. An experiment run over several sessions or
+//! machines thus loses nothing it finished, and its summary is the one a single machine would write.
+
+use super::claims::RunData;
+use super::figure_data::{self, FigureData};
+use super::file::Experiment;
+use super::summary::{csv_text, Summary};
+use std::collections::{BTreeMap, BTreeSet};
+use std::fmt::Write as _;
+
+/// The record of which scene each committed row was trained on, beside `summary.csv`.
+pub const FILE: &str = "runs.csv";
+
+/// What a committed row is a row of, as one word: the first 16 hex digits of the BLAKE3 hash of the run's
+/// scene (seed included) and of what the experiment asks of a finished run: each evaluation's name,
+/// episodes, what its actors see, its perturbation and the scene it is evaluated in, and the cross-play's
+/// episodes. A row is carried only while the experiment file asks for the same.
+pub fn identity(exp: &Experiment, run: &super::file::Run) -> String {
+    let mut what = run.scene.to_ron();
+    for e in &exp.spec.evaluations {
+        let mut evaluated = run.scene.clone();
+        // The overrides were applied when the experiment was loaded: they cannot fail here.
+        let _ = e.overrides().apply(&mut evaluated, std::path::Path::new(""));
+        write!(
+            what,
+            "\nevaluation {:?}: {} episodes, {:?}, {:?} at {:?}\n{}",
+            e.name,
+            e.episodes,
+            e.control,
+            e.perturb,
+            e.perturb_step,
+            evaluated.to_ron()
+        )
+        .unwrap();
+    }
+    if let Some(c) = &exp.spec.crossplay {
+        write!(what, "\ncross-play: {} episodes", c.episodes).unwrap();
+    }
+    blake3::hash(what.as_bytes()).to_hex()[..16].to_string()
+}
+
+/// `runs.csv` for the rows of a summary (`runs`: indices into the experiment's runs, in the summary's
+/// order): each run's key and the identity of its scene.
+pub fn text(exp: &Experiment, runs: impl Iterator<Item = usize>) -> String {
+    let mut out = String::from("preset,variant,seed,scene\n");
+    for i in runs {
+        let r = &exp.runs[i];
+        writeln!(out, "{},{},{},{}", csv_text(&r.preset), csv_text(&r.variant), r.seed, identity(exp, r)).unwrap();
+    }
+    out
+}
+
+/// The recorded scene identity of each committed run, by run index; empty without the file.
+fn recorded(exp: &Experiment) -> crate::error::Result<BTreeMap<usize, String>> {
+    let path = exp.root.join(FILE);
+    if !path.exists() {
+        return Ok(BTreeMap::new());
+    }
+    let text = crate::io::read_text(&path, crate::io::MAX_TEXT_BYTES)?;
+    let bad = |e: csv::Error| format!("{}: {e}", path.display());
+    let mut out = BTreeMap::new();
+    for record in csv::Reader::from_reader(text.as_bytes()).records() {
+        let record = record.map_err(bad)?;
+        let (Some(preset), Some(variant), Some(seed), Some(scene)) =
+            (record.get(0), record.get(1), record.get(2), record.get(3))
+        else {
+            return Err(format!("{}: a row without preset, variant, seed and scene", path.display()).into());
+        };
+        let seed: u64 = seed.parse().map_err(|_| format!("{}: seed {seed:?}", path.display()))?;
+        if let Some(i) = exp.runs.iter().position(|r| r.preset == preset && r.variant == variant && r.seed == seed) {
+            out.insert(i, scene.to_string());
+        }
+    }
+    Ok(out)
+}
+
+/// Why a committed run cannot be carried; None when it can (its row is of the scene the experiment file
+/// gives it now).
+fn uncarriable(exp: &Experiment, i: usize, recorded: &BTreeMap<usize, String>) -> Option<String> {
+    let key = figure_data::key(&exp.runs[i]);
+    match recorded.get(&i) {
+        None => Some(format!(
+            "{key} has a committed row but no line in {} (aggregated by a coevo before it), so which scene it was trained on is not known",
+            FILE
+        )),
+        Some(id) if *id != identity(exp, &exp.runs[i]) => Some(format!(
+            "{key}'s committed row is of another scene or evaluations than {} asks for now",
+            exp.file.display()
+        )),
+        Some(_) => None,
+    }
+}
+
+/// The runs finished on another machine: a committed row of the scene the experiment file gives them,
+/// and no folder here (a folder here is the run, whatever its stage). An experiment whose committed rows
+/// cannot be carried has none; aggregation says why ([`carried`]).
+pub fn finished_elsewhere(exp: &Experiment) -> crate::error::Result<BTreeSet<usize>> {
+    let Some(summary) = Summary::read(&exp.root.join("summary.csv"))? else { return Ok(BTreeSet::new()) };
+    // A summary without every column written now (an older coevo's) carries nothing: its runs are rerun.
+    let header = super::summary::header(&super::summary::columns(exp));
+    if header.iter().any(|c| !summary.columns.contains(c)) {
+        return Ok(BTreeSet::new());
+    }
+    let recorded = recorded(exp)?;
+    Ok(summary
+        .runs(exp)
+        .into_iter()
+        .map(|(i, _)| i)
+        .filter(|&i| !crate::run::is_run(&exp.runs[i].dir) && uncarriable(exp, i, &recorded).is_none())
+        .collect())
+}
+
+/// What aggregation carries of the committed results: the summary line and the figure data of each
+/// committed run whose folder is not among `data`, by run index.
+#[derive(Default)]
+pub struct Carried {
+    pub lines: BTreeMap<usize, String>,
+    pub figures: BTreeMap<usize, FigureData>,
+}
+
+/// The committed runs of `exp` that `data` (the run folders here) lacks, carried as [`Carried`] into a
+/// summary of columns `header`. Refused, in one line naming the run and why, when one cannot be carried
+/// (no record of its scene, another scene, a column or figure data missing, another binary): then
+/// aggregating would drop a finished run or mix it with others.
+pub fn carried(exp: &Experiment, data: &BTreeMap<usize, RunData>, header: &[String]) -> crate::error::Result<Carried> {
+    let path = exp.root.join("summary.csv");
+    if data.is_empty() || !path.exists() {
+        return Ok(Carried::default());
+    }
+    let text = crate::io::read_text(&path, crate::io::MAX_TEXT_BYTES)?;
+    let summary = Summary::parse(&text, &path)?;
+    let missing: Vec<usize> = summary.runs(exp).into_iter().map(|(i, _)| i).filter(|i| !data.contains_key(i)).collect();
+    if missing.is_empty() {
+        return Ok(Carried::default());
+    }
+    let refuse = |why: String| -> crate::error::Error {
+        format!(
+            "{}: holds {} runs whose folders are not here, and {why}; nothing written: run `coevo --experiment {}` to rebuild them, or move the summary away",
+            path.display(),
+            missing.len(),
+            exp.file.display()
+        )
+        .into()
+    };
+    let recorded = recorded(exp)?;
+    if let Some(why) = missing.iter().find_map(|&i| uncarriable(exp, i, &recorded)) {
+        return Err(refuse(why));
+    }
+    // The same runs (one binary), unless the experiment allows more.
+    if !exp.spec.mixed_binaries {
+        let here: BTreeSet<&str> = data.values().flat_map(|d| d.binaries.iter().map(String::as_str)).collect();
+        for (i, row) in summary.runs(exp).into_iter().filter(|(i, _)| missing.contains(i)) {
+            if let Some(other) = row.binary.split(' ').find(|b| !here.contains(b)) {
+                return Err(format!(
+                    "{}: runs of more than one binary (the committed {} by {other}, the run folders here by {}); rerun them with one coevo or set mixed_binaries: true",
+                    exp.file.display(),
+                    figure_data::key(&exp.runs[i]),
+                    here.iter().copied().collect::<Vec<_>>().join(" ")
+                )
+                .into());
+            }
+        }
+    }
+    // Each carried line in the columns written now, its cells as committed (names quoted as written).
+    let mut reader = csv::Reader::from_reader(text.as_bytes());
+    let committed: Vec<String> =
+        reader.headers().map_err(|e| format!("{}: {e}", path.display()))?.iter().map(String::from).collect();
+    let at: Vec<usize> = header
+        .iter()
+        .map(|c| {
+            committed
+                .iter()
+                .position(|k| k == c)
+                .ok_or_else(|| refuse(format!("its summary has no column {c} (written by another coevo)")))
+        })
+        .collect::<crate::error::Result<_>>()?;
+    let rows = summary.runs(exp);
+    let mut lines = BTreeMap::new();
+    for (record, row) in reader.records().zip(&summary.rows) {
+        let record = record.map_err(|e| format!("{}: {e}", path.display()))?;
+        let Some(&(i, _)) = rows.iter().find(|(_, r)| std::ptr::eq(*r, row)) else { continue };
+        if !missing.contains(&i) {
+            continue;
+        }
+        let cells: Vec<String> = header
+            .iter()
+            .zip(&at)
+            .map(|(name, &k)| match name.as_str() {
+                "preset" | "variant" | "binary" => csv_text(&record[k]),
+                _ => record[k].to_string(),
+            })
+            .collect();
+        lines.insert(i, cells.join(","));
+    }
+    let figures = figure_data::read(exp, &missing)
+        .map_err(|e| refuse(e.to_string()))?
+        .ok_or_else(|| refuse(format!("there is no {} to carry their curves from", figure_data::FILE)))?;
+    Ok(Carried { lines, figures })
+}
