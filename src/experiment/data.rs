@@ -52,6 +52,16 @@ pub fn load(exp: &Experiment) -> crate::error::Result<BTreeMap<usize, RunData>> 
         if stage(run)? != Stage::Trained {
             continue;
         }
+        for e in &exp.spec.evaluations {
+            if let Some(stale) = eval_file(&run.dir, &e.name).exists().then(|| super::runner::stale(run, e)).flatten() {
+                return Err(format!("{stale}; run `coevo --experiment {}` to redo it", exp.file.display()).into());
+            }
+        }
+        // Trained but an evaluation or its cross-play still to come: not finished, so not a row (a row is
+        // a finished run, which another machine carries as it is).
+        if !super::runner::finished(exp, run) {
+            continue;
+        }
         let (metrics, _) = RunDir::new(&run.dir).checked_metrics(false)?;
         let mut d = RunData {
             dos: metrics.column(&schema::of("dos", &prey))?,
@@ -79,9 +89,6 @@ pub fn load(exp: &Experiment) -> crate::error::Result<BTreeMap<usize, RunData>> 
             let path = eval_file(&run.dir, &e.name);
             if !path.exists() {
                 continue;
-            }
-            if let Some(stale) = super::runner::stale(run, e) {
-                return Err(format!("{stale}; run `coevo --experiment {}` to redo it", exp.file.display()).into());
             }
             let table = Table::read_eval(&path)?;
             let step = table.column(schema::STEP)?;

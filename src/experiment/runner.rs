@@ -186,7 +186,7 @@ fn crossplayed(run: &Run) -> bool {
 }
 
 /// Whether a run is trained and has every evaluation (and its cross-play, when asked).
-fn finished(exp: &Experiment, run: &Run) -> bool {
+pub fn finished(exp: &Experiment, run: &Run) -> bool {
     stage(run) == Ok(Stage::Trained)
         && exp.spec.evaluations.iter().all(|e| evaluated_as(run, e))
         && (exp.spec.crossplay.is_none() || crossplayed(run))
