@@ -45,10 +45,28 @@ pub fn aggregate(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> crate::er
         }
         None => table,
     };
-    let means = summary::means_text(exp, &table, &quantities);
+    // No interim analysis: an experiment judged when complete shows no number of its runs until then.
+    let finished = table.runs(exp).len();
+    let blind = exp.spec.judged_when_complete && finished < exp.runs.len();
+    let means = if blind {
+        summary::means_text(exp, &Summary::default(), &quantities)
+    } else {
+        summary::means_text(exp, &table, &quantities)
+    };
     let mut results = tests(exp, &table);
+    if blind {
+        for r in &mut results {
+            *r = ClaimResult {
+                estimate: None,
+                p: None,
+                same_test: None,
+                verdict: in_progress(finished, exp.runs.len()),
+                ..r.clone()
+            };
+        }
+    }
     let mut saved = 0;
-    if let Some(drawn) = &drawn {
+    if let Some(drawn) = drawn.as_ref().filter(|_| !blind) {
         for preset in &exp.spec.presets {
             figures::draw(exp, preset, &table, drawn, &mut saved)?;
         }
@@ -99,6 +117,11 @@ pub struct Aggregated {
 /// The verdict on a change over training (or a curve's shape) of runs shorter than two windows.
 const OVERLAP: &str =
     "not measured: runs shorter than 200 episodes, too short for a change over training (windows that overlap)";
+
+/// The verdict of every claim of an experiment judged when complete whose runs are not all finished.
+pub fn in_progress(finished: usize, runs: usize) -> String {
+    format!("in progress: {finished} of {runs} runs finished; judged when all are (no interim analysis)")
+}
 
 /// The verdict on a comparison of two variants whose runs are identical.
 const IDENTICAL: &str = "not a comparison: the two variants' runs are identical (one training, run twice)";
@@ -233,7 +256,8 @@ pub fn adjust(results: &mut [ClaimResult]) {
             (r.p_holm, r.level, r.same_as) = (p_holm, level, Some(first));
         }
     }
-    for r in results.iter_mut().filter(|r| r.verdict != IDENTICAL && r.verdict != OVERLAP) {
+    // A verdict given before the tests (identical runs, overlapping windows, in progress) stands.
+    for r in results.iter_mut().filter(|r| r.verdict.is_empty()) {
         r.verdict = verdict(&r.claim, r.estimate, r.p_holm, r.level, r.baseline);
         if let Some(first) = &r.same_as {
             r.verdict.push_str(&format!("; the same test as {first}, counted once in its family"));

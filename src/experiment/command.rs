@@ -340,7 +340,8 @@ fn check_whole(
     what: &str,
 ) -> crate::error::Result<()> {
     let (done, runs) = (finished(exp, data)?, exp.runs.len());
-    if done == 0 || done == runs {
+    // An experiment judged when complete shows nothing of a part of its runs: nothing partial to refuse.
+    if done == 0 || done == runs || exp.spec.judged_when_complete {
         return Ok(());
     }
     let from = if data.is_empty() { format!("{}/summary.csv holds", exp.root.display()) } else { "here are".into() };

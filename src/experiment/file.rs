@@ -34,6 +34,13 @@ pub struct ExperimentFile {
     /// default: every number of an experiment comes from one binary, and aggregation refuses otherwise.
     #[serde(default)]
     pub mixed_binaries: bool,
+    /// No interim analysis: while some of its runs are not finished, reports show how many are, never an
+    /// estimate, a verdict or a figure (a confirmatory experiment whose seeds were fixed beforehand). Its
+    /// finished runs are still aggregated into `summary.csv` and `figure-data.ron.gz`, so that another
+    /// machine carries them ([`super::carry`]), and such an experiment in progress is reported without
+    /// `--partial`. Off by default: `--partial` reports the finished runs' numbers, marked partial.
+    #[serde(default)]
+    pub judged_when_complete: bool,
     /// Keep each run's replay buffers once it is trained (~0.45 GB a run of the standard scene), so that
     /// `coevo --resume RUN --episodes N` can extend it exactly as an uninterrupted longer run. Off by
     /// default: a finished run's buffers are removed (`learning::replay_segments::drop_replay`), so a suite of

@@ -178,8 +178,10 @@ pub fn experiment_report(r: &Reported) -> String {
 /// Every evaluation's order parameters (`sim::metrics`, `sim::collective`) per preset and variant, mean ±
 /// 95 % CI over seeds (n), between mdBook anchors so the book includes the table rather than copying its
 /// numbers (`{{#include ../../../results/NAME/REPORT.md:collective}}`).
-fn collective(md: &mut String, Reported { exp, summary, .. }: &Reported) {
-    if summary.rows.is_empty() || exp.spec.evaluations.is_empty() {
+fn collective(md: &mut String, Reported { exp, summary, finished, .. }: &Reported) {
+    // An experiment judged when complete shows no number of its runs before (no interim analysis).
+    let in_progress = exp.spec.judged_when_complete && *finished < exp.runs.len();
+    if summary.rows.is_empty() || exp.spec.evaluations.is_empty() || in_progress {
         return;
     }
     md.push_str(
@@ -243,7 +245,16 @@ fn section(md: &mut String, Reported { exp, results, finished, summary, .. }: &R
     let what = if exp.spec.description.is_empty() { String::new() } else { format!("{}. ", exp.spec.description) };
     let (file, root) = shown_paths(exp);
     writeln!(md, "\n## {}\n\n{what}`{}`, results in `{}/`.\n", exp.name, file.display(), root.display()).unwrap();
-    if (1..exp.runs.len()).contains(finished) {
+    if (1..exp.runs.len()).contains(finished) && exp.spec.judged_when_complete {
+        writeln!(
+            md,
+            "**In progress: {finished} of the {} runs are finished** (their rows are committed, so no machine loses \
+             them). Its claims are judged when all are: no estimate, verdict or figure before then (no interim \
+             analysis; the seeds were fixed beforehand).\n",
+            exp.runs.len()
+        )
+        .unwrap();
+    } else if (1..exp.runs.len()).contains(finished) {
         writeln!(
             md,
             "**Partial: {finished} of the {} runs are finished.** Every number, verdict and figure of this experiment \

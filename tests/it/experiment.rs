@@ -434,6 +434,32 @@ fn a_tiny_experiment_runs_resumes_and_gives_the_same_summary_at_one_or_two_jobs(
         assert!(report.contains("**Partial: 3 of the 4 runs are finished.**"), "{report}");
     }
     assert!(String::from_utf8(committed("REPRODUCTION.md")).unwrap().contains("**Partial: 3 of the 4 runs"));
+    // An experiment judged when complete (no interim analysis) is reported in progress without --partial:
+    // how many runs are finished, and no estimate, verdict or figure.
+    let tiny = one.path().join("experiments/tiny.ron");
+    std::fs::write(&tiny, TINY.replacen("seeds: [1, 2],", "seeds: [1, 2], judged_when_complete: true,", 1)).unwrap();
+    std::fs::remove_dir_all(one.path().join("results/tiny/figures")).unwrap();
+    for plot in ["results/tiny", "all"] {
+        let out = coevo(one.path(), &["--plot", plot]);
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        let report = String::from_utf8(committed("results/tiny/REPORT.md")).unwrap();
+        assert!(report.contains("**In progress: 3 of the 4 runs are finished**"), "{report}");
+        let rows: Vec<&str> = report.lines().filter(|l| l.starts_with("| paper |")).collect();
+        assert_eq!(rows.len(), 4, "{report}");
+        for row in rows {
+            assert!(
+                row.contains(
+                    " | – | – | – | – | in progress: 3 of 4 runs finished; judged when all are (no interim analysis) |"
+                ),
+                "{row}"
+            );
+        }
+        let numbers = report.lines().any(|l| l.starts_with("| paper") && l.contains('±'));
+        assert!(!report.contains("Collective measures") && !numbers, "no number: {report}");
+        let figures = std::fs::read_dir(one.path().join("results/tiny/figures")).map_or(0, |d| d.count());
+        assert_eq!(figures, 0, "no figure of an experiment in progress");
+    }
+    std::fs::write(&tiny, TINY).unwrap();
     std::fs::write(&summary, &whole).unwrap();
     assert!(coevo(one.path(), &["--plot", "all"]).status.success());
     assert_eq!(committed("results/tiny/REPORT.md"), before.2);
