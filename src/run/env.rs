@@ -195,7 +195,8 @@ impl Env {
     /// `metrics.csv`'s header for this scene with its outside-decided species as the learning ones.
     pub fn metrics_header(&self) -> String {
         let learning: Vec<usize> = self.external.iter().map(|&(s, _)| s).collect();
-        super::schema::metrics_header_for(self.world.resource::<SpeciesRegistry>(), &learning)
+        let authors = self.world.resource::<crate::sim::ActiveScene>().0.authors_metrics;
+        super::schema::metrics_header_for(self.world.resource::<SpeciesRegistry>(), &learning, authors)
     }
 
     /// One step t → t+1 with `actions` (`[agents × 2]`, normalized, clamped to [−1, 1]). Err on a wrong

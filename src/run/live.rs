@@ -37,7 +37,8 @@ pub struct LiveRun {
 impl LiveRun {
     /// The run of the world as it is now, before its first step.
     pub fn new(world: &World) -> LiveRun {
-        let header = schema::metrics_header(world.resource::<SpeciesRegistry>(), world.resource::<Learners>());
+        let authors = world.resource::<crate::sim::ActiveScene>().0.authors_metrics;
+        let header = schema::metrics_header(world.resource::<SpeciesRegistry>(), world.resource::<Learners>(), authors);
         let mut run = LiveRun {
             metrics_text: format!("{header}\n"),
             episodes: 0,

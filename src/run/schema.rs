@@ -17,6 +17,8 @@ pub const CATCHES: &str = "catches";
 pub const WALL_SECONDS: &str = "wall_seconds";
 /// The per-step quantity of an evaluation (and per-episode one of training) besides [`Swarming::NAMES`].
 pub const EDGE_RANK: &str = "edge_rank";
+/// The authors' DoS and DoA (`sim::metrics::authors_dos_doa`), per species, with `authors_metrics`.
+pub const AUTHORS: [&str; 2] = ["authors_dos", "authors_doa"];
 
 /// The column of a per-species quantity: `dos_prey`, `edge_rank_prey`, `return_predator`.
 pub fn of(quantity: &str, species: &str) -> String {
@@ -54,23 +56,25 @@ fn species_cells(swarming: Option<Swarming>, edge_rank: Option<f64>) -> impl Ite
 }
 
 /// `metrics.csv`'s header.
-pub fn metrics_header(registry: &SpeciesRegistry, learners: &Learners) -> String {
+/// `authors`: the scene's `authors_metrics` (the authors' DoS and DoA columns after the returns).
+pub fn metrics_header(registry: &SpeciesRegistry, learners: &Learners, authors: bool) -> String {
     let learning: Vec<usize> =
         (0..learners.species.len()).filter(|&s| learners.species[s].as_ref().is_some_and(|l| !l.frozen)).collect();
     let league = learners.league.as_ref().map(|g| g.columns()).unwrap_or_default();
-    header(registry, &learning, &league)
+    header(registry, &learning, &league, authors)
 }
 
 /// `metrics.csv`'s header when the species `learning` (registry indices) learn, by coevo's learners or by
 /// a learner outside coevo (the Python package's `VecEnv.metrics_header`): the episode's columns
 /// ([`episode_cells`]), then per learning species `critic_loss`, `actor_loss`, `noise_std`, `epsilon`,
 /// then `wall_seconds`.
-pub fn metrics_header_for(registry: &SpeciesRegistry, learning: &[usize]) -> String {
-    header(registry, learning, &[])
+pub fn metrics_header_for(registry: &SpeciesRegistry, learning: &[usize], authors: bool) -> String {
+    header(registry, learning, &[], authors)
 }
 
-/// The header with `league`'s columns (`learning::league::League::columns`) before `wall_seconds`.
-fn header(registry: &SpeciesRegistry, learning: &[usize], league: &[String]) -> String {
+/// The header with `league`'s columns (`learning::league::League::columns`) before `wall_seconds`, and
+/// with `authors` the authors' DoS and DoA per species after the returns.
+fn header(registry: &SpeciesRegistry, learning: &[usize], league: &[String], authors: bool) -> String {
     let mut cols = vec![EPISODE.to_string(), STEPS.into()];
     for d in &registry.defs {
         cols.extend(species_columns(&d.name));
@@ -79,6 +83,11 @@ fn header(registry: &SpeciesRegistry, learning: &[usize], league: &[String]) -> 
     cols.extend(split_catchers(registry).iter().map(|&s| catches_by(&registry.defs[s].name)));
     for d in &registry.defs {
         cols.push(of("return", &d.name));
+    }
+    if authors {
+        for d in &registry.defs {
+            cols.extend(AUTHORS.map(|q| of(q, &d.name)));
+        }
     }
     for &s in learning {
         let n = &registry.defs[s].name;
@@ -121,6 +130,9 @@ pub fn episode_cells(e: &EpisodeSummary, registry: &SpeciesRegistry) -> Vec<Stri
     cols.push(e.catches.to_string());
     cols.extend(split_catchers(registry).iter().map(|&s| e.catches_by.get(s).copied().unwrap_or(0).to_string()));
     cols.extend(e.mean_return.iter().map(|r| r.to_string()));
+    for a in &e.authors {
+        cols.extend(a.map_or([None; 2], |a| a.map(Some)).map(blank));
+    }
     cols
 }
 

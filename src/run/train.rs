@@ -259,14 +259,17 @@ pub fn train(scene: Scene, opts: &TrainOptions) -> crate::error::Result<usize> {
             )?;
         }
         // A run begun by an older coevo keeps its rows, under today's columns (new ones blank).
-        metrics_text = schema::with_header(&rows, &schema::metrics_header(&registry, world.resource::<Learners>()));
+        metrics_text = schema::with_header(
+            &rows,
+            &schema::metrics_header(&registry, world.resource::<Learners>(), scene.authors_metrics),
+        );
         wall_before = schema::last_wall_seconds(&metrics_text);
     } else {
         dir.check_new(opts.overwrite)?;
         dir.clear()?;
         crate::io::write_file(&dir.scene(), Existing::Replace, scene.to_ron().as_bytes())?;
         dir.write_provenance(&scene)?;
-        let header = schema::metrics_header(&registry, sim.world().resource::<Learners>());
+        let header = schema::metrics_header(&registry, sim.world().resource::<Learners>(), scene.authors_metrics);
         metrics_text = format!("{header}\n");
     }
     crate::io::write_file(&metrics_path, Existing::Replace, metrics_text.as_bytes())?;

@@ -77,6 +77,7 @@ pub(super) fn paper() -> Scene {
         cluster_link: default_cluster_link(),
         confusion_radius: None,
         contact_rewards: vec![],
+        authors_metrics: false,
     }
 }
 

@@ -105,6 +105,9 @@ impl Scene {
         if let Some(v) = patch.contact_rewards {
             self.contact_rewards = v;
         }
+        if let Some(v) = patch.authors_metrics {
+            self.authors_metrics = v;
+        }
         if let Some(p) = patch.world {
             p.apply(&mut self.world);
         }

@@ -358,6 +358,15 @@ pub struct Scene {
     /// Contact rewards of particular (catcher, caught) pairs; every other pair pays ±`rewards.contact`.
     #[serde(default)]
     pub contact_rewards: Vec<ContactReward>,
+    /// Also log DoS and DoA as the authors' shipped code computes them (issue 37, rows 9–11; columns
+    /// `authors_dos_<species>` and `authors_doa_<species>` of metrics.csv, beside the paper's, never
+    /// replacing them): WindyLab/Gym-PPS `gym/wrappers/njp.py` `dos_and_doa` as `NJP_algorithm/main.py`
+    /// calls it, over the states t = 0…T−1 (the spawn state included, the last state not), with plain
+    /// Euclidean distances (no minimum image), D = √2 (the torus' D on its 2 m arena), and DoA's partner
+    /// the agent k ≠ j that minimises ‖h_j + h_k‖ (the most opposed heading), not the nearest neighbour.
+    /// Left out of scene files when off.
+    #[serde(default, skip_serializing_if = "is_default")]
+    pub authors_metrics: bool,
 }
 
 /// The reward of one contact between a catcher and a species it catches, for each side (a species plugin
@@ -423,6 +432,8 @@ pub struct ScenePatch {
     /// Replaces the list of per-pair contact rewards.
     #[serde(default)]
     pub contact_rewards: Option<Vec<ContactReward>>,
+    #[serde(default)]
+    pub authors_metrics: Option<bool>,
 }
 
 /// The largest scene file read (a real one is a few hundred bytes).

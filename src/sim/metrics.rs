@@ -258,6 +258,9 @@ pub struct Confusion(pub Vec<[ConfusionBin; CONFUSION_BINS.len()]>);
 #[derive(Default, Debug, Clone)]
 struct EpisodeSums {
     steps: usize,
+    /// Per species, the authors' DoS and DoA ([`authors_dos_doa`]) summed over the states measured.
+    authors: Vec<[f64; 2]>,
+    authors_states: usize,
     swarming: Vec<[f64; Swarming::N]>,
     catches: u64,
     catches_by: Vec<u64>,
@@ -281,6 +284,9 @@ pub struct EpisodeSummary {
     pub mean_return: Vec<f64>,
     /// Per species: the mean edge rank of its prey caught this episode; None without a ranked catch.
     pub edge_rank: Vec<Option<f64>>,
+    /// Per species, the authors' DoS and DoA averaged over the episode's states 0…T−1 ([`authors_dos_doa`]),
+    /// None where it had fewer than two agents; empty unless the scene asks (`authors_metrics`).
+    pub authors: Vec<Option<[f64; 2]>>,
 }
 
 /// Every finished episode, in order.
@@ -312,6 +318,12 @@ impl SwarmMetrics {
                 .map(|(r, &n)| if n > 0 { r / n as f64 } else { 0.0 })
                 .collect(),
             edge_rank: sums.edge_ranks.iter().map(|&(sum, n)| (n > 0).then(|| sum / n as f64)).collect(),
+            authors: sums
+                .authors
+                .iter()
+                .zip(&sums.agents)
+                .map(|(a, &n)| (n >= 2).then(|| a.map(|v| v / sums.authors_states.max(1) as f64)))
+                .collect(),
         }
     }
 }
@@ -322,7 +334,49 @@ impl Plugin for MetricsPlugin {
     fn build(&self, app: &mut App) {
         app.init_resource::<SwarmMetrics>().init_resource::<EpisodeLog>().init_resource::<Confusion>();
         app.add_systems(FixedUpdate, measure.in_set(SimSet::Measure));
+        app.add_systems(
+            FixedUpdate,
+            measure_authors
+                .in_set(SimSet::Decide)
+                .run_if(|scene: Res<super::schedule::ActiveScene>| scene.0.authors_metrics),
+        );
     }
+}
+
+/// DoS and DoA of one species as the authors' shipped code computes them (WindyLab/Gym-PPS
+/// `gym/wrappers/njp.py`, `dos_and_doa`; issue 37, rows 9–10): each agent's plain Euclidean distance to
+/// its nearest other (no minimum image on the torus) over n·D with D = √2·edge/2 (the code's √2 on its
+/// 2 m arena), and ‖h_j + h_k‖ over 2n with k the agent whose heading is most opposed to j's (argmin over
+/// all k ≠ j), not j's nearest neighbour. None with fewer than two agents.
+pub fn authors_dos_doa(edge: f64, positions: &[DVec2], headings: &[DVec2]) -> Option<[f64; 2]> {
+    let n = positions.len();
+    if n < 2 {
+        return None;
+    }
+    let nearest =
+        |j: usize, value: &dyn Fn(usize) -> f64| (0..n).filter(|&k| k != j).map(value).fold(f64::INFINITY, f64::min);
+    let (mut dos, mut doa) = (0.0, 0.0);
+    for j in 0..n {
+        dos += nearest(j, &|k| (positions[j] - positions[k]).length());
+        doa += nearest(j, &|k| (headings[j] + headings[k]).length());
+    }
+    Some([dos / (n as f64 * edge * std::f64::consts::SQRT_2 / 2.0), doa / (2.0 * n as f64)])
+}
+
+/// The authors' DoS and DoA of the state the agents decide on (rows 9–11): measured before the step, so
+/// an episode of T steps sums its states 0…T−1, the spawn state included, as `NJP_algorithm/main.py`
+/// stores positions and headings before each `env.step`.
+fn measure_authors(pop: Res<Population>, arena: Res<Arena>, mut metrics: ResMut<SwarmMetrics>) {
+    let e = &mut metrics.episode;
+    e.authors.resize(pop.ranges.len(), [0.0; 2]);
+    for (sum, range) in e.authors.iter_mut().zip(&pop.ranges) {
+        let edge = 2.0 * arena.half();
+        if let Some(v) = authors_dos_doa(edge, &pop.position[range.clone()], &pop.heading[range.clone()]) {
+            sum[0] += v[0];
+            sum[1] += v[1];
+        }
+    }
+    e.authors_states += 1;
 }
 
 fn measure(
@@ -537,5 +591,34 @@ mod tests {
         // Pairs: (X,Y) → √2, (Y,X) → √2, (−X, Y) → √2: DoA = 3·√2 / 6.
         assert!((s.doa - 2f64.sqrt() / 2.0).abs() < 1e-12, "{}", s.doa);
         assert!(swarming_of(&arena, &pos[..1], &head[..1], 0.1).is_none());
+    }
+
+    #[test]
+    fn the_authors_dos_and_doa_of_a_known_configuration_and_their_random_levels() {
+        // The same agents as above, by the authors' code: plain Euclidean distances (1.9 across the seam
+        // instead of 0.1), so nearest distances 1.4, 0.5, 0.5 → DoS = 2.4 / (3·√2); DoA's partner is the
+        // most opposed heading: X with −X (0), Y with either (√2), −X with X (0) → √2 / 6.
+        let pos = [DVec2::new(0.95, 0.0), DVec2::new(-0.95, 0.0), DVec2::new(-0.45, 0.0)];
+        let head = [DVec2::X, DVec2::Y, -DVec2::X];
+        let [dos, doa] = authors_dos_doa(2.0, &pos, &head).unwrap();
+        assert!((dos - 2.4 / (3.0 * 2f64.sqrt())).abs() < 1e-12, "{dos}");
+        assert!((doa - 2f64.sqrt() / 6.0).abs() < 1e-12, "{doa}");
+        assert!(authors_dos_doa(2.0, &pos[..1], &head[..1]).is_none());
+        // Independent random headings: the most opposed partner makes the level fall with n (issue 37: 0.154
+        // at 10 prey, 0.031 at 50), where the paper's DoA stays at 2/π.
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+        for (n, level) in [(10, 0.154), (50, 0.031)] {
+            let draws = 4000 / n * 10;
+            let mean = (0..draws)
+                .map(|_| {
+                    let h: Vec<DVec2> = (0..n)
+                        .map(|_| DVec2::from_angle(rng.gen_range(-std::f64::consts::PI..std::f64::consts::PI)))
+                        .collect();
+                    authors_dos_doa(2.0, &vec![DVec2::ZERO; n], &h).unwrap()[1]
+                })
+                .sum::<f64>()
+                / draws as f64;
+            assert!((mean - level).abs() < 0.004, "n = {n}: {mean}");
+        }
     }
 }

@@ -15,6 +15,7 @@ mod env;
 mod errors;
 mod experiment;
 mod learning;
+mod metrics;
 mod observation;
 mod perturb;
 mod physics;
