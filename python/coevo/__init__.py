@@ -40,6 +40,7 @@ from ._coevo import (  # one exception class per kind of error, all subclasses o
 
 __all__ = [
     "parallel_env",
+    "env",
     "CoevoParallelEnv",
     "VecEnv",
     "__version__",
@@ -69,14 +70,25 @@ def _control(control: str | list[str] | None) -> list[str] | None:
 class CoevoParallelEnv(_ParallelEnv):
     """A coevo scene as a PettingZoo ``ParallelEnv`` (see the module's docstring)."""
 
-    metadata = {"name": "coevo_v0", "render_modes": ["rgb_array"], "is_parallelizable": True}
+    metadata = {"name": "coevo_v0", "render_modes": ["rgb_array", "human"], "is_parallelizable": True,
+                "render_fps": 30}
 
     def __init__(self, scene: str = "scenes/standard.ron", seed: int | None = None,
                  counts: dict[str, int] | None = None, episode_steps: int | None = None,
                  render_mode: str | None = None, render_size: int = 480,
-                 control: str | list[str] | None = None):
-        if render_mode not in (None, "rgb_array"):
-            raise ValueError(f"render_mode: {render_mode!r} is not one of None, 'rgb_array'")
+                 control: str | list[str] | None = None, max_cycles: int | None = None):
+        if render_mode not in (None, "rgb_array", "human"):
+            raise ValueError(f"render_mode: {render_mode!r} is not one of None, 'rgb_array', 'human'")
+        # PettingZoo's name for the episode length (its max_cycles_test), the same as episode_steps.
+        if max_cycles is not None and episode_steps is not None and max_cycles != episode_steps:
+            raise ValueError(f"max_cycles: {max_cycles} differs from episode_steps: {episode_steps}; give one")
+        episode_steps = max_cycles if max_cycles is not None else episode_steps
+        self._window = None
+        if render_mode == "human":
+            try:
+                import matplotlib.pyplot  # noqa: F401 (the window of render_mode="human")
+            except ImportError as e:
+                raise ImportError("render_mode='human' shows frames with matplotlib: pip install matplotlib") from e
         self._env = _Env(scene, seed, _counts(counts), episode_steps, _control(control))
         self.possible_agents = list(self._env.agents())
         self.agents: list[str] = []
@@ -86,7 +98,10 @@ class CoevoParallelEnv(_ParallelEnv):
 
     @functools.lru_cache(maxsize=None)
     def observation_space(self, agent: str) -> spaces.Box:
-        return spaces.Box(-np.inf, np.inf, (self._env.obs_dim,), np.float32)
+        # Bounds from the observation's layout: positions in the arena, speeds within the clip, unit
+        # headings, displacements within the minimum image, heading differences within 2.
+        high = self._env.observation_high()
+        return spaces.Box(-high, high, (self._env.obs_dim,), np.float32)
 
     @functools.lru_cache(maxsize=None)
     def action_space(self, agent: str) -> spaces.Box:
@@ -145,20 +160,50 @@ class CoevoParallelEnv(_ParallelEnv):
         return observations, reward, terminations, truncations, infos
 
     def render(self):
-        """The current state as an RGB array ``[height, width, 3]``, drawn as ``coevo --animate`` draws
-        (``render_mode="rgb_array"``); None in any other mode."""
-        if self.render_mode != "rgb_array":
-            return None
-        return self._env.render(self._render_size)
+        """The current state drawn as ``coevo --animate`` draws it: an RGB array ``[height, width, 3]``
+        with ``render_mode="rgb_array"``; with ``"human"``, shown in a matplotlib window (redrawn in place,
+        paced at ``metadata["render_fps"]``; off-screen where matplotlib has no display) and None, as
+        PettingZoo's convention asks; None without a render mode."""
+        if self.render_mode == "rgb_array":
+            return self._env.render(self._render_size)
+        if self.render_mode == "human":
+            import matplotlib
+            import matplotlib.pyplot as plt
+
+            frame = self._env.render(self._render_size)
+            if self._window is None:
+                figure, axes = plt.subplots(figsize=(5, 5))
+                axes.set_axis_off()
+                self._window = (figure, axes.imshow(frame))
+            else:
+                self._window[1].set_data(frame)
+            if matplotlib.get_backend().lower() == "agg":
+                self._window[0].canvas.draw()  # no display: drawn off-screen
+            else:
+                plt.pause(1.0 / self.metadata["render_fps"])
+        return None
 
     def close(self):
-        pass
+        if self._window is not None:
+            import matplotlib.pyplot as plt
+
+            plt.close(self._window[0])
+            self._window = None
 
 
 def parallel_env(scene: str = "scenes/standard.ron", seed: int | None = None, **overrides) -> CoevoParallelEnv:
-    """A scene file as a PettingZoo ``ParallelEnv``; ``counts={"prey": 50}``, ``episode_steps=N``,
-    ``control="blind:prey:prey"``, ``render_mode="rgb_array"``."""
+    """A scene file as a PettingZoo ``ParallelEnv``; ``counts={"prey": 50}``, ``episode_steps=N`` (or
+    PettingZoo's ``max_cycles=N``), ``control="blind:prey:prey"``, ``render_mode="rgb_array"`` or
+    ``"human"``."""
     return CoevoParallelEnv(scene, seed, **overrides)
+
+
+def env(scene: str = "scenes/standard.ron", seed: int | None = None, **overrides):
+    """The same as a PettingZoo AEC environment (``parallel_to_aec`` of :func:`parallel_env`): agents act
+    one after another, and the world steps once all have acted."""
+    from pettingzoo.utils import parallel_to_aec
+
+    return parallel_to_aec(parallel_env(scene, seed, **overrides))
 
 
 class VecEnv:
@@ -171,6 +216,9 @@ class VecEnv:
         self.num_envs = self._env.num_envs
         self.agents = list(self._env.agents())
         self.obs_dim = self._env.obs_dim
+        high = self._env.observation_high()
+        # One agent's observation space (every agent's the same size): bounds from the layout.
+        self.single_observation_space = spaces.Box(-high, high, (self.obs_dim,), np.float32)
 
     def reset(self) -> np.ndarray:
         """The next episode in every world (the first call: world i's first episode, that of seed + i, as
@@ -179,9 +227,20 @@ class VecEnv:
 
     def step(self, actions: np.ndarray):
         """(observations, rewards ``[num_envs, agents]``, truncated ``[num_envs]``, infos): infos holds the
-        step's ``dos``, ``doa`` (headline species) and ``catches``, each ``[num_envs]``. A truncated world's
-        observations are already its next episode's first."""
-        return self._env.step(np.ascontiguousarray(actions, dtype=np.float32))
+        step's ``dos``, ``doa`` (headline species) and ``catches``, each ``[num_envs]``.
+
+        Autoreset as Gymnasium 1.x's ``AutoresetMode.SAME_STEP``: a truncated world's observations are
+        already its next episode's first, and its last observations (of the state its episode ended in,
+        ``[agents, d_o]``, to bootstrap values at the time limit) are ``infos["final_obs"][i]``, an object
+        array of ``num_envs`` entries (None where the world did not end), with the mask
+        ``infos["_final_obs"]``."""
+        obs, rewards, truncated, infos = self._env.step(np.ascontiguousarray(actions, dtype=np.float32))
+        final = np.empty(self.num_envs, dtype=object)
+        for i, last in enumerate(infos.pop("final_obs")):
+            final[i] = last
+        infos["final_obs"] = final
+        infos["_final_obs"] = np.asarray(truncated, dtype=bool).copy()
+        return obs, rewards, truncated, infos
 
     def metrics_header(self) -> str:
         """``metrics.csv``'s header (as ``coevo --train`` writes it) with the Python-decided species as the

@@ -11,7 +11,7 @@ use numpy::{IntoPyArray, PyArray1, PyArray2, PyArray3, PyArrayMethods, PyReadonl
 use pyo3::create_exception;
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use pyo3::types::PyDict;
+use pyo3::types::{PyDict, PyList};
 use std::path::Path;
 
 // coevo's error kinds as Python exceptions, all subclasses of `CoevoError` (itself a `ValueError`, which
@@ -107,6 +107,11 @@ impl Env {
     #[getter]
     fn obs_dim(&self) -> usize {
         self.inner.obs_dim()
+    }
+
+    /// Every observation lies in [−high, high] (`[d_o]`, from the observation's layout and the scene).
+    fn observation_high<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f32>> {
+        self.inner.observation_high().into_pyarray(py)
     }
 
     #[getter]
@@ -207,6 +212,11 @@ impl VecEnv {
         self.inner.obs_dim()
     }
 
+    /// Every observation lies in [−high, high] (`[d_o]`, from the observation's layout and the scene).
+    fn observation_high<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f32>> {
+        self.inner.observation_high().into_pyarray(py)
+    }
+
     fn agents(&self) -> Vec<String> {
         self.inner.agent_names()
     }
@@ -222,8 +232,9 @@ impl VecEnv {
     }
 
     /// One step of every world with `actions` `[num_envs, agents, 2]`: (observations, rewards
-    /// `[num_envs, agents]`, truncated `[num_envs]`, {"dos", "doa", "catches"} each `[num_envs]`); a
-    /// truncated world's observations are its next episode's first.
+    /// `[num_envs, agents]`, truncated `[num_envs]`, {"dos", "doa", "catches"} each `[num_envs]`, and
+    /// "final_obs", a list of `num_envs`); a truncated world's observations are its next episode's first,
+    /// and its last ones are its entry of "final_obs" (None for the other worlds).
     #[allow(clippy::type_complexity)]
     fn step<'py>(
         &mut self,
@@ -239,6 +250,16 @@ impl VecEnv {
         info.set_item("dos", r.dos.into_pyarray(py))?;
         info.set_item("doa", r.doa.into_pyarray(py))?;
         info.set_item("catches", r.catches.into_pyarray(py))?;
+        // Gymnasium's same-step autoreset: a truncated world's last observations, None for the others.
+        let [_, agents, dim] = self.shape();
+        let last = PyList::empty(py);
+        for o in r.final_observations {
+            match o {
+                Some(o) => last.append(o.into_pyarray(py).reshape([agents, dim])?)?,
+                None => last.append(py.None())?,
+            }
+        }
+        info.set_item("final_obs", last)?;
         Ok((
             r.observations.into_pyarray(py).reshape(self.shape())?,
             r.rewards.into_pyarray(py).reshape([n, a])?,

@@ -130,7 +130,27 @@ def test_render_gives_the_animation_frame():
     assert len(np.unique(image.reshape(-1, 3), axis=0)) > 10
     assert coevo.parallel_env(STANDARD).render() is None
     with pytest.raises(ValueError, match="render_mode"):
-        coevo.parallel_env(STANDARD, render_mode="human")
+        coevo.parallel_env(STANDARD, render_mode="ansi")
+    # "human": the same frame, shown (off-screen without a display), and None as PettingZoo asks.
+    human = coevo.parallel_env(STANDARD, render_mode="human", render_size=200)
+    human.reset()
+    assert human.render() is None
+    shown = np.asarray(human._window[1].get_array())
+    assert np.array_equal(shown, image), "the frame shown is the rgb_array frame"
+    human.close()
+    with pytest.raises(ValueError, match="max_cycles"):
+        coevo.parallel_env(STANDARD, max_cycles=4, episode_steps=5)
+
+
+def test_pettingzoo_render_and_max_cycles_tests_as_shipped(monkeypatch):
+    # PettingZoo's own tests, unmodified: render_test builds the AEC env in "human" and then in each of
+    # metadata's render modes; max_cycles_test calls the module's parallel_env(max_cycles=...) and
+    # env(max_cycles=...) with their default scene (scenes/standard.ron, from the project's folder).
+    from pettingzoo.test import max_cycles_test, render_test
+
+    render_test(lambda render_mode=None: coevo.env(STANDARD, render_mode=render_mode, render_size=64))
+    monkeypatch.chdir(ROOT)
+    max_cycles_test(coevo)
 
 
 def test_vecenv_infos_and_metrics_rows():
@@ -146,7 +166,7 @@ def test_vecenv_infos_and_metrics_rows():
     rows = []
     for t in range(5):
         _, _, truncated, infos = vec.step(actions)
-        assert set(infos) == {"dos", "doa", "catches"} and infos["doa"].shape == (3,)
+        assert set(infos) == {"dos", "doa", "catches", "final_obs", "_final_obs"} and infos["doa"].shape == (3,)
         for i, s in enumerate(single):
             _, _, _, info = s.step(actions[i])
             assert infos["doa"][i] == info["doa"] and infos["catches"][i] == info["catches"]
@@ -319,3 +339,51 @@ def test_a_refused_vector_step_changes_no_world():
         vec.step(bad)
     a, b = vec.step(good), twin.step(good)
     assert np.array_equal(a[0], b[0]) and np.array_equal(a[1], b[1]), "no world stepped on the refused call"
+
+
+def test_a_truncated_worlds_last_observations_are_returned():
+    # Gymnasium 1.x's SAME_STEP autoreset: at the time limit a world's observations are its next episode's
+    # first, and infos["final_obs"][i] holds the last ones, those parallel_env(seed=seed + i) returns at
+    # the same step of a manual rollout with the same actions (so values can be bootstrapped there).
+    vec = coevo.VecEnv(STANDARD, num_envs=3, seed=11, episode_steps=4)
+    vec.reset()
+    manual = [coevo.parallel_env(STANDARD, seed=11 + i, episode_steps=4) for i in range(3)]
+    for par in manual:
+        par.reset()
+    rng = np.random.default_rng(2)
+    for t in range(4):
+        actions = rng.uniform(-1, 1, (3, 13, 2)).astype(np.float32)
+        obs, _, truncated, infos = vec.step(actions)
+        assert infos["final_obs"].shape == (3,) and infos["final_obs"].dtype == object
+        assert np.array_equal(infos["_final_obs"], truncated)
+        for i, par in enumerate(manual):
+            last, _, _, truncations, _ = par.step({a: actions[i][k] for k, a in enumerate(par.agents)})
+            last = np.stack(list(last.values()))
+            if t < 3:
+                assert not truncated[i] and infos["final_obs"][i] is None, (t, i)
+                assert np.array_equal(obs[i], last), (t, i)
+            else:
+                assert truncated[i] and all(truncations.values()), i
+                assert np.array_equal(infos["final_obs"][i], last), i
+                assert not np.array_equal(obs[i], last), "the next episode's first observations"
+                first, _ = par.reset()
+                assert np.array_equal(obs[i], np.stack([first[a] for a in par.agents])), i
+
+
+def test_observation_bounds_come_from_the_layout():
+    # Declared from the layout, not ±inf, and every observation of a random rollout lies inside them (the
+    # PettingZoo API test checks the same on the standard scene).
+    for scene in ["standard.ron", "paper.ron", "confined.ron"]:
+        env = coevo.parallel_env(os.path.join(ROOT, "scenes", scene), episode_steps=50)
+        obs, _ = env.reset(seed=1)
+        space = env.observation_space(env.agents[0])
+        assert np.all(np.isfinite(space.high)) and np.all(space.high <= 3.0), scene
+        rng = np.random.default_rng(0)
+        for _ in range(120):
+            if not env.agents:
+                obs, _ = env.reset()
+            assert all(space.contains(o) for o in obs.values()), scene
+            obs, *_ = env.step({a: rng.choice([-1.0, 1.0], 2).astype(np.float32) for a in env.agents})
+    vec = coevo.VecEnv(STANDARD, num_envs=2, seed=0)
+    single = coevo.parallel_env(STANDARD)
+    assert np.array_equal(vec.single_observation_space.high, single.observation_space("prey_0").high)

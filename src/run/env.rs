@@ -138,6 +138,20 @@ impl Env {
         self.obs_dim
     }
 
+    /// The bound of each number of an observation (`sim::perception::observation_high`; the largest over
+    /// the externally decided species): every observation lies in [−high, high].
+    pub fn observation_high(&self) -> Vec<f32> {
+        let registry = self.world.resource::<SpeciesRegistry>();
+        let scene = &self.world.resource::<crate::sim::ActiveScene>().0;
+        let mut high = vec![0.0f32; self.obs_dim];
+        for &(s, _) in &self.external {
+            for (h, x) in high.iter_mut().zip(crate::sim::perception::observation_high(scene, registry, s)) {
+                *h = h.max(x);
+            }
+        }
+        high
+    }
+
     pub fn scene(&self) -> &Scene {
         &self.scene
     }
@@ -347,6 +361,11 @@ impl VecEnv {
 
     pub fn obs_dim(&self) -> usize {
         self.envs[0].obs_dim()
+    }
+
+    /// [`Env::observation_high`] (the same in every world).
+    pub fn observation_high(&self) -> Vec<f32> {
+        self.envs[0].observation_high()
     }
 
     /// The agents' names (the same in every world).

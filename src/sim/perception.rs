@@ -390,6 +390,58 @@ fn observe_rows(
     }
 }
 
+/// The largest magnitude each number of an observation of species `s` can take ([`observe_rows`]), so an
+/// environment can declare its bounds: every observation lies in [−high, high]. Positions lie in the arena
+/// (with walls, at most as far into a wall as a centre may sink before the state is refused as escaped,
+/// `physics::apply_boundary`); velocities within the speed clip (the last change of a step's velocity);
+/// headings are unit vectors and the turn command lies in [−1, 1]; displacements within the minimum
+/// image on the torus (both centres' reach with walls); heading differences within 2. In the body frame a
+/// vector's rotated components are bounded by its length. Every neighbour slot takes the bound of the
+/// farthest-reaching species, so shuffled slots stay inside; a margin of 1e-6 covers rounding.
+pub fn observation_high(scene: &Scene, registry: &SpeciesRegistry, s: usize) -> Vec<f32> {
+    let w = &scene.world;
+    let half = w.arena_edge / 2.0;
+    let walls = w.boundary == crate::scene::Boundary::Walls;
+    let reach = |t: usize| {
+        let d = &registry.defs[t];
+        if walls {
+            half + d.radius + d.max_speed * w.dt * 2.0
+        } else {
+            half
+        }
+    };
+    let far = (0..registry.len()).map(reach).fold(0.0, f64::max);
+    let offset = if walls { reach(s) + far } else { half };
+    let speed = registry.defs[s].max_speed;
+    let own: [f64; OWN_STATE_DIM] = match scene.observation_frame {
+        ObservationFrame::World => [reach(s), reach(s), speed, speed, 1.0, 1.0],
+        ObservationFrame::Body => {
+            // Per-component clipping allows a speed of √2 times the limit along the diagonal.
+            let v = match w.speed_clip {
+                crate::scene::SpeedClip::Norm => speed,
+                crate::scene::SpeedClip::PerComponent => speed * std::f64::consts::SQRT_2,
+            };
+            let wall = if walls { reach(s) } else { 0.0 };
+            [v, v, 1.0, wall, wall, 0.0]
+        }
+    };
+    let slot: [f64; NEIGHBOUR_DIM] = match scene.observation_frame {
+        ObservationFrame::World => [offset, offset, 2.0, 2.0],
+        ObservationFrame::Body => [offset * std::f64::consts::SQRT_2; 2]
+            .into_iter()
+            .chain([2.0, 2.0])
+            .collect::<Vec<_>>()
+            .try_into()
+            .expect("four"),
+    };
+    let mut high: Vec<f64> = own.to_vec();
+    high.resize(registry.observation_dim(s), 0.0);
+    for chunk in high[OWN_STATE_DIM..].chunks_exact_mut(NEIGHBOUR_DIM) {
+        chunk.copy_from_slice(&slot);
+    }
+    high.into_iter().map(|x| (x * (1.0 + 1e-6)) as f32).collect()
+}
+
 /// The displacement from `x` to the nearest point of the walls; zero on the torus, which has none.
 pub fn nearest_wall(arena: &Arena, x: DVec2) -> DVec2 {
     if arena.boundary == crate::scene::Boundary::Periodic {

@@ -118,3 +118,55 @@ fn bad_actions_and_scenes_are_one_line() {
     assert!(Env::new(scene).err().unwrap().to_string().contains("no Learned species"));
     assert!(VecEnv::new(standard(1), 0, 1).err().unwrap().to_string().contains("num_envs: must be ≥ 1"));
 }
+
+#[test]
+fn every_observation_lies_within_the_declared_bounds() {
+    // Random actions at full thrust and turn, in each shipped kind of world (torus and walls, both
+    // presets, the body frame, a shuffled control): every number stays in [−high, high], and the bounds
+    // are tight enough to say something (positions within the arena's half edge plus a body's reach).
+    use rand::{Rng, SeedableRng};
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+    for (file, frame, control) in [
+        ("scenes/standard.ron", None, None),
+        ("scenes/paper.ron", None, None),
+        ("scenes/confined.ron", None, None),
+        ("scenes/confined.ron", Some(coevo::scene::ObservationFrame::Body), None),
+        ("scenes/standard.ron", Some(coevo::scene::ObservationFrame::Body), Some("shuffled:prey:prey")),
+    ] {
+        let mut scene = Scene::load(std::path::Path::new(file)).unwrap();
+        scene.episode_steps = 100;
+        if let Some(frame) = frame {
+            scene.observation_frame = frame;
+        }
+        let world_frame = scene.observation_frame == coevo::scene::ObservationFrame::World;
+        let mut env = match control {
+            Some(c) => {
+                Env::with_control(scene, coevo::learning::control::ObservationControl::parse(&[c.to_string()]).unwrap())
+                    .unwrap()
+            }
+            None => Env::new(scene).unwrap(),
+        };
+        let high = env.observation_high();
+        assert_eq!(high.len(), env.obs_dim());
+        if world_frame {
+            assert!(high[..2].iter().all(|&h| (1.0..1.2).contains(&h)), "{file}: {:?}", &high[..6]);
+        }
+        let mut seen = 0.0f32;
+        for _ in 0..300 {
+            let actions: Vec<f32> = (0..env.agents().len() * 2).map(|_| if rng.gen() { 1.0 } else { -1.0 }).collect();
+            let r = env.step(&actions).unwrap();
+            for (k, (x, h)) in r.observations.iter().zip(high.iter().cycle()).enumerate() {
+                assert!(
+                    x.abs() <= *h,
+                    "{file} {frame:?}: number {} of an observation is {x}, beyond ±{h}",
+                    k % high.len()
+                );
+                seen = seen.max(x.abs() / h);
+            }
+            if r.truncated {
+                env.reset(None).unwrap();
+            }
+        }
+        assert!(seen > 0.5, "{file}: the largest value reaches {seen} of its bound");
+    }
+}
