@@ -177,8 +177,16 @@ class CoevoParallelEnv(_ParallelEnv):
                 self._window = (figure, axes.imshow(frame))
             else:
                 self._window[1].set_data(frame)
-            if matplotlib.get_backend().lower() == "agg":
-                self._window[0].canvas.draw()  # no display: drawn off-screen
+            try:  # matplotlib ≥ 3.9 lists its backends; older ones name the non-interactive ones in rcsetup
+                from matplotlib.backends import BackendFilter, backend_registry
+
+                offscreen = backend_registry.list_builtin(BackendFilter.NON_INTERACTIVE)
+            except ImportError:
+                from matplotlib import rcsetup
+
+                offscreen = getattr(rcsetup, "non_interactive_bk", ["agg"])
+            if matplotlib.get_backend().lower() in offscreen:
+                self._window[0].canvas.draw()  # no display (agg, pdf, svg, ...): drawn off-screen
             else:
                 plt.pause(1.0 / self.metadata["render_fps"])
         return None

@@ -46,25 +46,13 @@ pub fn aggregate(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> crate::er
         None => table,
     };
     // No interim analysis: an experiment judged when complete shows no number of its runs until then.
-    let finished = table.runs(exp).len();
-    let blind = exp.spec.judged_when_complete && finished < exp.runs.len();
+    let blind = in_progress(exp, &table);
     let means = if blind {
         summary::means_text(exp, &Summary::default(), &quantities)
     } else {
         summary::means_text(exp, &table, &quantities)
     };
     let mut results = tests(exp, &table);
-    if blind {
-        for r in &mut results {
-            *r = ClaimResult {
-                estimate: None,
-                p: None,
-                same_test: None,
-                verdict: in_progress(finished, exp.runs.len()),
-                ..r.clone()
-            };
-        }
-    }
     let mut saved = 0;
     if let Some(drawn) = drawn.as_ref().filter(|_| !blind) {
         for preset in &exp.spec.presets {
@@ -118,9 +106,10 @@ pub struct Aggregated {
 const OVERLAP: &str =
     "not measured: runs shorter than 200 episodes, too short for a change over training (windows that overlap)";
 
-/// The verdict of every claim of an experiment judged when complete whose runs are not all finished.
-pub fn in_progress(finished: usize, runs: usize) -> String {
-    format!("in progress: {finished} of {runs} runs finished; judged when all are (no interim analysis)")
+/// Whether an experiment judged when complete (`judged_when_complete`) has runs still to finish: then no
+/// estimate, verdict, mean or figure of its runs is shown (no interim analysis).
+pub fn in_progress(exp: &Experiment, table: &Summary) -> bool {
+    exp.spec.judged_when_complete && table.runs(exp).len() < exp.runs.len()
 }
 
 /// The verdict on a comparison of two variants whose runs are identical.
@@ -165,6 +154,37 @@ fn with_curve_columns(
 /// experiment's summary.csv): its estimate and unadjusted p-value, not yet adjusted or judged.
 pub fn tests(exp: &Experiment, table: &Summary) -> Vec<ClaimResult> {
     let mut results = Vec::new();
+    // An experiment judged when complete, in progress: every claim says so, untested (no interim analysis),
+    // also where another file's report reads its committed summary for a shared family.
+    if in_progress(exp, table) {
+        let verdict = format!(
+            "in progress: {} of {} runs finished; judged when all are (no interim analysis)",
+            table.runs(exp).len(),
+            exp.runs.len()
+        );
+        for preset in &exp.spec.presets {
+            for claim in &exp.spec.claims {
+                let scene =
+                    exp.runs.iter().find(|r| r.preset == *preset && r.variant == claim.variant).map(|r| &r.scene);
+                results.push(ClaimResult {
+                    experiment: exp.name.clone(),
+                    preset: preset.clone(),
+                    claim: claim.clone(),
+                    estimate: None,
+                    p: None,
+                    p_holm: None,
+                    level: None,
+                    family_tests: 0,
+                    same_test: None,
+                    same_as: None,
+                    stated: registry::Stated::Unknown,
+                    baseline: chance_level(exp, claim, scene),
+                    verdict: verdict.clone(),
+                });
+            }
+        }
+        return results;
+    }
     for preset in &exp.spec.presets {
         for claim in &exp.spec.claims {
             let samples = |variant: &str| table.values(exp, preset, variant, &claim.quantity);

@@ -19,11 +19,15 @@ pub const FILE: &str = "runs.csv";
 
 /// What a committed row is a row of, as one word: the first 16 hex digits of the BLAKE3 hash of the run's
 /// scene (seed included) and of what the experiment asks of a finished run: each evaluation's name,
-/// episodes, what its actors see, its perturbation and the scene it is evaluated in, and the cross-play's
-/// episodes. A row is carried only while the experiment file asks for the same.
+/// episodes, what its actors see, whether it deploys untrained actors, its perturbation and the scene it
+/// is evaluated in, and the cross-play's episodes. A row is carried only while the experiment file asks for the same.
 pub fn identity(exp: &Experiment, run: &super::file::Run) -> String {
     let mut what = run.scene.to_ron();
     for e in &exp.spec.evaluations {
+        // Added to the words only when set, so the identities of rows recorded before it stay valid.
+        if e.untrained {
+            what.push_str("\nuntrained");
+        }
         let mut evaluated = run.scene.clone();
         // The overrides were applied when the experiment was loaded: they cannot fail here.
         let _ = e.overrides().apply(&mut evaluated, std::path::Path::new(""));
@@ -97,23 +101,36 @@ fn uncarriable(exp: &Experiment, i: usize, recorded: &BTreeMap<usize, String>) -
     }
 }
 
-/// The runs finished on another machine: a committed row of the scene the experiment file gives them,
-/// and no folder here (a folder here is the run, whatever its stage). An experiment whose committed rows
-/// cannot be carried has none; aggregation says why ([`carried`]).
-pub fn finished_elsewhere(exp: &Experiment) -> crate::error::Result<BTreeSet<usize>> {
-    let Some(summary) = Summary::read(&exp.root.join("summary.csv"))? else { return Ok(BTreeSet::new()) };
+/// The runs finished on another machine, each with the binaries that made it: a committed row of the
+/// scene and evaluations the experiment file gives it now, with its curves in the committed figure data,
+/// and no folder here (a folder here is resumed or rerun, and aggregated when it is finished). An
+/// experiment whose committed rows cannot be carried has none, so the runner runs them again.
+pub fn finished_elsewhere(exp: &Experiment) -> crate::error::Result<BTreeMap<usize, String>> {
+    let Some(summary) = Summary::read(&exp.root.join("summary.csv"))? else { return Ok(BTreeMap::new()) };
     // A summary without every column written now (an older coevo's) carries nothing: its runs are rerun.
     let header = super::summary::header(&super::summary::columns(exp));
     if header.iter().any(|c| !summary.columns.contains(c)) {
-        return Ok(BTreeSet::new());
+        return Ok(BTreeMap::new());
     }
     let recorded = recorded(exp)?;
-    Ok(summary
+    let elsewhere: BTreeMap<usize, String> = summary
         .runs(exp)
         .into_iter()
-        .map(|(i, _)| i)
-        .filter(|&i| !crate::run::is_run(&exp.runs[i].dir) && uncarriable(exp, i, &recorded).is_none())
-        .collect())
+        .filter(|&(i, _)| !crate::run::is_run(&exp.runs[i].dir) && uncarriable(exp, i, &recorded).is_none())
+        .map(|(i, row)| (i, row.binary.clone()))
+        .collect();
+    let indices: Vec<usize> = elsewhere.keys().copied().collect();
+    match figure_data::read(exp, &indices) {
+        Ok(Some(_)) => Ok(elsewhere),
+        _ if indices.is_empty() => Ok(elsewhere),
+        _ => Ok(BTreeMap::new()),
+    }
+}
+
+/// The committed runs of the experiment file (rows of its committed summary.csv), by run index.
+pub fn committed_runs(exp: &Experiment) -> crate::error::Result<BTreeSet<usize>> {
+    Ok(Summary::read(&exp.root.join("summary.csv"))?
+        .map_or(BTreeSet::new(), |s| s.runs(exp).into_iter().map(|(i, _)| i).collect()))
 }
 
 /// What aggregation carries of the committed results: the summary line and the figure data of each
@@ -135,13 +152,21 @@ pub fn carried(exp: &Experiment, data: &BTreeMap<usize, RunData>, header: &[Stri
     }
     let text = crate::io::read_text(&path, crate::io::MAX_TEXT_BYTES)?;
     let summary = Summary::parse(&text, &path)?;
-    let missing: Vec<usize> = summary.runs(exp).into_iter().map(|(i, _)| i).filter(|i| !data.contains_key(i)).collect();
+    // A run twice in the summary (two machines' rows merged by hand) is carried once.
+    let missing: Vec<usize> = summary
+        .runs(exp)
+        .into_iter()
+        .map(|(i, _)| i)
+        .filter(|i| !data.contains_key(i))
+        .collect::<BTreeSet<usize>>()
+        .into_iter()
+        .collect();
     if missing.is_empty() {
         return Ok(Carried::default());
     }
     let refuse = |why: String| -> crate::error::Error {
         format!(
-            "{}: holds {} runs whose folders are not here, and {why}; nothing written: run `coevo --experiment {}` to rebuild them, or move the summary away",
+            "{}: holds {} runs not finished here (no folder, or evaluations still to come), and {why}; nothing written: run `coevo --experiment {}` to rebuild them, or move the summary away",
             path.display(),
             missing.len(),
             exp.file.display()
@@ -188,14 +213,7 @@ pub fn carried(exp: &Experiment, data: &BTreeMap<usize, RunData>, header: &[Stri
         if !missing.contains(&i) {
             continue;
         }
-        let cells: Vec<String> = header
-            .iter()
-            .zip(&at)
-            .map(|(name, &k)| match name.as_str() {
-                "preset" | "variant" | "binary" => csv_text(&record[k]),
-                _ => record[k].to_string(),
-            })
-            .collect();
+        let cells: Vec<String> = header.iter().zip(&at).map(|(_, &k)| csv_text(&record[k])).collect();
         lines.insert(i, cells.join(","));
     }
     let figures = figure_data::read(exp, &missing)

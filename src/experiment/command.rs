@@ -246,7 +246,9 @@ fn report(exp: Experiment, aggregated: aggregate::Aggregated) -> crate::error::R
     let mut binaries: Vec<String> = summary.rows.iter().flat_map(|r| r.binary.split(' ').map(String::from)).collect();
     binaries.sort();
     binaries.dedup();
-    let reported = Reported { finished: summary.rows.len(), shared, exp, results, seconds, binaries, summary };
+    // Rows of runs the file still has (a summary may hold runs of seeds since removed from the file).
+    let finished = summary.runs(&exp).len();
+    let reported = Reported { finished, shared, exp, results, seconds, binaries, summary };
     let root = &reported.exp.root;
     let path = root.join(REPORT);
     std::fs::create_dir_all(root).map_err(|e| format!("{}: {e}", root.display()))?;
@@ -325,8 +327,9 @@ pub fn plot(dir: &Path, partial: bool) -> crate::error::Result<()> {
 /// finished elsewhere ([`super::carry`]), or, with no folder here (a clone), the rows of its committed summary.csv that are runs of the file.
 fn finished(exp: &Experiment, data: &BTreeMap<usize, super::claims::RunData>) -> crate::error::Result<usize> {
     if !data.is_empty() {
-        // With the committed runs finished elsewhere, which aggregation carries.
-        return Ok(data.len() + super::carry::finished_elsewhere(exp)?.len());
+        // With the committed runs not finished here, which aggregation carries.
+        let committed = super::carry::committed_runs(exp)?;
+        return Ok(data.len() + committed.iter().filter(|i| !data.contains_key(i)).count());
     }
     Ok(Summary::read(&exp.root.join("summary.csv"))?.map_or(0, |s| s.runs(exp).len()))
 }

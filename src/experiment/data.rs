@@ -1,5 +1,5 @@
 //! An experiment's finished runs, loaded from their CSV files (never retraining) and checked: one
-//! binary, every committed run present.
+//! binary, and every committed run either here or carried (`carry`).
 
 use super::claims::{EvalData, RunData};
 use super::file::Experiment;

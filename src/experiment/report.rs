@@ -332,7 +332,9 @@ fn section(md: &mut String, Reported { exp, results, finished, summary, .. }: &R
         )
         .unwrap();
     }
-    for preset in &exp.spec.presets {
+    // No figure of an experiment judged when complete before it is (figures of an earlier look may remain).
+    let in_progress = exp.spec.judged_when_complete && *finished < exp.runs.len();
+    for preset in exp.spec.presets.iter().filter(|_| !in_progress) {
         let shown: Vec<String> = ["variants", "training"]
             .iter()
             .map(|what| format!("{preset}-{what}.svg"))

@@ -270,10 +270,23 @@ fn prepare(exp: &Experiment) -> crate::error::Result<()> {
 /// Runs the experiment's runs (all, or only `only`, an index into `exp.runs` as a Slurm array task
 /// does), `jobs` at a time. Every run is attempted; Err lists the ones that failed.
 pub fn run(exp: &Experiment, opts: &RunnerOptions, only: Option<usize>) -> crate::error::Result<()> {
-    prepare(exp)?;
     // Runs finished on another machine: their rows are committed, and aggregation carries them.
     let elsewhere = super::carry::finished_elsewhere(exp)?;
-    let done = |i: usize| elsewhere.contains(&i) || finished(exp, &exp.runs[i]);
+    // They are carried only beside runs of the same binary: another coevo continuing them is refused now,
+    // not after hours of runs that aggregation would then refuse to mix with them.
+    let me = crate::run::provenance::binary();
+    if let Some((&i, other)) = elsewhere.iter().find(|(_, b)| b.split(' ').any(|b| b != me)) {
+        if !exp.spec.mixed_binaries {
+            return Err(format!(
+                "{}: the committed run {} was made by the coevo binary {other}, this one is {me}; continue the experiment with that binary (see the experiment file), or set mixed_binaries: true",
+                exp.file.display(),
+                super::figure_data::key(&exp.runs[i])
+            )
+            .into());
+        }
+    }
+    prepare(exp)?;
+    let done = |i: usize| elsewhere.contains_key(&i) || finished(exp, &exp.runs[i]);
     // The claims are recorded before the runs they are judged on (the registry flags later edits).
     let unfinished = |variant: &str| (0..exp.runs.len()).any(|i| exp.runs[i].variant == variant && !done(i));
     super::registry::record(exp, &unfinished)?;
@@ -305,7 +318,7 @@ pub fn run(exp: &Experiment, opts: &RunnerOptions, only: Option<usize>) -> crate
                 let i = next.fetch_add(1, Ordering::SeqCst);
                 let Some(&i) = runs.get(i) else { break };
                 let run = &exp.runs[i];
-                if elsewhere.contains(&i) {
+                if elsewhere.contains_key(&i) {
                     continue;
                 }
                 if finished(exp, run) {

@@ -92,7 +92,7 @@ pub fn text(
             line.push_str(&field(quantity(exp, d, q)));
         }
         let (r0, r1) = (window_mean(&d.returns, true), window_mean(&d.returns, false));
-        let shared = r.shared_from.as_deref().unwrap_or("");
+        let shared = csv_text(r.shared_from.as_deref().unwrap_or(""));
         write!(line, ",{r0},{r1},{},{},{shared}", d.wall_seconds, csv_text(&d.binaries.join(" "))).unwrap();
         for (_, q) in &curves {
             line.push_str(&field(quantity(exp, d, q)));

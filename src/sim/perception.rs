@@ -396,8 +396,9 @@ fn observe_rows(
 /// `physics::apply_boundary`); velocities within the speed clip (the last change of a step's velocity);
 /// headings are unit vectors and the turn command lies in [−1, 1]; displacements within the minimum
 /// image on the torus (both centres' reach with walls); heading differences within 2. In the body frame a
-/// vector's rotated components are bounded by its length. Every neighbour slot takes the bound of the
-/// farthest-reaching species, so shuffled slots stay inside; a margin of 1e-6 covers rounding.
+/// vector's rotated components are bounded by its length. With walls every neighbour block takes the bound
+/// of the farthest-reaching species (one bound for every observed species); a margin of 1e-6 covers
+/// rounding.
 pub fn observation_high(scene: &Scene, registry: &SpeciesRegistry, s: usize) -> Vec<f32> {
     let w = &scene.world;
     let half = w.arena_edge / 2.0;

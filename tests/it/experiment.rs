@@ -514,7 +514,7 @@ fn a_tiny_experiment_runs_resumes_and_gives_the_same_summary_at_one_or_two_jobs(
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && stderr.lines().count() == 1, "{stderr}");
     assert!(
-        stderr.contains("results/tiny/summary.csv: holds 3 runs whose folders are not here, and paper/1:1/seed1's committed row is of another scene or evaluations than experiments/tiny.ron asks for now"),
+        stderr.contains("results/tiny/summary.csv: holds 3 runs not finished here (no folder, or evaluations still to come), and paper/1:1/seed1's committed row is of another scene or evaluations than experiments/tiny.ron asks for now"),
         "{stderr}"
     );
     assert_eq!(committed("results/tiny/summary.csv"), summary_before, "nothing written");
@@ -534,6 +534,15 @@ fn a_tiny_experiment_runs_resumes_and_gives_the_same_summary_at_one_or_two_jobs(
         stderr.contains("runs of more than one binary (the committed paper/1:1/seed1 by 0123456789abcdef"),
         "{stderr}"
     );
+    // The runner refuses to continue them with another binary before running anything.
+    let out = coevo(one.path(), &["--experiment", "experiments/tiny.ron", "--quiet"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && stderr.lines().count() == 1, "{stderr}");
+    assert!(
+        stderr.contains("the committed run paper/1:1/seed1 was made by the coevo binary 0123456789abcdef"),
+        "{stderr}"
+    );
+    assert!(!one.path().join("results/tiny/paper/1-1").exists(), "nothing written");
     std::fs::write(&summary, &ledger).unwrap();
     std::fs::rename(one.path().join("elsewhere-1-1"), one.path().join("results/tiny/paper/1-1")).unwrap();
     std::fs::write(&tiny, TINY).unwrap();
@@ -1078,11 +1087,27 @@ fn every_committed_mean_rederives_from_its_summary() {
         let Ok(committed) = std::fs::read_to_string(exp.root.join("summary-mean.csv")) else { continue };
         let table = coevo::experiment::summary::Summary::read(&exp.root.join("summary.csv")).unwrap().unwrap();
         let means = coevo::experiment::summary::means_text(&exp, &table, &coevo::experiment::summary::columns(&exp));
+        if coevo::experiment::aggregate::in_progress(&exp, &table) {
+            assert_eq!(
+                committed, "preset,variant,quantity,seeds,mean,ci95\n",
+                "{}: no mean while in progress",
+                exp.name
+            );
+            continue;
+        }
         let derived: std::collections::BTreeSet<&str> = means.lines().collect();
         for line in committed.lines() {
             assert!(derived.contains(line), "{}: {line} is not what its summary gives", exp.name);
             checked += 1;
         }
+        // Summaries written before the curve columns gained them later (from the committed figure data),
+        // and their means were written without those lines: every other line must be there.
+        let curves: Vec<String> = coevo::experiment::summary::curve_columns().into_iter().map(|(c, _)| c).collect();
+        let extra: Vec<&&str> = derived
+            .iter()
+            .filter(|l| !committed.lines().any(|c| c == **l) && !curves.iter().any(|c| l.contains(&format!(",{c},"))))
+            .collect();
+        assert!(extra.is_empty(), "{}: lines its summary-mean.csv lacks: {extra:?}", exp.name);
     }
     assert!(checked > 1000, "{checked} lines");
 }
