@@ -2,8 +2,9 @@
 //! binary, and every committed run either here or carried (`carry`).
 
 use super::claims::{EvalData, RunData};
+use super::file::eval_file;
 use super::file::Experiment;
-use super::runner::{eval_file, stage, Stage};
+use super::runner::{stage, Stage};
 use super::stats::mean;
 use crate::run::schema::{self, Table};
 use crate::run::RunDir;

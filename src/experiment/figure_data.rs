@@ -13,8 +13,8 @@
 
 use super::claims::RunData;
 use super::crossplay_matrix::{Cell, Matrix, Pair};
+use super::file::eval_file;
 use super::file::{Experiment, Run};
-use super::runner::eval_file;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::io::{Read, Write};

@@ -325,6 +325,11 @@ pub struct Experiment {
 /// which file systems cap at 255 bytes.
 pub(super) const MAX_NAME: usize = 100;
 
+/// The file an evaluation of a run writes (named by the run folder's owner, `run::RunDir`).
+pub fn eval_file(dir: &std::path::Path, evaluation: &str) -> std::path::PathBuf {
+    crate::run::RunDir::new(dir).evaluation(&slug(evaluation))
+}
+
 /// A folder-safe version of a name: runs of other characters become one `-` ("5:3" → "5-3",
 /// "n0 = 1" → "n0-1", "50 prey, blind" → "50-prey-blind").
 pub fn slug(name: &str) -> String {

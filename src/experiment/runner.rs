@@ -4,7 +4,7 @@
 //! child writes is atomic or checkpointed, so the experiment can be killed at any moment and run again
 //! to continue; no finished run is redone.
 
-use super::file::{slug, Experiment, Run};
+use super::file::{eval_file, Experiment, Run};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -57,11 +57,6 @@ pub fn stage(run: &Run) -> crate::error::Result<Stage> {
         );
     }
     Ok(if state.episodes_done >= run.scene.episodes { Stage::Trained } else { Stage::Partial(state.episodes_done) })
-}
-
-/// The file an evaluation of a run writes.
-pub fn eval_file(dir: &Path, evaluation: &str) -> PathBuf {
-    crate::run::RunDir::new(dir).evaluation(&slug(evaluation))
 }
 
 /// Runs one child process; Err is its one-line error.
