@@ -2,7 +2,10 @@
 
 import os
 
-import numpy as np
+# render_mode="human" draws off-screen in the tests, whatever display the machine has.
+os.environ.setdefault("MPLBACKEND", "Agg")
+
+import numpy as np  # noqa: E402
 import pytest
 from pettingzoo.test import parallel_api_test, parallel_seed_test
 
