@@ -1051,11 +1051,14 @@ fn the_committed_results_are_what_plot_all_regenerates_from_them() {
     }
     std::fs::copy("REPRODUCTION.md", dir.path().join("REPRODUCTION.md")).unwrap();
     let committed = files_under(&dir.path().join("results"));
-    // The figures of every experiment with figure data go, so they must be redrawn.
+    // The figures of every experiment with figure data go, so they must be redrawn. (An experiment still in
+    // progress has figure data and no figure, so no committed `figures/`: a clean clone has no such folder.)
     let mut redrawn = 0;
     for experiment in std::fs::read_dir(dir.path().join("results")).unwrap().map(|e| e.unwrap().path()) {
-        if experiment.join("figure-data.ron.gz").exists() && experiment.join("figures").exists() {
-            std::fs::remove_dir_all(experiment.join("figures")).unwrap();
+        if experiment.join("figure-data.ron.gz").exists() {
+            if experiment.join("figures").exists() {
+                std::fs::remove_dir_all(experiment.join("figures")).unwrap();
+            }
             redrawn += 1;
         }
     }
