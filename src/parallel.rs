@@ -49,25 +49,221 @@ pub fn single_threaded_kernels() {
 
 /// Runs `f` on every item, up to [`threads`] at a time; each item is processed exactly as it would be
 /// sequentially (the caller keeps the items independent: their own buffers, their own random streams).
+///
+/// The items are handed out one at a time, first come first served, to the calling thread and to the
+/// idle threads of a pool that lives as long as the process ([`Pool`]). So a worker that the machine does
+/// not schedule (other work on its core) takes no item and holds nothing up: the calling thread does its
+/// share, and waits only for items a worker has actually begun. Which thread computes an item never
+/// changes what it computes.
 pub fn for_each_mut<T: Send>(items: &mut [T], f: impl Fn(&mut T) + Sync) {
-    let workers = threads().min(items.len());
+    for_each_mut_on(items, threads(), f);
+}
+
+/// [`for_each_mut`] on at most `workers` threads (at least one, at most [`threads`]).
+pub fn for_each_mut_on<T: Send>(items: &mut [T], workers: usize, f: impl Fn(&mut T) + Sync) {
+    let workers = workers.clamp(1, threads()).min(items.len());
     if workers <= 1 {
         items.iter_mut().for_each(f);
         return;
     }
-    // Contiguous groups, one per worker; the calling thread takes the first.
-    let per = items.len().div_ceil(workers);
-    std::thread::scope(|scope| {
-        let mut groups = items.chunks_mut(per);
-        let first = groups.next();
-        for group in groups {
-            let f = &f;
-            scope.spawn(move || group.iter_mut().for_each(f));
+    let base = SendPtr(items.as_mut_ptr());
+    let run = move |i: usize| {
+        let base = &base; // the whole wrapper, so the closure is Sync whatever T is
+                          // SAFETY: `Job` hands out each index below `items.len()` exactly once, and `Pool::run` returns
+                          // only when every item handed out is finished, so each &mut is unique and outlives no borrow.
+        f(unsafe { &mut *base.0.add(i) })
+    };
+    Pool::global().run(items.len(), workers - 1, &run);
+}
+
+/// Learns, for work repeated many times over (a `VecEnv` step), whether one thread or all of them
+/// ([`threads`]) finishes it sooner, from the wall time of the last calls: on a busy machine a step on
+/// all threads can wait for a thread the machine runs late, and one thread is then faster. Every
+/// [`Adaptive::EXPLORE_EVERY`]th call tries the other choice, so a change in the machine's load is seen.
+/// Only speed depends on it: which thread computes an item never changes what it computes.
+#[derive(Clone, Debug, Default)]
+pub struct Adaptive {
+    /// Running mean of seconds per call, on one thread (0) and on all (1); None until tried.
+    seconds: [Option<f64>; 2],
+    calls: u64,
+}
+
+impl Adaptive {
+    /// One call in this many runs on the choice that looks slower.
+    pub const EXPLORE_EVERY: u64 = 32;
+    /// Weight of the newest call in the running means.
+    const WEIGHT: f64 = 0.125;
+
+    /// Runs `f` with the worker count to use (1 or [`threads`]) and learns from its wall time.
+    pub fn run<R>(&mut self, f: impl FnOnce(usize) -> R) -> R {
+        self.run_among(threads(), f)
+    }
+
+    fn run_among<R>(&mut self, all: usize, f: impl FnOnce(usize) -> R) -> R {
+        if all <= 1 {
+            return f(1);
         }
-        if let Some(group) = first {
-            group.iter_mut().for_each(&f);
+        let choice = match self.seconds {
+            [None, _] => 0,
+            [_, None] => 1,
+            [Some(one), Some(many)] => {
+                let better = usize::from(many < one);
+                if self.calls % Self::EXPLORE_EVERY == Self::EXPLORE_EVERY - 1 {
+                    1 - better
+                } else {
+                    better
+                }
+            }
+        };
+        self.calls += 1;
+        let start = std::time::Instant::now();
+        let out = f(if choice == 0 { 1 } else { all });
+        let took = start.elapsed().as_secs_f64();
+        let mean = &mut self.seconds[choice];
+        *mean = Some(mean.map_or(took, |m| m + Self::WEIGHT * (took - m)));
+        out
+    }
+}
+
+/// A pointer to the items that the pool's threads may share; each index is dereferenced by one thread.
+struct SendPtr<T>(*mut T);
+// SAFETY: the items are `Send`, and no two threads ever touch the same item (see `for_each_mut`).
+unsafe impl<T: Send> Send for SendPtr<T> {}
+unsafe impl<T: Send> Sync for SendPtr<T> {}
+
+/// Threads started once and kept waiting for work: starting a thread per parallel section made
+/// `VecEnv` steps 2–4× slower on two threads than on one whenever other processes held the cores (issue
+/// 41), since each step then waited for a new thread to be scheduled and finish its fixed half.
+///
+/// Not rayon's pool: dfdx splits a matrix product over `rayon::current_num_threads()`, which inside a
+/// rayon pool is that pool's size, so the DDPG updates run here would change their kernels' blocking.
+/// These are plain threads, where that count stays the single-threaded global pool's
+/// ([`single_threaded_kernels`]).
+struct Pool {
+    state: std::sync::Mutex<PoolState>,
+    wake: std::sync::Condvar,
+}
+
+#[derive(Default)]
+struct PoolState {
+    /// Bumped for every job published, so a waiting thread knows there is news.
+    generation: u64,
+    job: Option<std::sync::Arc<Job>>,
+    started: usize,
+}
+
+/// One call's items: `next` hands out indices, `finished` counts items done (the caller sleeps on
+/// `all_done` until it reaches `len`).
+struct Job {
+    len: usize,
+    next: AtomicUsize,
+    /// Pool threads that may still join (so no more than [`threads`] threads work on one call).
+    seats: AtomicUsize,
+    finished: AtomicUsize,
+    done_lock: std::sync::Mutex<()>,
+    all_done: std::sync::Condvar,
+    panic: std::sync::Mutex<Option<Box<dyn std::any::Any + Send>>>,
+    /// The caller's closure, lifetime erased: only called for an index claimed below `len`, and the
+    /// caller waits for every such call to return before its closure goes out of scope.
+    run: *const (dyn Fn(usize) + Sync),
+}
+// SAFETY: `run` points to a `Sync` closure that outlives every call made through it (see `Job::run`).
+unsafe impl Send for Job {}
+unsafe impl Sync for Job {}
+
+impl Job {
+    /// Takes items until none is left; a panic is kept for the caller, and the item still counts as done.
+    fn work(&self) {
+        loop {
+            let i = self.next.fetch_add(1, Ordering::Relaxed);
+            if i >= self.len {
+                return;
+            }
+            // SAFETY: i < len was claimed by this thread alone, and the caller waits for it (`Pool::run`).
+            let run = unsafe { &*self.run };
+            if let Err(p) = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| run(i))) {
+                self.panic.lock().unwrap_or_else(|e| e.into_inner()).get_or_insert(p);
+            }
+            if self.finished.fetch_add(1, Ordering::AcqRel) + 1 == self.len {
+                let _guard = self.done_lock.lock().unwrap_or_else(|e| e.into_inner());
+                self.all_done.notify_all();
+            }
         }
-    });
+    }
+}
+
+impl Pool {
+    fn global() -> &'static Pool {
+        static POOL: std::sync::OnceLock<Pool> = std::sync::OnceLock::new();
+        POOL.get_or_init(|| Pool { state: Default::default(), wake: std::sync::Condvar::new() })
+    }
+
+    /// Calls `run(i)` for every i in `0..len`, on this thread and up to `helpers` pool threads; returns
+    /// when all calls have returned (re-raising the first panic among them).
+    fn run(&'static self, len: usize, helpers: usize, run: &(dyn Fn(usize) + Sync)) {
+        // SAFETY (lifetime erased): this function returns only once `finished == len`, after which no
+        // thread calls `run` again (every index below `len` has been claimed and finished).
+        let run: *const (dyn Fn(usize) + Sync + '_) = run;
+        let run: *const (dyn Fn(usize) + Sync) = unsafe { std::mem::transmute(run) };
+        let job = std::sync::Arc::new(Job {
+            len,
+            next: AtomicUsize::new(0),
+            seats: AtomicUsize::new(helpers),
+            finished: AtomicUsize::new(0),
+            done_lock: Default::default(),
+            all_done: Default::default(),
+            panic: Default::default(),
+            run,
+        });
+        {
+            let mut state = self.state.lock().unwrap_or_else(|e| e.into_inner());
+            while state.started < helpers {
+                state.started += 1;
+                std::thread::Builder::new()
+                    .name("coevo-worker".into())
+                    .spawn(move || self.serve())
+                    .expect("starting a worker thread");
+            }
+            state.generation += 1;
+            state.job = Some(job.clone());
+        }
+        self.wake.notify_all();
+        job.work();
+        let mut guard = job.done_lock.lock().unwrap_or_else(|e| e.into_inner());
+        while job.finished.load(Ordering::Acquire) < len {
+            guard = job.all_done.wait(guard).unwrap_or_else(|e| e.into_inner());
+        }
+        drop(guard);
+        {
+            let mut state = self.state.lock().unwrap_or_else(|e| e.into_inner());
+            if state.job.as_ref().is_some_and(|j| std::sync::Arc::ptr_eq(j, &job)) {
+                state.job = None;
+            }
+        }
+        let panic = job.panic.lock().unwrap_or_else(|e| e.into_inner()).take();
+        if let Some(p) = panic {
+            std::panic::resume_unwind(p);
+        }
+    }
+
+    /// A pool thread: waits for a job, helps with it if a seat is free, waits again.
+    fn serve(&self) {
+        let mut seen = 0;
+        loop {
+            let job = {
+                let mut state = self.state.lock().unwrap_or_else(|e| e.into_inner());
+                while state.generation == seen {
+                    state = self.wake.wait(state).unwrap_or_else(|e| e.into_inner());
+                }
+                seen = state.generation;
+                state.job.clone()
+            };
+            let Some(job) = job else { continue };
+            if job.seats.fetch_update(Ordering::AcqRel, Ordering::Acquire, |s| s.checked_sub(1)).is_ok() {
+                job.work();
+            }
+        }
+    }
 }
 
 /// Runs `f(chunk_index, chunk)` over consecutive chunks of `chunk_len` items of `data`, in parallel when
@@ -136,5 +332,71 @@ mod tests {
             }
         }
         set_threads(before);
+    }
+
+    #[test]
+    fn adaptive_threading_settles_on_the_faster_choice_and_keeps_checking_the_other() {
+        // Calls that take 2 ms on one thread and 0.2 ms on four, then the other way round (the machine
+        // got busy): the choice follows, and the slower one is still tried once in EXPLORE_EVERY calls.
+        let pause = |ms: f64| std::thread::sleep(std::time::Duration::from_secs_f64(ms / 1000.0));
+        let mut adaptive = Adaptive::default();
+        let mut used = vec![];
+        for _ in 0..256 {
+            used.push(adaptive.run_among(4, |w| {
+                pause(if w == 1 { 2.0 } else { 0.2 });
+                w
+            }));
+        }
+        let on_all = used[64..].iter().filter(|&&w| w == 4).count();
+        assert!(on_all >= 180, "all threads were faster, used {on_all} times of 192");
+        assert!(used[64..].contains(&1), "one thread still tried");
+        used.clear();
+        for _ in 0..256 {
+            used.push(adaptive.run_among(4, |w| {
+                pause(if w == 1 { 0.2 } else { 2.0 });
+                w
+            }));
+        }
+        let on_one = used[128..].iter().filter(|&&w| w == 1).count();
+        assert!(on_one >= 115, "one thread became faster, used {on_one} times of 128");
+        assert_eq!(Adaptive::default().run_among(1, |w| w), 1, "one thread when there is one");
+    }
+
+    #[test]
+    fn the_pool_survives_a_panic_nesting_and_callers_on_many_threads() {
+        // The pool itself, with two helpers whatever `threads()` is (a global other tests change).
+        fn each<T: Send>(items: &mut [T], f: impl Fn(&mut T) + Sync) {
+            let base = SendPtr(items.as_mut_ptr());
+            let run = move |i: usize| {
+                let base = &base;
+                f(unsafe { &mut *base.0.add(i) })
+            };
+            Pool::global().run(items.len(), 2, &run);
+        }
+        // A panic in one item reaches the caller, after every other item has finished.
+        let mut items: Vec<usize> = (0..64).collect();
+        let caught = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            each(&mut items, |x| {
+                if *x == 17 {
+                    panic!("item 17");
+                }
+                *x += 100;
+            })
+        }));
+        assert!(caught.is_err(), "the panic of item 17 reaches the caller");
+        assert_eq!(items.iter().filter(|&&x| x >= 100).count(), 63, "every other item finished");
+        // The pool still works, also nested (an item that is itself split) and from several callers at once.
+        std::thread::scope(|scope| {
+            for caller in 0..3u64 {
+                scope.spawn(move || {
+                    for round in 0..50u64 {
+                        let mut outer: Vec<Vec<u64>> = (0..8).map(|i| vec![i; 10]).collect();
+                        each(&mut outer, |inner| each(inner, |x| *x = *x * 3 + caller + round));
+                        let expected: Vec<Vec<u64>> = (0..8).map(|i| vec![i * 3 + caller + round; 10]).collect();
+                        assert_eq!(outer, expected);
+                    }
+                });
+            }
+        });
     }
 }

@@ -122,16 +122,28 @@ pub fn external(budget: Duration) -> Vec<Figure> {
             unit: "steps/s",
         });
     }
-    if let Ok(mut worlds) = VecEnv::new(scene(), 64, 1) {
-        let actions = vec![0.5; worlds.worlds() * worlds.agents() * 2];
-        let n = worlds.worlds() as f64;
-        figures.push(Figure {
-            label: "external VecEnv, 64 worlds of 3+10 (world steps summed)".into(),
-            per_second: n * per_second(budget, 5, || {
-                let _ = worlds.step(&actions);
-            }),
-            unit: "steps/s",
-        });
+    // On one thread and on all of them (--threads), since other work on the machine can make more threads
+    // slower than one (the benchmarks page measures both idle and under load).
+    let all = crate::parallel::threads();
+    for n in [64, 1024] {
+        for threads in if all > 1 { vec![1, all] } else { vec![1] } {
+            let Ok(mut worlds) = VecEnv::new(scene(), n, 1) else { continue };
+            let actions = vec![0.5; worlds.worlds() * worlds.agents() * 2];
+            crate::parallel::set_threads(threads);
+            let rate = n as f64
+                * per_second(budget, 5, || {
+                    let _ = worlds.step(&actions);
+                });
+            crate::parallel::set_threads(all);
+            figures.push(Figure {
+                label: format!(
+                    "external VecEnv, {n} worlds of 3+10, {threads} thread{} (world steps summed)",
+                    if threads == 1 { "" } else { "s" }
+                ),
+                per_second: rate,
+                unit: "steps/s",
+            });
+        }
     }
     figures
 }

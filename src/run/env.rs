@@ -281,6 +281,8 @@ pub struct VecEnv {
     /// No step since the worlds were made: the first `reset` returns their first episode (world i's is
     /// the first episode of seed + i, as a single env's `reset(seed + i)`) rather than starting a second.
     fresh: bool,
+    /// Whether to step the worlds on one thread or on all ([`crate::parallel::Adaptive`]).
+    threads: crate::parallel::Adaptive,
 }
 
 /// What a [`VecEnv`] step returned: `[worlds × agents × d_o]` observations (of the next episode's first
@@ -324,7 +326,7 @@ impl VecEnv {
             })
             .collect::<crate::error::Result<Vec<_>>>()?;
         let agents = envs[0].agents().len();
-        Ok(VecEnv { envs, agents, finished: vec![], numbered: 0, fresh: true })
+        Ok(VecEnv { envs, agents, finished: vec![], numbered: 0, fresh: true, threads: Default::default() })
     }
 
     /// `metrics.csv`'s header ([`Env::metrics_header`]).
@@ -413,15 +415,19 @@ impl VecEnv {
         }
         let mut work: Vec<(&mut Env, &[f32], Option<WorldStep>)> =
             self.envs.iter_mut().zip(actions.chunks(per)).map(|(e, a)| (e, a, None)).collect();
-        crate::parallel::for_each_mut(&mut work, |(env, a, out)| {
-            *out = Some(env.step(a).and_then(|mut r| {
-                if !r.truncated {
-                    return Ok((r, None, vec![]));
-                }
-                let finished = env.take_episodes();
-                let last = std::mem::replace(&mut r.observations, env.reset(None)?);
-                Ok((r, Some(last), finished))
-            }));
+        // On one thread or all, whichever has been faster lately (other work on the machine can make
+        // all threads slower than one); the same worlds either way.
+        self.threads.run(|workers| {
+            crate::parallel::for_each_mut_on(&mut work, workers, |(env, a, out)| {
+                *out = Some(env.step(a).and_then(|mut r| {
+                    if !r.truncated {
+                        return Ok((r, None, vec![]));
+                    }
+                    let finished = env.take_episodes();
+                    let last = std::mem::replace(&mut r.observations, env.reset(None)?);
+                    Ok((r, Some(last), finished))
+                }));
+            })
         });
         let mut step = VecStep::default();
         for (_, _, out) in work {
