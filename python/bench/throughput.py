@@ -1,5 +1,6 @@
-"""Throughput of the Python package (`python python/bench/throughput.py`): env steps per second of the PettingZoo
-env (3 + 10 agents, dict in and out) and of VecEnv (64 worlds of 3 + 10, world steps summed)."""
+"""Throughput of the Python package (`python python/bench/throughput.py [SECONDS]`): env steps per second of the
+PettingZoo env (3 + 10 agents, dict in and out) and of VecEnv (64 and 1 024 worlds of 3 + 10, world steps
+summed). VecEnv uses every core unless COEVO_THREADS says otherwise (`COEVO_THREADS=1 python ...`)."""
 
 import os
 import sys
@@ -33,7 +34,10 @@ def pettingzoo_step():
 
 
 print(f"PettingZoo parallel_env, 3+10 agents: {rate(pettingzoo_step):10.0f} env steps/s")
-vec = coevo.VecEnv(SCENE, num_envs=64, seed=1)
-vec.reset()
-batch = np.full((vec.num_envs, len(vec.agents), 2), 0.5, np.float32)
-print(f"VecEnv, 64 worlds of 3+10:            {vec.num_envs * rate(lambda: vec.step(batch)):10.0f} env steps/s (summed over worlds)")
+threads = os.environ.get("COEVO_THREADS", f"default ({os.cpu_count()} cores)")
+for worlds in (64, 1024):
+    vec = coevo.VecEnv(SCENE, num_envs=worlds, seed=1)
+    vec.reset()
+    batch = np.full((vec.num_envs, len(vec.agents), 2), 0.5, np.float32)
+    per_second = vec.num_envs * rate(lambda: vec.step(batch))
+    print(f"VecEnv, {worlds:4d} worlds of 3+10, threads {threads}: {per_second:10.0f} world steps/s (summed over worlds)")
