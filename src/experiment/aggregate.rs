@@ -65,7 +65,9 @@ pub fn aggregate(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> crate::er
         figure_data::write(exp, drawn.as_ref().expect("drawn from the run folders"))?;
         crate::io::write_file(&exp.root.join("summary.csv"), crate::io::Existing::Replace, summary.as_bytes())?;
         crate::io::write_file(&exp.root.join("summary-mean.csv"), crate::io::Existing::Replace, means.as_bytes())?;
-        let ledger = carry::text(exp, table.runs(exp).into_iter().map(|(i, _)| i));
+        let kernels =
+            |i: usize| data.get(&i).map(|d| &d.kernels).or(carried.kernels.get(&i)).cloned().unwrap_or_default();
+        let ledger = carry::text(exp, table.runs(exp).into_iter().map(|(i, _)| (i, kernels(i))));
         crate::io::write_file(&exp.root.join(carry::FILE), crate::io::Existing::Replace, ledger.as_bytes())?;
     }
     // Results without a record of their claims (aggregated before coevo kept one): the record begins with

@@ -50,18 +50,30 @@ pub fn identity(exp: &Experiment, run: &super::file::Run) -> String {
 }
 
 /// `runs.csv` for the rows of a summary (`runs`: indices into the experiment's runs, in the summary's
-/// order): each run's key and the identity of its scene.
-pub fn text(exp: &Experiment, runs: impl Iterator<Item = usize>) -> String {
-    let mut out = String::from("preset,variant,seed,scene\n");
-    for i in runs {
+/// order, each with the family of matrix-product kernels it ran on, empty when not known): each run's key,
+/// the identity of its scene and its kernels.
+pub fn text(exp: &Experiment, runs: impl Iterator<Item = (usize, String)>) -> String {
+    let mut out = String::from("preset,variant,seed,scene,kernels\n");
+    for (i, kernels) in runs {
         let r = &exp.runs[i];
-        writeln!(out, "{},{},{},{}", csv_text(&r.preset), csv_text(&r.variant), r.seed, identity(exp, r)).unwrap();
+        let (preset, variant, scene) = (csv_text(&r.preset), csv_text(&r.variant), identity(exp, r));
+        writeln!(out, "{preset},{variant},{},{scene},{}", r.seed, csv_text(&kernels)).unwrap();
     }
     out
 }
 
-/// The recorded scene identity of each committed run, by run index; empty without the file.
-fn recorded(exp: &Experiment) -> crate::error::Result<BTreeMap<usize, String>> {
+/// What `runs.csv` records of a committed run.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Record {
+    /// Its [`identity`].
+    pub scene: String,
+    /// The family of matrix-product kernels it ran on; empty when not recorded (a `runs.csv` written
+    /// before the column).
+    pub kernels: String,
+}
+
+/// What `runs.csv` records of each committed run, by run index; empty without the file.
+fn recorded(exp: &Experiment) -> crate::error::Result<BTreeMap<usize, Record>> {
     let path = exp.root.join(FILE);
     if !path.exists() {
         return Ok(BTreeMap::new());
@@ -78,7 +90,8 @@ fn recorded(exp: &Experiment) -> crate::error::Result<BTreeMap<usize, String>> {
         };
         let seed: u64 = seed.parse().map_err(|_| format!("{}: seed {seed:?}", path.display()))?;
         if let Some(i) = exp.runs.iter().position(|r| r.preset == preset && r.variant == variant && r.seed == seed) {
-            out.insert(i, scene.to_string());
+            let kernels = record.get(4).unwrap_or_default().to_string();
+            out.insert(i, Record { scene: scene.to_string(), kernels });
         }
     }
     Ok(out)
@@ -86,14 +99,14 @@ fn recorded(exp: &Experiment) -> crate::error::Result<BTreeMap<usize, String>> {
 
 /// Why a committed run cannot be carried; None when it can (its row is of the scene the experiment file
 /// gives it now).
-fn uncarriable(exp: &Experiment, i: usize, recorded: &BTreeMap<usize, String>) -> Option<String> {
+fn uncarriable(exp: &Experiment, i: usize, recorded: &BTreeMap<usize, Record>) -> Option<String> {
     let key = figure_data::key(&exp.runs[i]);
     match recorded.get(&i) {
         None => Some(format!(
             "{key} has a committed row but no line in {} (aggregated by a coevo before it), so which scene it was trained on is not known",
             FILE
         )),
-        Some(id) if *id != identity(exp, &exp.runs[i]) => Some(format!(
+        Some(r) if r.scene != identity(exp, &exp.runs[i]) => Some(format!(
             "{key}'s committed row is of another scene or evaluations than {} asks for now",
             exp.file.display()
         )),
@@ -101,11 +114,19 @@ fn uncarriable(exp: &Experiment, i: usize, recorded: &BTreeMap<usize, String>) -
     }
 }
 
-/// The runs finished on another machine, each with the binaries that made it: a committed row of the
-/// scene and evaluations the experiment file gives it now, with its curves in the committed figure data,
-/// and no folder here (a folder here is resumed or rerun, and aggregated when it is finished). An
-/// experiment whose committed rows cannot be carried has none, so the runner runs them again.
-pub fn finished_elsewhere(exp: &Experiment) -> crate::error::Result<BTreeMap<usize, String>> {
+/// A run finished on another machine: the binaries that made it and the kernels it ran on (empty when
+/// not recorded).
+#[derive(Clone, Debug)]
+pub struct Elsewhere {
+    pub binary: String,
+    pub kernels: String,
+}
+
+/// The runs finished on another machine: a committed row of the scene and evaluations the experiment
+/// file gives it now, with its curves in the committed figure data, and no folder here (a folder here is
+/// resumed or rerun, and aggregated when it is finished). An experiment whose committed rows cannot be
+/// carried has none, so the runner runs them again.
+pub fn finished_elsewhere(exp: &Experiment) -> crate::error::Result<BTreeMap<usize, Elsewhere>> {
     let Some(summary) = Summary::read(&exp.root.join("summary.csv"))? else { return Ok(BTreeMap::new()) };
     // A summary without every column written now (an older coevo's) carries nothing: its runs are rerun.
     let header = super::summary::header(&super::summary::columns(exp));
@@ -113,11 +134,11 @@ pub fn finished_elsewhere(exp: &Experiment) -> crate::error::Result<BTreeMap<usi
         return Ok(BTreeMap::new());
     }
     let recorded = recorded(exp)?;
-    let elsewhere: BTreeMap<usize, String> = summary
+    let elsewhere: BTreeMap<usize, Elsewhere> = summary
         .runs(exp)
         .into_iter()
         .filter(|&(i, _)| !crate::run::is_run(&exp.runs[i].dir) && uncarriable(exp, i, &recorded).is_none())
-        .map(|(i, row)| (i, row.binary.clone()))
+        .map(|(i, row)| (i, Elsewhere { binary: row.binary.clone(), kernels: recorded[&i].kernels.clone() }))
         .collect();
     let indices: Vec<usize> = elsewhere.keys().copied().collect();
     match figure_data::read(exp, &indices) {
@@ -139,12 +160,14 @@ pub fn committed_runs(exp: &Experiment) -> crate::error::Result<BTreeSet<usize>>
 pub struct Carried {
     pub lines: BTreeMap<usize, String>,
     pub figures: BTreeMap<usize, FigureData>,
+    /// The kernels each ran on, as `runs.csv` records them.
+    pub kernels: BTreeMap<usize, String>,
 }
 
 /// The committed runs of `exp` that `data` (the run folders here) lacks, carried as [`Carried`] into a
 /// summary of columns `header`. Refused, in one line naming the run and why, when one cannot be carried
-/// (no record of its scene, another scene, a column or figure data missing, another binary): then
-/// aggregating would drop a finished run or mix it with others.
+/// (no record of its scene, another scene, a column or figure data missing, another binary or family of
+/// kernels): then aggregating would drop a finished run or mix it with others.
 pub fn carried(exp: &Experiment, data: &BTreeMap<usize, RunData>, header: &[String]) -> crate::error::Result<Carried> {
     let path = exp.root.join("summary.csv");
     if data.is_empty() || !path.exists() {
@@ -191,6 +214,20 @@ pub fn carried(exp: &Experiment, data: &BTreeMap<usize, RunData>, header: &[Stri
                 .into());
             }
         }
+        // And the same kernels: one binary computes other numbers on another family.
+        let here: BTreeSet<&str> = data.values().map(|d| d.kernels.as_str()).filter(|k| !k.is_empty()).collect();
+        for &i in &missing {
+            let theirs = recorded[&i].kernels.as_str();
+            if !theirs.is_empty() && here.iter().any(|k| *k != theirs) {
+                return Err(format!(
+                    "{}: runs on more than one family of matrix-product kernels (the committed {} on {theirs}, the run folders here on {}); continue on one (COEVO_KERNELS or --kernels) or set mixed_binaries: true",
+                    exp.file.display(),
+                    figure_data::key(&exp.runs[i]),
+                    here.iter().copied().collect::<Vec<_>>().join(" ")
+                )
+                .into());
+            }
+        }
     }
     // Each carried line in the columns written now, its cells as committed (names quoted as written).
     let mut reader = csv::Reader::from_reader(text.as_bytes());
@@ -219,5 +256,6 @@ pub fn carried(exp: &Experiment, data: &BTreeMap<usize, RunData>, header: &[Stri
     let figures = figure_data::read(exp, &missing)
         .map_err(|e| refuse(e.to_string()))?
         .ok_or_else(|| refuse(format!("there is no {} to carry their curves from", figure_data::FILE)))?;
-    Ok(Carried { lines, figures })
+    let kernels = missing.iter().map(|&i| (i, recorded[&i].kernels.clone())).collect();
+    Ok(Carried { lines, figures, kernels })
 }

@@ -20,6 +20,9 @@ pub struct RunData {
     pub wall_seconds: f64,
     /// The executables that made the run (`provenance.ron`; "unknown" before provenance files).
     pub binaries: Vec<String>,
+    /// The family of matrix-product kernels it ran on (`provenance.ron`; empty when not recorded): the
+    /// same binary computes other numbers on another family.
+    pub kernels: String,
     /// Per evaluation, by name.
     pub evals: BTreeMap<String, EvalData>,
     /// The read-outs of the run's cross-play (`crossplay-readouts.csv`) by name, when it has one.

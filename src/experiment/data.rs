@@ -81,11 +81,13 @@ pub fn load(exp: &Experiment) -> crate::error::Result<BTreeMap<usize, RunData>> 
                 .collect(),
             evals: BTreeMap::new(),
             crossplay: super::crossplay_readouts::read_readouts(&run.dir, &prey)?,
-            binaries: match RunDir::new(&run.dir).read_provenance()? {
-                Some(p) => p.binaries().into_iter().map(String::from).collect(),
-                None => vec!["unknown".into()],
-            },
+            binaries: vec!["unknown".into()],
+            kernels: String::new(),
         };
+        if let Some(p) = RunDir::new(&run.dir).read_provenance()? {
+            d.binaries = p.binaries().into_iter().map(String::from).collect();
+            d.kernels = p.kernels;
+        }
         for e in &exp.spec.evaluations {
             let path = eval_file(&run.dir, &e.name);
             if !path.exists() {
@@ -130,11 +132,26 @@ pub fn load(exp: &Experiment) -> crate::error::Result<BTreeMap<usize, RunData>> 
     Ok(data)
 }
 
-/// Refuses runs (training, resumes, evaluations) made by more than one executable, unless the experiment
-/// file says `mixed_binaries: true`: its numbers would not come from one program.
+/// Refuses runs (training, resumes, evaluations) made by more than one executable, or on more than one
+/// family of matrix-product kernels, unless the experiment file says `mixed_binaries: true`: its numbers
+/// would not come from one program.
 fn check_one_binary(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> crate::error::Result<()> {
     if exp.spec.mixed_binaries {
         return Ok(());
+    }
+    let mut families = data.iter().filter(|(_, d)| !d.kernels.is_empty());
+    if let Some((&first, a)) = families.next() {
+        if let Some((&other, b)) = families.find(|(_, b)| b.kernels != a.kernels) {
+            return Err(format!(
+                "{}: runs on more than one family of matrix-product kernels ({} on {}, {} on {}); rerun them on one (COEVO_KERNELS or --kernels) or set mixed_binaries: true",
+                exp.file.display(),
+                exp.runs[first].dir.display(),
+                a.kernels,
+                exp.runs[other].dir.display(),
+                b.kernels
+            )
+            .into());
+        }
     }
     let mut first: Option<(&str, &std::path::Path)> = None;
     for (&i, d) in data {

@@ -30,8 +30,9 @@ pub struct ExperimentFile {
     /// file's own family.
     #[serde(default)]
     pub family: Option<String>,
-    /// Compare runs made by different executables (`provenance.ron`'s `binary` and `also_by`). Off by
-    /// default: every number of an experiment comes from one binary, and aggregation refuses otherwise.
+    /// Compare runs made by different executables (`provenance.ron`'s `binary` and `also_by`) or on
+    /// different families of matrix-product kernels (its `kernels`). Off by default: every number of an
+    /// experiment comes from one binary on one family, and the runner and aggregation refuse otherwise.
     #[serde(default)]
     pub mixed_binaries: bool,
     /// No interim analysis: while some of its runs are not finished, reports show how many are, never an

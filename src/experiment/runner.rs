@@ -270,12 +270,28 @@ pub fn run(exp: &Experiment, opts: &RunnerOptions, only: Option<usize>) -> crate
     // They are carried only beside runs of the same binary: another coevo continuing them is refused now,
     // not after hours of runs that aggregation would then refuse to mix with them.
     let me = crate::run::provenance::binary();
-    if let Some((&i, other)) = elsewhere.iter().find(|(_, b)| b.split(' ').any(|b| b != me)) {
+    if let Some((&i, other)) = elsewhere.iter().find(|(_, e)| e.binary.split(' ').any(|b| b != me)) {
+        let other = &other.binary;
         if !exp.spec.mixed_binaries {
             return Err(format!(
                 "{}: the committed run {} was made by the coevo binary {other}, this one is {me}; continue the experiment with that binary (see the experiment file), or set mixed_binaries: true",
                 exp.file.display(),
                 super::figure_data::key(&exp.runs[i])
+            )
+            .into());
+        }
+    }
+    // Nor on another family of matrix-product kernels (this machine's, or the one pinned): the runs
+    // started here would compute other numbers than the committed ones.
+    let kernels = crate::learning::nets::kernels();
+    if let Some((&i, other)) = elsewhere.iter().find(|(_, e)| !e.kernels.is_empty() && e.kernels != kernels) {
+        if !exp.spec.mixed_binaries {
+            return Err(format!(
+                "{}: the committed run {} ran on {} kernels and this machine runs {kernels}; pin them (COEVO_KERNELS={} or --kernels), or set mixed_binaries: true",
+                exp.file.display(),
+                super::figure_data::key(&exp.runs[i]),
+                other.kernels,
+                other.kernels.trim_end_matches("-fma")
             )
             .into());
         }

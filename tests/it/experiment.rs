@@ -375,6 +375,17 @@ fn a_tiny_experiment_runs_resumes_and_gives_the_same_summary_at_one_or_two_jobs(
     std::fs::write(&tiny, TINY.replacen("seeds: [1, 2],", "seeds: [1, 2], mixed_binaries: true,", 1)).unwrap();
     assert!(coevo(one.path(), &["--plot", "results/tiny"]).status.success());
     std::fs::write(&tiny, TINY).unwrap();
+    // Or runs on two families of matrix-product kernels.
+    let kernels = original.split("kernels: \"").nth(1).unwrap().split('"').next().unwrap();
+    std::fs::write(&provenance, original.replacen(&format!("kernels: \"{kernels}\""), "kernels: \"elsewhere\"", 1))
+        .unwrap();
+    let out = coevo(one.path(), &["--plot", "results/tiny"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && stderr.lines().count() == 1, "{stderr}");
+    assert!(
+        stderr.contains("more than one family of matrix-product kernels") && stderr.contains("elsewhere"),
+        "{stderr}"
+    );
     std::fs::write(&provenance, original).unwrap();
 
     // As in a fresh clone (run folders are not committed): REPRODUCTION.md is recomputed from the committed
@@ -471,7 +482,7 @@ fn a_tiny_experiment_runs_resumes_and_gives_the_same_summary_at_one_or_two_jobs(
     let means = committed("results/tiny/summary-mean.csv");
     assert!(String::from_utf8(committed("results/tiny/runs.csv"))
         .unwrap()
-        .starts_with("preset,variant,seed,scene\npaper,1:1,1,"));
+        .starts_with("preset,variant,seed,scene,kernels\npaper,1:1,1,"));
     std::fs::create_dir_all(one.path().join("results/tiny/paper/5-3")).unwrap();
     std::fs::rename(one.path().join("elsewhere/5-3/seed2"), one.path().join("results/tiny/paper/5-3/seed2")).unwrap();
     let out = coevo(one.path(), &["--experiment", "experiments/tiny.ron", "--quiet"]);
@@ -544,6 +555,38 @@ fn a_tiny_experiment_runs_resumes_and_gives_the_same_summary_at_one_or_two_jobs(
     );
     assert!(!one.path().join("results/tiny/paper/1-1").exists(), "nothing written");
     std::fs::write(&summary, &ledger).unwrap();
+    // Nor are rows committed from runs on another family of matrix-product kernels (the same binary
+    // computes other numbers there): refused by aggregation, and by the runner before anything runs.
+    let runs_csv = one.path().join("results/tiny/runs.csv");
+    let record = std::fs::read_to_string(&runs_csv).unwrap();
+    let kernels = record.lines().nth(1).unwrap().rsplit(',').next().unwrap().to_string();
+    assert!(["avx512", "avx2-fma", "portable"].contains(&kernels.as_str()), "{record}");
+    let other = if kernels == "portable" { "avx2-fma" } else { "portable" };
+    let first = record.lines().nth(1).unwrap();
+    let mut lines: Vec<&str> = record.lines().collect();
+    let moved = format!("{}{other}", &first[..first.len() - kernels.len()]);
+    lines[1] = &moved;
+    std::fs::write(&runs_csv, lines.join("\n") + "\n").unwrap();
+    let out = coevo(one.path(), &["--plot", "results/tiny"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && stderr.lines().count() == 1, "{stderr}");
+    assert!(
+        stderr.contains(&format!(
+            "runs on more than one family of matrix-product kernels (the committed paper/1:1/seed1 on {other}, the run folders here on {kernels})"
+        )),
+        "{stderr}"
+    );
+    let out = coevo(one.path(), &["--experiment", "experiments/tiny.ron", "--quiet"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && stderr.lines().count() == 1, "{stderr}");
+    assert!(
+        stderr.contains(&format!(
+            "the committed run paper/1:1/seed1 ran on {other} kernels and this machine runs {kernels}"
+        )),
+        "{stderr}"
+    );
+    assert!(!one.path().join("results/tiny/paper/1-1").exists(), "nothing written");
+    std::fs::write(&runs_csv, &record).unwrap();
     std::fs::rename(one.path().join("elsewhere-1-1"), one.path().join("results/tiny/paper/1-1")).unwrap();
     std::fs::write(&tiny, TINY).unwrap();
     let out = coevo(one.path(), &["--plot", "all"]);
