@@ -156,6 +156,25 @@ fn with_curve_columns(
 /// experiment's summary.csv): its estimate and unadjusted p-value, not yet adjusted or judged.
 pub fn tests(exp: &Experiment, table: &Summary) -> Vec<ClaimResult> {
     let mut results = Vec::new();
+    // A claim of a preset, not yet estimated, tested or judged; its chance level from the variant's scene.
+    let untested = |preset: &String, claim: &super::file::Claim| {
+        let scene = exp.runs.iter().find(|r| r.preset == *preset && r.variant == claim.variant).map(|r| &r.scene);
+        ClaimResult {
+            experiment: exp.name.clone(),
+            preset: preset.clone(),
+            claim: claim.clone(),
+            estimate: None,
+            p: None,
+            p_holm: None,
+            level: None,
+            family_tests: 0,
+            same_test: None,
+            same_as: None,
+            stated: registry::Stated::Unknown,
+            baseline: chance_level(exp, claim, scene),
+            verdict: String::new(),
+        }
+    };
     // An experiment judged when complete, in progress: every claim says so, untested (no interim analysis),
     // also where another file's report reads its committed summary for a shared family.
     if in_progress(exp, table) {
@@ -166,23 +185,7 @@ pub fn tests(exp: &Experiment, table: &Summary) -> Vec<ClaimResult> {
         );
         for preset in &exp.spec.presets {
             for claim in &exp.spec.claims {
-                let scene =
-                    exp.runs.iter().find(|r| r.preset == *preset && r.variant == claim.variant).map(|r| &r.scene);
-                results.push(ClaimResult {
-                    experiment: exp.name.clone(),
-                    preset: preset.clone(),
-                    claim: claim.clone(),
-                    estimate: None,
-                    p: None,
-                    p_holm: None,
-                    level: None,
-                    family_tests: 0,
-                    same_test: None,
-                    same_as: None,
-                    stated: registry::Stated::Unknown,
-                    baseline: chance_level(exp, claim, scene),
-                    verdict: verdict.clone(),
-                });
+                results.push(ClaimResult { verdict: verdict.clone(), ..untested(preset, claim) });
             }
         }
         return results;
@@ -204,7 +207,6 @@ pub fn tests(exp: &Experiment, table: &Summary) -> Vec<ClaimResult> {
                 Some(t) => difference(&ours, t),
                 None => estimate(&ours),
             };
-            let scene = exp.runs.iter().find(|r| r.preset == *preset && r.variant == claim.variant).map(|r| &r.scene);
             // The claim's own test: TOST for a claim of no effect, else the two-sided test of none.
             let p = e.filter(|_| is_effect(claim) && !identical).and_then(|e| match claim.margin {
                 Some(m) => e.tost_p(m),
@@ -216,25 +218,12 @@ pub fn tests(exp: &Experiment, table: &Summary) -> Vec<ClaimResult> {
                 let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
                 (bits(&ours), theirs.as_deref().map(bits), claim.margin.map(f64::to_bits))
             });
-            results.push(ClaimResult {
-                experiment: exp.name.clone(),
-                preset: preset.clone(),
-                claim: claim.clone(),
-                estimate: e,
-                p,
-                p_holm: None,
-                level: None,
-                family_tests: 0,
-                same_test,
-                same_as: None,
-                stated: registry::Stated::Unknown,
-                baseline: chance_level(exp, claim, scene),
-                verdict: match (overlap, identical) {
-                    (true, _) => OVERLAP.into(),
-                    (false, true) => IDENTICAL.into(),
-                    _ => String::new(),
-                },
-            });
+            let verdict = match (overlap, identical) {
+                (true, _) => OVERLAP.into(),
+                (false, true) => IDENTICAL.into(),
+                _ => String::new(),
+            };
+            results.push(ClaimResult { estimate: e, p, same_test, verdict, ..untested(preset, claim) });
         }
     }
     results
