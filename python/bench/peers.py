@@ -7,21 +7,8 @@ env, dicts in and out, env steps per second. VMAS `simple_tag` on the CPU: 64 an
 one batch, world steps per second summed over worlds. Torch's own thread count is its default (every core).
 """
 
-import sys
-import time
-
-SECONDS = float(sys.argv[1]) if len(sys.argv) > 1 else 3.0
-
-
-def rate(step, seconds=SECONDS):
-    n, start = 0, time.perf_counter()
-    while time.perf_counter() - start < seconds:
-        step()
-        n += 1
-    return n / (time.perf_counter() - start)
-
-
-from mpe2 import simple_tag_v3  # noqa: E402
+from mpe2 import simple_tag_v3
+from timing import rate
 
 mpe = simple_tag_v3.parallel_env(num_good=10, num_adversaries=3, num_obstacles=0, max_cycles=500, continuous_actions=True)
 mpe.reset(seed=1)

@@ -3,24 +3,13 @@ PettingZoo env (3 + 10 agents, dict in and out) and of VecEnv (64 and 1 024 worl
 summed). VecEnv uses every core unless COEVO_THREADS says otherwise (`COEVO_THREADS=1 python ...`)."""
 
 import os
-import sys
-import time
 
 import numpy as np
+from timing import rate
 
 import coevo
 
 SCENE = os.path.join(os.path.dirname(__file__), "..", "..", "scenes", "standard.ron")
-SECONDS = float(sys.argv[1]) if len(sys.argv) > 1 else 3.0
-
-
-def rate(step, seconds=SECONDS):
-    n, start = 0, time.perf_counter()
-    while time.perf_counter() - start < seconds:
-        step()
-        n += 1
-    return n / (time.perf_counter() - start)
-
 
 env = coevo.parallel_env(SCENE)
 env.reset()
