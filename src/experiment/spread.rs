@@ -10,7 +10,7 @@ use std::path::Path;
 /// A sentence on the spread across the seeds of `scene` (seed and episodes aside) in the experiment of
 /// `experiments/` (in the working folder) that trained it on the most seeds, read from its committed
 /// summary.csv: the range of the last-100 DoA, DoS and catches per episode. None when no experiment here
-/// trained it.
+/// trained it. An experiment in progress that is judged only when complete is passed over.
 pub fn seeds_like(scene: &Scene) -> Option<String> {
     let files = Experiment::files(Path::new(EXPERIMENTS)).ok()?;
     let mut best: Option<(usize, String)> = None;
@@ -23,6 +23,10 @@ pub fn seeds_like(scene: &Scene) -> Option<String> {
         };
         let Some(run) = exp.runs.iter().find(|r| r.shared_from.is_none() && same(&r.scene)) else { continue };
         let Ok(Some(summary)) = Summary::read(&exp.root.join("summary.csv")) else { continue };
+        // An experiment judged when complete shows nothing of its runs until then (no interim analysis).
+        if super::aggregate::in_progress(&exp, &summary) {
+            continue;
+        }
         let rows: Vec<_> = summary.rows.iter().filter(|r| r.preset == run.preset && r.variant == run.variant).collect();
         if rows.len() < 2 {
             continue;
