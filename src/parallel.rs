@@ -68,9 +68,10 @@ pub fn for_each_mut_on<T: Send>(items: &mut [T], workers: usize, f: impl Fn(&mut
     }
     let base = SendPtr(items.as_mut_ptr());
     let run = move |i: usize| {
-        let base = &base; // the whole wrapper, so the closure is Sync whatever T is
-                          // SAFETY: `Job` hands out each index below `items.len()` exactly once, and `Pool::run` returns
-                          // only when every item handed out is finished, so each &mut is unique and outlives no borrow.
+        // The whole wrapper, so the closure is Sync whatever T is.
+        let base = &base;
+        // SAFETY: `Job` hands out each index below `items.len()` exactly once, and `Pool::run` returns
+        // only when every item handed out is finished, so each &mut is unique and outlives no borrow.
         f(unsafe { &mut *base.0.add(i) })
     };
     Pool::global().run(items.len(), workers - 1, &run);
@@ -85,6 +86,8 @@ pub fn for_each_mut_on<T: Send>(items: &mut [T], workers: usize, f: impl Fn(&mut
 pub struct Adaptive {
     /// Running mean of seconds per call, on one thread (0) and on all (1); None until tried.
     seconds: [Option<f64>; 2],
+    /// Calls made with each choice.
+    tried: [u64; 2],
     calls: u64,
 }
 
@@ -103,15 +106,15 @@ impl Adaptive {
         if all <= 1 {
             return f(1);
         }
-        let choice = match self.seconds {
-            [None, _] => 0,
-            [_, None] => 1,
+        let (choice, explored) = match self.seconds {
+            [None, _] => (0, true),
+            [_, None] => (1, true),
             [Some(one), Some(many)] => {
                 let better = usize::from(many < one);
                 if self.calls % Self::EXPLORE_EVERY == Self::EXPLORE_EVERY - 1 {
-                    1 - better
+                    (1 - better, true)
                 } else {
-                    better
+                    (better, false)
                 }
             }
         };
@@ -119,8 +122,15 @@ impl Adaptive {
         let start = std::time::Instant::now();
         let out = f(if choice == 0 { 1 } else { all });
         let took = start.elapsed().as_secs_f64();
+        // A choice's first call (which may start the pool's threads) is replaced by its second, and a
+        // choice tried only now and then is as fast as its last try says: a mean from before the machine's
+        // load changed would otherwise keep the slower choice for hundreds of calls.
+        self.tried[choice] += 1;
         let mean = &mut self.seconds[choice];
-        *mean = Some(mean.map_or(took, |m| m + Self::WEIGHT * (took - m)));
+        *mean = Some(match *mean {
+            Some(m) if !explored && self.tried[choice] > 2 => m + Self::WEIGHT * (took - m),
+            _ => took,
+        });
         out
     }
 }
@@ -217,12 +227,13 @@ impl Pool {
         });
         {
             let mut state = self.state.lock().unwrap_or_else(|e| e.into_inner());
+            // A thread the system refuses to start is done without: the caller takes every item itself.
             while state.started < helpers {
+                let started = std::thread::Builder::new().name("coevo-worker".into()).spawn(move || self.serve());
+                if started.is_err() {
+                    break;
+                }
                 state.started += 1;
-                std::thread::Builder::new()
-                    .name("coevo-worker".into())
-                    .spawn(move || self.serve())
-                    .expect("starting a worker thread");
             }
             state.generation += 1;
             state.job = Some(job.clone());
@@ -359,6 +370,17 @@ mod tests {
         }
         let on_one = used[128..].iter().filter(|&&w| w == 1).count();
         assert!(on_one >= 115, "one thread became faster, used {on_one} times of 128");
+        // And back, after a long spell that left all threads' mean ten times one thread's: within a few
+        // explorations, not hundreds of calls.
+        used.clear();
+        for _ in 0..192 {
+            used.push(adaptive.run_among(4, |w| {
+                pause(if w == 1 { 2.0 } else { 0.2 });
+                w
+            }));
+        }
+        let on_all = used[64..].iter().filter(|&&w| w == 4).count();
+        assert!(on_all >= 115, "all threads faster again, used {on_all} times of 128");
         assert_eq!(Adaptive::default().run_among(1, |w| w), 1, "one thread when there is one");
     }
 
