@@ -96,6 +96,8 @@ impl Adaptive {
     pub const EXPLORE_EVERY: u64 = 32;
     /// Weight of the newest call in the running means.
     const WEIGHT: f64 = 0.125;
+    /// All threads are chosen when their mean time is below this fraction of one thread's.
+    const MARGIN: f64 = 0.9;
 
     /// Runs `f` with the worker count to use (1 or [`threads`]) and learns from its wall time.
     pub fn run<R>(&mut self, f: impl FnOnce(usize) -> R) -> R {
@@ -110,7 +112,9 @@ impl Adaptive {
             [None, _] => (0, true),
             [_, None] => (1, true),
             [Some(one), Some(many)] => {
-                let better = usize::from(many < one);
+                // All threads only when clearly faster: when the two are about even (a busy machine), a
+                // step on all of them risks waiting for a thread the machine runs late, one thread does not.
+                let better = usize::from(many < Self::MARGIN * one);
                 if self.calls % Self::EXPLORE_EVERY == Self::EXPLORE_EVERY - 1 {
                     (1 - better, true)
                 } else {
