@@ -13,12 +13,15 @@ use std::collections::BTreeMap;
 
 /// Estimates an experiment's claims on the `data` of its finished runs ([`super::data::load`]) and, when
 /// there are any, writes its summaries and figures. The results are not yet judged: [`adjust`] does that
-/// over their families, which may span experiment files. Claims with no run yet say so.
-pub fn aggregate(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> crate::error::Result<Aggregated> {
+/// over their families, which may span experiment files. Claims with no run yet say so. `carried`: the
+/// committed runs finished elsewhere, written beside the folders here ([`super::data::check_complete`]).
+pub fn aggregate(
+    exp: &Experiment,
+    data: &BTreeMap<usize, RunData>,
+    carried: carry::Carried,
+) -> crate::error::Result<Aggregated> {
     let written = !data.is_empty();
     let quantities = summary::columns(exp);
-    // The committed runs finished elsewhere, carried beside the folders here (refused when one cannot be).
-    let carried = carry::carried(exp, data, &summary::header(&quantities))?;
     let summary = summary::text(exp, data, &quantities, &carried.lines);
 
     // The claims are computed from the per-run values alone (summary.csv), so that a clone without run

@@ -131,7 +131,8 @@ pub fn experiment(request: &Request) -> crate::error::Result<()> {
     }
     for exp in experiments {
         let data = data::load(&exp)?;
-        report_alone(exp, &data)?;
+        let carried = data::check_complete(&exp, &data)?;
+        report_alone(exp, &data, carried)?;
     }
     Ok(())
 }
@@ -158,18 +159,22 @@ pub fn write_reproduction(partial: bool) -> crate::error::Result<()> {
         };
         // An experiment being re-run (fewer run folders than its committed summary holds) is reported from
         // its committed summary.csv, and its files are left as they are, until its runs are all back.
-        if let Err(e) = data::check_complete(&exp, &data) {
-            crate::errln!("coevo: {e} (reported from the committed summary)")?;
-            data.clear();
-        }
+        let carried = match data::check_complete(&exp, &data) {
+            Ok(carried) => carried,
+            Err(e) => {
+                crate::errln!("coevo: {e} (reported from the committed summary)")?;
+                data.clear();
+                Default::default()
+            }
+        };
         if !partial {
             check_whole(&exp, &data, "--plot all")?;
         }
-        loaded.push((exp, data));
+        loaded.push((exp, data, carried));
     }
     let mut aggregated = Vec::new();
-    for (exp, data) in loaded {
-        let a = aggregate::aggregate(&exp, &data)?;
+    for (exp, data, carried) in loaded {
+        let a = aggregate::aggregate(&exp, &data, carried)?;
         aggregated.push((exp, a));
     }
     // The families span the files: every experiment's tests adjusted together, then each reported.
@@ -189,8 +194,12 @@ pub fn write_reproduction(partial: bool) -> crate::error::Result<()> {
 /// One experiment reported on its own ([`report`]): its tests adjusted together with the tests of its named
 /// families in the other experiment files of `experiments/`, read from their committed summaries (a family
 /// spans files), when the file is one of them; alone otherwise.
-fn report_alone(exp: Experiment, data: &BTreeMap<usize, super::claims::RunData>) -> crate::error::Result<Reported> {
-    let mut a = aggregate::aggregate(&exp, data)?;
+fn report_alone(
+    exp: Experiment,
+    data: &BTreeMap<usize, super::claims::RunData>,
+    carried: super::carry::Carried,
+) -> crate::error::Result<Reported> {
+    let mut a = aggregate::aggregate(&exp, data, carried)?;
     let named = exp.spec.claims.iter().any(|c| c.family.is_some());
     if named && in_suite(&exp) {
         // Every file's tests in the files' order, as the suite adjusts them (the first of a repeated test
@@ -305,7 +314,7 @@ pub fn plot(dir: &Path, partial: bool) -> crate::error::Result<()> {
     let results = dir.parent().unwrap_or(Path::new("."));
     let exp = Experiment::load(&file, results)?;
     let data = data::load(&exp)?;
-    data::check_complete(&exp, &data)?;
+    let carried = data::check_complete(&exp, &data)?;
     if !partial {
         check_whole(&exp, &data, &format!("--plot {}", dir.display()))?;
     }
@@ -319,7 +328,7 @@ pub fn plot(dir: &Path, partial: bool) -> crate::error::Result<()> {
         )
         .into());
     }
-    report_alone(exp, &data)?;
+    report_alone(exp, &data, carried)?;
     Ok(())
 }
 

@@ -175,12 +175,16 @@ fn check_one_binary(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> crate:
     Ok(())
 }
 
-/// Refuses to aggregate when a run of the committed `summary.csv` (that the experiment file still has)
-/// has no folder here and cannot be carried ([`super::carry::carried`]: no record of its scene, another
-/// scene, another binary, its figure data missing): aggregating would drop it from the summary and the
-/// figures. Nothing is written then. With no run folder at all (a fresh clone) the committed summary.csv is
-/// read as it is and nothing of it is rewritten.
-pub fn check_complete(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> crate::error::Result<()> {
+/// What aggregation carries of the committed runs that have no folder here ([`super::carry::carried`]),
+/// refused when a run of the committed `summary.csv` (that the experiment file still has) cannot be
+/// carried (no record of its scene, another scene, another binary or kernels, its figure data missing):
+/// aggregating would drop it from the summary and the figures. Nothing is written then. With no run folder
+/// at all (a fresh clone) nothing is carried: the committed summary.csv is read as it is and nothing of it
+/// is rewritten.
+pub fn check_complete(
+    exp: &Experiment,
+    data: &BTreeMap<usize, RunData>,
+) -> crate::error::Result<super::carry::Carried> {
     let header = super::summary::header(&super::summary::columns(exp));
-    super::carry::carried(exp, data, &header).map(|_| ())
+    super::carry::carried(exp, data, &header)
 }
