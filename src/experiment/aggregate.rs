@@ -32,7 +32,8 @@ pub fn aggregate(
         Summary::read(&exp.root.join("summary.csv"))?.unwrap_or_default()
     };
     let drawn = figures::data(exp, data, carried.figures, &table, written)?;
-    if drawn.is_some() {
+    // An experiment in progress that is judged when complete draws no figure yet: no folder for them.
+    if drawn.is_some() && !in_progress(exp, &table) {
         crate::io::own_dir(&exp.root.join("figures"))?;
     }
     // A committed summary written before the curve columns existed gains them from the committed curves.

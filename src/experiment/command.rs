@@ -262,8 +262,10 @@ fn report(exp: Experiment, aggregated: aggregate::Aggregated) -> crate::error::R
     let path = root.join(REPORT);
     std::fs::create_dir_all(root).map_err(|e| format!("{}: {e}", root.display()))?;
     crate::io::write_file(&path, Existing::Replace, experiment_report(&reported).as_bytes())?;
-    let drawn = |n: usize| {
-        format!("{n} figure{} (.svg and .png) in {}/figures/", if n == 1 { "" } else { "s" }, root.display())
+    let in_progress = aggregate::in_progress(&reported.exp, &reported.summary);
+    let drawn = |n: usize| match in_progress {
+        true => "no figure (in progress: drawn when all its runs are finished)".to_string(),
+        false => format!("{n} figure{} (.svg and .png) in {}/figures/", if n == 1 { "" } else { "s" }, root.display()),
     };
     match (from_folders, figures) {
         (true, n) => crate::errln!(
