@@ -66,6 +66,11 @@ pub fn for_each_mut_on<T: Send>(items: &mut [T], workers: usize, f: impl Fn(&mut
         items.iter_mut().for_each(f);
         return;
     }
+    on_pool(items, workers - 1, f);
+}
+
+/// `f` on every item, on the calling thread and up to `helpers` threads of the [`Pool`].
+fn on_pool<T: Send>(items: &mut [T], helpers: usize, f: impl Fn(&mut T) + Sync) {
     let base = SendPtr(items.as_mut_ptr());
     let run = move |i: usize| {
         // The whole wrapper, so the closure is Sync whatever T is.
@@ -74,7 +79,7 @@ pub fn for_each_mut_on<T: Send>(items: &mut [T], workers: usize, f: impl Fn(&mut
         // only when every item handed out is finished, so each &mut is unique and outlives no borrow.
         f(unsafe { &mut *base.0.add(i) })
     };
-    Pool::global().run(items.len(), workers - 1, &run);
+    Pool::global().run(items.len(), helpers, &run);
 }
 
 /// Learns, for work repeated many times over (a `VecEnv` step), whether one thread or all of them
@@ -355,34 +360,27 @@ mod tests {
         // got busy): the choice follows, and the slower one is still tried once in EXPLORE_EVERY calls.
         let pause = |ms: f64| std::thread::sleep(std::time::Duration::from_secs_f64(ms / 1000.0));
         let mut adaptive = Adaptive::default();
-        let mut used = vec![];
-        for _ in 0..256 {
-            used.push(adaptive.run_among(4, |w| {
-                pause(if w == 1 { 2.0 } else { 0.2 });
-                w
-            }));
-        }
+        // `calls` calls taking `one` ms on one thread and `all` ms on four: the worker count each used.
+        let mut phase = |calls: usize, one: f64, all: f64| -> Vec<usize> {
+            (0..calls)
+                .map(|_| {
+                    adaptive.run_among(4, |w| {
+                        pause(if w == 1 { one } else { all });
+                        w
+                    })
+                })
+                .collect()
+        };
+        let used = phase(256, 2.0, 0.2);
         let on_all = used[64..].iter().filter(|&&w| w == 4).count();
         assert!(on_all >= 180, "all threads were faster, used {on_all} times of 192");
         assert!(used[64..].contains(&1), "one thread still tried");
-        used.clear();
-        for _ in 0..256 {
-            used.push(adaptive.run_among(4, |w| {
-                pause(if w == 1 { 0.2 } else { 2.0 });
-                w
-            }));
-        }
+        let used = phase(256, 0.2, 2.0);
         let on_one = used[128..].iter().filter(|&&w| w == 1).count();
         assert!(on_one >= 115, "one thread became faster, used {on_one} times of 128");
         // And back, after a long spell that left all threads' mean ten times one thread's: within a few
         // explorations, not hundreds of calls.
-        used.clear();
-        for _ in 0..192 {
-            used.push(adaptive.run_among(4, |w| {
-                pause(if w == 1 { 2.0 } else { 0.2 });
-                w
-            }));
-        }
+        let used = phase(192, 2.0, 0.2);
         let on_all = used[64..].iter().filter(|&&w| w == 4).count();
         assert!(on_all >= 115, "all threads faster again, used {on_all} times of 128");
         assert_eq!(Adaptive::default().run_among(1, |w| w), 1, "one thread when there is one");
@@ -392,12 +390,7 @@ mod tests {
     fn the_pool_survives_a_panic_nesting_and_callers_on_many_threads() {
         // The pool itself, with two helpers whatever `threads()` is (a global other tests change).
         fn each<T: Send>(items: &mut [T], f: impl Fn(&mut T) + Sync) {
-            let base = SendPtr(items.as_mut_ptr());
-            let run = move |i: usize| {
-                let base = &base;
-                f(unsafe { &mut *base.0.add(i) })
-            };
-            Pool::global().run(items.len(), 2, &run);
+            on_pool(items, 2, f);
         }
         // A panic in one item reaches the caller, after every other item has finished.
         let mut items: Vec<usize> = (0..64).collect();

@@ -32,8 +32,10 @@ pub fn aggregate(
         Summary::read(&exp.root.join("summary.csv"))?.unwrap_or_default()
     };
     let drawn = figures::data(exp, data, carried.figures, &table, written)?;
-    // An experiment in progress that is judged when complete draws no figure yet: no folder for them.
-    if drawn.is_some() && !in_progress(exp, &table) {
+    // No interim analysis: an experiment judged when complete shows no number or figure of its runs
+    // until then (so no folder for figures either).
+    let blind = in_progress(exp, &table);
+    if drawn.is_some() && !blind {
         crate::io::own_dir(&exp.root.join("figures"))?;
     }
     // A committed summary written before the curve columns existed gains them from the committed curves.
@@ -49,8 +51,6 @@ pub fn aggregate(
         }
         None => table,
     };
-    // No interim analysis: an experiment judged when complete shows no number of its runs until then.
-    let blind = in_progress(exp, &table);
     let means = if blind {
         summary::means_text(exp, &Summary::default(), &quantities)
     } else {

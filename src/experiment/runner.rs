@@ -267,31 +267,28 @@ fn prepare(exp: &Experiment) -> crate::error::Result<()> {
 pub fn run(exp: &Experiment, opts: &RunnerOptions, only: Option<usize>) -> crate::error::Result<()> {
     // Runs finished on another machine: their rows are committed, and aggregation carries them.
     let elsewhere = super::carry::finished_elsewhere(exp)?;
-    // They are carried only beside runs of the same binary: another coevo continuing them is refused now,
-    // not after hours of runs that aggregation would then refuse to mix with them.
-    let me = crate::run::provenance::binary();
-    if let Some((&i, other)) = elsewhere.iter().find(|(_, e)| e.binary.split(' ').any(|b| b != me)) {
-        let other = &other.binary;
-        if !exp.spec.mixed_binaries {
+    // They are carried only beside runs of the same binary, on the same family of matrix-product kernels
+    // (this machine's, or the one pinned): continuing them otherwise is refused now, not after hours of
+    // runs that aggregation would then refuse to mix with them.
+    if !exp.spec.mixed_binaries {
+        let (me, kernels) = (crate::run::provenance::binary(), crate::learning::nets::kernels());
+        let key = |i: usize| super::figure_data::key(&exp.runs[i]);
+        if let Some((&i, other)) = elsewhere.iter().find(|(_, e)| e.binary.split(' ').any(|b| b != me)) {
             return Err(format!(
-                "{}: the committed run {} was made by the coevo binary {other}, this one is {me}; continue the experiment with that binary (see the experiment file), or set mixed_binaries: true",
+                "{}: the committed run {} was made by the coevo binary {}, this one is {me}; continue the experiment with that binary (see the experiment file), or set mixed_binaries: true",
                 exp.file.display(),
-                super::figure_data::key(&exp.runs[i])
+                key(i),
+                other.binary
             )
             .into());
         }
-    }
-    // Nor on another family of matrix-product kernels (this machine's, or the one pinned): the runs
-    // started here would compute other numbers than the committed ones.
-    let kernels = crate::learning::nets::kernels();
-    if let Some((&i, other)) = elsewhere.iter().find(|(_, e)| !e.kernels.is_empty() && e.kernels != kernels) {
-        if !exp.spec.mixed_binaries {
+        if let Some((&i, other)) = elsewhere.iter().find(|(_, e)| !e.kernels.is_empty() && e.kernels != kernels) {
             return Err(format!(
                 "{}: the committed run {} ran on {} kernels and this machine runs {kernels}; pin them (COEVO_KERNELS={} or --kernels), or set mixed_binaries: true",
                 exp.file.display(),
-                super::figure_data::key(&exp.runs[i]),
+                key(i),
                 other.kernels,
-                other.kernels.trim_end_matches("-fma")
+                other.kernels
             )
             .into());
         }

@@ -56,6 +56,14 @@ fn coevo(dir: &Path, args: &[&str]) -> std::process::Output {
     Command::new(env!("CARGO_BIN_EXE_coevo")).args(args).current_dir(dir).output().unwrap()
 }
 
+/// coevo run in `dir` with `args`, which must fail with one line on stderr: that line.
+fn refused(dir: &Path, args: &[&str]) -> String {
+    let out = coevo(dir, args);
+    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert!(!out.status.success() && stderr.lines().count() == 1, "{stderr}");
+    stderr
+}
+
 #[test]
 fn experiment_files_expand_to_runs_and_bad_ones_are_one_line() {
     let dir = workspace();
@@ -132,12 +140,8 @@ fn experiment_files_expand_to_runs_and_bad_ones_are_one_line() {
         ),
     ] {
         std::fs::write(dir.path().join("experiments/bad.ron"), text).unwrap();
-        let out = coevo(dir.path(), &["--experiment", "experiments/bad.ron"]);
-        let stderr = String::from_utf8_lossy(&out.stderr);
-        assert!(
-            !out.status.success() && stderr.lines().count() == 1 && stderr.contains(expected),
-            "{expected}: {stderr}"
-        );
+        let stderr = refused(dir.path(), &["--experiment", "experiments/bad.ron"]);
+        assert!(stderr.contains(expected), "{expected}: {stderr}");
         assert!(!dir.path().join("results").exists(), "nothing written for a bad file");
     }
 }
@@ -367,9 +371,7 @@ fn a_tiny_experiment_runs_resumes_and_gives_the_same_summary_at_one_or_two_jobs(
     let original = std::fs::read_to_string(&provenance).unwrap();
     assert!(original.contains("binary: \""), "{original}");
     std::fs::write(&provenance, original.replacen("binary: \"", "binary: \"other", 1)).unwrap();
-    let out = coevo(one.path(), &["--plot", "results/tiny"]);
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success() && stderr.lines().count() == 1, "{stderr}");
+    let stderr = refused(one.path(), &["--plot", "results/tiny"]);
     assert!(stderr.contains("more than one binary") && stderr.contains("mixed_binaries"), "{stderr}");
     let tiny = one.path().join("experiments/tiny.ron");
     std::fs::write(&tiny, TINY.replacen("seeds: [1, 2],", "seeds: [1, 2], mixed_binaries: true,", 1)).unwrap();
@@ -379,9 +381,7 @@ fn a_tiny_experiment_runs_resumes_and_gives_the_same_summary_at_one_or_two_jobs(
     let kernels = original.split("kernels: \"").nth(1).unwrap().split('"').next().unwrap();
     std::fs::write(&provenance, original.replacen(&format!("kernels: \"{kernels}\""), "kernels: \"elsewhere\"", 1))
         .unwrap();
-    let out = coevo(one.path(), &["--plot", "results/tiny"]);
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success() && stderr.lines().count() == 1, "{stderr}");
+    let stderr = refused(one.path(), &["--plot", "results/tiny"]);
     assert!(
         stderr.contains("more than one family of matrix-product kernels") && stderr.contains("elsewhere"),
         "{stderr}"
@@ -421,9 +421,8 @@ fn a_tiny_experiment_runs_resumes_and_gives_the_same_summary_at_one_or_two_jobs(
     assert!(files_under(&one.path().join("results")) == results, "figures redrawn again");
     let data = one.path().join("results/tiny/figure-data.ron.gz");
     std::fs::rename(&data, one.path().join("figure-data.ron.gz")).unwrap();
-    let out = coevo(one.path(), &["--plot", "results/tiny"]);
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success() && stderr.lines().count() == 1 && stderr.contains("no finished run"), "{stderr}");
+    let stderr = refused(one.path(), &["--plot", "results/tiny"]);
+    assert!(stderr.contains("no finished run"), "{stderr}");
     std::fs::rename(one.path().join("figure-data.ron.gz"), &data).unwrap();
     // A committed summary missing a run (3 of the file's 4): refused in one line, by one experiment's
     // --plot and by --plot all, unless --partial, and then its report says "partial".
@@ -434,9 +433,7 @@ fn a_tiny_experiment_runs_resumes_and_gives_the_same_summary_at_one_or_two_jobs(
     std::fs::write(&summary, &cut).unwrap();
     for plot in ["results/tiny", "all"] {
         let report = committed("results/tiny/REPORT.md");
-        let out = coevo(one.path(), &["--plot", plot]);
-        let stderr = String::from_utf8_lossy(&out.stderr);
-        assert!(!out.status.success() && stderr.lines().count() == 1, "{stderr}");
+        let stderr = refused(one.path(), &["--plot", plot]);
         assert!(stderr.contains("results/tiny/summary.csv holds 3 of the 4 runs of experiments/tiny.ron"), "{stderr}");
         assert_eq!(committed("results/tiny/REPORT.md"), report, "nothing written");
         let out = coevo(one.path(), &["--plot", plot, "--partial"]);
@@ -521,9 +518,7 @@ fn a_tiny_experiment_runs_resumes_and_gives_the_same_summary_at_one_or_two_jobs(
     let changed = TINY.replacen("seeds: [1, 2],", "seeds: [1, 2, 3],", 1).replacen("hidden: 16", "hidden: 8", 1);
     std::fs::write(&tiny, &changed).unwrap();
     std::fs::rename(one.path().join("results/tiny/paper/1-1"), one.path().join("elsewhere-1-1")).unwrap();
-    let out = coevo(one.path(), &["--plot", "results/tiny"]);
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success() && stderr.lines().count() == 1, "{stderr}");
+    let stderr = refused(one.path(), &["--plot", "results/tiny"]);
     assert!(
         stderr.contains("results/tiny/summary.csv: holds 3 runs not finished here (no folder, or evaluations still to come), and paper/1:1/seed1's committed row is of another scene or evaluations than experiments/tiny.ron asks for now"),
         "{stderr}"
@@ -538,17 +533,13 @@ fn a_tiny_experiment_runs_resumes_and_gives_the_same_summary_at_one_or_two_jobs(
     cells[binary] = "0123456789abcdef".into();
     lines[1] = cells.join(",");
     std::fs::write(&summary, lines.join("\n") + "\n").unwrap();
-    let out = coevo(one.path(), &["--plot", "results/tiny"]);
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success() && stderr.lines().count() == 1, "{stderr}");
+    let stderr = refused(one.path(), &["--plot", "results/tiny"]);
     assert!(
         stderr.contains("runs of more than one binary (the committed paper/1:1/seed1 by 0123456789abcdef"),
         "{stderr}"
     );
     // The runner refuses to continue them with another binary before running anything.
-    let out = coevo(one.path(), &["--experiment", "experiments/tiny.ron", "--quiet"]);
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success() && stderr.lines().count() == 1, "{stderr}");
+    let stderr = refused(one.path(), &["--experiment", "experiments/tiny.ron", "--quiet"]);
     assert!(
         stderr.contains("the committed run paper/1:1/seed1 was made by the coevo binary 0123456789abcdef"),
         "{stderr}"
@@ -567,18 +558,14 @@ fn a_tiny_experiment_runs_resumes_and_gives_the_same_summary_at_one_or_two_jobs(
     let moved = format!("{}{other}", &first[..first.len() - kernels.len()]);
     lines[1] = &moved;
     std::fs::write(&runs_csv, lines.join("\n") + "\n").unwrap();
-    let out = coevo(one.path(), &["--plot", "results/tiny"]);
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success() && stderr.lines().count() == 1, "{stderr}");
+    let stderr = refused(one.path(), &["--plot", "results/tiny"]);
     assert!(
         stderr.contains(&format!(
             "runs on more than one family of matrix-product kernels (the committed paper/1:1/seed1 on {other}, the run folders here on {kernels})"
         )),
         "{stderr}"
     );
-    let out = coevo(one.path(), &["--experiment", "experiments/tiny.ron", "--quiet"]);
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success() && stderr.lines().count() == 1, "{stderr}");
+    let stderr = refused(one.path(), &["--experiment", "experiments/tiny.ron", "--quiet"]);
     assert!(
         stderr.contains(&format!(
             "the committed run paper/1:1/seed1 ran on {other} kernels and this machine runs {kernels}"
@@ -877,9 +864,8 @@ fn a_shared_variant_is_the_other_experiments_runs_trained_once_and_never_compare
         ),
     ] {
         std::fs::write(dir.path().join("experiments/bad.ron"), text).unwrap();
-        let out = coevo(dir.path(), &["--experiment", "experiments/bad.ron"]);
-        let stderr = String::from_utf8_lossy(&out.stderr);
-        assert!(!out.status.success() && stderr.lines().count() == 1 && stderr.contains(says), "{says}: {stderr}");
+        let stderr = refused(dir.path(), &["--experiment", "experiments/bad.ron"]);
+        assert!(stderr.contains(says), "{says}: {stderr}");
     }
 }
 
@@ -979,9 +965,7 @@ fn redrawn_without_run_folders(dir: &Path) {
     let tampered = text.replacen("paper,5:3,1,3,", "paper,5:3,1,4,", 1);
     assert_ne!(tampered, text);
     std::fs::write(&summary, tampered).unwrap();
-    let out = coevo(dir, &["--plot", "results/tiny"]);
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success() && stderr.lines().count() == 1, "{stderr}");
+    let stderr = refused(dir, &["--plot", "results/tiny"]);
     assert!(stderr.contains("run paper/5:3/seed1 has 3 training episodes but summary.csv says 4"), "{stderr}");
     std::fs::write(&summary, text).unwrap();
 }
@@ -1037,9 +1021,7 @@ fn an_evaluation_edited_in_the_file_is_run_again_and_never_aggregated_stale() {
     // the new spec (one line naming a file), and the runner evaluates again, training nothing.
     let edited = TINY.replace("episodes: 2, steps: 20", "episodes: 3, steps: 20");
     std::fs::write(dir.path().join("experiments/tiny.ron"), edited).unwrap();
-    let out = coevo(dir.path(), &["--plot", "results/tiny"]);
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success() && stderr.lines().count() == 1, "{stderr}");
+    let stderr = refused(dir.path(), &["--plot", "results/tiny"]);
     assert!(stderr.contains("holds 2 episodes of 20 steps, the evaluation \"50 prey\" asks for 3 of 20"), "{stderr}");
     // `--plot all` still reports every experiment: this one from its committed summary, saying why.
     let summary = std::fs::read(dir.path().join("results/tiny/summary.csv")).unwrap();
