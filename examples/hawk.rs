@@ -43,6 +43,7 @@ impl SpeciesPlugin for HawkPlugin {
                 policy: Policy::Learned,
                 blind_to: vec![],
                 perception_of: vec![],
+                topological_limit_of: vec![],
             },
             // Nobody catches hawks.
             caught_by: vec![],

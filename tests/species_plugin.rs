@@ -128,6 +128,7 @@ mod owl {
                     policy: Policy::Learned,
                     blind_to: vec![],
                     perception_of: vec![],
+                    topological_limit_of: vec![],
                 },
                 caught_by: vec![],
                 contact_rewards: vec![ContactReward {

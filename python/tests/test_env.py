@@ -376,7 +376,7 @@ def test_a_truncated_worlds_last_observations_are_returned():
 def test_observation_bounds_come_from_the_layout():
     # Declared from the layout, not ±inf, and every observation of a random rollout lies inside them (the
     # PettingZoo API test checks the same on the standard scene).
-    for scene in ["standard.ron", "paper.ron", "confined.ron"]:
+    for scene in ["standard.ron", "paper.ron", "confined.ron", "gym-pps-code.ron"]:
         env = coevo.parallel_env(os.path.join(ROOT, "scenes", scene), episode_steps=50)
         obs, _ = env.reset(seed=1)
         space = env.observation_space(env.agents[0])
@@ -390,3 +390,41 @@ def test_observation_bounds_come_from_the_layout():
     vec = coevo.VecEnv(STANDARD, num_envs=2, seed=0)
     single = coevo.parallel_env(STANDARD)
     assert np.array_equal(vec.single_observation_space.high, single.observation_space("prey_0").high)
+
+
+def test_the_gym_pps_adapter_maps_coevos_world_to_the_codes_arrays():
+    # python/examples/gym_pps_learner.py hands coevo's world to the authors' learner (issue 37, item 3);
+    # its mapping is checked here without torch or a Gym-PPS checkout.
+    import importlib.util
+
+    path = os.path.join(ROOT, "python", "examples", "gym_pps_learner.py")
+    spec = importlib.util.spec_from_file_location("gym_pps_learner", path)
+    adapter = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(adapter)
+    env = coevo.parallel_env(os.path.join(ROOT, "scenes", "gym-pps-code.ron"), episode_steps=20)
+    observations, _ = env.reset(seed=3)
+    obs = adapter.columns(env, observations)
+    # pps.py _get_obs: [d_o = 35, agents], predators first; [x, y, v_x, v_y], 2 predator and 5 prey slots,
+    # the energy input (+1: full at the start), own heading (a unit vector).
+    assert obs.shape == (35, 13) and env.possible_agents[:3] == ["predator_0", "predator_1", "predator_2"]
+    assert np.allclose(obs[0:2].T, env.positions(), atol=1e-6)
+    assert np.allclose(obs[2:4], 0.0) and np.allclose(obs[32], 1.0)
+    assert np.allclose(np.hypot(obs[33], obs[34]), 1.0, atol=1e-6)
+    # Full perception: a predator sees the other two predators, a prey the two nearest, in slots 4..12.
+    assert all(np.any(obs[k : k + 4, j] != 0.0) for k in (4, 8) for j in (0, 3)), "both predator slots filled"
+    # Actions: the learner's [turn, thrust] rows become coevo's [thrust, turn] ...
+    actions = np.array([[0.5] * 13, [-0.25] * 13])
+    mapped = adapter.to_coevo(env, actions)
+    assert all(np.array_equal(mapped[a], np.float32([-0.25, 0.5])) for a in env.possible_agents)
+    # ... and the stored copy is rescaled as pps.py's step() rescales it: turn × 0.5 rad (5 rad/s × 0.1 s),
+    # thrust from [-1, 1] to [0, 1] N.
+    turn_max, thrust_max = adapter.limits(env)
+    assert np.allclose(turn_max, 0.5) and np.allclose(thrust_max, 1.0)
+    adapter.rescale_in_place(actions, turn_max, thrust_max)
+    assert np.allclose(actions[0], 0.25) and np.allclose(actions[1], 0.375)
+    # One step with the mapped actions moves the world as coevo's own [thrust, turn] does.
+    twin = coevo.parallel_env(os.path.join(ROOT, "scenes", "gym-pps-code.ron"), episode_steps=20)
+    twin.reset(seed=3)
+    a, *_ = env.step(mapped)
+    b, *_ = twin.step({name: np.float32([-0.25, 0.5]) for name in twin.possible_agents})
+    assert all(np.array_equal(a[n], b[n]) for n in env.possible_agents)

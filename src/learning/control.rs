@@ -6,7 +6,7 @@
 //! from each other (flocking) from what they take in common from the predators (herding). The training-time
 //! counterpart is a species' `blind_to` (`sim::perception`), whose observations never hold the block.
 
-use crate::sim::species::{SpeciesRegistry, OWN_STATE_DIM};
+use crate::sim::species::SpeciesRegistry;
 use bevy::prelude::Resource;
 use rand::seq::SliceRandom;
 use rand_chacha::ChaCha8Rng;
@@ -140,7 +140,7 @@ impl ObservationControl {
             match &form.block {
                 None => {
                     for (s, touched) in per_species.iter_mut().enumerate().filter(|(s, _)| learns(*s)) {
-                        touched.push((form.alteration, OWN_STATE_DIM..registry.observation_dim(s)));
+                        touched.push((form.alteration, registry.layouts[s].neighbours()));
                     }
                 }
                 Some((observer, observed)) => {
@@ -151,9 +151,7 @@ impl ObservationControl {
                             registry.defs[s].policy
                         ));
                     }
-                    let from = registry.block_offset(s, t);
-                    let to = from + registry.defs[s].topological_limit * crate::sim::species::NEIGHBOUR_DIM;
-                    per_species[s].push((form.alteration, from..to));
+                    per_species[s].push((form.alteration, registry.block(s, t)));
                 }
             }
         }
@@ -234,14 +232,25 @@ impl ResolvedControl {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::scene::{ObservationFrame, Policy, Scene};
-    use crate::sim::species::NEIGHBOUR_DIM;
+    use crate::scene::{ObservationFrame, ObservationLayout, Policy, Scene};
+    use crate::sim::species::{NEIGHBOUR_DIM, OWN_STATE_DIM};
     use rand::SeedableRng;
 
     /// The paper's two species, both learning, observed in `frame`.
     fn registry(frame: ObservationFrame) -> SpeciesRegistry {
         let mut scene = Scene::preset("paper").unwrap();
         scene.observation_frame = frame;
+        SpeciesRegistry::from_scene(&scene)
+    }
+
+    /// The authors' code's observation: 2 predators and 5 prey, energy and heading after the blocks.
+    fn authors_registry() -> SpeciesRegistry {
+        let mut scene = Scene::preset("gym-pps").unwrap();
+        scene.observation_layout = ObservationLayout::Authors;
+        for s in &mut scene.species {
+            s.topological_limit = 5;
+            s.topological_limit_of = vec![("predator".into(), 2)];
+        }
         SpeciesRegistry::from_scene(&scene)
     }
 
@@ -252,12 +261,10 @@ mod tests {
 
     #[test]
     fn each_block_control_alters_exactly_its_block_of_its_observer() {
-        for frame in [ObservationFrame::World, ObservationFrame::Body] {
-            let r = registry(frame);
+        for r in [registry(ObservationFrame::World), registry(ObservationFrame::Body), authors_registry()] {
             for (s, observer) in r.defs.iter().enumerate() {
                 for (t, observed) in r.defs.iter().enumerate() {
-                    let block =
-                        r.block_offset(s, t)..r.block_offset(s, t) + r.defs[s].topological_limit * NEIGHBOUR_DIM;
+                    let block = r.block_offset(s, t)..r.block_offset(s, t) + r.slots(s, t) * NEIGHBOUR_DIM;
                     let (n, d) = (7, r.observation_dim(s));
                     let obs = rows(&r, s, n);
                     for alteration in ["blind", "shuffled"] {
@@ -295,25 +302,29 @@ mod tests {
 
     #[test]
     fn whole_row_controls_alter_every_neighbour_slot_of_every_learning_species() {
-        let r = registry(ObservationFrame::Body);
-        let blind = ObservationControl::parse(&["blind"]).unwrap().resolve(&r).unwrap();
-        let shuffled = ObservationControl::parse(&["shuffled"]).unwrap().resolve(&r).unwrap();
-        for s in 0..r.len() {
-            let (n, d) = (5, r.observation_dim(s));
-            let obs = rows(&r, s, n);
-            let out = blind.apply(s, &obs, n, &mut ChaCha8Rng::seed_from_u64(1));
-            for (row, orig) in out.chunks(d).zip(obs.chunks(d)) {
-                assert_eq!(row[..OWN_STATE_DIM], orig[..OWN_STATE_DIM]);
-                assert!(row[OWN_STATE_DIM..].iter().all(|&x| x == 0.0));
-            }
-            let out = shuffled.apply(s, &obs, n, &mut ChaCha8Rng::seed_from_u64(1));
-            for (row, orig) in out.chunks(d).zip(obs.chunks(d)) {
-                assert_eq!(row[..OWN_STATE_DIM], orig[..OWN_STATE_DIM]);
-                assert!(obs.chunks(d).any(|o| o[OWN_STATE_DIM..] == row[OWN_STATE_DIM..]));
+        // The paper's order: own state, then every block. The authors': [x, y, v_x, v_y], the blocks
+        // (2 predators, 5 prey: 4 + 28 numbers), then energy and heading, which no control touches.
+        for (r, blocks) in [(registry(ObservationFrame::Body), OWN_STATE_DIM..54), (authors_registry(), 4..32)] {
+            let blind = ObservationControl::parse(&["blind"]).unwrap().resolve(&r).unwrap();
+            let shuffled = ObservationControl::parse(&["shuffled"]).unwrap().resolve(&r).unwrap();
+            for s in 0..r.len() {
+                let (n, d) = (5, r.observation_dim(s));
+                let obs = rows(&r, s, n);
+                let outside = |k: &usize| !blocks.contains(k);
+                let out = blind.apply(s, &obs, n, &mut ChaCha8Rng::seed_from_u64(1));
+                for (row, orig) in out.chunks(d).zip(obs.chunks(d)) {
+                    assert!((0..d).filter(outside).all(|k| row[k] == orig[k]));
+                    assert!(row[blocks.clone()].iter().all(|&x| x == 0.0));
+                }
+                let out = shuffled.apply(s, &obs, n, &mut ChaCha8Rng::seed_from_u64(1));
+                for (row, orig) in out.chunks(d).zip(obs.chunks(d)) {
+                    assert!((0..d).filter(outside).all(|k| row[k] == orig[k]));
+                    assert!(obs.chunks(d).any(|o| o[blocks.clone()] == row[blocks.clone()]));
+                }
             }
         }
         let seeing = ObservationControl::parse(&["seeing"]).unwrap();
-        assert!(seeing.is_seeing() && !seeing.resolve(&r).unwrap().touches(0));
+        assert!(seeing.is_seeing() && !seeing.resolve(&authors_registry()).unwrap().touches(0));
     }
 
     #[test]

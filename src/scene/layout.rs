@@ -1,23 +1,117 @@
 //! The observation and action layout a scene implies (Section "Agent Observation"): own state, then one
-//! block of `topological_limit` neighbour slots per species of the scene, in the scene's order.
+//! block of neighbour slots per species of the scene, in the scene's order; in the authors' order
+//! (issue 37, row 4) own position and velocity, the blocks, an energy input, then own heading.
+//!
+//! [`Layout`] is the one place that knows where each part of an observation sits: perception writes by it,
+//! controls alter its blocks, environments bound it, the viewer labels it.
 
-use super::schema::Scene;
+use super::schema::{ObservationLayout, Scene, SpeciesDef};
+use std::ops::Range;
 
-/// Own state in the observation: [x, y, v_x, v_y, h_x, h_y].
+/// Own state in the paper's observation: [x, y, v_x, v_y, h_x, h_y].
 pub const OWN_STATE_DIM: usize = 6;
 /// Per observed neighbour: [Δx, Δy, h_jx − h_ix, h_jy − h_iy].
 pub const NEIGHBOUR_DIM: usize = 4;
 /// An action is [thrust, turn rate], normalized to [−1, 1] each.
 pub const ACTION_DIM: usize = 2;
 
-/// d_o of a species that observes at most `topological_limit` of each of `species` species.
-pub fn observation_dim(topological_limit: usize, species: usize) -> usize {
-    OWN_STATE_DIM + NEIGHBOUR_DIM * topological_limit * species
+/// Where the parts of one species' observation sit.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Layout {
+    pub order: ObservationLayout,
+    /// Neighbour slots per observed species, in the scene's species order.
+    pub slots: Vec<usize>,
+}
+
+impl Layout {
+    /// The numbers of own state before the blocks: the paper's six, or the authors' [x, y, v_x, v_y].
+    pub fn leading(&self) -> usize {
+        match self.order {
+            ObservationLayout::Paper => OWN_STATE_DIM,
+            ObservationLayout::Authors => 4,
+        }
+    }
+
+    /// The block of observed species `t`: `slots[t]` neighbours of [`NEIGHBOUR_DIM`] numbers each.
+    pub fn block(&self, t: usize) -> Range<usize> {
+        let start =
+            self.slots[..t].iter().fold(self.leading(), |at, &k| at.saturating_add(k.saturating_mul(NEIGHBOUR_DIM)));
+        start..start.saturating_add(self.slots[t].saturating_mul(NEIGHBOUR_DIM))
+    }
+
+    /// Every neighbour block, which lie side by side.
+    pub fn neighbours(&self) -> Range<usize> {
+        let end = self.slots.iter().fold(self.leading(), |at, &k| at.saturating_add(k.saturating_mul(NEIGHBOUR_DIM)));
+        self.leading()..end
+    }
+
+    /// The energy input, in the authors' order only.
+    pub fn energy(&self) -> Option<usize> {
+        (self.order == ObservationLayout::Authors).then(|| self.neighbours().end)
+    }
+
+    /// Own heading [h_x, h_y] (in the body frame, the paper's order holds other own numbers there).
+    pub fn heading(&self) -> Range<usize> {
+        match self.energy() {
+            None => 4..6,
+            Some(e) => e + 1..e + 3,
+        }
+    }
+
+    /// d_o.
+    pub fn dim(&self) -> usize {
+        self.neighbours().end.saturating_add(if self.energy().is_some() { 3 } else { 0 })
+    }
+}
+
+/// The slots an observer of species `def` has for `observed`: its `topological_limit_of` entry, else its
+/// `topological_limit`.
+pub fn slots(def: &SpeciesDef, observed: &str) -> usize {
+    def.topological_limit_of.iter().find(|(name, _)| name == observed).map_or(def.topological_limit, |&(_, k)| k)
 }
 
 impl Scene {
+    /// The layout of species `s`'s observation.
+    pub fn layout(&self, s: usize) -> Layout {
+        let def = &self.species[s];
+        Layout { order: self.observation_layout, slots: self.species.iter().map(|t| slots(def, &t.name)).collect() }
+    }
+
     /// d_o of species `s` of this scene.
     pub fn observation_dim(&self, s: usize) -> usize {
-        observation_dim(self.species[s].topological_limit, self.species.len())
+        self.layout(s).dim()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_papers_layout_is_own_state_then_six_of_each_species() {
+        let scene = Scene::preset("paper").unwrap();
+        let l = scene.layout(1);
+        assert_eq!(
+            (l.block(0), l.block(1), l.neighbours(), l.heading(), l.energy(), l.dim()),
+            (6..30, 30..54, 6..54, 4..6, None, 54)
+        );
+    }
+
+    #[test]
+    fn the_authors_layout_is_position_velocity_blocks_energy_heading() {
+        // pps.py `_get_obs`, Polar: (2 + 2·(2 + 5))·2 + 1 + 2 = 35.
+        let mut scene = Scene::preset("gym-pps").unwrap();
+        scene.observation_layout = ObservationLayout::Authors;
+        for s in &mut scene.species {
+            s.topological_limit = 5;
+            s.topological_limit_of = vec![("predator".into(), 2)];
+        }
+        for s in 0..2 {
+            let l = scene.layout(s);
+            assert_eq!(
+                (l.block(0), l.block(1), l.energy(), l.heading(), l.dim()),
+                (4..12, 12..32, Some(32), 33..35, 35)
+            );
+        }
     }
 }

@@ -20,6 +20,7 @@ pub(super) fn paper() -> Scene {
         policy,
         blind_to: vec![],
         perception_of: vec![],
+        topological_limit_of: vec![],
     };
     Scene {
         preset: "paper".into(),
@@ -74,6 +75,7 @@ pub(super) fn paper() -> Scene {
             opponents: vec![],
         },
         observation_frame: ObservationFrame::World,
+        observation_layout: ObservationLayout::Paper,
         cluster_link: default_cluster_link(),
         confusion_radius: None,
         contact_rewards: vec![],

@@ -96,6 +96,9 @@ impl Scene {
         if let Some(v) = patch.observation_frame {
             self.observation_frame = v;
         }
+        if let Some(v) = patch.observation_layout {
+            self.observation_layout = v;
+        }
         if let Some(v) = patch.cluster_link {
             self.cluster_link = v;
         }
@@ -229,6 +232,7 @@ impl SpeciesDef {
             policy: Policy::Still,
             blind_to: vec![],
             perception_of: vec![],
+            topological_limit_of: vec![],
         }
     }
 }

@@ -264,6 +264,13 @@ patchable! {
         /// predators only within D/12 and every other species within `perception` (the "many eyes" condition).
         #[serde(default, skip_serializing_if = "Vec::is_empty")]
         pub perception_of: Vec<(String, Perception)>,
+        /// Slots per observed species (not in the paper, which observes 6 of each): `[("predator", 2)]`
+        /// observes at most 2 predators and `topological_limit` of every other species. With
+        /// `topological_limit: 5` on both species it is the authors' code (WindyLab/Gym-PPS
+        /// `NJP_algorithm/custom_param.json`: `topo_n_p2p` = `topo_n_e2p` = 2, `topo_n_p2e` = `topo_n_e2e` = 5;
+        /// issue 37, row 4).
+        #[serde(default, skip_serializing_if = "Vec::is_empty")]
+        pub topological_limit_of: Vec<(String, usize)>,
     }
 }
 
@@ -346,6 +353,9 @@ pub struct Scene {
     /// The frame observations are written in (`World` in both presets; absent in older scene files).
     #[serde(default)]
     pub observation_frame: ObservationFrame,
+    /// The order of an observation's parts ([`ObservationLayout`]); left out of scene files at the paper's.
+    #[serde(default, skip_serializing_if = "is_default")]
+    pub observation_layout: ObservationLayout,
     /// Agents of one species closer than this many body diameters (centre to centre) belong to one
     /// cluster, for the group-structure measures (not in the paper; absent in older scene files).
     #[serde(default = "default_cluster_link")]
@@ -403,6 +413,19 @@ pub enum ObservationFrame {
     Body,
 }
 
+/// The order of an observation's parts (issue 37, row 4).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub enum ObservationLayout {
+    /// The paper's (Section "Agent Observation"): own `[x, y, v_x, v_y, h_x, h_y]`, then the neighbour
+    /// blocks of every species in registry order.
+    #[default]
+    Paper,
+    /// As WindyLab/Gym-PPS `gym/envs/pps/pps.py` `_get_obs()` in its `Polar` dynamics: own `[x, y, v_x, v_y]`,
+    /// the neighbour blocks, the energy input 2·E/E_max − 1 (+1 without `energy_budget`: never tired), then
+    /// own `[h_x, h_y]`: d_o = 7 + 4·(slots), 35 with 2 + 5 slots. World frame only.
+    Authors,
+}
+
 /// A scene file: a preset and what it overrides.
 #[derive(Clone, Debug, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -425,6 +448,8 @@ pub struct ScenePatch {
     pub learning: Option<LearningParamsPatch>,
     #[serde(default)]
     pub observation_frame: Option<ObservationFrame>,
+    #[serde(default)]
+    pub observation_layout: Option<ObservationLayout>,
     #[serde(default)]
     pub cluster_link: Option<f64>,
     #[serde(default)]

@@ -45,6 +45,11 @@ impl Scene {
         ] {
             check(v.is_finite(), f, || format!("must be a finite number (got {v})"))?;
         }
+        check(
+            self.observation_layout == ObservationLayout::Paper || self.observation_frame == ObservationFrame::World,
+            "observation_layout",
+            || "Authors is the authors' code's world-frame observation; it needs observation_frame: World".into(),
+        )?;
         check(self.episode_steps > 0, "episode_steps", || "must be ≥ 1".into())?;
         check(self.episodes > 0, "episodes", || "must be ≥ 1".into())?;
         check(!self.species.is_empty(), "species", || "a scene needs at least one species".into())?;
@@ -118,6 +123,16 @@ impl Scene {
                     Perception::Full => {}
                     Perception::FractionOfD(x) | Perception::Radius(x) => positive(x, &f("perception_of"))?,
                 }
+            }
+            for (i, (target, _)) in s.topological_limit_of.iter().enumerate() {
+                check(self.species.iter().any(|o| &o.name == target), &f("topological_limit_of"), || {
+                    format!("no species named {target:?} in this scene")
+                })?;
+                check(
+                    !s.topological_limit_of[..i].iter().any(|(t, _)| t == target),
+                    &f("topological_limit_of"),
+                    || format!("{target:?} is named twice"),
+                )?;
             }
         }
         for (i, r) in self.contact_rewards.iter().enumerate() {

@@ -10,11 +10,14 @@
 //! `[x, y, v_x, v_y, h_x, h_y]`, then for every species t in registry order `topological_limit(s)` slots of
 //! `[Δx, Δy, h_jx − h_ix, h_jy − h_iy]`: the agents of t within the perception radius R of s, nearest first,
 //! Δ the minimum-image displacement, never itself; empty slots are zeros. For the paper's predators and
-//! prey with limit 6 that is 6 + 4·(6 + 6) = 54 numbers.
+//! prey with limit 6 that is 6 + 4·(6 + 6) = 54 numbers. A species may observe fewer of one species
+//! (`topological_limit_of`), and a scene may order the parts as the authors' code does
+//! (`observation_layout: Authors`; [`crate::scene::layout::Layout`] says where each part sits).
 
 use super::schedule::ActiveScene;
 use crate::scene::{ObservationFrame, Scene};
 use crate::sim::components::*;
+use crate::sim::physics::FULL_ENERGY;
 use crate::sim::space::{Arena, CellGrid};
 use crate::sim::species::{SpeciesRegistry, ACTION_DIM, NEIGHBOUR_DIM, OWN_STATE_DIM};
 use bevy::ecs::schedule::ScheduleLabel;
@@ -51,6 +54,8 @@ pub struct Population {
     pub radius: Vec<f64>,
     /// The turn command of each agent's last action, normalized to [−1, 1] (its "turn state").
     pub turn: Vec<f64>,
+    /// The authors' energy budget of each agent ([`FULL_ENERGY`] for an agent without one).
+    pub energy: Vec<f64>,
     pub ranges: Vec<Range<usize>>,
     /// One grid per species over its slots.
     pub grids: Vec<CellGrid>,
@@ -146,6 +151,7 @@ type IndexQuery<'w, 's> = Query<
         &'static Heading,
         &'static Body,
         &'static Action,
+        Option<&'static Energy>,
         &'static mut Slot,
     ),
 >;
@@ -169,8 +175,9 @@ fn index_population(
     let mut order: Vec<_> = agents
         .iter()
         .enumerate()
-        .map(|(q, (e, id, s, x, v, h, body, a, _))| {
-            ((s.0, *id), q, e, x.0, v.0, h.unit(), body.radius, turn_of(s.0, a))
+        .map(|(q, (e, id, s, x, v, h, body, a, energy, _))| {
+            let energy = energy.map_or(FULL_ENERGY, |e| e.0);
+            ((s.0, *id), q, e, x.0, v.0, h.unit(), body.radius, turn_of(s.0, a), energy)
         })
         .collect();
     order.sort_unstable_by_key(|a| a.0);
@@ -183,13 +190,14 @@ fn index_population(
     p.species.clear();
     p.radius.clear();
     p.turn.clear();
+    p.energy.clear();
     p.nearest_kin.clear();
     p.nearest_kin.resize(order.len(), None);
     let n_species = registry.len();
     p.ranges = vec![0..0; n_species];
     p.max_radius = vec![0.0; n_species];
     let mut slot_of = vec![Slot { index: 0, row: 0 }; order.len()];
-    for ((s, id), q, e, x, v, h, radius, turn) in order {
+    for ((s, id), q, e, x, v, h, radius, turn, energy) in order {
         let slot = p.entity.len();
         if p.ranges[s].is_empty() {
             p.ranges[s] = slot..slot;
@@ -203,6 +211,7 @@ fn index_population(
         p.heading.push(h);
         p.radius.push(radius);
         p.turn.push(turn);
+        p.energy.push(energy);
         p.max_radius[s] = p.max_radius[s].max(radius);
         slot_of[q] = Slot { index: slot as u32, row: (slot - p.ranges[s].start) as u32 };
     }
@@ -345,10 +354,10 @@ fn observe_rows(
     observations: &mut [f32],
     nearest_kin: &mut [Option<u32>],
 ) {
-    let limit = registry.defs[s].topological_limit;
+    let layout = &registry.layouts[s];
     let (radii, blind) = (&registry.perception_radii[s], &registry.blind[s]);
-    let dim = registry.observation_dim(s);
-    let mut nearest = Vec::with_capacity(limit);
+    let dim = layout.dim();
+    let mut nearest = Vec::with_capacity(layout.slots.iter().copied().max().unwrap_or(0));
     for (row, (obs, kin)) in observations.chunks_exact_mut(dim).zip(nearest_kin.iter_mut()).enumerate() {
         let i = first + row;
         obs.fill(0.0);
@@ -366,10 +375,19 @@ fn observe_rows(
                 [v.x, v.y, pop.turn[i], wall.x, wall.y, 0.0]
             }
         };
-        obs[..OWN_STATE_DIM].copy_from_slice(&own.map(|c| c as f32));
+        match layout.energy() {
+            None => obs[..OWN_STATE_DIM].copy_from_slice(&own.map(|c| c as f32)),
+            // The authors' order (world frame only): [x, y, v_x, v_y], the blocks, energy, [h_x, h_y].
+            Some(e) => {
+                let own = own.map(|c| c as f32);
+                obs[..4].copy_from_slice(&own[..4]);
+                obs[e] = (2.0 / FULL_ENERGY * pop.energy[i] - 1.0) as f32;
+                obs[layout.heading()].copy_from_slice(&own[4..]);
+            }
+        }
         let own_heading = seen(h);
         for (t, grid) in pop.grids.iter().enumerate() {
-            grid.k_nearest(arena, x, limit, radii[t], i as u32, &mut nearest);
+            grid.k_nearest(arena, x, layout.slots[t], radii[t], i as u32, &mut nearest);
             if t == s {
                 // The nearest kin is measured (C_nn), whatever the species is allowed to see.
                 *kin = nearest.first().map(|&(_, j)| j);
@@ -378,7 +396,7 @@ fn observe_rows(
                 // `blind_to`: the block stays zero.
                 continue;
             }
-            let block = registry.block_offset(s, t);
+            let block = layout.block(t).start;
             for (n, &(_, j)) in nearest.iter().enumerate() {
                 let j = j as usize;
                 let d = seen(arena.delta(x, pop.position[j]));
@@ -394,7 +412,7 @@ fn observe_rows(
 /// environment can declare its bounds: every observation lies in [−high, high]. Positions lie in the arena
 /// (with walls, at most as far into a wall as a centre may sink before the state is refused as escaped,
 /// `physics::apply_boundary`); velocities within the speed clip (the last change of a step's velocity);
-/// headings are unit vectors and the turn command lies in [−1, 1]; displacements within the minimum
+/// headings are unit vectors and the turn command and the energy input lie in [−1, 1]; displacements within the minimum
 /// image on the torus (both centres' reach with walls); heading differences within 2. In the body frame a
 /// vector's rotated components are bounded by its length. With walls every neighbour block takes the bound
 /// of the farthest-reaching species (one bound for every observed species); a margin of 1e-6 covers
@@ -435,10 +453,18 @@ pub fn observation_high(scene: &Scene, registry: &SpeciesRegistry, s: usize) -> 
             .try_into()
             .expect("four"),
     };
-    let mut high: Vec<f64> = own.to_vec();
-    high.resize(registry.observation_dim(s), 0.0);
-    for chunk in high[OWN_STATE_DIM..].chunks_exact_mut(NEIGHBOUR_DIM) {
+    let layout = &registry.layouts[s];
+    let mut high = vec![0.0; layout.dim()];
+    for chunk in high[layout.neighbours()].chunks_exact_mut(NEIGHBOUR_DIM) {
         chunk.copy_from_slice(&slot);
+    }
+    match layout.energy() {
+        None => high[..OWN_STATE_DIM].copy_from_slice(&own),
+        Some(e) => {
+            high[..4].copy_from_slice(&own[..4]);
+            high[e] = 1.0;
+            high[layout.heading()].copy_from_slice(&own[4..]);
+        }
     }
     high.into_iter().map(|x| (x * (1.0 + 1e-6)) as f32).collect()
 }
@@ -463,7 +489,7 @@ pub fn neighbour_slot(
     species: usize,
     n: usize,
 ) -> Option<[f32; 4]> {
-    if n >= registry.defs[observer].topological_limit {
+    if n >= registry.slots(observer, species) {
         return None;
     }
     let at = registry.block_offset(observer, species) + n * NEIGHBOUR_DIM;

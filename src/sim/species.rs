@@ -13,7 +13,7 @@ use bevy::prelude::*;
 use std::sync::Arc;
 
 pub use crate::scene::catalog::SpeciesTemplate;
-pub use crate::scene::layout::{ACTION_DIM, NEIGHBOUR_DIM, OWN_STATE_DIM};
+pub use crate::scene::layout::{Layout, ACTION_DIM, NEIGHBOUR_DIM, OWN_STATE_DIM};
 
 /// The species of the scene, in registry order (which is also the order of observation blocks).
 #[derive(Resource, Clone, Debug)]
@@ -31,6 +31,8 @@ pub struct SpeciesRegistry {
     /// `contact_reward[a][b]`: (to the catcher, to the caught) per contact where a catches b; ±contact
     /// unless the scene's `contact_rewards` sets the pair.
     pub contact_reward: Vec<Vec<(f64, f64)>>,
+    /// Where each part of species a's observation sits (its blocks' slots, the order of its parts).
+    pub layouts: Vec<Layout>,
 }
 
 impl SpeciesRegistry {
@@ -81,7 +83,8 @@ impl SpeciesRegistry {
                     .collect()
             })
             .collect();
-        SpeciesRegistry { defs, catches, perception_radius, perception_radii, blind, contact_reward }
+        let layouts = (0..defs.len()).map(|s| scene.layout(s)).collect();
+        SpeciesRegistry { defs, catches, perception_radius, perception_radii, blind, contact_reward, layouts }
     }
 
     pub fn len(&self) -> usize {
@@ -96,15 +99,24 @@ impl SpeciesRegistry {
         self.defs.iter().position(|d| d.name == name)
     }
 
-    /// d_o for an observer of species `s`: own state, then `topological_limit` neighbour slots for every
-    /// species in registry order (54 for the paper's two species and limit 6).
+    /// d_o for an observer of species `s` ([`Layout::dim`]; 54 for the paper's two species and limit 6).
     pub fn observation_dim(&self, s: usize) -> usize {
-        crate::scene::layout::observation_dim(self.defs[s].topological_limit, self.len())
+        self.layouts[s].dim()
+    }
+
+    /// The block of species `t` in the observation of species `s`.
+    pub fn block(&self, s: usize, t: usize) -> std::ops::Range<usize> {
+        self.layouts[s].block(t)
     }
 
     /// Offset of the block of species `t` in the observation of species `s`.
     pub fn block_offset(&self, s: usize, t: usize) -> usize {
-        OWN_STATE_DIM + NEIGHBOUR_DIM * self.defs[s].topological_limit * t
+        self.block(s, t).start
+    }
+
+    /// How many agents of species `t` an agent of species `s` observes at most.
+    pub fn slots(&self, s: usize, t: usize) -> usize {
+        self.layouts[s].slots[t]
     }
 
     /// The species whose DoS/DoA headline a run: the first that something catches and that catches nothing
@@ -265,8 +277,9 @@ pub fn describe(scene: &Scene, source: &str) -> String {
     for (s, d) in r.defs.iter().enumerate() {
         let _ = writeln!(
             out,
-            "  {s} {}: {} agents, policy {:?}, mass {} kg, radius {} m, max speed {} m/s, perception R = {:.4} m, at most {} observed per species",
-            d.name, d.count, d.policy, d.mass, d.radius, d.max_speed, r.perception_radius[s], d.topological_limit
+            "  {s} {}: {} agents, policy {:?}, mass {} kg, radius {} m, max speed {} m/s, perception R = {:.4} m, at most {} observed per species{}",
+            d.name, d.count, d.policy, d.mass, d.radius, d.max_speed, r.perception_radius[s], d.topological_limit,
+            d.topological_limit_of.iter().map(|(t, k)| format!(", {k} of {t}")).collect::<String>()
         );
     }
     let _ = writeln!(out, "\ncontacts (catcher -> caught: reward to the catcher / to the caught, per contact):");
@@ -284,10 +297,11 @@ pub fn describe(scene: &Scene, source: &str) -> String {
     for s in 0..r.len() {
         let d_o = r.observation_dim(s);
         let _ = writeln!(out, "\nobservation of {} (d_o = {d_o}):", r.defs[s].name);
-        let _ = writeln!(out, "  [0, {OWN_STATE_DIM}) own state");
+        let layout = &r.layouts[s];
+        let _ = writeln!(out, "  [0, {}) own state", layout.leading());
         for t in 0..r.len() {
             let from = r.block_offset(s, t);
-            let slots = r.defs[s].topological_limit;
+            let slots = r.slots(s, t);
             let seen = if r.blind[s][t] {
                 " — never seen (blind_to): always zero".to_string()
             } else if r.perception_radii[s][t] != r.perception_radius[s] {
@@ -301,6 +315,11 @@ pub fn describe(scene: &Scene, source: &str) -> String {
                 from + slots * NEIGHBOUR_DIM,
                 r.defs[t].name
             );
+        }
+        if let Some(e) = layout.energy() {
+            let h = layout.heading();
+            let _ =
+                writeln!(out, "  [{e}, {}) energy input 2·E/E_max − 1\n  [{}, {}) own heading", e + 1, h.start, h.end);
         }
     }
     let _ = writeln!(out, "\nresolved scene:\n{}", scene.to_ron());

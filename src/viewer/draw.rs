@@ -461,7 +461,7 @@ fn draw_overlays(
         if (slot.row as usize) < batch.n {
             let obs = batch.observation(slot.row as usize);
             for t in 0..registry.len() {
-                for n in 0..registry.defs[s.0].topological_limit {
+                for n in 0..registry.slots(s.0, t) {
                     if let Some([dx, dy, _, _]) = neighbour_slot(obs, &registry, s.0, t, n) {
                         // Body-frame displacements are (ahead, left) of the observer: turned back to the world.
                         let d = DVec2::new(dx as f64, dy as f64);

@@ -15,7 +15,7 @@ use crate::scene::{Boundary, Perception, Scene, PRESETS};
 use crate::sim::clock::Episode;
 use crate::sim::components::{Action, AgentId, Contacts, Heading, Position, Reward, Slot, SpeciesId, Velocity};
 use crate::sim::perception::{neighbour_slot, Batches};
-use crate::sim::species::{SpeciesRegistry, OWN_STATE_DIM};
+use crate::sim::species::SpeciesRegistry;
 use bevy::ecs::system::SystemParam;
 use bevy::prelude::*;
 use bevy_egui::{egui, EguiContexts, EguiPrimaryContextPass};
@@ -474,11 +474,13 @@ fn agent_details(
         reward.0, contacts.now.catching, contacts.now.caught, contacts.now.walls
     ));
     let r = registry.perception_radius[s.0];
-    ui.label(format!("perception radius R = {r:.3} m, at most {} per species", def.topological_limit));
+    let slots: Vec<String> =
+        (0..registry.len()).map(|t| format!("{} {}", registry.slots(s.0, t), registry.defs[t].name)).collect();
+    ui.label(format!("perception radius R = {r:.3} m, observes at most {}", slots.join(", ")));
     let Some(batch) = batches.species.get(s.0).filter(|b| (slot.row as usize) < b.n) else { return };
     let obs = batch.observation(slot.row as usize);
     let own = |i: usize| format!("({:+.3}, {:+.3})", obs[i], obs[i + 1]);
-    debug_assert_eq!(OWN_STATE_DIM, 6);
+    let layout = &registry.layouts[s.0];
     let body = frame == crate::scene::ObservationFrame::Body;
     if body {
         ui.label(format!(
@@ -487,6 +489,16 @@ fn agent_details(
             own(0),
             obs[2],
             own(3)
+        ));
+    } else if let Some(e) = layout.energy() {
+        let h = layout.heading().start;
+        ui.label(format!(
+            "observation (the authors' order), {} numbers; own state: x {}, v {}, energy input {:+.3}, h {}",
+            obs.len(),
+            own(0),
+            own(2),
+            obs[e],
+            own(h)
         ));
     } else {
         ui.label(format!("observation, {} numbers; own state: x {}, v {}, h {}", obs.len(), own(0), own(2), own(4)));
@@ -502,7 +514,7 @@ fn agent_details(
         }
         ui.end_row();
         for t in 0..registry.len() {
-            for n in 0..def.topological_limit {
+            for n in 0..registry.slots(s.0, t) {
                 ui.label(format!("{} {}", registry.defs[t].name, n + 1));
                 match neighbour_slot(obs, registry, s.0, t, n) {
                     Some(slot) => slot.iter().for_each(|v| {

@@ -149,6 +149,55 @@ fn topological_limit_sets_the_width() {
     assert_eq!(b.species[1].observations.len(), 10 * 22, "one contiguous [n × d_o] batch");
 }
 
+#[test]
+fn topological_limit_of_narrows_one_block_and_nothing_else() {
+    let (sim, offsets) = configured_with(|s| s.species[1].topological_limit_of = vec![("predator".into(), 1)]);
+    let obs = observation_of_prey_observer(&sim);
+    let (paper, _) = configured(Perception::Full);
+    let paper = observation_of_prey_observer(&paper);
+    assert_eq!(obs.len(), 6 + 4 * (1 + 6));
+    assert_eq!(obs[..6], paper[..6], "own state");
+    assert!(close(&obs[6..10], &[0.0, 0.3, -1.0, 1.0]), "the nearest predator only: {:?}", &obs[6..10]);
+    assert_eq!(obs[10..], paper[30..], "the same six prey, one predator slot earlier");
+    assert_eq!(offsets.len(), 8);
+    let b = sim.world().resource::<Batches>();
+    assert_eq!(b.species[0].obs_dim, 54, "the predators' limits are their own");
+}
+
+/// The authors' observation (WindyLab/Gym-PPS `gym/envs/pps/pps.py` `_get_obs`, Polar dynamics, with
+/// `custom_param.json`'s 2 predator and 5 prey slots), written out by hand for the configured state:
+/// `[x, y, v_x, v_y]`, the two predators, the five nearest prey, `2/1000·E − 1`, `[h_x, h_y]`.
+#[test]
+fn the_authors_layout_is_what_pps_get_obs_writes() {
+    use coevo::scene::ObservationLayout;
+    use coevo::sim::components::{AgentId, Energy};
+    let (mut sim, offsets) = configured_with(|s| {
+        s.observation_layout = ObservationLayout::Authors;
+        s.world.energy_budget = true;
+        for def in &mut s.species {
+            def.topological_limit = 5;
+            def.topological_limit_of = vec![("predator".into(), 2)];
+        }
+    });
+    let world = sim.world_mut();
+    let mut q = world.query::<(&AgentId, &mut Energy)>();
+    q.iter_mut(world).find(|(id, _)| id.0 == 2).expect("the observer has a budget").1 .0 = 250.0;
+    world.run_schedule(coevo::sim::perception::Perceive);
+    let obs = observation_of_prey_observer(&sim);
+    let mut want = vec![0.95, 0.0, 0.1, -0.2, 0.0, 0.3, -1.0, 1.0, -0.9, 0.0, -1.0, 1.0];
+    for d in offsets.iter().take(5) {
+        want.extend([d.x, d.y, -1.0, 1.0]);
+    }
+    want.extend([2.0 / 1000.0 * 250.0 - 1.0, 1.0, 0.0]);
+    assert_eq!(want.len(), 35, "d_o = (2 + 2·(2 + 5))·2 + 1 + 2");
+    assert!(close(&obs, &want), "{obs:?}\n{want:?}");
+    // A predator: itself never, the other predator first, then the prey; a full budget reads +1.
+    let pred0 = sim.world().resource::<Batches>().species[0].observation(0).to_vec();
+    assert_eq!(pred0.len(), 35);
+    assert!(close(&pred0[4..8], &[-0.9, -0.3, 0.0, 0.0]) && pred0[8..12] == [0.0; 4], "{:?}", &pred0[4..12]);
+    assert!(close(&pred0[32..], &[1.0, 0.0, 1.0]), "energy +1, heading (0, 1): {:?}", &pred0[32..]);
+}
+
 /// The same configuration observed in the body frame, its world turned by 90° about the origin (a symmetry
 /// of the square torus): every body-frame observation must be the same, and so must a network's action.
 #[test]
