@@ -1,0 +1,177 @@
+"""The authors' own learner on coevo's world (issue 37, item 3).
+
+Drives the MADDPG learner of a WindyLab/Gym-PPS checkout (``NJP_algorithm/``: ``algorithms/maddpg.py``,
+``utils/buffer.py``, ``utils/agents.py``, ``utils/noise.py``; nothing of it is copied here) on coevo's
+Python environment, with the loop of ``NJP_algorithm/main.py`` written out below and only the
+environment replaced: coevo's physics, rewards and metrics, observed in the code's layout
+(``scenes/gym-pps-code.ron``: own [x, y, v_x, v_y], 2 predator and 5 prey slots, the energy input, own
+heading; d_o 35). A run is the first check of coevo's learning *outcomes* against an implementation
+coevo did not write.
+
+    python examples/gym_pps_learner.py --gym-pps ~/src/Gym-PPS --seed 1 --out runs/gym-pps-learner/seed1.csv
+
+writes one row per episode: the paper's DoS and DoA of the prey averaged over the episode's steps
+(coevo's metric, the one ``metrics.csv`` logs), the catches, and the wall time, to be compared with
+coevo's own runs of the same scene (``coevo --train --scene scenes/gym-pps-code.ron``).
+
+What the adapter does, each the code's behaviour in ``gym/envs/pps/pps.py`` and ``main.py``:
+
+* **Observations** are columns, ``[d_o, agents]``, predators first (``_get_obs``).
+* **Actions** come out of the learner as ``[turn, thrust]`` rows in [-1, 1] (``step``: ``a[0]`` turns by
+  ``a[0]`` times the largest turn per step, ``a[1]`` maps to [min, max] acceleration); coevo's order is
+  ``[thrust, turn]``, so the rows are swapped on the way in.
+* **Stored actions** are the rescaled ones, as the code's ``env.step`` rescales the array in place before
+  ``main.py`` pushes it (issue 37, row 2), while the actors are queried at [-1, 1].
+* **Rewards** are coevo's for the scene (the ``gym-pps`` preset's values), ``[1, agents]``; nobody is ever
+  done.
+
+Needs torch and numpy (``pip install torch``; the package registry's torch carries its CUDA libraries,
+~5 GB). The learner's files import ``gym.spaces``; if the checkout's own ``gym`` package does not import
+(it needs an old numpy), a stand-in module with gymnasium's spaces is used, as the continuous learner
+never touches them. The mapping itself is tested without torch or a checkout
+(``python/tests/test_env.py``, ``test_the_gym_pps_adapter_maps_coevos_world_to_the_codes_arrays``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import os
+import re
+import sys
+import time
+import types
+
+import numpy as np
+
+import coevo
+
+
+def columns(env: coevo.CoevoParallelEnv, observations: dict) -> np.ndarray:
+    """Observations as the code holds them: ``[d_o, agents]``, one column per agent, predators first
+    (coevo's agents are already in species order: ``predator_0 …``, then ``prey_0 …``)."""
+    return np.stack([observations[a] for a in env.possible_agents], axis=1).astype(np.float64)
+
+
+def to_coevo(env: coevo.CoevoParallelEnv, actions: np.ndarray) -> dict:
+    """The learner's ``[2, agents]`` actions (rows: turn, thrust) as coevo's per-agent [thrust, turn]."""
+    return {a: np.array([actions[1, i], actions[0, i]], dtype=np.float32) for i, a in enumerate(env.possible_agents)}
+
+
+def limits(env: coevo.CoevoParallelEnv) -> tuple[np.ndarray, np.ndarray]:
+    """Per agent, the largest turn per step (rad: max turn rate × dt) and the largest thrust (N), read from
+    the scene the env runs."""
+    ron = env.scene_ron()
+    dt = float(re.search(r"\bdt: ([0-9.eE+-]+)", ron).group(1))
+    species = {}
+    for block in re.finditer(r'\(\s*name: "([^"]+)",(.*?)\n\s*\),', ron, re.S):
+        fields = dict(re.findall(r"(max_turn_rate|max_thrust): ([0-9.eE+-]+)", block.group(2)))
+        if fields:
+            species[block.group(1)] = (float(fields["max_turn_rate"]) * dt, float(fields["max_thrust"]))
+    per_agent = [species[a.rsplit("_", 1)[0]] for a in env.possible_agents]
+    return np.array([t for t, _ in per_agent]), np.array([f for _, f in per_agent])
+
+
+def rescale_in_place(actions: np.ndarray, turn_max: np.ndarray, thrust_max: np.ndarray) -> None:
+    """What the code's ``env.step`` does to the array it is handed (and ``main.py`` then stores): the
+    turn times the largest turn per step, the thrust from [-1, 1] to [0, max] (``(max − min)/2·a +
+    (max + min)/2`` with min 0)."""
+    actions[0] *= turn_max
+    actions[1] = thrust_max / 2 * actions[1] + thrust_max / 2
+
+
+def learner(checkout: str):
+    """The checkout's MADDPG and ReplayBuffer classes."""
+    sys.path.insert(0, os.path.join(checkout, "NJP_algorithm"))
+    try:
+        import gym.spaces  # noqa: F401 (the checkout's own gym, when it imports here)
+    except Exception:
+        from gymnasium import spaces
+
+        stand_in = types.ModuleType("gym")
+        stand_in.spaces = spaces
+        sys.modules["gym"], sys.modules["gym.spaces"] = stand_in, spaces
+    from algorithms.maddpg import MADDPG
+    from utils.buffer import ReplayBuffer
+
+    own = not sys.modules["gym"].spaces.__name__.startswith("gymnasium")
+    used = "the checkout's own" if own else "gymnasium's (stand-in)"
+    print(f"the learner of {checkout}; gym.spaces: {used}", file=sys.stderr)
+    return MADDPG, ReplayBuffer
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--gym-pps", required=True, help="a WindyLab/Gym-PPS checkout")
+    parser.add_argument("--scene", default="scenes/gym-pps-code.ron")
+    parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument("--episodes", type=int, default=2000)
+    parser.add_argument("--episode-steps", type=int, default=None, help="the scene's (500) unless given")
+    parser.add_argument("--threads", type=int, default=1, help="torch threads (the code's default is 6)")
+    parser.add_argument("--out", required=True, help="CSV, one row per episode")
+    args = parser.parse_args()
+    if os.path.exists(args.out):
+        sys.exit(f"--out: {args.out} exists; give a new file")
+    import torch
+
+    MADDPG, ReplayBuffer = learner(args.gym_pps)
+    print(f"torch {torch.__version__}, {args.threads} thread(s); coevo {coevo.__version__} ({coevo.git_commit})", file=sys.stderr)
+    torch.manual_seed(args.seed)
+    np.random.seed(args.seed)
+    torch.set_num_threads(args.threads)
+    env = coevo.parallel_env(args.scene, seed=args.seed, episode_steps=args.episode_steps)
+    n_p = sum(a.startswith("predator_") for a in env.possible_agents)
+    n = len(env.possible_agents)
+    d_o = env.observation_space(env.possible_agents[0]).shape[0]
+    shim = types.SimpleNamespace(observation_space=types.SimpleNamespace(shape=(d_o, n)),
+                                 action_space=types.SimpleNamespace(shape=(2, n)), agent_types=["adversary", "agent"])
+    # main.py's defaults (argparse) and MADDPG's (gamma 0.95): the values the gym-pps preset copies.
+    maddpg = MADDPG.init_from_env(shim, agent_alg="MADDPG", adversary_alg="MADDPG", tau=0.01, lr_actor=1e-4,
+                                  lr_critic=1e-3, epsilon=0.1, noise=0.1, hidden_dim=64)
+    ranges = [slice(0, n_p), slice(n_p, n)]
+    buffers = [ReplayBuffer(int(5e5), r.stop - r.start, state_dim=d_o, action_dim=2, start_stop_index=r) for r in ranges]
+    turn_max, thrust_max = limits(env)
+    os.makedirs(os.path.dirname(os.path.abspath(args.out)), exist_ok=True)
+    partial = args.out + ".partial"
+    with open(partial, "w", newline="") as f:
+        out = csv.writer(f)
+        out.writerow(["episode", "dos", "doa", "catches", "wall_seconds"])
+        start = time.time()
+        for episode in range(args.episodes):
+            observations, _ = env.reset(seed=args.seed if episode == 0 else None)
+            obs = columns(env, observations)
+            maddpg.prep_rollouts(device="cpu")
+            maddpg.scale_noise(maddpg.noise, maddpg.epsilon)
+            maddpg.reset_noise()
+            dos, doa, catches = [], [], 0
+            for _ in range(env.episode_steps):
+                acted = maddpg.step(torch.Tensor(obs).requires_grad_(False), ranges, explore=True)
+                actions = np.column_stack([a.data.numpy() for a in acted]).astype(np.float64)
+                observations, rewards, _, _, infos = env.step(to_coevo(env, actions))
+                rescale_in_place(actions, turn_max, thrust_max)
+                next_obs = columns(env, observations)
+                reward = np.array([[rewards[a] for a in env.possible_agents]])
+                done = np.zeros((1, n))
+                for b in buffers:
+                    b.push(obs, actions, reward, next_obs, done)
+                obs = next_obs
+                info = infos[env.possible_agents[0]]
+                dos.append(info["dos"])
+                doa.append(info["doa"])
+                catches += info["catches"]
+            for _ in range(30):
+                maddpg.prep_training(device="cpu")
+                for i in range(maddpg.nagents):
+                    if len(buffers[i]) >= 256:
+                        maddpg.update(*buffers[i].sample(256), i)
+                maddpg.update_all_targets()
+                maddpg.prep_rollouts(device="cpu")
+            maddpg.noise = max(0.05, maddpg.noise - 5e-5)
+            maddpg.epsilon = max(0.05, maddpg.epsilon - 5e-5)
+            out.writerow([episode + 1, float(np.mean(dos)), float(np.mean(doa)), catches, round(time.time() - start, 3)])
+            f.flush()
+    os.replace(partial, args.out)
+
+
+if __name__ == "__main__":
+    main()
