@@ -36,13 +36,19 @@ fn scene_of(per_step: bool, authors: bool, league: bool) -> String {
     };
     let (world, switches) = if authors {
         (
-            "world: (spawn: AuthorsNoOverlap),",
+            // The code's observation too (issue 37, row 4), with the energy budget its input reads.
+            r#"world: (spawn: AuthorsNoOverlap, energy_budget: true), observation_layout: Authors,"#,
             "replay_window: AuthorsFirstRows, stored_action: AuthorsRescaled, noise_draw: PerSpecies, batch_draw: WithoutReplacement,",
         )
     } else if league {
         ("", r#"opponents: [("predator", Pool(p: 0.5, pick: Prioritised)), ("prey", Pool(p: 0.3, pick: Uniform))],"#)
     } else {
         ("", "")
+    };
+    let prey = if authors {
+        r#"(name: "prey", count: 12, topological_limit: 5, topological_limit_of: [("predator", 2)])"#
+    } else {
+        r#"(name: "prey", count: 12)"#
     };
     format!(
         r#"(
@@ -51,7 +57,7 @@ fn scene_of(per_step: bool, authors: bool, league: bool) -> String {
     episode_steps: 150,
     episodes: 24,
     {world}
-    species: [(name: "prey", count: 12)],
+    species: [{prey}],
     learning: (hidden: 16, batch_size: 32, warmup_transitions: 32, buffer_capacity: 1000,
                {schedule}, checkpoint_every: 2, snapshot_every: 5, {switches}),
 )"#
