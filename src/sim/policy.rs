@@ -102,7 +102,10 @@ fn decide_rule_based(
             let obs = batch.observation(row);
             // In the body frame the observer always faces along its first axis.
             let heading = match scene.0.observation_frame {
-                ObservationFrame::World => [obs[4], obs[5]],
+                ObservationFrame::World => {
+                    let h = registry.layouts[s].heading();
+                    [obs[h.start], obs[h.start + 1]]
+                }
                 ObservationFrame::Body => [1.0, 0.0],
             };
             let action = match registry.policy(s) {
