@@ -410,3 +410,91 @@ fn bodies_pressed_against_a_wall_are_drawn_over_it() {
         .count();
     assert!(on_wall > 50, "{on_wall} prey-coloured pixels on the wall band");
 }
+
+/// The plot frames in the right panel, top to bottom, as (top, bottom, left, right) pixel rows and
+/// columns: runs of rows that are dark (egui_plot's frame) across most of the panel, thin grid, chance
+/// and curve lines inside a frame bridged.
+fn plot_frames(w: u32, h: u32, pixels: &[[u8; 3]]) -> Vec<(u32, u32, u32, u32)> {
+    let at = |x: u32, y: u32| pixels[(y * w + x) as usize];
+    let dark = |x: u32, y: u32| at(x, y).iter().all(|&c| c <= 22);
+    let (x0, x1) = (w - 300, w - 40);
+    let rows: Vec<u32> =
+        (0..h).filter(|&y| (x0..x1).filter(|&x| dark(x, y)).count() * 10 >= (x1 - x0) as usize * 6).collect();
+    let mut frames: Vec<(u32, u32)> = vec![];
+    for y in rows {
+        match frames.last_mut() {
+            Some((_, bottom)) if y <= *bottom + 14 => *bottom = y,
+            _ => frames.push((y, y)),
+        }
+    }
+    frames
+        .into_iter()
+        .filter(|(top, bottom)| bottom - top >= 60)
+        .map(|(top, bottom)| {
+            // The frame's columns: mostly dark from top to bottom (grid lines cross it).
+            let column = |x: u32| (top..bottom).filter(|&y| dark(x, y)).count() * 10 >= (bottom - top) as usize * 7;
+            let left = (w - 370..w).find(|&x| column(x)).unwrap_or(0);
+            let right = (left..w).rev().find(|&x| column(x)).unwrap_or(left);
+            (top, bottom, left, right)
+        })
+        .collect()
+}
+
+/// Groups of consecutive indices (columns or rows) for which `lit` holds, gaps up to `gap` bridged.
+fn blobs(range: std::ops::Range<u32>, gap: u32, lit: impl Fn(u32) -> bool) -> usize {
+    let mut count = 0;
+    let mut last: Option<u32> = None;
+    for i in range.filter(|&i| lit(i)) {
+        if last.is_none_or(|l| i > l + gap) {
+            count += 1;
+        }
+        last = Some(i);
+    }
+    count
+}
+
+#[test]
+fn at_1280x720_the_plots_are_whole_with_labelled_ticks_chance_lines_and_the_last_episode_fast() {
+    // Live training starts "as fast as possible": with 20-step episodes many end during the 30 frames,
+    // so the step plot shows the last finished one (not an empty new episode).
+    let dir = tempfile::tempdir().unwrap();
+    let mut scene = Scene::load(Path::new("scenes/paper.ron")).unwrap();
+    scene.episode_steps = 20;
+    let file = dir.path().join("short.ron");
+    std::fs::write(&file, scene.to_ron()).unwrap();
+    let ((w, h, pixels), stdout) = screenshot_and_output(&["--scene", file.to_str().unwrap()]);
+    assert!(stdout.lines().filter(|l| l.starts_with("coevo: episode")).count() >= 2, "{stdout}");
+    let at = |x: u32, y: u32| pixels[(y * w + x) as usize];
+    let frames = plot_frames(w, h, &pixels);
+    eprintln!("plot frames: {frames:?}");
+    assert_eq!(frames.len(), 3, "per episode, step by step, catches: {frames:?}");
+    for &(top, bottom, left, right) in &frames {
+        assert!(bottom - top >= 100 && right - left >= 200, "a plot of {}×{} px", right - left, bottom - top);
+        // Tick labels: light text in the strip under the frame (x) and in the one left of it (y).
+        let light = |x: u32, y: u32| at(x, y).iter().all(|&c| c >= 110);
+        let x_labels = blobs(left..right, 8, |x| (bottom + 2..bottom + 16).any(|y| light(x, y)));
+        let y_labels = blobs(top..bottom, 4, |y| (left.saturating_sub(36)..left - 2).any(|x| light(x, y)));
+        assert!(x_labels >= 3 && y_labels >= 2, "frame at row {top}: {x_labels} x and {y_labels} y tick labels");
+    }
+    let (_, last_bottom, _, _) = frames[2];
+    assert!(last_bottom + 30 <= h, "the catches plot and its axis are whole: frame ends at row {last_bottom} of {h}");
+    // Chance lines: dashed near-white rows inside the per-episode and step plots (DoA 2/π and DoS).
+    for &(top, bottom, left, right) in &frames[..2] {
+        let chance = |x: u32, y: u32| at(x, y).iter().all(|&c| (205..=240).contains(&c));
+        // At least two dashes in a row: nothing else inside a plot is near-white, and an untrained
+        // swarm's curves lie on their chance lines, hiding most of them.
+        let lines = blobs(top..bottom, 2, |y| (left..right).filter(|&x| chance(x, y)).count() >= 12);
+        let rows: Vec<(u32, usize)> = (top..bottom)
+            .map(|y| (y, (left..right).filter(|&x| chance(x, y)).count()))
+            .filter(|&(_, n)| n > 0)
+            .collect();
+        assert!(lines >= 2, "frame at row {top}: {lines} chance lines (near-white pixels per row: {rows:?})");
+    }
+    // The step plot holds a DoA curve (orange) of the last finished episode.
+    let (top, bottom, left, right) = frames[1];
+    let doa = (top..bottom)
+        .flat_map(|y| (left..right).map(move |x| (x, y)))
+        .filter(|&(x, y)| close(at(x, y), [235, 140, 40], 30))
+        .count();
+    assert!(doa >= 20, "{doa} pixels of the DoA curve in the step plot");
+}

@@ -191,7 +191,7 @@ fn respawn_with_counts(world: &mut World, counts: &[usize]) {
     world.resource_mut::<ActiveScene>().0 = scene;
     world.resource_mut::<crate::sim::clock::Episode>().step = 0;
     crate::sim::episode::spawn_population(world);
-    world.resource_mut::<plots::History>().start_episode();
+    world.resource_mut::<plots::History>().start_episode(None);
     world.resource_mut::<Control>().error = None;
     let episode = world.resource::<crate::sim::clock::Episode>().index;
     if let Some(mut run) = world.get_resource_mut::<LiveRun>() {
@@ -238,11 +238,13 @@ fn track_live_run(world: &mut World) {
     let registry = world.resource::<SpeciesRegistry>();
     let prey = registry.defs[registry.headline()].name.clone();
     let mut history = world.resource_mut::<plots::History>();
-    (history.training, history.ratings) = match &mode {
-        RunMode::Watch(run) => {
-            (plots::training_curves(run, &prey), crate::experiment::crossplay_readouts::read_ratings(run))
-        }
-        _ => (None, None),
+    (history.training, history.ratings, history.trained_count) = match &mode {
+        RunMode::Watch(run) => (
+            plots::training_curves(run, &prey),
+            crate::experiment::crossplay_readouts::read_ratings(run),
+            plots::trained_count(run, &prey),
+        ),
+        _ => (None, None, None),
     };
 }
 

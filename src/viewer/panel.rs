@@ -407,6 +407,7 @@ fn inspector(
     batches: Res<Batches>,
     history: Res<History>,
     scene: Res<crate::sim::ActiveScene>,
+    playback: Res<Playback>,
 ) -> Result {
     let ctx = contexts.ctx_mut()?;
     let mut root = root_ui(ctx, "inspector_root");
@@ -428,7 +429,8 @@ fn inspector(
                 ui.separator();
                 ui.heading("Swarming");
                 let prey = registry.headline();
-                plots::show(ui, &history, registry.defs.get(prey).map_or("", |d| d.name.as_str()));
+                let name = registry.defs.get(prey).map_or("", |d| d.name.as_str());
+                plots::show(ui, &history, name, playback.as_fast_as_possible);
             });
         })
         .response
