@@ -247,7 +247,7 @@ fn rule_based_mode_replaces_learned_species_by_chase_and_flee() {
             .unwrap();
     use coevo::scene::Policy;
     assert_eq!(scene.species[0].policy, Policy::ChaseNearest);
-    assert_eq!(scene.species[1].policy, Policy::FleeNearest);
+    assert_eq!(scene.species[1].policy, Policy::FleeInside, "fleeing, and off the walls of a box");
     assert!(learners.species.iter().all(Option::is_none), "nothing learns");
 }
 
@@ -380,11 +380,17 @@ fn a_live_run_saved_from_the_window_resumes_to_the_headless_run() {
 
 #[test]
 fn bodies_pressed_against_a_wall_are_drawn_over_it() {
-    // The confined demo: rule-based prey flee into the walls and stay pressed against them (soft walls:
-    // a body overlaps the wall by up to its radius). The wall band keeps its own colour only where no
-    // body is: on it, the prey's colour must show.
-    let (w, h, pixels) = screenshot(&["--scene", "scenes/confined.ron", "--rules", "--steps-per-frame", "20"]);
-    let scene = Scene::load(Path::new("scenes/confined.ron")).unwrap();
+    // The confined scene with prey that flee straight away (FleeNearest, not the viewer's rule-based
+    // FleeInside): they run into the walls and stay pressed against them (soft walls: a body overlaps the
+    // wall by up to its radius). The wall band keeps its own colour only where no body is: on it, the
+    // prey's colour must show.
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("pressed.ron");
+    let text = std::fs::read_to_string("scenes/confined.ron").unwrap();
+    assert!(text.contains(r#"(name: "prey", count: 10, policy: Learned)"#));
+    std::fs::write(&file, text.replace("policy: Learned", "policy: FleeNearest")).unwrap();
+    let (w, h, pixels) = screenshot(&["--scene", file.to_str().unwrap(), "--steps-per-frame", "20"]);
+    let scene = Scene::load(&file).unwrap();
     let prey = srgb8(scene.species[1].colour);
     let wall = srgb8([0.42, 0.42, 0.46]);
     // The wall band: the columns and rows where its colour is; prey pixels inside its bounding box but

@@ -41,7 +41,7 @@ pub struct SceneArgs {
     #[arg(long, help_heading = "Scene", value_name = "NAME=N")]
     pub count: Vec<String>,
     /// A species' policy, as NAME=POLICY with POLICY as a scene file writes it: ChaseNearest, FleeNearest,
-    /// Random, Still, Frozen("RUN") (repeatable; --eval, --record, --animate, --describe-scene), e.g.
+    /// FleeInside, Random, Still, Frozen("RUN") (repeatable; --eval, --record, --animate, --describe-scene), e.g.
     /// --policy predator=ChaseNearest evaluates trained prey against the paper's rule-based predators.
     #[arg(long, help_heading = "Scene", value_name = "NAME=POLICY")]
     pub policy: Vec<String>,
@@ -136,7 +136,7 @@ impl SceneArgs {
         for p in &self.policy {
             let (name, policy) = p.split_once('=').ok_or_else(|| format!("--policy {p}: expected NAME=POLICY"))?;
             let policy = ron::from_str(policy).map_err(|_| {
-                format!("--policy {p}: {policy} is not a policy (ChaseNearest, FleeNearest, Random, Still, Frozen(\"RUN\"), Learned)")
+                format!("--policy {p}: {policy} is not a policy (ChaseNearest, FleeNearest, FleeInside, Random, Still, Frozen(\"RUN\"), Learned)")
             })?;
             policies.push((name.to_string(), policy));
         }

@@ -86,6 +86,12 @@ pub enum Policy {
     ChaseNearest,
     /// Turn away from the nearest observed agent of a species that catches it, full thrust.
     FleeNearest,
+    /// As `FleeNearest`, also steering off walls closer than [`FLEE_WALL_MARGIN`] (not in the paper), and
+    /// braking while it faces away from where it should go: in a box, prey that flee straight away at full
+    /// speed end pressed into walls and corners (their turning circle, v / max turn rate, is 1 m in the
+    /// paper's 2 m box); these turn along and away from them. On the torus, and away from walls, it is
+    /// `FleeNearest` exactly. The viewer's rule-based prey.
+    FleeInside,
     /// Trained by the learning plugin (Algorithm 1).
     Learned,
     /// A trained actor loaded from a checkpoint folder, no updates.
@@ -94,6 +100,10 @@ pub enum Policy {
     /// batch (see `tests/species_plugin.rs`).
     Plugin(String),
 }
+
+/// How near a wall `FleeInside` starts to steer off it, in metres: beyond the ~0.25 m a prey at the paper's
+/// top speed coasts while braking (drag 2 N·s/m on 1 kg).
+pub const FLEE_WALL_MARGIN: f64 = 0.4;
 
 /// Whether a field holds its default, so a scene file written by coevo leaves it out: a switch added
 /// later (the authors' code's behaviours, issue 37) changes neither the `scene.ron` of a run that leaves

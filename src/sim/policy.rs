@@ -88,6 +88,42 @@ fn nearest_observed(
         .min_by(|a, b| (a[0].hypot(a[1])).total_cmp(&b[0].hypot(b[1])))
 }
 
+/// The push off the walls within [`FLEE_WALL_MARGIN`] of the observer, in its observation's frame: per
+/// wall, the inward normal weighted 2·(1 − distance/margin), so a wall at contact outweighs the unit
+/// direction away from a predator. None on the torus and away from walls. The world frame reads the
+/// observer's own position, the body frame its nearest wall point.
+fn off_walls(obs: &[f32], registry: &SpeciesRegistry, s: usize, scene: &crate::scene::Scene) -> Option<[f32; 2]> {
+    use crate::scene::{Boundary, FLEE_WALL_MARGIN};
+    if scene.world.boundary != Boundary::Walls {
+        return None;
+    }
+    let weight = |distance: f64| 2.0 * (1.0 - distance / FLEE_WALL_MARGIN);
+    let mut push = [0.0f64; 2];
+    match scene.observation_frame {
+        ObservationFrame::World => {
+            let half = scene.world.arena_edge / 2.0 - registry.defs[s].radius;
+            for (axis, x) in [obs[0] as f64, obs[1] as f64].into_iter().enumerate() {
+                for side in [-1.0, 1.0] {
+                    let distance = (half - side * x).max(0.0);
+                    if distance < FLEE_WALL_MARGIN {
+                        push[axis] -= side * weight(distance);
+                    }
+                }
+            }
+        }
+        ObservationFrame::Body => {
+            // Own state [v ahead, v left, turn, wall ahead, wall left, 0]: the nearest wall point.
+            let wall = [obs[3] as f64, obs[4] as f64];
+            let distance = (wall[0].hypot(wall[1]) - registry.defs[s].radius).max(0.0);
+            if distance < FLEE_WALL_MARGIN && wall != [0.0, 0.0] {
+                let n = wall[0].hypot(wall[1]);
+                push = [-wall[0] / n * weight(distance), -wall[1] / n * weight(distance)];
+            }
+        }
+    }
+    (push != [0.0, 0.0]).then_some(push.map(|c| c as f32))
+}
+
 fn decide_rule_based(
     registry: Res<SpeciesRegistry>,
     scene: Res<ActiveScene>,
@@ -120,6 +156,24 @@ fn decide_rule_based(
                     Some(d) => [1.0, turn_toward(heading, [-d[0], -d[1]], max_turn, dt)],
                     None => [1.0, 0.0],
                 },
+                Policy::FleeInside => {
+                    let away = nearest_observed(obs, &registry, s, registry.predators_of(s)).map(|d| [-d[0], -d[1]]);
+                    match (away, off_walls(obs, &registry, s, &scene.0)) {
+                        (Some(away), None) => [1.0, turn_toward(heading, away, max_turn, dt)],
+                        (away, Some(push)) => {
+                            let away = away.map_or([0.0, 0.0], |a| {
+                                let n = a[0].hypot(a[1]).max(f32::MIN_POSITIVE);
+                                [a[0] / n, a[1] / n]
+                            });
+                            let to = [away[0] + push[0], away[1] + push[1]];
+                            // Facing away from where it should go, it brakes to turn: at full speed the
+                            // turning circle (v / max turn rate: 1 m in the paper) is as wide as the box.
+                            let facing = heading[0] * to[0] + heading[1] * to[1];
+                            [if facing < 0.0 { -1.0 } else { 1.0 }, turn_toward(heading, to, max_turn, dt)]
+                        }
+                        (None, None) => [1.0, 0.0],
+                    }
+                }
                 Policy::Learned | Policy::Frozen(_) | Policy::Plugin(_) => break,
             };
             batch.actions[row * ACTION_DIM..(row + 1) * ACTION_DIM].copy_from_slice(&action);

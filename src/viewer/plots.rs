@@ -168,37 +168,39 @@ const X_LABEL_SPACING: (f32, f32) = (36.0, 44.0);
 /// egui_plot's default `grid_spacing` minimum, which `GridInput::base_step_size` is measured in.
 const GRID_MIN_PX: f64 = 8.0;
 
-/// Ticks at round values (1, 2, 2.5 or 5 × 10^k) spaced at least `label_px` pixels apart, so that every
-/// tick is labelled at any plot size (egui_plot's default ticks step in powers of ten, and a 300 px plot
-/// of 900 episodes then labels only 0); thinner unlabelled grid lines at a fifth of the step.
-pub fn ticks(label_px: f64) -> impl Fn(GridInput) -> Vec<GridMark> {
+/// Ticks at round values (1, 2, 2.5 or 5 × 10^k; on a `whole` axis, episodes or steps, whole numbers from
+/// 1, 2, 5 × 10^k) spaced at least `label_px` pixels apart, so that every tick is labelled at any plot
+/// size (egui_plot's default ticks step in powers of ten, and a 300 px plot of 900 episodes then labels
+/// only 0); thinner unlabelled grid lines at a fifth of the step.
+pub fn ticks(label_px: f64, whole: bool) -> impl Fn(GridInput) -> Vec<GridMark> {
     move |input: GridInput| {
         let per_px = input.base_step_size / GRID_MIN_PX;
         let (lo, hi) = input.bounds;
         if !(per_px > 0.0 && per_px.is_finite() && lo.is_finite() && hi.is_finite() && hi > lo) {
             return vec![];
         }
-        let step = round_step(per_px * label_px);
-        let minor = step / 5.0;
+        let step = match whole {
+            true => round_step(per_px * label_px, &[1.0, 2.0, 5.0]).max(1.0),
+            false => round_step(per_px * label_px, &[1.0, 2.0, 2.5, 5.0]),
+        };
+        // A whole axis draws no grid lines between whole numbers.
+        let per_major = if whole && step < 5.0 { 1 } else { 5 };
+        let minor = step / per_major as f64;
         let first = (lo / minor).ceil() as i64;
         let last = (hi / minor).floor() as i64;
         (first..=last)
             .map(|k| {
-                let major = k.rem_euclid(5) == 0;
+                let major = k.rem_euclid(per_major) == 0;
                 GridMark { value: k as f64 * minor, step_size: if major { step } else { minor } }
             })
             .collect()
     }
 }
 
-/// The smallest of 1, 2, 2.5, 5 × 10^k at least `at_least`.
-fn round_step(at_least: f64) -> f64 {
+/// The smallest of `mantissas` × 10^k at least `at_least`.
+fn round_step(at_least: f64, mantissas: &[f64]) -> f64 {
     let power = 10f64.powf(at_least.log10().floor());
-    [1.0, 2.0, 2.5, 5.0, 10.0]
-        .into_iter()
-        .map(|m| m * power)
-        .find(|&s| s >= at_least * (1.0 - 1e-9))
-        .unwrap_or(10.0 * power)
+    mantissas.iter().chain([&10.0]).map(|m| m * power).find(|&s| s >= at_least * (1.0 - 1e-9)).unwrap_or(10.0 * power)
 }
 
 /// A tick's label: up to three decimals, trailing zeros dropped ("0.25", "0.5", "1", "1500"); egui_plot's
@@ -224,8 +226,8 @@ fn plot(id: &str, height: f32, x: &str, y: &str) -> Plot<'static> {
         .custom_x_axes(vec![x_axis])
         .custom_y_axes(vec![AxisHints::new_y().label(y.to_string()).formatter(tick_label)])
         .grid_spacing(egui::Rangef::new(GRID_MIN_PX as f32, 300.0))
-        .x_grid_spacer(ticks(X_LABEL_PX))
-        .y_grid_spacer(ticks(Y_LABEL_PX))
+        .x_grid_spacer(ticks(X_LABEL_PX, matches!(x, "episode" | "step" | "snapshot (episode)")))
+        .y_grid_spacer(ticks(Y_LABEL_PX, false))
 }
 
 /// Chance levels are drawn dashed in this near-white, which nothing else inside a plot uses.
@@ -363,16 +365,19 @@ mod tests {
                         continue;
                     }
                     let per_px = (hi - lo) / px;
-                    let marks = super::ticks(label_px)(GridInput {
-                        bounds: (lo, hi),
-                        base_step_size: per_px * super::GRID_MIN_PX,
-                    });
-                    let labelled: Vec<_> = marks.iter().filter(|m| m.step_size / per_px >= label_px).collect();
-                    assert!(labelled.len() >= 2, "{lo}..{hi} over {px} px: {labelled:?}");
-                    for m in &labelled {
-                        let mantissa = m.step_size / 10f64.powf(m.step_size.log10().floor());
-                        assert!([1.0, 2.0, 2.5, 5.0].iter().any(|r| (mantissa - r).abs() < 1e-9), "{m:?}");
-                        assert!((m.value / m.step_size - (m.value / m.step_size).round()).abs() < 1e-9, "{m:?}");
+                    for whole in [false, true] {
+                        let input = GridInput { bounds: (lo, hi), base_step_size: per_px * super::GRID_MIN_PX };
+                        let marks = super::ticks(label_px, whole)(input);
+                        let labelled: Vec<_> = marks.iter().filter(|m| m.step_size / per_px >= label_px).collect();
+                        // A whole axis shorter than two labels' spacing shows its whole units.
+                        let units = (hi.floor() - lo.ceil()) as usize + 1;
+                        assert!(labelled.len() >= 2.min(units), "{lo}..{hi} over {px} px: {labelled:?}");
+                        for m in &labelled {
+                            let mantissa = m.step_size / 10f64.powf(m.step_size.log10().floor());
+                            assert!([1.0, 2.0, 2.5, 5.0].iter().any(|r| (mantissa - r).abs() < 1e-9), "{m:?}");
+                            assert!((m.value / m.step_size - (m.value / m.step_size).round()).abs() < 1e-9, "{m:?}");
+                            assert!(!whole || m.value.fract() == 0.0, "{m:?} on a whole axis");
+                        }
                     }
                 }
             }

@@ -52,7 +52,7 @@ impl Setup {
                     def.policy = if registry.prey_of(s).next().is_some() {
                         Policy::ChaseNearest
                     } else if registry.predators_of(s).next().is_some() {
-                        Policy::FleeNearest
+                        Policy::FleeInside
                     } else {
                         Policy::Random
                     };

@@ -224,3 +224,40 @@ fn the_authors_spawn_insets_by_the_largest_body_and_never_overlaps() {
     // Too crowded for any draw to be free of overlaps: the 100th draw is kept, as the authors' code keeps it.
     assert!(overlaps(&bodies(coevo::scene::Spawn::AuthorsNoOverlap, 150, 1)) > 0);
 }
+
+/// Positions of every agent, by id.
+fn positions(sim: &mut Simulation) -> Vec<(u32, DVec2)> {
+    let world = sim.world_mut();
+    let mut q = world.query::<(&AgentId, &Position)>();
+    let mut at: Vec<(u32, DVec2)> = q.iter(world).map(|(id, x)| (id.0, x.0)).collect();
+    at.sort_by_key(|a| a.0);
+    at
+}
+
+#[test]
+fn flee_inside_is_flee_nearest_on_the_torus_and_keeps_prey_off_the_walls_of_a_box() {
+    let run = |boundary: Boundary, flee: Policy, steps: usize| {
+        let mut s = scene(3, 10, flee, boundary);
+        s.species[0].policy = Policy::ChaseNearest;
+        let mut sim = Simulation::new(s);
+        let mut pressed = 0;
+        for _ in 0..steps {
+            sim.step();
+            // Prey (ids 3..) within 2 cm of touching a wall of the 2 m box.
+            pressed += positions(&mut sim)
+                .iter()
+                .filter(|(id, x)| *id >= 3 && x.x.abs().max(x.y.abs()) > 1.0 - 0.035 - 0.02)
+                .count();
+        }
+        (positions(&mut sim), pressed)
+    };
+    // The torus has no walls: the same trajectories to the bit.
+    assert_eq!(run(Boundary::Periodic, Policy::FleeNearest, 200).0, run(Boundary::Periodic, Policy::FleeInside, 200).0);
+    // In the box, prey that flee straight away spend much of the time pressed into walls and corners (the
+    // confined rule-based demo before FleeInside); FleeInside prey steer off them.
+    let (_, straight) = run(Boundary::Walls, Policy::FleeNearest, 600);
+    let (_, inside) = run(Boundary::Walls, Policy::FleeInside, 600);
+    eprintln!("prey-steps at a wall: FleeNearest {straight}, FleeInside {inside} (of 6000)");
+    assert!(straight > 1500, "{straight}");
+    assert!(inside * 4 < straight, "FleeInside {inside} against FleeNearest {straight}");
+}
