@@ -32,17 +32,19 @@ impl Layout {
         }
     }
 
+    /// Where the block of observed species `t` starts (`t` = the species count: where the blocks end).
+    fn offset(&self, t: usize) -> usize {
+        self.slots[..t].iter().fold(self.leading(), |at, &k| at.saturating_add(k.saturating_mul(NEIGHBOUR_DIM)))
+    }
+
     /// The block of observed species `t`: `slots[t]` neighbours of [`NEIGHBOUR_DIM`] numbers each.
     pub fn block(&self, t: usize) -> Range<usize> {
-        let start =
-            self.slots[..t].iter().fold(self.leading(), |at, &k| at.saturating_add(k.saturating_mul(NEIGHBOUR_DIM)));
-        start..start.saturating_add(self.slots[t].saturating_mul(NEIGHBOUR_DIM))
+        self.offset(t)..self.offset(t + 1)
     }
 
     /// Every neighbour block, which lie side by side.
     pub fn neighbours(&self) -> Range<usize> {
-        let end = self.slots.iter().fold(self.leading(), |at, &k| at.saturating_add(k.saturating_mul(NEIGHBOUR_DIM)));
-        self.leading()..end
+        self.leading()..self.offset(self.slots.len())
     }
 
     /// The energy input, in the authors' order only.
@@ -55,6 +57,19 @@ impl Layout {
         match self.energy() {
             None => 4..6,
             Some(e) => e + 1..e + 3,
+        }
+    }
+
+    /// Writes own state into `out`, a row of this layout: the paper's six numbers `own` in order, or in the
+    /// authors' order `own`'s position and velocity first, `energy` after the blocks, then `own`'s heading.
+    pub fn place_own<T: Copy>(&self, out: &mut [T], own: [T; OWN_STATE_DIM], energy: T) {
+        match self.energy() {
+            None => out[..OWN_STATE_DIM].copy_from_slice(&own),
+            Some(e) => {
+                out[..4].copy_from_slice(&own[..4]);
+                out[e] = energy;
+                out[self.heading()].copy_from_slice(&own[4..]);
+            }
         }
     }
 

@@ -112,27 +112,26 @@ impl Scene {
                     format!("no species named {target:?} in this scene")
                 })?;
             }
-            for (i, (target, perception)) in s.perception_of.iter().enumerate() {
-                check(self.species.iter().any(|o| &o.name == target), &f("perception_of"), || {
+            // Entry `i` of a per-species list (`perception_of`, `topological_limit_of`) names a species of
+            // this scene that no earlier entry names.
+            let once = |field: &str, names: &[&String], i: usize| {
+                let target = names[i];
+                check(self.species.iter().any(|o| &o.name == target), &f(field), || {
                     format!("no species named {target:?} in this scene")
                 })?;
-                check(!s.perception_of[..i].iter().any(|(t, _)| t == target), &f("perception_of"), || {
-                    format!("{target:?} is named twice")
-                })?;
+                check(!names[..i].contains(&target), &f(field), || format!("{target:?} is named twice"))
+            };
+            let names: Vec<&String> = s.perception_of.iter().map(|(t, _)| t).collect();
+            for (i, (_, perception)) in s.perception_of.iter().enumerate() {
+                once("perception_of", &names, i)?;
                 match *perception {
                     Perception::Full => {}
                     Perception::FractionOfD(x) | Perception::Radius(x) => positive(x, &f("perception_of"))?,
                 }
             }
-            for (i, (target, _)) in s.topological_limit_of.iter().enumerate() {
-                check(self.species.iter().any(|o| &o.name == target), &f("topological_limit_of"), || {
-                    format!("no species named {target:?} in this scene")
-                })?;
-                check(
-                    !s.topological_limit_of[..i].iter().any(|(t, _)| t == target),
-                    &f("topological_limit_of"),
-                    || format!("{target:?} is named twice"),
-                )?;
+            let names: Vec<&String> = s.topological_limit_of.iter().map(|(t, _)| t).collect();
+            for i in 0..names.len() {
+                once("topological_limit_of", &names, i)?;
             }
         }
         for (i, r) in self.contact_rewards.iter().enumerate() {

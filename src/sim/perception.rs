@@ -375,16 +375,8 @@ fn observe_rows(
                 [v.x, v.y, pop.turn[i], wall.x, wall.y, 0.0]
             }
         };
-        match layout.energy() {
-            None => obs[..OWN_STATE_DIM].copy_from_slice(&own.map(|c| c as f32)),
-            // The authors' order (world frame only): [x, y, v_x, v_y], the blocks, energy, [h_x, h_y].
-            Some(e) => {
-                let own = own.map(|c| c as f32);
-                obs[..4].copy_from_slice(&own[..4]);
-                obs[e] = (2.0 / FULL_ENERGY * pop.energy[i] - 1.0) as f32;
-                obs[layout.heading()].copy_from_slice(&own[4..]);
-            }
-        }
+        // The energy input of the authors' order: 2·E/E_max − 1.
+        layout.place_own(obs, own.map(|c| c as f32), (2.0 / FULL_ENERGY * pop.energy[i] - 1.0) as f32);
         let own_heading = seen(h);
         for (t, grid) in pop.grids.iter().enumerate() {
             grid.k_nearest(arena, x, layout.slots[t], radii[t], i as u32, &mut nearest);
@@ -458,14 +450,7 @@ pub fn observation_high(scene: &Scene, registry: &SpeciesRegistry, s: usize) -> 
     for chunk in high[layout.neighbours()].chunks_exact_mut(NEIGHBOUR_DIM) {
         chunk.copy_from_slice(&slot);
     }
-    match layout.energy() {
-        None => high[..OWN_STATE_DIM].copy_from_slice(&own),
-        Some(e) => {
-            high[..4].copy_from_slice(&own[..4]);
-            high[e] = 1.0;
-            high[layout.heading()].copy_from_slice(&own[4..]);
-        }
-    }
+    layout.place_own(&mut high, own, 1.0);
     high.into_iter().map(|x| (x * (1.0 + 1e-6)) as f32).collect()
 }
 

@@ -215,8 +215,9 @@ fn tick_label(mark: GridMark, _range: &std::ops::RangeInclusive<f64>) -> String 
     }
 }
 
-/// A plot with round, labelled ticks on both axes.
-fn plot(id: &str, height: f32, x: &str, y: &str) -> Plot<'static> {
+/// A plot with round, labelled ticks on both axes; whole numbers on x when it counts (`whole_x`: episodes,
+/// steps).
+fn plot(id: &str, height: f32, x: &str, whole_x: bool, y: &str) -> Plot<'static> {
     let x_axis = AxisHints::new_x()
         .label(x.to_string())
         .label_spacing(egui::Rangef::new(X_LABEL_SPACING.0, X_LABEL_SPACING.1))
@@ -226,7 +227,7 @@ fn plot(id: &str, height: f32, x: &str, y: &str) -> Plot<'static> {
         .custom_x_axes(vec![x_axis])
         .custom_y_axes(vec![AxisHints::new_y().label(y.to_string()).formatter(tick_label)])
         .grid_spacing(egui::Rangef::new(GRID_MIN_PX as f32, 300.0))
-        .x_grid_spacer(ticks(X_LABEL_PX, matches!(x, "episode" | "step" | "snapshot (episode)")))
+        .x_grid_spacer(ticks(X_LABEL_PX, whole_x))
         .y_grid_spacer(ticks(Y_LABEL_PX, false))
 }
 
@@ -282,7 +283,7 @@ pub fn show(ui: &mut egui::Ui, h: &History, species: &str, fast: bool) {
         }
     }
     chance_key(ui, h);
-    plot("per_episode", height, "episode", "DoS, DoA").include_y(0.0).include_y(1.0).show(ui, |p| {
+    plot("per_episode", height, "episode", true, "DoS, DoA").include_y(0.0).include_y(1.0).show(ui, |p| {
         chance_lines(p, h);
         match &h.training {
             Some([dos, doa, _]) => {
@@ -317,7 +318,7 @@ pub fn show(ui: &mut egui::Ui, h: &History, species: &str, fast: bool) {
             ("C_nn (local order)", C_NN),
         ],
     );
-    plot("per_step", height, "step", "order parameter").include_y(0.0).include_y(1.0).show(ui, |p| {
+    plot("per_step", height, "step", true, "order parameter").include_y(0.0).include_y(1.0).show(ui, |p| {
         chance_lines(p, h);
         p.line(line("DoS", &steps.dos, DOS, 1.5));
         p.line(line("DoA", &steps.doa, DOA, 1.5));
@@ -327,7 +328,7 @@ pub fn show(ui: &mut egui::Ui, h: &History, species: &str, fast: bool) {
         p.line(line("C_nn (local order)", &steps.nn_correlation, C_NN, 1.0));
     });
     ui.label("catches per episode");
-    plot("catches", height, "episode", "catches").include_y(0.0).show(ui, |p| match &h.training {
+    plot("catches", height, "episode", true, "catches").include_y(0.0).show(ui, |p| match &h.training {
         Some([_, _, catches]) => {
             p.line(line("catches (training)", &running_mean(catches, RUNNING_MEAN), CATCHES, 1.5));
             p.points(Points::new("catches (watched)", after(&h.catches, trained)).color(CATCHES).radius(3.0));
@@ -340,7 +341,7 @@ pub fn show(ui: &mut egui::Ui, h: &History, species: &str, fast: bool) {
         let entries: Vec<(&str, egui::Color32)> =
             ratings.iter().zip(colours.iter().cycle()).map(|((s, _), c)| (s.as_str(), *c)).collect();
         key(ui, &entries);
-        plot("ratings", height, "snapshot (episode)", "rating").show(ui, |p| {
+        plot("ratings", height, "snapshot (episode)", true, "rating").show(ui, |p| {
             for ((species, points), colour) in ratings.iter().zip(colours.iter().cycle()) {
                 p.line(line(species, points, *colour, 1.5));
                 p.points(Points::new(species.clone(), points.clone()).color(*colour).radius(2.5));

@@ -34,6 +34,15 @@ pub fn place(sim: &mut Simulation, id: u32, x: DVec2, v: DVec2, theta: f64) {
     world.run_schedule(Perceive);
 }
 
+/// Every agent's position, by id.
+pub fn positions(sim: &mut Simulation) -> Vec<(u32, DVec2)> {
+    let world = sim.world_mut();
+    let mut q = world.query::<(&AgentId, &Position)>();
+    let mut at: Vec<(u32, DVec2)> = q.iter(world).map(|(id, x)| (id.0, x.0)).collect();
+    at.sort_by_key(|a| a.0);
+    at
+}
+
 /// A component of agent `id`.
 pub fn get<C: bevy::prelude::Component + Copy>(sim: &mut Simulation, id: u32) -> C {
     let world = sim.world_mut();

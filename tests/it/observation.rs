@@ -2,7 +2,7 @@
 //! then up to 6 prey, nearest first, within the perception radius, minimum image, never itself, zeros
 //! where nobody is seen.
 
-use crate::common::{place, scene};
+use crate::common::{place, positions, scene};
 use bevy::math::DVec2;
 use coevo::scene::{Boundary, Perception, Policy};
 use coevo::sim::perception::Batches;
@@ -313,7 +313,6 @@ fn large_populations_see_the_same_neighbours_as_a_brute_force_search() {
 #[test]
 fn rule_based_agents_act_alike_in_either_layout() {
     use coevo::scene::ObservationLayout;
-    use coevo::sim::components::{AgentId, Position};
     let run = |layout: ObservationLayout| {
         let mut s = scene(3, 10, Policy::FleeNearest, Boundary::Periodic);
         s.species[0].policy = Policy::ChaseNearest;
@@ -326,20 +325,10 @@ fn rule_based_agents_act_alike_in_either_layout() {
         for _ in 0..60 {
             sim.step();
         }
-        let world = sim.world_mut();
-        let mut q = world.query::<(&AgentId, &Position)>();
-        let mut at: Vec<(u32, DVec2)> = q.iter(world).map(|(id, x)| (id.0, x.0)).collect();
-        at.sort_by_key(|a| a.0);
-        at
+        positions(&mut sim)
     };
     let (paper, authors) = (run(ObservationLayout::Paper), run(ObservationLayout::Authors));
     assert_eq!(paper, authors);
-    let start = {
-        let s = scene(3, 10, Policy::FleeNearest, Boundary::Periodic);
-        let mut sim = Simulation::new(s);
-        let world = sim.world_mut();
-        let mut q = world.query::<(&AgentId, &Position)>();
-        q.iter(world).map(|(_, x)| x.0).collect::<Vec<_>>()
-    };
-    assert!(paper.iter().all(|(_, x)| !start.contains(x)), "everyone moved");
+    let start = positions(&mut Simulation::new(scene(3, 10, Policy::FleeNearest, Boundary::Periodic)));
+    assert!(paper.iter().all(|(_, x)| !start.iter().any(|(_, s)| s == x)), "everyone moved");
 }

@@ -1,6 +1,6 @@
 //! Eq. (1) and Appendix B, one force at a time.
 
-use crate::common::{get, manual, place, scene};
+use crate::common::{get, manual, place, positions, scene};
 use bevy::math::DVec2;
 use coevo::scene::{Boundary, Policy, SpeedClip};
 use coevo::sim::components::*;
@@ -223,15 +223,6 @@ fn the_authors_spawn_insets_by_the_largest_body_and_never_overlaps() {
     assert!(anywhere_overlapping >= 3 && outside > 0, "{anywhere_overlapping} seeds overlap, {outside} bodies outside");
     // Too crowded for any draw to be free of overlaps: the 100th draw is kept, as the authors' code keeps it.
     assert!(overlaps(&bodies(coevo::scene::Spawn::AuthorsNoOverlap, 150, 1)) > 0);
-}
-
-/// Positions of every agent, by id.
-fn positions(sim: &mut Simulation) -> Vec<(u32, DVec2)> {
-    let world = sim.world_mut();
-    let mut q = world.query::<(&AgentId, &Position)>();
-    let mut at: Vec<(u32, DVec2)> = q.iter(world).map(|(id, x)| (id.0, x.0)).collect();
-    at.sort_by_key(|a| a.0);
-    at
 }
 
 #[test]
