@@ -98,7 +98,9 @@ fn primitive(d: &RunData, q: &Quantity) -> f64 {
             let series = match o.as_str() {
                 "dos" => &d.dos,
                 "doa" => &d.doa,
-                _ => &d.catches,
+                "catches" => &d.catches,
+                // The authors' DoS and DoA (`authors_metrics`), loaded beside the order parameters.
+                other => d.orders.get(other).map_or(&[][..], |v| v.as_slice()),
             };
             // At single precision, as figure-data.ron.gz keeps the curve (its `single` values): a summary
             // extended from that file gets the same bits.
@@ -154,7 +156,8 @@ pub fn derive(exp: &Experiment, q: &Quantity, primitive: &dyn Fn(&Quantity) -> f
             let last = match o.as_str() {
                 "dos" => Quantity::DosLast,
                 "doa" => Quantity::DoaLast,
-                _ => Quantity::CatchesLast,
+                "catches" => Quantity::CatchesLast,
+                other => Quantity::TrainingLast(other.into()),
             };
             primitive(&last) - primitive(&Quantity::Start(o.clone()))
         }
@@ -191,6 +194,12 @@ pub const START: usize = 10;
 
 /// The per-episode training series a curve quantity reads: `dos`, `doa` or `catches`.
 pub const CURVES: [&str; 3] = ["dos", "doa", "catches"];
+
+/// The training series of the authors' DoS and DoA (`metrics.csv`'s `authors_dos_<prey>` and
+/// `authors_doa_<prey>`, written with the scene's `authors_metrics`; issue 37, rows 9–11): besides
+/// [`CURVES`], what [`Quantity::Start`], [`Quantity::FromStart`], [`Quantity::TrainingFirst`] and
+/// [`Quantity::TrainingLast`] read, so the paper's numbers can be judged as the shipped code measures them.
+pub const AUTHORS_CURVES: [&str; 2] = crate::run::schema::AUTHORS;
 
 /// A quantity of a training curve's shape ([`Quantity::Start`], [`Quantity::Extreme`],
 /// [`Quantity::ExtremeEpisode`], [`Quantity::AfterExtreme`]) from its per-episode `series` as the figure
@@ -331,6 +340,16 @@ pub fn chance_level(exp: &Experiment, claim: &Claim, scene: Option<&crate::scene
         Quantity::Start(o) | Quantity::Extreme(o) if o == "dos" => random_dos(None),
         Quantity::EvalDos(e) => random_dos(Some(e)),
         Quantity::Crossplay(r) => super::crossplay_readouts::chance(r),
+        // The authors' DoS and DoA of random positions and headings at the training density.
+        Quantity::Start(o) | Quantity::TrainingFirst(o) | Quantity::TrainingLast(o)
+            if AUTHORS_CURVES.contains(&o.as_str()) =>
+        {
+            let scene = scene?;
+            let registry = crate::sim::species::SpeciesRegistry::from_scene(scene);
+            let n = registry.defs[registry.headline()].count;
+            let which = AUTHORS_CURVES.iter().position(|c| c == o)?;
+            crate::sim::metrics::random_authors(scene.world.arena_edge, n).map(|v| v[which])
+        }
         // Caught prey ranked at random within their group: the mean edge rank of no marginal predation.
         Quantity::EvalOrder(_, q) | Quantity::TrainingFirst(q) | Quantity::TrainingLast(q)
             if q == crate::run::schema::EDGE_RANK =>

@@ -132,9 +132,30 @@ pub fn experiment(request: &Request) -> crate::error::Result<()> {
     for exp in experiments {
         let data = data::load(&exp)?;
         let carried = data::check_complete(&exp, &data)?;
+        check_trainings_once(&exp, &data)?;
         report_alone(exp, &data, carried)?;
     }
     Ok(())
+}
+
+/// Refuses, before one experiment is aggregated, a training held twice without `shared_from` or
+/// `same_training_as` ([`super::trainings::check_once`]): among its own runs (`data` and its committed
+/// rows) and, for a file of `experiments/`, against the other files' committed summaries.
+fn check_trainings_once(exp: &Experiment, data: &BTreeMap<usize, super::claims::RunData>) -> crate::error::Result<()> {
+    let mut trainings = Vec::new();
+    if in_suite(exp) {
+        for file in Experiment::files(Path::new(EXPERIMENTS))? {
+            let other = Experiment::load(&file, Path::new(RESULTS))?;
+            if other.name == exp.name {
+                trainings.extend(super::trainings::before_aggregation(exp, data)?);
+            } else {
+                trainings.extend(super::trainings::before_aggregation(&other, &BTreeMap::new())?);
+            }
+        }
+    } else {
+        trainings = super::trainings::before_aggregation(exp, data)?;
+    }
+    super::trainings::check_once(&trainings)
 }
 
 /// Summaries, figures and REPORT.md of every experiment of `experiments/`, and REPRODUCTION.md over all of
@@ -172,6 +193,11 @@ pub fn write_reproduction(partial: bool) -> crate::error::Result<()> {
         }
         loaded.push((exp, data, carried));
     }
+    let mut trainings = Vec::new();
+    for (exp, data, _) in &loaded {
+        trainings.extend(super::trainings::before_aggregation(exp, data)?);
+    }
+    super::trainings::check_once(&trainings)?;
     let mut aggregated = Vec::new();
     for (exp, data, carried) in loaded {
         let a = aggregate::aggregate(&exp, &data, carried)?;
@@ -330,6 +356,7 @@ pub fn plot(dir: &Path, partial: bool) -> crate::error::Result<()> {
         )
         .into());
     }
+    check_trainings_once(&exp, &data)?;
     report_alone(exp, &data, carried)?;
     Ok(())
 }

@@ -84,6 +84,13 @@ pub fn load(exp: &Experiment) -> crate::error::Result<BTreeMap<usize, RunData>> 
             binaries: vec!["unknown".into()],
             kernels: String::new(),
         };
+        // The authors' DoS and DoA, where the scene measured them (`authors_metrics`): curves like the
+        // order parameters, read by the claims on the paper's numbers as the shipped code measures them.
+        for q in super::claims::AUTHORS_CURVES {
+            if let Ok(values) = metrics.column(&schema::of(q, &prey)) {
+                d.orders.insert(q.to_string(), values);
+            }
+        }
         if let Some(p) = RunDir::new(&run.dir).read_provenance()? {
             d.binaries = p.binaries().into_iter().map(String::from).collect();
             d.kernels = p.kernels;

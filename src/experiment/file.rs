@@ -83,6 +83,14 @@ pub struct VariantFile {
     /// once, and never compared with itself.
     #[serde(default)]
     pub shared_from: Option<String>,
+    /// `"EXPERIMENT/VARIANT"`: this variant's runs were trained again in its own folders and are that
+    /// variant's trainings (same preset, seed and resolved scene, checked; by the same binary, a
+    /// deterministic re-training), declared so: one training, counted once in the suite's totals. A
+    /// training found twice without this or `shared_from` is refused when results are aggregated
+    /// ([`super::trainings`]). For runs made before their evaluations could differ from their owner's
+    /// (body-frame's); a new file shares the runs instead.
+    #[serde(default)]
+    pub same_training_as: Option<String>,
 }
 
 /// How the trained policies of every run are deployed (`coevo --eval`): species counts, episodes and
@@ -193,7 +201,8 @@ pub enum Quantity {
     CatchesFirst,
     CatchesLast,
     /// Another per-episode order parameter of training (`polarization`, `milling`, `clusters`,
-    /// `largest_cluster`, `nn_correlation`, `edge_rank`): mean of the first / last 100 episodes.
+    /// `largest_cluster`, `nn_correlation`, `edge_rank`, or the shipped code's `authors_dos` and
+    /// `authors_doa` in runs with `authors_metrics`): mean of the first / last 100 episodes.
     TrainingFirst(String),
     TrainingLast(String),
     /// The evaluation's mean over its last 50 steps (the trained policies' settled state).
@@ -215,7 +224,8 @@ pub enum Quantity {
     /// The episode at which the 100-episode running mean of `dos` or `doa` first completes 90 % of its
     /// change from the first 100 episodes to the last 100 (the paper's time course, Fig. 3).
     Reach90(String),
-    /// Mean of the first [`START`](super::claims::START) training episodes of `dos`, `doa` or `catches`:
+    /// Mean of the first [`START`](super::claims::START) training episodes of `dos`, `doa` or `catches`
+    /// (or `authors_dos`, `authors_doa`: the shipped code's metric, in runs with `authors_metrics`):
     /// the untrained level the paper's curves start from (the actors learn from the first episodes on,
     /// so this is the nearest a training run gives; `Learned` evaluations measure untrained actors directly).
     Start(String),
@@ -308,6 +318,8 @@ pub struct Run {
     pub dir: PathBuf,
     /// The experiment whose run this is, for a variant with `shared_from`.
     pub shared_from: Option<String>,
+    /// The variant's `same_training_as`: the `"EXPERIMENT/VARIANT"` this run is a declared re-training of.
+    pub same_training_as: Option<String>,
 }
 
 /// A loaded and validated experiment.

@@ -7,9 +7,10 @@ use crate::error::{Error, Result, ResultExt};
 use crate::scene::{parse_ron, Scene, PRESETS};
 use std::path::{Path, PathBuf};
 
-/// The experiment and variant a `shared_from` names (`"EXPERIMENT/VARIANT"`, the experiment a file beside
-/// `file`), loaded without its own shared variants (a variant it shares itself is refused); its evaluations of the same name must be the same
-/// evaluations, since both experiments write them into the same run folders.
+/// The experiment and variant a `shared_from` or `same_training_as` names (`"EXPERIMENT/VARIANT"`, the
+/// experiment a file beside `file`), loaded without its own shared variants (a variant it shares itself is
+/// refused: name the experiment that trains it). A shared variant's evaluations (`ours`) of the same name
+/// must be the owner's, since both experiments write them into the same run folders.
 fn shared_owner(
     file: &Path,
     results: &Path,
@@ -28,7 +29,7 @@ fn shared_owner(
         None => return Err(format!("{experiment} has no variant {variant:?}")),
         Some(v) if v.shared_from.is_some() => {
             return Err(format!(
-                "{experiment}/{variant} is itself shared from {}; share from the experiment that trains it",
+                "{experiment}/{variant} is itself shared from {}; name the experiment that trains it",
                 v.shared_from.as_deref().unwrap_or_default()
             ))
         }
@@ -206,7 +207,9 @@ impl Experiment {
             | Quantity::TrainingFirst(q)
             | Quantity::TrainingLast(q) = &c.quantity
             {
-                if !EVAL_ORDER.contains(&q.as_str()) {
+                let authors = matches!(c.quantity, Quantity::TrainingFirst(_) | Quantity::TrainingLast(_))
+                    && super::claims::AUTHORS_CURVES.contains(&q.as_str());
+                if !EVAL_ORDER.contains(&q.as_str()) && !authors {
                     return Err(err(
                         "claims",
                         format!("no order parameter named {q:?} (one of {})", EVAL_ORDER.join(", ")),
@@ -227,10 +230,15 @@ impl Experiment {
                 }
             }
             match &c.quantity {
-                Quantity::Start(q) | Quantity::FromStart(q) if !super::claims::CURVES.contains(&q.as_str()) => {
+                Quantity::Start(q) | Quantity::FromStart(q)
+                    if !super::claims::CURVES.contains(&q.as_str())
+                        && !super::claims::AUTHORS_CURVES.contains(&q.as_str()) =>
+                {
                     return Err(err(
                         "claims",
-                        format!("Start and FromStart take \"dos\", \"doa\" or \"catches\" (got {q:?})"),
+                        format!(
+                            "Start and FromStart take \"dos\", \"doa\", \"catches\", \"authors_dos\" or \"authors_doa\" (got {q:?})"
+                        ),
                     ));
                 }
                 Quantity::Extreme(q) | Quantity::ExtremeEpisode(q) | Quantity::AfterExtreme(q)
@@ -312,47 +320,98 @@ impl Experiment {
                         err(&format!("evaluations[{}].control", e.name), format!("variant {}: {m}", v.name))
                     })?;
                 }
+                let field = |name: &str| format!("variants[{}].{name}", v.name);
+                if v.shared_from.is_some() && v.same_training_as.is_some() {
+                    return Err(err(
+                        &field("same_training_as"),
+                        "a variant is shared (shared_from) or re-trained (same_training_as), not both".into(),
+                    ));
+                }
                 let owner = match (&v.shared_from, share) {
                     (Some(from), true) => Some(
                         shared_owner(file, results, from, &spec.evaluations)
-                            .map_err(|m| err(&format!("variants[{}].shared_from", v.name), m))?,
+                            .map_err(|m| err(&field("shared_from"), m))?,
                     ),
                     // Loaded as another experiment's owner: its own shared variants are not its runs
                     // (`shared_owner` refuses sharing one of them).
                     (Some(_), false) => continue,
                     (None, _) => None,
                 };
+                // A declared re-training is checked as a shared run is: the owner's run of each seed, the
+                // same scene. Not followed when this file is loaded as an owner itself.
+                let retrained = match (&v.same_training_as, share) {
+                    (Some(of), true) => {
+                        Some(shared_owner(file, results, of, &[]).map_err(|m| err(&field("same_training_as"), m))?)
+                    }
+                    _ => None,
+                };
                 for &seed in &spec.seeds {
                     let mut scene = scene.clone();
                     scene.seed = seed;
+                    // The owner's run of this preset and seed, which must be this very scene.
+                    let same_run = |(exp, variant): &(Experiment, String), name: &str| -> Result<PathBuf> {
+                        let theirs = exp
+                            .runs
+                            .iter()
+                            .find(|r| r.preset == *preset && &r.variant == variant && r.seed == seed)
+                            .ok_or_else(|| {
+                                err(
+                                    &field(name),
+                                    format!("{}/{variant} has no run of preset {preset} and seed {seed}", exp.name),
+                                )
+                            })?;
+                        if let Some(line) = first_difference(&theirs.scene.to_ron(), &scene.to_ron()) {
+                            return Err(err(
+                                &field(name),
+                                format!(
+                                    "{}/{variant} is another scene (preset {preset}, first difference: {line}); a {} run must be the same run",
+                                    exp.name,
+                                    if name == "shared_from" { "shared" } else { "re-trained" }
+                                ),
+                            ));
+                        }
+                        Ok(theirs.dir.clone())
+                    };
+                    if let Some(of) = &retrained {
+                        same_run(of, "same_training_as")?;
+                    }
                     let (dir, shared_from) = match &owner {
                         None => (root.join(preset).join(slug(&v.name)).join(format!("seed{seed}")), None),
-                        Some((exp, variant)) => {
-                            let field = format!("variants[{}].shared_from", v.name);
-                            let theirs = exp
-                                .runs
-                                .iter()
-                                .find(|r| r.preset == *preset && &r.variant == variant && r.seed == seed)
-                                .ok_or_else(|| {
-                                    err(
-                                        &field,
-                                        format!("{}/{variant} has no run of preset {preset} and seed {seed}", exp.name),
-                                    )
-                                })?;
-                            if let Some(line) = first_difference(&theirs.scene.to_ron(), &scene.to_ron()) {
-                                return Err(err(
-                                    &field,
-                                    format!(
-                                        "{}/{variant} is another scene (preset {preset}, first difference: {line}); a shared run must be the same run",
-                                        exp.name
-                                    ),
-                                ));
-                            }
-                            (theirs.dir.clone(), Some(exp.name.clone()))
-                        }
+                        Some(o) => (same_run(o, "shared_from")?, Some(o.0.name.clone())),
                     };
-                    runs.push(Run { preset: preset.clone(), variant: v.name.clone(), seed, scene, dir, shared_from });
+                    runs.push(Run {
+                        preset: preset.clone(),
+                        variant: v.name.clone(),
+                        seed,
+                        scene,
+                        dir,
+                        shared_from,
+                        same_training_as: v.same_training_as.clone(),
+                    });
                 }
+            }
+        }
+        // A claim on the authors' DoS or DoA needs runs that measure them: refused now, not after training.
+        for c in &spec.claims {
+            let (Quantity::Start(q) | Quantity::FromStart(q) | Quantity::TrainingFirst(q) | Quantity::TrainingLast(q)) =
+                &c.quantity
+            else {
+                continue;
+            };
+            if !super::claims::AUTHORS_CURVES.contains(&q.as_str()) {
+                continue;
+            }
+            let compared = std::iter::once(&c.variant).chain(c.versus.as_ref());
+            if let Some(v) =
+                compared.into_iter().find(|v| runs.iter().any(|r| &r.variant == *v && !r.scene.authors_metrics))
+            {
+                return Err(err(
+                    "claims",
+                    format!(
+                        "{:?} reads {q}, which variant {v:?} does not measure (authors_metrics: true in its patch or the base scene)",
+                        c.text
+                    ),
+                ));
             }
         }
         Ok(Experiment { name, file: file.to_path_buf(), spec, root, runs })

@@ -42,5 +42,6 @@ pub mod runner;
 pub mod spread;
 pub mod stats;
 pub mod summary;
+pub mod trainings;
 
 pub use file::*;

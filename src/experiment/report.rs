@@ -5,7 +5,6 @@ use super::claims::{p_shown, quantity_name, ClaimResult};
 use super::file::{Experiment, Quantity, EVAL_ORDER, EVAL_ORDER_DIGITS, EVAL_ORDER_LABELS};
 use super::summary;
 use crate::sim::metrics::Swarming;
-use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
@@ -115,14 +114,15 @@ pub fn reproduction(experiments: &[Reported]) -> String {
         section(&mut md, r, &shown_paths(&r.exp).1.join("figures"));
     }
     let runs: usize = experiments.iter().map(|e| e.exp.runs.iter().filter(|r| r.shared_from.is_none()).count()).sum();
-    let (finished, distinct, seconds) = trainings(experiments);
+    let all: Vec<_> = experiments.iter().flat_map(|e| super::trainings::from_summary(&e.exp, &e.summary)).collect();
+    let (finished, distinct, seconds) = super::trainings::count(&all);
     writeln!(
         md,
         "\n## The whole suite\n\n`coevo --experiment all --jobs 2`: {finished} of {runs} trainings finished, of which {distinct} \
          distinct, {:.1} h of training summed over the distinct ones, each timed by its own `metrics.csv` (`wall_seconds`, \
          the run's own wall clock). A run shared between experiments (`shared_from`) is one training, counted and timed \
-         once; so is a run trained again in another experiment without `shared_from`, from the same resolved scene and \
-         seed by the same binary (a deterministic re-training: {}).",
+         once; so is a run trained again, from the same resolved scene and seed by the same binary (a deterministic \
+         re-training: {}), which its file declares (`same_training_as`; an undeclared one is refused).",
         seconds / 3600.0,
         match finished - distinct {
             0 => "none".to_string(),
@@ -131,29 +131,22 @@ pub fn reproduction(experiments: &[Reported]) -> String {
         }
     )
     .unwrap();
-    md
-}
-
-/// The finished trainings of every experiment (shared runs counted by their owner), how many of them are
-/// distinct (the same resolved scene, seed included, by the same binary is one training, whichever
-/// experiments hold it), and the wall-clock seconds of the distinct ones.
-fn trainings(experiments: &[Reported]) -> (usize, usize, f64) {
-    let mut distinct: BTreeMap<(String, String), f64> = BTreeMap::new();
-    let mut finished = 0;
-    for e in experiments {
-        let wall = e.summary.columns.iter().position(|c| c == "wall_seconds");
-        for (i, row) in e.summary.runs(&e.exp) {
-            if e.exp.runs[i].shared_from.is_some() || !row.shared_from.is_empty() {
-                continue;
-            }
-            finished += 1;
-            let key = (crate::learning::tensors::scene_id(&e.exp.runs[i].scene), row.binary.clone());
-            let seconds = wall.map_or(0.0, |w| row.values[w]).max(0.0);
-            distinct.entry(key).or_insert(if seconds.is_finite() { seconds } else { 0.0 });
-        }
+    let same = super::trainings::same_outcomes(&all);
+    if !same.is_empty() {
+        let list: Vec<String> = same
+            .iter()
+            .map(|((a, b), n)| format!("`{a}` and `{b}`, {n} seed{}", if *n == 1 { "" } else { "s" }))
+            .collect();
+        writeln!(
+            md,
+            "\nDistinct trainings of another scene that gave every training number of a training of the same preset \
+             and seed to the bit (a switch that never acted): {}. Each is one training of its own scene, and a \
+             comparison of the two is not a test (one sample, not two).",
+            list.join("; ")
+        )
+        .unwrap();
     }
-    // + 0.0: an empty f64 sum is −0.0, which would print as "-0.0 h".
-    (finished, distinct.len(), distinct.values().sum::<f64>() + 0.0)
+    md
 }
 
 /// `results/<experiment>/REPORT.md`: one experiment's claims and verdicts, as REPRODUCTION.md gives them,

@@ -22,6 +22,15 @@ pub fn columns(exp: &Experiment) -> Vec<(String, Quantity)> {
     }
     primitives.push(Quantity::Reach90("dos".into()));
     primitives.push(Quantity::Reach90("doa".into()));
+    // The authors' DoS and DoA, in experiments whose runs measure them (`authors_metrics`): their first
+    // and last 100 episodes and their untrained start. Other experiments' columns are unchanged.
+    if exp.runs.iter().any(|r| r.scene.authors_metrics) {
+        for curve in super::claims::AUTHORS_CURVES {
+            primitives.push(Quantity::TrainingFirst(curve.into()));
+            primitives.push(Quantity::TrainingLast(curve.into()));
+            primitives.push(Quantity::Start(curve.into()));
+        }
+    }
     let named = |q: Quantity| (column(&q).expect("a primitive quantity has a column"), q);
     let mut quantities: Vec<(String, Quantity)> = primitives.into_iter().map(named).collect();
     for e in &evals {

@@ -507,6 +507,30 @@ pub fn random_dos(arena: &crate::sim::space::Arena, n: usize) -> Option<f64> {
     Some(sum / (samples * n) as f64 / arena.max_distance())
 }
 
+/// Uniform random positions in the arena and independent uniform headings, `n` agents, through the
+/// authors' formulas ([`authors_dos_doa`]): their DoS and DoA of a population without any order (a Monte
+/// Carlo estimate, fixed seed), the chance level a claim on them is told apart from. The most opposed
+/// partner puts the code's DoA of random headings at 0.154 for 10 agents, not the paper's 2/π.
+pub fn random_authors(edge: f64, n: usize) -> Option<[f64; 2]> {
+    use rand::{Rng, SeedableRng};
+    if n < 2 {
+        return None;
+    }
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(0);
+    let (samples, half) = (2000, edge / 2.0);
+    let mut sum = [0.0; 2];
+    for _ in 0..samples {
+        let x: Vec<DVec2> =
+            (0..n).map(|_| DVec2::new(rng.gen_range(-half..half), rng.gen_range(-half..half))).collect();
+        let h: Vec<DVec2> =
+            (0..n).map(|_| DVec2::from_angle(rng.gen_range(-std::f64::consts::PI..std::f64::consts::PI))).collect();
+        let [dos, doa] = authors_dos_doa(edge, &x, &h)?;
+        sum[0] += dos;
+        sum[1] += doa;
+    }
+    Some(sum.map(|s| s / samples as f64))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -619,6 +643,15 @@ mod tests {
                 .sum::<f64>()
                 / draws as f64;
             assert!((mean - level).abs() < 0.004, "n = {n}: {mean}");
+            // The chance level claims are judged against is the same number.
+            let chance = random_authors(2.0, n).unwrap()[1];
+            assert!((chance - level).abs() < 0.004, "n = {n}: chance {chance}");
         }
+        // Positions are plain Euclidean in the 2 m box: the code's DoS of 10 uniform agents (its √2 over 2
+        // of the edge is D) lies above the paper's minimum-image 0.226, since no distance wraps.
+        let dos = random_authors(2.0, 10).unwrap()[0];
+        let wrapped = random_dos(&crate::sim::space::Arena { edge: 2.0, boundary: Boundary::Periodic }, 10).unwrap();
+        assert!(dos > wrapped && dos < 0.4, "{dos} against {wrapped}");
+        assert!(random_authors(2.0, 1).is_none());
     }
 }

@@ -101,7 +101,12 @@ fn experiment_files_expand_to_runs_and_bad_ones_are_one_line() {
         ),
         (
             TINY.replace("quantity: DosChange, paper: -0.03", "quantity: FromStart(\"milling\")"),
-            "Start and FromStart take \"dos\", \"doa\" or \"catches\" (got \"milling\")",
+            "Start and FromStart take \"dos\", \"doa\", \"catches\", \"authors_dos\" or \"authors_doa\" (got \"milling\")",
+        ),
+        (
+            // The code's metric is read only from runs that measure it.
+            TINY.replace("quantity: DosChange, paper: -0.03", "quantity: FromStart(\"authors_doa\")"),
+            "bad.ron: claims: \"DoS falls\" reads authors_doa, which variant \"5:3\" does not measure (authors_metrics: true in its patch or the base scene)",
         ),
         (
             TINY.replace("quantity: DosChange, paper: -0.03", "quantity: Extreme(\"catches\")"),
@@ -703,7 +708,7 @@ const SHARE: &str = r#"(
     episodes: 3,
     variants: [
         (name: "shared", shared_from: "tiny/1:1", patch: (episode_steps: 30, learning: (hidden: 16, batch_size: 32, warmup_transitions: 32, updates_per_episode: 3, checkpoint_every: 1))),
-        (name: "again", patch: (episode_steps: 30, learning: (hidden: 16, batch_size: 32, warmup_transitions: 32, updates_per_episode: 3, checkpoint_every: 1))),
+        (name: "again", same_training_as: "tiny/1:1", patch: (episode_steps: 30, learning: (hidden: 16, batch_size: 32, warmup_transitions: 32, updates_per_episode: 3, checkpoint_every: 1))),
     ],
     evaluations: [(name: "50 prey", counts: [("prey", 50)], episodes: 2, steps: 20)],
     claims: [(text: "again against shared", variant: "again", versus: "shared", quantity: DosLast)],
@@ -775,6 +780,24 @@ fn a_shared_variant_is_the_other_experiments_runs_trained_once_and_never_compare
     let suite = suite.split("## The whole suite").nth(1).unwrap();
     assert!(suite.contains("6 of 6 trainings finished, of which 4 distinct"), "{suite}");
     assert!(suite.contains("(a deterministic re-training: 2 runs)"), "{suite}");
+    // That re-training is declared (same_training_as): undeclared, the suite and share alone are refused
+    // in one line naming both runs, and nothing is written.
+    let undeclared = SHARE.replace("same_training_as: \"tiny/1:1\", ", "");
+    assert_ne!(undeclared, SHARE);
+    std::fs::write(dir.path().join("experiments/share.ron"), &undeclared).unwrap();
+    let before = files_under(&dir.path().join("results"));
+    for args in [&["--plot", "all"][..], &["--plot", "results/share"], &["--experiment", "experiments/share.ron"]] {
+        let stderr = refused(dir.path(), args);
+        assert!(
+            stderr.contains("share/paper/again/seed1 and tiny/paper/1:1/seed1 are one training")
+                && stderr.contains("\"tiny/1:1\" in share's"),
+            "{args:?}: {stderr}"
+        );
+    }
+    assert!(files_under(&dir.path().join("results")) == before, "nothing written");
+    let suite_now = std::fs::read_to_string(dir.path().join("REPRODUCTION.md")).unwrap();
+    assert!(suite_now.contains("of which 4 distinct"), "REPRODUCTION.md as it was");
+    std::fs::write(dir.path().join("experiments/share.ron"), SHARE).unwrap();
     // A named family spans files: tiny's two seeing-minus-blind tests and share's, which reads tiny's 1:1
     // runs the same way as one of them, are one family of two tests, adjusted together whether the suite
     // is reported (`--plot all`) or share alone (`--plot results/share`, reading tiny's summary).
@@ -849,10 +872,25 @@ fn a_shared_variant_is_the_other_experiments_runs_trained_once_and_never_compare
             "shared_from: tiny/1:1 is another scene",
         ),
         (
-            SHARE.replace("(name: \"again\", patch:", "(name: \"again\", shared_from: \"tiny/1:1\", patch:"),
+            SHARE.replace("(name: \"again\", same_training_as:", "(name: \"again\", shared_from:"),
             "compares runs with themselves",
         ),
-        (SHARE.replace("tiny/1:1", "tiny/2:2"), "tiny has no variant \"2:2\""),
+        (SHARE.replace("shared_from: \"tiny/1:1\"", "shared_from: \"tiny/2:2\""), "tiny has no variant \"2:2\""),
+        // A declared re-training must be the same scene, and a variant is shared or re-trained, not both.
+        (
+            SHARE.replace(
+                "same_training_as: \"tiny/1:1\", patch: (episode_steps: 30",
+                "same_training_as: \"tiny/1:1\", patch: (episode_steps: 31",
+            ),
+            "same_training_as: tiny/1:1 is another scene",
+        ),
+        (
+            SHARE.replace(
+                "(name: \"shared\", shared_from",
+                "(name: \"shared\", same_training_as: \"tiny/1:1\", shared_from",
+            ),
+            "a variant is shared (shared_from) or re-trained (same_training_as), not both",
+        ),
         // share.ron's own shared variant, shared again: refused; its other variants may be shared.
         (SHARE.replace("tiny/1:1", "share/shared"), "share/shared is itself shared from tiny/1:1"),
         (
@@ -917,6 +955,59 @@ fn untrained_actors_and_the_time_course_are_measured() {
     let out = coevo(dir.path(), &["--experiment", "experiments/bad.ron"]);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && stderr.contains("needs an untrained partner"), "{stderr}");
+}
+
+#[test]
+fn claims_on_the_authors_metric_read_its_curves() {
+    // Issue 37, rows 9–11: the paper's numbers judged as the shipped code measures them. One run of ten
+    // episodes measuring the code's DoS and DoA; its summary holds their first and last 100 episodes and
+    // their start (the first 10), each the mean of metrics.csv's column (the start at single precision, as
+    // the figure data keeps curves), and the level is told apart from the code's own chance level.
+    let dir = workspace();
+    let text = r#"(
+    description: "the code's metric",
+    base: "scenes/paper.ron",
+    seeds: [1],
+    episodes: 10,
+    variants: [
+        (name: "measured", patch: (authors_metrics: true, episode_steps: 30, learning: (hidden: 16, batch_size: 32, warmup_transitions: 32, updates_per_episode: 3, checkpoint_every: 5))),
+    ],
+    evaluations: [],
+    claims: [
+        (text: "DoA starts at about 0.65, as the code measures it", variant: "measured", quantity: Start("authors_doa"), paper: 0.65),
+        (text: "DoA rises, as the code measures it", variant: "measured", quantity: FromStart("authors_doa"), paper: 0.17),
+        (text: "DoS ends near 19 %, as the code measures it", variant: "measured", quantity: TrainingLast("authors_dos"), paper: 0.19),
+    ],
+)"#;
+    std::fs::write(dir.path().join("experiments/code.ron"), text).unwrap();
+    let out = coevo(dir.path(), &["--experiment", "experiments/code.ron"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let metrics = std::fs::read_to_string(dir.path().join("results/code/paper/measured/seed1/metrics.csv")).unwrap();
+    let names: Vec<&str> = metrics.lines().next().unwrap().split(',').collect();
+    let curve = |name: &str| -> Vec<f64> {
+        let at = names.iter().position(|h| *h == name).unwrap_or_else(|| panic!("no {name}"));
+        metrics.lines().skip(1).map(|l| l.split(',').nth(at).unwrap().parse::<f64>().unwrap()).collect()
+    };
+    let (doa, dos) = (curve("authors_doa_prey"), curve("authors_dos_prey"));
+    assert_eq!(doa.len(), 10);
+    let summary = std::fs::read_to_string(dir.path().join("results/code/summary.csv")).unwrap();
+    let header: Vec<&str> = summary.lines().next().unwrap().split(',').collect();
+    let row: Vec<f64> = summary.lines().nth(1).unwrap().split(',').map(|c| c.parse().unwrap_or(f64::NAN)).collect();
+    let cell = |name: &str| row[header.iter().position(|h| *h == name).unwrap_or_else(|| panic!("no {name}"))];
+    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+    assert_eq!(cell("authors_doa_start10"), mean(&doa.iter().map(|&x| x as f32 as f64).collect::<Vec<_>>()));
+    assert_eq!(cell("authors_doa_last100"), mean(&doa));
+    assert_eq!(cell("authors_dos_first100"), mean(&dos));
+    assert!(cell("authors_dos_start10").is_finite());
+    let report = std::fs::read_to_string(dir.path().join("results/code/REPORT.md")).unwrap();
+    assert!(report.contains("authors_doa, first 10 episodes (the untrained start)"), "{report}");
+    assert!(report.contains("authors_doa, last 100 episodes minus the first 10"), "{report}");
+    assert!(report.contains("authors_dos, last 100 episodes"), "{report}");
+    // The code's DoA of random headings at 10 prey (its most opposed partner), not the paper's 2/π.
+    assert!(report.contains("apart from chance 0.154"), "{report}");
+    // The other experiments' summaries keep their columns: no run of tiny.ron measures the code's metric.
+    let tiny = Experiment::load(&dir.path().join("experiments/tiny.ron"), Path::new("results")).unwrap();
+    assert!(coevo::experiment::summary::columns(&tiny).iter().all(|(name, _)| !name.starts_with("authors_")));
 }
 
 #[test]

@@ -81,6 +81,37 @@ fn same_scene_and_seed_give_identical_metrics() {
 }
 
 #[test]
+fn measuring_the_authors_metric_changes_nothing_the_training_does() {
+    // `authors_metrics` adds columns to metrics.csv and nothing else: the same checkpoint to the byte,
+    // every other column to the byte (issue 37: a run that measures as the code does is the same run).
+    let dir = tempfile::tempdir().unwrap();
+    let (plain, measured) = (dir.path().join("plain"), dir.path().join("measured"));
+    train(tiny(3), &opts(&plain, false, None)).unwrap();
+    let mut s = tiny(3);
+    s.authors_metrics = true;
+    train(s, &opts(&measured, false, None)).unwrap();
+    let (a, b) = (metrics_without_wall_clock(&plain), metrics_without_wall_clock(&measured));
+    let header: Vec<&str> = b[0].split(',').collect();
+    let kept: Vec<usize> = (0..header.len()).filter(|&i| !header[i].starts_with("authors_")).collect();
+    assert_eq!(header.len() - kept.len(), 4, "DoS and DoA by the code, per species: {}", b[0]);
+    let without = |line: &String| -> String {
+        let cells: Vec<&str> = line.split(',').collect();
+        kept.iter().map(|&i| cells[i]).collect::<Vec<_>>().join(",")
+    };
+    assert_eq!(a, b.iter().map(without).collect::<Vec<_>>());
+    // Every tensor to the byte; the files' metadata name their scene, which differs by the switch.
+    for f in ["prey-actor.safetensors", "prey-training.safetensors", "predator-training.safetensors"] {
+        let tensors = |run: &Path| {
+            let bytes = std::fs::read(run.join("checkpoint").join(f)).unwrap();
+            let header = u64::from_le_bytes(bytes[..8].try_into().unwrap()) as usize;
+            bytes[8 + header..].to_vec()
+        };
+        let data = tensors(&plain);
+        assert!(data.len() > 1000 && data == tensors(&measured), "{f} differs");
+    }
+}
+
+#[test]
 fn a_saved_actor_acts_identically_after_loading() {
     let dir = tempfile::tempdir().unwrap();
     let run = dir.path().join("run");

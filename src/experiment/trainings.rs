@@ -1,0 +1,195 @@
+//! One training, counted once (issue 36, item 8). A training is its resolved scene, seed included, and
+//! the binary that made it: the same pair in two places is one deterministic training. Two experiments
+//! hold one training either as one run folder (`shared_from`) or as a declared re-training
+//! (`same_training_as`); a training found twice without either is refused when results are aggregated,
+//! before anything is written, so no training is counted as two pieces of evidence or two in the suite's
+//! totals ([`count`]).
+
+use super::claims::RunData;
+use super::file::Experiment;
+use super::summary::Summary;
+use std::collections::BTreeMap;
+
+/// A finished training an experiment made itself (not a run it shares from another experiment).
+#[derive(Clone, Debug)]
+pub struct Training {
+    pub experiment: String,
+    pub preset: String,
+    pub variant: String,
+    pub seed: u64,
+    /// Its identity: the scene's id ([`crate::learning::tensors::scene_id`]) and the binary.
+    pub key: (String, String),
+    /// The variant's `same_training_as`, when it declares one.
+    pub declared: Option<String>,
+    /// Its own wall clock (`metrics.csv`'s `wall_seconds`), 0 where not finite.
+    pub seconds: f64,
+    /// The numbers of its training (its summary row's columns but the evaluations, cross-play and wall
+    /// clock), to the bit, by column (from a summary only).
+    pub outcome: Option<BTreeMap<String, u64>>,
+}
+
+impl Training {
+    fn new(exp: &Experiment, i: usize, binary: &str, seconds: f64) -> Training {
+        let run = &exp.runs[i];
+        Training {
+            experiment: exp.name.clone(),
+            preset: run.preset.clone(),
+            variant: run.variant.clone(),
+            seed: run.seed,
+            key: (crate::learning::tensors::scene_id(&run.scene), binary.to_string()),
+            declared: run.same_training_as.clone(),
+            seconds: if seconds.is_finite() { seconds.max(0.0) } else { 0.0 },
+            outcome: None,
+        }
+    }
+
+    fn name(&self) -> String {
+        format!("{}/{}/{}/seed{}", self.experiment, self.preset, self.variant, self.seed)
+    }
+
+    /// Whether this training declares itself a re-training of `other` (same preset and seed).
+    fn declares(&self, other: &Training) -> bool {
+        self.declared.as_deref() == Some(&format!("{}/{}", other.experiment, other.variant))
+            && (self.preset.as_str(), self.seed) == (other.preset.as_str(), other.seed)
+    }
+}
+
+/// The trainings of an experiment's rows (`summary`): each finished run it trained itself.
+pub fn from_summary(exp: &Experiment, summary: &Summary) -> Vec<Training> {
+    let wall = summary.columns.iter().position(|c| c == crate::run::schema::WALL_SECONDS);
+    summary
+        .runs(exp)
+        .into_iter()
+        .filter(|(i, row)| exp.runs[*i].shared_from.is_none() && row.shared_from.is_empty())
+        .map(|(i, row)| {
+            let training = |c: &str| {
+                !c.starts_with("eval_") && !c.starts_with("crossplay_") && c != crate::run::schema::WALL_SECONDS
+            };
+            let bits = summary.columns.iter().zip(&row.values).filter(|(c, _)| training(c));
+            Training {
+                outcome: Some(bits.map(|(c, v)| (c.clone(), v.to_bits())).collect()),
+                ..Training::new(exp, i, &row.binary, wall.map_or(0.0, |w| row.values[w]))
+            }
+        })
+        .collect()
+}
+
+/// The trainings of an experiment before it is aggregated: its finished run folders (`data`), and the
+/// runs its committed summary holds that are not here (finished elsewhere, or a clone without folders).
+pub fn before_aggregation(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> crate::error::Result<Vec<Training>> {
+    let mut trainings: Vec<Training> = data
+        .iter()
+        .filter(|(i, _)| exp.runs[**i].shared_from.is_none())
+        .map(|(i, d)| Training::new(exp, *i, &d.binaries.join(" "), d.wall_seconds))
+        .collect();
+    if let Some(committed) = Summary::read(&exp.root.join("summary.csv"))? {
+        let here = |t: &Training| {
+            data.keys().any(|i| {
+                let r = &exp.runs[*i];
+                (r.preset.as_str(), r.variant.as_str(), r.seed) == (t.preset.as_str(), t.variant.as_str(), t.seed)
+            })
+        };
+        trainings.extend(from_summary(exp, &committed).into_iter().filter(|t| !here(t)));
+    }
+    Ok(trainings)
+}
+
+/// Refuses a training found twice (the same scene and seed by the same binary) unless every repeat
+/// declares it (`same_training_as`): one line naming both runs and the two ways out.
+pub fn check_once(trainings: &[Training]) -> crate::error::Result<()> {
+    for (k, t) in trainings.iter().enumerate() {
+        let first = trainings[..k].iter().find(|o| o.key == t.key);
+        if let Some(o) = first.filter(|o| !t.declares(o) && !o.declares(t)) {
+            return Err(format!(
+                "{} and {} are one training (the same resolved scene and seed, by binary {}); nothing written: share the run (shared_from) or declare the re-training in one of the files (same_training_as: \"{}/{}\" in {}'s, or \"{}/{}\" in {}'s)",
+                o.name(),
+                t.name(),
+                t.key.1,
+                o.experiment,
+                o.variant,
+                t.experiment,
+                t.experiment,
+                t.variant,
+                o.experiment
+            )
+            .into());
+        }
+    }
+    Ok(())
+}
+
+/// How many trainings are finished, how many distinct, and the wall-clock seconds of the distinct ones
+/// (the first of each kept).
+pub fn count(trainings: &[Training]) -> (usize, usize, f64) {
+    let mut distinct: BTreeMap<&(String, String), f64> = BTreeMap::new();
+    for t in trainings {
+        distinct.entry(&t.key).or_insert(t.seconds);
+    }
+    // + 0.0: an empty f64 sum is −0.0, which would print as "-0.0 h".
+    (trainings.len(), distinct.len(), distinct.values().sum::<f64>() + 0.0)
+}
+
+/// Distinct trainings (of another scene) whose every training number equals another's of the same preset
+/// and seed to the bit, in whichever experiment: a switch that never acted (the energy budget in 500-step
+/// episodes). They are trained and counted; the report names each pair of variants and how many seeds.
+pub fn same_outcomes(trainings: &[Training]) -> BTreeMap<(String, String), usize> {
+    // The columns both rows have (files differ in evaluations, not in training columns), DoA among them.
+    let same_numbers = |a: &BTreeMap<String, u64>, b: &BTreeMap<String, u64>| {
+        a.contains_key("doa_last100") && a.iter().all(|(c, v)| b.get(c).is_none_or(|w| w == v))
+    };
+    let mut same = BTreeMap::new();
+    for (k, t) in trainings.iter().enumerate() {
+        let earlier = trainings[..k].iter().find(|o| {
+            (o.preset.as_str(), o.seed) == (t.preset.as_str(), t.seed)
+                && o.key != t.key
+                && matches!((&o.outcome, &t.outcome), (Some(a), Some(b)) if same_numbers(a, b))
+        });
+        if let Some(o) = earlier {
+            let name = |t: &Training| format!("{}/{}", t.experiment, t.variant);
+            *same.entry((name(o), name(t))).or_insert(0) += 1;
+        }
+    }
+    same
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn training(experiment: &str, variant: &str, seed: u64, scene: &str, declared: Option<&str>) -> Training {
+        Training {
+            experiment: experiment.into(),
+            preset: "paper".into(),
+            variant: variant.into(),
+            seed,
+            key: (format!("{scene}{seed}"), "b".into()),
+            declared: declared.map(String::from),
+            seconds: 100.0,
+            outcome: Some([("doa_last100".to_string(), seed), ("dos_last100".to_string(), 7)].into()),
+        }
+    }
+
+    #[test]
+    fn a_training_held_twice_is_refused_unless_declared_and_counted_once() {
+        let owner = training("a", "seeing", 1, "s", None);
+        let again = training("b", "again", 1, "s", None);
+        let other_seed = training("b", "again", 2, "s", None);
+        let e = check_once(&[owner.clone(), again.clone(), other_seed.clone()]).unwrap_err().to_string();
+        assert!(e.starts_with("a/paper/seeing/seed1 and b/paper/again/seed1 are one training"), "{e}");
+        assert!(e.contains("same_training_as: \"a/seeing\" in b's, or \"b/again\" in a's"), "{e}");
+        // Declared on either side: accepted. A declaration of another variant, or of another seed, is not one.
+        let declared = training("b", "again", 1, "s", Some("a/seeing"));
+        check_once(&[owner.clone(), declared.clone(), other_seed.clone()]).unwrap();
+        check_once(&[declared.clone(), owner.clone()]).unwrap();
+        assert!(check_once(&[owner.clone(), training("b", "again", 1, "s", Some("a/blind"))]).is_err());
+        assert_eq!(count(&[owner.clone(), declared, other_seed]), (3, 2, 200.0));
+        assert_eq!(count(&[]), (0, 0, 0.0));
+        // Another scene with the same training numbers: a switch that never acted, named with its twin.
+        let idle = training("c", "switch", 1, "t", None);
+        let same = same_outcomes(&[owner.clone(), idle.clone(), training("c", "switch", 2, "t", None)]);
+        assert_eq!(same, [(("a/seeing".to_string(), "c/switch".to_string()), 1)].into());
+        let mut moved = idle;
+        moved.outcome.as_mut().unwrap().insert("dos_last100".into(), 8);
+        assert!(same_outcomes(&[owner, moved]).is_empty());
+    }
+}
