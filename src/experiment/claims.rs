@@ -424,7 +424,11 @@ pub fn verdict(
             } else if e.mean.abs() - two_sided >= m {
                 format!("not reproduced: an effect beyond ±{m} ({:+.3})", e.mean)
             } else {
-                format!("inconclusive: neither equivalence within ±{m} (adjusted interval [{lo:.3}, {hi:.3}]) nor an effect shown")
+                // What the data do support: the narrowest margin the adjusted interval lies inside.
+                format!(
+                    "inconclusive: neither equivalence within ±{m} (adjusted interval [{lo:.3}, {hi:.3}]) nor an effect shown; the data support equivalence only within ±{:.3}",
+                    lo.abs().max(hi.abs())
+                )
             };
         }
         let h = e.half_width(level).unwrap_or(ci);
@@ -649,6 +653,13 @@ pub(crate) mod tests {
         let inside = [0.03, 0.06, 0.04, 0.055, 0.04];
         assert!(judged(&flat, &inside).starts_with("inconclusive: neither equivalence"), "{}", judged(&flat, &inside));
         assert!(judged(&flat, &wide).starts_with("inconclusive: neither equivalence"));
+        // ... and says which margin the data support: the farther end of the adjusted (90 %, one test)
+        // interval, mean 0.045 ± t(0.95, 4) · sd/√5 = 0.045 ± 2.132 · 0.00548 = [0.033, 0.057].
+        assert!(
+            judged(&flat, &inside).ends_with("the data support equivalence only within ±0.057"),
+            "{}",
+            judged(&flat, &inside)
+        );
         // No number from the paper: detected or not, never "holds".
         let free = claim(Quantity::InteractionDoa("x".into()), None, None);
         assert!(judged(&free, &clear).starts_with("effect detected: +0.176"));
