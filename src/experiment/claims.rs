@@ -424,10 +424,11 @@ pub fn verdict(
             } else if e.mean.abs() - two_sided >= m {
                 format!("not reproduced: an effect beyond ±{m} ({:+.3})", e.mean)
             } else {
-                // What the data do support: the narrowest margin the adjusted interval lies inside.
+                // What the data do support: the adjusted interval lies inside a margin only wider than its
+                // farther end (rounded up, so the margin printed is never one the interval reaches past).
                 format!(
-                    "inconclusive: neither equivalence within ±{m} (adjusted interval [{lo:.3}, {hi:.3}]) nor an effect shown; the data support equivalence only within ±{:.3}",
-                    lo.abs().max(hi.abs())
+                    "inconclusive: neither equivalence within ±{m} (adjusted interval [{lo:.3}, {hi:.3}]) nor an effect shown; equivalence would be shown only for a margin wider than ±{:.3} (at this test's level)",
+                    (lo.abs().max(hi.abs()) * 1000.0).ceil() / 1000.0
                 )
             };
         }
@@ -586,6 +587,43 @@ pub(crate) mod tests {
         }
     }
 
+    #[test]
+    fn the_authors_curves_are_read_from_their_own_windows() {
+        // 300 episodes of the code's DoA, each window its own value: the first 10 at 0.15, the rest of the
+        // first 100 at 0.25, the last 100 at 0.5; its DoS flat at 0.3. Each quantity reads its window of the
+        // right series, and the paper's DoA (a ramp) never enters.
+        let exp = Experiment::load(Path::new("experiments/ablation-from-paper.ron"), Path::new("results")).unwrap();
+        let doa: Vec<f64> = (0..300)
+            .map(|i| {
+                if i < 10 {
+                    0.15
+                } else if i < 200 {
+                    0.25
+                } else {
+                    0.5
+                }
+            })
+            .collect();
+        let d = RunData {
+            doa: (0..300).map(|i| i as f64 / 300.0).collect(),
+            orders: [("authors_doa".to_string(), doa), ("authors_dos".to_string(), vec![0.3; 300])].into(),
+            ..Default::default()
+        };
+        let a = |q: Quantity| quantity(&exp, &d, &q);
+        let start = (0.15f32 as f64 * 10.0) / 10.0;
+        assert!((a(Quantity::Start("authors_doa".into())) - start).abs() < 1e-12);
+        assert!((a(Quantity::TrainingFirst("authors_doa".into())) - (0.15 * 10.0 + 0.25 * 90.0) / 100.0).abs() < 1e-12);
+        assert_eq!(a(Quantity::TrainingLast("authors_doa".into())), 0.5);
+        assert!((a(Quantity::FromStart("authors_doa".into())) - (0.5 - start)).abs() < 1e-12);
+        assert!(
+            a(Quantity::FromStart("authors_dos".into())).abs() < 1e-7,
+            "the flat curve's start at single precision"
+        );
+        // A run that did not measure them has no value, never the paper's curve.
+        let plain = RunData { doa: d.doa.clone(), ..Default::default() };
+        assert!(quantity(&exp, &plain, &Quantity::FromStart("authors_doa".into())).is_nan());
+    }
+
     pub(crate) fn claim(quantity: Quantity, paper: Option<f64>, margin: Option<f64>) -> Claim {
         Claim {
             text: "t".into(),
@@ -654,9 +692,10 @@ pub(crate) mod tests {
         assert!(judged(&flat, &inside).starts_with("inconclusive: neither equivalence"), "{}", judged(&flat, &inside));
         assert!(judged(&flat, &wide).starts_with("inconclusive: neither equivalence"));
         // ... and says which margin the data support: the farther end of the adjusted (90 %, one test)
-        // interval, mean 0.045 ± t(0.95, 4) · sd/√5 = 0.045 ± 2.132 · 0.00548 = [0.033, 0.057].
+        // interval, mean 0.045 ± t(0.95, 4) · sd/√5 = 0.045 ± 2.132 · 0.00548 = [0.0333, 0.0567], rounded up.
         assert!(
-            judged(&flat, &inside).ends_with("the data support equivalence only within ±0.057"),
+            judged(&flat, &inside)
+                .ends_with("equivalence would be shown only for a margin wider than ±0.057 (at this test's level)"),
             "{}",
             judged(&flat, &inside)
         );

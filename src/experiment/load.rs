@@ -10,12 +10,13 @@ use std::path::{Path, PathBuf};
 /// The experiment and variant a `shared_from` or `same_training_as` names (`"EXPERIMENT/VARIANT"`, the
 /// experiment a file beside `file`), loaded without its own shared variants (a variant it shares itself is
 /// refused: name the experiment that trains it). A shared variant's evaluations (`ours`) of the same name
-/// must be the owner's, since both experiments write them into the same run folders.
+/// must be the owner's, since both experiments write them into the same run folders; for a re-training
+/// (`ours` None) the owner must not be a declared re-training itself (name the one that trained first).
 fn shared_owner(
     file: &Path,
     results: &Path,
     from: &str,
-    ours: &[Evaluation],
+    ours: Option<&[Evaluation]>,
 ) -> std::result::Result<(Experiment, String), String> {
     let Some((experiment, variant)) = from.split_once('/') else {
         return Err(format!("{from:?} is not EXPERIMENT/VARIANT"));
@@ -33,9 +34,15 @@ fn shared_owner(
                 v.shared_from.as_deref().unwrap_or_default()
             ))
         }
+        Some(v) if ours.is_none() && v.same_training_as.is_some() => {
+            return Err(format!(
+                "{experiment}/{variant} is itself a re-training of {}; name that one",
+                v.same_training_as.as_deref().unwrap_or_default()
+            ))
+        }
         Some(_) => {}
     }
-    for e in ours {
+    for e in ours.unwrap_or_default() {
         if let Some(theirs) = owner.spec.evaluations.iter().find(|t| slug(&t.name) == slug(&e.name)) {
             if theirs != e {
                 return Err(format!(
@@ -329,7 +336,7 @@ impl Experiment {
                 }
                 let owner = match (&v.shared_from, share) {
                     (Some(from), true) => Some(
-                        shared_owner(file, results, from, &spec.evaluations)
+                        shared_owner(file, results, from, Some(&spec.evaluations))
                             .map_err(|m| err(&field("shared_from"), m))?,
                     ),
                     // Loaded as another experiment's owner: its own shared variants are not its runs
@@ -341,7 +348,7 @@ impl Experiment {
                 // same scene. Not followed when this file is loaded as an owner itself.
                 let retrained = match (&v.same_training_as, share) {
                     (Some(of), true) => {
-                        Some(shared_owner(file, results, of, &[]).map_err(|m| err(&field("same_training_as"), m))?)
+                        Some(shared_owner(file, results, of, None).map_err(|m| err(&field("same_training_as"), m))?)
                     }
                     _ => None,
                 };

@@ -76,7 +76,8 @@ const METHOD: &str = "Each number is the mean over seeds of the prey's 100-episo
      comparisons of size (smaller or larger than the paper, an effect of its size excluded) read the same intervals \
      and are descriptive, since stepped intervals are not simultaneous ones. A claim of no effect is tested for equivalence within the \
      margin its experiment file states (TOST, its p-value in the family like any test): **equivalent within ±m** when \
-     the (1 − 2α) interval at its level lies inside ± m, **not reproduced** when the interval lies beyond the margin. A *level* \
+     the (1 − 2α) interval at its level lies inside ± m, **not reproduced** when the interval lies beyond the margin, \
+     otherwise **inconclusive**, saying the margin the data would support (the farther end of that interval). A *level* \
      is **reproduced** when its 95 % interval reaches the paper's value at the precision the paper writes it with (0.22 \
      is 0.215–0.225) and excludes chance (DoA by chance: 2/π ≈ 0.637; DoS by chance: uniform random positions at \
      the same density, e.g. 0.226 for 10 prey and 0.100 for 50 in the 2 m torus; the mean edge rank of caught prey by \

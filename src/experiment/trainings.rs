@@ -14,6 +14,8 @@ use std::collections::BTreeMap;
 #[derive(Clone, Debug)]
 pub struct Training {
     pub experiment: String,
+    /// The run's index among its experiment's runs.
+    pub run: usize,
     pub preset: String,
     pub variant: String,
     pub seed: u64,
@@ -33,6 +35,7 @@ impl Training {
         let run = &exp.runs[i];
         Training {
             experiment: exp.name.clone(),
+            run: i,
             preset: run.preset.clone(),
             variant: run.variant.clone(),
             seed: run.seed,
@@ -54,13 +57,15 @@ impl Training {
     }
 }
 
-/// The trainings of an experiment's rows (`summary`): each finished run it trained itself.
+/// The trainings of an experiment's rows (`summary`): each finished run it trained itself, once (a run
+/// whose rows two machines' summaries both hold is carried once, `carry`).
 pub fn from_summary(exp: &Experiment, summary: &Summary) -> Vec<Training> {
     let wall = summary.columns.iter().position(|c| c == crate::run::schema::WALL_SECONDS);
+    let mut seen = std::collections::BTreeSet::new();
     summary
         .runs(exp)
         .into_iter()
-        .filter(|(i, row)| exp.runs[*i].shared_from.is_none() && row.shared_from.is_empty())
+        .filter(|(i, row)| exp.runs[*i].shared_from.is_none() && row.shared_from.is_empty() && seen.insert(*i))
         .map(|(i, row)| {
             let training = |c: &str| {
                 !c.starts_with("eval_") && !c.starts_with("crossplay_") && c != crate::run::schema::WALL_SECONDS
@@ -83,37 +88,59 @@ pub fn before_aggregation(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> 
         .map(|(i, d)| Training::new(exp, *i, &d.binaries.join(" "), d.wall_seconds))
         .collect();
     if let Some(committed) = Summary::read(&exp.root.join("summary.csv"))? {
-        let here = |t: &Training| {
-            data.keys().any(|i| {
-                let r = &exp.runs[*i];
-                (r.preset.as_str(), r.variant.as_str(), r.seed) == (t.preset.as_str(), t.variant.as_str(), t.seed)
-            })
-        };
-        trainings.extend(from_summary(exp, &committed).into_iter().filter(|t| !here(t)));
+        trainings.extend(from_summary(exp, &committed).into_iter().filter(|t| !data.contains_key(&t.run)));
     }
     Ok(trainings)
 }
 
-/// Refuses a training found twice (the same scene and seed by the same binary) unless every repeat
-/// declares it (`same_training_as`): one line naming both runs and the two ways out.
+/// Refuses a training found twice (the same scene and seed by the same binary) unless all but one of its
+/// holders declare that one (`same_training_as`), and a declaration that is not true (the run it names,
+/// when finished, is another training): one line naming both runs and the ways out.
 pub fn check_once(trainings: &[Training]) -> crate::error::Result<()> {
-    for (k, t) in trainings.iter().enumerate() {
-        let first = trainings[..k].iter().find(|o| o.key == t.key);
-        if let Some(o) = first.filter(|o| !t.declares(o) && !o.declares(t)) {
+    for t in trainings {
+        if let Some(o) = trainings.iter().find(|o| t.declares(o)).filter(|o| o.key != t.key) {
+            let why = match o.key.0 == t.key.0 {
+                true => format!("binaries {} and {}", o.key.1, t.key.1),
+                false => "another scene".to_string(),
+            };
             return Err(format!(
-                "{} and {} are one training (the same resolved scene and seed, by binary {}); nothing written: share the run (shared_from) or declare the re-training in one of the files (same_training_as: \"{}/{}\" in {}'s, or \"{}/{}\" in {}'s)",
-                o.name(),
+                "{} declares same_training_as \"{}/{}\", but {} is not the same training ({why}); nothing written: remove the declaration, or train both by one binary",
                 t.name(),
-                t.key.1,
                 o.experiment,
                 o.variant,
-                t.experiment,
-                t.experiment,
-                t.variant,
-                o.experiment
+                o.name()
             )
             .into());
         }
+    }
+    let mut groups: Vec<Vec<&Training>> = Vec::new();
+    for t in trainings {
+        match groups.iter_mut().find(|g| g[0].key == t.key) {
+            Some(g) => g.push(t),
+            None => groups.push(vec![t]),
+        }
+    }
+    for g in groups.iter().filter(|g| g.len() > 1) {
+        // The holders that declare no other: one owner, or the repeat is undeclared.
+        let owners: Vec<&&Training> = g.iter().filter(|t| !g.iter().any(|o| t.declares(o))).collect();
+        let (o, t) = match owners.as_slice() {
+            [_] => continue,
+            [o, t, ..] => (**o, **t),
+            [] => (g[0], g[1]),
+        };
+        return Err(format!(
+            "{} and {} are one training (the same resolved scene and seed, by binary {}); nothing written: share the run (shared_from) or declare the re-training in one of the files (same_training_as: \"{}/{}\" in {}'s, or \"{}/{}\" in {}'s)",
+            o.name(),
+            t.name(),
+            t.key.1,
+            o.experiment,
+            o.variant,
+            t.experiment,
+            t.experiment,
+            t.variant,
+            o.experiment
+        )
+        .into());
     }
     Ok(())
 }
@@ -141,7 +168,7 @@ pub fn same_outcomes(trainings: &[Training]) -> BTreeMap<(String, String), usize
     for (k, t) in trainings.iter().enumerate() {
         let earlier = trainings[..k].iter().find(|o| {
             (o.preset.as_str(), o.seed) == (t.preset.as_str(), t.seed)
-                && o.key != t.key
+                && o.key.0 != t.key.0
                 && matches!((&o.outcome, &t.outcome), (Some(a), Some(b)) if same_numbers(a, b))
         });
         if let Some(o) = earlier {
@@ -159,6 +186,7 @@ mod tests {
     fn training(experiment: &str, variant: &str, seed: u64, scene: &str, declared: Option<&str>) -> Training {
         Training {
             experiment: experiment.into(),
+            run: seed as usize,
             preset: "paper".into(),
             variant: variant.into(),
             seed,
@@ -177,11 +205,25 @@ mod tests {
         let e = check_once(&[owner.clone(), again.clone(), other_seed.clone()]).unwrap_err().to_string();
         assert!(e.starts_with("a/paper/seeing/seed1 and b/paper/again/seed1 are one training"), "{e}");
         assert!(e.contains("same_training_as: \"a/seeing\" in b's, or \"b/again\" in a's"), "{e}");
-        // Declared on either side: accepted. A declaration of another variant, or of another seed, is not one.
+        // Declared: accepted, whichever comes first. A declaration of another variant is not one.
         let declared = training("b", "again", 1, "s", Some("a/seeing"));
         check_once(&[owner.clone(), declared.clone(), other_seed.clone()]).unwrap();
         check_once(&[declared.clone(), owner.clone()]).unwrap();
         assert!(check_once(&[owner.clone(), training("b", "again", 1, "s", Some("a/blind"))]).is_err());
+        // Two files re-training one owner, the owner between them: one owner, two declarations.
+        let third = training("c", "once more", 1, "s", Some("a/seeing"));
+        check_once(&[declared.clone(), owner.clone(), third.clone()]).unwrap();
+        // Two that declare nothing: refused, naming those two.
+        let e = check_once(&[declared.clone(), owner.clone(), training("c", "once more", 1, "s", None)]).unwrap_err();
+        assert!(e.to_string().starts_with("a/paper/seeing/seed1 and c/paper/once more/seed1"), "{e}");
+        // A declaration that is not true: the named run is another training (another binary here).
+        let mut rebuilt = owner.clone();
+        rebuilt.key.1 = "other".into();
+        let e = check_once(&[rebuilt.clone(), declared.clone()]).unwrap_err().to_string();
+        assert!(
+            e.starts_with("b/paper/again/seed1 declares same_training_as \"a/seeing\", but a/paper/seeing/seed1 is not the same training (binaries other and b)"),
+            "{e}"
+        );
         assert_eq!(count(&[owner.clone(), declared, other_seed]), (3, 2, 200.0));
         assert_eq!(count(&[]), (0, 0, 0.0));
         // Another scene with the same training numbers: a switch that never acted, named with its twin.
@@ -190,6 +232,8 @@ mod tests {
         assert_eq!(same, [(("a/seeing".to_string(), "c/switch".to_string()), 1)].into());
         let mut moved = idle;
         moved.outcome.as_mut().unwrap().insert("dos_last100".into(), 8);
-        assert!(same_outcomes(&[owner, moved]).is_empty());
+        assert!(same_outcomes(&[owner.clone(), moved]).is_empty());
+        // The same scene by another binary is not "a switch that never acted".
+        assert!(same_outcomes(&[owner, rebuilt]).is_empty());
     }
 }
