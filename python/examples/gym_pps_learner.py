@@ -12,7 +12,18 @@ coevo did not write.
 
 writes one row per episode: the paper's DoS and DoA of the prey averaged over the episode's steps
 (coevo's metric, the one ``metrics.csv`` logs), the catches, and the wall time, to be compared with
-coevo's own runs of the same scene (``coevo --train --scene scenes/gym-pps-code.ron``).
+coevo's own runs of the same scene (``coevo --train --scene scenes/gym-pps-code.ron``; the "every switch"
+variant of ``experiments/authors-code.ron`` is that scene).
+
+**Resumable.** Rows go to ``OUT.partial`` as episodes finish, and every ``--checkpoint-every`` episodes
+(250) the whole learner is saved in ``OUT.checkpoint/``: its agents as the learner saves them
+(``get_params``: networks, targets, optimizers), the noise and ε it decays, both replay buffers' sampled
+rows and write positions, and numpy's and torch's random states. Run the same command again after a kill and it continues from the last checkpoint,
+as if never stopped: each episode's world starts from its own seed (``seed`` for the first, then
+``seed + 1000003·episode``), so nothing of the world has to be saved. The finished file is renamed to
+``OUT`` and the checkpoint removed. Of each buffer only rows ``[0, filled)`` are saved: the code samples
+no other row (``utils/buffer.py``: ``np.arange(self.filled_i)``; the rows it writes beyond ``max_steps``
+are never read), so a checkpoint is at most ~0.3 GB per species.
 
 What the adapter does, each the code's behaviour in ``gym/envs/pps/pps.py`` and ``main.py``:
 
@@ -38,6 +49,7 @@ import argparse
 import csv
 import os
 import re
+import shutil
 import sys
 import time
 import types
@@ -100,6 +112,63 @@ def learner(checkout: str):
     return MADDPG, ReplayBuffer
 
 
+BUFFER_ARRAYS = ("obs_buffs", "ac_buffs", "rew_buffs", "next_obs_buffs", "done_buffs")
+
+
+def episode_seed(seed: int, episode: int) -> int:
+    """The world seed of episode ``episode`` (from 0): each episode starts afresh from its own, so a resumed
+    run needs nothing of the world's state."""
+    return seed if episode == 0 else seed + 1000003 * episode
+
+
+def save_checkpoint(path: str, episode: int, elapsed: float, maddpg, buffers) -> None:
+    """Everything the learner carries after ``episode`` episodes, written beside and swapped in whole."""
+    import torch
+
+    tmp = path + ".tmp"
+    shutil.rmtree(tmp, ignore_errors=True)
+    os.makedirs(tmp)
+    for k, b in enumerate(buffers):
+        for name in BUFFER_ARRAYS:
+            np.save(os.path.join(tmp, f"buffer{k}-{name}.npy"), getattr(b, name)[: b.filled_i])
+    state = {
+        "episode": episode,
+        "elapsed": elapsed,
+        # The learner's own way of saving its agents (MADDPG.save: networks, targets and optimizers), and
+        # what it changes besides: the noise and ε it decays, its update count.
+        "agent_params": [a.get_params() for a in maddpg.agents],
+        "noise_epsilon_niter": (maddpg.noise, maddpg.epsilon, maddpg.niter),
+        "buffers": [(b.filled_i, b.curr_i) for b in buffers],
+        "numpy_random": np.random.get_state(),
+        "torch_random": torch.get_rng_state(),
+    }
+    torch.save(state, os.path.join(tmp, "state.pt"))
+    old = path + ".old"
+    shutil.rmtree(old, ignore_errors=True)
+    if os.path.exists(path):
+        os.rename(path, old)
+    os.rename(tmp, path)
+    shutil.rmtree(old, ignore_errors=True)
+
+
+def load_checkpoint(path: str, maddpg, buffers):
+    """The learner as ``save_checkpoint`` left it, loaded into ``maddpg`` and ``buffers`` in place, the
+    random states restored: (episodes done, seconds elapsed)."""
+    import torch
+
+    state = torch.load(os.path.join(path, "state.pt"), weights_only=False)
+    for a, params in zip(maddpg.agents, state["agent_params"]):
+        a.load_params(params)
+    maddpg.noise, maddpg.epsilon, maddpg.niter = state["noise_epsilon_niter"]
+    for k, (b, (filled, curr)) in enumerate(zip(buffers, state["buffers"])):
+        for name in BUFFER_ARRAYS:
+            getattr(b, name)[:filled] = np.load(os.path.join(path, f"buffer{k}-{name}.npy"))
+        b.filled_i, b.curr_i = filled, curr
+    np.random.set_state(state["numpy_random"])
+    torch.set_rng_state(state["torch_random"])
+    return state["episode"], state["elapsed"]
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--gym-pps", required=True, help="a WindyLab/Gym-PPS checkout")
@@ -109,9 +178,12 @@ def main() -> None:
     parser.add_argument("--episode-steps", type=int, default=None, help="the scene's (500) unless given")
     parser.add_argument("--threads", type=int, default=1, help="torch threads (the code's default is 6)")
     parser.add_argument("--out", required=True, help="CSV, one row per episode")
+    parser.add_argument("--checkpoint-every", type=int, default=250, help="episodes between checkpoints")
     args = parser.parse_args()
     if os.path.exists(args.out):
-        sys.exit(f"--out: {args.out} exists; give a new file")
+        sys.exit(f"--out: {args.out} exists (a finished run); give a new file")
+    if args.checkpoint_every < 1:
+        sys.exit("--checkpoint-every: must be >= 1")
     import torch
 
     MADDPG, ReplayBuffer = learner(args.gym_pps)
@@ -132,13 +204,27 @@ def main() -> None:
     buffers = [ReplayBuffer(int(5e5), r.stop - r.start, state_dim=d_o, action_dim=2, start_stop_index=r) for r in ranges]
     turn_max, thrust_max = limits(env)
     os.makedirs(os.path.dirname(os.path.abspath(args.out)), exist_ok=True)
-    partial = args.out + ".partial"
+    partial, checkpoint = args.out + ".partial", args.out + ".checkpoint"
+    header = ["episode", "dos", "doa", "catches", "wall_seconds"]
+    done, elapsed, rows = 0, 0.0, []
+    if os.path.exists(os.path.join(checkpoint, "state.pt")):
+        # A killed run: its learner from the checkpoint, its rows up to it (later ones are played again).
+        done, elapsed = load_checkpoint(checkpoint, maddpg, buffers)
+        with open(partial, newline="") as f:
+            rows = [r for r in csv.reader(f)][1 : done + 1]
+        if len(rows) != done:
+            sys.exit(f"{partial}: {len(rows)} rows, the checkpoint has {done} episodes; remove both to start again")
+        print(f"resumed after episode {done} from {checkpoint}", file=sys.stderr)
+    elif os.path.exists(partial):
+        sys.exit(f"--out: {partial} exists without a checkpoint to resume from; remove it to start again")
     with open(partial, "w", newline="") as f:
         out = csv.writer(f)
-        out.writerow(["episode", "dos", "doa", "catches", "wall_seconds"])
-        start = time.time()
-        for episode in range(args.episodes):
-            observations, _ = env.reset(seed=args.seed if episode == 0 else None)
+        out.writerow(header)
+        out.writerows(rows)
+        f.flush()
+        start = time.time() - elapsed
+        for episode in range(done, args.episodes):
+            observations, _ = env.reset(seed=episode_seed(args.seed, episode))
             obs = columns(env, observations)
             maddpg.prep_rollouts(device="cpu")
             maddpg.scale_noise(maddpg.noise, maddpg.epsilon)
@@ -170,7 +256,10 @@ def main() -> None:
             maddpg.epsilon = max(0.05, maddpg.epsilon - 5e-5)
             out.writerow([episode + 1, float(np.mean(dos)), float(np.mean(doa)), catches, round(time.time() - start, 3)])
             f.flush()
+            if (episode + 1) % args.checkpoint_every == 0 and episode + 1 < args.episodes:
+                save_checkpoint(checkpoint, episode + 1, time.time() - start, maddpg, buffers)
     os.replace(partial, args.out)
+    shutil.rmtree(checkpoint, ignore_errors=True)
 
 
 if __name__ == "__main__":
