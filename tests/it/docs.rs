@@ -405,14 +405,27 @@ fn unsupported_equivalence(
 ) -> Vec<String> {
     let joined = text.replace('\n', " ");
     // Sentences end at a full stop, `;` or a table cell's `|` followed by a space (a `.` inside a number
-    // or a file name is followed by no space).
+    // or a file name is followed by no space); never inside a citation, whose claim text may hold them
+    // ("(primary; equivalence within 0.05)"): there they are kept apart and put back when read.
+    const KEPT: [(&str, &str); 3] = [(". ", "\u{1}"), ("; ", "\u{2}"), (" | ", "\u{3}")];
+    let mut protected = String::new();
+    let mut rest = joined.as_str();
+    while let Some(at) = rest.find("<!--") {
+        let end = rest[at..].find("-->").map_or(rest.len(), |e| at + e);
+        protected.push_str(&rest[..at]);
+        protected.push_str(&KEPT.iter().fold(rest[at..end].to_string(), |t, (from, to)| t.replace(from, to)));
+        rest = &rest[end..];
+    }
+    protected.push_str(rest);
+    let restore = |t: &str| KEPT.iter().fold(t.to_string(), |t, (from, to)| t.replace(to, from));
+    let joined = protected;
     let mut wrong = vec![];
     for sentence in joined.split(". ").flat_map(|s| s.split("; ")).flat_map(|s| s.split(" | ")) {
         let lower = sentence.to_lowercase();
         let Some(word) = EQUIVALENCE_WORDS.iter().find(|w| lower.contains(&w.to_lowercase())) else { continue };
         let equivalent = sentence.split("<!-- claim: ").skip(1).any(|c| {
-            let cited = c.split("-->").next().unwrap_or("").trim();
-            cited_rows(cited, rows).is_some_and(|r| r.iter().all(|r| r.verdict.starts_with("equivalent within")))
+            let cited = restore(c.split("-->").next().unwrap_or("").trim());
+            cited_rows(&cited, rows).is_some_and(|r| r.iter().all(|r| r.verdict.starts_with("equivalent within")))
         });
         if !equivalent {
             let shown: String = sentence.chars().take(120).collect();
@@ -450,11 +463,20 @@ fn no_sentence_claims_equivalence_without_an_equivalence_verdict() {
         ("e".into(), "gym-pps".into(), "b".into()),
         vec![row("equivalent within ±0.05: the adjusted interval [-0.030, 0.030] lies inside (TOST, Holm p = 0.010)")],
     );
+    // A claim whose text holds "; " is one citation, not two sentences.
+    rows.insert(
+        ("e".into(), "gym-pps".into(), "c (primary; within 0.05)".into()),
+        vec![row("equivalent within ±0.05: the adjusted interval [-0.030, 0.030] lies inside (TOST, Holm p = 0.010)")],
+    );
     let said = |text: &str| unsupported_equivalence(text, &rows).len();
     assert_eq!(said("Blind prey align as much (+0.00 ± 0.07<!-- claim: e / gym-pps / a -->). Next."), 1);
     assert_eq!(said("Blind prey align as much (+0.00 ± 0.07<!-- claim: e / gym-pps / b -->). Next."), 0);
     assert_eq!(said("No difference is detected (+0.00 ± 0.07<!-- claim: e / gym-pps / a -->)."), 0);
     assert_eq!(said("The answer is **herding**. It is."), 1);
+    assert_eq!(
+        said("Blind prey align as much (+0.00 ± 0.07<!-- claim: e / gym-pps / c (primary; within 0.05) -->)."),
+        0
+    );
 }
 
 /// The relative link targets of a Markdown text (`[text](target)` and `![alt](target)`), without anchors;

@@ -476,10 +476,9 @@ fn random_positions_give_the_known_dos_baselines() {
 #[test]
 fn a_training_of_a_scene_the_project_ran_says_how_far_its_seeds_differ() {
     // The default scene, trained from the clone (experiments/ and the committed results here): the
-    // explanation gives the range of the 10 seeds of results/flocking-or-herding, the experiment that ran
-    // it on the most seeds. Not herding-equivalence's, with more seeds of the same scene already committed:
-    // it is judged when complete, and until then nothing of its runs is shown (when all its 160 runs are
-    // in, its 40 seeds are the ones cited).
+    // explanation gives the range of the 40 seeds of results/herding-equivalence, the experiment that ran
+    // it on the most seeds (judged when complete: while it was in progress, nothing of its runs was shown
+    // and flocking-or-herding's 10 seeds were cited).
     let dir = tempfile::tempdir().unwrap();
     let out = std::process::Command::new(env!("CARGO_BIN_EXE_coevo"))
         .args(["--train", "--episodes", "1", "--out"])
@@ -491,7 +490,7 @@ fn a_training_of_a_scene_the_project_ran_says_how_far_its_seeds_differ() {
     let line = said.lines().find(|l| l.contains("how far seeds differ")).unwrap_or_else(|| panic!("{said}"));
     assert!(
         line.contains(
-            "the 10 seeds of this scene in results/flocking-or-herding (gym-pps preset, variant \"with predators\")"
+            "the 40 seeds of this scene in results/herding-equivalence (gym-pps preset, variant \"with predators\")"
         ),
         "{line}"
     );
