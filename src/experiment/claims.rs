@@ -321,7 +321,8 @@ pub fn chance_level(exp: &Experiment, claim: &Claim, scene: Option<&crate::scene
     if claim.baseline.is_some() || is_effect(claim) {
         return claim.baseline;
     }
-    let random_dos = |evaluation: Option<&str>| {
+    // The scene and how many of the headline species there are: in training, or in an evaluation.
+    let headline = |evaluation: Option<&str>| {
         let scene = scene?;
         let registry = crate::sim::species::SpeciesRegistry::from_scene(scene);
         let prey = registry.headline();
@@ -330,6 +331,10 @@ pub fn chance_level(exp: &Experiment, claim: &Claim, scene: Option<&crate::scene
         let n = counts
             .and_then(|e| e.counts.iter().find(|(s, _)| s == name).map(|(_, n)| *n))
             .unwrap_or(registry.defs[prey].count);
+        Some((scene, n))
+    };
+    let random_dos = |evaluation: Option<&str>| {
+        let (scene, n) = headline(evaluation)?;
         let arena = crate::sim::space::Arena { edge: scene.world.arena_edge, boundary: scene.world.boundary };
         crate::sim::metrics::random_dos(&arena, n)
     };
@@ -344,9 +349,7 @@ pub fn chance_level(exp: &Experiment, claim: &Claim, scene: Option<&crate::scene
         Quantity::Start(o) | Quantity::TrainingFirst(o) | Quantity::TrainingLast(o)
             if AUTHORS_CURVES.contains(&o.as_str()) =>
         {
-            let scene = scene?;
-            let registry = crate::sim::species::SpeciesRegistry::from_scene(scene);
-            let n = registry.defs[registry.headline()].count;
+            let (scene, n) = headline(None)?;
             let which = AUTHORS_CURVES.iter().position(|c| c == o)?;
             crate::sim::metrics::random_authors(scene.world.arena_edge, n).map(|v| v[which])
         }
