@@ -26,7 +26,7 @@ from pettingzoo import ParallelEnv as _ParallelEnv
 
 from ._coevo import Env as _Env
 from ._coevo import VecEnv as _VecEnv
-from ._coevo import RunFolder, __version__, git_commit, t_estimate, welch
+from ._coevo import RunFolder, __version__, compare_curves, git_commit, t_estimate, welch
 from ._coevo import (  # one exception class per kind of error, all subclasses of CoevoError (a ValueError)
     CheckpointError,
     CoevoError,
@@ -46,6 +46,7 @@ __all__ = [
     "__version__",
     "git_commit",
     "RunFolder",
+    "compare_curves",
     "t_estimate",
     "welch",
     "CoevoError",

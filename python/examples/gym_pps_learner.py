@@ -11,9 +11,13 @@ coevo did not write.
     python examples/gym_pps_learner.py --gym-pps ~/src/Gym-PPS --seed 1 --out runs/gym-pps-learner/seed1.csv
 
 writes one row per episode: the paper's DoS and DoA of the prey averaged over the episode's steps
-(coevo's metric, the one ``metrics.csv`` logs), the catches, and the wall time, to be compared with
+(coevo's metric, the one ``metrics.csv`` logs), the catches, the wall time and the process's CPU time
+(the cost of a run on a shared machine), to be compared with
 coevo's own runs of the same scene (``coevo --train --scene scenes/gym-pps-code.ron``; the "every switch"
-variant of ``experiments/authors-code.ron`` is that scene).
+variant of ``experiments/authors-code.ron`` is that scene) by ``compare_gym_pps_learner.py``. Beside it,
+``OUT.provenance.json`` names what made the run: coevo's commit, torch's and numpy's versions, the
+checkout (its git commit when it has one, and a hash of the learner's files either way), the arguments,
+and the episodes a run resumed after.
 
 **Resumable.** Rows go to ``OUT.partial`` as episodes finish, and every ``--checkpoint-every`` episodes
 (250) the whole learner is saved in ``OUT.checkpoint/``: its agents as the learner saves them
@@ -47,6 +51,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import json
 import os
 import re
 import shutil
@@ -121,7 +126,7 @@ def episode_seed(seed: int, episode: int) -> int:
     return seed if episode == 0 else seed + 1000003 * episode
 
 
-def save_checkpoint(path: str, episode: int, elapsed: float, maddpg, buffers) -> None:
+def save_checkpoint(path: str, episode: int, elapsed: float, cpu: float, maddpg, buffers) -> None:
     """Everything the learner carries after ``episode`` episodes, written beside and swapped in whole."""
     import torch
 
@@ -134,6 +139,7 @@ def save_checkpoint(path: str, episode: int, elapsed: float, maddpg, buffers) ->
     state = {
         "episode": episode,
         "elapsed": elapsed,
+        "cpu": cpu,
         # The learner's own way of saving its agents (MADDPG.save: networks, targets and optimizers), and
         # what it changes besides: the noise and ε it decays, its update count.
         "agent_params": [a.get_params() for a in maddpg.agents],
@@ -153,7 +159,7 @@ def save_checkpoint(path: str, episode: int, elapsed: float, maddpg, buffers) ->
 
 def load_checkpoint(path: str, maddpg, buffers):
     """The learner as ``save_checkpoint`` left it, loaded into ``maddpg`` and ``buffers`` in place, the
-    random states restored: (episodes done, seconds elapsed)."""
+    random states restored: (episodes done, wall seconds elapsed, CPU seconds used)."""
     import torch
 
     state = torch.load(os.path.join(path, "state.pt"), weights_only=False)
@@ -166,7 +172,29 @@ def load_checkpoint(path: str, maddpg, buffers):
         b.filled_i, b.curr_i = filled, curr
     np.random.set_state(state["numpy_random"])
     torch.set_rng_state(state["torch_random"])
-    return state["episode"], state["elapsed"]
+    return state["episode"], state["elapsed"], state["cpu"]
+
+
+LEARNER_FILES = ("algorithms/maddpg.py", "utils/agents.py", "utils/buffer.py", "utils/networks.py", "utils/misc.py",
+                 "utils/noise.py")
+
+
+def checkout_identity(checkout: str) -> dict:
+    """Which learner ran: the checkout's git commit when it is a git work tree, and a SHA-256 of the
+    learner's files (``NJP_algorithm/``) either way, so that an exported tree is identified too."""
+    import hashlib
+    import subprocess
+
+    digest = hashlib.sha256()
+    for name in LEARNER_FILES:
+        with open(os.path.join(checkout, "NJP_algorithm", name), "rb") as f:
+            digest.update(name.encode() + b"\0" + f.read())
+    try:
+        commit = subprocess.run(["git", "-C", checkout, "rev-parse", "HEAD"], capture_output=True, text=True,
+                                check=True).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        commit = None
+    return {"path": os.path.abspath(checkout), "git_commit": commit, "learner_sha256": digest.hexdigest()}
 
 
 def main() -> None:
@@ -205,11 +233,27 @@ def main() -> None:
     turn_max, thrust_max = limits(env)
     os.makedirs(os.path.dirname(os.path.abspath(args.out)), exist_ok=True)
     partial, checkpoint = args.out + ".partial", args.out + ".checkpoint"
-    header = ["episode", "dos", "doa", "catches", "wall_seconds"]
-    done, elapsed, rows = 0, 0.0, []
+    header = ["episode", "dos", "doa", "catches", "wall_seconds", "cpu_seconds"]
+    provenance_path = args.out + ".provenance.json"
+    provenance = {
+        "coevo": {"version": coevo.__version__, "git_commit": coevo.git_commit},
+        "torch": torch.__version__,
+        "numpy": np.__version__,
+        "python": sys.version.split()[0],
+        "checkout": checkout_identity(args.gym_pps),
+        "arguments": {k: v for k, v in vars(args).items() if k not in ("out", "gym_pps")},
+        "resumed_after": [],
+    }
+    done, elapsed, cpu, rows = 0, 0.0, 0.0, []
     if os.path.exists(os.path.join(checkpoint, "state.pt")):
         # A killed run: its learner from the checkpoint, its rows up to it (later ones are played again).
-        done, elapsed = load_checkpoint(checkpoint, maddpg, buffers)
+        done, elapsed, cpu = load_checkpoint(checkpoint, maddpg, buffers)
+        with open(provenance_path) as f:
+            before = json.load(f)
+        changed = [k for k in provenance if k != "resumed_after" and before.get(k) != provenance[k]]
+        if changed:
+            sys.exit(f"{provenance_path}: the run began with another {', '.join(changed)}; resume it with what began it, or give a new --out")
+        provenance["resumed_after"] = before["resumed_after"] + [done]
         with open(partial, newline="") as f:
             rows = [r for r in csv.reader(f)][1 : done + 1]
         if len(rows) != done:
@@ -217,12 +261,15 @@ def main() -> None:
         print(f"resumed after episode {done} from {checkpoint}", file=sys.stderr)
     elif os.path.exists(partial):
         sys.exit(f"--out: {partial} exists without a checkpoint to resume from; remove it to start again")
+    with open(provenance_path + ".tmp", "w") as f:
+        json.dump(provenance, f, indent=1)
+    os.replace(provenance_path + ".tmp", provenance_path)
     with open(partial, "w", newline="") as f:
         out = csv.writer(f)
         out.writerow(header)
         out.writerows(rows)
         f.flush()
-        start = time.time() - elapsed
+        start, cpu_start = time.time() - elapsed, time.process_time() - cpu
         for episode in range(done, args.episodes):
             observations, _ = env.reset(seed=episode_seed(args.seed, episode))
             obs = columns(env, observations)
@@ -237,9 +284,9 @@ def main() -> None:
                 rescale_in_place(actions, turn_max, thrust_max)
                 next_obs = columns(env, observations)
                 reward = np.array([[rewards[a] for a in env.possible_agents]])
-                done = np.zeros((1, n))
+                dones = np.zeros((1, n))
                 for b in buffers:
-                    b.push(obs, actions, reward, next_obs, done)
+                    b.push(obs, actions, reward, next_obs, dones)
                 obs = next_obs
                 info = infos[env.possible_agents[0]]
                 dos.append(info["dos"])
@@ -254,10 +301,11 @@ def main() -> None:
                 maddpg.prep_rollouts(device="cpu")
             maddpg.noise = max(0.05, maddpg.noise - 5e-5)
             maddpg.epsilon = max(0.05, maddpg.epsilon - 5e-5)
-            out.writerow([episode + 1, float(np.mean(dos)), float(np.mean(doa)), catches, round(time.time() - start, 3)])
+            wall, used = time.time() - start, time.process_time() - cpu_start
+            out.writerow([episode + 1, float(np.mean(dos)), float(np.mean(doa)), catches, round(wall, 3), round(used, 3)])
             f.flush()
             if (episode + 1) % args.checkpoint_every == 0 and episode + 1 < args.episodes:
-                save_checkpoint(checkpoint, episode + 1, time.time() - start, maddpg, buffers)
+                save_checkpoint(checkpoint, episode + 1, wall, used, maddpg, buffers)
     os.replace(partial, args.out)
     shutil.rmtree(checkpoint, ignore_errors=True)
 

@@ -377,6 +377,53 @@ fn welch(py: Python<'_>, a: Vec<f64>, b: Vec<f64>) -> PyResult<Option<Py<PyDict>
     estimate_dict(py, stats::difference(&a, &b))
 }
 
+/// Training curves made elsewhere against coevo's own, judged as coevo's reports judge two variants
+/// (`coevo::experiment::external::compare`). `theirs` and `ours`: one dict per run of per-episode
+/// `"dos"`, `"doa"` and `"catches"`. For each `(text, quantity, margin)` of `comparisons` (the quantity as
+/// experiment files write it: `"DoaLast"`, `'FromStart("doa")'`): theirs minus ours with Welch's 95 %
+/// interval, TOST within the margin when one is given (else the two-sided test), Holm over the family.
+/// Returns per comparison a dict: text, mean, ci, p, p_holm, level (the Holm step's α), verdict.
+#[pyfunction]
+fn compare_curves(
+    py: Python<'_>,
+    family: &str,
+    theirs: Vec<std::collections::HashMap<String, Vec<f64>>>,
+    ours: Vec<std::collections::HashMap<String, Vec<f64>>>,
+    comparisons: Vec<(String, String, Option<f64>)>,
+) -> PyResult<Py<PyList>> {
+    use coevo::experiment::external::{compare, curves, Comparison};
+    let runs = |side: &str, runs: Vec<std::collections::HashMap<String, Vec<f64>>>| {
+        runs.into_iter()
+            .enumerate()
+            .map(|(i, mut run)| {
+                let mut take = |name: &str| {
+                    run.remove(name).ok_or_else(|| InputError::new_err(format!("{side}[{i}]: no \"{name}\" curve")))
+                };
+                Ok(curves(take("dos")?, take("doa")?, take("catches")?))
+            })
+            .collect::<PyResult<Vec<_>>>()
+    };
+    let (theirs, ours) = (runs("theirs", theirs)?, runs("ours", ours)?);
+    let comparisons = comparisons
+        .iter()
+        .map(|(text, quantity, margin)| Comparison::parse(text, quantity, *margin))
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(err)?;
+    let out = PyList::empty(py);
+    for r in compare(family, &theirs, &ours, &comparisons).map_err(err)? {
+        let row = PyDict::new(py);
+        row.set_item("text", &r.claim.text)?;
+        row.set_item("mean", r.estimate.map(|e| e.mean))?;
+        row.set_item("ci", r.estimate.and_then(|e| e.ci))?;
+        row.set_item("p", r.p)?;
+        row.set_item("p_holm", r.p_holm)?;
+        row.set_item("level", r.level)?;
+        row.set_item("verdict", &r.verdict)?;
+        out.append(row)?;
+    }
+    Ok(out.unbind())
+}
+
 #[pymodule]
 fn _coevo(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", coevo::VERSION)?;
@@ -386,6 +433,7 @@ fn _coevo(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<RunFolder>()?;
     m.add_function(wrap_pyfunction!(t_estimate, m)?)?;
     m.add_function(wrap_pyfunction!(welch, m)?)?;
+    m.add_function(wrap_pyfunction!(compare_curves, m)?)?;
     let py = m.py();
     m.add("CoevoError", py.get_type::<CoevoError>())?;
     m.add("SceneError", py.get_type::<SceneError>())?;

@@ -297,6 +297,29 @@ def test_statistics_are_coevos():
     assert coevo.t_estimate([]) is None
 
 
+def test_curves_made_elsewhere_are_judged_as_coevos_reports_judge_two_variants():
+    """compare_curves: the windows, Welch's difference, TOST and Holm of coevo's reports, on curves handed
+    over from Python (the authors' learner's runs, issue 37)."""
+    def run(last_doa, last_catches):
+        flat = lambda first, last: [first] * 100 + [last] * 100  # noqa: E731
+        return {"dos": flat(0.25, 0.2), "doa": flat(0.3, last_doa), "catches": flat(70.0, last_catches)}
+
+    theirs = [run(d, 30.0) for d in (0.80, 0.81, 0.82, 0.80)]
+    ours = [run(d, 60.0 + d) for d in (0.80, 0.82, 0.81, 0.81, 0.80)]
+    results = coevo.compare_curves(
+        "f", theirs, ours, [("DoA the same", "DoaLast", 0.05), ("catches", "CatchesLast", None)]
+    )
+    w = coevo.welch([0.80, 0.81, 0.82, 0.80], [0.80, 0.82, 0.81, 0.81, 0.80])
+    assert abs(results[0]["mean"] - w["mean"]) < 1e-12 and abs(results[0]["ci"] - w["ci"]) < 1e-12
+    assert results[0]["verdict"].startswith("equivalent within ±0.05")
+    assert results[1]["verdict"].startswith("effect detected: -30.8")
+    assert results[0]["p_holm"] >= results[0]["p"]
+    with pytest.raises(coevo.InputError, match='quantity of "x"'):
+        coevo.compare_curves("f", theirs, ours, [("x", "DoaPeak", None)])
+    with pytest.raises(coevo.InputError, match=r'theirs\[0\]: no "catches" curve'):
+        coevo.compare_curves("f", [{"dos": [0.1], "doa": [0.5]}], ours, [("x", "DoaLast", None)])
+
+
 def test_version_is_the_crates():
     import re
 

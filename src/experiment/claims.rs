@@ -70,11 +70,11 @@ pub fn values(exp: &Experiment, runs: &[&RunData], q: &Quantity) -> Vec<f64> {
 
 /// A run's value of a quantity, from its own files ([`RunData`]).
 pub fn quantity(exp: &Experiment, d: &RunData, q: &Quantity) -> f64 {
-    derive(exp, q, &|p| primitive(d, p))
+    derive(&exp.spec.evaluations, q, &|p| primitive(d, p))
 }
 
 /// The value of a primitive quantity (one with a [`column`] of its own) from a run's files.
-fn primitive(d: &RunData, q: &Quantity) -> f64 {
+pub(super) fn primitive(d: &RunData, q: &Quantity) -> f64 {
     let settled = |v: &[f64]| {
         mean(&v[v.len().saturating_sub(SETTLED_STEPS)..].iter().copied().filter(|x| x.is_finite()).collect::<Vec<_>>())
             .unwrap_or(f64::NAN)
@@ -139,15 +139,17 @@ pub fn column(q: &Quantity) -> Option<String> {
 }
 
 /// Every quantity from primitive ones (`primitive` gives those): the one definition of each derived
-/// quantity, for a run's files ([`quantity`]) and for summary.csv (`summary::Summary::quantity`) alike.
-pub fn derive(exp: &Experiment, q: &Quantity, primitive: &dyn Fn(&Quantity) -> f64) -> f64 {
+/// quantity, for a run's files ([`quantity`]), for summary.csv (`summary::Summary::quantity`) and for
+/// curves made elsewhere ([`super::external`]) alike. `evaluations`: the experiment's, which the
+/// quantities of a control or an untrained evaluation find their partner among (none for training curves).
+pub fn derive(evaluations: &[super::file::Evaluation], q: &Quantity, primitive: &dyn Fn(&Quantity) -> f64) -> f64 {
     // An order parameter of an evaluation: DoS and DoA settled, the others as EvalOrder has them.
     let of_eval = |e: &str, o: &str| match o {
         "dos" => primitive(&Quantity::EvalDos(e.into())),
         "doa" => primitive(&Quantity::EvalDoa(e.into())),
         _ => primitive(&Quantity::EvalOrder(e.into(), o.into())),
     };
-    let seeing = |e: &str| super::file::seeing_partner(&exp.spec.evaluations, e).map(|s| s.name.clone());
+    let seeing = |e: &str| super::file::seeing_partner(evaluations, e).map(|s| s.name.clone());
     match q {
         Quantity::DosChange => primitive(&Quantity::DosLast) - primitive(&Quantity::DosFirst),
         Quantity::DoaChange => primitive(&Quantity::DoaLast) - primitive(&Quantity::DoaFirst),
@@ -163,7 +165,7 @@ pub fn derive(exp: &Experiment, q: &Quantity, primitive: &dyn Fn(&Quantity) -> f
         }
         Quantity::InteractionDoa(e) => seeing(e).map_or(f64::NAN, |s| of_eval(&s, "doa") - of_eval(e, "doa")),
         Quantity::Interaction(e, o) => seeing(e).map_or(f64::NAN, |s| of_eval(&s, o) - of_eval(e, o)),
-        Quantity::Learned(e, o) => match super::file::untrained_partner(&exp.spec.evaluations, e) {
+        Quantity::Learned(e, o) => match super::file::untrained_partner(evaluations, e) {
             Some(untrained) => of_eval(e, o) - of_eval(&untrained.name, o),
             None => f64::NAN,
         },

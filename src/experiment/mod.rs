@@ -31,6 +31,7 @@ pub mod crossplay;
 pub mod crossplay_matrix;
 pub mod crossplay_readouts;
 pub mod data;
+pub mod external;
 pub mod figure_data;
 pub mod figures;
 pub mod file;

@@ -260,7 +260,7 @@ impl Summary {
     /// A run's value of a quantity, from its row ([`super::claims::quantity`] computes the same from the
     /// run's own files; both through [`derive`]).
     pub fn quantity(&self, exp: &Experiment, row: &SummaryRow, q: &Quantity) -> f64 {
-        derive(exp, q, &|p| column(p).map_or(f64::NAN, |c| self.value(row, &c)))
+        derive(&exp.spec.evaluations, q, &|p| column(p).map_or(f64::NAN, |c| self.value(row, &c)))
     }
 
     /// The fewest episodes any run of one preset and variant trained, None without a run.
