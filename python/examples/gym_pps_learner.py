@@ -15,9 +15,11 @@ writes one row per episode: the paper's DoS and DoA of the prey averaged over th
 (the cost of a run on a shared machine), to be compared with
 coevo's own runs of the same scene (``coevo --train --scene scenes/gym-pps-code.ron``; the "every switch"
 variant of ``experiments/authors-code.ron`` is that scene) by ``compare_gym_pps_learner.py``. Beside it,
-``OUT.provenance.json`` names what made the run: coevo's commit, torch's and numpy's versions, the
-checkout (its git commit when it has one, and a hash of the learner's files either way), the arguments,
-and the episodes a run resumed after.
+``OUT.provenance.json`` names what made the run: coevo's commit and a hash of its extension, torch's and
+numpy's versions, the checkout (its git commit when it is a git work tree, and a hash of the learner's
+files either way), a hash of the scene as the world runs it, the seed, episodes, steps and threads, and
+the episodes a run resumed after. The wall and CPU seconds count the work that made the rows: what a kill
+lost since the last checkpoint, and the checkpoints' writing, are not in them.
 
 **Resumable.** Rows go to ``OUT.partial`` as episodes finish, and every ``--checkpoint-every`` episodes
 (250) the whole learner is saved in ``OUT.checkpoint/``: its agents as the learner saves them
@@ -51,6 +53,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import hashlib
 import json
 import os
 import re
@@ -179,22 +182,40 @@ LEARNER_FILES = ("algorithms/maddpg.py", "utils/agents.py", "utils/buffer.py", "
                  "utils/noise.py")
 
 
+def sha256_of(path: str) -> str:
+    with open(path, "rb") as f:
+        return hashlib.sha256(f.read()).hexdigest()
+
+
 def checkout_identity(checkout: str) -> dict:
-    """Which learner ran: the checkout's git commit when it is a git work tree, and a SHA-256 of the
-    learner's files (``NJP_algorithm/``) either way, so that an exported tree is identified too."""
-    import hashlib
+    """Which learner ran: the checkout's git commit when the checkout is itself a git work tree (not one
+    inside another repository's), and a SHA-256 of the learner's files (``NJP_algorithm/``) either way,
+    so that an exported tree is identified too."""
     import subprocess
 
     digest = hashlib.sha256()
     for name in LEARNER_FILES:
         with open(os.path.join(checkout, "NJP_algorithm", name), "rb") as f:
             digest.update(name.encode() + b"\0" + f.read())
+    git = lambda *a: subprocess.run(["git", "-C", checkout, *a], capture_output=True, text=True, check=True).stdout.strip()  # noqa: E731
     try:
-        commit = subprocess.run(["git", "-C", checkout, "rev-parse", "HEAD"], capture_output=True, text=True,
-                                check=True).stdout.strip()
+        top = git("rev-parse", "--show-toplevel")
+        commit = git("rev-parse", "HEAD") if os.path.realpath(top) == os.path.realpath(checkout) else None
     except (OSError, subprocess.CalledProcessError):
         commit = None
     return {"path": os.path.abspath(checkout), "git_commit": commit, "learner_sha256": digest.hexdigest()}
+
+
+def same_run(before: dict, now: dict) -> list[str]:
+    """What differs between the provenance a run began with and today's, of what decides its numbers (not
+    where the files are, how often it checkpoints, or where it was resumed)."""
+    decides = lambda p: {  # noqa: E731
+        "coevo": p["coevo"], "torch": p["torch"], "numpy": p["numpy"], "python": p["python"],
+        "learner": {k: v for k, v in p["checkout"].items() if k != "path"},
+        "scene": p["scene"]["sha256"], "seed, episodes, steps or threads": p["run"],
+    }
+    a, b = decides(before), decides(now)
+    return [k for k in b if a.get(k) != b[k]]
 
 
 def main() -> None:
@@ -235,24 +256,33 @@ def main() -> None:
     partial, checkpoint = args.out + ".partial", args.out + ".checkpoint"
     header = ["episode", "dos", "doa", "catches", "wall_seconds", "cpu_seconds"]
     provenance_path = args.out + ".provenance.json"
+    scene_ron = env.scene_ron()
     provenance = {
-        "coevo": {"version": coevo.__version__, "git_commit": coevo.git_commit},
+        "coevo": {"version": coevo.__version__, "git_commit": coevo.git_commit,
+                  "extension_sha256": sha256_of(coevo._coevo.__file__)},
         "torch": torch.__version__,
         "numpy": np.__version__,
         "python": sys.version.split()[0],
         "checkout": checkout_identity(args.gym_pps),
-        "arguments": {k: v for k, v in vars(args).items() if k not in ("out", "gym_pps")},
+        # The scene as the world runs it (the file resolved: preset, seed and episode length applied).
+        "scene": {"path": args.scene, "sha256": hashlib.sha256(scene_ron.encode()).hexdigest()},
+        "run": {"seed": args.seed, "episodes": args.episodes, "episode_steps": env.episode_steps,
+                "threads": args.threads},
+        "checkpoint_every": args.checkpoint_every,
         "resumed_after": [],
     }
     done, elapsed, cpu, rows = 0, 0.0, 0.0, []
     if os.path.exists(os.path.join(checkpoint, "state.pt")):
         # A killed run: its learner from the checkpoint, its rows up to it (later ones are played again).
-        done, elapsed, cpu = load_checkpoint(checkpoint, maddpg, buffers)
-        with open(provenance_path) as f:
-            before = json.load(f)
-        changed = [k for k in provenance if k != "resumed_after" and before.get(k) != provenance[k]]
+        try:
+            with open(provenance_path) as f:
+                before = json.load(f)
+            changed = same_run(before, provenance)
+        except (OSError, ValueError, KeyError) as e:
+            sys.exit(f"{provenance_path}: unreadable or of another version of this script ({e!r}); give a new --out")
         if changed:
             sys.exit(f"{provenance_path}: the run began with another {', '.join(changed)}; resume it with what began it, or give a new --out")
+        done, elapsed, cpu = load_checkpoint(checkpoint, maddpg, buffers)
         provenance["resumed_after"] = before["resumed_after"] + [done]
         with open(partial, newline="") as f:
             rows = [r for r in csv.reader(f)][1 : done + 1]
