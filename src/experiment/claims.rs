@@ -173,6 +173,24 @@ pub fn derive(evaluations: &[super::file::Evaluation], q: &Quantity, primitive: 
     }
 }
 
+/// Why a training-curve quantity does not take the curve it names (the curves each takes), None when it
+/// does or is another quantity: the one check of experiment files ([`super::load`]) and of curves made
+/// elsewhere ([`super::external`]).
+pub fn curve_argument_error(q: &Quantity) -> Option<String> {
+    match q {
+        Quantity::Start(c) | Quantity::FromStart(c)
+            if !CURVES.contains(&c.as_str()) && !AUTHORS_CURVES.contains(&c.as_str()) =>
+        {
+            Some(format!("Start and FromStart take \"dos\", \"doa\", \"catches\", \"authors_dos\" or \"authors_doa\" (got {c:?})"))
+        }
+        Quantity::Extreme(c) | Quantity::ExtremeEpisode(c) | Quantity::AfterExtreme(c) if c != "dos" && c != "doa" => {
+            Some(format!("Extreme, ExtremeEpisode and AfterExtreme take \"dos\" or \"doa\" (got {c:?})"))
+        }
+        Quantity::Reach90(c) if c != "dos" && c != "doa" => Some(format!("Reach90 takes \"dos\" or \"doa\" (got {c:?})")),
+        _ => None,
+    }
+}
+
 /// The episode (from 1) at which the 100-episode running mean of `series` first completes 90 % of its
 /// change from the first 100 episodes to the last 100; NaN when there is no change to complete.
 pub fn reach90(series: &[f64]) -> f64 {

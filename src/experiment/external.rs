@@ -5,7 +5,9 @@
 //! ([`super::aggregate::adjust`]), and the same words ([`super::claims::verdict`]). Nothing here reads a
 //! file: the caller hands over each run's per-episode DoS, DoA and catches.
 
-use super::claims::{derive, is_effect, primitive, ClaimResult, RunData};
+use super::claims::{
+    compares_windows, curve_argument_error, derive, is_effect, primitive, ClaimResult, RunData, WINDOW,
+};
 use super::file::{Claim, Quantity};
 use super::registry::Stated;
 use super::stats::difference;
@@ -23,13 +25,23 @@ pub struct Comparison {
 }
 
 impl Comparison {
-    /// A comparison with its quantity as experiment files write it (`DoaLast`, `FromStart("doa")`).
+    /// A comparison with its quantity as experiment files write it (`DoaLast`, `FromStart("doa")`),
+    /// refused unless it is one that training curves of DoS, DoA and catches give.
     pub fn parse(text: &str, quantity: &str, margin: Option<f64>) -> Result<Comparison> {
-        let quantity = ron::from_str::<Quantity>(quantity).map_err(|e| {
-            Error::field(format!("quantity of \"{text}\""), format!("{quantity:?} is not a quantity ({e})"))
-                .of_kind(Kind::Input)
-        })?;
-        Ok(Comparison { text: text.into(), quantity, margin })
+        let refuse = |message: String| Error::field(format!("quantity of \"{text}\""), message).of_kind(Kind::Input);
+        let parsed =
+            ron::from_str::<Quantity>(quantity).map_err(|e| refuse(format!("{quantity:?} is not a quantity ({e})")))?;
+        if let Some(message) = curve_argument_error(&parsed) {
+            return Err(refuse(message));
+        }
+        if !of_training_curves(&parsed) {
+            return Err(refuse(format!(
+                "{quantity:?} is not one of the training curves' quantities (DosFirst, DosLast, DoaFirst, DoaLast, \
+                 CatchesFirst, CatchesLast, their Change, and Start, FromStart, Reach90, Extreme, ExtremeEpisode or \
+                 AfterExtreme of \"dos\", \"doa\" or \"catches\")"
+            )));
+        }
+        Ok(Comparison { text: text.into(), quantity: parsed, margin })
     }
 }
 
@@ -39,37 +51,76 @@ pub fn curves(dos: Vec<f64>, doa: Vec<f64>, catches: Vec<f64>) -> RunData {
     RunData { dos, doa, catches, ..Default::default() }
 }
 
+/// Whether `q` is computed from the per-episode DoS, DoA and catches alone (what [`curves`] holds).
+fn of_training_curves(q: &Quantity) -> bool {
+    use Quantity::*;
+    match q {
+        DosFirst | DosLast | DoaFirst | DoaLast | DosChange | DoaChange | CatchesChange | CatchesFirst
+        | CatchesLast => true,
+        Start(c) | FromStart(c) | Reach90(c) | Extreme(c) | ExtremeEpisode(c) | AfterExtreme(c) => {
+            ["dos", "doa", "catches"].contains(&c.as_str())
+        }
+        _ => false,
+    }
+}
+
 /// The label of the two sides in the verdicts' claims (a claim's `variant` and `versus`).
 const THEIRS: &str = "other implementation";
 const OURS: &str = "coevo";
 
 /// `comparisons` of `theirs` minus `ours` (a run each: its per-episode `dos`, `doa` and `catches`), as one
-/// family named `family`: each estimated, tested, Holm-adjusted and judged. Refused, naming the
-/// comparison, when a quantity is not one of training curves (it needs an evaluation) or a side has no
-/// run that gives it a value.
+/// family named `family`: each estimated, tested, Holm-adjusted and judged. Refused, naming what is
+/// wrong: a run whose three curves differ in length or whose length differs from the others' (their
+/// windows would be different episodes), a change over training on runs too short for its first and last
+/// windows not to overlap, a side with fewer than two runs that give the quantity, a margin that is not a
+/// positive number.
 pub fn compare(
     family: &str,
     theirs: &[RunData],
     ours: &[RunData],
     comparisons: &[Comparison],
 ) -> Result<Vec<ClaimResult>> {
+    let input = |field: String, message: String| Error::field(field, message).of_kind(Kind::Input);
+    let mut episodes = None;
+    for (side, runs) in [("theirs", theirs), ("ours", ours)] {
+        for (k, d) in runs.iter().enumerate() {
+            let n = d.doa.len();
+            if d.dos.len() != n || d.catches.len() != n {
+                return Err(input(
+                    format!("{side}[{k}]"),
+                    format!("its curves differ in length (dos {}, doa {n}, catches {})", d.dos.len(), d.catches.len()),
+                ));
+            }
+            let first = *episodes.get_or_insert(n);
+            if first != n {
+                return Err(input(
+                    format!("{side}[{k}]"),
+                    format!("{n} episodes, the first run has {first}: their windows would be other episodes"),
+                ));
+            }
+        }
+    }
+    let episodes = episodes.unwrap_or(0);
     let value = |d: &RunData, q: &Quantity| derive(&[], q, &|p| primitive(d, p));
     let mut results = Vec::new();
     for (i, c) in comparisons.iter().enumerate() {
-        let refuse =
-            |message: String| Error::field(format!("comparisons[{i}] ({})", c.text), message).of_kind(Kind::Input);
+        let refuse = |message: String| input(format!("comparisons[{i}] ({})", c.text), message);
         if c.margin.is_some_and(|m| !(m.is_finite() && m > 0.0)) {
             return Err(refuse(format!("margin {:?}: must be a positive number", c.margin)));
+        }
+        if compares_windows(&c.quantity) && episodes < 2 * WINDOW {
+            return Err(refuse(format!(
+                "{:?} compares the first and last {WINDOW} episodes, which overlap in runs of {episodes} episodes",
+                c.quantity
+            )));
         }
         let samples =
             |runs: &[RunData]| runs.iter().map(|d| value(d, &c.quantity)).filter(|x| x.is_finite()).collect::<Vec<_>>();
         let (a, b) = (samples(theirs), samples(ours));
-        if a.is_empty() || b.is_empty() {
+        if let Some((side, n)) = [("theirs", a.len()), ("ours", b.len())].into_iter().find(|&(_, n)| n < 2) {
             return Err(refuse(format!(
-                "{:?} has no value in {} of these runs (only training-curve quantities compare: the first or last \
-                 100 episodes, the start, the change)",
-                c.quantity,
-                if a.is_empty() { "the other implementation's" } else { "coevo's" }
+                "{:?} has a value in {n} of {side} runs (every value NaN, or too few runs): an interval needs two",
+                c.quantity
             )));
         }
         let claim = Claim {
@@ -145,19 +196,44 @@ mod tests {
     }
 
     #[test]
-    fn a_quantity_curves_do_not_give_and_a_bad_margin_are_refused() {
+    fn what_curves_cannot_answer_is_refused() {
         let runs = vec![run(0.8, 30.0), run(0.81, 31.0)];
+        let message = |theirs: &[RunData], c: Comparison| compare("f", theirs, &runs, &[c]).unwrap_err().to_string();
+        // An evaluation's quantity: no value in curves.
         let eval = Comparison { text: "settled".into(), quantity: Quantity::EvalDoa("50 prey".into()), margin: None };
-        let message = compare("f", &runs, &runs, &[eval]).unwrap_err().to_string();
-        assert!(message.starts_with("comparisons[0] (settled): EvalDoa"), "{message}");
-        assert!(message.contains("only training-curve quantities"), "{message}");
+        let m = message(&runs, eval);
+        assert!(m.starts_with("comparisons[0] (settled): EvalDoa(\"50 prey\") has a value in 0 of theirs runs"), "{m}");
+        // A margin that is not a positive number.
         let margin = Comparison::parse("m", "DoaLast", Some(-0.1)).unwrap();
-        assert!(compare("f", &runs, &runs, &[margin]).unwrap_err().to_string().contains("must be a positive"));
+        assert!(message(&runs, margin).contains("must be a positive"));
+        // One run: no interval.
+        let last = Comparison::parse("l", "DoaLast", None).unwrap();
+        assert!(message(&runs[..1], last.clone()).contains("has a value in 1 of theirs runs"));
+        // Runs of other lengths, or a run whose curves differ in length.
+        let mut short = run(0.8, 30.0);
+        short.doa.pop();
+        let m = message(&[runs[0].clone(), short.clone()], last.clone());
+        assert!(m.starts_with("theirs[1]: its curves differ in length (dos 200, doa 199, catches 200)"), "{m}");
+        (short.dos.pop(), short.catches.pop());
+        let m = message(&[runs[0].clone(), short.clone()], last.clone());
+        assert!(m.starts_with("theirs[1]: 199 episodes, the first run has 200"), "{m}");
+        // A change over training on runs whose windows overlap.
+        let cut = |d: &RunData| curves(d.dos[..150].into(), d.doa[..150].into(), d.catches[..150].into());
+        let (a, b): (Vec<_>, Vec<_>) = (runs.iter().map(cut).collect(), runs.iter().map(cut).collect());
+        let m = compare("f", &a, &b, &[Comparison::parse("c", "DoaChange", None).unwrap()]).unwrap_err().to_string();
+        assert!(m.contains("overlap in runs of 150 episodes"), "{m}");
+        // Quantities as experiment files write them; what curves do not give, refused when parsed.
         assert_eq!(
             Comparison::parse("r", "FromStart(\"doa\")", None).unwrap().quantity,
             Quantity::FromStart("doa".into())
         );
         let unknown = Comparison::parse("x", "DoaPeak", None).unwrap_err().to_string();
         assert!(unknown.starts_with("quantity of \"x\": \"DoaPeak\" is not a quantity"), "{unknown}");
+        let catches = Comparison::parse("x", "Reach90(\"catches\")", None).unwrap_err().to_string();
+        assert!(catches.contains("Reach90 takes \"dos\" or \"doa\""), "{catches}");
+        let evaluation = Comparison::parse("x", "EvalDoa(\"50 prey\")", None).unwrap_err().to_string();
+        assert!(evaluation.contains("is not one of the training curves' quantities"), "{evaluation}");
+        let authors = Comparison::parse("x", "Start(\"authors_doa\")", None).unwrap_err().to_string();
+        assert!(authors.contains("is not one of the training curves' quantities"), "{authors}");
     }
 }

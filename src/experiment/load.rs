@@ -236,32 +236,8 @@ impl Experiment {
                     ));
                 }
             }
-            match &c.quantity {
-                Quantity::Start(q) | Quantity::FromStart(q)
-                    if !super::claims::CURVES.contains(&q.as_str())
-                        && !super::claims::AUTHORS_CURVES.contains(&q.as_str()) =>
-                {
-                    return Err(err(
-                        "claims",
-                        format!(
-                            "Start and FromStart take \"dos\", \"doa\", \"catches\", \"authors_dos\" or \"authors_doa\" (got {q:?})"
-                        ),
-                    ));
-                }
-                Quantity::Extreme(q) | Quantity::ExtremeEpisode(q) | Quantity::AfterExtreme(q)
-                    if q != "dos" && q != "doa" =>
-                {
-                    return Err(err(
-                        "claims",
-                        format!("Extreme, ExtremeEpisode and AfterExtreme take \"dos\" or \"doa\" (got {q:?})"),
-                    ));
-                }
-                _ => {}
-            }
-            if let Quantity::Reach90(q) = &c.quantity {
-                if !["dos", "doa"].contains(&q.as_str()) {
-                    return Err(err("claims", format!("Reach90 takes \"dos\" or \"doa\" (got {q:?})")));
-                }
+            if let Some(message) = super::claims::curve_argument_error(&c.quantity) {
+                return Err(err("claims", message));
             }
             if let Quantity::Response(e, which) = &c.quantity {
                 if !["near", "far"].contains(&which.as_str()) {
