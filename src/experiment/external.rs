@@ -214,7 +214,8 @@ mod tests {
         short.doa.pop();
         let m = message(&[runs[0].clone(), short.clone()], last.clone());
         assert!(m.starts_with("theirs[1]: its curves differ in length (dos 200, doa 199, catches 200)"), "{m}");
-        (short.dos.pop(), short.catches.pop());
+        short.dos.pop();
+        short.catches.pop();
         let m = message(&[runs[0].clone(), short.clone()], last.clone());
         assert!(m.starts_with("theirs[1]: 199 episodes, the first run has 200"), "{m}");
         // A change over training on runs whose windows overlap.
