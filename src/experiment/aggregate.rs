@@ -163,21 +163,7 @@ pub fn tests(exp: &Experiment, table: &Summary) -> Vec<ClaimResult> {
     // A claim of a preset, not yet estimated, tested or judged; its chance level from the variant's scene.
     let untested = |preset: &String, claim: &super::file::Claim| {
         let scene = exp.runs.iter().find(|r| r.preset == *preset && r.variant == claim.variant).map(|r| &r.scene);
-        ClaimResult {
-            experiment: exp.name.clone(),
-            preset: preset.clone(),
-            claim: claim.clone(),
-            estimate: None,
-            p: None,
-            p_holm: None,
-            level: None,
-            family_tests: 0,
-            same_test: None,
-            same_as: None,
-            stated: registry::Stated::Unknown,
-            baseline: chance_level(exp, claim, scene),
-            verdict: String::new(),
-        }
+        ClaimResult::untested(&exp.name, preset, claim, chance_level(exp, claim, scene))
     };
     // An experiment judged when complete, in progress: every claim says so, untested (no interim analysis),
     // also where another file's report reads its committed summary for a shared family.
@@ -212,10 +198,7 @@ pub fn tests(exp: &Experiment, table: &Summary) -> Vec<ClaimResult> {
                 None => estimate(&ours),
             };
             // The claim's own test: TOST for a claim of no effect, else the two-sided test of none.
-            let p = e.filter(|_| is_effect(claim) && !identical).and_then(|e| match claim.margin {
-                Some(m) => e.tost_p(m),
-                None => e.p_value(),
-            });
+            let p = e.filter(|_| is_effect(claim) && !identical).and_then(|e| e.test_p(claim.margin));
             // What the test reads, to the bit: two claims of one family that read the same samples in the
             // same way are one test.
             let same_test = p.map(|_| {

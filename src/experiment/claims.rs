@@ -295,6 +295,28 @@ pub struct ClaimResult {
     pub verdict: String,
 }
 
+impl ClaimResult {
+    /// A claim of `experiment` on `preset`, not yet estimated, tested or judged; `baseline` its chance
+    /// level ([`chance_level`]).
+    pub fn untested(experiment: &str, preset: &str, claim: &Claim, baseline: Option<f64>) -> ClaimResult {
+        ClaimResult {
+            experiment: experiment.into(),
+            preset: preset.into(),
+            claim: claim.clone(),
+            estimate: None,
+            p: None,
+            p_holm: None,
+            level: None,
+            family_tests: 0,
+            same_test: None,
+            same_as: None,
+            stated: super::registry::Stated::Unknown,
+            baseline,
+            verdict: String::new(),
+        }
+    }
+}
+
 /// A test's samples (this variant's, and the compared variant's) and margin, as bits.
 pub type SameTest = (Vec<u64>, Option<Vec<u64>>, Option<u64>);
 
@@ -665,10 +687,7 @@ pub(crate) mod tests {
     /// its level α): TOST for a claim of no effect.
     fn judged(c: &Claim, samples: &[f64]) -> String {
         let e = crate::experiment::stats::estimate(samples);
-        let p = e.and_then(|e| match c.margin {
-            Some(m) => e.tost_p(m),
-            None => e.p_value(),
-        });
+        let p = e.and_then(|e| e.test_p(c.margin));
         verdict(c, e, p, Some(ALPHA), None)
     }
 

@@ -6,10 +6,9 @@
 //! file: the caller hands over each run's per-episode DoS, DoA and catches.
 
 use super::claims::{
-    compares_windows, curve_argument_error, derive, is_effect, primitive, ClaimResult, RunData, WINDOW,
+    compares_windows, curve_argument_error, derive, is_effect, primitive, ClaimResult, RunData, CURVES, WINDOW,
 };
 use super::file::{Claim, Quantity};
-use super::registry::Stated;
 use super::stats::difference;
 use crate::error::{Error, Kind, Result};
 
@@ -58,7 +57,7 @@ fn of_training_curves(q: &Quantity) -> bool {
         DosFirst | DosLast | DoaFirst | DoaLast | DosChange | DoaChange | CatchesChange | CatchesFirst
         | CatchesLast => true,
         Start(c) | FromStart(c) | Reach90(c) | Extreme(c) | ExtremeEpisode(c) | AfterExtreme(c) => {
-            ["dos", "doa", "catches"].contains(&c.as_str())
+            CURVES.contains(&c.as_str())
         }
         _ => false,
     }
@@ -136,25 +135,13 @@ pub fn compare(
         };
         debug_assert!(is_effect(&claim));
         let estimate = difference(&a, &b);
-        let p = estimate.and_then(|e| match c.margin {
-            Some(m) => e.tost_p(m),
-            None => e.p_value(),
-        });
+        let p = estimate.and_then(|e| e.test_p(c.margin));
         results.push(ClaimResult {
-            experiment: family.into(),
-            preset: String::new(),
-            claim,
             estimate,
             p,
-            p_holm: None,
-            level: None,
-            family_tests: 0,
             // Each comparison its own test: no two are counted once, even if their samples agree.
             same_test: p.map(|_| (vec![i as u64], None, None)),
-            same_as: None,
-            stated: Stated::Unknown,
-            baseline: None,
-            verdict: String::new(),
+            ..ClaimResult::untested(family, "", &claim, None)
         });
     }
     super::aggregate::adjust(&mut results);

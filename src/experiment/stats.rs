@@ -74,6 +74,15 @@ pub fn difference(a: &[f64], b: &[f64]) -> Option<Estimate> {
 }
 
 impl Estimate {
+    /// A claim's own test of this estimate: TOST's p-value of equivalence within ±`margin` for a claim of
+    /// no effect, else the two-sided test of none ([`Estimate::p_value`]).
+    pub fn test_p(&self, margin: Option<f64>) -> Option<f64> {
+        match margin {
+            Some(m) => self.tost_p(m),
+            None => self.p_value(),
+        }
+    }
+
     /// Two-sided p-value of "the mean (or difference) is zero" (Student / Welch t test). None without an
     /// interval; 1 when there is no spread and the mean is 0, 0 when there is no spread and it is not.
     pub fn p_value(&self) -> Option<f64> {
