@@ -480,6 +480,11 @@ pub fn verdict(
         let h = e.half_width(level).unwrap_or(ci);
         let inside = |x: f64| e.mean - h <= x && x <= e.mean + h;
         return match claim.paper {
+            // The project's own direction: judged against its hypothesis, never "reproduced".
+            Some(sign) if claim.ours && detected => match e.mean.signum() == sign.signum() {
+                true => format!("detected as hypothesised ({p_text})"),
+                false => format!("detected opposite to the hypothesis ({p_text})"),
+            },
             Some(paper) if detected && e.mean.signum() == paper.signum() => {
                 if claim.direction_only || inside(paper) {
                     format!("reproduced: detected in the paper's direction ({p_text})")
@@ -532,6 +537,9 @@ pub fn hypothesis(claim: &Claim, baseline: Option<f64>) -> String {
     if is_effect(claim) {
         return match (claim.margin, claim.paper) {
             (Some(m), _) => format!("no effect: equivalence within ±{m}"),
+            (None, Some(p)) if claim.ours => {
+                format!("an effect {} (the project's hypothesis, not the paper's)", if p < 0.0 { "< 0" } else { "> 0" })
+            }
             (None, Some(p)) if claim.direction_only => format!("an effect {}", if p < 0.0 { "< 0" } else { "> 0" }),
             (None, Some(p)) => format!("an effect {} (the paper: {p:+})", if p < 0.0 { "< 0" } else { "> 0" }),
             (None, None) => "any effect (two-sided)".into(),
@@ -679,6 +687,7 @@ pub(crate) mod tests {
             margin,
             baseline: None,
             direction_only: false,
+            ours: false,
             family: None,
         }
     }
@@ -754,6 +763,17 @@ pub(crate) mod tests {
         assert!(judged(&faster, &opposite).starts_with("reproduced: detected in the paper's direction"));
         assert!(judged(&faster, &clear).starts_with("not reproduced: detected the other way"));
         assert!(judged(&faster, &null).starts_with("inconclusive: no effect detected"), "{}", judged(&faster, &null));
+        // The project's own direction (a question the paper does not ask): never "reproduced".
+        let ours = Claim { ours: true, ..faster.clone() };
+        assert!(
+            judged(&ours, &opposite).starts_with("detected as hypothesised (Holm p"),
+            "{}",
+            judged(&ours, &opposite)
+        );
+        assert!(judged(&ours, &clear).starts_with("detected opposite to the hypothesis (Holm p"));
+        assert!(judged(&ours, &null).starts_with("inconclusive: no effect detected"));
+        assert_eq!(hypothesis(&ours, None), "an effect < 0 (the project's hypothesis, not the paper's)");
+        assert_eq!(hypothesis(&faster, None), "an effect < 0");
         // A detected effect that does not survive Holm's adjustment is not detected, and its power is
         // stated at the level it was tested at.
         let e = crate::experiment::stats::estimate(&clear);

@@ -131,6 +131,7 @@ pub fn compare(
             margin: c.margin,
             baseline: None,
             direction_only: false,
+            ours: false,
             family: Some(family.into()),
         };
         debug_assert!(is_effect(&claim));

@@ -174,6 +174,13 @@ pub struct Claim {
     /// its sign (+1 or −1), never a size the interval could exclude.
     #[serde(default)]
     pub direction_only: bool,
+    /// The direction is the project's own hypothesis, for a question the paper does not ask (e.g.
+    /// `league.ron`'s "the pool lowers predator regress"), not the paper's: reports show no paper's value
+    /// and judge it *detected as hypothesised*, *detected opposite to the hypothesis* or *inconclusive*,
+    /// never *reproduced*. Only with `direction_only`. Who states the direction does not change the test,
+    /// so the claim's fingerprint (`registry.rs`) leaves this out.
+    #[serde(default)]
+    pub ours: bool,
     /// The family whose tests are adjusted together (Holm), fixed with the hypothesis. A family is named
     /// by its hypotheses, not by its file: every claim of that name in the files of `experiments/` is one
     /// family (the project's are "the paper's claims", "mechanism and controls", "exploratory", and the

@@ -177,6 +177,15 @@ impl Experiment {
             if c.family.as_ref().is_some_and(|f| f.trim().is_empty()) {
                 return Err(err("claims", format!("{:?}: family must name a family (got an empty name)", c.text)));
             }
+            if c.ours && !(c.direction_only && c.paper.is_some()) {
+                return Err(err(
+                    "claims",
+                    format!(
+                        "{:?}: ours is a direction of the project's, so it needs direction_only and the sign in paper",
+                        c.text
+                    ),
+                ));
+            }
             if let Some(v) = c.paper.filter(|v| !v.is_finite()) {
                 return Err(err("claims", format!("{:?}: paper must be a finite number (got {v})", c.text)));
             }

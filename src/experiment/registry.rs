@@ -10,7 +10,8 @@ pub const FILE: &str = "claims.csv";
 
 /// What a claim says, to the bit, as a short hash (BLAKE3, `blake3` crate): its text, variants, quantity,
 /// the paper's value, margin, baseline and whether only a direction is claimed. Not its family, which sorts
-/// claims for the adjustment rather than stating what a claim expects.
+/// claims for the adjustment rather than stating what a claim expects, and not `ours` (whether the direction
+/// is the paper's or the project's), which names who expects it and leaves the test as it is.
 pub fn fingerprint(claim: &Claim) -> String {
     let bits = |x: Option<f64>| x.map_or(String::from("-"), |x| format!("{:016x}", x.to_bits()));
     let canonical = format!(

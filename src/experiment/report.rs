@@ -72,7 +72,9 @@ const METHOD: &str = "Each number is the mean over seeds of the prey's 100-episo
      **direction reproduced, smaller (larger) than the paper** when it is detected in the paper's direction but the \
      paper's value is outside; **not reproduced** when it is detected the other way; otherwise **inconclusive**, saying \
      whether the paper's value is outside the adjusted interval (an effect of its size excluded) and the smallest effect \
-     the seeds detect with 80 % power at the level used. The family-wise guarantee covers the detections; the \
+     the seeds detect with 80 % power at the level used. A direction the project states itself, for a question the \
+     paper does not ask (hypothesis marked *the project's*), is **detected as hypothesised**, **detected opposite to \
+     the hypothesis** or **inconclusive**, and never called reproduced. The family-wise guarantee covers the detections; the \
      comparisons of size (smaller or larger than the paper, an effect of its size excluded) read the same intervals \
      and are descriptive, since stepped intervals are not simultaneous ones. A claim of no effect is tested for equivalence within the \
      margin its experiment file states (TOST, its p-value in the family like any test): **equivalent within ±m** when \
@@ -297,7 +299,7 @@ fn section(md: &mut String, Reported { exp, results, finished, summary, .. }: &R
             Some((m, c)) if r.level.is_some() => format!("[{:.3}, {:.3}]", m - c, m + c),
             _ => "–".into(),
         };
-        let paper = r.claim.paper.map_or("–".into(), |p| format!("{p:.3}"));
+        let paper = r.claim.paper.filter(|_| !r.claim.ours).map_or("–".into(), |p| format!("{p:.3}"));
         let of = match &r.claim.versus {
             Some(base) => format!("`{}` minus `{base}` (Welch)", r.claim.variant),
             None => format!("`{}`", r.claim.variant),

@@ -230,6 +230,10 @@ const EXPERIMENTS: &[(&str, &str)] = &[
         r#"(base: "scenes/paper.ron", seeds: [1], variants: [(name: "a")], claims: [(text: "t", variant: "a", quantity: DoaLast, paper: NaN)])"#,
     ),
     (
+        "ours-sized-claim",
+        r#"(base: "scenes/paper.ron", seeds: [1], variants: [(name: "a")], claims: [(text: "t", variant: "a", quantity: DoaLast, paper: 0.9, ours: true)])"#,
+    ),
+    (
         "inf-claim",
         r#"(base: "scenes/paper.ron", seeds: [1], variants: [(name: "a")], claims: [(text: "t", variant: "a", quantity: DoaLast, paper: inf)])"#,
     ),
@@ -508,6 +512,7 @@ fn cases() -> Vec<(Vec<&'static str>, &'static str)> {
         (vec!["--experiment", "experiments/no-episodes.ron"], "no-episodes.ron: episodes: must be ≥ 1"),
         (vec!["--experiment", "experiments/nan-claim.ron"], "claims: \"t\": paper must be a finite number (got NaN)"),
         (vec!["--experiment", "experiments/inf-claim.ron"], "paper must be a finite number (got inf)"),
+        (vec!["--experiment", "experiments/ours-sized-claim.ron"], "claims: \"t\": ours is a direction of the project's"),
         (
             vec!["--experiment", "experiments/radius.ron"],
             "evaluations[x].confusion_radius: must be a finite number of metres > 0",
