@@ -279,7 +279,7 @@ fn section(md: &mut String, Reported { exp, results, finished, summary, .. }: &R
         .unwrap();
     }
     if !results.is_empty() {
-        md.push_str("| preset | claim (the paper) | quantity | paper | coevo (mean ± adjusted CI, seeds) | level | unadjusted 95 % CI | p (Holm) | verdict | hypothesis | family |\n|---|---|---|---|---|---|---|---|---|---|---|\n");
+        md.push_str("| preset | claim | quantity | paper | coevo (mean ± adjusted CI, seeds) | level | unadjusted 95 % CI | p (Holm) | verdict | hypothesis | family |\n|---|---|---|---|---|---|---|---|---|---|---|\n");
     }
     for r in results {
         let ours = match (r.estimate, r.shown_half_width()) {
