@@ -535,13 +535,12 @@ pub fn verdict(
 /// its precision and against chance.
 pub fn hypothesis(claim: &Claim, baseline: Option<f64>) -> String {
     if is_effect(claim) {
+        let direction = |p: f64| if p < 0.0 { "an effect < 0" } else { "an effect > 0" };
         return match (claim.margin, claim.paper) {
             (Some(m), _) => format!("no effect: equivalence within ±{m}"),
-            (None, Some(p)) if claim.ours => {
-                format!("an effect {} (the project's hypothesis, not the paper's)", if p < 0.0 { "< 0" } else { "> 0" })
-            }
-            (None, Some(p)) if claim.direction_only => format!("an effect {}", if p < 0.0 { "< 0" } else { "> 0" }),
-            (None, Some(p)) => format!("an effect {} (the paper: {p:+})", if p < 0.0 { "< 0" } else { "> 0" }),
+            (None, Some(p)) if claim.ours => format!("{} (the project's hypothesis, not the paper's)", direction(p)),
+            (None, Some(p)) if claim.direction_only => direction(p).into(),
+            (None, Some(p)) => format!("{} (the paper: {p:+})", direction(p)),
             (None, None) => "any effect (two-sided)".into(),
         };
     }
