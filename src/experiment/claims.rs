@@ -94,7 +94,11 @@ pub(super) fn primitive(d: &RunData, q: &Quantity) -> f64 {
         Quantity::EvalOrder(e, name) if name == "edge_rank" => d.evals.get(e).map_or(f64::NAN, |x| x.edge_rank),
         Quantity::EvalOrder(e, name) => eval(e, name),
         Quantity::Reach90(name) => reach90(if name == "dos" { &d.dos } else { &d.doa }),
-        Quantity::Start(o) | Quantity::Extreme(o) | Quantity::ExtremeEpisode(o) | Quantity::AfterExtreme(o) => {
+        Quantity::Start(o)
+        | Quantity::Extreme(o)
+        | Quantity::ExtremeEpisode(o)
+        | Quantity::AfterExtreme(o)
+        | Quantity::Halfway(o) => {
             let series = match o.as_str() {
                 "dos" => &d.dos,
                 "doa" => &d.doa,
@@ -129,6 +133,7 @@ pub fn column(q: &Quantity) -> Option<String> {
         Quantity::Extreme(o) => format!("{o}_{}", extreme_word(o)),
         Quantity::ExtremeEpisode(o) => format!("{o}_{}_episode", extreme_word(o)),
         Quantity::AfterExtreme(o) => format!("{o}_after_{}", extreme_word(o)),
+        Quantity::Halfway(o) => format!("{o}_halfway"),
         Quantity::EvalDos(e) => format!("eval_{}_dos_settled", super::file::slug(e)),
         Quantity::EvalDoa(e) => format!("eval_{}_doa_settled", super::file::slug(e)),
         Quantity::EvalOrder(e, o) => format!("eval_{}_{o}", super::file::slug(e)),
@@ -187,6 +192,7 @@ pub fn curve_argument_error(q: &Quantity) -> Option<String> {
             Some(format!("Extreme, ExtremeEpisode and AfterExtreme take \"dos\" or \"doa\" (got {c:?})"))
         }
         Quantity::Reach90(c) if c != "dos" && c != "doa" => Some(format!("Reach90 takes \"dos\" or \"doa\" (got {c:?})")),
+        Quantity::Halfway(c) if c != "dos" && c != "doa" => Some(format!("Halfway takes \"dos\" or \"doa\" (got {c:?})")),
         _ => None,
     }
 }
@@ -212,6 +218,35 @@ pub fn reach90(series: &[f64]) -> f64 {
 /// The training episodes whose mean is a curve's start ([`Quantity::Start`]).
 pub const START: usize = 10;
 
+/// The running mean's window of [`Quantity::Halfway`], in episodes: long enough to average a DoS
+/// episode's noise (its SD ~0.015 at 10 prey) down to a few thousandths, short enough to resolve
+/// curves that finish half their change within the first 100 episodes (most paper-preset DoA curves:
+/// a 100-episode window's first value, at episode 100, is already past half).
+pub const HALFWAY_WINDOW: usize = 20;
+
+/// [`Quantity::Halfway`] of a per-episode `series`: the episode (from 1) at which its
+/// [`HALFWAY_WINDOW`]-episode running mean first completes half of the change from its first [`START`]
+/// episodes to its last 100; NaN when there is no change, or the run is shorter than 100 episodes.
+fn halfway(series: &[f64]) -> f64 {
+    if series.len() < WINDOW {
+        return f64::NAN;
+    }
+    let start = super::stats::mean(&series[..START].iter().copied().filter(|x| x.is_finite()).collect::<Vec<_>>());
+    let (Some(start), end) = (start, window_mean(series, false)) else { return f64::NAN };
+    if !end.is_finite() || start == end {
+        return f64::NAN;
+    }
+    let target = start + 0.5 * (end - start);
+    let running = super::stats::running_mean(series, HALFWAY_WINDOW);
+    running
+        .iter()
+        .enumerate()
+        .skip(HALFWAY_WINDOW - 1)
+        // A running sum carries rounding: within 1e-9 of the change counts as reached.
+        .find(|(_, m)| (**m - target) * (end - start).signum() >= -1e-9 * (end - start).abs())
+        .map_or(f64::NAN, |(t, _)| (t + 1) as f64)
+}
+
 /// The per-episode training series a curve quantity reads: `dos`, `doa` or `catches`.
 pub const CURVES: [&str; 3] = ["dos", "doa", "catches"];
 
@@ -222,13 +257,15 @@ pub const CURVES: [&str; 3] = ["dos", "doa", "catches"];
 pub const AUTHORS_CURVES: [&str; 2] = crate::run::schema::AUTHORS;
 
 /// A quantity of a training curve's shape ([`Quantity::Start`], [`Quantity::Extreme`],
-/// [`Quantity::ExtremeEpisode`], [`Quantity::AfterExtreme`]) from its per-episode `series` as the figure
-/// data keeps it (single precision), so that a summary written before these quantities existed is
-/// extended from the committed figure data to the same bits as from the run folders. NaN for other
-/// quantities, and where a run is too short: a start needs [`START`] episodes, an extreme two windows.
+/// [`Quantity::ExtremeEpisode`], [`Quantity::AfterExtreme`], [`Quantity::Halfway`]) from its per-episode
+/// `series` as the figure data keeps it (single precision), so that a summary written before these
+/// quantities existed is extended from the committed figure data to the same bits as from the run
+/// folders. NaN for other quantities, and where a run is too short: a start needs [`START`] episodes, an
+/// extreme two windows, a halfway episode one window of 100.
 pub fn curve_shape(q: &Quantity, series: &[f64]) -> f64 {
     let mean = |v: &mut dyn Iterator<Item = f64>| super::stats::mean(&v.filter(|x| x.is_finite()).collect::<Vec<_>>());
     match q {
+        Quantity::Halfway(_) => halfway(series),
         Quantity::Start(_) if series.len() >= START => mean(&mut series[..START].iter().copied()).unwrap_or(f64::NAN),
         Quantity::Extreme(o) | Quantity::ExtremeEpisode(o) | Quantity::AfterExtreme(o)
             if series.len() >= 2 * WINDOW =>
@@ -349,6 +386,7 @@ pub fn compares_windows(q: &Quantity) -> bool {
             | Quantity::DoaChange
             | Quantity::CatchesChange
             | Quantity::Reach90(_)
+            | Quantity::Halfway(_)
             | Quantity::FromStart(_)
             | Quantity::Extreme(_)
             | Quantity::ExtremeEpisode(_)
@@ -594,6 +632,9 @@ pub fn quantity_name(q: &Quantity) -> String {
         Quantity::Interaction(e, q) => format!("{q} seeing minus \"{e}\""),
         Quantity::Learned(e, q) => format!("{q} in evaluation \"{e}\", trained minus untrained actors"),
         Quantity::Reach90(q) => format!("episode at which {q}'s running mean completes 90 % of its change"),
+        Quantity::Halfway(q) => format!(
+            "episode at which {q}'s {HALFWAY_WINDOW}-episode running mean completes half its change from the first {START} episodes"
+        ),
         Quantity::Start(q) => format!("{q}, first {START} episodes (the untrained start)"),
         Quantity::FromStart(q) => format!("{q}, last 100 episodes minus the first {START}"),
         Quantity::Extreme(q) => {
@@ -893,6 +934,29 @@ pub(crate) mod tests {
         assert!(q(Quantity::Start, "doa", &ramp[..9]).is_nan());
         assert!(q(Quantity::Extreme, "doa", &ramp[..199]).is_nan());
         assert!(q(Quantity::Extreme, "doa", &ramp[..200]).is_finite());
+    }
+
+    #[test]
+    fn the_episode_that_completes_half_a_change_from_the_start() {
+        let halfway = |series: &[f64]| curve_shape(&Quantity::Halfway("dos".into()), series);
+        // 0 for 60 episodes, then 1 for 240: the start is 0, the end 1; the 20-episode running mean at
+        // episode t (from 1) is (t − 60)/20 past 60, so it first reaches 0.5 at episode 70; the same falling.
+        let step: Vec<f64> = (0..300).map(|t| if t < 60 { 0.0 } else { 1.0 }).collect();
+        assert_eq!(halfway(&step), 70.0);
+        let falling: Vec<f64> = step.iter().map(|x| 1.0 - x).collect();
+        assert_eq!(halfway(&falling), 70.0);
+        // No window before the first whole one: a change at episode 13 is half done in the window of
+        // episodes 3–22 (the mean of 1–20 is 0.4), so episode 22.
+        let early: Vec<f64> = (0..300).map(|t| if t < 12 { 0.0 } else { 1.0 }).collect();
+        assert_eq!(halfway(&early), 22.0);
+        // The start is the first ten episodes, not the first window: a curve that starts at 1 and settles
+        // at 0 after episode 10 has all its change done by episode 20 (the mean of 1–20 is 0.5).
+        let drop: Vec<f64> = (0..300).map(|t| if t < 10 { 1.0 } else { 0.0 }).collect();
+        assert_eq!(halfway(&drop), 20.0);
+        assert!(halfway(&[0.5; 300]).is_nan(), "no change, no episode");
+        assert!(halfway(&step[..99]).is_nan(), "shorter than the last window");
+        let bad = curve_argument_error(&Quantity::Halfway("catches".into())).unwrap();
+        assert!(bad.contains("Halfway takes \"dos\" or \"doa\""), "{bad}");
     }
 
     #[test]

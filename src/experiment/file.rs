@@ -250,6 +250,13 @@ pub enum Quantity {
     /// The last 100 episodes minus the extreme, both over the even episodes: how far the curve moved
     /// back after its peak (DoA) or trough (DoS).
     AfterExtreme(String),
+    /// How fast a curve converges: the episode at which the [`HALFWAY_WINDOW`](super::claims::HALFWAY_WINDOW)-
+    /// episode running mean of `dos` or `doa` first completes half of its change from the start (the
+    /// first [`START`](super::claims::START) episodes) to the last 100 episodes. Half the change is crossed
+    /// where the curve is steepest, so its seed-to-seed spread is small (the 90 % of
+    /// [`Quantity::Reach90`] is crossed where the curve is flat); the short window resolves curves that
+    /// do most of their change within the first 100 episodes.
+    Halfway(String),
     /// The information-transfer response of an evaluation with `perturb:`: `"near"`, the mean |Δheading|
     /// of the turned prey's 6 nearest over the 10 steps after the turn, or `"far"`, the same for ranks 25
     /// and beyond (radians).

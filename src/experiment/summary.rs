@@ -68,6 +68,9 @@ pub fn curve_columns() -> Vec<(String, Quantity)> {
         quantities.push(Quantity::ExtremeEpisode(curve.into()));
         quantities.push(Quantity::AfterExtreme(curve.into()));
     }
+    for curve in ["dos", "doa"] {
+        quantities.push(Quantity::Halfway(curve.into()));
+    }
     quantities.into_iter().map(|q| (column(&q).expect("a curve quantity has a column"), q)).collect()
 }
 
@@ -136,8 +139,10 @@ pub fn extend(
     table: &Summary,
     curves: &BTreeMap<usize, super::figure_data::FigureData>,
 ) -> Option<String> {
-    let added = curve_columns();
-    if table.columns.iter().any(|c| *c == added[0].0) || !text.ends_with('\n') {
+    // The curve columns it lacks: all of them, or those added after it was written (they come last).
+    let added: Vec<(String, Quantity)> =
+        curve_columns().into_iter().filter(|(name, _)| !table.columns.contains(name)).collect();
+    if added.is_empty() || !text.ends_with('\n') {
         return None;
     }
     let of_run: BTreeMap<(&str, &str, u64), usize> =
@@ -153,9 +158,11 @@ pub fn extend(
         let run = of_run.get(&(row.preset.as_str(), row.variant.as_str(), row.seed)).and_then(|i| curves.get(i));
         for (_, q) in &added {
             let v = run.map_or(f64::NAN, |d| match q {
-                Quantity::Start(o) | Quantity::Extreme(o) | Quantity::ExtremeEpisode(o) | Quantity::AfterExtreme(o) => {
-                    super::claims::curve_shape(q, d.curve(o))
-                }
+                Quantity::Start(o)
+                | Quantity::Extreme(o)
+                | Quantity::ExtremeEpisode(o)
+                | Quantity::AfterExtreme(o)
+                | Quantity::Halfway(o) => super::claims::curve_shape(q, d.curve(o)),
                 _ => f64::NAN,
             });
             out.push_str(&field(v));
@@ -362,10 +369,22 @@ mod tests {
         assert_ne!(curves[&0].doa, full[&0].doa, "the file rounds");
         let extended = super::extend(&exp, &old, &table, &curves).expect("extended");
         assert_eq!(extended, written, "the same bytes as written from the run folders");
-        assert!(written.lines().nth(1).unwrap().split(',').next_back().unwrap().parse::<f64>().is_ok());
-        assert!(written.lines().nth(4).unwrap().ends_with(','), "too short for an extreme: blank");
         let table = super::Summary::parse(&written, &file).unwrap();
+        let value =
+            |row: usize, name: &str| table.rows[row].values[table.columns.iter().position(|c| c == name).unwrap()];
+        assert!(value(0, "doa_halfway").is_finite() && value(3, "doa_halfway").is_finite());
+        assert!(value(3, "dos_trough").is_nan(), "too short for an extreme: blank");
         assert_eq!(super::extend(&exp, &written, &table, &curves), None, "extended once");
+        // A summary written with the first curve columns but before the halfway episodes gains only those.
+        let halfway = ["dos_halfway", "doa_halfway"];
+        assert!(super::curve_columns().iter().rev().take(2).all(|(c, _)| halfway.contains(&c.as_str())));
+        let older: String = written.lines().map(|l| format!("{}\n", l.rsplitn(3, ',').nth(2).unwrap())).collect();
+        let table = super::Summary::parse(&older, &file).unwrap();
+        assert!(
+            !table.columns.iter().any(|c| halfway.contains(&c.as_str()))
+                && table.columns.contains(&"dos_trough".into())
+        );
+        assert_eq!(super::extend(&exp, &older, &table, &curves).expect("extended"), written);
     }
 
     #[test]
