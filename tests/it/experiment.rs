@@ -28,11 +28,16 @@ const TINY: &str = r#"(
 
 /// A working folder with the project's scenes and the tiny experiment.
 fn workspace() -> tempfile::TempDir {
+    workspace_with("tiny", TINY)
+}
+
+/// A working folder with the project's scenes and `experiments/<name>.ron` holding `text`.
+pub(super) fn workspace_with(name: &str, text: &str) -> tempfile::TempDir {
     let dir = tempfile::tempdir().unwrap();
     std::fs::create_dir_all(dir.path().join("scenes")).unwrap();
     std::fs::create_dir_all(dir.path().join("experiments")).unwrap();
     std::fs::copy("scenes/paper.ron", dir.path().join("scenes/paper.ron")).unwrap();
-    std::fs::write(dir.path().join("experiments/tiny.ron"), TINY).unwrap();
+    std::fs::write(dir.path().join(format!("experiments/{name}.ron")), text).unwrap();
     dir
 }
 
@@ -52,7 +57,7 @@ fn files_under(dir: &Path) -> std::collections::BTreeMap<std::path::PathBuf, Vec
     files
 }
 
-fn coevo(dir: &Path, args: &[&str]) -> std::process::Output {
+pub(super) fn coevo(dir: &Path, args: &[&str]) -> std::process::Output {
     Command::new(env!("CARGO_BIN_EXE_coevo")).args(args).current_dir(dir).output().unwrap()
 }
 
@@ -156,9 +161,14 @@ fn replay_segments(files: &std::collections::BTreeMap<std::path::PathBuf, Vec<u8
     files.keys().filter(|f| f.to_string_lossy().contains("-replay-")).count()
 }
 
-/// The summary without its wall-clock column.
+/// The tiny experiment's summary without its wall-clock column.
 fn summary(dir: &Path) -> Vec<String> {
-    let text = std::fs::read_to_string(dir.join("results/tiny/summary.csv")).unwrap();
+    summary_of(dir, "tiny")
+}
+
+/// `results/<name>/summary.csv` without its wall-clock column.
+pub(super) fn summary_of(dir: &Path, name: &str) -> Vec<String> {
+    let text = std::fs::read_to_string(dir.join(format!("results/{name}/summary.csv"))).unwrap();
     // Every column but the wall clock, the binary (the same here, but not a result) and shared_from.
     let header: Vec<&str> = text.lines().next().unwrap().split(',').collect();
     let wall = header.iter().position(|h| *h == "wall_seconds").unwrap();

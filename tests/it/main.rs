@@ -22,4 +22,5 @@ mod physics;
 mod record;
 mod resume;
 mod scenes;
+mod slurm;
 mod threads;
