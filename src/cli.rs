@@ -147,7 +147,25 @@ pub fn main(species: SpeciesPlugins) -> ExitCode {
     if let Err(e) = species.register() {
         return fail(&e.to_string());
     }
-    let (cli, viewer) = match parse(std::env::args().skip(1)) {
+    // Arguments as the system gives them: one that is not UTF-8 (a path, most often) is refused in one
+    // line, where std::env::args would panic.
+    let mut args = Vec::new();
+    for (i, arg) in std::env::args_os().enumerate().skip(1) {
+        match arg.into_string() {
+            Ok(text) => args.push(text),
+            Err(raw) => {
+                return fail(&format!(
+                    "argument {i} ({:?}) is not valid UTF-8: coevo takes paths and values in UTF-8",
+                    raw.to_string_lossy()
+                ))
+            }
+        }
+    }
+    // A file that outgrows `ulimit -f` is a write error (EFBIG) that the mode reports and cleans up after,
+    // not a SIGXFSZ that would kill the process with its temporary files and lock left behind.
+    // SAFETY: sets the action of one signal before any thread is started.
+    unsafe { libc::signal(libc::SIGXFSZ, libc::SIG_IGN) };
+    let (cli, viewer) = match parse(args) {
         Ok(parsed) => parsed,
         Err(e) if matches!(e.kind(), ErrorKind::DisplayHelp | ErrorKind::DisplayVersion) => e.exit(),
         Err(e) => return fail(&one_line(&e)),
@@ -165,8 +183,15 @@ pub fn main(species: SpeciesPlugins) -> ExitCode {
 }
 
 /// One line on stderr and a failure; a stderr that cannot take it (closed, full) still fails, quietly.
+/// Control characters (a newline in a file's name) are shown escaped, so the message stays one line; a
+/// write refused for the file size limit says which limit.
 fn fail(message: &str) -> ExitCode {
-    let _ = crate::errln!("coevo: error: {message}");
+    let mut line: String =
+        message.chars().flat_map(|c| if c.is_control() { c.escape_default().collect() } else { vec![c] }).collect();
+    if line.contains(&format!("(os error {})", libc::EFBIG)) {
+        line.push_str(" (a file size limit was reached, such as `ulimit -f`)");
+    }
+    let _ = crate::errln!("coevo: error: {line}");
     ExitCode::FAILURE
 }
 

@@ -77,15 +77,20 @@ impl CommonArgs {
     /// Sets what is process-wide: the worker threads, and the matrix-product kernels (--kernels, else
     /// COEVO_KERNELS) before any network exists, since gemm fixes its kernels at its first product.
     pub fn apply_to_process(&self) -> crate::error::Result<()> {
-        if let Some(n) = self.threads {
-            crate::parallel::set_threads(n);
+        // Each environment variable is read as its flag is, and refused as its flag would be.
+        match (self.threads, environment("COEVO_THREADS")?) {
+            (Some(n), _) => crate::parallel::set_threads(n),
+            (None, Some(text)) => {
+                crate::parallel::set_threads(at_least_one(&text).map_err(|e| format!("COEVO_THREADS: {e}"))?)
+            }
+            (None, None) => {}
         }
-        match (&self.kernels, std::env::var("COEVO_KERNELS")) {
+        match (&self.kernels, environment("COEVO_KERNELS")?) {
             (Some(family), _) => crate::learning::nets::pin_kernels(family).map_err(|e| format!("--kernels: {e}"))?,
-            (None, Ok(family)) => {
+            (None, Some(family)) => {
                 crate::learning::nets::pin_kernels(&family).map_err(|e| format!("COEVO_KERNELS: {e}"))?
             }
-            (None, Err(_)) => {}
+            (None, None) => {}
         }
         Ok(())
     }
@@ -113,6 +118,17 @@ pub fn threads_argv(threads: usize) -> Vec<String> {
 }
 
 /// clap's parser of a count that must be ≥ 1.
+/// An environment variable coevo reads: None where it is unset, an error where it is not UTF-8.
+pub fn environment(name: &str) -> crate::error::Result<Option<String>> {
+    match std::env::var(name) {
+        Ok(text) => Ok(Some(text)),
+        Err(std::env::VarError::NotPresent) => Ok(None),
+        Err(std::env::VarError::NotUnicode(raw)) => {
+            Err(format!("{name}: {:?} is not valid UTF-8", raw.to_string_lossy()).into())
+        }
+    }
+}
+
 pub fn at_least_one(text: &str) -> Result<usize, String> {
     match text.parse::<usize>() {
         Ok(0) => Err("must be ≥ 1".into()),

@@ -640,3 +640,80 @@ fn what_may_be_written_is_written_and_nothing_else() {
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     assert!(root.join("empty/checkpoint/state.ron").exists());
 }
+
+/// Every file under `dir` whose name says it was left half-done: a temporary, a lock, a checkpoint being
+/// written or swapped.
+fn leftovers(dir: &Path) -> Vec<PathBuf> {
+    snapshot(dir)
+        .into_keys()
+        .filter(|p| {
+            let name = p.file_name().unwrap().to_string_lossy();
+            name.ends_with(".tmp") || name == "coevo.lock" || name == "checkpoint.tmp" || name == "checkpoint.old"
+        })
+        .collect()
+}
+
+#[test]
+fn arguments_environment_and_resource_limits_end_in_one_line_and_leave_nothing() {
+    use std::ffi::OsStr;
+    use std::os::unix::ffi::OsStrExt;
+    let dir = tempfile::tempdir().unwrap();
+    let root = dir.path();
+    std::fs::create_dir(root.join("scenes")).unwrap();
+    std::fs::copy("scenes/standard.ron", root.join("scenes/standard.ron")).unwrap();
+    let one_line = |args: &[&OsStr], env: &[(&str, &OsStr)], expected: &str| {
+        let before = snapshot(root);
+        let out = Command::new(env!("CARGO_BIN_EXE_coevo"))
+            .args(args)
+            .envs(env.iter().copied())
+            .current_dir(root)
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        let shown = format!("{args:?} {env:?}");
+        assert!(!out.status.success() && !stderr.contains("panicked"), "{shown}: {stderr}");
+        assert_eq!(stderr.lines().count(), 1, "{shown}: not one line: {stderr}");
+        assert!(
+            stderr.starts_with("coevo: error: ") && stderr.contains(expected),
+            "{shown}: {stderr:?} lacks {expected:?}"
+        );
+        assert_eq!(snapshot(root), before, "{shown}: the working folder changed");
+    };
+    let s = |text: &'static str| OsStr::new(text);
+    let bad = OsStr::from_bytes(b"run-\xff");
+    // A path that is not UTF-8, in every mode that takes one.
+    one_line(&[s("--train"), s("--out"), bad], &[], "argument 3 (\"run-\u{fffd}\") is not valid UTF-8");
+    one_line(&[s("--experiment"), bad], &[], "is not valid UTF-8");
+    one_line(&[s("--describe-scene"), bad], &[], "is not valid UTF-8");
+    // Environment variables are read as their flags are.
+    for threads in ["0", "abc", "-1"] {
+        one_line(
+            &[s("--describe-scene"), s("scenes/standard.ron")],
+            &[("COEVO_THREADS", s(threads))],
+            "COEVO_THREADS: ",
+        );
+    }
+    one_line(&[s("--describe-scene"), s("scenes/standard.ron")], &[("COEVO_KERNELS", bad)], "COEVO_KERNELS: ");
+    // A name holding a newline is shown escaped: still one line.
+    one_line(&[s("--describe-scene"), s("a\nb.ron")], &[], "a\\nb.ron");
+
+    // A file size limit (ulimit -f, in KiB blocks here): the write that crosses it fails, and coevo says
+    // which limit, exits non-zero and leaves no temporary file, lock or half-written checkpoint. (Without
+    // care SIGXFSZ kills the process where it stands.)
+    let limited = |command: &str, expected_file: &str| {
+        let out = Command::new("sh")
+            .args(["-c", &format!("ulimit -f 256; exec \"$COEVO\" {command}")])
+            .env("COEVO", env!("CARGO_BIN_EXE_coevo"))
+            .current_dir(root)
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success() && !stderr.contains("panicked"), "{command}: {stderr}");
+        assert_eq!(stderr.lines().count(), 1, "{command}: not one line: {stderr}");
+        assert!(stderr.contains("a file size limit was reached"), "{command}: {stderr}");
+        assert!(leftovers(root).is_empty(), "{command}: left {:?}", leftovers(root));
+        assert!(!root.join(expected_file).exists(), "{command}: {expected_file} half-written");
+    };
+    limited("--train --out limited --episodes 1 --quiet", "limited/checkpoint");
+    limited("--record big.csv --steps 3000", "big.csv");
+}
