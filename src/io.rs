@@ -365,16 +365,27 @@ pub fn read_text(path: &Path, limit: u64) -> crate::error::Result<String> {
     read_text_unnamed(path, limit).map_err(|e| e.in_file(path))
 }
 
+/// Why an input that is not a regular file is refused ([`open_input`]).
+const NOT_REGULAR: &str = "is not a regular file (a folder, pipe or device); coevo reads its inputs from files";
+
+/// Opens an input file, every input's one way in: asked first whether it is a regular file, since opening
+/// a FIFO blocks until a writer comes and a device may never end (refused as `InvalidInput`, its message
+/// saying so). A missing file is the `NotFound` error it is, for callers to whom absent is an answer.
+pub fn open_input(path: &Path) -> io::Result<File> {
+    if !std::fs::metadata(path)?.is_file() {
+        return Err(io::Error::new(io::ErrorKind::InvalidInput, NOT_REGULAR));
+    }
+    File::open(path)
+}
+
 fn read_text_unnamed(path: &Path, limit: u64) -> crate::error::Result<String> {
     // Only the system's refusals are I/O errors; a file of the wrong sort or content is left unclassified,
     // for the concern that reads it to classify (a damaged manifest is a checkpoint error).
     let cannot = |e: io::Error| crate::error::Error::from(format!("cannot read: {e}")).of_kind(crate::error::Kind::Io);
-    // Asked before opening: opening a FIFO blocks until a writer comes, a device may never end.
-    let meta = std::fs::metadata(path).map_err(cannot)?;
-    if !meta.is_file() {
-        return Err("is not a regular file (a folder, pipe or device); coevo reads its inputs from files".into());
-    }
-    let file = File::open(path).map_err(cannot)?;
+    let file = open_input(path).map_err(|e| match e.kind() {
+        io::ErrorKind::InvalidInput => crate::error::Error::from(NOT_REGULAR),
+        _ => cannot(e),
+    })?;
     let mut bytes = Vec::new();
     file.take(limit + 1).read_to_end(&mut bytes).map_err(cannot)?;
     if bytes.len() as u64 > limit {

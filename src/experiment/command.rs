@@ -347,7 +347,7 @@ pub fn plot(dir: &Path, partial: bool) -> crate::error::Result<()> {
         check_whole(&exp, &data, &format!("--plot {}", dir.display()))?;
     }
     // Without run folders (a clone), the committed figure data redraws the figures.
-    if data.is_empty() && !exp.root.join(super::figure_data::FILE).exists() {
+    if data.is_empty() && !super::figure_data::present(&exp)? {
         return Err(format!(
             "--plot {}: no finished run of {} there, and no {}; nothing written",
             dir.display(),

@@ -236,9 +236,20 @@ pub fn write(exp: &Experiment, data: &BTreeMap<usize, FigureData>) -> crate::err
 
 /// Reads an experiment's committed figure data, by run index: None without the file; an error when it
 /// cannot be read or lacks one of `runs` (indices into the experiment's runs).
+/// Whether the experiment has its figure data: a regular file there; an error where something else is
+/// (a folder, a FIFO, which opening would wait on forever).
+pub fn present(exp: &Experiment) -> crate::error::Result<bool> {
+    let path = path(exp);
+    match crate::io::open_input(&path) {
+        Ok(_) => Ok(true),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(false),
+        Err(e) => Err(format!("{}: {e}", path.display()).into()),
+    }
+}
+
 pub fn read(exp: &Experiment, runs: &[usize]) -> crate::error::Result<Option<BTreeMap<usize, FigureData>>> {
     let path = path(exp);
-    let file = match std::fs::File::open(&path) {
+    let file = match crate::io::open_input(&path) {
         Ok(file) => file,
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
         Err(e) => return Err(format!("{}: {e}", path.display()).into()),

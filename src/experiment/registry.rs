@@ -1,6 +1,6 @@
 //! `results/<experiment>/claims.csv`: each claim's fingerprint as it stood when the experiment's runs were
 //! aggregated, so that a claim edited or added after its results existed is flagged in the reports
-//! (issue 36: hypotheses fixed before the runs). The one owner of that file.
+//! (hypotheses fixed before the runs). The one owner of that file.
 
 use super::file::{Claim, Experiment};
 use std::path::Path;
@@ -70,11 +70,15 @@ fn family_of(claim: &Claim) -> String {
 /// The recorded claims, by text, in the record's order; None without the file.
 pub fn read(root: &Path) -> crate::error::Result<Option<Vec<(String, Recorded)>>> {
     let path = root.join(FILE);
-    let text = match std::fs::read_to_string(&path) {
-        Ok(text) => text,
+    let mut text = String::new();
+    let read = |f: std::fs::File| {
+        std::io::Read::read_to_string(&mut std::io::Read::take(f, crate::io::MAX_TEXT_BYTES), &mut text)
+    };
+    match crate::io::open_input(&path).and_then(read) {
+        Ok(_) => {}
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
         Err(e) => return Err(format!("{}: {e}", path.display()).into()),
-    };
+    }
     let bad = |e: csv::Error| format!("{}: {e}", path.display());
     let mut recorded = Vec::new();
     for row in csv::ReaderBuilder::new().flexible(true).from_reader(text.as_bytes()).records() {

@@ -219,7 +219,7 @@ pub fn stale(run: &Run, e: &super::file::Evaluation) -> Option<String> {
     // evaluations are checked each time an experiment starts).
     let tail = {
         use std::io::{Read, Seek, SeekFrom};
-        let mut file = std::fs::File::open(&path).ok()?;
+        let mut file = crate::io::open_input(&path).ok()?;
         let len = file.metadata().ok()?.len();
         file.seek(SeekFrom::Start(len.saturating_sub(4096))).ok()?;
         let mut bytes = Vec::new();

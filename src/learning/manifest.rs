@@ -36,7 +36,7 @@ impl Digest {
     /// The digest of a file as it is on disk.
     pub fn of_file(path: &Path) -> std::io::Result<Digest> {
         let mut hasher = blake3::Hasher::new();
-        let mut file = std::fs::File::open(path)?;
+        let mut file = crate::io::open_input(path)?;
         let bytes = std::io::copy(&mut file, &mut hasher)?;
         Ok(Digest::of_hasher(&hasher, bytes))
     }

@@ -697,6 +697,31 @@ fn arguments_environment_and_resource_limits_end_in_one_line_and_leave_nothing()
     // A name holding a newline is shown escaped: still one line.
     one_line(&[s("--describe-scene"), s("a\nb.ron")], &[], "a\\nb.ron");
 
+    // A FIFO where an input file is expected: refused, never waited on (opening a FIFO blocks until a
+    // writer comes; `timeout` turns a hang into a failure here).
+    std::fs::copy("scenes/paper.ron", root.join("scenes/paper.ron")).unwrap();
+    std::fs::create_dir_all(root.join("experiments")).unwrap();
+    std::fs::write(
+        root.join("experiments/fine.ron"),
+        r#"(base: "scenes/paper.ron", seeds: [1], variants: [(name: "a")])"#,
+    )
+    .unwrap();
+    std::fs::create_dir_all(root.join("results/fine")).unwrap();
+    // (The snapshot is taken without the FIFO, which reading would block on.)
+    let before = snapshot(root);
+    let fifo = root.join("results/fine/figure-data.ron.gz");
+    assert!(Command::new("mkfifo").arg(&fifo).status().unwrap().success());
+    let out = Command::new("timeout")
+        .args(["20", env!("CARGO_BIN_EXE_coevo"), "--plot", "results/fine"])
+        .current_dir(root)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && stderr.lines().count() == 1, "--plot with a FIFO: {stderr}");
+    assert!(stderr.contains("figure-data.ron.gz: is not a regular file"), "{stderr}");
+    std::fs::remove_file(&fifo).unwrap();
+    assert_eq!(snapshot(root), before);
+
     // A file size limit (ulimit -f, in KiB blocks here): the write that crosses it fails, and coevo says
     // which limit, exits non-zero and leaves no temporary file, lock or half-written checkpoint. (Without
     // care SIGXFSZ kills the process where it stands.)
