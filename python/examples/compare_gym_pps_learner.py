@@ -1,4 +1,4 @@
-"""The authors' learner on coevo's world against coevo's own learner under the same switches (issue 37, item 3).
+"""The authors' learner on coevo's world against coevo's own learner under the same switches.
 
     python examples/compare_gym_pps_learner.py results/authors-learner/seed*.csv \\
         --coevo results/authors-code/gym-pps/every-switch
@@ -17,14 +17,14 @@ of training. The margins, from the seed-to-seed spread of coevo's `gym-pps` runs
 ``results/standard`` (another binary's runs, already published; nothing of the runs compared here was
 looked at): DoA ±0.05 (herding-equivalence's primary margin), DoS ±0.02 (a tenth of its level there,
 0.18-0.21; its seed-to-seed SD is about 0.016), catches per episode ±10 (a third of the trained level
-there, 28.6; SD about 8). The authors' learner runs seeds 1-3 (the issue's three), coevo seeds 1-10 (all
+there, 28.6; SD about 8). The authors' learner runs seeds 1-3 (the three planned), coevo seeds 1-10 (all
 of "every switch"; the script refuses fewer, so that nothing of authors-code, which is judged only when
 complete, is looked at before then). Power, said before any result: if the learner's seeds spread as
 coevo's do, 3 against 10 leaves Welch about 3 degrees of freedom, and even with no true difference the
 (1 - 2α) interval at Holm's last step is wider than every margin (DoA about ±0.1, DoS ±0.025, catches
 ±13): these margins cannot be shown at this size, and a verdict of "inconclusive" will say how wide a
-margin the data do support. What the comparison can show is a difference beyond a margin, the
-"documented difference" the issue asks about.
+margin the data do support. What the comparison can show is a difference beyond a margin, a
+"documented difference" between the two implementations.
 """
 
 from __future__ import annotations
@@ -39,7 +39,7 @@ import sys
 
 import coevo
 
-FAMILY = "the authors' learner minus coevo, the code's switches on (issue 37)"
+FAMILY = "the authors' learner minus coevo, the code's switches on"
 # coevo's side: every seed of the "every switch" variant of experiments/authors-code.ron.
 COEVO_SEEDS = list(range(1, 11))
 # (claim, quantity as experiment files write it, equivalence margin)

@@ -1,4 +1,4 @@
-"""The authors' own learner on coevo's world (issue 37, item 3).
+"""The authors' own learner on coevo's world.
 
 Drives the MADDPG learner of a WindyLab/Gym-PPS checkout (``NJP_algorithm/``: ``algorithms/maddpg.py``,
 ``utils/buffer.py``, ``utils/agents.py``, ``utils/noise.py``; nothing of it is copied here) on coevo's
@@ -38,7 +38,8 @@ What the adapter does, each the code's behaviour in ``gym/envs/pps/pps.py`` and 
   ``a[0]`` times the largest turn per step, ``a[1]`` maps to [min, max] acceleration); coevo's order is
   ``[thrust, turn]``, so the rows are swapped on the way in.
 * **Stored actions** are the rescaled ones, as the code's ``env.step`` rescales the array in place before
-  ``main.py`` pushes it (issue 37, row 2), while the actors are queried at [-1, 1].
+  ``main.py`` pushes it (difference 2 of docs/src/results/authors-code.md), while the actors are queried
+  at [-1, 1].
 * **Rewards** are coevo's for the scene (the ``gym-pps`` preset's values), ``[1, agents]``; nobody is ever
   done.
 

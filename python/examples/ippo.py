@@ -2,7 +2,7 @@
 
 Independent PPO with parameters shared within a species (every prey acts with the prey network, every
 predator with the predator network), on ``coevo.VecEnv``: the very worlds ``coevo --train`` trains in.
-The question it answers (issue 24): does swarming also emerge when the learning algorithm is not DDPG?
+The question it answers: does swarming also emerge when the learning algorithm is not DDPG?
 
 The policy's mean is a coevo-shaped actor (d_o -> 64 -> 64 -> 64 -> 2, ReLU, tanh on the output) with a
 state-independent log standard deviation; the critic is d_o -> 64 -> 64 -> 64 -> 1. The run folder holds

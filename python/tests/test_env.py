@@ -299,7 +299,7 @@ def test_statistics_are_coevos():
 
 def test_curves_made_elsewhere_are_judged_as_coevos_reports_judge_two_variants():
     """compare_curves: the windows, Welch's difference, TOST and Holm of coevo's reports, on curves handed
-    over from Python (the authors' learner's runs, issue 37)."""
+    over from Python (the authors' learner's runs)."""
     def run(last_doa, last_catches):
         flat = lambda first, last: [first] * 100 + [last] * 100  # noqa: E731
         return {"dos": flat(0.25, 0.2), "doa": flat(0.3, last_doa), "catches": flat(70.0, last_catches)}
@@ -416,7 +416,7 @@ def test_observation_bounds_come_from_the_layout():
 
 
 def test_the_gym_pps_adapter_maps_coevos_world_to_the_codes_arrays():
-    # python/examples/gym_pps_learner.py hands coevo's world to the authors' learner (issue 37, item 3);
+    # python/examples/gym_pps_learner.py hands coevo's world to the authors' learner;
     # its mapping is checked here without torch or a Gym-PPS checkout.
     import importlib.util
 

@@ -251,7 +251,7 @@ fn halfway(series: &[f64]) -> f64 {
 pub const CURVES: [&str; 3] = ["dos", "doa", "catches"];
 
 /// The training series of the authors' DoS and DoA (`metrics.csv`'s `authors_dos_<prey>` and
-/// `authors_doa_<prey>`, written with the scene's `authors_metrics`; issue 37, rows 9–11): besides
+/// `authors_doa_<prey>`, written with the scene's `authors_metrics`; differences 9–11 of docs/src/results/authors-code.md): besides
 /// [`CURVES`], what [`Quantity::Start`], [`Quantity::FromStart`], [`Quantity::TrainingFirst`] and
 /// [`Quantity::TrainingLast`] read, so the paper's numbers can be judged as the shipped code measures them.
 pub const AUTHORS_CURVES: [&str; 2] = crate::run::schema::AUTHORS;

@@ -37,7 +37,7 @@ fn decompose(q: impl Fn(usize, usize) -> f64, a: usize, b: usize) -> [f64; 3] {
 /// snapshot that never catches (or is never caught) has a finite rating.
 const RATING_PSEUDO_COUNT: f64 = 0.5;
 
-/// Every snapshot's rating from the matrix (issue 38): the main effects of a Poisson log-linear model of
+/// Every snapshot's rating from the matrix (`experiments/league.ron`): the main effects of a Poisson log-linear model of
 /// the catches, E[catches of prey i by predator j] = exp(μ + a_j − b_i), the count-data analogue of
 /// Bradley–Terry/Elo. For a complete matrix its maximum-likelihood fit has a closed form: a_j is the log
 /// of predator j's mean catches over every prey snapshot, b_i minus the log of prey i's mean catches by

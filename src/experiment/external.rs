@@ -1,5 +1,5 @@
 //! Training curves made outside coevo's run folders (another implementation's runs of a scene: the
-//! authors' learner on coevo's world, `python/examples/gym_pps_learner.py`, issue 37), compared with
+//! authors' learner on coevo's world, `python/examples/gym_pps_learner.py`), compared with
 //! coevo's own as a report compares two variants: the same quantities ([`super::claims::derive`]), the
 //! same test (Welch's difference, TOST within a margin fixed beforehand), Holm over the family
 //! ([`super::aggregate::adjust`]), and the same words ([`super::claims::verdict`]). Nothing here reads a

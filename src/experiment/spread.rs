@@ -1,5 +1,5 @@
 //! How widely seeds of one scene differ, from the project's committed results: what `--train` adds to its
-//! explanation so that one run is read as one sample (issue 42, item 4).
+//! explanation so that one run is read as one sample.
 
 use super::file::Experiment;
 use super::report::{EXPERIMENTS, RESULTS};

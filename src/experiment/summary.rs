@@ -56,7 +56,7 @@ pub fn columns(exp: &Experiment) -> Vec<(String, Quantity)> {
 
 /// The columns of `summary.csv` after `shared_from`: the shape of each training curve (its start, and
 /// DoS's trough and DoA's peak with where they were and how far the curve moved back after them). Kept
-/// last because they came last (session 17): a summary written before them is extended ([`extend`]) from
+/// last because they came last (df7bc45): a summary written before them is extended ([`extend`]) from
 /// the committed figure data, which holds the curves, without rewriting a byte of what it held.
 pub fn curve_columns() -> Vec<(String, Quantity)> {
     let mut quantities = Vec::new();

@@ -1,4 +1,4 @@
-//! One training, counted once (issue 36, item 8). A training is its resolved scene, seed included, and
+//! One training, counted once. A training is its resolved scene, seed included, and
 //! the binary that made it: the same pair in two places is one deterministic training. Two experiments
 //! hold one training either as one run folder (`shared_from`) or as a declared re-training
 //! (`same_training_as`); a training found twice without either is refused when results are aggregated,

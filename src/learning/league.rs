@@ -1,4 +1,4 @@
-//! Opponents from the past (issue 38; not in the paper). Algorithm 1 trains each species against the
+//! Opponents from the past (`experiments/league.ron`; not in the paper). Algorithm 1 trains each species against the
 //! other's *current* actor only, so nothing keeps an old skill alive: predators that stop meeting naive
 //! prey can forget how to catch them (`coevo --crossplay` shows it). A species whose
 //! `learning.opponents` is a `Pool` plays, with probability p per episode, against snapshots of every

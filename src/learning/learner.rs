@@ -11,7 +11,7 @@ use crate::sim::species::ACTION_DIM;
 use rand_chacha::ChaCha8Rng;
 
 /// How a species stores and draws its transitions, where the authors' code differs from coevo's default
-/// (issue 37; each switch of [`LearningParams`]). The defaults store what the actor outputs into a ring of
+/// (docs/src/results/authors-code.md; each switch of [`LearningParams`]). The defaults store what the actor outputs into a ring of
 /// the last `buffer_capacity` transitions and draw mini-batches with replacement.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Storing {

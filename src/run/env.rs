@@ -1,4 +1,4 @@
-//! coevo as an environment for learners outside it (issue 24: the Rust side of the Python package): the
+//! coevo as an environment for learners outside it (the Rust side of the Python package): the
 //! very `FixedUpdate` schedule `--train` steps, with the scene's `Learned` species decided from outside.
 //!
 //! [`Env`] is one world: `reset` gives every external agent's observation (coevo's observation vector,

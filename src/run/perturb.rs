@@ -1,4 +1,4 @@
-//! Information transfer (`coevo --eval RUN --perturb RADIANS`, issue 23; not in the paper): the measure
+//! Information transfer (`coevo --eval RUN --perturb RADIANS`; not in the paper): the measure
 //! neither a shared heading attractor nor herding by common predators can fake. A twin of the evaluated
 //! world runs in lockstep with it (same scene, seed, spawn and actors); at `step` of every episode one prey
 //! of the twin (the first of its species) is turned by a fixed angle, and for the following steps the

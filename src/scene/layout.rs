@@ -1,6 +1,6 @@
 //! The observation and action layout a scene implies (Section "Agent Observation"): own state, then one
 //! block of neighbour slots per species of the scene, in the scene's order; in the authors' order
-//! (issue 37, row 4) own position and velocity, the blocks, an energy input, then own heading.
+//! (difference 4 of docs/src/results/authors-code.md) own position and velocity, the blocks, an energy input, then own heading.
 //!
 //! [`Layout`] is the one place that knows where each part of an observation sits: perception writes by it,
 //! controls alter its blocks, environments bound it, the viewer labels it.

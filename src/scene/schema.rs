@@ -106,13 +106,13 @@ pub enum Policy {
 pub const FLEE_WALL_MARGIN: f64 = 0.4;
 
 /// Whether a field holds its default, so a scene file written by coevo leaves it out: a switch added
-/// later (the authors' code's behaviours, issue 37) changes neither the `scene.ron` of a run that leaves
+/// later (the authors' code's behaviours, docs/src/results/authors-code.md) changes neither the `scene.ron` of a run that leaves
 /// it off nor the scene's identity its checkpoints are sealed with.
 pub fn is_default<T: Default + PartialEq>(value: &T) -> bool {
     *value == T::default()
 }
 
-/// Where a population is spawned (issue 37, row 7).
+/// Where a population is spawned (difference 7 of the authors' code (docs/src/results/authors-code.md)).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub enum Spawn {
     /// Uniform over the arena (inset by each body's radius with walls), overlaps allowed: coevo's default.
@@ -125,7 +125,7 @@ pub enum Spawn {
     AuthorsNoOverlap,
 }
 
-/// Which of a species' stored transitions a mini-batch is drawn from (issue 37, row 1).
+/// Which of a species' stored transitions a mini-batch is drawn from (difference 1 of the authors' code (docs/src/results/authors-code.md)).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub enum ReplayWindow {
     /// The last `buffer_capacity` transitions, a ring (coevo's default; the paper's "5e5").
@@ -139,7 +139,7 @@ pub enum ReplayWindow {
     AuthorsFirstRows,
 }
 
-/// The action a transition stores (issue 37, row 2).
+/// The action a transition stores (difference 2 of the authors' code (docs/src/results/authors-code.md)).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub enum StoredAction {
     /// The normalized action the actor outputs (after noise), in [−1, 1], which is also what the critic
@@ -153,7 +153,7 @@ pub enum StoredAction {
     AuthorsRescaled,
 }
 
-/// How the Gaussian exploration noise is drawn (issue 37, row 3).
+/// How the Gaussian exploration noise is drawn (difference 3 of the authors' code (docs/src/results/authors-code.md)).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub enum NoiseDraw {
     /// Independently for every individual and action component: coevo's default.
@@ -164,7 +164,7 @@ pub enum NoiseDraw {
     PerSpecies,
 }
 
-/// How a mini-batch is drawn from the transitions it may use (issue 37, row 8).
+/// How a mini-batch is drawn from the transitions it may use (difference 8 of the authors' code (docs/src/results/authors-code.md)).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub enum BatchDraw {
     /// Uniformly with replacement: coevo's default.
@@ -175,7 +175,7 @@ pub enum BatchDraw {
     WithoutReplacement,
 }
 
-/// Who a learning species trains against (issue 38; not in the paper): `learning.opponents` names the
+/// Who a learning species trains against (`experiments/league.ron`; not in the paper): `learning.opponents` names the
 /// species that do not train against the latest opponents only.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub enum Opponents {
@@ -219,7 +219,7 @@ patchable! {
         pub speed_clip: SpeedClip,
         /// The authors' energy budget (1000 units, −|v| per step, +0.1 when resting): `gym-pps` only.
         pub energy_budget: bool,
-        /// Where a population is spawned ([`Spawn`]; issue 37): left out of scene files at its default.
+        /// Where a population is spawned ([`Spawn`]; docs/src/results/authors-code.md): left out of scene files at its default.
         #[serde(default, skip_serializing_if = "is_default")]
         pub spawn: Spawn,
     }
@@ -278,7 +278,7 @@ patchable! {
         /// observes at most 2 predators and `topological_limit` of every other species. With
         /// `topological_limit: 5` on both species it is the authors' code (WindyLab/Gym-PPS
         /// `NJP_algorithm/custom_param.json`: `topo_n_p2p` = `topo_n_e2p` = 2, `topo_n_p2e` = `topo_n_e2e` = 5;
-        /// issue 37, row 4).
+        /// difference 4 of the authors' code (docs/src/results/authors-code.md)).
         #[serde(default, skip_serializing_if = "Vec::is_empty")]
         pub topological_limit_of: Vec<(String, usize)>,
     }
@@ -320,7 +320,7 @@ patchable! {
         #[serde(default = "default_snapshot_every")]
         pub snapshot_every: usize,
         /// The authors' code's learning details, each a switch left out of scene files at coevo's default
-        /// (issue 37; `scenes/gym-pps-code.ron` turns them all on): which transitions a mini-batch is
+        /// (docs/src/results/authors-code.md; `scenes/gym-pps-code.ron` turns them all on): which transitions a mini-batch is
         /// drawn from ([`ReplayWindow`]), ...
         #[serde(default, skip_serializing_if = "is_default")]
         pub replay_window: ReplayWindow,
@@ -333,7 +333,7 @@ patchable! {
         /// ... and how a mini-batch is drawn ([`BatchDraw`]).
         #[serde(default, skip_serializing_if = "is_default")]
         pub batch_draw: BatchDraw,
-        /// Who each named species trains against ([`Opponents`]; issue 38, not in the paper): `[("predator",
+        /// Who each named species trains against ([`Opponents`]; not in the paper): `[("predator",
         /// Pool(p: 0.5, pick: Uniform))]`. A species not named trains against the latest opponents.
         #[serde(default, skip_serializing_if = "Vec::is_empty")]
         pub opponents: Vec<(String, Opponents)>,
@@ -378,7 +378,7 @@ pub struct Scene {
     /// Contact rewards of particular (catcher, caught) pairs; every other pair pays ±`rewards.contact`.
     #[serde(default)]
     pub contact_rewards: Vec<ContactReward>,
-    /// Also log DoS and DoA as the authors' shipped code computes them (issue 37, rows 9–11; columns
+    /// Also log DoS and DoA as the authors' shipped code computes them (differences 9–11 of the authors' code (docs/src/results/authors-code.md); columns
     /// `authors_dos_<species>` and `authors_doa_<species>` of metrics.csv, beside the paper's, never
     /// replacing them): WindyLab/Gym-PPS `gym/wrappers/njp.py` `dos_and_doa` as `NJP_algorithm/main.py`
     /// calls it, over the states t = 0…T−1 (the spawn state included, the last state not), with plain
@@ -423,7 +423,7 @@ pub enum ObservationFrame {
     Body,
 }
 
-/// The order of an observation's parts (issue 37, row 4).
+/// The order of an observation's parts (difference 4 of the authors' code (docs/src/results/authors-code.md)).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub enum ObservationLayout {
     /// The paper's (Section "Agent Observation"): own `[x, y, v_x, v_y, h_x, h_y]`, then the neighbour

@@ -3,8 +3,8 @@
 //!
 //! Spawning: positions uniform over the arena (inset by the body radius with walls, so no body starts
 //! inside a wall), headings uniform in (−π, π], velocities zero. Overlaps at spawn are allowed; the
-//! contact springs separate them. The paper is silent on this. The authors' code differs (issue 37, row
-//! 7): it insets every position by the largest body radius on either boundary and draws the whole
+//! contact springs separate them. The paper is silent on this. The authors' code differs (difference 7 of
+//! docs/src/results/authors-code.md): it insets every position by the largest body radius on either boundary and draws the whole
 //! population again until no two bodies overlap: `world.spawn: AuthorsNoOverlap`.
 
 use super::schedule::{ActiveScene, SimSet};

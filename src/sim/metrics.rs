@@ -344,7 +344,7 @@ impl Plugin for MetricsPlugin {
 }
 
 /// DoS and DoA of one species as the authors' shipped code computes them (WindyLab/Gym-PPS
-/// `gym/wrappers/njp.py`, `dos_and_doa`; issue 37, rows 9–10): each agent's plain Euclidean distance to
+/// `gym/wrappers/njp.py`, `dos_and_doa`; differences 9–10 of docs/src/results/authors-code.md): each agent's plain Euclidean distance to
 /// its nearest other (no minimum image on the torus) over n·D with D = √2·edge/2 (the code's √2 on its
 /// 2 m arena), and ‖h_j + h_k‖ over 2n with k the agent whose heading is most opposed to j's (argmin over
 /// all k ≠ j), not j's nearest neighbour. None with fewer than two agents.
@@ -628,7 +628,7 @@ mod tests {
         assert!((dos - 2.4 / (3.0 * 2f64.sqrt())).abs() < 1e-12, "{dos}");
         assert!((doa - 2f64.sqrt() / 6.0).abs() < 1e-12, "{doa}");
         assert!(authors_dos_doa(2.0, &pos[..1], &head[..1]).is_none());
-        // Independent random headings: the most opposed partner makes the level fall with n (issue 37: 0.154
+        // Independent random headings: the most opposed partner makes the level fall with n (docs/src/results/authors-code.md: 0.154
         // at 10 prey, 0.031 at 50), where the paper's DoA stays at 2/π.
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
         for (n, level) in [(10, 0.154), (50, 0.031)] {

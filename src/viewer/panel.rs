@@ -177,7 +177,7 @@ fn restart_as(c: &mut Control, scene: Scene, source: PathBuf, mode: RunMode) {
 }
 
 /// While watching a run: which actor each learning species deploys, its trained one or one of its
-/// snapshots (issue 26: the arms race seen, not only plotted in cross-play).
+/// snapshots (the arms race seen, not only plotted in cross-play).
 fn snapshot_picker(ui: &mut egui::Ui, c: &mut Control) {
     let RunMode::Watch(run) = c.current.mode.clone() else { return };
     for def in c.current.scene.species.iter().filter(|d| d.policy == crate::scene::Policy::Learned) {

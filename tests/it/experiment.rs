@@ -969,10 +969,11 @@ fn untrained_actors_and_the_time_course_are_measured() {
 
 #[test]
 fn claims_on_the_authors_metric_read_its_curves() {
-    // Issue 37, rows 9–11: the paper's numbers judged as the shipped code measures them. One run of ten
-    // episodes measuring the code's DoS and DoA; its summary holds their first and last 100 episodes and
-    // their start (the first 10), each the mean of metrics.csv's column (the start at single precision, as
-    // the figure data keeps curves), and the level is told apart from the code's own chance level.
+    // The authors' code's differences 9–11 (docs/src/results/authors-code.md): the paper's numbers judged
+    // as the shipped code measures them. One run of ten episodes measuring the code's DoS and DoA; its
+    // summary holds their first and last 100 episodes and their start (the first 10), each the mean of
+    // metrics.csv's column (the start at single precision, as the figure data keeps curves), and the level
+    // is told apart from the code's own chance level.
     let dir = workspace();
     let text = r#"(
     description: "the code's metric",

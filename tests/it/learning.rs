@@ -83,7 +83,7 @@ fn same_scene_and_seed_give_identical_metrics() {
 #[test]
 fn measuring_the_authors_metric_changes_nothing_the_training_does() {
     // `authors_metrics` adds columns to metrics.csv and nothing else: the same checkpoint to the byte,
-    // every other column to the byte (issue 37: a run that measures as the code does is the same run).
+    // every other column to the byte (a run that measures as the authors' code does is the same run).
     let dir = tempfile::tempdir().unwrap();
     let (plain, measured) = (dir.path().join("plain"), dir.path().join("measured"));
     train(tiny(3), &opts(&plain, false, None)).unwrap();

@@ -1,6 +1,6 @@
-//! The authors' DoS and DoA (issue 37, rows 9–11): measured on the states an episode decides on, 0…T−1,
-//! the spawn state included and the last state not, as `NJP_algorithm/main.py` stores them; logged beside
-//! the paper's, only when the scene asks.
+//! The authors' DoS and DoA (differences 9–11 of docs/src/results/authors-code.md): measured on the
+//! states an episode decides on, 0…T−1, the spawn state included and the last state not, as
+//! `NJP_algorithm/main.py` stores them; logged beside the paper's, only when the scene asks.
 
 use crate::common::scene;
 use coevo::run::schema;

@@ -20,9 +20,9 @@ fn standard() -> PathBuf {
 /// checkpoints, so a kill can fall between a snapshot and the checkpoint after it) and replay buffers that wrap (1 000
 /// transitions; prey store 1 800 per episode, predators 450, so the predators' buffer spans two
 /// checkpoints' segments), under either update schedule; with `authors`, every switch of the authors'
-/// code on (issue 37): the replay window keeps only the first rows of each block, so a resume must know
+/// code on: the replay window keeps only the first rows of each block, so a resume must know
 /// how many transitions were offered, not only how many were kept; with `league`, both species train
-/// against pools of past opponents (issue 38), so a resume must restore the pool from the snapshots and
+/// against pools of past opponents, so a resume must restore the pool from the snapshots and
 /// the draws and returns from the checkpoint.
 fn scene_text(per_step: bool, authors: bool) -> String {
     scene_of(per_step, authors, false)
@@ -36,7 +36,8 @@ fn scene_of(per_step: bool, authors: bool, league: bool) -> String {
     };
     let (world, switches) = if authors {
         (
-            // The code's observation too (issue 37, row 4), with the energy budget its input reads.
+            // The code's observation too (difference 4 of docs/src/results/authors-code.md), with the energy
+            // budget its input reads.
             r#"world: (spawn: AuthorsNoOverlap, energy_budget: true), observation_layout: Authors,"#,
             "replay_window: AuthorsFirstRows, stored_action: AuthorsRescaled, noise_draw: PerSpecies, batch_draw: WithoutReplacement,",
         )

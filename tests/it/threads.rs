@@ -59,7 +59,7 @@ fn one_two_and_three_threads_train_identical_networks_and_metrics() {
 
 #[test]
 fn a_league_trains_identically_on_one_and_two_threads() {
-    // Both species against pools of past opponents (issue 38), a snapshot every episode.
+    // Both species against pools of past opponents (experiments/league.ron), a snapshot every episode.
     let dir = tempfile::tempdir().unwrap();
     let league = SCENE.replace(
         "checkpoint_every: 2)",
