@@ -105,7 +105,10 @@ pub fn text(
         }
         let (r0, r1) = (window_mean(&d.returns, true), window_mean(&d.returns, false));
         let shared = csv_text(r.shared_from.as_deref().unwrap_or(""));
-        write!(line, ",{r0},{r1},{},{},{shared}", d.wall_seconds, csv_text(&d.binaries.join(" "))).unwrap();
+        for v in [r0, r1, d.wall_seconds] {
+            line.push_str(&field(v));
+        }
+        write!(line, ",{},{shared}", csv_text(&d.binaries.join(" "))).unwrap();
         for (_, q) in &curves {
             line.push_str(&field(quantity(exp, d, q)));
         }
@@ -231,14 +234,33 @@ impl Summary {
             return Err(format!("{}: no preset, variant and seed columns", path.display()).into());
         };
         let (binary, shared) = (at("binary"), at("shared_from"));
+        let words = [Some(preset), Some(variant), binary, shared];
         let mut rows = vec![];
-        for record in reader.records() {
+        for (k, record) in reader.records().enumerate() {
             let record = record.map_err(bad)?;
+            // A value is a finite number or blank (a run without it): a NaN or an infinity written into a
+            // summary would leave its run out of every estimate without a word.
+            let mut values = Vec::with_capacity(record.len());
+            for (i, cell) in record.iter().enumerate() {
+                values.push(match cell.parse::<f64>() {
+                    Ok(v) if !v.is_finite() && !words.contains(&Some(i)) => {
+                        return Err(format!(
+                            "{}: line {}, column {}: {cell:?} is not a finite number (a summary holds finite values, or a blank where a run has none)",
+                            path.display(),
+                            k + 2,
+                            columns.get(i).map_or("?", String::as_str)
+                        )
+                        .into())
+                    }
+                    Ok(v) => v,
+                    Err(_) => f64::NAN,
+                });
+            }
             rows.push(SummaryRow {
                 preset: record[preset].to_string(),
                 variant: record[variant].to_string(),
                 seed: record[seed].parse().map_err(|_| format!("{}: seed {:?}", path.display(), &record[seed]))?,
-                values: record.iter().map(|c| c.parse().unwrap_or(f64::NAN)).collect(),
+                values,
                 binary: binary.map_or("unknown", |b| &record[b]).to_string(),
                 shared_from: shared.map_or("", |c| &record[c]).to_string(),
             });
@@ -308,6 +330,22 @@ mod tests {
     use super::super::figure_data::FigureData;
     use super::super::file::Experiment;
     use std::collections::BTreeMap;
+
+    #[test]
+    fn a_non_finite_value_in_a_summary_is_an_error_naming_its_line_and_column() {
+        let path = std::path::Path::new("results/x/summary.csv");
+        let text = "preset,variant,seed,episodes,dos_last100,binary\npaper,a,1,2000,0.2,abc\npaper,a,2,2000,,abc\n";
+        assert!(super::Summary::parse(text, path).unwrap().rows[1].values[4].is_nan(), "a blank is a run without it");
+        for bad in ["NaN", "inf", "-inf"] {
+            let e = super::Summary::parse(&text.replacen("0.2", bad, 1), path).unwrap_err().to_string();
+            assert!(
+                e.starts_with("results/x/summary.csv: line 2, column dos_last100: ") && e.contains("not a finite"),
+                "{e}"
+            );
+        }
+        // Words are not numbers: a binary called "inf" is a name.
+        assert!(super::Summary::parse(&text.replace("abc", "inf"), path).is_ok());
+    }
 
     #[test]
     fn an_old_summary_gains_the_curve_columns_a_new_one_is_written_with() {
