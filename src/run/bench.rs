@@ -17,6 +17,10 @@ pub struct BenchArgs {
     /// Seconds per benchmark figure (--bench), in (0, 3600].
     #[arg(long, help_heading = "Modes", value_name = "SECONDS")]
     pub bench_seconds: Option<f64>,
+    /// Instead of the figures, time one short training with this binary and with BINARY (another coevo,
+    /// e.g. built from an earlier commit), paired and alternating, and print the CPU-time ratio (--bench)
+    #[arg(long, help_heading = "Modes", value_name = "BINARY")]
+    pub bench_against: Option<std::path::PathBuf>,
 }
 
 impl super::args::Mode for BenchArgs {
@@ -27,6 +31,12 @@ impl super::args::Mode for BenchArgs {
 impl BenchArgs {
     /// `--bench`: what ran the figures, then the environment, learning and external figures.
     pub fn main(&self) -> crate::error::Result<()> {
+        if let Some(other) = &self.bench_against {
+            if self.bench_seconds.is_some() {
+                return Err("--bench-seconds: not used by --bench-against (it times whole trainings)".into());
+            }
+            return super::bench_against::main(other);
+        }
         let seconds = self.bench_seconds.unwrap_or(2.0);
         if !(seconds > 0.0 && seconds <= 3600.0) {
             return Err(format!("--bench-seconds: must be a number of seconds in (0, 3600] (got {seconds})").into());

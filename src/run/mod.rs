@@ -7,6 +7,7 @@
 pub mod animate;
 pub mod args;
 pub mod bench;
+pub mod bench_against;
 pub mod deploy;
 pub mod env;
 pub mod evaluate;

@@ -530,6 +530,12 @@ fn cases() -> Vec<(Vec<&'static str>, &'static str)> {
             vec!["--experiment", "experiments/fine.ron", "--task", "0", "--emit-slurm"],
             "--task: not used by --emit-slurm",
         ),
+        (vec!["--bench", "--bench-against", "no-such-binary"], "--bench-against no-such-binary: No such file"),
+        (vec!["--bench", "--bench-against", "scenes"], "--bench-against scenes: not a file"),
+        (
+            vec!["--bench", "--bench-against", "no-such-binary", "--bench-seconds", "1"],
+            "--bench-seconds: not used by --bench-against",
+        ),
         (
             vec!["--plot", "results/fine"],
             "--plot results/fine: no finished run of experiments/fine.ron there, and no figure-data.ron.gz; nothing written",
