@@ -247,9 +247,13 @@ impl AtomicFile {
         drop(out);
         let _writing = Writing::begin();
         let renamed = match self.existing {
-            Existing::Replace => {
-                check_target(&self.target, Existing::Replace).and_then(|()| std::fs::rename(&self.tmp, &self.target))
-            }
+            // A replaced file keeps its permissions (a user's 0600 record stays private).
+            Existing::Replace => check_target(&self.target, Existing::Replace)
+                .and_then(|()| match std::fs::metadata(&self.target) {
+                    Ok(old) => std::fs::set_permissions(&self.tmp, old.permissions()),
+                    Err(_) => Ok(()),
+                })
+                .and_then(|()| std::fs::rename(&self.tmp, &self.target)),
             Existing::Refuse => rename_new(&self.tmp, &self.target),
         };
         if renamed.is_err() {

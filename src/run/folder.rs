@@ -55,6 +55,14 @@ const RUN_FILES: [&str; 4] = [SCENE, PROVENANCE, METRICS, EVAL];
 /// The folders of networks coevo writes in a run folder (safetensors and its state file only).
 const CHECKPOINT_DIRS: [&str; 4] = [CHECKPOINT, CHECKPOINT_TMP, CHECKPOINT_OLD, SNAPSHOTS];
 
+/// Whether a file of a run folder is one of the outputs coevo writes there besides the run's own files:
+/// evaluations under coevo's names (`eval.csv`, `eval-<name>.csv` and the files beside them) and
+/// cross-play (`crossplay*.csv`).
+fn outputs_of_the_run(name: &str) -> bool {
+    let stem = name.strip_suffix(".csv").unwrap_or("");
+    !stem.is_empty() && (stem == "eval" || stem.starts_with("eval-") || stem.starts_with(CROSSPLAY))
+}
+
 pub(super) fn io_err(path: &Path) -> impl Fn(std::io::Error) -> String + '_ {
     move |e| format!("{}: {e}", path.display())
 }
@@ -268,6 +276,36 @@ impl RunDir {
                 )
                 .into());
             }
+            // Outputs of the run being replaced: coevo's own (evaluations, cross-play, figures) go with it;
+            // a CSV of another name may be an evaluation saved under a name of the user's, which would
+            // describe a run that no longer exists, so it must be moved first.
+            for entry in std::fs::read_dir(&self.path).map_err(io_err(&self.path))? {
+                let entry = entry.map_err(io_err(&self.path))?;
+                let name = entry.file_name().to_string_lossy().into_owned();
+                if name.ends_with(".csv") && !RUN_FILES.contains(&name.as_str()) && !outputs_of_the_run(&name) {
+                    return Err(format!(
+                        "{}: may be an evaluation of the run --overwrite replaces (coevo cannot tell); move it first",
+                        entry.path().display()
+                    )
+                    .into());
+                }
+            }
+            let figures = self.path.join(FIGURES);
+            if figures.is_dir() {
+                for entry in std::fs::read_dir(&figures).map_err(io_err(&figures))? {
+                    let entry = entry.map_err(io_err(&figures))?;
+                    let name = entry.file_name().to_string_lossy().into_owned();
+                    if !(entry.file_type().is_ok_and(|t| t.is_file())
+                        && (name.ends_with(".svg") || name.ends_with(".png")))
+                    {
+                        return Err(format!(
+                            "{}: not a figure coevo drew; --overwrite removes only coevo's files, so move it first",
+                            entry.path().display()
+                        )
+                        .into());
+                    }
+                }
+            }
             for dir in CHECKPOINT_DIRS.iter().map(|d| self.path.join(d)).filter(|d| d.exists()) {
                 for entry in std::fs::read_dir(&dir).map_err(io_err(&dir))? {
                     let entry = entry.map_err(io_err(&dir))?;
@@ -298,6 +336,18 @@ impl RunDir {
         }
         for file in RUN_FILES.iter().map(|f| self.path.join(f)).filter(|f| f.exists()) {
             std::fs::remove_file(&file).map_err(io_err(&file))?;
+        }
+        // The old run's evaluations, cross-play and figures: they describe a run that is gone.
+        for entry in std::fs::read_dir(&self.path).map_err(io_err(&self.path))? {
+            let path = entry.map_err(io_err(&self.path))?.path();
+            let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+            if outputs_of_the_run(&name) {
+                std::fs::remove_file(&path).map_err(io_err(&path))?;
+            }
+        }
+        let figures = self.path.join(FIGURES);
+        if figures.is_dir() {
+            std::fs::remove_dir_all(&figures).map_err(io_err(&figures))?;
         }
         Ok(())
     }

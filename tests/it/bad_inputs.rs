@@ -575,13 +575,32 @@ fn what_may_be_written_is_written_and_nothing_else() {
     std::fs::write(root.join("bom.ron"), "\u{feff}(seed: 4)").unwrap();
     let out = coevo(&["--record", "bom.csv", "--scene", "bom.ron", "--steps", "3"]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    // --overwrite replaces a run's own files and keeps a user's file inside the run folder.
+    // A file replaced with --overwrite keeps its permissions (it was widened to 0644).
+    use std::os::unix::fs::PermissionsExt;
+    std::fs::set_permissions(root.join("bom.csv"), std::fs::Permissions::from_mode(0o600)).unwrap();
+    let out = coevo(&["--record", "bom.csv", "--scene", "bom.ron", "--steps", "4", "--overwrite"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert_eq!(std::fs::metadata(root.join("bom.csv")).unwrap().permissions().mode() & 0o777, 0o600);
+    // --overwrite replaces a run's own files and its outputs (evaluations, cross-play, figures: they
+    // described the run replaced), and keeps a user's file inside the run folder.
     std::fs::write(root.join("run/my-notes.txt"), "keep").unwrap();
+    for old in ["eval.csv", "eval-50-prey.csv", "eval-50-prey-confusion.csv", "crossplay.csv", "figures/x.svg"] {
+        std::fs::create_dir_all(root.join("run/figures")).unwrap();
+        std::fs::write(root.join("run").join(old), "old").unwrap();
+    }
     let first = std::fs::read(root.join("run/metrics.csv")).unwrap();
     let out = coevo(&["--train", "--out", "run", "--overwrite", "--episodes", "1", "--quiet", "--seed", "9"]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     assert_eq!(std::fs::read_to_string(root.join("run/my-notes.txt")).unwrap(), "keep");
     assert_ne!(std::fs::read(root.join("run/metrics.csv")).unwrap(), first, "the run was replaced");
+    for old in ["eval.csv", "eval-50-prey.csv", "eval-50-prey-confusion.csv", "crossplay.csv", "figures"] {
+        assert!(!root.join("run").join(old).exists(), "{old} of the replaced run is still there");
+    }
+    // A CSV coevo cannot tell from an evaluation saved under the user's name stops --overwrite.
+    std::fs::write(root.join("run/mine.csv"), "x").unwrap();
+    let out = coevo(&["--train", "--out", "run", "--overwrite", "--episodes", "1", "--quiet"]);
+    assert!(String::from_utf8_lossy(&out.stderr).contains("run/mine.csv: may be an evaluation"), "{out:?}");
+    std::fs::remove_file(root.join("run/mine.csv")).unwrap();
     // A file the user put into a checkpoint folder stops --overwrite.
     std::fs::write(root.join("run/checkpoint/mine.txt"), "x").unwrap();
     let out = coevo(&["--train", "--out", "run", "--overwrite", "--episodes", "1", "--quiet"]);
