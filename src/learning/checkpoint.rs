@@ -123,7 +123,10 @@ pub fn load_actor(run: &Path, species: &str, like: &Mlp) -> crate::error::Result
         let dir = checkpoint_dir(run);
         let path = dir.join(actor_name(species));
         let manifest = run_manifest(&dir)?;
-        let bytes = read_as(&path, &Expected { species, roles: &["actor"], scene: None })?;
+        // The scene the manifest names is the one the actor's metadata names (as `load` checks): an
+        // edited manifest is refused, not trusted.
+        let scene = manifest.as_ref().map(|m| m.scene.as_str());
+        let bytes = read_as(&path, &Expected { species, roles: &["actor"], scene })?;
         let net = mlp_from(&path, &bytes, like)?;
         sealed(&path, &bytes, manifest.as_ref().map(|m| &m.files))?;
         Ok(net)

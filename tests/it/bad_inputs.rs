@@ -171,6 +171,11 @@ fn damage(root: &Path) {
     std::fs::write(&metrics, text.replacen("\n0,10,", "\n0,11,", 1)).unwrap();
     // The manifest removed.
     std::fs::remove_file(copy("run", "unsealed-run").join("checkpoint/manifest.ron")).unwrap();
+    // The manifest's scene edited (its files' hashes left as they are).
+    let manifest = copy("run", "rescened-run").join("checkpoint/manifest.ron");
+    let text = std::fs::read_to_string(&manifest).unwrap();
+    let id = text.split("scene: \"").nth(1).unwrap().split('"').next().unwrap().to_string();
+    std::fs::write(&manifest, text.replacen(&id, "0123456789abcdef", 1)).unwrap();
     // A snapshot copied in from a run of another scene (another seed).
     let run = copy("run2", "foreign-snapshot-run");
     std::fs::copy(
@@ -468,6 +473,7 @@ fn cases() -> Vec<(Vec<&'static str>, &'static str)> {
             "edited-row-run/metrics.csv: its rows up to the checkpoint differ from what was trained",
         ),
         (vec!["--eval", "unsealed-run", "--steps", "3"], "unsealed-run/checkpoint/manifest.ron: missing"),
+        (vec!["--eval", "rescened-run", "--steps", "3"], "than the run's (scene 0123456789abcdef)"),
         (
             vec!["--crossplay", "foreign-snapshot-run", "--episodes", "1", "--steps", "3"],
             "snapshots/prey-ep00001.safetensors: trained on another scene",
