@@ -527,6 +527,25 @@ pub struct RunLock {
     path: PathBuf,
 }
 
+impl RunLock {
+    /// Whether the run folder is still the one this lock was taken in: its lock file there, holding this
+    /// process's PID. A folder removed (or replaced) under a training would otherwise be recreated with
+    /// only what is written after, a folder that is no run.
+    pub fn held(&self) -> crate::error::Result<()> {
+        let ours = std::fs::read_to_string(&self.path).ok().is_some_and(|t| t.trim() == std::process::id().to_string());
+        if ours {
+            return Ok(());
+        }
+        let run = self.path.parent().unwrap_or(Path::new("."));
+        Err(crate::error::Error::from(format!(
+            "{}: removed or replaced while this process was writing it (its lock {} is gone); stopped, nothing more written",
+            run.display(),
+            self.path.display()
+        ))
+        .of_kind(Kind::RunFolder))
+    }
+}
+
 impl Drop for RunLock {
     fn drop(&mut self) {
         let _writing = crate::io::Writing::begin();

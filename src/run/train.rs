@@ -222,7 +222,7 @@ pub fn train(scene: Scene, opts: &TrainOptions) -> crate::error::Result<usize> {
     if lock.is_none() {
         lock = Some(dir.lock()?);
     }
-    let _lock = lock;
+    let lock = lock.expect("taken above");
     let registry = sim.world().resource::<SpeciesRegistry>().clone();
     let names: Vec<String> = registry.defs.iter().map(|d| d.name.clone()).collect();
     let metrics_path = dir.metrics();
@@ -285,10 +285,12 @@ pub fn train(scene: Scene, opts: &TrainOptions) -> crate::error::Result<usize> {
     // killed in between writes the same bytes again when it replays those episodes.
     let snapshot_every = scene.learning.snapshot_every;
     let snapshot = |sim: &Simulation, episode: usize| -> crate::error::Result<()> {
+        lock.held()?;
         let learners = sim.world().resource::<Learners>();
         for (l, name) in learners.species.iter().zip(&names) {
             if let Some(l) = l.as_ref().filter(|l| !l.frozen) {
-                crate::learning::snapshots::save_snapshot(run, &scene, name, episode, &l.ddpg.actor)?;
+                crate::learning::snapshots::save_snapshot(run, &scene, name, episode, &l.ddpg.actor)
+                    .map_err(|e| lock.held().err().unwrap_or(e))?;
             }
         }
         Ok(())
@@ -308,7 +310,10 @@ pub fn train(scene: Scene, opts: &TrainOptions) -> crate::error::Result<usize> {
     let save = |sim: &Simulation,
                 learners_override: Option<&Vec<Option<crate::learning::SpeciesLearner>>>,
                 metrics: &Hashing<std::io::Sink>| {
+        lock.held()?;
+        // A folder removed during the save fails it: said as the removal it is.
         save_checkpoint(run, sim.world(), &scene, learners_override, metrics.digest())
+            .map_err(|e| lock.held().err().unwrap_or(e))
     };
     while sim.episode().index < total {
         sim.step();

@@ -773,3 +773,35 @@ fn arguments_environment_and_resource_limits_end_in_one_line_and_leave_nothing()
     limited("--train --out limited --episodes 1 --quiet", "limited/checkpoint");
     limited("--record big.csv --steps 3000", "big.csv");
 }
+
+#[test]
+fn a_run_folder_removed_while_training_stops_the_training_and_is_not_recreated() {
+    let dir = tempfile::tempdir().unwrap();
+    let root = dir.path();
+    std::fs::write(
+        root.join("small.ron"),
+        "(preset: \"paper\", episode_steps: 20, episodes: 100000, learning: (hidden: 8, batch_size: 16, warmup_transitions: 16, updates_per_episode: 1, checkpoint_every: 1))",
+    )
+    .unwrap();
+    let child = Command::new(env!("CARGO_BIN_EXE_coevo"))
+        .args(["--train", "--scene", "small.ron", "--out", "run", "--quiet"])
+        .current_dir(root)
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let start = std::time::Instant::now();
+    while !root.join("run/checkpoint/state.ron").exists() {
+        assert!(start.elapsed().as_secs() < 120, "no checkpoint in 2 minutes");
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    std::fs::remove_dir_all(root.join("run")).unwrap_or_else(|_| {
+        // Removed mid-swap of a checkpoint: try again.
+        std::thread::sleep(std::time::Duration::from_millis(50));
+        std::fs::remove_dir_all(root.join("run")).unwrap();
+    });
+    let out = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && stderr.lines().count() == 1, "{stderr}");
+    assert!(stderr.contains("run: removed or replaced while this process was writing it"), "{stderr}");
+    assert!(!root.join("run").exists(), "the folder was recreated");
+}
