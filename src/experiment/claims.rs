@@ -200,16 +200,21 @@ pub fn curve_argument_error(q: &Quantity) -> Option<String> {
 /// The episode (from 1) at which the 100-episode running mean of `series` first completes 90 % of its
 /// change from the first 100 episodes to the last 100; NaN when there is no change to complete.
 pub fn reach90(series: &[f64]) -> f64 {
-    let (start, end) = (window_mean(series, true), window_mean(series, false));
+    first_completing(series, (window_mean(series, true), window_mean(series, false)), 0.9, WINDOW)
+}
+
+/// The episode (from 1) at which the `window`-episode running mean of `series`, from its first whole
+/// window on, first completes `fraction` of the change from `start` to `end`; NaN when there is none.
+fn first_completing(series: &[f64], (start, end): (f64, f64), fraction: f64, window: usize) -> f64 {
     if !(start.is_finite() && end.is_finite()) || start == end {
         return f64::NAN;
     }
-    let target = start + 0.9 * (end - start);
-    let running = super::stats::running_mean(series, WINDOW);
+    let target = start + fraction * (end - start);
+    let running = super::stats::running_mean(series, window);
     running
         .iter()
         .enumerate()
-        .skip(WINDOW.min(series.len()) - 1)
+        .skip(window.min(series.len()).saturating_sub(1))
         // A running sum carries rounding: within 1e-9 of the change counts as reached.
         .find(|(_, m)| (**m - target) * (end - start).signum() >= -1e-9 * (end - start).abs())
         .map_or(f64::NAN, |(t, _)| (t + 1) as f64)
@@ -232,19 +237,7 @@ fn halfway(series: &[f64]) -> f64 {
         return f64::NAN;
     }
     let start = super::stats::mean(&series[..START].iter().copied().filter(|x| x.is_finite()).collect::<Vec<_>>());
-    let (Some(start), end) = (start, window_mean(series, false)) else { return f64::NAN };
-    if !end.is_finite() || start == end {
-        return f64::NAN;
-    }
-    let target = start + 0.5 * (end - start);
-    let running = super::stats::running_mean(series, HALFWAY_WINDOW);
-    running
-        .iter()
-        .enumerate()
-        .skip(HALFWAY_WINDOW - 1)
-        // A running sum carries rounding: within 1e-9 of the change counts as reached.
-        .find(|(_, m)| (**m - target) * (end - start).signum() >= -1e-9 * (end - start).abs())
-        .map_or(f64::NAN, |(t, _)| (t + 1) as f64)
+    first_completing(series, (start.unwrap_or(f64::NAN), window_mean(series, false)), 0.5, HALFWAY_WINDOW)
 }
 
 /// The per-episode training series a curve quantity reads: `dos`, `doa` or `catches`.
