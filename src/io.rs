@@ -401,6 +401,15 @@ fn read_text_unnamed(path: &Path, limit: u64) -> crate::error::Result<String> {
     Ok(text.strip_prefix('\u{feff}').map(str::to_string).unwrap_or(text))
 }
 
+/// A size in bytes as a reader takes it in: GB, MB or kB, so no figure prints as "0.0 GB".
+pub fn bytes_shown(bytes: f64) -> String {
+    match bytes {
+        b if b >= 1e9 => format!("{:.1} GB", b / 1e9),
+        b if b >= 1e6 => format!("{:.1} MB", b / 1e6),
+        b => format!("{:.0} kB", (b / 1e3).ceil()),
+    }
+}
+
 /// The memory coevo may use, in bytes: the least of what the machine has free (`MemAvailable`), the
 /// limit of its cgroup (v2 `memory.max`, v1 `memory.limit_in_bytes`) and the address space left under
 /// `ulimit -v` (`RLIMIT_AS` minus what the process already maps), or 1 TB where none can be read. Sizes

@@ -318,6 +318,17 @@ impl VecEnv {
         if worlds == 0 {
             return Err("num_envs: must be ≥ 1").kind(Kind::Input);
         }
+        // All the worlds are bounded before the first is built: built one by one, each would be checked
+        // against what the ones before it had left, and the refusal would come late and name no figure.
+        let (limit, one) = (crate::io::memory_bytes(), scene.agent_bytes());
+        if one * worlds as f64 > limit {
+            return Err(format!(
+                "num_envs: {worlds} worlds of this scene would need about {}, more than the {} of memory coevo may use here (the least of free memory, the cgroup limit and ulimit -v)",
+                crate::io::bytes_shown(one * worlds as f64),
+                crate::io::bytes_shown(limit)
+            ))
+            .kind(Kind::Input);
+        }
         let envs = (0..worlds as u64)
             .map(|i| {
                 let mut s = scene.clone();

@@ -280,8 +280,19 @@ impl Scene {
         self.species.iter().map(|s| s.count).sum()
     }
 
+    /// The bytes one world of this scene holds for its agents, without networks or replay buffers (an
+    /// environment stepped from outside, `run::env`, has neither): observations, the copy paired with the
+    /// next step's, and an inference chunk's; ~512 B of components and perception arrays per agent.
+    pub fn agent_bytes(&self) -> f64 {
+        (0..self.species.len()).map(|s| self.species_agent_bytes(s)).sum()
+    }
+
+    fn species_agent_bytes(&self, s: usize) -> f64 {
+        self.species[s].count as f64 * (3.0 * self.observation_dim(s) as f64 * 4.0 + 512.0)
+    }
+
     pub fn check_memory(&self, limit: f64) -> crate::error::Result<()> {
-        let gb = |b: f64| format!("{:.1} GB", b / 1e9);
+        let gb = crate::io::bytes_shown;
         let refuse = |field: String, what: String, bytes: f64| {
             Err(Error::field(field, format!("{what} would need {}, more than the {} of memory coevo may use here (the least of free memory, the cgroup limit and ulimit -v)", gb(bytes), gb(limit))))
         };
@@ -289,9 +300,7 @@ impl Scene {
         for (s, def) in self.species.iter().enumerate() {
             let n = def.count as f64;
             let d = self.observation_dim(s) as f64;
-            // Observations, the copy paired with the next step's, and an inference chunk's; ~512 B of
-            // components and perception arrays per agent.
-            let agents = n * (3.0 * d * 4.0 + 512.0);
+            let agents = self.species_agent_bytes(s);
             if agents > limit {
                 let what = format!("{} agents with observations of {d} numbers (count, topological_limit)", def.count);
                 return refuse(format!("species[{}]", def.name), what, agents);

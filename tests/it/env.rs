@@ -170,3 +170,17 @@ fn every_observation_lies_within_the_declared_bounds() {
         assert!(seen > 0.5, "{file}: the largest value reaches {seen} of its bound");
     }
 }
+
+#[test]
+fn too_many_worlds_are_refused_up_front_with_the_figure() {
+    let scene = coevo::scene::Scene::load(std::path::Path::new("scenes/paper.ron")).unwrap();
+    let start = std::time::Instant::now();
+    let e = coevo::run::env::VecEnv::new(scene, 100_000_000, 0).err().expect("refused").to_string();
+    assert!(e.starts_with("num_envs: 100000000 worlds of this scene would need about "), "{e}");
+    assert!(!e.contains(" 0.0 GB"), "{e}");
+    assert!(start.elapsed().as_secs() < 5, "refused before building the worlds");
+    assert_eq!(
+        [coevo::io::bytes_shown(2.5e9), coevo::io::bytes_shown(3.2e6), coevo::io::bytes_shown(1.0)],
+        ["2.5 GB", "3.2 MB", "1 kB"]
+    );
+}
