@@ -367,13 +367,29 @@ fn estimate_dict(py: Python<'_>, e: Option<Estimate>) -> PyResult<Option<Py<PyDi
 /// without samples.
 #[pyfunction]
 fn t_estimate(py: Python<'_>, samples: Vec<f64>) -> PyResult<Option<Py<PyDict>>> {
+    finite("samples", &samples)?;
     estimate_dict(py, stats::estimate(&samples))
+}
+
+/// A sample with a NaN or an infinity is an `InputError` naming it, before any statistic is computed
+/// (a non-finite value made the t distribution panic inside statrs).
+fn finite(name: &str, samples: &[f64]) -> PyResult<()> {
+    match samples.iter().position(|x| !x.is_finite()) {
+        Some(i) => Err(err(coevo::error::Error::from(format!(
+            "{name}[{i}] is {}: the statistics take finite values only",
+            samples[i]
+        ))
+        .of_kind(coevo::error::Kind::Input))),
+        None => Ok(()),
+    }
 }
 
 /// Mean of `a` minus mean of `b` with Welch's 95 % interval and test, degrees of freedom rounded down, as
 /// coevo's reports compute it (`coevo::experiment::stats::difference`); None without samples.
 #[pyfunction]
 fn welch(py: Python<'_>, a: Vec<f64>, b: Vec<f64>) -> PyResult<Option<Py<PyDict>>> {
+    finite("a", &a)?;
+    finite("b", &b)?;
     estimate_dict(py, stats::difference(&a, &b))
 }
 

@@ -295,6 +295,13 @@ def test_statistics_are_coevos():
     assert w["df"] == 4.0  # Welch–Satterthwaite 4.35, rounded down
     assert coevo.t_estimate([5.0])["ci"] is None
     assert coevo.t_estimate([]) is None
+    # A NaN or an infinity is an InputError naming it (it made statrs panic: a PanicException that
+    # `except coevo.CoevoError` did not catch).
+    for bad in (float("nan"), float("inf"), -float("inf")):
+        with pytest.raises(coevo.InputError, match=r"samples\[1\] is"):
+            coevo.t_estimate([1.0, bad, 3.0])
+        with pytest.raises(coevo.CoevoError, match=r"b\[0\] is"):
+            coevo.welch([1.0, 2.0], [bad, 2.0])
 
 
 def test_curves_made_elsewhere_are_judged_as_coevos_reports_judge_two_variants():
