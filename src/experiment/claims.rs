@@ -236,8 +236,17 @@ fn halfway(series: &[f64]) -> f64 {
     if series.len() < WINDOW {
         return f64::NAN;
     }
-    let start = super::stats::mean(&series[..START].iter().copied().filter(|x| x.is_finite()).collect::<Vec<_>>());
-    first_completing(series, (start.unwrap_or(f64::NAN), window_mean(series, false)), 0.5, HALFWAY_WINDOW)
+    first_completing(series, (start(series), window_mean(series, false)), 0.5, HALFWAY_WINDOW)
+}
+
+/// [`Quantity::Start`] of a per-episode `series`: the mean of its first [`START`] finite values; NaN
+/// when it is shorter.
+fn start(series: &[f64]) -> f64 {
+    if series.len() < START {
+        return f64::NAN;
+    }
+    super::stats::mean(&series[..START].iter().copied().filter(|x| x.is_finite()).collect::<Vec<_>>())
+        .unwrap_or(f64::NAN)
 }
 
 /// The per-episode training series a curve quantity reads: `dos`, `doa` or `catches`.
@@ -259,7 +268,7 @@ pub fn curve_shape(q: &Quantity, series: &[f64]) -> f64 {
     let mean = |v: &mut dyn Iterator<Item = f64>| super::stats::mean(&v.filter(|x| x.is_finite()).collect::<Vec<_>>());
     match q {
         Quantity::Halfway(_) => halfway(series),
-        Quantity::Start(_) if series.len() >= START => mean(&mut series[..START].iter().copied()).unwrap_or(f64::NAN),
+        Quantity::Start(_) => start(series),
         Quantity::Extreme(o) | Quantity::ExtremeEpisode(o) | Quantity::AfterExtreme(o)
             if series.len() >= 2 * WINDOW =>
         {

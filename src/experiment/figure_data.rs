@@ -234,26 +234,27 @@ pub fn write(exp: &Experiment, data: &BTreeMap<usize, FigureData>) -> crate::err
     )
 }
 
-/// Reads an experiment's committed figure data, by run index: None without the file; an error when it
-/// cannot be read or lacks one of `runs` (indices into the experiment's runs).
-/// Whether the experiment has its figure data: a regular file there; an error where something else is
-/// (a folder, a FIFO, which opening would wait on forever).
-pub fn present(exp: &Experiment) -> crate::error::Result<bool> {
+/// The experiment's figure data opened for reading: None without the file; an error where something
+/// else is there (a folder, a FIFO, which opening would wait on forever) or it cannot be opened.
+fn open(exp: &Experiment) -> crate::error::Result<Option<std::fs::File>> {
     let path = path(exp);
     match crate::io::open_input(&path) {
-        Ok(_) => Ok(true),
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(false),
+        Ok(file) => Ok(Some(file)),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(None),
         Err(e) => Err(format!("{}: {e}", path.display()).into()),
     }
 }
 
+/// Whether the experiment has its figure data ([`open`]'s checks).
+pub fn present(exp: &Experiment) -> crate::error::Result<bool> {
+    Ok(open(exp)?.is_some())
+}
+
+/// Reads an experiment's committed figure data, by run index: None without the file; an error when it
+/// cannot be read or lacks one of `runs` (indices into the experiment's runs).
 pub fn read(exp: &Experiment, runs: &[usize]) -> crate::error::Result<Option<BTreeMap<usize, FigureData>>> {
     let path = path(exp);
-    let file = match crate::io::open_input(&path) {
-        Ok(file) => file,
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
-        Err(e) => return Err(format!("{}: {e}", path.display()).into()),
-    };
+    let Some(file) = open(exp)? else { return Ok(None) };
     let mut text = String::new();
     flate2::read::GzDecoder::new(file)
         .take(crate::io::MAX_TEXT_BYTES * 8)

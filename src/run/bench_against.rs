@@ -8,7 +8,7 @@
 //! binary trains what this one trains, to the bit. A benchmark, never a test: timings depend on the
 //! machine and what else it runs.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Stdio};
 
 /// Episodes of each timed training: long enough to include two checkpoints of full replay buffers (the
@@ -71,7 +71,7 @@ fn pairs(this: &Path, other: &Path, scratch: &Path) -> crate::error::Result<(Vec
 }
 
 /// The CPU seconds (user + system) of one training by `exe` into `out` (replaced).
-fn timed_training(exe: &Path, out: &PathBuf) -> crate::error::Result<f64> {
+fn timed_training(exe: &Path, out: &Path) -> crate::error::Result<f64> {
     let _ = std::fs::remove_dir_all(out);
     std::fs::create_dir_all(out.parent().unwrap_or(Path::new("."))).map_err(|e| format!("{}: {e}", out.display()))?;
     let before = children_cpu();

@@ -59,8 +59,8 @@ const CHECKPOINT_DIRS: [&str; 4] = [CHECKPOINT, CHECKPOINT_TMP, CHECKPOINT_OLD, 
 /// evaluations under coevo's names (`eval.csv`, `eval-<name>.csv` and the files beside them) and
 /// cross-play (`crossplay*.csv`).
 fn outputs_of_the_run(name: &str) -> bool {
-    let stem = name.strip_suffix(".csv").unwrap_or("");
-    !stem.is_empty() && (stem == "eval" || stem.starts_with("eval-") || stem.starts_with(CROSSPLAY))
+    let (Some(stem), Some(eval)) = (name.strip_suffix(".csv"), EVAL.strip_suffix(".csv")) else { return false };
+    stem == eval || stem.strip_prefix(eval).is_some_and(|rest| rest.starts_with('-')) || stem.starts_with(CROSSPLAY)
 }
 
 pub(super) fn io_err(path: &Path) -> impl Fn(std::io::Error) -> String + '_ {
