@@ -31,6 +31,11 @@ pub fn aggregate(
     } else {
         Summary::read(&exp.root.join("summary.csv"))?.unwrap_or_default()
     };
+    if written {
+        // An experiment whose runs are all shared from others (`shared_from`) has trained nothing into
+        // its own folder: its results are the first thing there.
+        crate::io::own_dir(&exp.root)?;
+    }
     let drawn = figures::data(exp, data, carried.figures, &table, written)?;
     // No interim analysis: an experiment judged when complete shows no number or figure of its runs
     // until then (so no folder for figures either).

@@ -98,7 +98,8 @@ pub(super) fn primitive(d: &RunData, q: &Quantity) -> f64 {
         | Quantity::Extreme(o)
         | Quantity::ExtremeEpisode(o)
         | Quantity::AfterExtreme(o)
-        | Quantity::Halfway(o) => {
+        | Quantity::Halfway(o)
+        | Quantity::Reaches(o, _) => {
             let series = match o.as_str() {
                 "dos" => &d.dos,
                 "doa" => &d.doa,
@@ -134,6 +135,7 @@ pub fn column(q: &Quantity) -> Option<String> {
         Quantity::ExtremeEpisode(o) => format!("{o}_{}_episode", extreme_word(o)),
         Quantity::AfterExtreme(o) => format!("{o}_after_{}", extreme_word(o)),
         Quantity::Halfway(o) => format!("{o}_halfway"),
+        Quantity::Reaches(o, level) => format!("{o}_reaches_{level}"),
         Quantity::EvalDos(e) => format!("eval_{}_dos_settled", super::file::slug(e)),
         Quantity::EvalDoa(e) => format!("eval_{}_doa_settled", super::file::slug(e)),
         Quantity::EvalOrder(e, o) => format!("eval_{}_{o}", super::file::slug(e)),
@@ -193,6 +195,12 @@ pub fn curve_argument_error(q: &Quantity) -> Option<String> {
         }
         Quantity::Reach90(c) if c != "dos" && c != "doa" => Some(format!("Reach90 takes \"dos\" or \"doa\" (got {c:?})")),
         Quantity::Halfway(c) if c != "dos" && c != "doa" => Some(format!("Halfway takes \"dos\" or \"doa\" (got {c:?})")),
+        Quantity::Reaches(c, _) if c != "dos" && c != "doa" => {
+            Some(format!("Reaches takes \"dos\" or \"doa\" and a level (got {c:?})"))
+        }
+        Quantity::Reaches(_, level) if !(level.is_finite() && *level > 0.0 && *level <= 1.0) => {
+            Some(format!("Reaches takes a level in (0, 1], as DoS and DoA are (got {level})"))
+        }
         _ => None,
     }
 }
@@ -239,6 +247,25 @@ fn halfway(series: &[f64]) -> f64 {
     first_completing(series, (start(series), window_mean(series, false)), 0.5, HALFWAY_WINDOW)
 }
 
+/// [`Quantity::Reaches`] of a per-episode `series`: the episode (from 1) at which its
+/// [`HALFWAY_WINDOW`]-episode running mean, from its first whole window on, first gets to `level` (to it
+/// or below when `falling`, to it or above otherwise); the series' length + 1 when it never does; NaN when
+/// the run is shorter than one window.
+fn reaches(series: &[f64], level: f64, falling: bool) -> f64 {
+    if series.len() < HALFWAY_WINDOW {
+        return f64::NAN;
+    }
+    let running = super::stats::running_mean(series, HALFWAY_WINDOW);
+    let sign = if falling { -1.0 } else { 1.0 };
+    running
+        .iter()
+        .enumerate()
+        .skip(HALFWAY_WINDOW - 1)
+        // A running sum carries rounding: within 1e-9 of the level counts as there.
+        .find(|(_, m)| (**m - level) * sign >= -1e-9)
+        .map_or((series.len() + 1) as f64, |(t, _)| (t + 1) as f64)
+}
+
 /// [`Quantity::Start`] of a per-episode `series`: the mean of its first [`START`] finite values; NaN
 /// when it is shorter.
 fn start(series: &[f64]) -> f64 {
@@ -268,6 +295,7 @@ pub fn curve_shape(q: &Quantity, series: &[f64]) -> f64 {
     let mean = |v: &mut dyn Iterator<Item = f64>| super::stats::mean(&v.filter(|x| x.is_finite()).collect::<Vec<_>>());
     match q {
         Quantity::Halfway(_) => halfway(series),
+        Quantity::Reaches(o, level) => reaches(series, *level, o == "dos"),
         Quantity::Start(_) => start(series),
         Quantity::Extreme(o) | Quantity::ExtremeEpisode(o) | Quantity::AfterExtreme(o)
             if series.len() >= 2 * WINDOW =>
@@ -389,6 +417,7 @@ pub fn compares_windows(q: &Quantity) -> bool {
             | Quantity::CatchesChange
             | Quantity::Reach90(_)
             | Quantity::Halfway(_)
+            | Quantity::Reaches(..)
             | Quantity::FromStart(_)
             | Quantity::Extreme(_)
             | Quantity::ExtremeEpisode(_)
@@ -636,6 +665,10 @@ pub fn quantity_name(q: &Quantity) -> String {
         Quantity::Reach90(q) => format!("episode at which {q}'s running mean completes 90 % of its change"),
         Quantity::Halfway(q) => format!(
             "episode at which {q}'s {HALFWAY_WINDOW}-episode running mean completes half its change from the first {START} episodes"
+        ),
+        Quantity::Reaches(q, level) => format!(
+            "episode at which {q}'s {HALFWAY_WINDOW}-episode running mean first {} {level} (after the run when never)",
+            if q == "dos" { "falls to" } else { "rises to" }
         ),
         Quantity::Start(q) => format!("{q}, first {START} episodes (the untrained start)"),
         Quantity::FromStart(q) => format!("{q}, last 100 episodes minus the first {START}"),
@@ -959,6 +992,34 @@ pub(crate) mod tests {
         assert!(halfway(&step[..99]).is_nan(), "shorter than the last window");
         let bad = curve_argument_error(&Quantity::Halfway("catches".into())).unwrap();
         assert!(bad.contains("Halfway takes \"dos\" or \"doa\""), "{bad}");
+    }
+
+    #[test]
+    fn the_episode_a_curve_gets_to_a_common_level() {
+        let reaches =
+            |curve: &str, level: f64, series: &[f64]| curve_shape(&Quantity::Reaches(curve.into(), level), series);
+        // DoA 0 for 60 episodes, then 1: the 20-episode running mean at episode t (from 1) is (t − 60)/20
+        // past 60, so it rises to 0.25 at episode 65 and to 0.75 at 75, whatever the run's own change.
+        let step: Vec<f64> = (0..300).map(|t| if t < 60 { 0.0 } else { 1.0 }).collect();
+        assert_eq!(reaches("doa", 0.25, &step), 65.0);
+        assert_eq!(reaches("doa", 0.75, &step), 75.0);
+        // DoS falls to its level: the same step mirrored.
+        let falling: Vec<f64> = step.iter().map(|x| 1.0 - x).collect();
+        assert_eq!(reaches("dos", 0.75, &falling), 65.0);
+        // Never there: one episode after the run (300 episodes), not dropped.
+        assert_eq!(reaches("doa", 0.75, &[0.5; 300]), 301.0);
+        assert_eq!(reaches("dos", 0.25, &[0.5; 300]), 301.0);
+        // Already there: the first whole window, episode 20.
+        assert_eq!(reaches("doa", 0.25, &[0.5; 300]), 20.0);
+        assert!(reaches("doa", 0.25, &[0.5; 19]).is_nan(), "shorter than one window");
+        for (bad, says) in [
+            (Quantity::Reaches("catches".into(), 0.5), "Reaches takes \"dos\" or \"doa\""),
+            (Quantity::Reaches("doa".into(), 1.5), "a level in (0, 1]"),
+            (Quantity::Reaches("doa".into(), f64::NAN), "a level in (0, 1]"),
+        ] {
+            let message = curve_argument_error(&bad).unwrap();
+            assert!(message.contains(says), "{message}");
+        }
     }
 
     #[test]

@@ -36,7 +36,7 @@ impl Comparison {
         if !of_training_curves(&parsed) {
             return Err(refuse(format!(
                 "{quantity:?} is not one of the training curves' quantities (DosFirst, DosLast, DoaFirst, DoaLast, \
-                 CatchesFirst, CatchesLast, their Change, and Start, FromStart, Reach90, Halfway, Extreme, ExtremeEpisode or \
+                 CatchesFirst, CatchesLast, their Change, and Start, FromStart, Reach90, Halfway, Reaches, Extreme, ExtremeEpisode or \
                  AfterExtreme of \"dos\", \"doa\" or \"catches\")"
             )));
         }
@@ -56,9 +56,14 @@ fn of_training_curves(q: &Quantity) -> bool {
     match q {
         DosFirst | DosLast | DoaFirst | DoaLast | DosChange | DoaChange | CatchesChange | CatchesFirst
         | CatchesLast => true,
-        Start(c) | FromStart(c) | Reach90(c) | Halfway(c) | Extreme(c) | ExtremeEpisode(c) | AfterExtreme(c) => {
-            CURVES.contains(&c.as_str())
-        }
+        Start(c)
+        | FromStart(c)
+        | Reach90(c)
+        | Halfway(c)
+        | Reaches(c, _)
+        | Extreme(c)
+        | ExtremeEpisode(c)
+        | AfterExtreme(c) => CURVES.contains(&c.as_str()),
         _ => false,
     }
 }

@@ -257,6 +257,13 @@ pub enum Quantity {
     /// [`Quantity::Reach90`] is crossed where the curve is flat); the short window resolves curves that
     /// do most of their change within the first 100 episodes.
     Halfway(String),
+    /// How fast a curve gets to one level common to the arms compared: the episode at which the
+    /// [`HALFWAY_WINDOW`](super::claims::HALFWAY_WINDOW)-episode running mean of `dos` first falls to the
+    /// level or below, or of `doa` first rises to it or above (from its first whole window on). A run
+    /// that never gets there counts as getting there one episode after its last (censored), so that it is
+    /// neither dropped nor counted as early. Unlike [`Quantity::Halfway`], which times each run against
+    /// its own change, the target does not move with how much a run changes.
+    Reaches(String, f64),
     /// The information-transfer response of an evaluation with `perturb:`: `"near"`, the mean |Δheading|
     /// of the turned prey's 6 nearest over the 10 steps after the turn, or `"far"`, the same for ranks 25
     /// and beyond (radians).

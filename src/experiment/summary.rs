@@ -51,6 +51,13 @@ pub fn columns(exp: &Experiment) -> Vec<(String, Quantity)> {
             .extend(super::crossplay_readouts::READOUTS.iter().map(|r| named(Quantity::Crossplay(r.to_string()))));
     }
     quantities.extend([named(Quantity::CatchesFirst), named(Quantity::CatchesLast)]);
+    // A level some claim times a curve against (`Reaches`): a column only in the experiments that ask for
+    // one, so every other summary keeps its columns.
+    for claim in &exp.spec.claims {
+        if matches!(claim.quantity, Quantity::Reaches(..)) && !quantities.iter().any(|(_, q)| *q == claim.quantity) {
+            quantities.push(named(claim.quantity.clone()));
+        }
+    }
     quantities
 }
 
