@@ -434,7 +434,7 @@ fn compare_curves(
         row.set_item("p", r.p)?;
         row.set_item("p_holm", r.p_holm)?;
         row.set_item("level", r.level)?;
-        row.set_item("verdict", &r.verdict)?;
+        row.set_item("verdict", r.verdict_text())?;
         out.append(row)?;
     }
     Ok(out.unbind())

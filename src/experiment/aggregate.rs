@@ -2,13 +2,14 @@
 //! with the summaries (`summary.rs`) and figures (`figures.rs`) written beside them.
 
 use super::carry;
-use super::claims::{chance_level, is_effect, verdict, ClaimResult, RunData, ALPHA, WINDOW};
+use super::claims::{chance_level, is_effect, ClaimResult, RunData, ALPHA, WINDOW};
 use super::figure_data;
 use super::figures;
 use super::file::Experiment;
 use super::registry;
 use super::stats::{difference, estimate, holm, holm_levels};
 use super::summary::{self, Summary};
+use super::verdict::{verdict, Outcome, Verdict};
 use std::collections::BTreeMap;
 
 /// Estimates an experiment's claims on the `data` of its finished runs ([`super::data::load`]) and, when
@@ -173,14 +174,17 @@ pub fn tests(exp: &Experiment, table: &Summary) -> Vec<ClaimResult> {
     // An experiment judged when complete, in progress: every claim says so, untested (no interim analysis),
     // also where another file's report reads its committed summary for a shared family.
     if in_progress(exp, table) {
-        let verdict = format!(
-            "in progress: {} of {} runs finished; judged when all are (no interim analysis)",
-            table.runs(exp).len(),
-            exp.runs.len()
+        let verdict = Verdict::new(
+            Outcome::InProgress,
+            format!(
+                "in progress: {} of {} runs finished; judged when all are (no interim analysis)",
+                table.runs(exp).len(),
+                exp.runs.len()
+            ),
         );
         for preset in &exp.spec.presets {
             for claim in &exp.spec.claims {
-                results.push(ClaimResult { verdict: verdict.clone(), ..untested(preset, claim) });
+                results.push(ClaimResult { verdict: Some(verdict.clone()), ..untested(preset, claim) });
             }
         }
         return results;
@@ -211,9 +215,9 @@ pub fn tests(exp: &Experiment, table: &Summary) -> Vec<ClaimResult> {
                 (bits(&ours), theirs.as_deref().map(bits), claim.margin.map(f64::to_bits))
             });
             let verdict = match (overlap, identical) {
-                (true, _) => OVERLAP.into(),
-                (false, true) => IDENTICAL.into(),
-                _ => String::new(),
+                (true, _) => Some(Verdict::new(Outcome::NotMeasured, OVERLAP)),
+                (false, true) => Some(Verdict::new(Outcome::NotAComparison, IDENTICAL)),
+                _ => None,
             };
             results.push(ClaimResult { estimate: e, p, same_test, verdict, ..untested(preset, claim) });
         }
@@ -260,11 +264,12 @@ pub fn adjust(results: &mut [ClaimResult]) {
         }
     }
     // A verdict given before the tests (identical runs, overlapping windows, in progress) stands.
-    for r in results.iter_mut().filter(|r| r.verdict.is_empty()) {
-        r.verdict = verdict(&r.claim, r.estimate, r.p_holm, r.level, r.baseline);
+    for r in results.iter_mut().filter(|r| r.verdict.is_none()) {
+        let mut judged = verdict(&r.claim, r.estimate, r.p_holm, r.level, r.baseline);
         if let Some(first) = &r.same_as {
-            r.verdict.push_str(&format!("; the same test as {first}, counted once in its family"));
+            judged.note(&format!("; the same test as {first}, counted once in its family"));
         }
+        r.verdict = Some(judged);
     }
     say_where_a_level_and_its_contrast_disagree(results);
 }
@@ -274,9 +279,13 @@ pub fn adjust(results: &mut [ClaimResult]) {
 /// primary test and the level a secondary row, which must not contradict it silently. Where one is
 /// reproduced and the other is not, both rows say so.
 fn say_where_a_level_and_its_contrast_disagree(results: &mut [ClaimResult]) {
-    let reproduced =
-        |r: &ClaimResult| r.verdict.starts_with("reproduced") || r.verdict.starts_with("direction reproduced");
-    let word = |r: &ClaimResult| r.verdict.split([':', '(']).next().unwrap_or_default().trim().to_string();
+    // Reproduced or in the paper's direction (an equivalence is never a level's contrast: those have no margin).
+    let reproduced = |r: &ClaimResult| {
+        r.verdict
+            .as_ref()
+            .is_some_and(|v| matches!(v.outcome, Outcome::Reproduced | Outcome::DirectionReproduced { .. }))
+    };
+    let word = |r: &ClaimResult| r.verdict.as_ref().map_or(String::new(), |v| v.word().to_string());
     let mut notes: Vec<(usize, String)> = Vec::new();
     for (i, level) in results.iter().enumerate() {
         if level.claim.versus.is_some() || level.claim.paper.is_none() || is_effect(&level.claim) {
@@ -313,7 +322,9 @@ fn say_where_a_level_and_its_contrast_disagree(results: &mut [ClaimResult]) {
         }
     }
     for (i, note) in notes {
-        results[i].verdict.push_str(&note);
+        if let Some(v) = &mut results[i].verdict {
+            v.note(&note);
+        }
     }
 }
 
@@ -357,9 +368,9 @@ mod tests {
         assert_eq!(results.iter().map(|r| r.family_tests).collect::<Vec<_>>(), [3, 3, 3, 3, 1, 1]);
         assert_eq!(results[3].same_as.as_deref(), Some("a / p / a1"));
         assert_eq!(results[3].level, results[0].level);
-        assert!(results[3].verdict.ends_with("the same test as a / p / a1, counted once in its family"));
+        assert!(results[3].verdict_text().ends_with("the same test as a / p / a1, counted once in its family"));
         assert!(results[5].same_as.is_none(), "another family's test is not a repeat");
-        assert!(results.iter().all(|r| !r.verdict.is_empty()), "every claim judged");
+        assert!(results.iter().all(|r| !r.verdict_text().is_empty()), "every claim judged");
     }
 
     #[test]
@@ -378,21 +389,25 @@ mod tests {
         results[0].p = None;
         results[0].baseline = Some(std::f64::consts::FRAC_2_PI);
         adjust(&mut results);
-        assert!(results[0].verdict.starts_with("reproduced"), "{}", results[0].verdict);
-        assert!(results[1].verdict.starts_with("not reproduced"), "{}", results[1].verdict);
+        assert!(results[0].verdict_text().starts_with("reproduced"), "{}", results[0].verdict_text());
+        assert!(results[1].verdict_text().starts_with("not reproduced"), "{}", results[1].verdict_text());
         assert!(
-            results[0].verdict.ends_with(
+            results[0].verdict_text().ends_with(
                 "disagrees with the primary contrast \"R = D/3 against R = D: DoA lower\" (not reproduced): the contrast decides the paper's sentence"
             ),
             "{}",
-            results[0].verdict
+            results[0].verdict_text()
         );
-        assert!(results[1].verdict.contains("its secondary level row \"R = D/3: DoA drops to 0.75\" is reproduced"));
+        assert!(results[1]
+            .verdict_text()
+            .contains("its secondary level row \"R = D/3: DoA drops to 0.75\" is reproduced"));
         // When both agree, neither says more.
         let mut agreeing =
             vec![results[0].clone(), tested(&contrast, "perception", &[-0.06, -0.08, -0.07, -0.075, -0.065])];
-        agreeing[0].verdict.clear();
+        agreeing[0].verdict = None;
         adjust(&mut agreeing);
-        assert!(!agreeing.iter().any(|r| r.verdict.contains("disagrees") || r.verdict.contains("secondary level")));
+        assert!(!agreeing
+            .iter()
+            .any(|r| r.verdict_text().contains("disagrees") || r.verdict_text().contains("secondary level")));
     }
 }

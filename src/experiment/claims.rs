@@ -1,6 +1,6 @@
 //! What an experiment measures and concludes: the data of a run read from its CSV files ([`RunData`]),
-//! the quantities computed from it ([`quantity`]), their names in reports, and the verdict on a claim
-//! ([`verdict`]).
+//! the quantities computed from it ([`quantity`]), their names in reports, and a claim's result
+//! ([`ClaimResult`], judged by [`super::verdict`]).
 
 use super::file::{Claim, Experiment, Quantity};
 use super::stats::{mean, Estimate};
@@ -113,7 +113,15 @@ pub(super) fn primitive(d: &RunData, q: &Quantity) -> f64 {
         }
         Quantity::Crossplay(name) => d.crossplay.get(name).copied().unwrap_or(f64::NAN),
         Quantity::Response(e, which) => d.evals.get(e).map_or(f64::NAN, |x| x.response[usize::from(which == "far")]),
-        _ => f64::NAN,
+        // Derived from the ones above ([`derive`]): no value of their own. Named, not `_`, so that a new
+        // quantity is a compile error here until it is given a value or declared derived.
+        Quantity::DosChange
+        | Quantity::DoaChange
+        | Quantity::CatchesChange
+        | Quantity::FromStart(_)
+        | Quantity::InteractionDoa(_)
+        | Quantity::Interaction(..)
+        | Quantity::Learned(..) => f64::NAN,
     }
 }
 
@@ -141,7 +149,15 @@ pub fn column(q: &Quantity) -> Option<String> {
         Quantity::EvalOrder(e, o) => format!("eval_{}_{o}", super::file::slug(e)),
         Quantity::Crossplay(name) => format!("crossplay_{name}"),
         Quantity::Response(e, which) => format!("eval_{}_response_{which}", super::file::slug(e)),
-        _ => return None,
+        // Derived ([`derive`]): summary.csv holds what they are computed from (and, for the interactions,
+        // a column `summary::columns` names itself).
+        Quantity::DosChange
+        | Quantity::DoaChange
+        | Quantity::CatchesChange
+        | Quantity::FromStart(_)
+        | Quantity::InteractionDoa(_)
+        | Quantity::Interaction(..)
+        | Quantity::Learned(..) => return None,
     })
 }
 
@@ -359,10 +375,17 @@ pub struct ClaimResult {
     pub stated: super::registry::Stated,
     /// For a level: the value chance alone gives ([`chance_level`]).
     pub baseline: Option<f64>,
-    pub verdict: String,
+    /// None until it is judged ([`super::aggregate::adjust`]), or given before its test (in progress,
+    /// identical runs, windows that overlap).
+    pub verdict: Option<super::verdict::Verdict>,
 }
 
 impl ClaimResult {
+    /// Its verdict's sentence, as reports print it; empty until it is judged.
+    pub fn verdict_text(&self) -> &str {
+        self.verdict.as_ref().map_or("", |v| v.text.as_str())
+    }
+
     /// A claim of `experiment` on `preset`, not yet estimated, tested or judged; `baseline` its chance
     /// level ([`chance_level`]).
     pub fn untested(experiment: &str, preset: &str, claim: &Claim, baseline: Option<f64>) -> ClaimResult {
@@ -379,7 +402,7 @@ impl ClaimResult {
             same_as: None,
             stated: super::registry::Stated::Unknown,
             baseline,
-            verdict: String::new(),
+            verdict: None,
         }
     }
 }
@@ -491,156 +514,6 @@ impl ClaimResult {
     }
 }
 
-/// Half a unit of the last decimal the paper's number is written with: the precision it states ("22 %"
-/// is 0.22 ± 0.005). Read from the number as stored, so a number the paper writes with trailing zeros
-/// ("0.20") would be taken as coarser ("0.2" ± 0.05); no claim of the paper's has one.
-pub fn paper_precision(paper: f64) -> f64 {
-    let text = format!("{}", paper.abs());
-    let decimals = text.split_once('.').map_or(0, |(_, d)| d.len());
-    0.5 * 10f64.powi(-(decimals as i32))
-}
-
-/// The verdict on a claim, defined in REPRODUCTION.md's preamble. An effect is *detected* when its
-/// Holm-adjusted p-value is below [`ALPHA`], which is exactly when its interval at `level` (the family's
-/// stepped level, [`super::stats::holm_levels`]) excludes zero; an interval that contains zero is never
-/// called a result. Effects: *reproduced* (detected in the paper's direction, the paper's value inside the
-/// interval), *direction reproduced, smaller/larger than the paper*, *not reproduced* (detected the other
-/// way, or an effect shown where the claim is of none), *equivalent within ±m* (TOST, adjusted),
-/// *inconclusive*. Levels: the plain 95 % interval against the paper's value at the precision it states,
-/// and against chance.
-pub fn verdict(
-    claim: &Claim,
-    e: Option<Estimate>,
-    p_holm: Option<f64>,
-    level: Option<f64>,
-    baseline: Option<f64>,
-) -> String {
-    let Some(e) = e else { return "not run yet".into() };
-    let Some(ci) = e.ci else { return "one seed: no interval".into() };
-    if is_effect(claim) {
-        let level = level.unwrap_or(ALPHA);
-        let detected = p_holm.is_some_and(|p| p < ALPHA);
-        let p_text = p_holm.map_or(String::new(), |p| format!("Holm p = {}", p_shown(p)));
-        let power = || match e.detectable_at(level) {
-            Some(d) => format!(
-                "80 % power at its level (α = {}) only for effects of ±{d:.3} or more with {} seeds",
-                alpha_shown(level),
-                e.n
-            ),
-            None => String::new(),
-        };
-        if let Some(m) = claim.margin {
-            let h = e.half_width(2.0 * level).unwrap_or(ci);
-            let (lo, hi) = (e.mean - h, e.mean + h);
-            let two_sided = e.half_width(level).unwrap_or(ci);
-            return if detected {
-                format!("equivalent within ±{m}: the adjusted interval [{lo:.3}, {hi:.3}] lies inside (TOST, {p_text})")
-            } else if e.mean.abs() - two_sided >= m {
-                format!("not reproduced: an effect beyond ±{m} ({:+.3})", e.mean)
-            } else {
-                // What the data do support: the adjusted interval lies inside a margin only wider than its
-                // farther end (rounded up, so the margin printed is never one the interval reaches past).
-                format!(
-                    "inconclusive: neither equivalence within ±{m} (adjusted interval [{lo:.3}, {hi:.3}]) nor an effect shown; equivalence would be shown only for a margin wider than ±{:.3} (at this test's level)",
-                    (lo.abs().max(hi.abs()) * 1000.0).ceil() / 1000.0
-                )
-            };
-        }
-        let h = e.half_width(level).unwrap_or(ci);
-        let inside = |x: f64| e.mean - h <= x && x <= e.mean + h;
-        return match claim.paper {
-            // The project's own direction: judged against its hypothesis, never "reproduced".
-            Some(sign) if claim.ours && detected => match e.mean.signum() == sign.signum() {
-                true => format!("detected as hypothesised ({p_text})"),
-                false => format!("detected opposite to the hypothesis ({p_text})"),
-            },
-            Some(paper) if detected && e.mean.signum() == paper.signum() => {
-                if claim.direction_only || inside(paper) {
-                    format!("reproduced: detected in the paper's direction ({p_text})")
-                } else {
-                    let size = if e.mean.abs() < paper.abs() { "smaller" } else { "larger" };
-                    format!("direction reproduced, {size} than the paper's {paper:+.3} ({p_text})")
-                }
-            }
-            Some(_) if detected => format!("not reproduced: detected the other way ({p_text})"),
-            Some(_) if claim.direction_only => format!("inconclusive: no effect detected; {}", power()),
-            Some(paper) if !inside(paper) => format!(
-                "inconclusive: no effect detected, and the paper's {paper:+.3} is outside the adjusted interval (an effect of its size is excluded)"
-            ),
-            Some(_) => format!("inconclusive: no effect detected; {}", power()),
-            None if detected => format!("effect detected: {:+.3} ({p_text})", e.mean),
-            None => format!("no effect detected (inconclusive): {}", power()),
-        };
-    }
-    let (lo, hi) = (e.mean - ci, e.mean + ci);
-    let inside = |x: f64| lo <= x && x <= hi;
-    let chance = baseline.map(|b| (b, inside(b)));
-    match (claim.paper, chance) {
-        (Some(paper), _) if hi < paper - paper_precision(paper) || lo > paper + paper_precision(paper) => {
-            format!("not reproduced: the 95 % CI excludes the paper's {paper} (±{} as written)", paper_precision(paper))
-        }
-        (Some(paper), Some((b, false))) => {
-            let h = paper_precision(paper);
-            format!(
-                "reproduced: the 95 % CI reaches the paper's {paper} as written ({}–{}) and excludes chance ({b:.3})",
-                paper - h,
-                paper + h
-            )
-        }
-        (Some(_), Some((b, true))) => {
-            format!("inconclusive: the 95 % CI holds both the paper's value and chance ({b:.3})")
-        }
-        (Some(_), None) => {
-            "inconclusive: the paper's value is inside the 95 % CI; no chance level to tell it from".into()
-        }
-        (None, Some((b, false))) => format!("measured: differs from chance ({b:.3})"),
-        (None, Some((b, true))) => format!("measured: not told apart from chance ({b:.3})"),
-        (None, None) => "measured (the paper gives no number)".into(),
-    }
-}
-
-/// The hypothesis a claim tests, as reports print it beside its verdict: an effect in the paper's
-/// direction, any effect (two-sided), equivalence within a margin, or a level against the paper's value at
-/// its precision and against chance.
-pub fn hypothesis(claim: &Claim, baseline: Option<f64>) -> String {
-    if is_effect(claim) {
-        let direction = |p: f64| if p < 0.0 { "an effect < 0" } else { "an effect > 0" };
-        return match (claim.margin, claim.paper) {
-            (Some(m), _) => format!("no effect: equivalence within ±{m}"),
-            (None, Some(p)) if claim.ours => format!("{} (the project's hypothesis, not the paper's)", direction(p)),
-            (None, Some(p)) if claim.direction_only => direction(p).into(),
-            (None, Some(p)) => format!("{} (the paper: {p:+})", direction(p)),
-            (None, None) => "any effect (two-sided)".into(),
-        };
-    }
-    let chance = baseline.map_or(String::new(), |b| format!(", apart from chance {b:.3}"));
-    match claim.paper {
-        Some(p) => format!("the level {p} (±{}){chance}", paper_precision(p)),
-        None if baseline.is_some() => format!("a level apart from chance {:.3}", baseline.unwrap_or_default()),
-        None => "a level (measured)".into(),
-    }
-}
-
-/// A test's level as reports show it: [`ALPHA`] over the Holm step's divisor (`0.05/44`; `0.05` alone).
-pub fn alpha_shown(level: f64) -> String {
-    match (ALPHA / level).round() as usize {
-        0 | 1 => format!("{ALPHA}"),
-        d => format!("{ALPHA}/{d}"),
-    }
-}
-
-/// A p-value as reports show it.
-pub fn p_shown(p: f64) -> String {
-    if p < 0.001 {
-        "< 0.001".into()
-    } else if (0.0445..0.0555).contains(&p) {
-        // Near α, a third decimal could round across it (0.0496 as "0.050" beside "detected").
-        format!("{p:.4}")
-    } else {
-        format!("{p:.3}")
-    }
-}
-
 pub fn quantity_name(q: &Quantity) -> String {
     match q {
         Quantity::DosFirst => "DoS, first 100 episodes".into(),
@@ -683,7 +556,13 @@ pub fn quantity_name(q: &Quantity) -> String {
 #[cfg(test)]
 pub(crate) mod tests {
     use super::*;
+    use crate::experiment::verdict::{hypothesis, paper_precision};
     use std::path::Path;
+
+    /// The sentence of a verdict ([`crate::experiment::verdict::verdict`]), which these tests read.
+    fn verdict(claim: &Claim, e: Option<Estimate>, p: Option<f64>, level: Option<f64>, b: Option<f64>) -> String {
+        crate::experiment::verdict::verdict(claim, e, p, level, b).text
+    }
 
     #[test]
     fn changes_are_the_last_window_minus_the_first() {
@@ -872,7 +751,7 @@ pub(crate) mod tests {
             same_as: None,
             stated: crate::experiment::registry::Stated::Unknown,
             baseline: None,
-            verdict: String::new(),
+            verdict: None,
         }
     }
 
@@ -905,10 +784,10 @@ pub(crate) mod tests {
             let excludes_zero = e[i].mean.abs() > h;
             assert_eq!(
                 excludes_zero,
-                r.verdict.starts_with("effect detected"),
+                r.verdict_text().starts_with("effect detected"),
                 "test {i}: {} ± {h}: {}",
                 e[i].mean,
-                r.verdict
+                r.verdict_text()
             );
         }
     }

@@ -2,7 +2,7 @@
 //! authors' learner on coevo's world, `python/examples/gym_pps_learner.py`), compared with
 //! coevo's own as a report compares two variants: the same quantities ([`super::claims::derive`]), the
 //! same test (Welch's difference, TOST within a margin fixed beforehand), Holm over the family
-//! ([`super::aggregate::adjust`]), and the same words ([`super::claims::verdict`]). Nothing here reads a
+//! ([`super::aggregate::adjust`]), and the same words ([`super::verdict::verdict`]). Nothing here reads a
 //! file: the caller hands over each run's per-episode DoS, DoA and catches.
 
 use super::claims::{
@@ -180,10 +180,10 @@ mod tests {
         assert!((results[0].estimate.unwrap().mean - e.mean).abs() < 1e-12);
         assert_eq!(results[0].p, e.tost_p(0.05));
         assert!(results.iter().all(|r| r.family_tests == 3), "one family of three tests");
-        assert!(results[0].verdict.starts_with("equivalent within ±0.05"), "{}", results[0].verdict);
+        assert!(results[0].verdict_text().starts_with("equivalent within ±0.05"), "{}", results[0].verdict_text());
         // 30 fewer catches, every seed: a difference, detected.
         assert!((results[1].estimate.unwrap().mean + 30.0).abs() < 0.01);
-        assert!(results[1].verdict.starts_with("effect detected: -30.0"), "{}", results[1].verdict);
+        assert!(results[1].verdict_text().starts_with("effect detected: -30.0"), "{}", results[1].verdict_text());
         // A change over training: the same rise of 0.5 on every run, exactly (no spread): equivalent.
         assert!(results[2].estimate.unwrap().mean.abs() < 1e-12);
     }

@@ -44,5 +44,6 @@ pub mod spread;
 pub mod stats;
 pub mod summary;
 pub mod trainings;
+pub mod verdict;
 
 pub use file::*;

@@ -1,9 +1,10 @@
 //! What an experiment reports: its REPORT.md, and REPRODUCTION.md over the project's experiment files
 //! (written by `--experiment` and `--plot`, [`super::command`]).
 
-use super::claims::{p_shown, quantity_name, ClaimResult};
+use super::claims::{quantity_name, ClaimResult};
 use super::file::{Experiment, Quantity, EVAL_ORDER, EVAL_ORDER_DIGITS, EVAL_ORDER_LABELS};
 use super::summary;
+use super::verdict::p_shown;
 use crate::sim::metrics::Swarming;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -289,8 +290,8 @@ fn section(md: &mut String, Reported { exp, results, finished, summary, .. }: &R
         // The level the interval is shown at: the Holm step's for a test (TOST: twice it, one-sided
         // each way), 95 % for a level; the plain 95 % interval beside it, secondary.
         let level = match (r.level, r.claim.margin) {
-            (Some(l), Some(_)) => format!("TOST, α = {}", super::claims::alpha_shown(l)),
-            (Some(l), None) => format!("α = {}", super::claims::alpha_shown(l)),
+            (Some(l), Some(_)) => format!("TOST, α = {}", super::verdict::alpha_shown(l)),
+            (Some(l), None) => format!("α = {}", super::verdict::alpha_shown(l)),
             // An effect not tested (not run yet, one seed, identical runs) has no level.
             (None, _) if super::claims::is_effect(&r.claim) => "–".into(),
             (None, _) => "95 %".into(),
@@ -311,8 +312,8 @@ fn section(md: &mut String, Reported { exp, results, finished, summary, .. }: &R
             r.preset,
             cell(&r.claim.text),
             cell(&quantity_name(&r.claim.quantity)),
-            cell(&r.verdict),
-            cell(&format!("{}{}", super::claims::hypothesis(&r.claim, r.baseline), r.stated.flag())),
+            cell(r.verdict_text()),
+            cell(&format!("{}{}", super::verdict::hypothesis(&r.claim, r.baseline), r.stated.flag())),
             {
                 let size = match r.family_tests {
                     0 => String::new(),

@@ -1,0 +1,314 @@
+//! The verdict on a claim, as a type: what its test came to ([`Outcome`], which reports, the claims table
+//! and the checks between a level and its contrast read) with the sentence reports print ([`Verdict`]),
+//! and the hypothesis it was tested against. Defined in REPRODUCTION.md's preamble.
+
+use super::claims::{is_effect, ALPHA};
+use super::file::Claim;
+use super::stats::Estimate;
+
+/// What a claim's test came to.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Outcome {
+    /// No finished run of its variant.
+    NotRunYet,
+    /// One seed: no interval, no test.
+    OneSeed,
+    /// Its experiment is judged when all its runs are finished, and some are not (no interim analysis).
+    InProgress,
+    /// A change over training of runs too short for a first and a last window that do not overlap.
+    NotMeasured,
+    /// A comparison of two variants whose runs are identical (one training, run twice).
+    NotAComparison,
+    /// An effect detected in the paper's direction with the paper's value inside its interval (for a
+    /// direction-only claim, detected in that direction); a level whose interval reaches the paper's value
+    /// and excludes chance.
+    Reproduced,
+    /// An effect detected in the paper's direction, the paper's value outside its interval.
+    DirectionReproduced {
+        larger: bool,
+    },
+    /// An effect detected against the paper's direction, or beyond a claim of none's margin; a level whose
+    /// interval misses the paper's value.
+    NotReproduced,
+    /// A claim of no effect shown within its margin (TOST).
+    Equivalent,
+    /// Neither detected nor excluded (an effect), or not told apart from chance (a level).
+    Inconclusive,
+    /// The project's own direction (`ours`), detected as hypothesised or against it.
+    DetectedAsHypothesised,
+    DetectedOpposite,
+    /// An effect the paper gives no number or direction for: detected or not.
+    EffectDetected,
+    NoEffectDetected,
+    /// A level the paper gives no number for: told apart from chance or not, or no chance level.
+    Measured {
+        apart_from_chance: Option<bool>,
+    },
+}
+
+impl Outcome {
+    /// Whether the paper's statement holds, in its direction at least.
+    pub fn reproduced(self) -> bool {
+        matches!(self, Outcome::Reproduced | Outcome::DirectionReproduced { .. } | Outcome::Equivalent)
+    }
+}
+
+/// A claim's verdict: its outcome and the sentence reports print.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Verdict {
+    pub outcome: Outcome,
+    pub text: String,
+}
+
+impl Verdict {
+    pub fn new(outcome: Outcome, text: impl Into<String>) -> Verdict {
+        Verdict { outcome, text: text.into() }
+    }
+
+    /// The verdict's first words, as a note on another row names it ("reproduced", "not reproduced",
+    /// "direction reproduced, smaller than the paper's -0.010 ").
+    pub fn word(&self) -> &str {
+        self.text.split([':', '(']).next().unwrap_or_default().trim()
+    }
+
+    /// Adds a note to the sentence (the test it repeats, a disagreement with its contrast).
+    pub fn note(&mut self, note: &str) {
+        self.text.push_str(note);
+    }
+}
+
+impl std::fmt::Display for Verdict {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.text)
+    }
+}
+
+/// Half a unit of the last decimal the paper's number is written with: the precision it states ("22 %"
+/// is 0.22 ± 0.005). Read from the number as stored, so a number the paper writes with trailing zeros
+/// ("0.20") would be taken as coarser ("0.2" ± 0.05); no claim of the paper's has one.
+pub fn paper_precision(paper: f64) -> f64 {
+    let text = format!("{}", paper.abs());
+    let decimals = text.split_once('.').map_or(0, |(_, d)| d.len());
+    0.5 * 10f64.powi(-(decimals as i32))
+}
+
+/// The verdict on a claim, defined in REPRODUCTION.md's preamble. An effect is *detected* when its
+/// Holm-adjusted p-value is below [`ALPHA`], which is exactly when its interval at `level` (the family's
+/// stepped level, [`super::stats::holm_levels`]) excludes zero; an interval that contains zero is never
+/// called a result. Effects: *reproduced* (detected in the paper's direction, the paper's value inside the
+/// interval), *direction reproduced, smaller/larger than the paper*, *not reproduced* (detected the other
+/// way, or an effect shown where the claim is of none), *equivalent within ±m* (TOST, adjusted),
+/// *inconclusive*. Levels: the plain 95 % interval against the paper's value at the precision it states,
+/// and against chance.
+pub fn verdict(
+    claim: &Claim,
+    e: Option<Estimate>,
+    p_holm: Option<f64>,
+    level: Option<f64>,
+    baseline: Option<f64>,
+) -> Verdict {
+    use Outcome::*;
+    let Some(e) = e else { return Verdict::new(NotRunYet, "not run yet") };
+    let Some(ci) = e.ci else { return Verdict::new(OneSeed, "one seed: no interval") };
+    if is_effect(claim) {
+        let level = level.unwrap_or(ALPHA);
+        let detected = p_holm.is_some_and(|p| p < ALPHA);
+        let p_text = p_holm.map_or(String::new(), |p| format!("Holm p = {}", p_shown(p)));
+        let power = || match e.detectable_at(level) {
+            Some(d) => format!(
+                "80 % power at its level (α = {}) only for effects of ±{d:.3} or more with {} seeds",
+                alpha_shown(level),
+                e.n
+            ),
+            None => String::new(),
+        };
+        if let Some(m) = claim.margin {
+            let h = e.half_width(2.0 * level).unwrap_or(ci);
+            let (lo, hi) = (e.mean - h, e.mean + h);
+            let two_sided = e.half_width(level).unwrap_or(ci);
+            return if detected {
+                Verdict::new(
+                    Equivalent,
+                    format!(
+                        "equivalent within ±{m}: the adjusted interval [{lo:.3}, {hi:.3}] lies inside (TOST, {p_text})"
+                    ),
+                )
+            } else if e.mean.abs() - two_sided >= m {
+                Verdict::new(NotReproduced, format!("not reproduced: an effect beyond ±{m} ({:+.3})", e.mean))
+            } else {
+                // What the data do support: the adjusted interval lies inside a margin only wider than its
+                // farther end (rounded up, so the margin printed is never one the interval reaches past).
+                Verdict::new(
+                    Inconclusive,
+                    format!(
+                        "inconclusive: neither equivalence within ±{m} (adjusted interval [{lo:.3}, {hi:.3}]) nor an effect shown; equivalence would be shown only for a margin wider than ±{:.3} (at this test's level)",
+                        (lo.abs().max(hi.abs()) * 1000.0).ceil() / 1000.0
+                    ),
+                )
+            };
+        }
+        let h = e.half_width(level).unwrap_or(ci);
+        let inside = |x: f64| e.mean - h <= x && x <= e.mean + h;
+        return match claim.paper {
+            // The project's own direction: judged against its hypothesis, never "reproduced".
+            Some(sign) if claim.ours && detected => match e.mean.signum() == sign.signum() {
+                true => Verdict::new(DetectedAsHypothesised, format!("detected as hypothesised ({p_text})")),
+                false => Verdict::new(DetectedOpposite, format!("detected opposite to the hypothesis ({p_text})")),
+            },
+            Some(paper) if detected && e.mean.signum() == paper.signum() => {
+                if claim.direction_only || inside(paper) {
+                    Verdict::new(Reproduced, format!("reproduced: detected in the paper's direction ({p_text})"))
+                } else {
+                    let larger = e.mean.abs() >= paper.abs();
+                    let size = if larger { "larger" } else { "smaller" };
+                    Verdict::new(
+                        DirectionReproduced { larger },
+                        format!("direction reproduced, {size} than the paper's {paper:+.3} ({p_text})"),
+                    )
+                }
+            }
+            Some(_) if detected => {
+                Verdict::new(NotReproduced, format!("not reproduced: detected the other way ({p_text})"))
+            }
+            Some(_) if claim.direction_only => {
+                Verdict::new(Inconclusive, format!("inconclusive: no effect detected; {}", power()))
+            }
+            Some(paper) if !inside(paper) => Verdict::new(
+                Inconclusive,
+                format!(
+                    "inconclusive: no effect detected, and the paper's {paper:+.3} is outside the adjusted interval (an effect of its size is excluded)"
+                ),
+            ),
+            Some(_) => Verdict::new(Inconclusive, format!("inconclusive: no effect detected; {}", power())),
+            None if detected => Verdict::new(EffectDetected, format!("effect detected: {:+.3} ({p_text})", e.mean)),
+            None => Verdict::new(NoEffectDetected, format!("no effect detected (inconclusive): {}", power())),
+        };
+    }
+    let (lo, hi) = (e.mean - ci, e.mean + ci);
+    let inside = |x: f64| lo <= x && x <= hi;
+    let chance = baseline.map(|b| (b, inside(b)));
+    match (claim.paper, chance) {
+        (Some(paper), _) if hi < paper - paper_precision(paper) || lo > paper + paper_precision(paper) => Verdict::new(
+            NotReproduced,
+            format!(
+                "not reproduced: the 95 % CI excludes the paper's {paper} (±{} as written)",
+                paper_precision(paper)
+            ),
+        ),
+        (Some(paper), Some((b, false))) => {
+            let h = paper_precision(paper);
+            Verdict::new(
+                Reproduced,
+                format!(
+                    "reproduced: the 95 % CI reaches the paper's {paper} as written ({}–{}) and excludes chance ({b:.3})",
+                    paper - h,
+                    paper + h
+                ),
+            )
+        }
+        (Some(_), Some((b, true))) => Verdict::new(
+            Inconclusive,
+            format!("inconclusive: the 95 % CI holds both the paper's value and chance ({b:.3})"),
+        ),
+        (Some(_), None) => Verdict::new(
+            Inconclusive,
+            "inconclusive: the paper's value is inside the 95 % CI; no chance level to tell it from",
+        ),
+        (None, Some((b, false))) => {
+            Verdict::new(Measured { apart_from_chance: Some(true) }, format!("measured: differs from chance ({b:.3})"))
+        }
+        (None, Some((b, true))) => Verdict::new(
+            Measured { apart_from_chance: Some(false) },
+            format!("measured: not told apart from chance ({b:.3})"),
+        ),
+        (None, None) => Verdict::new(Measured { apart_from_chance: None }, "measured (the paper gives no number)"),
+    }
+}
+
+/// The hypothesis a claim tests, as reports print it beside its verdict: an effect in the paper's
+/// direction, any effect (two-sided), equivalence within a margin, or a level against the paper's value at
+/// its precision and against chance.
+pub fn hypothesis(claim: &Claim, baseline: Option<f64>) -> String {
+    if is_effect(claim) {
+        let direction = |p: f64| if p < 0.0 { "an effect < 0" } else { "an effect > 0" };
+        return match (claim.margin, claim.paper) {
+            (Some(m), _) => format!("no effect: equivalence within ±{m}"),
+            (None, Some(p)) if claim.ours => format!("{} (the project's hypothesis, not the paper's)", direction(p)),
+            (None, Some(p)) if claim.direction_only => direction(p).into(),
+            (None, Some(p)) => format!("{} (the paper: {p:+})", direction(p)),
+            (None, None) => "any effect (two-sided)".into(),
+        };
+    }
+    let chance = baseline.map_or(String::new(), |b| format!(", apart from chance {b:.3}"));
+    match claim.paper {
+        Some(p) => format!("the level {p} (±{}){chance}", paper_precision(p)),
+        None if baseline.is_some() => format!("a level apart from chance {:.3}", baseline.unwrap_or_default()),
+        None => "a level (measured)".into(),
+    }
+}
+
+/// A test's level as reports show it: [`ALPHA`] over the Holm step's divisor (`0.05/44`; `0.05` alone).
+pub fn alpha_shown(level: f64) -> String {
+    match (ALPHA / level).round() as usize {
+        0 | 1 => format!("{ALPHA}"),
+        d => format!("{ALPHA}/{d}"),
+    }
+}
+
+/// A p-value as reports show it.
+pub fn p_shown(p: f64) -> String {
+    if p < 0.001 {
+        "< 0.001".into()
+    } else if (0.0445..0.0555).contains(&p) {
+        // Near α, a third decimal could round across it (0.0496 as "0.050" beside "detected").
+        format!("{p:.4}")
+    } else {
+        format!("{p:.3}")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::experiment::file::Quantity;
+    use crate::experiment::stats::estimate;
+
+    fn claim(paper: Option<f64>, versus: bool) -> Claim {
+        Claim {
+            text: "c".into(),
+            variant: "v".into(),
+            quantity: Quantity::DoaLast,
+            paper,
+            versus: versus.then(|| "b".into()),
+            margin: None,
+            baseline: None,
+            direction_only: false,
+            ours: false,
+            family: None,
+        }
+    }
+
+    #[test]
+    fn each_verdict_carries_the_outcome_its_sentence_states() {
+        let e = estimate(&[0.80, 0.82, 0.84]);
+        let outcome = |c: &Claim, p: Option<f64>, b: Option<f64>| verdict(c, e, p, Some(ALPHA), b).outcome;
+        // Effects: detected in the paper's direction with its value inside, outside, the other way, not at all.
+        assert_eq!(outcome(&claim(Some(0.82), true), Some(0.001), None), Outcome::Reproduced);
+        assert_eq!(outcome(&claim(Some(0.1), true), Some(0.001), None), Outcome::DirectionReproduced { larger: true });
+        assert_eq!(outcome(&claim(Some(-0.82), true), Some(0.001), None), Outcome::NotReproduced);
+        assert_eq!(outcome(&claim(Some(0.82), true), Some(0.3), None), Outcome::Inconclusive);
+        assert_eq!(outcome(&claim(None, true), Some(0.001), None), Outcome::EffectDetected);
+        assert_eq!(outcome(&claim(None, true), Some(0.3), None), Outcome::NoEffectDetected);
+        // Levels: the paper's value reached apart from chance, missed, or no number.
+        assert_eq!(outcome(&claim(Some(0.82), false), None, Some(0.637)), Outcome::Reproduced);
+        assert_eq!(outcome(&claim(Some(0.5), false), None, Some(0.637)), Outcome::NotReproduced);
+        assert_eq!(
+            outcome(&claim(None, false), None, Some(0.637)),
+            Outcome::Measured { apart_from_chance: Some(true) }
+        );
+        assert_eq!(verdict(&claim(None, false), None, None, None, None).outcome, Outcome::NotRunYet);
+        let one = verdict(&claim(None, false), estimate(&[0.8]), None, None, None);
+        assert_eq!((one.outcome, one.word()), (Outcome::OneSeed, "one seed"));
+        assert!(Outcome::Equivalent.reproduced() && !Outcome::Inconclusive.reproduced());
+    }
+}
