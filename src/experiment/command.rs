@@ -6,7 +6,7 @@ use super::file::Experiment;
 use super::report::{experiment_report, reproduction, Reported, EXPERIMENTS, REPORT, RESULTS};
 use super::runner;
 use super::summary::Summary;
-use super::{aggregate, data, figures};
+use super::{aggregate, data, figures, paper_table};
 use crate::io::Existing;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -212,8 +212,23 @@ pub fn write_reproduction(partial: bool) -> crate::error::Result<()> {
         a.results = results.drain(..n).collect();
         all.push(report(exp, a)?);
     }
-    crate::io::write_file(Path::new("REPRODUCTION.md"), Existing::Replace, reproduction(&all).as_bytes())?;
+    let results: Vec<_> = all.iter().flat_map(|r| r.results.iter().cloned()).collect();
+    // Within REPRODUCTION.md an experiment's evidence is its section; from the book, its results folder (the
+    // book links no Markdown outside itself: mdbook would turn it into a missing page).
+    let here = paper_table::table(&results, &|e: &str| format!("[{e}](#{e})"))?;
+    let book = paper_table::table(&results, &|e: &str| format!("[{e}](../../../results/{e}/)"))?;
+    crate::io::write_file(
+        Path::new("REPRODUCTION.md"),
+        Existing::Replace,
+        reproduction(&all, here.as_deref()).as_bytes(),
+    )?;
     crate::errln!("coevo: wrote REPRODUCTION.md")?;
+    // The book's first results page, where the book is (a clone of the repository).
+    let page = Path::new(paper_table::BOOK_PAGE);
+    if let Some(book) = book.filter(|_| page.parent().is_some_and(Path::is_dir)) {
+        crate::io::write_file(page, Existing::Replace, paper_table::book_page(&book).as_bytes())?;
+        crate::errln!("coevo: wrote {}", page.display())?;
+    }
     Ok(())
 }
 

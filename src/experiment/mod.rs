@@ -36,6 +36,7 @@ pub mod figure_data;
 pub mod figures;
 pub mod file;
 mod load;
+pub mod paper_table;
 pub mod plot;
 pub mod registry;
 pub mod report;

@@ -1177,6 +1177,10 @@ fn the_committed_results_are_what_plot_all_regenerates_from_them() {
         copy_as_cloned(Path::new(folder), &dir.path().join(folder));
     }
     std::fs::copy("REPRODUCTION.md", dir.path().join("REPRODUCTION.md")).unwrap();
+    // The book's page of the paper's claims, written where the book is.
+    let book_page = coevo::experiment::paper_table::BOOK_PAGE;
+    std::fs::create_dir_all(dir.path().join(book_page).parent().unwrap()).unwrap();
+    std::fs::write(dir.path().join(book_page), "stale").unwrap();
     let committed = files_under(&dir.path().join("results"));
     // The figures of every experiment with figure data go, so they must be redrawn. (An experiment still in
     // progress has figure data and no figure, so no committed `figures/`: a clean clone has no such folder.)
@@ -1198,6 +1202,10 @@ fn the_committed_results_are_what_plot_all_regenerates_from_them() {
     assert!(
         reproduction == std::fs::read_to_string("REPRODUCTION.md").unwrap(),
         "REPRODUCTION.md is not what `coevo --plot all` makes of the committed results: run it and commit"
+    );
+    assert!(
+        std::fs::read_to_string(dir.path().join(book_page)).unwrap() == std::fs::read_to_string(book_page).unwrap(),
+        "{book_page} is not what `coevo --plot all` makes of the committed results: run it and commit"
     );
     let mut regenerated = files_under(&dir.path().join("results"));
     regenerated.retain(|f, _| f.extension().is_none_or(|e| e != "png"));

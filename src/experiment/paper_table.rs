@@ -1,0 +1,234 @@
+//! The paper, claim by claim: one row per statement of the paper (its levels, changes, sweeps and
+//! controls), with the paper's value and coevo's verdict on each preset, in a table a reader takes in at a
+//! glance. Which claims of the experiment files answer each statement is configuration,
+//! [`STATEMENTS`] (`experiments/the-paper/statements.ron`); every number and verdict is the one
+//! REPRODUCTION.md gives that claim. Written at the top of REPRODUCTION.md and as the book's first results
+//! page ([`BOOK_PAGE`]).
+
+use super::claims::ClaimResult;
+use super::file::Quantity;
+use super::verdict::Outcome;
+use serde::Deserialize;
+use std::fmt::Write as _;
+use std::path::Path;
+
+/// The statements and the claims that answer them.
+pub const STATEMENTS: &str = "experiments/the-paper/statements.ron";
+
+/// The book's page of the table, written beside REPRODUCTION.md when the book is there.
+pub const BOOK_PAGE: &str = "docs/src/results/the-paper.md";
+
+/// The two presets, in the table's column order: the paper's table values, the authors' code's.
+const PRESETS: [&str; 2] = ["paper", "gym-pps"];
+
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct StatementsFile {
+    statements: Vec<Statement>,
+}
+
+/// One statement of the paper.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Statement {
+    /// The statement, short, in the paper's words.
+    says: String,
+    /// The paper's experiment it is about ("training", "speed ratio").
+    setting: String,
+    /// The paper's number as it writes it ("22 % → 19 %"), or "–".
+    value: String,
+    /// What a reader must know beside the verdicts (a measure chosen after its results were seen).
+    #[serde(default)]
+    note: Option<String>,
+    /// The claims that test it, as `"EXPERIMENT / CLAIM TEXT"`, best first: a cell shows the first one
+    /// judged on its preset (a confirmatory experiment still in progress gives way to the one before it).
+    from: Vec<String>,
+}
+
+/// The statements, checked against the experiments' claims (`results`): every source names a claim of an
+/// experiment file.
+fn statements(results: &[ClaimResult]) -> crate::error::Result<Option<Vec<Statement>>> {
+    let path = Path::new(STATEMENTS);
+    // Experiments of one's own, without the paper's statements beside them: no table.
+    if !path.exists() {
+        return Ok(None);
+    }
+    let text = crate::io::read_text(path, crate::io::MAX_TEXT_BYTES)?;
+    let file: StatementsFile = ron::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))?;
+    for s in &file.statements {
+        for source in &s.from {
+            let Some((experiment, claim)) = source.split_once(" / ") else {
+                return Err(format!("{}: {source:?} is not \"EXPERIMENT / CLAIM TEXT\"", path.display()).into());
+            };
+            if !results.iter().any(|r| r.experiment == experiment && r.claim.text == claim) {
+                return Err(
+                    format!("{}: {source:?} names no claim of experiments/{experiment}.ron", path.display()).into()
+                );
+            }
+        }
+    }
+    Ok(Some(file.statements))
+}
+
+/// A verdict in a word or three, with a mark the eye finds in a column.
+fn short(outcome: Outcome) -> &'static str {
+    match outcome {
+        Outcome::Reproduced => "✓ reproduced",
+        Outcome::Equivalent => "✓ equivalent",
+        Outcome::DirectionReproduced { larger: true } => "◐ direction, larger",
+        Outcome::DirectionReproduced { larger: false } => "◐ direction, smaller",
+        Outcome::NotReproduced => "✗ not reproduced",
+        Outcome::Inconclusive => "? inconclusive",
+        Outcome::NoEffectDetected => "? not detected",
+        Outcome::EffectDetected => "detected",
+        Outcome::DetectedAsHypothesised => "detected as hypothesised",
+        Outcome::DetectedOpposite => "detected opposite",
+        Outcome::Measured { apart_from_chance: Some(true) } => "✓ apart from chance",
+        Outcome::Measured { apart_from_chance: Some(false) } => "? not apart from chance",
+        Outcome::Measured { apart_from_chance: None } => "measured",
+        Outcome::InProgress => "in progress",
+        Outcome::NotRunYet => "not run yet",
+        Outcome::OneSeed => "one seed",
+        Outcome::NotMeasured | Outcome::NotAComparison => "not measured",
+    }
+}
+
+/// Whether a claim's result stands as a verdict (not waiting for its runs).
+fn judged(r: &ClaimResult) -> bool {
+    r.verdict.as_ref().is_some_and(|v| !matches!(v.outcome, Outcome::InProgress | Outcome::NotRunYet))
+}
+
+/// A quantity counted in episodes, shown without decimals.
+fn in_episodes(q: &Quantity) -> bool {
+    matches!(q, Quantity::Reach90(_) | Quantity::Halfway(_) | Quantity::Reaches(..) | Quantity::ExtremeEpisode(_))
+}
+
+/// One cell: the claim's value with the interval its verdict reads and the verdict in short, from the first
+/// source judged on `preset`; with the experiment it comes from and its seeds when that is not the first
+/// source (the first still running). `link`: the evidence of an experiment, as a Markdown link.
+fn cell(s: &Statement, preset: &str, results: &[ClaimResult], link: &dyn Fn(&str) -> String) -> String {
+    let of = |source: &String| {
+        let (experiment, claim) = source.split_once(" / ")?;
+        results.iter().find(|r| r.experiment == experiment && r.preset == preset && r.claim.text == claim)
+    };
+    let found: Vec<&ClaimResult> = s.from.iter().filter_map(of).collect();
+    let Some(first) = found.first() else { return "–".into() };
+    let Some(r) = found.iter().find(|r| judged(r)) else {
+        let word = first.verdict.as_ref().map_or("not judged", |v| short(v.outcome));
+        return format!("{word} ({})", link(&first.experiment));
+    };
+    let digits = if in_episodes(&r.claim.quantity) { 0 } else { 3 };
+    let value = match (r.estimate, r.shown_half_width()) {
+        (Some(e), Some(h)) => format!("{:.digits$} ± {h:.digits$}", e.mean),
+        (Some(e), None) => format!("{:.digits$}", e.mean),
+        (None, _) => String::new(),
+    };
+    let word = r.verdict.as_ref().map_or("", |v| short(v.outcome));
+    let seeds = r.estimate.map_or(0, |e| e.n);
+    let waiting = match first.verdict.as_ref().map(|v| v.outcome) {
+        Some(Outcome::InProgress) if !std::ptr::eq(*first, *r) => format!("; {} in progress", link(&first.experiment)),
+        _ => String::new(),
+    };
+    // A minus sign, as the paper's column writes it.
+    let value = value.replace('-', "−");
+    format!("{value} {word} ({}, {seeds} seeds{waiting})", link(&r.experiment)).trim_start().to_string()
+}
+
+/// The table with the legend under it, None without [`STATEMENTS`]. `link`: how an experiment's evidence is linked
+/// from where the table is written.
+pub fn table(results: &[ClaimResult], link: &dyn Fn(&str) -> String) -> crate::error::Result<Option<String>> {
+    let Some(statements) = statements(results)? else { return Ok(None) };
+    let mut md = String::from(
+        "| the paper says | setting | paper | coevo, the paper's values (`paper`) | coevo, the authors' code's values (`gym-pps`) |\n\
+         |---|---|---|---|---|\n",
+    );
+    for s in &statements {
+        let cells = PRESETS.map(|preset| cell(s, preset, results, link));
+        let says = match &s.note {
+            Some(note) => format!("{} *({note})*", s.says),
+            None => s.says.clone(),
+        };
+        writeln!(md, "| {} | {} | {} | {} | {} |", says.replace('|', "\\|"), s.setting, s.value, cells[0], cells[1])
+            .unwrap();
+    }
+    Ok(Some(format!("{md}\n{LEGEND}\n")))
+}
+
+/// How to read the table, under it.
+const LEGEND: &str = "Each cell: coevo's mean over seeds ± the interval its verdict reads (for a change or a \
+     difference, the Holm-adjusted interval of its family; for a level, the plain 95 % interval), the verdict, and the \
+     experiment it comes from with its seeds. ✓ reproduced (an effect detected in the paper's direction with the paper's \
+     value inside its interval; a level whose interval reaches the paper's value as written and excludes chance), ◐ the \
+     paper's direction detected but not its size, ✗ not reproduced (detected the other way, or a level whose interval \
+     misses the paper's value), ? inconclusive (neither shown nor excluded; not evidence of no effect). A direction-only \
+     statement (\"faster\", \"slower\") shows its estimate in episodes. `paper`: the values of the paper's Table 1; \
+     `gym-pps`: the values of the authors' published code, where the two differ (the book's \"Paper, authors' code, \
+     coevo\").";
+
+/// The book's page of the table (`table`, linked from the book).
+pub fn book_page(table: &str) -> String {
+    format!(
+        "# The paper, claim by claim\n\n<!-- Generated by `coevo --plot all` from {STATEMENTS} and the committed results; do not \
+         edit by hand. -->\n\nEach statement of Li, Li & Zhao (NJP 2023) that coevo tests, the paper's number, and what came \
+         out with the paper's parameter values and with those of the authors' published code. Every row's claims, \
+         hypotheses and tests are in `REPRODUCTION.md` and in each experiment's folder (linked), its `REPORT.md`; how the controls \
+         separate flocking from herding, and what was found beyond the paper, are on the pages that follow.\n\n{table}"
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::experiment::file::Claim;
+    use crate::experiment::stats::estimate;
+    use crate::experiment::verdict::Verdict;
+
+    fn judged(experiment: &str, preset: &str, outcome: Outcome, samples: &[f64]) -> ClaimResult {
+        let claim = Claim {
+            text: "DoS falls to around 19 %".into(),
+            variant: "standard".into(),
+            quantity: Quantity::DosLast,
+            paper: Some(0.19),
+            versus: None,
+            margin: None,
+            baseline: None,
+            direction_only: false,
+            ours: false,
+            family: None,
+        };
+        ClaimResult {
+            estimate: estimate(samples),
+            verdict: Some(Verdict::new(outcome, "")),
+            ..ClaimResult::untested(experiment, preset, &claim, None)
+        }
+    }
+
+    #[test]
+    fn a_cell_shows_the_first_judged_source_and_what_is_still_running() {
+        let s = Statement {
+            says: "DoS falls to about 19 %".into(),
+            setting: "training".into(),
+            value: "0.19".into(),
+            note: None,
+            from: vec!["sweeps / DoS falls to around 19 %".into(), "standard / DoS falls to around 19 %".into()],
+        };
+        let link = |e: &str| format!("[{e}]");
+        let results = [
+            judged("sweeps", "paper", Outcome::InProgress, &[]),
+            judged("standard", "paper", Outcome::NotReproduced, &[0.20, 0.21, 0.22]),
+            judged("sweeps", "gym-pps", Outcome::Reproduced, &[0.18, 0.19, 0.20]),
+            judged("standard", "gym-pps", Outcome::Inconclusive, &[0.1, 0.3]),
+        ];
+        // The confirmatory source still running gives way to the next, and the cell says it is running.
+        assert_eq!(
+            cell(&s, "paper", &results, &link),
+            "0.210 ± 0.025 ✗ not reproduced ([standard], 3 seeds; [sweeps] in progress)"
+        );
+        // Judged, it takes over.
+        assert_eq!(cell(&s, "gym-pps", &results, &link), "0.190 ± 0.025 ✓ reproduced ([sweeps], 3 seeds)");
+        // Nothing judged yet: what the first source says.
+        assert_eq!(cell(&s, "paper", &results[..1], &link), "in progress ([sweeps])");
+        // A source that names no claim is refused when the statements are read.
+        assert!(cell(&s, "other", &results, &link) == "–");
+    }
+}
