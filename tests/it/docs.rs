@@ -397,8 +397,28 @@ const EQUIVALENCE_WORDS: [&str; 13] = [
     "prey herd",
 ];
 
+/// Words that say more than "not detected" or a size without saying which (an outcome, a winner, the
+/// absence of anything), which need a cited claim that was detected or shown equivalent beside them.
+const OVERREACH_WORDS: [&str; 5] = ["as often", "survive as well", "winning", "the answer is", "nothing of this"];
+
+/// A verdict that decides (an effect detected, in whatever direction, or an equivalence shown).
+fn decides(verdict: &str) -> bool {
+    [
+        "reproduced",
+        "direction reproduced",
+        "not reproduced: detected",
+        "effect detected",
+        "detected as",
+        "detected opposite",
+        "equivalent within",
+    ]
+    .iter()
+    .any(|w| verdict.starts_with(w))
+}
+
 /// Every sentence of `text` that uses equivalence wording ([`EQUIVALENCE_WORDS`]) but cites no claim
-/// whose verdict is an equivalence shown (TOST): one line each.
+/// whose verdict is an equivalence shown (TOST), or overreaching wording ([`OVERREACH_WORDS`]) but cites
+/// no claim that decides: one line each.
 fn unsupported_equivalence(
     text: &str,
     rows: &std::collections::BTreeMap<(String, String, String), Vec<ClaimRow>>,
@@ -422,14 +442,20 @@ fn unsupported_equivalence(
     let mut wrong = vec![];
     for sentence in joined.split(". ").flat_map(|s| s.split("; ")).flat_map(|s| s.split(" | ")) {
         let lower = sentence.to_lowercase();
-        let Some(word) = EQUIVALENCE_WORDS.iter().find(|w| lower.contains(&w.to_lowercase())) else { continue };
-        let equivalent = sentence.split("<!-- claim: ").skip(1).any(|c| {
+        let found = |words: &[&'static str]| words.iter().copied().find(|w| lower.contains(&w.to_lowercase()));
+        let (word, needs, supported): (&str, &str, fn(&str) -> bool) =
+            match (found(&EQUIVALENCE_WORDS), found(&OVERREACH_WORDS)) {
+                (Some(w), _) => (w, "an equivalence verdict", |v| v.starts_with("equivalent within")),
+                (None, Some(w)) => (w, "a verdict that decides (detected or equivalent)", decides),
+                (None, None) => continue,
+            };
+        let backed = sentence.split("<!-- claim: ").skip(1).any(|c| {
             let cited = restore(c.split("-->").next().unwrap_or("").trim());
-            cited_rows(&cited, rows).is_some_and(|r| r.iter().all(|r| r.verdict.starts_with("equivalent within")))
+            cited_rows(&cited, rows).is_some_and(|r| r.iter().all(|r| supported(&r.verdict)))
         });
-        if !equivalent {
+        if !backed {
             let shown: String = sentence.chars().take(120).collect();
-            wrong.push(format!("{word:?} without an equivalence verdict: {shown}…"));
+            wrong.push(format!("{word:?} without {needs}: {shown}…"));
         }
     }
     wrong
@@ -473,6 +499,10 @@ fn no_sentence_claims_equivalence_without_an_equivalence_verdict() {
     assert_eq!(said("Blind prey align as much (+0.00 ± 0.07<!-- claim: e / gym-pps / b -->). Next."), 0);
     assert_eq!(said("No difference is detected (+0.00 ± 0.07<!-- claim: e / gym-pps / a -->)."), 0);
     assert_eq!(said("The answer is **herding**. It is."), 1);
+    // Overreaching words: a non-detection does not back them, a detection does.
+    assert_eq!(said("The prey are winning the race (+0.00 ± 0.07<!-- claim: e / gym-pps / a -->)."), 1);
+    assert_eq!(said("They are caught as often (+0.00 ± 0.07<!-- claim: e / gym-pps / b -->)."), 0);
+    assert_eq!(said("Nothing of this is seen."), 1);
     assert_eq!(
         said("Blind prey align as much (+0.00 ± 0.07<!-- claim: e / gym-pps / c (primary; within 0.05) -->)."),
         0
