@@ -4,7 +4,7 @@ use super::claims::{RunData, SETTLED_STEPS, WINDOW};
 use super::data::headline;
 use super::figure_data::{self, FigureData};
 use super::file::{slug, Experiment, Quantity};
-use super::plot::{self, Curve, EstimatePanel, Panel, Row};
+use super::plot::{self, Curve, EstimatePanel, Level, Panel, Row};
 use super::stats::{estimate, running_mean};
 use super::summary::Summary;
 use crate::run::schema;
@@ -119,6 +119,7 @@ fn perturbation_figures<'a>(
                 x_label: "steps after the turn".into(),
                 y_label: "mean |Δheading| (rad)".into(),
                 curves,
+                levels: vec![],
             });
         }
         if panels.iter().any(|p| !p.curves.is_empty()) {
@@ -158,6 +159,50 @@ fn crossplay_figures(
 
 /// The training curves, the variants compared (from the per-run values of `table`), catches, and per
 /// evaluation its per-step curves and confusion curve.
+/// The values a training curve of `curve` ("dos" or "doa") is read against: the paper's start and end
+/// levels as the experiment's claims state them (a start over the first 100 episodes, an end over the last
+/// 100 of `episodes`; in the colour of the variant they are about), and chance at the base scene's density.
+fn levels(exp: &Experiment, preset: &str, curve: &str, episodes: usize) -> Vec<Level> {
+    let (last, first) = match curve {
+        "dos" => (Quantity::DosLast, Quantity::Start("dos".into())),
+        _ => (Quantity::DoaLast, Quantity::Start("doa".into())),
+    };
+    let end = episodes as f64;
+    let mut out: Vec<Level> = Vec::new();
+    for c in exp.spec.claims.iter().filter(|c| c.versus.is_none() && !c.direction_only) {
+        let (Some(y), Some(colour)) = (c.paper, exp.spec.variants.iter().position(|v| v.name == c.variant)) else {
+            continue;
+        };
+        let x = match &c.quantity {
+            q if *q == first => (1.0, (WINDOW as f64).min(end)),
+            q if *q == last => ((end - WINDOW as f64 + 1.0).max(1.0), end),
+            _ => continue,
+        };
+        // One line per value and variant (a level several claims state is drawn once).
+        if !out.iter().any(|l| l.y == y && l.colour == colour && l.x == Some(x)) {
+            out.push(Level { label: "the paper".into(), y, x: Some(x), chance: false, colour });
+        }
+    }
+    let base = exp.spec.variants.first().map(|v| v.name.clone()).unwrap_or_default();
+    let scene = exp.runs.iter().find(|r| r.preset == preset && r.variant == base).map(|r| &r.scene);
+    let probe = super::file::Claim {
+        text: String::new(),
+        variant: base,
+        quantity: last,
+        paper: None,
+        versus: None,
+        margin: None,
+        baseline: None,
+        direction_only: false,
+        ours: false,
+        family: None,
+    };
+    if let Some(y) = super::claims::chance_level(exp, &probe, scene) {
+        out.push(Level { label: "chance".into(), y, x: None, chance: true, colour: 0 });
+    }
+    out
+}
+
 fn figures<'a>(
     exp: &Experiment,
     preset: &str,
@@ -181,18 +226,21 @@ fn figures<'a>(
             .collect()
     };
     let title = |what: &str| format!("{}, {preset}: {what}", exp.name);
+    let episodes = exp.spec.variants.iter().flat_map(|v| of_variant(&v.name)).map(|d| d.dos.len()).max().unwrap_or(0);
     let training = [
         Panel {
             title: title(&format!("DoS of {prey}")),
             x_label: "episode".into(),
             y_label: format!("DoS ({WINDOW}-episode mean)"),
             curves: curves(&|d| running_mean(&d.dos, WINDOW), 1.0),
+            levels: levels(exp, preset, "dos", episodes),
         },
         Panel {
             title: title(&format!("DoA of {prey}")),
             x_label: "episode".into(),
             y_label: format!("DoA ({WINDOW}-episode mean)"),
             curves: curves(&|d| running_mean(&d.doa, WINDOW), 1.0),
+            levels: levels(exp, preset, "doa", episodes),
         },
     ];
     if training.iter().all(|p| p.curves.is_empty()) {
@@ -250,6 +298,7 @@ fn figures<'a>(
         x_label: "episode".into(),
         y_label: format!("catches ({WINDOW}-episode mean)"),
         curves: curves(&|d| running_mean(&d.catches, WINDOW), 1.0),
+        levels: vec![],
     }];
     plot::save(&dir.join(format!("{preset}-catches")), &catches)?;
     *saved += 1;
@@ -260,12 +309,14 @@ fn figures<'a>(
                 x_label: "time step".into(),
                 y_label: "DoS".into(),
                 curves: curves(&|d| d.evals.get(&e.name).map_or(vec![], |x| x.dos.clone()), 1.0),
+                levels: vec![],
             },
             Panel {
                 title: title(&format!("{}: DoA per step", e.name)),
                 x_label: "time step".into(),
                 y_label: "DoA".into(),
                 curves: curves(&|d| d.evals.get(&e.name).map_or(vec![], |x| x.doa.clone()), 1.0),
+                levels: vec![],
             },
         ];
         if panels.iter().any(|p| !p.curves.is_empty()) {
@@ -287,18 +338,21 @@ fn figures<'a>(
                 x_label: x_label.clone(),
                 y_label: "mean |turn command| / max".into(),
                 curves: confusion(0),
+                levels: vec![],
             },
             Panel {
                 title: title(&format!("{}: predator speed", e.name)),
                 x_label: x_label.clone(),
                 y_label: "mean speed / max".into(),
                 curves: confusion(1),
+                levels: vec![],
             },
             Panel {
                 title: title(&format!("{}: catch rate", e.name)),
                 x_label,
                 y_label: "catches per predator-step".into(),
                 curves: confusion(2),
+                levels: vec![],
             },
         ];
         if panels.iter().any(|p| p.curves.iter().any(|c| c.mean.iter().any(|v| v.is_finite()))) {
@@ -334,12 +388,14 @@ pub fn plot_run(dir: &Path, partial: bool) -> crate::error::Result<std::path::Pa
             x_label: "episode".into(),
             y_label: format!("DoS ({WINDOW}-episode mean)"),
             curves: curve(&schema::of("dos", &prey))?,
+            levels: vec![],
         },
         Panel {
             title: format!("DoA of {prey}{note}"),
             x_label: "episode".into(),
             y_label: format!("DoA ({WINDOW}-episode mean)"),
             curves: curve(&schema::of("doa", &prey))?,
+            levels: vec![],
         },
     ];
     let figures = crate::run::RunDir::new(dir).figures();

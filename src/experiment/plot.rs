@@ -20,6 +20,20 @@ pub struct Panel {
     pub x_label: String,
     pub y_label: String,
     pub curves: Vec<Curve>,
+    /// Values to read the curves against, dashed: the paper's and chance's.
+    pub levels: Vec<Level>,
+}
+
+/// A value drawn as a dashed line: over `x` (a span of the x axis, e.g. the paper's start over the
+/// first episodes and its end over the last 100), or across the panel when None.
+pub struct Level {
+    pub label: String,
+    pub y: f64,
+    pub x: Option<(f64, f64)>,
+    /// Chance (grey, thin) or a stated value (in the colour of the curve it is about: `colour`, the
+    /// curve's index).
+    pub chance: bool,
+    pub colour: usize,
 }
 
 /// One row of an [`EstimatePanel`]: a variant's mean over seeds and the half-width of its 95 % CI (None
@@ -297,6 +311,10 @@ fn draw_panel(panel: &Panel, area: &Area) -> crate::error::Result<()> {
     let (m0, m1) = means.filter(finite).fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &y| (a.min(y), b.max(y)));
     let bands = panel.curves.iter().flat_map(|c| c.band.iter().flat_map(|(lo, hi)| lo.iter().chain(hi.iter())));
     let (b0, b1) = bands.filter(finite).fold((m0, m1), |(a, b), &y| (a.min(y), b.max(y)));
+    // The axis holds every level too: a paper's value the curves never reach is the point of drawing it.
+    let levels = panel.levels.iter().map(|l| &l.y);
+    let (m0, m1) = levels.filter(finite).fold((m0, m1), |(a, b), &y| (a.min(y), b.max(y)));
+    let (b0, b1) = (b0.min(m0), b1.max(m1));
     let (x0, x1) = if x0.is_finite() && x1 > x0 { (x0, x1) } else { (0.0, 1.0) };
     let room = if m1 > m0 { m1 - m0 } else { m0.abs().max(0.1) };
     let (y0, y1) = if m0.is_finite() { (b0.max(m0 - room), b1.min(m1 + room)) } else { (0.0, 1.0) };
@@ -333,6 +351,23 @@ fn draw_panel(panel: &Panel, area: &Area) -> crate::error::Result<()> {
             .map_err(draw_err)?
             .label(c.label.clone())
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], colour.stroke_width(2)));
+    }
+    // Each kind of level once in the legend.
+    let mut named = [false; 2];
+    for l in panel.levels.iter().filter(|l| l.y.is_finite()) {
+        let style = match l.chance {
+            true => BLACK.mix(0.45).stroke_width(1),
+            false => COLOURS[l.colour % COLOURS.len()].stroke_width(3),
+        };
+        let (a, b) = l.x.unwrap_or((x0, x1));
+        let series = chart
+            .draw_series(DashedLineSeries::new([(a.max(x0), l.y), (b.min(x1), l.y)], 6, 4, style))
+            .map_err(draw_err)?;
+        if !std::mem::replace(&mut named[usize::from(l.chance)], true) {
+            series.label(l.label.clone()).legend(move |(x, y)| {
+                plotters::element::DashedPathElement::new(vec![(x, y), (x + 18, y)], 5, 3, style)
+            });
+        }
     }
     chart
         .configure_series_labels()
