@@ -7,6 +7,7 @@
 
 use crate::experiment::command::{self, ExperimentArgs, PlotArgs};
 use crate::experiment::crossplay::{self, CrossplayArgs};
+use crate::experiment::response::{self, ResponseArgs};
 use crate::run::animate::{self, AnimateArgs};
 use crate::run::args::{self, CommonArgs, DescribeArgs, Mode, SceneArgs, Shared};
 use crate::run::bench::BenchArgs;
@@ -42,6 +43,8 @@ struct Cli {
     #[command(flatten)]
     crossplay: CrossplayArgs,
     #[command(flatten)]
+    response: ResponseArgs,
+    #[command(flatten)]
     record: RecordArgs,
     #[command(flatten)]
     animate: AnimateArgs,
@@ -73,6 +76,7 @@ fn modes() -> Vec<(&'static str, Vec<String>)> {
         mode::<ResumeArgs>(),
         mode::<EvalArgs>(),
         mode::<CrossplayArgs>(),
+        mode::<ResponseArgs>(),
         mode::<RecordArgs>(),
         mode::<AnimateArgs>(),
         mode::<DescribeArgs>(),
@@ -215,6 +219,9 @@ fn run(cli: Cli) -> crate::error::Result<()> {
     }
     if let Some(run) = &cli.crossplay.crossplay {
         return crossplay::main(&cli.crossplay.options(run, &shared)?);
+    }
+    if let Some(run) = &cli.response.response {
+        return response::main(run);
     }
     if let Some(out) = &cli.record.record {
         return record::main(out, &cli.deploy, &shared);

@@ -248,10 +248,11 @@ pub fn heatmaps(m: &Matrix, what: &str) -> Vec<plot::Heatmap> {
         title,
         x_label: format!("{} snapshot (episode)", m.pair.predator_name),
         y_label: format!("{} snapshot (episode)", m.pair.prey_name),
-        x_ticks: m.predator_episodes.clone(),
-        y_ticks: m.prey_episodes.clone(),
+        x_ticks: m.predator_episodes.iter().map(usize::to_string).collect(),
+        y_ticks: m.prey_episodes.iter().map(usize::to_string).collect(),
         values,
         log,
+        diverging: false,
     };
     vec![
         map(format!("{what}catches per episode"), grid(|c| c.catches), true),

@@ -40,6 +40,7 @@ pub mod paper_table;
 pub mod plot;
 pub mod registry;
 pub mod report;
+pub mod response;
 pub mod runner;
 pub mod spread;
 pub mod stats;

@@ -60,12 +60,15 @@ pub struct Heatmap {
     pub x_label: String,
     pub y_label: String,
     /// The column labels (one per column) and the row labels (one per row).
-    pub x_ticks: Vec<usize>,
-    pub y_ticks: Vec<usize>,
-    /// `values[row][column]`.
+    pub x_ticks: Vec<String>,
+    pub y_ticks: Vec<String>,
+    /// `values[row][column]`; a value that is not finite is a grey cell (no value).
     pub values: Vec<Vec<f64>>,
     /// Colour by log(1 + value) (counts spanning orders of magnitude, as catches against untrained prey).
     pub log: bool,
+    /// Colour a signed value: blue below zero, white at zero, red above, on a scale symmetric about zero
+    /// (a turn to the right or to the left), instead of viridis from the smallest value to the largest.
+    pub diverging: bool,
 }
 
 /// Size in pixels of one heat map (panels side by side).
@@ -220,6 +223,14 @@ fn viridis(t: f64) -> RGBColor {
     RGBColor(mix(a.0, b.0), mix(a.1, b.1), mix(a.2, b.2))
 }
 
+/// Blue (−1) through white (0) to red (+1).
+fn diverging(t: f64) -> RGBColor {
+    let t = t.clamp(-1.0, 1.0);
+    let (end, f) = if t < 0.0 { ((33.0, 102.0, 172.0), -t) } else { ((178.0, 24.0, 43.0), t) };
+    let mix = |q: f64| (255.0 + f * (q - 255.0)).round() as u8;
+    RGBColor(mix(end.0), mix(end.1), mix(end.2))
+}
+
 fn draw_heatmap(map: &Heatmap, area: &Area) -> crate::error::Result<()> {
     use plotters::coord::ranged1d::SegmentValue;
     let (rows, columns) = (map.values.len(), map.values.first().map_or(0, Vec::len));
@@ -235,15 +246,20 @@ fn draw_heatmap(map: &Heatmap, area: &Area) -> crate::error::Result<()> {
         ),
         false => format!("{}: no values", map.title),
     };
+    let title = match (map.diverging, lo.is_finite()) {
+        (true, true) => format!("{title}; blue < 0 < red"),
+        _ => title,
+    };
     let shade = |v: f64| if map.log { v.max(0.0).ln_1p() } else { v };
     let (lo, hi) = (shade(lo), shade(hi));
+    let reach = lo.abs().max(hi.abs());
     // Labels on about eight rows and columns, whatever the matrix' size.
     let every = |n: usize| n.div_ceil(8).max(1);
-    let label = |ticks: &[usize], n: usize| {
+    let label = |ticks: &[String], n: usize| {
         let ticks = ticks.to_vec();
         move |v: &SegmentValue<i32>| match v {
             SegmentValue::CenterOf(k) if (*k as usize) < n && (*k as usize).is_multiple_of(every(n)) => {
-                ticks[*k as usize].to_string()
+                ticks[*k as usize].clone()
             }
             _ => String::new(),
         }
@@ -273,9 +289,10 @@ fn draw_heatmap(map: &Heatmap, area: &Area) -> crate::error::Result<()> {
     let edge = |k: usize, n: usize| if k >= n { SegmentValue::Last } else { SegmentValue::Exact(k as i32) };
     let cells = map.values.iter().enumerate().flat_map(|(i, row)| {
         row.iter().enumerate().map(move |(j, &v)| {
-            let colour = match v.is_finite() {
-                true => viridis(if hi > lo { (shade(v) - lo) / (hi - lo) } else { 0.5 }),
-                false => RGBColor(200, 200, 200),
+            let colour = match (v.is_finite(), map.diverging) {
+                (true, false) => viridis(if hi > lo { (shade(v) - lo) / (hi - lo) } else { 0.5 }),
+                (true, true) => diverging(if reach > 0.0 { v / reach } else { 0.0 }),
+                (false, _) => RGBColor(200, 200, 200),
             };
             Rectangle::new(
                 [(edge(j, columns), edge(i, rows)), (edge(j + 1, columns), edge(i + 1, rows))],
@@ -436,10 +453,11 @@ mod tests {
             title: "test".into(),
             x_label: "column".into(),
             y_label: "row".into(),
-            x_ticks: (0..columns).map(|j| 100 * j).collect(),
-            y_ticks: (0..rows).map(|i| 100 * i).collect(),
+            x_ticks: (0..columns).map(|j| (100 * j).to_string()).collect(),
+            y_ticks: (0..rows).map(|i| (100 * i).to_string()).collect(),
             values: (0..rows).map(|i| (0..columns).map(|j| (i * columns + j) as f64).collect()).collect(),
             log: false,
+            diverging: false,
         };
         let dir = tempfile::tempdir().unwrap();
         let stem = dir.path().join("map");

@@ -130,55 +130,66 @@ fn decide_rule_based(
     mut batches: ResMut<Batches>,
     mut rng: ResMut<SimRng>,
 ) {
-    let dt = scene.0.world.dt;
     for s in 0..registry.len() {
-        let max_turn = registry.defs[s].max_turn_rate;
         let batch = &mut batches.species[s];
         for row in 0..batch.n {
-            let obs = batch.observation(row);
-            // In the body frame the observer always faces along its first axis.
-            let heading = match scene.0.observation_frame {
-                ObservationFrame::World => {
-                    let h = registry.layouts[s].heading();
-                    [obs[h.start], obs[h.start + 1]]
-                }
-                ObservationFrame::Body => [1.0, 0.0],
-            };
-            let action = match registry.policy(s) {
-                Policy::Random => [rng.0.gen_range(-1.0..=1.0), rng.0.gen_range(-1.0..=1.0)],
-                Policy::Still => [-1.0, 0.0],
-                // The paper's rule (Section "Emergent Swirling Behavior"): turn to the nearest prey, full thrust.
-                Policy::ChaseNearest => match nearest_observed(obs, &registry, s, registry.prey_of(s)) {
-                    Some(d) => [1.0, turn_toward(heading, d, max_turn, dt)],
-                    None => [1.0, 0.0],
-                },
-                Policy::FleeNearest => match nearest_observed(obs, &registry, s, registry.predators_of(s)) {
-                    Some(d) => [1.0, turn_toward(heading, [-d[0], -d[1]], max_turn, dt)],
-                    None => [1.0, 0.0],
-                },
-                Policy::FleeInside => {
-                    let away = nearest_observed(obs, &registry, s, registry.predators_of(s)).map(|d| [-d[0], -d[1]]);
-                    match (away, off_walls(obs, &registry, s, &scene.0)) {
-                        (Some(away), None) => [1.0, turn_toward(heading, away, max_turn, dt)],
-                        (away, Some(push)) => {
-                            let away = away.map_or([0.0, 0.0], |a| {
-                                let n = a[0].hypot(a[1]).max(f32::MIN_POSITIVE);
-                                [a[0] / n, a[1] / n]
-                            });
-                            let to = [away[0] + push[0], away[1] + push[1]];
-                            // Facing away from where it should go, it brakes to turn: at full speed the
-                            // turning circle (v / max turn rate: 1 m in the paper) is as wide as the box.
-                            let facing = heading[0] * to[0] + heading[1] * to[1];
-                            [if facing < 0.0 { -1.0 } else { 1.0 }, turn_toward(heading, to, max_turn, dt)]
-                        }
-                        (None, None) => [1.0, 0.0],
-                    }
-                }
-                Policy::Learned | Policy::Frozen(_) | Policy::Plugin(_) => break,
-            };
+            let Some(action) = rule_action(batch.observation(row), &registry, s, &scene.0, &mut rng.0) else { break };
             batch.actions[row * ACTION_DIM..(row + 1) * ACTION_DIM].copy_from_slice(&action);
         }
     }
+}
+
+/// The normalized action a rule-based species `s` takes on one observation `obs`; None for a species its
+/// rule does not decide (`Learned`, `Frozen`, `Plugin`). A function of the observation alone (and of `rng`
+/// for `Random`), so it can also be read off synthetic observations (`experiment::response`).
+pub fn rule_action(
+    obs: &[f32],
+    registry: &SpeciesRegistry,
+    s: usize,
+    scene: &crate::scene::Scene,
+    rng: &mut impl Rng,
+) -> Option<[f32; ACTION_DIM]> {
+    let (dt, max_turn) = (scene.world.dt, registry.defs[s].max_turn_rate);
+    // In the body frame the observer always faces along its first axis.
+    let heading = match scene.observation_frame {
+        ObservationFrame::World => {
+            let h = registry.layouts[s].heading();
+            [obs[h.start], obs[h.start + 1]]
+        }
+        ObservationFrame::Body => [1.0, 0.0],
+    };
+    Some(match registry.policy(s) {
+        Policy::Random => [rng.gen_range(-1.0..=1.0), rng.gen_range(-1.0..=1.0)],
+        Policy::Still => [-1.0, 0.0],
+        // The paper's rule (Section "Emergent Swirling Behavior"): turn to the nearest prey, full thrust.
+        Policy::ChaseNearest => match nearest_observed(obs, registry, s, registry.prey_of(s)) {
+            Some(d) => [1.0, turn_toward(heading, d, max_turn, dt)],
+            None => [1.0, 0.0],
+        },
+        Policy::FleeNearest => match nearest_observed(obs, registry, s, registry.predators_of(s)) {
+            Some(d) => [1.0, turn_toward(heading, [-d[0], -d[1]], max_turn, dt)],
+            None => [1.0, 0.0],
+        },
+        Policy::FleeInside => {
+            let away = nearest_observed(obs, registry, s, registry.predators_of(s)).map(|d| [-d[0], -d[1]]);
+            match (away, off_walls(obs, registry, s, scene)) {
+                (Some(away), None) => [1.0, turn_toward(heading, away, max_turn, dt)],
+                (away, Some(push)) => {
+                    let away = away.map_or([0.0, 0.0], |a| {
+                        let n = a[0].hypot(a[1]).max(f32::MIN_POSITIVE);
+                        [a[0] / n, a[1] / n]
+                    });
+                    let to = [away[0] + push[0], away[1] + push[1]];
+                    // Facing away from where it should go, it brakes to turn: at full speed the
+                    // turning circle (v / max turn rate: 1 m in the paper) is as wide as the box.
+                    let facing = heading[0] * to[0] + heading[1] * to[1];
+                    [if facing < 0.0 { -1.0 } else { 1.0 }, turn_toward(heading, to, max_turn, dt)]
+                }
+                (None, None) => [1.0, 0.0],
+            }
+        }
+        Policy::Learned | Policy::Frozen(_) | Policy::Plugin(_) => return None,
+    })
 }
 
 fn act(registry: Res<SpeciesRegistry>, batches: Res<Batches>, mut agents: Query<(&Slot, &SpeciesId, &mut Action)>) {
