@@ -7,6 +7,7 @@
 
 use crate::experiment::command::{self, ExperimentArgs, PlotArgs};
 use crate::experiment::crossplay::{self, CrossplayArgs};
+use crate::experiment::force_map::{self, ForceMapArgs};
 use crate::experiment::response::{self, ResponseArgs};
 use crate::run::animate::{self, AnimateArgs};
 use crate::run::args::{self, CommonArgs, DescribeArgs, Mode, SceneArgs, Shared};
@@ -19,6 +20,7 @@ use crate::sim::species::SpeciesPlugins;
 use crate::viewer::args::ViewerArgs;
 use clap::parser::ValueSource;
 use clap::{error::ErrorKind, ArgGroup, CommandFactory, FromArgMatches, Parser};
+use std::path::PathBuf;
 use std::process::ExitCode;
 
 /// Predators and prey that learn together: a simulator of Li, Li & Zhao (New J. Phys. 2023).
@@ -44,6 +46,8 @@ struct Cli {
     crossplay: CrossplayArgs,
     #[command(flatten)]
     response: ResponseArgs,
+    #[command(flatten)]
+    force_map: ForceMapArgs,
     #[command(flatten)]
     record: RecordArgs,
     #[command(flatten)]
@@ -77,6 +81,7 @@ fn modes() -> Vec<(&'static str, Vec<String>)> {
         mode::<EvalArgs>(),
         mode::<CrossplayArgs>(),
         mode::<ResponseArgs>(),
+        mode::<ForceMapArgs>(),
         mode::<RecordArgs>(),
         mode::<AnimateArgs>(),
         mode::<DescribeArgs>(),
@@ -222,6 +227,12 @@ fn run(cli: Cli) -> crate::error::Result<()> {
     }
     if let Some(run) = &cli.response.response {
         return response::main(run);
+    }
+    if let Some(trajectory) = &cli.force_map.force_map {
+        let default =
+            cli.deploy.run.as_ref().map_or(PathBuf::from(args::STANDARD_SCENE), |r| r.join(crate::run::folder::SCENE));
+        let (scene, _) = shared.scene.load(&default, &Default::default())?;
+        return force_map::main(trajectory, &scene, shared.common.overwrite);
     }
     if let Some(out) = &cli.record.record {
         return record::main(out, &cli.deploy, &shared);

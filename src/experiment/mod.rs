@@ -35,6 +35,7 @@ pub mod external;
 pub mod figure_data;
 pub mod figures;
 pub mod file;
+pub mod force_map;
 mod load;
 pub mod paper_table;
 pub mod plot;

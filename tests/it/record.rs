@@ -204,3 +204,48 @@ fn the_order_parameters_beside_a_record_are_those_of_its_trajectory() {
         }
     }
 }
+
+#[test]
+fn the_force_map_of_fleeing_prey_shows_them_turning_away_from_the_predator() {
+    // Prey that flee the nearest predator and predators that chase, recorded: the prey's map against the
+    // nearest predator turns them right (−) when it is on their left and left (+) when on their right. Read
+    // from positions and headings alone. (The chasers keep their prey dead ahead: their bins beside them
+    // hold too few samples to read.)
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("rules.csv");
+    let (traj, scene) = (out.to_str().unwrap(), "scenes/standard.ron");
+    let rules = ["--policy", "prey=FleeNearest", "--policy", "predator=ChaseNearest"];
+    let o = coevo(&[&["--record", traj, "--scene", scene, "--steps", "3000", "--prey", "20"][..], &rules].concat());
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = coevo(&["--force-map", traj, "--scene", scene]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = std::fs::read_to_string(dir.path().join("rules-force-map.csv")).unwrap();
+    assert!(dir.path().join("rules-force-map-prey-predator.svg").exists());
+    let mean_turning = |species: &str, observed: &str, left_side: bool| {
+        let rows: Vec<f64> = text
+            .lines()
+            .skip(1)
+            .map(|l| l.split(',').collect::<Vec<_>>())
+            .filter(|r| r[0] == species && r[1] == observed && !r[5].is_empty())
+            .filter(|r| {
+                let left: f64 = r[3].parse().unwrap();
+                if left_side {
+                    left > 0.15
+                } else {
+                    left < -0.15
+                }
+            })
+            .map(|r| r[5].parse::<f64>().unwrap())
+            .collect();
+        assert!(rows.len() >= 3, "{species}/{observed}: {} bins", rows.len());
+        rows.iter().sum::<f64>() / rows.len() as f64
+    };
+    assert!(mean_turning("prey", "predator", true) < 0.0 && mean_turning("prey", "predator", false) > 0.0);
+    // A second call refuses to overwrite without --overwrite, in one line.
+    let o = coevo(&["--force-map", traj, "--scene", scene]);
+    assert!(!o.status.success());
+    assert_eq!(String::from_utf8_lossy(&o.stderr).lines().count(), 1);
+    // Not a trajectory: one line naming the file.
+    let o = coevo(&["--force-map", "scenes/standard.ron", "--scene", scene]);
+    assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("not a trajectory"));
+}
