@@ -7,7 +7,8 @@
 //! the left of the focal agent's heading; every other slot is empty, as the observation layout leaves a
 //! slot no one fills (zeros, `sim::perception`). In a world-frame scene the focal agent sits at the
 //! origin heading along +x, so "ahead" is +x and "left" is +y there too. A cell beyond the perception
-//! radius holds no value: no agent there is observed. The action is the normalized one in [−1, 1]: thrust
+//! radius holds no value: no agent there is observed. Beside each field, the action with no one in view
+//! (`alone`), which a neighbour's effect is read against. The action is the normalized one in [−1, 1]: thrust
 //! (−1 none, +1 full) and turn (+1 the fastest turn to the left, −1 to the right).
 
 use crate::learning::{Learners, Mode};
@@ -38,6 +39,8 @@ pub struct Field {
     /// the neighbour would not be observed (beyond the perception radius, or at the focal agent).
     pub thrust: Vec<Vec<f64>>,
     pub turn: Vec<Vec<f64>>,
+    /// The action with every slot empty (no one in view): what a neighbour's response is read against.
+    pub alone: [f64; ACTION_DIM],
 }
 
 /// A policy as a function of a batch of observations (`rows` of them, one after the other): `rows` ×
@@ -59,6 +62,8 @@ pub fn fields(scene: &Scene, decides: &[bool], act: &Actor) -> Vec<Field> {
         let mut blank = vec![0.0f32; layout.dim()];
         // A full energy budget: the authors' energy input 2·E/E_max − 1.
         layout.place_own(&mut blank, own, 1.0);
+        let alone = act(s, &blank, 1);
+        let alone = [alone[0] as f64, alone[1] as f64];
         for t in (0..registry.len()).filter(|&t| registry.slots(s, t) > 0 && !registry.blind[s][t]) {
             // Within the perception radius, and within the half edge (a neighbour farther on the torus is
             // nearer through the other side).
@@ -93,6 +98,7 @@ pub fn fields(scene: &Scene, decides: &[bool], act: &Actor) -> Vec<Field> {
                     centres: centres.clone(),
                     thrust: grid(0),
                     turn: grid(1),
+                    alone,
                 });
             }
         }
@@ -135,7 +141,8 @@ pub fn of_run(run: &Path) -> crate::error::Result<(Scene, Vec<Field>)> {
 
 /// `response.csv`: one row per field and cell with a value.
 pub fn csv(fields: &[Field]) -> String {
-    let mut out = String::from("species,observed,rel_heading,ahead,left,distance,bearing,thrust,turn\n");
+    let mut out =
+        String::from("species,observed,rel_heading,ahead,left,distance,bearing,thrust,turn,thrust_alone,turn_alone\n");
     for f in fields {
         for (row, &left) in f.centres.iter().enumerate() {
             for (column, &ahead) in f.centres.iter().enumerate() {
@@ -145,12 +152,14 @@ pub fn csv(fields: &[Field]) -> String {
                 }
                 writeln!(
                     out,
-                    "{},{},{:.4},{ahead:.4},{left:.4},{:.4},{:.4},{thrust:.5},{turn:.5}",
+                    "{},{},{:.4},{ahead:.4},{left:.4},{:.4},{:.4},{thrust:.5},{turn:.5},{:.5},{:.5}",
                     f.species,
                     f.observed,
                     f.rel_heading,
                     ahead.hypot(left),
-                    left.atan2(ahead)
+                    left.atan2(ahead),
+                    f.alone[0],
+                    f.alone[1]
                 )
                 .unwrap();
             }
@@ -187,8 +196,8 @@ pub fn main(run: &Path) -> crate::error::Result<()> {
     let mut written = vec![csv_path.display().to_string()];
     for f in fields.iter().filter(|f| f.rel_heading == 0.0) {
         let ticks: Vec<String> = f.centres.iter().map(|c| format!("{c:.2}")).collect();
-        let map = |what: &str, values: &[Vec<f64>], diverging: bool| super::plot::Heatmap {
-            title: format!("{}: {what}, one {} parallel", f.species, f.observed),
+        let map = |what: &str, values: &[Vec<f64>], diverging: bool, alone: f64| super::plot::Heatmap {
+            title: format!("{}: {what}, one {} parallel (alone: {alone:+.2})", f.species, f.observed),
             x_label: "ahead (m)".into(),
             y_label: "to the left (m)".into(),
             x_ticks: ticks.clone(),
@@ -198,7 +207,8 @@ pub fn main(run: &Path) -> crate::error::Result<()> {
             diverging,
         };
         let stem = dir.figures().join(format!("response-{}-{}", f.species, f.observed));
-        super::plot::save_heatmaps(&stem, &[map("turn (+ left)", &f.turn, true), map("thrust", &f.thrust, false)])?;
+        let maps = [map("turn (+ left)", &f.turn, true, f.alone[1]), map("thrust", &f.thrust, false, f.alone[0])];
+        super::plot::save_heatmaps(&stem, &maps)?;
         written.push(format!("{}.svg", stem.display()));
     }
     for line in written {
@@ -278,7 +288,9 @@ mod tests {
         // The corner of the grid is farther than the radius from the centre.
         assert!(f.turn[0][0].is_nan() && f.turn[GRID - 1][GRID - 1].is_nan());
         let csv = csv(&all);
-        assert!(csv.starts_with("species,observed,rel_heading,ahead,left,distance,bearing,thrust,turn\n"));
+        assert!(csv.starts_with("species,observed,rel_heading,ahead,left,distance,bearing,thrust,turn,"));
+        // Alone, a fleer runs straight at full thrust.
+        assert_eq!(f.alone, [1.0, 0.0]);
         assert!(!csv.contains("NaN"));
     }
 }
