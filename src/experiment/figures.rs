@@ -373,6 +373,12 @@ pub fn plot_run(dir: &Path, partial: bool) -> crate::error::Result<std::path::Pa
     let prey = scene.species[SpeciesRegistry::from_scene(&scene).headline()].name.clone();
     let (metrics, note) = run.checked_metrics(partial)?;
     let note = note.map_or(String::new(), |n| format!(" ({n})"));
+    // Chance: DoS of uniform random positions at the run's density, DoA of independent headings (2/π).
+    let arena = crate::sim::space::Arena { edge: scene.world.arena_edge, boundary: scene.world.boundary };
+    let count = scene.species.iter().find(|d| d.name == prey).map_or(0, |d| d.count);
+    let chance = |y: Option<f64>| -> Vec<Level> {
+        y.map(|y| Level { label: "chance".into(), y, x: None, chance: true, colour: 0 }).into_iter().collect()
+    };
     let curve = |name: &str| -> crate::error::Result<Vec<Curve>> {
         let values = running_mean(&metrics.column(name)?, WINDOW);
         Ok(vec![Curve {
@@ -388,14 +394,14 @@ pub fn plot_run(dir: &Path, partial: bool) -> crate::error::Result<std::path::Pa
             x_label: "episode".into(),
             y_label: format!("DoS ({WINDOW}-episode mean)"),
             curves: curve(&schema::of("dos", &prey))?,
-            levels: vec![],
+            levels: chance(crate::sim::metrics::random_dos(&arena, count)),
         },
         Panel {
             title: format!("DoA of {prey}{note}"),
             x_label: "episode".into(),
             y_label: format!("DoA ({WINDOW}-episode mean)"),
             curves: curve(&schema::of("doa", &prey))?,
-            levels: vec![],
+            levels: chance(Some(std::f64::consts::FRAC_2_PI)),
         },
     ];
     let figures = crate::run::RunDir::new(dir).figures();

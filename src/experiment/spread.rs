@@ -40,8 +40,15 @@ pub fn seeds_like(scene: &Scene) -> Option<String> {
         if best.as_ref().is_some_and(|(n, _)| *n >= rows.len()) {
             continue;
         }
+        // Their length, so that a shorter run is not read against them as if it were as long.
+        let episodes = range("episodes", 0);
+        let episodes = episodes
+            .split('–')
+            .next()
+            .filter(|a| episodes.ends_with(&format!("–{a}")))
+            .map_or(episodes.clone(), str::to_string);
         let line = format!(
-            "  how far seeds differ: the {} seeds of this scene in {} ({} preset, variant \"{}\") ended at DoA {}, DoS {} and {} catches per episode (last 100 episodes)\n",
+            "  how far seeds differ: the {} seeds of this scene in {} ({} preset, variant \"{}\"), trained {episodes} episodes each, ended at DoA {}, DoS {} and {} catches per episode (their last 100 episodes; compare a run of as many episodes)\n",
             rows.len(),
             exp.root.display(),
             run.preset,

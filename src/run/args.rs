@@ -61,7 +61,8 @@ pub struct CommonArgs {
     /// replace it (coevo's own files only).
     #[arg(long, help_heading = "Running")]
     pub overwrite: bool,
-    /// No progress bar (--train, --resume, --crossplay, --animate, --experiment).
+    /// No progress bar (--train, --resume, --crossplay, --animate, --experiment), and no explanation at the
+    /// end of --train and --resume (which goes to stdout otherwise; progress and errors to stderr).
     #[arg(long, help_heading = "Running")]
     pub quiet: bool,
     /// Worker threads (default: COEVO_THREADS, else all cores). Results never depend on it.

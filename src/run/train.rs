@@ -131,9 +131,23 @@ pub fn main(scene: Scene, opts: &TrainOptions, spread: Option<&str>) -> crate::e
     let trained = train(scene, opts)?;
     crate::errln!("coevo: trained {trained} episodes into {}", opts.run.display())?;
     if opts.progress {
-        crate::io::err_text(format_args!("{}", explain(&opts.run, spread)?))?;
+        // The explanation is the run's result for a reader: on stdout, so `coevo --train > log` keeps it.
+        crate::io::out_text(format_args!("{}", explain(&opts.run, spread)?))?;
     }
     Ok(())
+}
+
+/// The command that opens the viewer on run `r`, as it runs where the user is: this executable when it
+/// was built with the window; in a clone (a `Cargo.toml` here), the build that adds it; else how to
+/// install one that has it.
+fn watch(r: &str, coevo: &str) -> String {
+    if cfg!(feature = "viewer") {
+        format!("{coevo} --watch {r}")
+    } else if Path::new("Cargo.toml").is_file() {
+        format!("cargo run --release --features viewer -- --watch {r}")
+    } else {
+        format!("cargo install --locked --features viewer --path CLONE && coevo --watch {r}")
+    }
 }
 
 /// Refuses a resume that could not continue the run as it was: its scene.ron edited since training
@@ -482,7 +496,7 @@ pub fn explain(run: &Path, spread: Option<&str>) -> crate::error::Result<String>
         ),
         (format!("{coevo} --plot {r}"), format!("learning curves, {r}/figures/")),
         (format!("{coevo} --animate {r}/clip.gif --run {r} --prey 50"), "a GIF of the trained swarm".to_string()),
-        (format!("cargo run --release --features viewer -- --watch {r}"), "watch it live".to_string()),
+        (watch(&r.to_string(), &coevo), "watch it live".to_string()),
     ];
     let width = next.iter().map(|(command, _)| command.chars().count()).max().unwrap_or(0);
     out.push_str("next:\n");

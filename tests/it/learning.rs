@@ -408,7 +408,9 @@ fn a_finished_training_run_explains_itself() {
             .output()
             .unwrap();
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-        String::from_utf8_lossy(&o.stderr).into_owned()
+        // The explanation on stdout; stderr says where the run went.
+        assert!(String::from_utf8_lossy(&o.stderr).contains("coevo: trained"));
+        String::from_utf8_lossy(&o.stdout).into_owned()
     };
     // Three episodes: both windows are the same three episodes, and it says so.
     let short = train("3", "short");
@@ -439,8 +441,10 @@ fn a_finished_training_run_explains_itself() {
         .arg(dir.path().join("on-path"))
         .output()
         .unwrap();
-    let said = String::from_utf8_lossy(&on_path.stderr);
+    let said = String::from_utf8_lossy(&on_path.stdout);
     assert!(said.contains(&format!("\n  coevo --eval {}", dir.path().join("on-path").display())), "{said}");
+    // In a clone (a Cargo.toml here, as in the tests' working folder) the viewer is the build that adds it.
+    assert!(said.contains("cargo run --release --features viewer -- --watch"), "{said}");
     // The comments of the next commands stand in one column.
     let columns: Vec<usize> = short
         .lines()
@@ -487,12 +491,13 @@ fn a_training_of_a_scene_the_project_ran_says_how_far_its_seeds_differ() {
         .arg(dir.path().join("run"))
         .output()
         .unwrap();
-    let said = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "{said}");
+    // The explanation is the run's result: on stdout (progress and errors on stderr).
+    let said = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{said}{}", String::from_utf8_lossy(&out.stderr));
     let line = said.lines().find(|l| l.contains("how far seeds differ")).unwrap_or_else(|| panic!("{said}"));
     assert!(
         line.contains(
-            "the 40 seeds of this scene in results/herding-equivalence (gym-pps preset, variant \"with predators\")"
+            "the 40 seeds of this scene in results/herding-equivalence (gym-pps preset, variant \"with predators\"), trained 2000 episodes each"
         ),
         "{line}"
     );
@@ -506,8 +511,11 @@ fn a_training_of_a_scene_the_project_ran_says_how_far_its_seeds_differ() {
         .arg(dir.path().join("odd"))
         .output()
         .unwrap();
-    let said = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success() && !said.contains("how far seeds differ"), "{said}");
+    let said = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success() && said.contains("one run is one sample") && !said.contains("how far seeds differ"),
+        "{said}"
+    );
 }
 
 #[test]
