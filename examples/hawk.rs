@@ -1,5 +1,6 @@
 //! A third species as a plugin: the hawk, a super-predator that catches predators and learns with them
-//! (README, "Add a species", follows this file). The whole command line of coevo, with one species more:
+//! (the book's "Add a species", docs/src/guide/species.md, follows this file). The whole command line of
+//! coevo, with one species more:
 //!
 //! ```text
 //! cargo run --release --example hawk -- --describe-scene examples/hawk.ron

@@ -83,21 +83,28 @@ fn child(exe: &Path, args: &[String]) -> crate::error::Result<()> {
 /// removes its temporaries and its run's lock), so no orphan keeps writing into `results/` while a re-run
 /// starts on the same folders.
 fn dies_with_parent(command: &mut Command) {
-    use std::os::unix::process::CommandExt;
-    let parent = std::process::id();
-    // SAFETY: only async-signal-safe calls between fork and exec.
-    unsafe {
-        command.pre_exec(move || {
-            if libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGTERM) != 0 {
-                return Err(std::io::Error::last_os_error());
-            }
-            // The parent died before the line above: nobody would ever send the signal.
-            if libc::getppid() as u32 != parent {
-                libc::_exit(1);
-            }
-            Ok(())
-        });
+    // Linux only: other systems have no parent-death signal, and a child there outlives a killed runner
+    // (it still finishes its run, which the next call carries or resumes).
+    #[cfg(target_os = "linux")]
+    {
+        use std::os::unix::process::CommandExt;
+        let parent = std::process::id();
+        // SAFETY: only async-signal-safe calls between fork and exec.
+        unsafe {
+            command.pre_exec(move || {
+                if libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGTERM) != 0 {
+                    return Err(std::io::Error::last_os_error());
+                }
+                // The parent died before the line above: nobody would ever send the signal.
+                if libc::getppid() as u32 != parent {
+                    libc::_exit(1);
+                }
+                Ok(())
+            });
+        }
     }
+    #[cfg(not(target_os = "linux"))]
+    let _ = command;
 }
 
 /// Trains (or resumes) one run and runs its missing evaluations, on `threads` threads (results do not

@@ -14,7 +14,7 @@
 //! nothing and trains as before, to the byte.
 
 use super::nets::Mlp;
-use super::SpeciesLearner;
+use super::learner::SpeciesLearner;
 use crate::scene::{Opponents, Pick, Policy, Scene};
 use crate::sim::episode::SimRng;
 use rand::distributions::{Distribution, WeightedIndex};
