@@ -191,7 +191,11 @@ pub fn tests(exp: &Experiment, table: &Summary) -> Vec<ClaimResult> {
     }
     for preset in &exp.spec.presets {
         for claim in &exp.spec.claims {
-            let samples = |variant: &str| table.values(exp, preset, variant, &claim.quantity);
+            // On the claim's scale (ln(1 + x) for heavy-tailed counts), fixed with its hypothesis.
+            let samples = |variant: &str| -> Vec<f64> {
+                let values = table.values(exp, preset, variant, &claim.quantity).into_iter();
+                values.map(|x| claim.scale.of(x)).filter(|x| x.is_finite()).collect()
+            };
             let (ours, theirs) = (samples(&claim.variant), claim.versus.as_deref().map(samples));
             // Two variants whose runs are identical (a deterministic re-run, e.g. a switch that never acts)
             // are one sample, not two: no comparison, no p-value.

@@ -643,6 +643,7 @@ pub(crate) mod tests {
             direction_only: false,
             ours: false,
             family: None,
+            scale: Default::default(),
         }
     }
 
@@ -871,6 +872,34 @@ pub(crate) mod tests {
         assert!(halfway(&step[..99]).is_nan(), "shorter than the last window");
         let bad = curve_argument_error(&Quantity::Halfway("catches".into())).unwrap();
         assert!(bad.contains("Halfway takes \"dos\" or \"doa\""), "{bad}");
+    }
+
+    #[test]
+    fn a_claim_on_the_log_scale_tests_ln_1_plus_each_value() {
+        use crate::experiment::file::Scale;
+        assert_eq!(Scale::Linear.of(3.0), 3.0);
+        assert_eq!(Scale::Log1p.of(0.0), 0.0);
+        assert!((Scale::Log1p.of(std::f64::consts::E - 1.0) - 1.0).abs() < 1e-12);
+        assert!(Scale::Log1p.of(-1.0).is_nan(), "no sample where ln(1 + x) is undefined");
+        // Heavy tails: every seed of one arm above every seed of the other, two of them far out. Welch on the
+        // raw values holds zero; on ln(1 + x) it does not.
+        let every = [78.0, 80.0, 82.0, 85.0, 88.0, 90.0, 95.0, 100.0, 1500.0, 2500.0];
+        let base = [23.0, 25.0, 26.0, 28.0, 29.0, 30.0, 31.0, 33.0, 34.0, 35.0];
+        let raw = crate::experiment::stats::difference(&every, &base).unwrap();
+        assert!(raw.mean - raw.ci.unwrap() < 0.0, "{raw:?}");
+        let log = |v: &[f64]| v.iter().map(|&x| Scale::Log1p.of(x)).collect::<Vec<_>>();
+        let logged = crate::experiment::stats::difference(&log(&every), &log(&base)).unwrap();
+        assert!(logged.mean - logged.ci.unwrap() > 0.0, "{logged:?}");
+        // Only for effects: a level on the log scale is refused when its file is read.
+        let dir = tempfile::tempdir().unwrap();
+        let file = dir.path().join("x.ron");
+        std::fs::write(
+            &file,
+            r#"(base: "scenes/paper.ron", seeds: [1], variants: [(name: "a")], claims: [(text: "t", variant: "a", quantity: CatchesLast, scale: Log1p)])"#,
+        )
+        .unwrap();
+        let refused = Experiment::load(&file, dir.path()).unwrap_err().to_string();
+        assert!(refused.contains("a scale other than Linear is for an effect"), "{refused}");
     }
 
     #[test]

@@ -138,6 +138,7 @@ pub fn compare(
             direction_only: false,
             ours: false,
             family: Some(family.into()),
+            scale: Default::default(),
         };
         debug_assert!(is_effect(&claim));
         let estimate = difference(&a, &b);

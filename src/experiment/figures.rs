@@ -196,6 +196,7 @@ fn levels(exp: &Experiment, preset: &str, curve: &str, episodes: usize) -> Vec<L
         direction_only: false,
         ours: false,
         family: None,
+        scale: Default::default(),
     };
     if let Some(y) = super::claims::chance_level(exp, &probe, scene) {
         out.push(Level { label: "chance".into(), y, x: None, chance: true, colour: 0 });

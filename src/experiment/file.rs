@@ -188,6 +188,34 @@ pub struct Claim {
     /// in its own file's family. Resolved when the file is loaded, so after loading None means the file's.
     #[serde(default)]
     pub family: Option<String>,
+    /// The scale the test reads its samples on, fixed with the hypothesis: `Linear` (the default, the
+    /// quantity as it is) or `Log1p`, ln(1 + x) of each run's value, for counts whose seeds spread over
+    /// orders of magnitude (catches: a few seeds far above the rest make Welch's interval on the raw counts
+    /// wide enough to hold zero even when every seed of one arm lies above every seed of the other). On
+    /// `Log1p` a difference of two arms is the log of the ratio of their geometric means of 1 + x. Only for
+    /// effects; the paper's value, when given, is on the same scale.
+    #[serde(default, skip_serializing_if = "crate::scene::is_default")]
+    pub scale: Scale,
+}
+
+/// The scale a claim's test reads ([`Claim::scale`]).
+#[derive(Clone, Copy, Debug, Default, Deserialize, serde::Serialize, PartialEq, Eq)]
+pub enum Scale {
+    #[default]
+    Linear,
+    /// ln(1 + x) of each run's value.
+    Log1p,
+}
+
+impl Scale {
+    /// A run's value on this scale: NaN (no sample) where ln(1 + x) is not defined.
+    pub fn of(self, x: f64) -> f64 {
+        match self {
+            Scale::Linear => x,
+            Scale::Log1p if x > -1.0 => x.ln_1p(),
+            Scale::Log1p => f64::NAN,
+        }
+    }
 }
 
 /// A number the aggregate computes per run (prey, or the experiment's headline species).

@@ -186,6 +186,12 @@ impl Experiment {
                     ),
                 ));
             }
+            if c.scale != super::file::Scale::Linear && (!super::claims::is_effect(c) || c.margin.is_some()) {
+                return Err(err(
+                    "claims",
+                    format!("{:?}: a scale other than Linear is for an effect tested for a direction (not a level, not an equivalence margin)", c.text),
+                ));
+            }
             if let Some(v) = c.paper.filter(|v| !v.is_finite()) {
                 return Err(err("claims", format!("{:?}: paper must be a finite number (got {v})", c.text)));
             }

@@ -195,6 +195,7 @@ mod tests {
             direction_only: false,
             ours: false,
             family: None,
+            scale: Default::default(),
         };
         ClaimResult {
             estimate: estimate(samples),

@@ -25,6 +25,12 @@ pub fn fingerprint(claim: &Claim) -> String {
         bits(claim.baseline),
         claim.direction_only
     );
+    // A scale other than the default is part of the hypothesis; the default adds nothing, so every
+    // fingerprint recorded before scales existed stands.
+    let canonical = match claim.scale {
+        super::file::Scale::Linear => canonical,
+        scale => format!("{canonical}\u{1f}{scale:?}"),
+    };
     blake3::hash(canonical.as_bytes()).to_hex()[..16].to_string()
 }
 

@@ -315,7 +315,11 @@ fn section(md: &mut String, Reported { exp, results, finished, summary, .. }: &R
             "| {} | {} | {} of {of} | {paper} | {ours} | {level} | {plain} | {p} | {} | {} | {} |",
             r.preset,
             cell(&r.claim.text),
-            cell(&quantity_name(&r.claim.quantity)),
+            cell(&match r.claim.scale {
+                super::file::Scale::Linear => quantity_name(&r.claim.quantity),
+                super::file::Scale::Log1p =>
+                    format!("ln(1 + {}), Welch on the log scale", quantity_name(&r.claim.quantity)),
+            }),
             cell(r.verdict_text()),
             cell(&format!("{}{}", super::verdict::hypothesis(&r.claim, r.baseline), r.stated.flag())),
             {

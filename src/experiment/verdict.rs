@@ -285,6 +285,7 @@ mod tests {
             direction_only: false,
             ours: false,
             family: None,
+            scale: Default::default(),
         }
     }
 

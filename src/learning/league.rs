@@ -13,8 +13,8 @@
 //! exactly. The draws come from their own stream (stream 2 of the seed): a scene without a pool draws
 //! nothing and trains as before, to the byte.
 
-use super::nets::Mlp;
 use super::learner::SpeciesLearner;
+use super::nets::Mlp;
 use crate::scene::{Opponents, Pick, Policy, Scene};
 use crate::sim::episode::SimRng;
 use rand::distributions::{Distribution, WeightedIndex};
