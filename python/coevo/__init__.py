@@ -8,7 +8,7 @@ Species with another policy (rule-based, a frozen run, a plugin) keep acting ins
 truncated at the scene's ``episode_steps``; nobody terminates early (caught prey stay in the world).
 
 ``VecEnv(...)`` steps many worlds per call on numpy arrays ``[num_envs, agents, d_o]`` / ``[num_envs,
-agents, 2]``, on all cores, each world starting its next episode by itself (world i from seed + i).
+agents, 2]``, on all cores, each world starting its next episode by itself (world i from ``world_seed(seed, i)``).
 
 ``control="blind:prey:prey"`` (or a list of such forms, as ``coevo --eval --control``) hands out the
 observations altered exactly as coevo alters what its own actors see in the flocking/herding controls.
@@ -26,7 +26,7 @@ from pettingzoo import ParallelEnv as _ParallelEnv
 
 from ._coevo import Env as _Env
 from ._coevo import VecEnv as _VecEnv
-from ._coevo import RunFolder, __version__, compare_curves, git_commit, t_estimate, welch
+from ._coevo import RunFolder, __version__, compare_curves, git_commit, t_estimate, welch, world_seed
 from ._coevo import (  # one exception class per kind of error, all subclasses of CoevoError (a ValueError)
     CheckpointError,
     CoevoError,
@@ -49,6 +49,7 @@ __all__ = [
     "compare_curves",
     "t_estimate",
     "welch",
+    "world_seed",
     "CoevoError",
     "SceneError",
     "CheckpointError",
@@ -220,8 +221,13 @@ class VecEnv:
 
     def __init__(self, scene: str = "scenes/standard.ron", num_envs: int = 64, seed: int = 0,
                  counts: dict[str, int] | None = None, episode_steps: int | None = None,
-                 control: str | list[str] | None = None):
-        self._env = _VecEnv(scene, num_envs, seed, _counts(counts), episode_steps, _control(control))
+                 control: str | list[str] | None = None, world_seeds: str = "independent"):
+        self._env = _VecEnv(scene, num_envs, seed, _counts(counts), episode_steps, _control(control),
+                            world_seeds)
+        # World i's seed: `seed` for world 0, `world_seed(seed, i)` for the others (independent of the
+        # worlds of neighbouring seeds); seed + i with world_seeds="consecutive", as VecEnvs seeded
+        # them before (runs with seeds 1 and 2 then shared 31 of 32 worlds' episode starts).
+        self.world_seeds = list(self._env.world_seeds())
         self.num_envs = self._env.num_envs
         self.agents = list(self._env.agents())
         self.obs_dim = self._env.obs_dim
@@ -230,8 +236,8 @@ class VecEnv:
         self.single_observation_space = spaces.Box(-high, high, (self.obs_dim,), np.float32)
 
     def reset(self) -> np.ndarray:
-        """The next episode in every world (the first call: world i's first episode, that of seed + i, as
-        ``parallel_env(seed=seed + i)`` starts): observations ``[num_envs, agents, d_o]``."""
+        """The next episode in every world (the first call: world i's first episode, that of its seed, as
+        ``parallel_env(seed=world_seeds[i])`` starts): observations ``[num_envs, agents, d_o]``."""
         return self._env.reset()
 
     def step(self, actions: np.ndarray):
@@ -243,6 +249,13 @@ class VecEnv:
         ``[agents, d_o]``, to bootstrap values at the time limit) are ``infos["final_obs"][i]``, an object
         array of ``num_envs`` entries (None where the world did not end), with the mask
         ``infos["_final_obs"]``."""
+        actions = np.asarray(actions)
+        expected = (self.num_envs, len(self.agents), 2)
+        # The shape, not only the count: agent-major `[agents, num_envs, 2]` holds as many numbers and would
+        # send each action to another agent.
+        if actions.shape != expected:
+            raise InputError(f"actions: shape {tuple(actions.shape)}, expected {expected} (num_envs, agents, "
+                             "[thrust, turn]); nothing was stepped")
         obs, rewards, truncated, infos = self._env.step(np.ascontiguousarray(actions, dtype=np.float32))
         final = np.empty(self.num_envs, dtype=object)
         for i, last in enumerate(infos.pop("final_obs")):

@@ -48,7 +48,10 @@ class Args:
     seed: int = 1
     out: str = "runs/ippo-seed1"
     counts: str = ""  # species counts for training, e.g. "predator=0" (the control without predators)
-    num_envs: int = 32  # worlds stepped together (world i from seed + i)
+    num_envs: int = 32  # worlds stepped together (world 0 from the seed, world i from coevo.world_seed(seed, i))
+    # "consecutive" (world i from seed + i) reproduces the runs of docs/src/results/ippo/, made before
+    # VecEnv seeded its worlds independently: their seeds 1, 2 and 3 shared 30 of 32 worlds' episode starts.
+    world_seeds: str = "independent"
     num_steps: int = 128  # rollout length per world and update
     total_world_steps: int = 2_000_000  # summed over worlds: 4000 episodes of 500 steps (DDPG: 2000)
     learning_rate: float = 3e-4
@@ -108,7 +111,7 @@ def main(args: Args) -> None:
     torch.set_num_threads(args.torch_threads)
     rng = np.random.default_rng(args.seed)
     counts = {k: int(v) for k, v in (c.split("=") for c in args.counts.split(",") if c)}
-    env = coevo.VecEnv(args.scene, num_envs=args.num_envs, seed=args.seed, counts=counts)
+    env = coevo.VecEnv(args.scene, num_envs=args.num_envs, seed=args.seed, counts=counts, world_seeds=args.world_seeds)
     # coevo names the run folder's files (scene.ron, metrics.csv, the checkpoint's actors); a folder that
     # holds anything is refused.
     run = coevo.RunFolder.create(args.out, coevo.parallel_env(args.scene, seed=args.seed, counts=counts).scene_ron())

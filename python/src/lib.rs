@@ -167,8 +167,9 @@ impl Env {
     }
 }
 
-/// Many worlds of one scene (world i from seed + i) stepped together on arrays, on all cores, each
-/// starting its next episode by itself.
+/// Many worlds of one scene (world 0 from the seed, world i from `coevo.world_seed(seed, i)`; or seed + i
+/// with `world_seeds="consecutive"`) stepped together on arrays, on all cores, each starting its next
+/// episode by itself.
 #[pyclass(module = "coevo._coevo")]
 struct VecEnv {
     inner: coevo::run::env::VecEnv,
@@ -177,7 +178,7 @@ struct VecEnv {
 #[pymethods]
 impl VecEnv {
     #[new]
-    #[pyo3(signature = (scene_path, num_envs, seed=0, counts=None, episode_steps=None, control=None))]
+    #[pyo3(signature = (scene_path, num_envs, seed=0, counts=None, episode_steps=None, control=None, world_seeds="independent"))]
     fn new(
         scene_path: &str,
         num_envs: usize,
@@ -185,10 +186,27 @@ impl VecEnv {
         counts: Option<Vec<(String, usize)>>,
         episode_steps: Option<usize>,
         control: Option<Vec<String>>,
+        world_seeds: &str,
     ) -> PyResult<Self> {
+        use coevo::run::env::WorldSeeds;
         let scene = scene(scene_path, None, counts, episode_steps)?;
         let control = self::control(control)?;
-        Ok(VecEnv { inner: coevo::run::env::VecEnv::with_control(scene, num_envs, seed, control).map_err(err)? })
+        let seeds = match world_seeds {
+            "independent" => WorldSeeds::Independent,
+            "consecutive" => WorldSeeds::Consecutive,
+            other => {
+                return Err(err(coevo::error::Error::from(format!(
+                    "world_seeds: \"independent\" or \"consecutive\" (got {other:?})"
+                ))
+                .of_kind(coevo::error::Kind::Input)))
+            }
+        };
+        Ok(VecEnv { inner: coevo::run::env::VecEnv::seeded(scene, num_envs, seed, control, seeds).map_err(err)? })
+    }
+
+    /// Each world's seed, in order.
+    fn world_seeds(&self) -> Vec<u64> {
+        self.inner.world_seeds()
     }
 
     /// `metrics.csv`'s header, with the species decided from Python as the learning ones.
@@ -440,6 +458,13 @@ fn compare_curves(
     Ok(out.unbind())
 }
 
+/// The seed of world `i` of a VecEnv seeded `seed` (world_seeds="independent"): `seed` for world 0, else
+/// SplitMix64 of the two mixed, so neighbouring seeds' worlds do not coincide.
+#[pyfunction]
+fn world_seed(seed: u64, i: u64) -> u64 {
+    coevo::run::env::world_seed(seed, i)
+}
+
 #[pymodule]
 fn _coevo(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", coevo::VERSION)?;
@@ -447,6 +472,7 @@ fn _coevo(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<Env>()?;
     m.add_class::<VecEnv>()?;
     m.add_class::<RunFolder>()?;
+    m.add_function(wrap_pyfunction!(world_seed, m)?)?;
     m.add_function(wrap_pyfunction!(t_estimate, m)?)?;
     m.add_function(wrap_pyfunction!(welch, m)?)?;
     m.add_function(wrap_pyfunction!(compare_curves, m)?)?;

@@ -55,12 +55,20 @@ def test_the_same_seed_and_actions_give_the_same_episode():
 
 def test_vecenv_worlds_are_the_single_envs():
     vec = coevo.VecEnv(STANDARD, num_envs=4, seed=5, episode_steps=6)
-    single = [coevo._coevo.Env(STANDARD, 5 + i, None, 6) for i in range(4)]
-    # World i's first episode is the first episode of seed 5 + i, as parallel_env(seed=5 + i) starts.
+    # World 0 is seed 5 itself, world i > 0 coevo.world_seed(5, i): no world shared with seed 6's.
+    seeds = vec.world_seeds
+    assert seeds == [coevo.world_seed(5, i) for i in range(4)] and seeds[0] == 5
+    assert not set(seeds) & set(coevo.VecEnv(STANDARD, num_envs=4, seed=6, episode_steps=6).world_seeds)
+    old = coevo.VecEnv(STANDARD, num_envs=4, seed=5, episode_steps=6, world_seeds="consecutive")
+    assert old.world_seeds == [5, 6, 7, 8]
+    with pytest.raises(coevo.InputError, match="world_seeds"):
+        coevo.VecEnv(STANDARD, num_envs=4, seed=5, world_seeds="sequential")
+    single = [coevo._coevo.Env(STANDARD, s, None, 6) for s in seeds]
+    # World i's first episode is the first episode of its seed, as parallel_env(seed=that seed) starts.
     first = vec.reset()
     assert first.shape == (4, 13, vec.obs_dim)
     for i, s in enumerate(single):
-        assert np.array_equal(first[i], s.reset(5 + i)), i
+        assert np.array_equal(first[i], s.reset(seeds[i])), i
     par = coevo.parallel_env(STANDARD, seed=5, episode_steps=6)
     obs, _ = par.reset(seed=5)
     assert np.array_equal(first[0], np.stack([obs[a] for a in par.agents])), "world 0 is parallel_env(seed=5)"
@@ -93,7 +101,7 @@ def test_bad_input_is_one_line():
         env.step(nan)
     vec = coevo.VecEnv(STANDARD, num_envs=2, episode_steps=5)
     vec.reset()
-    with pytest.raises(ValueError, match="actions: expected 52 values"):
+    with pytest.raises(ValueError, match=r"actions: shape \(2, 12, 2\), expected \(2, 13, 2\)"):
         vec.step(np.zeros((2, 12, 2), np.float32))
     with pytest.raises(ValueError, match="num_envs: must be"):
         coevo.VecEnv(STANDARD, num_envs=0)
@@ -164,7 +172,7 @@ def test_vecenv_infos_and_metrics_rows():
     assert len(learner) == 8  # both species learn, four columns each
     vec.reset()
     # The first reset is each world's first episode: the single envs' own first episodes.
-    single = [coevo._coevo.Env(STANDARD, 2 + i, None, 5) for i in range(3)]
+    single = [coevo._coevo.Env(STANDARD, s, None, 5) for s in vec.world_seeds]
     actions = np.full((3, 13, 2), 0.3, np.float32)
     rows = []
     for t in range(5):
@@ -370,17 +378,21 @@ def test_a_refused_vector_step_changes_no_world():
     bad[2, 10, 0] = np.nan  # world 2, the eighth prey (after 3 predators): prey_7
     with pytest.raises(ValueError, match=r"world 2, prey_7: NaN is not a finite number"):
         vec.step(bad)
+    # The same numbers agent-major, or flat: refused by shape, as InputError, not sent to other agents.
+    for wrong in (good.transpose(1, 0, 2).copy(), good.reshape(-1)):
+        with pytest.raises(coevo.InputError, match=r"actions: shape .* expected \(4, 13, 2\)"):
+            vec.step(wrong)
     a, b = vec.step(good), twin.step(good)
     assert np.array_equal(a[0], b[0]) and np.array_equal(a[1], b[1]), "no world stepped on the refused call"
 
 
 def test_a_truncated_worlds_last_observations_are_returned():
     # Gymnasium 1.x's SAME_STEP autoreset: at the time limit a world's observations are its next episode's
-    # first, and infos["final_obs"][i] holds the last ones, those parallel_env(seed=seed + i) returns at
-    # the same step of a manual rollout with the same actions (so values can be bootstrapped there).
+    # first, and infos["final_obs"][i] holds the last ones, those parallel_env(seed=world_seeds[i])
+    # returns at the same step of a manual rollout with the same actions (so values can be bootstrapped).
     vec = coevo.VecEnv(STANDARD, num_envs=3, seed=11, episode_steps=4)
     vec.reset()
-    manual = [coevo.parallel_env(STANDARD, seed=11 + i, episode_steps=4) for i in range(3)]
+    manual = [coevo.parallel_env(STANDARD, seed=s, episode_steps=4) for s in vec.world_seeds]
     for par in manual:
         par.reset()
     rng = np.random.default_rng(2)

@@ -632,19 +632,7 @@ pub(crate) mod tests {
     }
 
     pub(crate) fn claim(quantity: Quantity, paper: Option<f64>, margin: Option<f64>) -> Claim {
-        Claim {
-            text: "t".into(),
-            variant: "v".into(),
-            quantity,
-            paper,
-            versus: None,
-            margin,
-            baseline: None,
-            direction_only: false,
-            ours: false,
-            family: None,
-            scale: Default::default(),
-        }
+        Claim { paper, margin, ..Claim::of("t", "v", quantity) }
     }
 
     /// The verdict on one effect claim of its own family (so Holm's adjustment is the p-value itself and

@@ -128,17 +128,10 @@ pub fn compare(
             )));
         }
         let claim = Claim {
-            text: c.text.clone(),
-            variant: THEIRS.into(),
-            quantity: c.quantity.clone(),
-            paper: None,
             versus: Some(OURS.into()),
             margin: c.margin,
-            baseline: None,
-            direction_only: false,
-            ours: false,
             family: Some(family.into()),
-            scale: Default::default(),
+            ..Claim::of(&c.text, THEIRS, c.quantity.clone())
         };
         debug_assert!(is_effect(&claim));
         let estimate = difference(&a, &b);

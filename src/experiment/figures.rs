@@ -185,19 +185,7 @@ fn levels(exp: &Experiment, preset: &str, curve: &str, episodes: usize) -> Vec<L
     }
     let base = exp.spec.variants.first().map(|v| v.name.clone()).unwrap_or_default();
     let scene = exp.runs.iter().find(|r| r.preset == preset && r.variant == base).map(|r| &r.scene);
-    let probe = super::file::Claim {
-        text: String::new(),
-        variant: base,
-        quantity: last,
-        paper: None,
-        versus: None,
-        margin: None,
-        baseline: None,
-        direction_only: false,
-        ours: false,
-        family: None,
-        scale: Default::default(),
-    };
+    let probe = super::file::Claim::of("", &base, last);
     if let Some(y) = super::claims::chance_level(exp, &probe, scene) {
         out.push(Level { label: "chance".into(), y, x: None, chance: true, colour: 0 });
     }

@@ -198,6 +198,26 @@ pub struct Claim {
     pub scale: Scale,
 }
 
+impl Claim {
+    /// A claim of `quantity` on `variant` with every other field at its default: no paper's value, no
+    /// contrast, margin or baseline, a two-sided test on the linear scale in its file's family.
+    pub fn of(text: &str, variant: &str, quantity: Quantity) -> Claim {
+        Claim {
+            text: text.into(),
+            variant: variant.into(),
+            quantity,
+            paper: None,
+            versus: None,
+            margin: None,
+            baseline: None,
+            direction_only: false,
+            ours: false,
+            family: None,
+            scale: Scale::Linear,
+        }
+    }
+}
+
 /// The scale a claim's test reads ([`Claim::scale`]).
 #[derive(Clone, Copy, Debug, Default, Deserialize, serde::Serialize, PartialEq, Eq)]
 pub enum Scale {

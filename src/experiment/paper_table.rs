@@ -70,6 +70,72 @@ fn statements(results: &[ClaimResult]) -> crate::error::Result<Option<Vec<Statem
     Ok(Some(file.statements))
 }
 
+/// The answer above the table: per preset, how many statements came out each way (each statement's cell,
+/// [`cell`]'s source), in one sentence each.
+fn answer(statements: &[Statement], results: &[ClaimResult]) -> String {
+    let mut out = String::from("**The answer.** ");
+    for (preset, values) in [("gym-pps", "the authors' code's values"), ("paper", "the paper's stated values")] {
+        let mut counts = [0usize; 5];
+        for s in statements {
+            let judged = s.from.iter().filter_map(|source| {
+                let (experiment, claim) = source.split_once(" / ")?;
+                results.iter().find(|r| r.experiment == experiment && r.preset == preset && r.claim.text == claim)
+            });
+            let outcome = judged
+                .clone()
+                .find(|r| self::judged(r))
+                .or(judged.clone().next())
+                .and_then(|r| r.verdict.as_ref())
+                .map(|v| v.outcome);
+            let k = match outcome {
+                Some(Outcome::Reproduced | Outcome::Equivalent)
+                | Some(Outcome::Measured { apart_from_chance: Some(true) })
+                | Some(Outcome::EffectDetected) => 0,
+                Some(Outcome::DirectionReproduced { .. }) => 1,
+                Some(Outcome::NotReproduced | Outcome::DetectedOpposite) => 2,
+                Some(Outcome::InProgress | Outcome::NotRunYet) | None => 4,
+                Some(_) => 3,
+            };
+            counts[k] += 1;
+        }
+        let [held, direction, not, undecided, waiting] = counts;
+        write!(
+            out,
+            "With {values} (`{preset}`), {held} of the {} statements hold (reproduced, equivalent, or, where the paper gives no number, detected or told apart from chance), {direction} hold in direction but not in size, {not} are not reproduced and {undecided} are undecided{}. ",
+            statements.len(),
+            match waiting {
+                0 => String::new(),
+                1 => ", and 1 waits for its runs".into(),
+                n => format!(", and {n} wait for their runs"),
+            }
+        )
+        .unwrap();
+    }
+    // Rows shown from an earlier experiment while their confirmatory one is still running.
+    let running = statements
+        .iter()
+        .filter(|s| {
+            s.from
+                .first()
+                .and_then(|source| {
+                    let (experiment, claim) = source.split_once(" / ")?;
+                    results.iter().find(|r| r.experiment == experiment && r.claim.text == claim)
+                })
+                .is_some_and(|r| r.verdict.as_ref().is_some_and(|v| v.outcome == Outcome::InProgress))
+        })
+        .count();
+    if running > 0 {
+        write!(
+            out,
+            "{running} rows are shown from an earlier, smaller experiment while the one registered to decide them \
+             (more seeds, fixed before its runs) is running; it replaces them here when it is judged."
+        )
+        .unwrap();
+    }
+    out.push_str("\n\n");
+    out
+}
+
 /// A verdict in a word or three, with a mark the eye finds in a column.
 fn short(outcome: Outcome) -> &'static str {
     match outcome {
@@ -138,7 +204,8 @@ fn cell(s: &Statement, preset: &str, results: &[ClaimResult], link: &dyn Fn(&str
 /// from where the table is written.
 pub fn table(results: &[ClaimResult], link: &dyn Fn(&str) -> String) -> crate::error::Result<Option<String>> {
     let Some(statements) = statements(results)? else { return Ok(None) };
-    let mut md = String::from(
+    let mut md = answer(&statements, results);
+    md.push_str(
         "| the paper says | setting | paper | coevo, the paper's values (`paper`) | coevo, the authors' code's values (`gym-pps`) |\n\
          |---|---|---|---|---|\n",
     );
@@ -158,12 +225,16 @@ pub fn table(results: &[ClaimResult], link: &dyn Fn(&str) -> String) -> crate::e
 const LEGEND: &str = "Each cell: coevo's mean over seeds ± the interval its verdict reads (for a change or a \
      difference, the Holm-adjusted interval of its family; for a level, the plain 95 % interval), the verdict, and the \
      experiment it comes from with its seeds. ✓ reproduced (an effect detected in the paper's direction with the paper's \
-     value inside its interval; a level whose interval reaches the paper's value as written and excludes chance), ◐ the \
-     paper's direction detected but not its size, ✗ not reproduced (detected the other way, or a level whose interval \
-     misses the paper's value), ? inconclusive (neither shown nor excluded; not evidence of no effect). A direction-only \
-     statement (\"faster\", \"slower\") shows its estimate in episodes. `paper`: the values of the paper's Table 1; \
-     `gym-pps`: the values of the authors' published code, where the two differ (the book's \"Paper, authors' code, \
-     coevo\").";
+     value inside its interval; a level whose interval reaches the paper's value as written and excludes chance); ✓ \
+     equivalent (a claim of no change shown within its margin); ✓ apart from chance (a level the paper gives no number \
+     for, told apart from chance); ◐ the paper's direction detected but not its size; ✗ not reproduced (detected the \
+     other way, or a level whose interval misses the paper's value); ? inconclusive or not detected (neither shown nor \
+     excluded, or a level whose interval holds chance too: not evidence of no effect). A \"faster\" or \"slower\" row \
+     shows the variant's episode minus the standard's: negative is sooner. Every row is of the paper's world-frame \
+     observation (`scenes/paper.ron` on each preset); the default scene of `coevo --train` observes in the body frame, \
+     and its results are on the book's \"Flocking or herding?\". `paper`: the parameter values the paper states; \
+     `gym-pps`: the authors' published code's values wherever they differ from the paper's (the book's \"Scenes and \
+     presets\").";
 
 /// The book's page of the table (`table`, linked from the book).
 pub fn book_page(table: &str) -> String {
@@ -184,19 +255,7 @@ mod tests {
     use crate::experiment::verdict::Verdict;
 
     fn judged(experiment: &str, preset: &str, outcome: Outcome, samples: &[f64]) -> ClaimResult {
-        let claim = Claim {
-            text: "DoS falls to around 19 %".into(),
-            variant: "standard".into(),
-            quantity: Quantity::DosLast,
-            paper: Some(0.19),
-            versus: None,
-            margin: None,
-            baseline: None,
-            direction_only: false,
-            ours: false,
-            family: None,
-            scale: Default::default(),
-        };
+        let claim = Claim { paper: Some(0.19), ..Claim::of("DoS falls to around 19 %", "standard", Quantity::DosLast) };
         ClaimResult {
             estimate: estimate(samples),
             verdict: Some(Verdict::new(outcome, "")),

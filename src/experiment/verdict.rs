@@ -274,19 +274,7 @@ mod tests {
     use crate::experiment::stats::estimate;
 
     fn claim(paper: Option<f64>, versus: bool) -> Claim {
-        Claim {
-            text: "c".into(),
-            variant: "v".into(),
-            quantity: Quantity::DoaLast,
-            paper,
-            versus: versus.then(|| "b".into()),
-            margin: None,
-            baseline: None,
-            direction_only: false,
-            ours: false,
-            family: None,
-            scale: Default::default(),
-        }
+        Claim { paper, versus: versus.then(|| "b".into()), ..Claim::of("c", "v", Quantity::DoaLast) }
     }
 
     #[test]

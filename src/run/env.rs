@@ -270,7 +270,36 @@ impl Env {
     }
 }
 
-/// Many worlds of one scene, world i from seed `seed + i`, stepped together on flat arrays.
+/// How a [`VecEnv`]'s worlds are seeded from its one seed.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum WorldSeeds {
+    /// World 0 from the seed itself, world i > 0 from [`world_seed`]: a different seed gives other worlds
+    /// (seeds 1 and 2 of 32 worlds share none), so runs with different seeds are independent samples.
+    #[default]
+    Independent,
+    /// World i from seed + i, as the first VecEnv seeded them: runs with seeds 1 and 2 share 31 of 32
+    /// worlds. Kept to reproduce runs made that way.
+    Consecutive,
+}
+
+/// The seed of world `i` of a [`VecEnv`] seeded `seed` ([`WorldSeeds::Independent`]): `seed` for world 0
+/// (a one-world VecEnv is the single env of that seed), else SplitMix64 (Steele et al. 2014) of `seed`
+/// and `i` mixed, so neighbouring seeds' worlds do not coincide.
+pub fn world_seed(seed: u64, i: u64) -> u64 {
+    fn splitmix64(mut z: u64) -> u64 {
+        z = z.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+    if i == 0 {
+        seed
+    } else {
+        splitmix64(seed ^ splitmix64(i))
+    }
+}
+
+/// Many worlds of one scene, world i from [`world_seed`]`(seed, i)`, stepped together on flat arrays.
 pub struct VecEnv {
     envs: Vec<Env>,
     agents: usize,
@@ -279,7 +308,7 @@ pub struct VecEnv {
     /// Episodes finished so far in all worlds: the next finished episode's number in `metrics.csv`.
     numbered: usize,
     /// No step since the worlds were made: the first `reset` returns their first episode (world i's is
-    /// the first episode of seed + i, as a single env's `reset(seed + i)`) rather than starting a second.
+    /// the first episode of its seed, as a single env's `reset(world seed)`) rather than starting a second.
     fresh: bool,
     /// Whether to step the worlds on one thread or on all ([`crate::parallel::Adaptive`]).
     threads: crate::parallel::Adaptive,
@@ -315,6 +344,17 @@ impl VecEnv {
         seed: u64,
         control: ObservationControl,
     ) -> crate::error::Result<VecEnv> {
+        VecEnv::seeded(scene, worlds, seed, control, WorldSeeds::default())
+    }
+
+    /// As [`VecEnv::with_control`], the worlds seeded as `seeds` says.
+    pub fn seeded(
+        scene: Scene,
+        worlds: usize,
+        seed: u64,
+        control: ObservationControl,
+        seeds: WorldSeeds,
+    ) -> crate::error::Result<VecEnv> {
         if worlds == 0 {
             return Err("num_envs: must be ≥ 1").kind(Kind::Input);
         }
@@ -332,12 +372,20 @@ impl VecEnv {
         let envs = (0..worlds as u64)
             .map(|i| {
                 let mut s = scene.clone();
-                s.seed = seed.wrapping_add(i);
+                s.seed = match seeds {
+                    WorldSeeds::Independent => world_seed(seed, i),
+                    WorldSeeds::Consecutive => seed.wrapping_add(i),
+                };
                 Env::with_control(s, control.clone())
             })
             .collect::<crate::error::Result<Vec<_>>>()?;
         let agents = envs[0].agents().len();
         Ok(VecEnv { envs, agents, finished: vec![], numbered: 0, fresh: true, threads: Default::default() })
+    }
+
+    /// Each world's seed, in order.
+    pub fn world_seeds(&self) -> Vec<u64> {
+        self.envs.iter().map(|e| e.scene().seed).collect()
     }
 
     /// `metrics.csv`'s header ([`Env::metrics_header`]).

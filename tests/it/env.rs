@@ -73,10 +73,15 @@ fn many_worlds_step_as_each_alone_and_start_their_next_episode() {
     let mut worlds = VecEnv::new(scene.clone(), 3, 20).unwrap();
     let (agents, d) = (worlds.agents(), worlds.obs_dim());
     assert_eq!(worlds.observations().len(), 3 * agents * d);
-    let mut alone: Vec<Env> = (0..3)
-        .map(|i| {
+    // World i is the single env of its world seed: world 0 of the seed itself.
+    let seeds = worlds.world_seeds();
+    assert_eq!(seeds, (0..3).map(|i| coevo::run::env::world_seed(20, i)).collect::<Vec<_>>());
+    assert_eq!(seeds[0], 20);
+    let mut alone: Vec<Env> = seeds
+        .iter()
+        .map(|&seed| {
             let mut s = scene.clone();
-            s.seed = 20 + i;
+            s.seed = seed;
             Env::new(s).unwrap()
         })
         .collect();
@@ -183,4 +188,23 @@ fn too_many_worlds_are_refused_up_front_with_the_figure() {
         [coevo::io::bytes_shown(2.5e9), coevo::io::bytes_shown(3.2e6), coevo::io::bytes_shown(1.0)],
         ["2.5 GB", "3.2 MB", "1 kB"]
     );
+}
+
+#[test]
+fn vecenvs_of_neighbouring_seeds_share_no_world() {
+    // World i of seed s was seed s + i once, so seeds 1 and 2 of 32 worlds shared 31: runs with different
+    // seeds were not independent samples. Now no two of the worlds of seeds 1..=3 share a seed; the old
+    // seeding is kept, by name, to reproduce runs made with it.
+    use coevo::run::env::{world_seed, WorldSeeds};
+    let mut all: Vec<u64> = (1..=3u64).flat_map(|s| (0..32).map(move |i| world_seed(s, i))).collect();
+    all.sort_unstable();
+    all.dedup();
+    assert_eq!(all.len(), 96);
+    let scene = standard(1);
+    let control = coevo::learning::control::ObservationControl::default();
+    let old = VecEnv::seeded(scene.clone(), 3, 7, control.clone(), WorldSeeds::Consecutive).unwrap();
+    assert_eq!(old.world_seeds(), vec![7, 8, 9]);
+    let new = VecEnv::seeded(scene, 3, 7, control, WorldSeeds::Independent).unwrap();
+    assert_eq!(new.world_seeds()[0], 7);
+    assert!(!new.world_seeds()[1..].contains(&8));
 }
