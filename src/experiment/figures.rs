@@ -268,6 +268,18 @@ fn figures<'a>(
                 ));
             }
         }
+        // How fast each variant converges, where a claim of the file asks (Halfway, Reaches): the episode per
+        // variant with its interval, beside the changes.
+        let mut convergence: Vec<Quantity> = Vec::new();
+        for c in &exp.spec.claims {
+            if matches!(c.quantity, Quantity::Halfway(_) | Quantity::Reaches(..)) && !convergence.contains(&c.quantity)
+            {
+                convergence.push(c.quantity.clone());
+            }
+        }
+        for q in convergence {
+            compared.push((super::claims::quantity_name(&q), "episode".into(), q));
+        }
         let panels: Vec<EstimatePanel> = compared
             .into_iter()
             .map(|(what, x_label, q)| {
