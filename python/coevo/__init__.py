@@ -26,7 +26,7 @@ from pettingzoo import ParallelEnv as _ParallelEnv
 
 from ._coevo import Env as _Env
 from ._coevo import VecEnv as _VecEnv
-from ._coevo import RunFolder, __version__, compare_curves, git_commit, t_estimate, welch, world_seed
+from ._coevo import RunFolder, __version__, compare_curves, force_maps, git_commit, response_fields, t_estimate, welch, world_seed
 from ._coevo import (  # one exception class per kind of error, all subclasses of CoevoError (a ValueError)
     CheckpointError,
     CoevoError,
@@ -50,6 +50,8 @@ __all__ = [
     "t_estimate",
     "welch",
     "world_seed",
+    "response_fields",
+    "force_maps",
     "CoevoError",
     "SceneError",
     "CheckpointError",

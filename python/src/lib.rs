@@ -65,7 +65,61 @@ fn err(e: coevo::error::Error) -> PyErr {
 /// A scene file with the counts, seed and episode length given from Python, validated.
 fn scene(path: &str, seed: Option<u64>, counts: Option<Vec<(String, usize)>>, steps: Option<usize>) -> PyResult<Scene> {
     let overrides = Overrides { counts: counts.unwrap_or_default(), seed, episode_steps: steps, ..Default::default() };
-    overrides.load(Path::new(path)).map_err(err)
+    // The shipped scenes (`scenes/standard.ron`, …) are built in: an installed wheel runs them anywhere.
+    coevo::run::args::load_scene(Path::new(path), &overrides).map_err(err)
+}
+
+/// A matrix of f64 rows as a 2-D array.
+fn grid<'py>(py: Python<'py>, rows: &[Vec<f64>]) -> PyResult<Bound<'py, PyArray2<f64>>> {
+    let (n, m) = (rows.len(), rows.first().map_or(0, Vec::len));
+    rows.iter().flatten().copied().collect::<Vec<f64>>().into_pyarray(py).reshape([n, m])
+}
+
+/// The response fields of a run's species (`coevo --response`): per focal species, observed species and
+/// relative heading, a dict with `species`, `observed`, `rel_heading`, `centres` (metres), `thrust` and
+/// `turn` (`[left, ahead]` arrays, NaN where unobserved) and `alone` (thrust, turn with no one in view).
+#[pyfunction]
+fn response_fields<'py>(py: Python<'py>, run: &str) -> PyResult<Bound<'py, PyList>> {
+    let (_, fields) = coevo::experiment::response::of_run(Path::new(run)).map_err(err)?;
+    let out = PyList::empty(py);
+    for f in fields {
+        let d = PyDict::new(py);
+        d.set_item("species", &f.species)?;
+        d.set_item("observed", &f.observed)?;
+        d.set_item("rel_heading", f.rel_heading)?;
+        d.set_item("centres", f.centres.clone().into_pyarray(py))?;
+        d.set_item("thrust", grid(py, &f.thrust)?)?;
+        d.set_item("turn", grid(py, &f.turn)?)?;
+        d.set_item("alone", (f.alone[0], f.alone[1]))?;
+        out.append(d)?;
+    }
+    Ok(out)
+}
+
+/// The force maps of a recorded trajectory (`coevo --force-map`, a `--record` CSV) in the arena of
+/// `scene`: per focal and nearest species, a dict with `species`, `observed`, `centres` (metres), `count`,
+/// `turning` (rad/s) and `speeding` (m/s²) as `[left, ahead]` arrays (NaN in bins under 20 samples).
+#[pyfunction]
+#[pyo3(signature = (trajectory, scene_path="scenes/standard.ron"))]
+fn force_maps<'py>(py: Python<'py>, trajectory: &str, scene_path: &str) -> PyResult<Bound<'py, PyList>> {
+    use coevo::experiment::force_map;
+    let scene = scene(scene_path, None, None, None)?;
+    let names: Vec<String> = scene.species.iter().map(|d| d.name.clone()).collect();
+    let steps = force_map::read(Path::new(trajectory), &names).map_err(err)?;
+    let arena = coevo::sim::space::Arena { edge: scene.world.arena_edge, boundary: scene.world.boundary };
+    let out = PyList::empty(py);
+    for m in force_map::maps(&steps, &names, &arena, scene.world.dt, arena.half()) {
+        let d = PyDict::new(py);
+        d.set_item("species", &m.species)?;
+        d.set_item("observed", &m.observed)?;
+        d.set_item("centres", m.centres.clone().into_pyarray(py))?;
+        let count: Vec<Vec<f64>> = m.count.iter().map(|r| r.iter().map(|&c| c as f64).collect()).collect();
+        d.set_item("count", grid(py, &count)?)?;
+        d.set_item("turning", grid(py, &m.turning)?)?;
+        d.set_item("speeding", grid(py, &m.speeding)?)?;
+        out.append(d)?;
+    }
+    Ok(out)
 }
 
 /// `--control`'s forms (`"blind:prey:prey"`, …; none: everything seen).
@@ -473,6 +527,8 @@ fn _coevo(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<VecEnv>()?;
     m.add_class::<RunFolder>()?;
     m.add_function(wrap_pyfunction!(world_seed, m)?)?;
+    m.add_function(wrap_pyfunction!(response_fields, m)?)?;
+    m.add_function(wrap_pyfunction!(force_maps, m)?)?;
     m.add_function(wrap_pyfunction!(t_estimate, m)?)?;
     m.add_function(wrap_pyfunction!(welch, m)?)?;
     m.add_function(wrap_pyfunction!(compare_curves, m)?)?;

@@ -470,3 +470,50 @@ def test_the_gym_pps_adapter_maps_coevos_world_to_the_codes_arrays():
     a, *_ = env.step(mapped)
     b, *_ = twin.step({name: np.float32([-0.25, 0.5]) for name in twin.possible_agents})
     assert all(np.array_equal(a[n], b[n]) for n in env.possible_agents)
+
+
+def test_the_shipped_scenes_load_outside_the_clone(tmp_path, monkeypatch):
+    # An installed wheel has no scenes/ folder beside it: the shipped scenes are built in, by the name a
+    # clone gives them (a file of that name in the working folder would win).
+    monkeypatch.chdir(tmp_path)
+    vec = coevo.VecEnv(num_envs=2, episode_steps=3)
+    assert vec.reset().shape[:2] == (2, 13)
+    par = coevo.parallel_env("scenes/paper.ron", episode_steps=3)
+    par.reset(seed=1)
+    with pytest.raises(coevo.SceneError):
+        coevo.parallel_env("scenes/no-such-scene.ron")
+
+
+def test_response_fields_of_the_shipped_run():
+    fields = coevo.response_fields(os.path.join(ROOT, "assets", "trained-standard"))
+    prey = [f for f in fields if f["species"] == "prey" and f["observed"] == "predator" and f["rel_heading"] == 0.0]
+    assert len(prey) == 1
+    f = prey[0]
+    assert f["turn"].shape == f["thrust"].shape == (len(f["centres"]), len(f["centres"]))
+    assert np.all(np.abs(f["turn"][np.isfinite(f["turn"])]) <= 1.0)
+    # The trained prey turn away from a predator close beside them (the "Why they swarm" page).
+    row = lambda left: int(np.argmin(np.abs(f["centres"] - left)))  # noqa: E731
+    ahead = int(np.argmin(np.abs(f["centres"] - 0.0)))
+    assert f["turn"][row(0.1), ahead] < 0 < f["turn"][row(-0.1), ahead]
+    assert len(f["alone"]) == 2
+
+
+def test_force_maps_of_a_hand_made_trajectory(tmp_path):
+    # A prey at the origin heading east, turning right by 0.01 rad per 0.1 s step, a predator 0.3 m to its
+    # left: its map against the nearest predator turns right (−0.1 rad/s) in that bin, and nowhere else.
+    lines = ["step,id,species,x,y,vx,vy,theta,thrust,turn_rate,reward"]
+    for t in range(21):
+        th = -0.01 * t
+        hx, hy = np.cos(th), np.sin(th)
+        lines.append(f"{t},0,prey,0,0,{0.5 * hx},{0.5 * hy},{th},,,")
+        lines.append(f"{t},1,predator,{-0.3 * hy},{0.3 * hx},0,0,{th},,,")
+    traj = tmp_path / "hand.csv"
+    traj.write_text("\n".join(lines) + "\n")
+    maps = coevo.force_maps(str(traj), "scenes/standard.ron")
+    m = next(m for m in maps if m["species"] == "prey" and m["observed"] == "predator")
+    c = m["centres"]
+    r, a = int(np.argmin(np.abs(c - 0.3))), int(np.argmin(np.abs(c)))
+    assert m["count"][r, a] == 20 and m["count"].sum() == 20
+    assert abs(m["turning"][r, a] + 0.1) < 1e-9
+    with pytest.raises(coevo.CoevoError, match="missing.csv"):
+        coevo.force_maps(str(traj).replace("hand", "missing"))

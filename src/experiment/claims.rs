@@ -410,26 +410,9 @@ impl ClaimResult {
 /// A test's samples (this variant's, and the compared variant's) and margin, as bits.
 pub type SameTest = (Vec<u64>, Option<Vec<u64>>, Option<u64>);
 
-/// Significance level of every test, after Holm's adjustment.
-pub const ALPHA: f64 = 0.05;
-
-/// Whether a claim is about an effect (a change over training, what a control removes, or a difference
-/// of two variants) rather than a level.
-pub fn is_effect(claim: &Claim) -> bool {
-    claim.versus.is_some()
-        || matches!(
-            claim.quantity,
-            Quantity::DosChange
-                | Quantity::DoaChange
-                | Quantity::CatchesChange
-                | Quantity::FromStart(_)
-                | Quantity::AfterExtreme(_)
-                | Quantity::InteractionDoa(_)
-                | Quantity::Interaction(..)
-                | Quantity::Learned(..)
-        )
-        || matches!(&claim.quantity, Quantity::Crossplay(r) if super::crossplay_readouts::chance(r).is_none())
-}
+// What kind of test a claim gets and at which level are the verdict's (`verdict.rs`), re-exported here
+// beside the quantities they read.
+pub use super::verdict::{is_effect, ALPHA};
 
 /// Whether a quantity compares the first and last 100 training episodes (meaningless when they overlap).
 pub fn compares_windows(q: &Quantity) -> bool {

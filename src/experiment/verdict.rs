@@ -2,9 +2,29 @@
 //! and the checks between a level and its contrast read) with the sentence reports print ([`Verdict`]),
 //! and the hypothesis it was tested against. Defined in REPRODUCTION.md's preamble.
 
-use super::claims::{is_effect, ALPHA};
-use super::file::Claim;
+use super::file::{Claim, Quantity};
 use super::stats::Estimate;
+
+/// Significance level of every test, after Holm's adjustment.
+pub const ALPHA: f64 = 0.05;
+
+/// Whether a claim is about an effect (a change over training, what a control removes, or a difference
+/// of two variants) rather than a level.
+pub fn is_effect(claim: &Claim) -> bool {
+    claim.versus.is_some()
+        || matches!(
+            claim.quantity,
+            Quantity::DosChange
+                | Quantity::DoaChange
+                | Quantity::CatchesChange
+                | Quantity::FromStart(_)
+                | Quantity::AfterExtreme(_)
+                | Quantity::InteractionDoa(_)
+                | Quantity::Interaction(..)
+                | Quantity::Learned(..)
+        )
+        || matches!(&claim.quantity, Quantity::Crossplay(r) if super::crossplay_readouts::chance(r).is_none())
+}
 
 /// What a claim's test came to.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

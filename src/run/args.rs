@@ -191,12 +191,7 @@ impl SceneArgs {
     /// `scenes/standard.ron` in the working folder still wins).
     pub fn load(&self, default: &Path, overrides: &Overrides) -> crate::error::Result<(Scene, PathBuf)> {
         let path = self.scene.clone().unwrap_or_else(|| default.to_path_buf());
-        if self.scene.is_none() && path == Path::new(STANDARD_SCENE) && !path.exists() {
-            let mut scene = Scene::parse(STANDARD_SCENE_TEXT, &format!("{STANDARD_SCENE} (built in)"))?;
-            overrides.apply(&mut scene, &path)?;
-            return Ok((scene, path));
-        }
-        Ok((overrides.load(&path)?, path))
+        Ok((load_scene(&path, overrides)?, path))
     }
 }
 
@@ -249,4 +244,28 @@ pub fn describe(path: &Path, shared: &Shared) -> crate::error::Result<()> {
 pub const STANDARD_SCENE: &str = "scenes/standard.ron";
 
 /// The default scene's text, built into the binary ([`SceneArgs::load`]).
-const STANDARD_SCENE_TEXT: &str = include_str!("../../scenes/standard.ron");
+/// The scenes shipped in `scenes/`, built into the binary (and the Python package) by the path a clone
+/// gives them, so that they load outside the clone too (after `cargo install`, from an installed wheel).
+const SHIPPED_SCENES: [(&str, &str); 7] = [
+    (STANDARD_SCENE, include_str!("../../scenes/standard.ron")),
+    ("scenes/paper.ron", include_str!("../../scenes/paper.ron")),
+    ("scenes/gym-pps.ron", include_str!("../../scenes/gym-pps.ron")),
+    ("scenes/gym-pps-code.ron", include_str!("../../scenes/gym-pps-code.ron")),
+    ("scenes/confined.ron", include_str!("../../scenes/confined.ron")),
+    ("scenes/confined-penalty.ron", include_str!("../../scenes/confined-penalty.ron")),
+    ("scenes/many-eyes.ron", include_str!("../../scenes/many-eyes.ron")),
+];
+
+/// A scene file with `overrides` applied and validated: the file at `path` when there is one, else, when
+/// `path` names a shipped scene (`scenes/paper.ron`), its built-in copy (a file of that name in the working
+/// folder always wins).
+pub fn load_scene(path: &Path, overrides: &Overrides) -> crate::error::Result<Scene> {
+    if !path.exists() {
+        if let Some((name, text)) = SHIPPED_SCENES.iter().find(|(name, _)| path == Path::new(name)) {
+            let mut scene = Scene::parse(text, &format!("{name} (built in)"))?;
+            overrides.apply(&mut scene, path)?;
+            return Ok(scene);
+        }
+    }
+    overrides.load(path)
+}

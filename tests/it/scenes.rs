@@ -113,8 +113,9 @@ fn errors_name_file_line_and_field() {
     assert!(missing.starts_with("scenes/nope.ron: cannot read scene"), "{missing}");
 }
 
-/// The default scene is built into the binary: `coevo --train` works from a folder outside the clone
-/// and trains exactly scenes/standard.ron; a scene named on the command line is still read from disk.
+/// The shipped scenes are built into the binary: `coevo --train` works from a folder outside the clone
+/// and trains exactly scenes/standard.ron, `--scene scenes/paper.ron` exactly that file; any other scene
+/// named on the command line is still read from disk.
 #[test]
 fn the_default_scene_works_outside_the_clone() {
     let dir = tempfile::tempdir().unwrap();
@@ -126,7 +127,12 @@ fn the_default_scene_works_outside_the_clone() {
     let trained = coevo::scene::Scene::load(&dir.path().join("run/scene.ron")).unwrap();
     let standard = coevo::scene::Scene::load(std::path::Path::new("scenes/standard.ron")).unwrap();
     assert_eq!(trained.to_ron(), standard.to_ron());
-    let out = coevo(&["--train", "--episodes", "1", "--scene", "scenes/standard.ron", "--out", "other"]);
+    let out = coevo(&["--train", "--episodes", "1", "--quiet", "--scene", "scenes/paper.ron", "--out", "paper"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let trained = coevo::scene::Scene::load(&dir.path().join("paper/scene.ron")).unwrap();
+    let paper = coevo::scene::Scene::load(std::path::Path::new("scenes/paper.ron")).unwrap();
+    assert_eq!(trained.to_ron(), paper.to_ron());
+    let out = coevo(&["--train", "--episodes", "1", "--scene", "scenes/mine.ron", "--out", "other"]);
     let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success() && stderr.contains("scenes/standard.ron: cannot read scene"), "{stderr}");
+    assert!(!out.status.success() && stderr.contains("scenes/mine.ron: cannot read scene"), "{stderr}");
 }
