@@ -360,6 +360,8 @@ impl RunFolder {
     #[staticmethod]
     fn create(path: &str, scene_ron: &str) -> PyResult<Self> {
         let dir = RunDir::new(path);
+        // The scene first: a folder is made only for a scene coevo can read back (its --eval, --plot).
+        Scene::parse(scene_ron, "scene_ron").map_err(err)?;
         dir.check_new(false).map_err(err)?;
         let made =
             |p: &Path| std::fs::create_dir_all(p).map_err(|e| CoevoIOError::new_err(format!("{}: {e}", p.display())));

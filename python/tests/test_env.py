@@ -517,3 +517,11 @@ def test_force_maps_of_a_hand_made_trajectory(tmp_path):
     assert abs(m["turning"][r, a] + 0.1) < 1e-9
     with pytest.raises(coevo.CoevoError, match="missing.csv"):
         coevo.force_maps(str(traj).replace("hand", "missing"))
+
+
+def test_a_run_folder_is_made_only_for_a_readable_scene(tmp_path):
+    with pytest.raises(coevo.SceneError, match="scene_ron"):
+        coevo.RunFolder.create(str(tmp_path / "run"), "((((not a scene")
+    assert not (tmp_path / "run").exists(), "nothing made"
+    run = coevo.RunFolder.create(str(tmp_path / "run"), coevo.parallel_env(STANDARD).scene_ron())
+    assert os.path.exists(run.scene)
