@@ -71,8 +71,19 @@ def _control(control: str | list[str] | None) -> list[str] | None:
     return [control] if isinstance(control, str) else control
 
 
+def _made_again(cls, made_with: dict):
+    return cls(**made_with)
+
+
 class CoevoParallelEnv(_ParallelEnv):
-    """A coevo scene as a PettingZoo ``ParallelEnv`` (see the module's docstring)."""
+    """A coevo scene as a PettingZoo ``ParallelEnv`` (see the module's docstring).
+
+    Pickling or copying it (``copy.deepcopy``, ``pickle``, the process pools of SuperSuit's
+    ``concat_vec_envs_v1`` and Stable-Baselines3) gives the same environment made again from the same
+    arguments: it starts from the same seed, and an episode in progress is not carried over."""
+
+    def __reduce__(self):
+        return (_made_again, (CoevoParallelEnv, self._made_with))
 
     metadata = {"name": "coevo_v0", "render_modes": ["rgb_array", "human"], "is_parallelizable": True,
                 "render_fps": 30}
@@ -87,6 +98,9 @@ class CoevoParallelEnv(_ParallelEnv):
         if max_cycles is not None and episode_steps is not None and max_cycles != episode_steps:
             raise ValueError(f"max_cycles: {max_cycles} differs from episode_steps: {episode_steps}; give one")
         episode_steps = max_cycles if max_cycles is not None else episode_steps
+        # What made it: a pickled or copied env is this one made again ([`__reduce__`]).
+        self._made_with = dict(scene=scene, seed=seed, counts=counts, episode_steps=episode_steps,
+                               render_mode=render_mode, render_size=render_size, control=control)
         self._window = None
         if render_mode == "human":
             try:
@@ -219,11 +233,17 @@ def env(scene: str = "scenes/standard.ron", seed: int | None = None, **overrides
 
 
 class VecEnv:
-    """Many worlds of one scene on arrays (see the module's docstring)."""
+    """Many worlds of one scene on arrays (see the module's docstring). Pickled or copied, it is made again
+    from the same arguments (its worlds' episodes in progress are not carried over)."""
+
+    def __reduce__(self):
+        return (_made_again, (VecEnv, self._made_with))
 
     def __init__(self, scene: str = "scenes/standard.ron", num_envs: int = 64, seed: int = 0,
                  counts: dict[str, int] | None = None, episode_steps: int | None = None,
                  control: str | list[str] | None = None, world_seeds: str = "independent"):
+        self._made_with = dict(scene=scene, num_envs=num_envs, seed=seed, counts=counts,
+                               episode_steps=episode_steps, control=control, world_seeds=world_seeds)
         self._env = _VecEnv(scene, num_envs, seed, _counts(counts), episode_steps, _control(control),
                             world_seeds)
         # World i's seed: `seed` for world 0, `world_seed(seed, i)` for the others (independent of the

@@ -525,3 +525,33 @@ def test_a_run_folder_is_made_only_for_a_readable_scene(tmp_path):
     assert not (tmp_path / "run").exists(), "nothing made"
     run = coevo.RunFolder.create(str(tmp_path / "run"), coevo.parallel_env(STANDARD).scene_ron())
     assert os.path.exists(run.scene)
+
+
+def test_envs_pickle_and_copy_as_made_again():
+    # SuperSuit's concat_vec_envs_v1 and SB3's subprocess envs pickle the env; a copy is the same env made
+    # again from the same arguments, so it steps exactly as a fresh one does.
+    import copy
+    import pickle
+
+    par = coevo.parallel_env(STANDARD, seed=3, counts={"prey": 5}, episode_steps=4)
+    for again in (pickle.loads(pickle.dumps(par)), copy.deepcopy(par)):
+        assert again.possible_agents == par.possible_agents
+        a, _ = again.reset(seed=3)
+        b, _ = coevo.parallel_env(STANDARD, seed=3, counts={"prey": 5}, episode_steps=4).reset(seed=3)
+        assert all(np.array_equal(a[k], b[k]) for k in a)
+    vec = coevo.VecEnv(STANDARD, num_envs=2, seed=4, episode_steps=3)
+    again = pickle.loads(pickle.dumps(vec))
+    assert again.world_seeds == vec.world_seeds and np.array_equal(again.reset(), vec.reset())
+
+
+def test_supersuit_vectorises_it_for_stable_baselines3():
+    # PettingZoo's SB3 route: every agent a sub-env (pettingzoo_env_to_vec_env_v1), copies concatenated
+    # (concat_vec_envs_v1, which copies the env); runs where SuperSuit is installed.
+    ss = pytest.importorskip("supersuit")
+    vec = ss.pettingzoo_env_to_vec_env_v1(coevo.parallel_env(STANDARD, episode_steps=5))
+    vec = ss.concat_vec_envs_v1(vec, 2, num_cpus=0, base_class="gymnasium")
+    obs, _ = vec.reset(seed=1)
+    assert obs.shape == (26, vec.observation_space.shape[0])
+    for _ in range(6):
+        obs, rewards, _, truncated, _ = vec.step(np.stack([vec.action_space.sample() for _ in range(26)]))
+    assert rewards.shape == (26,) and np.all(np.isfinite(obs))
