@@ -11,6 +11,7 @@ pub mod bench_against;
 pub mod deploy;
 pub mod env;
 pub mod evaluate;
+pub mod explain;
 pub mod folder;
 pub mod live;
 pub mod perturb;
