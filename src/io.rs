@@ -164,9 +164,9 @@ fn temporary_owner(file_name: &str) -> Option<(&str, u32)> {
 /// Removes the temporaries in `dir` left by processes that no longer run (killed mid-write), for every
 /// target, or only for `target` (a file name) when given. Returns how many were removed.
 pub fn remove_stale_temporaries(dir: &Path, target: Option<&str>) -> usize {
-    let Ok(entries) = std::fs::read_dir(dir) else { return 0 };
     let mut removed = 0;
-    for entry in entries.flatten() {
+    // An unreadable folder holds nothing to remove.
+    for entry in std::fs::read_dir(dir).into_iter().flatten().flatten() {
         let name = entry.file_name().to_string_lossy().into_owned();
         let Some((of, pid)) = temporary_owner(&name) else { continue };
         let is_file = entry.file_type().is_ok_and(|t| t.is_file());

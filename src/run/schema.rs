@@ -181,8 +181,8 @@ pub fn with_header(text: &str, header: &str) -> String {
 pub fn last_wall_seconds(metrics: &str) -> f64 {
     let mut lines = metrics.lines();
     let header: Vec<&str> = lines.next().unwrap_or("").split(',').collect();
-    let Some(col) = header.iter().position(|h| *h == WALL_SECONDS) else { return 0.0 };
-    lines.rfind(|l| !l.is_empty()).and_then(|l| l.split(',').nth(col)?.parse().ok()).unwrap_or(0.0)
+    let col = header.iter().position(|h| *h == WALL_SECONDS);
+    col.and_then(|col| lines.rfind(|l| !l.is_empty())?.split(',').nth(col)?.parse().ok()).unwrap_or(0.0)
 }
 
 /// A CSV file of numbers: its header, and its rows (blank or unreadable cells NaN; rows of another

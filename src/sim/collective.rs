@@ -85,10 +85,11 @@ pub fn nn_correlation(headings: &[DVec2], nearest: &[usize]) -> f64 {
     let mean = headings.iter().copied().sum::<DVec2>() / n;
     let variance: f64 = headings.iter().map(|h| (*h - mean).length_squared()).sum();
     if variance <= 1e-12 * n {
-        return 0.0;
+        0.0
+    } else {
+        let covariance: f64 = headings.iter().zip(nearest).map(|(h, &k)| (*h - mean).dot(headings[k] - mean)).sum();
+        covariance / variance
     }
-    let covariance: f64 = headings.iter().zip(nearest).map(|(h, &k)| (*h - mean).dot(headings[k] - mean)).sum();
-    covariance / variance
 }
 
 /// Adds one instant to the spatial correlation function of heading fluctuations (Cavagna et al., PNAS

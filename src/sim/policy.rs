@@ -70,9 +70,10 @@ fn turn_toward(h: [f32; 2], d: [f32; 2], max_turn_rate: f64, dt: f64) -> f32 {
     let dot = (h[0] * d[0] + h[1] * d[1]) as f64;
     let error = cross.atan2(dot);
     if max_turn_rate == 0.0 {
-        return 0.0;
+        0.0
+    } else {
+        (error / dt / max_turn_rate).clamp(-1.0, 1.0) as f32
     }
-    (error / dt / max_turn_rate).clamp(-1.0, 1.0) as f32
 }
 
 /// The nearest observed agent among `species`, as its displacement [Δx, Δy].
