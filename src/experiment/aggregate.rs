@@ -278,6 +278,9 @@ pub fn adjust(results: &mut [ClaimResult]) {
     say_where_a_level_and_its_contrast_disagree(results);
 }
 
+/// How a level's verdict says that it disagrees with its contrast (read by `paper_table`).
+pub const DISAGREES: &str = "disagrees with the primary contrast";
+
 /// One sentence of the paper often gives a level and the contrast it implies ("at R = D/3, DoA drops to
 /// 0.75", against 0.82 at R = D): the contrast (the variant against its base, the same quantity) is the
 /// primary test and the level a secondary row, which must not contradict it silently. Where one is
@@ -309,7 +312,7 @@ fn say_where_a_level_and_its_contrast_disagree(results: &mut [ClaimResult]) {
                 notes.push((
                     i,
                     format!(
-                        "; disagrees with the primary contrast \"{}\" ({}): the contrast decides the paper's sentence",
+                        "; {DISAGREES} \"{}\" ({}): the contrast decides the paper's sentence",
                         c.claim.text,
                         word(c)
                     ),

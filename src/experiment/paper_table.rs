@@ -81,13 +81,10 @@ fn answer(statements: &[Statement], results: &[ClaimResult]) -> String {
                 let (experiment, claim) = source.split_once(" / ")?;
                 results.iter().find(|r| r.experiment == experiment && r.preset == preset && r.claim.text == claim)
             });
-            let outcome = judged
-                .clone()
-                .find(|r| self::judged(r))
-                .or(judged.clone().next())
-                .and_then(|r| r.verdict.as_ref())
-                .map(|v| v.outcome);
+            let shown = judged.clone().find(|r| self::judged(r)).or(judged.clone().next());
+            let outcome = shown.and_then(|r| r.verdict.as_ref()).map(|v| v.outcome);
             let k = match outcome {
+                _ if shown.is_some_and(disagrees) => 3,
                 Some(Outcome::Reproduced | Outcome::Equivalent)
                 | Some(Outcome::Measured { apart_from_chance: Some(true) })
                 | Some(Outcome::EffectDetected) => 0,
@@ -122,6 +119,12 @@ fn answer(statements: &[Statement], results: &[ClaimResult]) -> String {
                     results.iter().find(|r| r.experiment == experiment && r.claim.text == claim)
                 })
                 .is_some_and(|r| r.verdict.as_ref().is_some_and(|v| v.outcome == Outcome::InProgress))
+                // ... and a later source judged, which the row shows meanwhile.
+                && s.from.iter().skip(1).any(|source| {
+                    source.split_once(" / ").is_some_and(|(experiment, claim)| {
+                        results.iter().any(|r| r.experiment == experiment && r.claim.text == claim && judged(r))
+                    })
+                })
         })
         .count();
     if running > 0 {
@@ -159,6 +162,12 @@ fn short(outcome: Outcome) -> &'static str {
     }
 }
 
+/// Whether a level's verdict disagrees with the contrast its sentence implies (the aggregation's note,
+/// `aggregate::say_where_a_level_and_its_contrast_disagree`): the contrast decides the paper's sentence.
+fn disagrees(r: &ClaimResult) -> bool {
+    r.verdict.as_ref().is_some_and(|v| v.text.contains(super::aggregate::DISAGREES))
+}
+
 /// Whether a claim's result stands as a verdict (not waiting for its runs).
 fn judged(r: &ClaimResult) -> bool {
     r.verdict.as_ref().is_some_and(|v| !matches!(v.outcome, Outcome::InProgress | Outcome::NotRunYet))
@@ -190,6 +199,10 @@ fn cell(s: &Statement, preset: &str, results: &[ClaimResult], link: &dyn Fn(&str
         (None, _) => String::new(),
     };
     let word = r.verdict.as_ref().map_or("", |v| short(v.outcome));
+    let word = match disagrees(r) {
+        true => format!("{word}, its contrast decides"),
+        false => word.to_string(),
+    };
     let seeds = r.estimate.map_or(0, |e| e.n);
     let waiting = match first.verdict.as_ref().map(|v| v.outcome) {
         Some(Outcome::InProgress) if !std::ptr::eq(*first, *r) => format!("; {} in progress", link(&first.experiment)),
@@ -229,7 +242,11 @@ const LEGEND: &str = "Each cell: coevo's mean over seeds ± the interval its ver
      equivalent (a claim of no change shown within its margin); ✓ apart from chance (a level the paper gives no number \
      for, told apart from chance); ◐ the paper's direction detected but not its size; ✗ not reproduced (detected the \
      other way, or a level whose interval misses the paper's value); ? inconclusive or not detected (neither shown nor \
-     excluded, or a level whose interval holds chance too: not evidence of no effect). A \"faster\" or \"slower\" row \
+     excluded, or a level whose interval holds chance too: not evidence of no effect); measured (a level with neither \
+     the paper's number nor a chance level to judge it against); in progress (its experiment is judged when all its \
+     runs are in). A level marked \"its contrast decides\" is reproduced as a level while the contrast the paper's \
+     sentence implies (its own row) is not: the contrast decides, and the answer above counts it undecided. A \
+     \"faster\" or \"slower\" row \
      shows the variant's episode minus the standard's: negative is sooner. Every row is of the paper's world-frame \
      observation (`scenes/paper.ron` on each preset); the default scene of `coevo --train` observes in the body frame, \
      and its results are on the book's \"Flocking or herding?\". `paper`: the parameter values the paper states; \
