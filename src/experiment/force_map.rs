@@ -239,21 +239,14 @@ pub fn main(trajectory: &Path, scene: &Scene, overwrite: bool) -> crate::error::
     crate::io::write_file(&csv_path, existing, csv(&maps).as_bytes())?;
     crate::outln!("wrote {}", csv_path.display())?;
     for m in &maps {
-        let ticks: Vec<String> = m.centres.iter().map(|c| format!("{c:.2}")).collect();
-        let map = |what: &str, values: &[Vec<f64>], diverging: bool| super::plot::Heatmap {
-            title: format!("{}: {what}, nearest {}", m.species, m.observed),
-            x_label: "ahead (m)".into(),
-            y_label: "to the left (m)".into(),
-            x_ticks: ticks.clone(),
-            y_ticks: ticks.clone(),
-            values: values.to_vec(),
-            log: false,
-            diverging,
+        let map = |what: &str, values: &[Vec<f64>]| {
+            let title = format!("{}: {what}, nearest {}", m.species, m.observed);
+            super::plot::Heatmap::body_frame(title, &m.centres, values, true)
         };
         let figure = PathBuf::from(format!("{stem}-{}-{}", m.species, m.observed));
         super::plot::save_heatmaps(
             &figure,
-            &[map("turning (rad/s, + left)", &m.turning, true), map("speeding (m/s²)", &m.speeding, true)],
+            &[map("turning (rad/s, + left)", &m.turning), map("speeding (m/s²)", &m.speeding)],
         )?;
         crate::outln!("wrote {}.svg", figure.display())?;
     }

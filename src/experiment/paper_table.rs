@@ -57,10 +57,10 @@ fn statements(results: &[ClaimResult]) -> crate::error::Result<Option<Vec<Statem
     let file: StatementsFile = ron::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))?;
     for s in &file.statements {
         for source in &s.from {
-            let Some((experiment, claim)) = source.split_once(" / ") else {
+            let Some((experiment, _)) = source.split_once(" / ") else {
                 return Err(format!("{}: {source:?} is not \"EXPERIMENT / CLAIM TEXT\"", path.display()).into());
             };
-            if !results.iter().any(|r| r.experiment == experiment && r.claim.text == claim) {
+            if of_source(results, source).next().is_none() {
                 return Err(
                     format!("{}: {source:?} names no claim of experiments/{experiment}.ron", path.display()).into()
                 );
@@ -77,11 +77,8 @@ fn answer(statements: &[Statement], results: &[ClaimResult]) -> String {
     for (preset, values) in [("gym-pps", "the authors' code's values"), ("paper", "the paper's stated values")] {
         let mut counts = [0usize; 5];
         for s in statements {
-            let judged = s.from.iter().filter_map(|source| {
-                let (experiment, claim) = source.split_once(" / ")?;
-                results.iter().find(|r| r.experiment == experiment && r.preset == preset && r.claim.text == claim)
-            });
-            let shown = judged.clone().find(|r| self::judged(r)).or(judged.clone().next());
+            let found = found(s, preset, results);
+            let shown = found.iter().find(|r| judged(r)).or(found.first()).copied();
             let outcome = shown.and_then(|r| r.verdict.as_ref()).map(|v| v.outcome);
             let k = match outcome {
                 _ if shown.is_some_and(disagrees) => 3,
@@ -114,17 +111,10 @@ fn answer(statements: &[Statement], results: &[ClaimResult]) -> String {
         .filter(|s| {
             s.from
                 .first()
-                .and_then(|source| {
-                    let (experiment, claim) = source.split_once(" / ")?;
-                    results.iter().find(|r| r.experiment == experiment && r.claim.text == claim)
-                })
+                .and_then(|source| of_source(results, source).next())
                 .is_some_and(|r| r.verdict.as_ref().is_some_and(|v| v.outcome == Outcome::InProgress))
                 // ... and a later source judged, which the row shows meanwhile.
-                && s.from.iter().skip(1).any(|source| {
-                    source.split_once(" / ").is_some_and(|(experiment, claim)| {
-                        results.iter().any(|r| r.experiment == experiment && r.claim.text == claim && judged(r))
-                    })
-                })
+                && s.from.iter().skip(1).any(|source| of_source(results, source).any(judged))
         })
         .count();
     if running > 0 {
@@ -162,6 +152,18 @@ fn short(outcome: Outcome) -> &'static str {
     }
 }
 
+/// The results of one source, `"EXPERIMENT / CLAIM TEXT"` (one per preset); none for a source not so written.
+fn of_source<'a>(results: &'a [ClaimResult], source: &str) -> impl Iterator<Item = &'a ClaimResult> + 'a {
+    let (experiment, claim) =
+        source.split_once(" / ").map_or((String::new(), None), |(e, c)| (e.to_string(), Some(c.to_string())));
+    results.iter().filter(move |r| claim.as_ref().is_some_and(|c| r.experiment == experiment && r.claim.text == *c))
+}
+
+/// The results of a statement's sources on `preset`, best first (as its `from` lists them).
+fn found<'a>(s: &Statement, preset: &str, results: &'a [ClaimResult]) -> Vec<&'a ClaimResult> {
+    s.from.iter().filter_map(|source| of_source(results, source).find(|r| r.preset == preset)).collect()
+}
+
 /// Whether a level's verdict disagrees with the contrast its sentence implies (the aggregation's note,
 /// `aggregate::say_where_a_level_and_its_contrast_disagree`): the contrast decides the paper's sentence.
 fn disagrees(r: &ClaimResult) -> bool {
@@ -182,11 +184,7 @@ fn in_episodes(q: &Quantity) -> bool {
 /// source judged on `preset`; with the experiment it comes from and its seeds when that is not the first
 /// source (the first still running). `link`: the evidence of an experiment, as a Markdown link.
 fn cell(s: &Statement, preset: &str, results: &[ClaimResult], link: &dyn Fn(&str) -> String) -> String {
-    let of = |source: &String| {
-        let (experiment, claim) = source.split_once(" / ")?;
-        results.iter().find(|r| r.experiment == experiment && r.preset == preset && r.claim.text == claim)
-    };
-    let found: Vec<&ClaimResult> = s.from.iter().filter_map(of).collect();
+    let found = found(s, preset, results);
     let Some(first) = found.first() else { return "–".into() };
     let Some(r) = found.iter().find(|r| judged(r)) else {
         let word = first.verdict.as_ref().map_or("not judged", |v| short(v.outcome));

@@ -71,6 +71,24 @@ pub struct Heatmap {
     pub diverging: bool,
 }
 
+impl Heatmap {
+    /// A map over a focal agent's body frame (`experiment::response`, `experiment::force_map`): columns
+    /// ahead, rows to the left, both at `centres` (metres), `values[row][column]`.
+    pub fn body_frame(title: String, centres: &[f64], values: &[Vec<f64>], diverging: bool) -> Heatmap {
+        let ticks: Vec<String> = centres.iter().map(|c| format!("{c:.2}")).collect();
+        Heatmap {
+            title,
+            x_label: "ahead (m)".into(),
+            y_label: "to the left (m)".into(),
+            x_ticks: ticks.clone(),
+            y_ticks: ticks,
+            values: values.to_vec(),
+            log: false,
+            diverging,
+        }
+    }
+}
+
 /// Size in pixels of one heat map (panels side by side).
 pub const HEATMAP_SIZE: (u32, u32) = (560, 520);
 

@@ -195,16 +195,9 @@ pub fn main(run: &Path) -> crate::error::Result<()> {
     crate::io::own_dir(&dir.figures())?;
     let mut written = vec![csv_path.display().to_string()];
     for f in fields.iter().filter(|f| f.rel_heading == 0.0) {
-        let ticks: Vec<String> = f.centres.iter().map(|c| format!("{c:.2}")).collect();
-        let map = |what: &str, values: &[Vec<f64>], diverging: bool, alone: f64| super::plot::Heatmap {
-            title: format!("{}: {what}, one {} parallel (alone: {alone:+.2})", f.species, f.observed),
-            x_label: "ahead (m)".into(),
-            y_label: "to the left (m)".into(),
-            x_ticks: ticks.clone(),
-            y_ticks: ticks.clone(),
-            values: values.to_vec(),
-            log: false,
-            diverging,
+        let map = |what: &str, values: &[Vec<f64>], diverging: bool, alone: f64| {
+            let title = format!("{}: {what}, one {} parallel (alone: {alone:+.2})", f.species, f.observed);
+            super::plot::Heatmap::body_frame(title, &f.centres, values, diverging)
         };
         let stem = dir.figures().join(format!("response-{}-{}", f.species, f.observed));
         let maps = [map("turn (+ left)", &f.turn, true, f.alone[1]), map("thrust", &f.thrust, false, f.alone[0])];

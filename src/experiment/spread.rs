@@ -31,22 +31,22 @@ pub fn seeds_like(scene: &Scene) -> Option<String> {
         if rows.len() < 2 {
             continue;
         }
+        let bounds = |column: &str| {
+            let values = rows.iter().map(|r| summary.value(r, column)).filter(|x| x.is_finite());
+            values.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), x| (lo.min(x), hi.max(x)))
+        };
         let range = |column: &str, digits: usize| {
-            let values: Vec<f64> = rows.iter().map(|r| summary.value(r, column)).filter(|x| x.is_finite()).collect();
-            let (lo, hi) =
-                values.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &x| (lo.min(x), hi.max(x)));
+            let (lo, hi) = bounds(column);
             format!("{lo:.digits$}–{hi:.digits$}")
         };
         if best.as_ref().is_some_and(|(n, _)| *n >= rows.len()) {
             continue;
         }
         // Their length, so that a shorter run is not read against them as if it were as long.
-        let episodes = range("episodes", 0);
-        let episodes = episodes
-            .split('–')
-            .next()
-            .filter(|a| episodes.ends_with(&format!("–{a}")))
-            .map_or(episodes.clone(), str::to_string);
+        let episodes = match bounds("episodes") {
+            (lo, hi) if lo == hi => format!("{lo:.0}"),
+            _ => range("episodes", 0),
+        };
         let line = format!(
             "  how far seeds differ: the {} seeds of this scene in {} ({} preset, variant \"{}\"), trained {episodes} episodes each, ended at DoA {}, DoS {} and {} catches per episode (their last 100 episodes; compare a run of as many episodes)\n",
             rows.len(),
