@@ -109,11 +109,7 @@ pub fn fields(scene: &Scene, decides: &[bool], act: &Actor) -> Vec<Field> {
 /// The fields of a run's trained actors (its `Learned` and `Frozen` species) and of its rule-based
 /// species (the rules read the same observations).
 pub fn of_run(run: &Path) -> crate::error::Result<(Scene, Vec<Field>)> {
-    let dir = crate::run::RunDir::new(run);
-    if !dir.has_actors() {
-        return Err(format!("--response {}: not a run folder with trained actors", run.display()).into());
-    }
-    dir.check_plugins()?;
+    let dir = a_run(run)?;
     let scene = Scene::load(&dir.scene())?;
     let mut learners = Learners::new(&scene, Mode::Evaluate);
     learners.load_actors(&scene, Some(run))?;
@@ -137,6 +133,16 @@ pub fn of_run(run: &Path) -> crate::error::Result<(Scene, Vec<Field>)> {
     };
     let fields = fields(&scene, &decides, &act);
     Ok((scene, fields))
+}
+
+/// `run` as a run folder with trained actors this program can deploy (its species plugins).
+fn a_run(run: &Path) -> crate::error::Result<crate::run::RunDir> {
+    let dir = crate::run::RunDir::new(run);
+    if !dir.has_actors() {
+        return Err(format!("--response {}: not a run folder with trained actors", run.display()).into());
+    }
+    dir.check_plugins()?;
+    Ok(dir)
 }
 
 /// `response.csv`: one row per field and cell with a value.
@@ -186,7 +192,8 @@ impl crate::run::args::Mode for ResponseArgs {
 /// Writes a run's response fields: the CSV and, per species and observed species, the turn and thrust
 /// maps for a parallel neighbour.
 pub fn main(run: &Path) -> crate::error::Result<()> {
-    let dir = crate::run::RunDir::new(run);
+    // Checked before the lock, which would make the folder of a path that is not there.
+    let dir = a_run(run)?;
     // A writer of a run: refuses a shipped run and one another process is writing.
     let _lock = dir.lock()?;
     let (_, fields) = of_run(run)?;

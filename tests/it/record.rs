@@ -249,3 +249,13 @@ fn the_force_map_of_fleeing_prey_shows_them_turning_away_from_the_predator() {
     let o = coevo(&["--force-map", "scenes/standard.ron", "--scene", scene]);
     assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("not a trajectory"));
 }
+
+#[test]
+fn a_response_of_no_run_is_one_line_and_makes_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let missing = dir.path().join("no-run");
+    let o = coevo(&["--response", missing.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && stderr.lines().count() == 1 && stderr.contains("not a run folder"), "{stderr}");
+    assert!(!missing.exists(), "no folder made for a path that was not there");
+}
