@@ -104,9 +104,10 @@ impl Adaptive {
     /// All threads are chosen when their mean time is below this fraction of one thread's.
     const MARGIN: f64 = 0.9;
 
-    /// Runs `f` with the worker count to use (1 or [`threads`]) and learns from its wall time.
-    pub fn run<R>(&mut self, f: impl FnOnce(usize) -> R) -> R {
-        self.run_among(threads(), f)
+    /// Runs `f` with the worker count to use (1, or `cap` threads: None for [`threads`], never more)
+    /// and learns from its wall time.
+    pub fn run_at_most<R>(&mut self, cap: Option<usize>, f: impl FnOnce(usize) -> R) -> R {
+        self.run_among(cap.map_or(threads(), |c| c.clamp(1, threads())), f)
     }
 
     fn run_among<R>(&mut self, all: usize, f: impl FnOnce(usize) -> R) -> R {

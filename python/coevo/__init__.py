@@ -18,10 +18,10 @@ Both step the very schedule ``coevo --train`` steps: no second implementation.
 
 from __future__ import annotations
 
-import functools
-
 import numpy as np
 from gymnasium import spaces
+from gymnasium.vector import AutoresetMode, VectorEnv as _VectorEnv
+from gymnasium.vector.utils import batch_space
 from pettingzoo import ParallelEnv as _ParallelEnv
 
 from ._coevo import Env as _Env
@@ -43,6 +43,8 @@ __all__ = [
     "env",
     "CoevoParallelEnv",
     "VecEnv",
+    "vector_env",
+    "CoevoVectorEnv",
     "__version__",
     "git_commit",
     "RunFolder",
@@ -73,6 +75,24 @@ def _control(control: str | list[str] | None) -> list[str] | None:
 
 def _made_again(cls, made_with: dict):
     return cls(**made_with)
+
+
+def _observation_space(high: np.ndarray) -> spaces.Box:
+    """One agent's observation space, bounds from the observation's layout: positions in the arena, speeds
+    within the clip, unit headings, displacements within the minimum image, heading differences within 2.
+    A dimension the scene keeps constant at 0 (the body frame's wall distances in a periodic world, its
+    sixth own-state number) gets [-1, 1], not [0, 0]: anything that rescales by the range would divide by
+    zero."""
+    high = np.where(high > 0, high, 1.0).astype(np.float32)
+    return spaces.Box(-high, high, (len(high),), np.float32)
+
+
+def _action_space() -> spaces.Box:
+    """(thrust, turn) in [-1, 1]; a new object per env, so seeding one env's space seeds no other's."""
+    return spaces.Box(-1.0, 1.0, (2,), np.float32)
+
+# Numbers per agent in ``state()``: x, y, v_x, v_y, h_x, h_y (m, m/s, unit heading), world frame.
+STATE_DIM = 6
 
 
 class CoevoParallelEnv(_ParallelEnv):
@@ -109,21 +129,28 @@ class CoevoParallelEnv(_ParallelEnv):
                 raise ImportError("render_mode='human' shows frames with matplotlib: pip install matplotlib") from e
         self._env = _Env(scene, seed, _counts(counts), episode_steps, _control(control))
         self.possible_agents = list(self._env.agents())
+        # One space object for every agent (all observe the same layout), held by this env only: a
+        # method cache would keep every env ever made alive.
+        self._observation_space = _observation_space(self._env.observation_high())
+        self._action_space = _action_space()
+        population = len(self._env.positions())
+        self.state_space = spaces.Box(-np.inf, np.inf, (population * STATE_DIM,), np.float32)
+        self._closed = False
         self.agents: list[str] = []
         self._seeded = False
         self.render_mode = render_mode
         self._render_size = render_size
 
-    @functools.lru_cache(maxsize=None)
     def observation_space(self, agent: str) -> spaces.Box:
-        # Bounds from the observation's layout: positions in the arena, speeds within the clip, unit
-        # headings, displacements within the minimum image, heading differences within 2.
-        high = self._env.observation_high()
-        return spaces.Box(-high, high, (self._env.obs_dim,), np.float32)
+        return self._observation_space
 
-    @functools.lru_cache(maxsize=None)
     def action_space(self, agent: str) -> spaces.Box:
-        return spaces.Box(-1.0, 1.0, (2,), np.float32)
+        return self._action_space
+
+    def state(self) -> np.ndarray:
+        """The global state for a centralised critic: per agent of every species (learned or not), by agent
+        id, x, y, v_x, v_y, h_x, h_y (m, m/s, unit heading) in the world frame, flat ``[agents × 6]``."""
+        return self._env.state()
 
     @property
     def episode_steps(self) -> int:
@@ -139,6 +166,8 @@ class CoevoParallelEnv(_ParallelEnv):
         return self._env.scene_ron()
 
     def reset(self, seed: int | None = None, options: dict | None = None):
+        if self._closed:
+            raise InputError("reset: the env is closed; make a new one")
         # The first reset starts from the scene's seed (as `coevo --train` does); a seed starts afresh.
         if seed is None and not self._seeded:
             seed = self._env.seed
@@ -149,6 +178,8 @@ class CoevoParallelEnv(_ParallelEnv):
         return observations, {a: {} for a in self.agents}
 
     def step(self, actions: dict[str, np.ndarray]):
+        if self._closed:
+            raise InputError("step: the env is closed; make a new one")
         if not self.agents:
             raise ValueError("step: the episode is over; reset first")
         missing = [a for a in self.agents if a not in actions]
@@ -210,6 +241,8 @@ class CoevoParallelEnv(_ParallelEnv):
         return None
 
     def close(self):
+        self._closed = True
+        self.agents = []
         if self._window is not None:
             import matplotlib.pyplot as plt
 
@@ -241,11 +274,15 @@ class VecEnv:
 
     def __init__(self, scene: str = "scenes/standard.ron", num_envs: int = 64, seed: int = 0,
                  counts: dict[str, int] | None = None, episode_steps: int | None = None,
-                 control: str | list[str] | None = None, world_seeds: str = "independent"):
+                 control: str | list[str] | None = None, world_seeds: str = "independent",
+                 threads: int | None = None):
+        """``threads``: step the worlds on at most this many threads (None: every core, or
+        ``COEVO_THREADS``); it changes only the speed, never a number."""
         self._made_with = dict(scene=scene, num_envs=num_envs, seed=seed, counts=counts,
-                               episode_steps=episode_steps, control=control, world_seeds=world_seeds)
+                               episode_steps=episode_steps, control=control, world_seeds=world_seeds,
+                               threads=threads)
         self._env = _VecEnv(scene, num_envs, seed, _counts(counts), episode_steps, _control(control),
-                            world_seeds)
+                            world_seeds, threads)
         # World i's seed: `seed` for world 0, `world_seed(seed, i)` for the others (independent of the
         # worlds of neighbouring seeds); seed + i with world_seeds="consecutive", as VecEnvs seeded
         # them before (runs with seeds 1 and 2 then shared 31 of 32 worlds' episode starts).
@@ -253,14 +290,30 @@ class VecEnv:
         self.num_envs = self._env.num_envs
         self.agents = list(self._env.agents())
         self.obs_dim = self._env.obs_dim
-        high = self._env.observation_high()
         # One agent's observation space (every agent's the same size): bounds from the layout.
-        self.single_observation_space = spaces.Box(-high, high, (self.obs_dim,), np.float32)
+        self.single_observation_space = _observation_space(self._env.observation_high())
+        self.single_action_space = _action_space()
+        self._closed = False
+
+    def _open(self, what: str):
+        if self._closed:
+            raise InputError(f"{what}: the VecEnv is closed; make a new one")
+        return self._env
 
     def reset(self) -> np.ndarray:
         """The next episode in every world (the first call: world i's first episode, that of its seed, as
         ``parallel_env(seed=world_seeds[i])`` starts): observations ``[num_envs, agents, d_o]``."""
-        return self._env.reset()
+        return self._open("reset").reset()
+
+    def state(self) -> np.ndarray:
+        """Every world's global state ``[num_envs, agents of all species, 6]``: x, y, v_x, v_y, h_x, h_y per
+        agent (m, m/s, unit heading), by agent id, in the world frame, for centralised critics."""
+        return self._open("state").state()
+
+    def close(self):
+        """Frees the worlds; stepping afterwards is refused."""
+        self._closed = True
+        self._env = None
 
     def step(self, actions: np.ndarray):
         """(observations, rewards ``[num_envs, agents]``, truncated ``[num_envs]``, infos): infos holds the
@@ -278,7 +331,11 @@ class VecEnv:
         if actions.shape != expected:
             raise InputError(f"actions: shape {tuple(actions.shape)}, expected {expected} (num_envs, agents, "
                              "[thrust, turn]); nothing was stepped")
-        obs, rewards, truncated, infos = self._env.step(np.ascontiguousarray(actions, dtype=np.float32))
+        env = self._open("step")
+        if not np.issubdtype(actions.dtype, np.floating):
+            raise InputError(f"actions: dtype {actions.dtype}, expected floating point (float32 is stepped "
+                             "without a copy); nothing was stepped")
+        obs, rewards, truncated, infos = env.step(np.ascontiguousarray(actions, dtype=np.float32))
         final = np.empty(self.num_envs, dtype=object)
         for i, last in enumerate(infos.pop("final_obs")):
             final[i] = last
@@ -290,9 +347,145 @@ class VecEnv:
         """``metrics.csv``'s header (as ``coevo --train`` writes it) with the Python-decided species as the
         learning ones: the episode's columns, then per learning species ``critic_loss``, ``actor_loss``,
         ``noise_std``, ``epsilon``, then ``wall_seconds``."""
-        return self._env.metrics_header()
+        return self._open("metrics_header").metrics_header()
 
     def take_episode_rows(self) -> list[str]:
         """The episodes finished since the last call as the first cells of ``metrics.csv`` rows (up to the
         returns), numbered in the order they finished; append your learner's cells and the wall time."""
-        return self._env.take_episode_rows()
+        return self._open("take_episode_rows").take_episode_rows()
+
+
+class CoevoVectorEnv(_VectorEnv):
+    """Every learning agent of ``num_worlds`` worlds as one ``gymnasium.vector.VectorEnv``: its batch row
+    ``w * len(agents) + a`` is agent ``agents[a]`` of world ``w``, so ``num_envs = num_worlds *
+    len(agents)``. It is the layout of parameter sharing (one policy for every row, as SuperSuit's
+    ``pettingzoo_env_to_vec_env`` and CleanRL's PettingZoo scripts batch agents); for two teams, split the
+    rows with ``rows["predator"]`` / ``rows["prey"]`` (``species[i]`` names row i's). A scene whose
+    predators follow a rule or a frozen run (not ``Learned``) leaves only the prey in the batch.
+
+    The arrays are :class:`VecEnv`'s, reshaped without a copy; the worlds step in Rust on all cores.
+    Gymnasium's API: ``reset(seed=, options=)`` gives ``(observations, infos)`` (a seed makes the worlds
+    afresh, world i from ``world_seed(seed, i)``; without one, the next episode of every world), ``step``
+    gives ``(observations, rewards, terminations, truncations, infos)``. Nobody terminates (caught prey stay
+    in the world); every world's episode is truncated at ``episode_steps``, all worlds at the same step
+    (they start together and last as long). ``infos`` holds, for every row, its world's ``dos``, ``doa``
+    (headline species) and ``catches`` at that step.
+
+    Autoreset, as ``autoreset_mode`` says (``metadata["autoreset_mode"]``):
+
+    - ``AutoresetMode.NEXT_STEP`` (the default, Gymnasium's, which all its vector wrappers accept): the step
+      that truncates returns the episode's last observations; the next step starts the next episode,
+      ignores its actions and returns its first observations, rewards 0 and no truncation.
+    - ``AutoresetMode.SAME_STEP`` (no step spent on resets, as :class:`VecEnv`): a truncated row's
+      observation is already its next episode's first, its last one is ``infos["final_obs"][i]`` (mask
+      ``infos["_final_obs"]``), and ``infos["final_info"]`` holds that step's ``dos``, ``doa``, ``catches``.
+      Gymnasium's observation wrappers refuse this mode (they would not transform ``final_obs``)."""
+
+    metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
+
+    def __reduce__(self):
+        return (_made_again, (CoevoVectorEnv, self._made_with))
+
+    def __init__(self, scene: str = "scenes/standard.ron", num_worlds: int = 8, seed: int = 0,
+                 counts: dict[str, int] | None = None, episode_steps: int | None = None,
+                 control: str | list[str] | None = None, threads: int | None = None,
+                 autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP):
+        try:
+            mode = AutoresetMode(autoreset_mode)
+        except ValueError:
+            mode = None
+        if mode not in (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP):
+            raise InputError(f"autoreset_mode: NEXT_STEP or SAME_STEP (got {autoreset_mode!r})")
+        self._made_with = dict(scene=scene, num_worlds=num_worlds, seed=seed, counts=counts,
+                               episode_steps=episode_steps, control=control, threads=threads,
+                               autoreset_mode=mode)
+        self.metadata = dict(type(self).metadata, autoreset_mode=mode)
+        self._worlds = self._make(seed)
+        self.num_worlds = num_worlds
+        self.agents = list(self._worlds.agents)
+        self.num_envs = num_worlds * len(self.agents)
+        self.single_observation_space = self._worlds.single_observation_space
+        self.single_action_space = _action_space()
+        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
+        self.action_space = batch_space(self.single_action_space, self.num_envs)
+        self.species = np.array([a.rsplit("_", 1)[0] for a in self.agents] * num_worlds)
+        self.rows = {name: np.flatnonzero(self.species == name) for name in dict.fromkeys(self.species)}
+        self.render_mode = None
+        # NEXT_STEP: the next episodes' first observations, returned by the step after the truncation.
+        self._next_first = None
+
+    def _make(self, seed: int) -> VecEnv:
+        made = self._made_with
+        return VecEnv(made["scene"], made["num_worlds"], seed, made["counts"], made["episode_steps"],
+                      made["control"], threads=made["threads"])
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        if self.closed:
+            raise InputError("reset: the env is closed; make a new one")
+        if seed is not None:
+            if not isinstance(seed, (int, np.integer)) or isinstance(seed, bool):
+                raise InputError(f"seed: one integer seeds every world (world i from world_seed(seed, i)); "
+                                 f"got {type(seed).__name__}")
+            self._worlds = self._make(int(seed))
+            obs = self._worlds.reset()
+        elif self._next_first is not None:
+            obs = self._next_first  # the episodes that ended have begun their successors already
+        else:
+            obs = self._worlds.reset()
+        self._next_first = None
+        return obs.reshape(self.num_envs, -1), {}
+
+    def step(self, actions):
+        if self.closed:
+            raise InputError("step: the env is closed; make a new one")
+        actions = np.asarray(actions)
+        if actions.shape != (self.num_envs, 2):
+            raise InputError(f"actions: shape {tuple(actions.shape)}, expected ({self.num_envs}, 2) "
+                             f"(num_worlds × agents rows, [thrust, turn]); nothing was stepped")
+        if self._next_first is not None:
+            # NEXT_STEP's reset step: the actions are ignored, as Gymnasium's autoreset ignores them.
+            obs, self._next_first = self._next_first, None
+            nothing = np.zeros(self.num_envs, dtype=bool)
+            return obs.reshape(self.num_envs, -1), np.zeros(self.num_envs), nothing, nothing.copy(), {}
+        per = len(self.agents)
+        obs, rewards, truncated, infos = self._worlds.step(actions.reshape(self.num_worlds, per, 2))
+        truncated = np.asarray(truncated, dtype=bool)
+        truncations = np.repeat(truncated, per)
+        terminations = np.zeros(self.num_envs, dtype=bool)
+        every = np.ones(self.num_envs, dtype=bool)
+        out = {}
+        for key in ("dos", "doa", "catches"):
+            out[key] = np.repeat(infos[key], per)
+            out["_" + key] = every
+        if truncated.any() and self.metadata["autoreset_mode"] == AutoresetMode.NEXT_STEP:
+            if not truncated.all():
+                raise SimulationError("worlds ended their episodes at different steps; NEXT_STEP autoreset "
+                                      "needs them together (use autoreset_mode=SAME_STEP)")
+            self._next_first = obs
+            obs = np.stack([infos["final_obs"][w] for w in range(self.num_worlds)])
+        elif truncated.any():
+            final_obs = np.full(self.num_envs, None, dtype=object)
+            for w in np.flatnonzero(truncated):
+                for a in range(per):
+                    final_obs[w * per + a] = infos["final_obs"][w][a]
+            out["final_obs"] = final_obs
+            out["_final_obs"] = truncations.copy()
+            out["final_info"] = {key: out[key] for key in ("dos", "doa", "catches")}
+            out["final_info"].update({"_" + key: truncations.copy() for key in ("dos", "doa", "catches")})
+            out["_final_info"] = truncations.copy()
+        return (obs.reshape(self.num_envs, -1), rewards.reshape(self.num_envs).astype(np.float64),
+                terminations, truncations, out)
+
+    def state(self) -> np.ndarray:
+        """Every world's global state ``[num_worlds, agents of all species, 6]`` (:meth:`VecEnv.state`)."""
+        return self._worlds.state()
+
+    def close_extras(self, **kwargs):
+        self._worlds.close()
+
+
+def vector_env(scene: str = "scenes/standard.ron", num_worlds: int = 8, seed: int = 0, **overrides) -> CoevoVectorEnv:
+    """A scene's learning agents in ``num_worlds`` worlds as one ``gymnasium.vector.VectorEnv``
+    (:class:`CoevoVectorEnv`): ``counts=``, ``episode_steps=``, ``control=``, ``threads=`` as
+    :class:`VecEnv`, ``autoreset_mode=`` (``NEXT_STEP``, the default, or ``SAME_STEP``)."""
+    return CoevoVectorEnv(scene, num_worlds, seed, **overrides)

@@ -18,8 +18,11 @@ what ``coevo --train`` writes and coevo's tools read:
 
 so ``coevo --plot RUN`` draws its training curves and ``coevo --eval RUN --prey 50 --control
 blind:prey:prey`` evaluates its deterministic policies (the mean) under coevo's controls, exactly as for a
-DDPG run. Choices the paper does not make are named below; episodes end by truncation at episode_steps,
-which this script treats as terminal (as CleanRL's PPO does: no observation tells the time left).
+DDPG run. Choices the paper does not make are named below. Episodes end by truncation at episode_steps,
+not by a terminal state: the value of the state the episode was cut in (``infos["final_obs"]``) is added,
+discounted, to the last reward (as Stable-Baselines3 does on timeouts), so the time limit is not taught as
+death; ``--bootstrap-truncation false`` treats it as terminal, as the documented runs of
+docs/src/guide/python.md were made (and CleanRL's PPO does).
 
     pip install ./python torch safetensors
     python python/examples/ippo.py --seed 1 --out runs/ippo-seed1
@@ -52,6 +55,9 @@ class Args:
     # "consecutive" (world i from seed + i) reproduces the runs of docs/src/results/ippo/, made before
     # VecEnv seeded its worlds independently: their seeds 1, 2 and 3 shared 30 of 32 worlds' episode starts.
     world_seeds: str = "independent"
+    # Bootstrap from the value of the last state at the time limit (False: the limit is terminal, as the
+    # documented runs were made).
+    bootstrap_truncation: bool = True
     num_steps: int = 128  # rollout length per world and update
     total_world_steps: int = 2_000_000  # summed over worlds: 4000 episodes of 500 steps (DDPG: 2000)
     learning_rate: float = 3e-4
@@ -159,7 +165,16 @@ def main(args: Args) -> None:
                     actions[:, rows_of[s]] = a.numpy()
                     logp_buf[t][:, rows_of[s]], val_buf[t][:, rows_of[s]] = logp.numpy(), v.numpy()
             act_buf[t] = actions
-            obs, rewards, truncated, _ = env.step(np.clip(actions, -1.0, 1.0))
+            obs, rewards, truncated, infos = env.step(np.clip(actions, -1.0, 1.0))
+            if args.bootstrap_truncation and truncated.any():
+                # The episode was cut, not ended: its last state's value, discounted, stands in for the
+                # return after it (the GAE below stops at the boundary either way).
+                with torch.no_grad():
+                    for w in np.flatnonzero(truncated):
+                        last = infos["final_obs"][w]
+                        for s in species:
+                            v = agents[s].value(torch.from_numpy(last[rows_of[s]])).numpy()
+                            rewards[w, rows_of[s]] += args.gamma * v
             rew_buf[t], done = rewards, truncated.astype(np.float32)
             for row in env.take_episode_rows():
                 cells = [row]

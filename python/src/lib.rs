@@ -194,6 +194,12 @@ impl Env {
         flat.into_pyarray(py).reshape([n, 2])
     }
 
+    /// The global state `[agents of all species × 6]` (x, y, v_x, v_y, h_x, h_y per agent, by agent id,
+    /// world frame): what a centralised critic reads.
+    fn state<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f32>> {
+        self.inner.state().into_pyarray(py)
+    }
+
     /// The current state as an RGB image `[height, width, 3]` (uint8), drawn as `coevo --animate` draws.
     #[pyo3(signature = (size=480))]
     fn render<'py>(&mut self, py: Python<'py>, size: u32) -> PyResult<Bound<'py, PyArray3<u8>>> {
@@ -232,7 +238,8 @@ struct VecEnv {
 #[pymethods]
 impl VecEnv {
     #[new]
-    #[pyo3(signature = (scene_path, num_envs, seed=0, counts=None, episode_steps=None, control=None, world_seeds="independent"))]
+    #[pyo3(signature = (scene_path, num_envs, seed=0, counts=None, episode_steps=None, control=None, world_seeds="independent", threads=None))]
+    #[allow(clippy::too_many_arguments)]
     fn new(
         scene_path: &str,
         num_envs: usize,
@@ -241,7 +248,11 @@ impl VecEnv {
         episode_steps: Option<usize>,
         control: Option<Vec<String>>,
         world_seeds: &str,
+        threads: Option<usize>,
     ) -> PyResult<Self> {
+        if threads == Some(0) {
+            return Err(InputError::new_err("threads: must be ≥ 1 (None: every core, or COEVO_THREADS)"));
+        }
         use coevo::run::env::WorldSeeds;
         let scene = scene(scene_path, None, counts, episode_steps)?;
         let control = self::control(control)?;
@@ -255,7 +266,18 @@ impl VecEnv {
                 .of_kind(coevo::error::Kind::Input)))
             }
         };
-        Ok(VecEnv { inner: coevo::run::env::VecEnv::seeded(scene, num_envs, seed, control, seeds).map_err(err)? })
+        let mut inner = coevo::run::env::VecEnv::seeded(scene, num_envs, seed, control, seeds).map_err(err)?;
+        if let Some(n) = threads {
+            inner.set_max_threads(n);
+        }
+        Ok(VecEnv { inner })
+    }
+
+    /// Every world's global state `[num_envs, agents of all species, 6]` (x, y, v_x, v_y, h_x, h_y per
+    /// agent, by agent id, world frame).
+    fn state<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray3<f32>>> {
+        let shape = [self.inner.worlds(), self.inner.population(), coevo::run::env::STATE_DIM];
+        self.inner.state().into_pyarray(py).reshape(shape)
     }
 
     /// Each world's seed, in order.

@@ -555,3 +555,152 @@ def test_supersuit_vectorises_it_for_stable_baselines3():
     for _ in range(6):
         obs, rewards, _, truncated, _ = vec.step(np.stack([vec.action_space.sample() for _ in range(26)]))
     assert rewards.shape == (26,) and np.all(np.isfinite(obs))
+
+
+def test_the_vector_env_is_gymnasiums():
+    # Every learning agent of every world is a row of one gymnasium.vector.VectorEnv (world-major), its
+    # arrays VecEnv's reshaped: the same worlds, the same numbers.
+    from gymnasium.vector import AutoresetMode, VectorEnv
+
+    assert coevo.vector_env(STANDARD, num_worlds=1).metadata["autoreset_mode"] == AutoresetMode.NEXT_STEP
+    env = coevo.vector_env(STANDARD, num_worlds=3, seed=5, counts={"prey": 4}, episode_steps=3,
+                           autoreset_mode=AutoresetMode.SAME_STEP)
+    assert isinstance(env, VectorEnv) and env.metadata["autoreset_mode"] == AutoresetMode.SAME_STEP
+    per = len(env.agents)
+    assert env.num_envs == 3 * per == env.observation_space.shape[0] == env.action_space.shape[0]
+    assert env.single_action_space.shape == (2,) and list(env.species[:per]) == [a.rsplit("_", 1)[0] for a in env.agents]
+    assert sorted(np.concatenate(list(env.rows.values()))) == list(range(env.num_envs))
+    raw = coevo.VecEnv(STANDARD, num_envs=3, seed=5, counts={"prey": 4}, episode_steps=3)
+    obs, infos = env.reset(seed=5)
+    assert infos == {} and np.array_equal(obs, raw.reset().reshape(env.num_envs, -1))
+    assert env.observation_space.contains(obs)
+    rng = np.random.default_rng(1)
+    for t in range(4):
+        actions = rng.uniform(-1, 1, (env.num_envs, 2)).astype(np.float32)
+        obs, rewards, terminations, truncations, infos = env.step(actions)
+        r_obs, r_rew, r_trunc, r_infos = raw.step(actions.reshape(3, per, 2))
+        assert np.array_equal(obs, r_obs.reshape(env.num_envs, -1))
+        assert np.allclose(rewards, r_rew.reshape(-1)) and rewards.shape == (env.num_envs,)
+        assert not terminations.any() and np.array_equal(truncations, np.repeat(r_trunc, per))
+        assert np.array_equal(infos["doa"], np.repeat(r_infos["doa"], per)) and infos["_doa"].all()
+        if t == 2:  # every world truncates at its third step: the rows' last observations are kept
+            assert truncations.all() and infos["_final_obs"].all() and infos["_final_info"].all()
+            for w in range(3):
+                for a in range(per):
+                    assert np.array_equal(infos["final_obs"][w * per + a], r_infos["final_obs"][w][a])
+        else:
+            assert "final_obs" not in infos
+    # A seed makes the worlds afresh: the same seed, the same first observations.
+    again, _ = env.reset(seed=5)
+    first, _ = coevo.vector_env(STANDARD, num_worlds=3, seed=5, counts={"prey": 4}, episode_steps=3,
+                                autoreset_mode="SameStep").reset()
+    assert np.array_equal(again, first)
+    other, _ = env.reset(seed=6)
+    assert not np.array_equal(other, first)
+    with pytest.raises(coevo.InputError, match=r"actions: shape \(3, 2\), expected \(21, 2\)"):
+        env.step(np.zeros((3, 2), np.float32))
+    with pytest.raises(coevo.InputError, match="seed: one integer"):
+        env.reset(seed=[1, 2])
+    env.close()
+    assert env.closed
+    with pytest.raises(coevo.InputError, match="closed"):
+        env.step(np.zeros((env.num_envs, 2), np.float32))
+
+
+def test_next_step_autoreset_spends_a_step_on_the_reset():
+    # Gymnasium's default: the truncating step returns the episode's last observations, the next one the
+    # next episode's first (its actions ignored), the same observations SAME_STEP gives at once.
+    same = coevo.vector_env(STANDARD, num_worlds=2, seed=7, counts={"prey": 3}, episode_steps=2,
+                            autoreset_mode="SameStep")
+    nxt = coevo.vector_env(STANDARD, num_worlds=2, seed=7, counts={"prey": 3}, episode_steps=2)
+    a, _ = same.reset()
+    b, _ = nxt.reset()
+    assert np.array_equal(a, b)
+    actions = np.full((nxt.num_envs, 2), 0.5, np.float32)
+    same.step(actions)
+    nxt.step(actions)
+    s_obs, s_rew, _, s_trunc, s_infos = same.step(actions)
+    n_obs, n_rew, _, n_trunc, n_infos = nxt.step(actions)
+    assert s_trunc.all() and n_trunc.all() and np.array_equal(s_rew, n_rew) and "final_obs" not in n_infos
+    assert np.array_equal(n_obs, np.stack(list(s_infos["final_obs"])))
+    r_obs, r_rew, r_term, r_trunc, r_infos = nxt.step(np.full((nxt.num_envs, 2), 9.0, np.float32))
+    assert np.array_equal(r_obs, s_obs) and not r_rew.any() and not r_trunc.any() and not r_term.any()
+    assert np.array_equal(nxt.step(actions)[0], same.step(actions)[0])  # the reset step's actions were ignored
+    with pytest.raises(coevo.InputError, match="autoreset_mode: NEXT_STEP or SAME_STEP"):
+        coevo.vector_env(STANDARD, num_worlds=1, autoreset_mode="disabled")
+
+
+def test_gymnasiums_vector_wrappers_take_it():
+    from gymnasium.wrappers.vector import ClipAction, NormalizeObservation, NormalizeReward, RecordEpisodeStatistics
+
+    env = coevo.vector_env(STANDARD, num_worlds=2, seed=1, counts={"prey": 3}, episode_steps=4)
+    env = RecordEpisodeStatistics(NormalizeReward(NormalizeObservation(ClipAction(env))))
+    obs, _ = env.reset(seed=1)
+    episodes = 0
+    for _ in range(9):
+        obs, rewards, terminations, truncations, infos = env.step(2.0 * env.action_space.sample())
+        assert np.all(np.isfinite(obs)) and np.all(np.isfinite(rewards))
+        if "episode" in infos:
+            episodes += int(infos["_episode"].sum())
+            assert infos["episode"]["l"][infos["_episode"]].tolist() == [4] * int(infos["_episode"].sum())
+    assert episodes == 2 * env.num_envs  # two episodes of 4 steps and a reset step in 9, in every row
+
+
+def test_spaces_have_no_zero_width_dimension():
+    # The body frame's wall distances in a periodic world (and its sixth own-state number) are always 0:
+    # they get [-1, 1], so rescaling by the range never divides by zero.
+    for scene in ["standard.ron", "paper.ron", "confined.ron"]:
+        env = coevo.parallel_env(os.path.join(ROOT, "scenes", scene))
+        space = env.observation_space(env.possible_agents[0])
+        assert np.all(space.high > space.low), scene
+        vec = coevo.vector_env(os.path.join(ROOT, "scenes", scene), num_worlds=1)
+        assert np.all(vec.single_observation_space.high > vec.single_observation_space.low), scene
+    # The same object every call, held by its env (no method cache keeping dropped envs alive).
+    assert env.observation_space("prey_0") is env.observation_space("predator_0")
+
+
+def test_the_global_state_for_centralised_critics():
+    env = coevo.parallel_env(STANDARD, seed=2, counts={"prey": 4}, episode_steps=5)
+    env.reset()
+    state = env.state()
+    population = len(env.positions())
+    assert state.shape == (population * 6,) == env.state_space.shape and state.dtype == np.float32
+    rows = state.reshape(population, 6)
+    assert np.allclose(rows[:, :2], env.positions(), atol=1e-4)
+    assert np.allclose(np.hypot(rows[:, 4], rows[:, 5]), 1.0, atol=1e-5)  # unit headings
+    env.step({a: np.ones(2, np.float32) for a in env.agents})
+    assert not np.array_equal(env.state(), state)
+    vec = coevo.VecEnv(STANDARD, num_envs=2, seed=2, counts={"prey": 4}, episode_steps=5)
+    vec.reset()
+    assert vec.state().shape == (2, population, 6)
+    first = coevo.parallel_env(STANDARD, seed=2, counts={"prey": 4}, episode_steps=5)
+    first.reset()
+    assert np.array_equal(vec.state()[0].reshape(-1), first.state())
+
+
+def test_threads_change_no_number():
+    a = coevo.VecEnv(STANDARD, num_envs=4, seed=3, episode_steps=6, threads=1)
+    b = coevo.VecEnv(STANDARD, num_envs=4, seed=3, episode_steps=6)
+    assert np.array_equal(a.reset(), b.reset())
+    rng = np.random.default_rng(0)
+    for _ in range(8):
+        actions = rng.uniform(-1, 1, (4, len(a.agents), 2)).astype(np.float32)
+        for x, y in zip(a.step(actions)[:3], b.step(actions)[:3]):
+            assert np.array_equal(x, y)
+    with pytest.raises(coevo.InputError, match="threads: must be"):
+        coevo.VecEnv(STANDARD, num_envs=1, threads=0)
+
+
+def test_closed_envs_and_integer_actions_are_refused():
+    par = coevo.parallel_env(STANDARD, episode_steps=3)
+    par.reset()
+    par.close()
+    with pytest.raises(coevo.InputError, match="closed"):
+        par.step({a: np.zeros(2, np.float32) for a in par.possible_agents})
+    vec = coevo.VecEnv(STANDARD, num_envs=1)
+    vec.reset()
+    with pytest.raises(coevo.InputError, match="dtype int64, expected floating point"):
+        vec.step(np.zeros((1, len(vec.agents), 2), np.int64))
+    vec.close()
+    with pytest.raises(coevo.InputError, match="closed"):
+        vec.reset()

@@ -268,7 +268,31 @@ impl Env {
         by_id.sort_by_key(|&(id, _)| id);
         by_id.into_iter().map(|(_, p)| p).collect()
     }
+
+    /// The global state a centralised critic reads: per agent of every species, ordered by agent id,
+    /// [`STATE_DIM`] numbers (x, y, v_x, v_y, h_x, h_y: position in m, velocity in m/s, unit heading),
+    /// in the world frame whatever frame the observations use.
+    pub fn state(&self) -> Vec<f32> {
+        let pop = self.world.resource::<Population>();
+        let mut order: Vec<usize> = (0..pop.id.len()).collect();
+        order.sort_by_key(|&i| pop.id[i].0);
+        order
+            .into_iter()
+            .flat_map(|i| {
+                let (p, v, h) = (pop.position[i], pop.velocity[i], pop.heading[i]);
+                [p.x, p.y, v.x, v.y, h.x, h.y].map(|x| x as f32)
+            })
+            .collect()
+    }
+
+    /// Agents of every species (the rows of [`Env::state`]).
+    pub fn population(&self) -> usize {
+        self.world.resource::<Population>().id.len()
+    }
 }
+
+/// Numbers per agent in [`Env::state`].
+pub const STATE_DIM: usize = 6;
 
 /// How a [`VecEnv`]'s worlds are seeded from its one seed.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -312,6 +336,8 @@ pub struct VecEnv {
     fresh: bool,
     /// Whether to step the worlds on one thread or on all ([`crate::parallel::Adaptive`]).
     threads: crate::parallel::Adaptive,
+    /// At most this many threads for this VecEnv's steps (None: [`crate::parallel::threads`]).
+    max_threads: Option<usize>,
 }
 
 /// What a [`VecEnv`] step returned: `[worlds × agents × d_o]` observations (of the next episode's first
@@ -380,7 +406,31 @@ impl VecEnv {
             })
             .collect::<crate::error::Result<Vec<_>>>()?;
         let agents = envs[0].agents().len();
-        Ok(VecEnv { envs, agents, finished: vec![], numbered: 0, fresh: true, threads: Default::default() })
+        Ok(VecEnv {
+            envs,
+            agents,
+            finished: vec![],
+            numbered: 0,
+            fresh: true,
+            threads: Default::default(),
+            max_threads: None,
+        })
+    }
+
+    /// Steps on at most `n` threads (at least 1; never more than [`crate::parallel::threads`]); which
+    /// thread steps a world never changes what it computes.
+    pub fn set_max_threads(&mut self, n: usize) {
+        self.max_threads = Some(n.max(1));
+    }
+
+    /// Every world's [`Env::state`], world after world: `[worlds × agents of all species × STATE_DIM]`.
+    pub fn state(&self) -> Vec<f32> {
+        self.envs.iter().flat_map(Env::state).collect()
+    }
+
+    /// Agents of every species per world (the rows of a world's [`Env::state`]).
+    pub fn population(&self) -> usize {
+        self.envs[0].population()
     }
 
     /// Each world's seed, in order.
@@ -476,7 +526,8 @@ impl VecEnv {
             self.envs.iter_mut().zip(actions.chunks(per)).map(|(e, a)| (e, a, None)).collect();
         // On one thread or all, whichever has been faster lately (other work on the machine can make
         // all threads slower than one); the same worlds either way.
-        self.threads.run(|workers| {
+        let cap = self.max_threads;
+        self.threads.run_at_most(cap, |workers| {
             crate::parallel::for_each_mut_on(&mut work, workers, |(env, a, out)| {
                 *out = Some(env.step(a).and_then(|mut r| {
                     if !r.truncated {
