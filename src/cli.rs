@@ -193,12 +193,15 @@ pub fn main(species: SpeciesPlugins) -> ExitCode {
 
 /// One line on stderr and a failure; a stderr that cannot take it (closed, full) still fails, quietly.
 /// Control characters (a newline in a file's name) are shown escaped, so the message stays one line; a
-/// write refused for the file size limit says which limit.
+/// write refused for the file size limit, or a file not opened for the open-file limit, says which limit.
 fn fail(message: &str) -> ExitCode {
     let mut line: String =
         message.chars().flat_map(|c| if c.is_control() { c.escape_default().collect() } else { vec![c] }).collect();
     if line.contains(&format!("(os error {})", libc::EFBIG)) {
         line.push_str(" (a file size limit was reached, such as `ulimit -f`)");
+    }
+    if line.contains(&format!("(os error {})", libc::EMFILE)) {
+        line.push_str(" (the limit on open files was reached, such as `ulimit -n`)");
     }
     let _ = crate::errln!("coevo: error: {line}");
     ExitCode::FAILURE

@@ -45,6 +45,63 @@ fn remove_live_temporaries() {
     }
 }
 
+/// The system allocator, except that an allocation the system refuses (a memory limit: `ulimit -v`, a
+/// cgroup, the machine) ends the process as a signal does, with one line and its temporaries and lock
+/// files removed ([`out_of_memory`]), where Rust's default would abort and leave them behind. Installed
+/// by the `coevo` binary (`#[global_allocator]`); every allocation that scales with input is checked
+/// against the memory estimate before it is made, so this is the backstop for the rest.
+pub struct CheckedAlloc;
+
+// SAFETY: every call is forwarded to the system allocator unchanged; only a null result is acted on.
+unsafe impl std::alloc::GlobalAlloc for CheckedAlloc {
+    unsafe fn alloc(&self, layout: std::alloc::Layout) -> *mut u8 {
+        checked(unsafe { std::alloc::System.alloc(layout) }, layout.size())
+    }
+    unsafe fn alloc_zeroed(&self, layout: std::alloc::Layout) -> *mut u8 {
+        checked(unsafe { std::alloc::System.alloc_zeroed(layout) }, layout.size())
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: std::alloc::Layout, new_size: usize) -> *mut u8 {
+        checked(unsafe { std::alloc::System.realloc(ptr, layout, new_size) }, new_size)
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: std::alloc::Layout) {
+        unsafe { std::alloc::System.dealloc(ptr, layout) }
+    }
+}
+
+fn checked(ptr: *mut u8, bytes: usize) -> *mut u8 {
+    if ptr.is_null() {
+        out_of_memory(bytes);
+    }
+    ptr
+}
+
+/// Ends the process after an allocation of `bytes` was refused: the temporaries and lock files removed
+/// (small allocations still succeed when a large one failed; a second failure meanwhile aborts), one
+/// line, exit code 1. Formats nothing on the heap.
+fn out_of_memory(bytes: usize) -> ! {
+    static ONCE: AtomicBool = AtomicBool::new(false);
+    if ONCE.swap(true, Ordering::SeqCst) {
+        std::process::abort();
+    }
+    EXITING.store(true, Ordering::SeqCst);
+    if let Ok(mut live) = LIVE_TEMPORARIES.try_lock() {
+        for path in live.drain(..) {
+            match std::fs::symlink_metadata(&path) {
+                Ok(m) if m.is_dir() => drop(std::fs::remove_dir_all(&path)),
+                Ok(_) => drop(std::fs::remove_file(&path)),
+                Err(_) => {}
+            }
+        }
+    }
+    let _ = writeln!(
+        io::stderr(),
+        "coevo: error: out of memory: {} MB more could not be allocated (a memory limit such as ulimit -v or the cgroup's, or the machine's); temporary files removed",
+        bytes.div_ceil(1_000_000)
+    );
+    // SAFETY: _exit ends the process at once, running nothing that could allocate.
+    unsafe { libc::_exit(1) }
+}
+
 /// Set by the signal handler: no new step of file writing starts ([`Writing::begin`] waits for the exit).
 static EXITING: AtomicBool = AtomicBool::new(false);
 /// Steps of file writing under way ([`Writing`]), which the signal handler lets finish.
@@ -203,6 +260,14 @@ pub fn check_target(path: &Path, existing: Existing) -> io::Result<()> {
         }
         Ok(_) => Ok(()),
     }
+}
+
+/// [`check_target`] of every file a mode will write, before its work: one line naming the first refused.
+pub fn check_targets(paths: &[PathBuf], existing: Existing) -> crate::error::Result<()> {
+    for path in paths {
+        check_target(path, existing).map_err(|e| format!("{}: {e}", path.display())).kind(crate::error::Kind::Io)?;
+    }
+    Ok(())
 }
 
 /// A file being written: all writes go to a temporary file beside the target, which [`AtomicFile::commit`]

@@ -28,9 +28,9 @@ pub fn aggregate(
     // The claims are computed from the per-run values alone (summary.csv), so that a clone without run
     // folders recomputes them from the committed summary exactly.
     let table = if written {
-        Summary::parse(&summary, &exp.root.join("summary.csv"))?
+        Summary::parse(&summary, &exp.summary_path())?
     } else {
-        Summary::read(&exp.root.join("summary.csv"))?.unwrap_or_default()
+        Summary::read(&exp.summary_path())?.unwrap_or_default()
     };
     if written {
         // An experiment whose runs are all shared from others (`shared_from`) has trained nothing into
@@ -42,7 +42,7 @@ pub fn aggregate(
     // until then (so no folder for figures either).
     let blind = in_progress(exp, &table);
     if drawn.is_some() && !blind {
-        crate::io::own_dir(&exp.root.join("figures"))?;
+        crate::io::own_dir(&exp.figures_dir())?;
     }
     // A committed summary written before the curve columns existed gains them from the committed curves.
     let extended = match (&drawn, written) {
@@ -52,7 +52,7 @@ pub fn aggregate(
     let extended_summary = extended.is_some();
     let table = match extended {
         Some((text, extended)) => {
-            crate::io::write_file(&exp.root.join("summary.csv"), crate::io::Existing::Replace, text.as_bytes())?;
+            crate::io::write_file(&exp.summary_path(), crate::io::Existing::Replace, text.as_bytes())?;
             extended
         }
         None => table,
@@ -73,8 +73,12 @@ pub fn aggregate(
         // The figure data before the summary it must match: a write that fails between them leaves the
         // old summary, which the next aggregation finds incomplete, never a new summary beside old curves.
         figure_data::write(exp, drawn.as_ref().expect("drawn from the run folders"))?;
-        crate::io::write_file(&exp.root.join("summary.csv"), crate::io::Existing::Replace, summary.as_bytes())?;
-        crate::io::write_file(&exp.root.join("summary-mean.csv"), crate::io::Existing::Replace, means.as_bytes())?;
+        crate::io::write_file(&exp.summary_path(), crate::io::Existing::Replace, summary.as_bytes())?;
+        crate::io::write_file(
+            &exp.root.join(super::load::SUMMARY_MEAN),
+            crate::io::Existing::Replace,
+            means.as_bytes(),
+        )?;
         let kernels =
             |i: usize| data.get(&i).map(|d| &d.kernels).or(carried.kernels.get(&i)).cloned().unwrap_or_default();
         let ledger = carry::text(exp, table.runs(exp).into_iter().map(|(i, _)| (i, kernels(i))));
@@ -131,7 +135,7 @@ const IDENTICAL: &str = "not a comparison: the two variants' runs are identical 
 /// from the committed figure data, as [`aggregate`] extends it), without writing anything: another file's
 /// tests, for the families a report shares with it.
 pub fn committed_tests(exp: &Experiment) -> crate::error::Result<Vec<ClaimResult>> {
-    let Some(table) = Summary::read(&exp.root.join("summary.csv"))? else {
+    let Some(table) = Summary::read(&exp.summary_path())? else {
         return Ok(tests(exp, &Summary::default()));
     };
     let indices: Vec<usize> = table.runs(exp).iter().map(|(i, _)| *i).collect();
@@ -151,7 +155,7 @@ fn with_curve_columns(
     table: &Summary,
     curves: &BTreeMap<usize, figure_data::FigureData>,
 ) -> crate::error::Result<Option<(String, Summary)>> {
-    let path = exp.root.join("summary.csv");
+    let path = exp.summary_path();
     let text = crate::io::read_text(&path, crate::io::MAX_TEXT_BYTES)?;
     match summary::extend(exp, &text, table, curves) {
         Some(text) => {

@@ -127,7 +127,7 @@ pub struct Elsewhere {
 /// resumed or rerun, and aggregated when it is finished). An experiment whose committed rows cannot be
 /// carried has none, so the runner runs them again.
 pub fn finished_elsewhere(exp: &Experiment) -> crate::error::Result<BTreeMap<usize, Elsewhere>> {
-    let Some(summary) = Summary::read(&exp.root.join("summary.csv"))? else { return Ok(BTreeMap::new()) };
+    let Some(summary) = Summary::read(&exp.summary_path())? else { return Ok(BTreeMap::new()) };
     // A summary without every column written now (an older coevo's) carries nothing: its runs are rerun.
     let header = super::summary::header(&super::summary::columns(exp));
     if header.iter().any(|c| !summary.columns.contains(c)) {
@@ -150,7 +150,7 @@ pub fn finished_elsewhere(exp: &Experiment) -> crate::error::Result<BTreeMap<usi
 
 /// The committed runs of the experiment file (rows of its committed summary.csv), by run index.
 pub fn committed_runs(exp: &Experiment) -> crate::error::Result<BTreeSet<usize>> {
-    Ok(Summary::read(&exp.root.join("summary.csv"))?
+    Ok(Summary::read(&exp.summary_path())?
         .map_or(BTreeSet::new(), |s| s.runs(exp).into_iter().map(|(i, _)| i).collect()))
 }
 
@@ -169,7 +169,7 @@ pub struct Carried {
 /// (no record of its scene, another scene, a column or figure data missing, another binary or family of
 /// kernels): then aggregating would drop a finished run or mix it with others.
 pub fn carried(exp: &Experiment, data: &BTreeMap<usize, RunData>, header: &[String]) -> crate::error::Result<Carried> {
-    let path = exp.root.join("summary.csv");
+    let path = exp.summary_path();
     if data.is_empty() || !path.exists() {
         return Ok(Carried::default());
     }

@@ -74,6 +74,9 @@ impl crate::run::args::Mode for PlotArgs {
     const TAKES: &'static [&'static str] = &[];
 }
 
+/// The suite's report of every claim, at the repository's top.
+const REPRODUCTION: &str = "REPRODUCTION.md";
+
 /// `--experiment FILE|all`: run, evaluate and aggregate; then REPRODUCTION.md from every experiment's
 /// results so far (the project's experiment files), or the experiment's own summaries (any other file).
 pub fn experiment(request: &Request) -> crate::error::Result<()> {
@@ -83,6 +86,13 @@ pub fn experiment(request: &Request) -> crate::error::Result<()> {
         file => vec![PathBuf::from(file)],
     };
     let experiments = files.iter().map(|f| Experiment::load(f, Path::new(RESULTS))).collect::<Result<Vec<_>, _>>()?;
+    // What the runs end in, checked before the first trains: a refusal never follows a training.
+    for exp in &experiments {
+        exp.check_outputs()?;
+    }
+    if which == "all" && request.task.is_none() {
+        check_reproduction_targets()?;
+    }
     if let Some(task) = request.task {
         match experiments.as_slice() {
             [exp] if task < exp.runs.len() => {}
@@ -191,8 +201,10 @@ pub fn write_reproduction(partial: bool) -> crate::error::Result<()> {
         if !partial {
             check_whole(&exp, &data, "--plot all")?;
         }
+        exp.check_outputs()?;
         loaded.push((exp, data, carried));
     }
+    check_reproduction_targets()?;
     let mut trainings = Vec::new();
     for (exp, data, _) in &loaded {
         trainings.extend(super::trainings::before_aggregation(exp, data)?);
@@ -217,12 +229,8 @@ pub fn write_reproduction(partial: bool) -> crate::error::Result<()> {
     // book links no Markdown outside itself: mdbook would turn it into a missing page).
     let here = paper_table::table(&results, &|e: &str| format!("[{e}](#{e})"))?;
     let book = paper_table::table(&results, &|e: &str| format!("[{e}](../../../results/{e}/)"))?;
-    crate::io::write_file(
-        Path::new("REPRODUCTION.md"),
-        Existing::Replace,
-        reproduction(&all, here.as_deref()).as_bytes(),
-    )?;
-    crate::errln!("coevo: wrote REPRODUCTION.md")?;
+    crate::io::write_file(Path::new(REPRODUCTION), Existing::Replace, reproduction(&all, here.as_deref()).as_bytes())?;
+    crate::errln!("coevo: wrote {REPRODUCTION}")?;
     // The book's first results page, where the book is (a clone of the repository).
     let page = Path::new(paper_table::BOOK_PAGE);
     if let Some(book) = book.filter(|_| page.parent().is_some_and(Path::is_dir)) {
@@ -230,6 +238,14 @@ pub fn write_reproduction(partial: bool) -> crate::error::Result<()> {
         crate::errln!("coevo: wrote {}", page.display())?;
     }
     Ok(())
+}
+
+/// REPRODUCTION.md and the book's page of the table, as `--plot all` writes them: regular files or new.
+fn check_reproduction_targets() -> crate::error::Result<()> {
+    crate::io::check_targets(
+        &[PathBuf::from(REPRODUCTION), PathBuf::from(paper_table::BOOK_PAGE)],
+        crate::io::Existing::Replace,
+    )
 }
 
 /// One experiment reported on its own ([`report`]): its tests adjusted together with the tests of its named
@@ -384,7 +400,7 @@ fn finished(exp: &Experiment, data: &BTreeMap<usize, super::claims::RunData>) ->
         let committed = super::carry::committed_runs(exp)?;
         return Ok(data.len() + committed.iter().filter(|i| !data.contains_key(i)).count());
     }
-    Ok(Summary::read(&exp.root.join("summary.csv"))?.map_or(0, |s| s.runs(exp).len()))
+    Ok(Summary::read(&exp.summary_path())?.map_or(0, |s| s.runs(exp).len()))
 }
 
 /// Refuses (`what`: the call, for the error line) an experiment some but not all of whose runs are

@@ -161,6 +161,10 @@ pub fn crossplay(opts: &CrossplayOptions) -> crate::error::Result<(Vec<Matrix>, 
         )
         .into());
     }
+    crate::io::check_targets(&outputs(&dir, &pairs), crate::io::Existing::Replace)?;
+    if std::fs::symlink_metadata(dir.figures()).is_ok_and(|m| !m.is_dir()) {
+        return Err(format!("{}: exists and is not a folder", dir.figures().display()).into());
+    }
     // Every snapshot, loaded (and checked against the scene's shapes) before anything is played.
     let like = Learners::new(&scene, Mode::Evaluate);
     let mut snapshots: Vec<Vec<(usize, crate::learning::nets::Mlp)>> = vec![vec![]; registry.len()];
@@ -234,11 +238,25 @@ pub fn crossplay(opts: &CrossplayOptions) -> crate::error::Result<(Vec<Matrix>, 
 }
 
 /// File stem of a pair's outputs: `crossplay` when it is the scene's only pair.
-fn stem(m: &Matrix, only: bool) -> String {
+fn stem(pair: &Pair, only: bool) -> String {
     match only {
         true => crate::run::CROSSPLAY.into(),
-        false => format!("{}-{}-{}", crate::run::CROSSPLAY, m.pair.prey_name, m.pair.predator_name),
+        false => format!("{}-{}-{}", crate::run::CROSSPLAY, pair.prey_name, pair.predator_name),
     }
+}
+
+/// Every file [`write`] will write for these pairs: checked before the first cell is played, so a
+/// folder, a FIFO or a link where one of them goes is refused before the work, not after it.
+fn outputs(dir: &RunDir, pairs: &[Pair]) -> Vec<std::path::PathBuf> {
+    let only = pairs.len() == 1;
+    let mut files = vec![];
+    for p in pairs {
+        files.push(dir.crossplay(&stem(p, only)));
+        files.push(dir.figures().join(stem(p, only)).with_extension("png"));
+    }
+    files.push(dir.crossplay(crate::run::CROSSPLAY_READOUTS));
+    files.push(dir.crossplay(crate::run::CROSSPLAY_RATINGS));
+    files
 }
 
 /// The heat maps of a matrix (catches and the prey's DoA over prey × predator snapshots).
@@ -269,9 +287,9 @@ fn write(run: &std::path::Path, matrices: &[Matrix]) -> crate::error::Result<Vec
     let mut written = Vec::new();
     let only = matrices.len() == 1;
     for m in matrices {
-        let csv = dir.crossplay(&stem(m, only));
+        let csv = dir.crossplay(&stem(&m.pair, only));
         crate::io::write_file(&csv, Existing::Replace, cells_csv(m).as_bytes())?;
-        let figure = figures.join(stem(m, only));
+        let figure = figures.join(stem(&m.pair, only));
         plot::save_heatmaps(&figure, &heatmaps(m, ""))?;
         written.push(csv.display().to_string());
         written.push(figure.with_extension("png").display().to_string());

@@ -123,7 +123,7 @@ fn perturbation_figures<'a>(
             });
         }
         if panels.iter().any(|p| !p.curves.is_empty()) {
-            plot::save(&exp.root.join("figures").join(format!("{preset}-perturbation-{}", slug(&e.name))), &panels)?;
+            plot::save(&exp.figures_dir().join(format!("{preset}-perturbation-{}", slug(&e.name))), &panels)?;
             *saved += 1;
         }
     }
@@ -149,7 +149,7 @@ fn crossplay_figures(
             runs.iter().filter_map(|(_, d)| d.crossplay.as_ref()).map(|c| c.matrix(pair.clone())).collect();
         if let Some(mean) = super::crossplay_matrix::mean_matrix(&matrices) {
             let what = format!("{}, {preset}, {} seeds: ", v.name, matrices.len());
-            let stem = exp.root.join("figures").join(format!("{preset}-{}-crossplay", slug(&v.name)));
+            let stem = exp.figures_dir().join(format!("{preset}-{}-crossplay", slug(&v.name)));
             plot::save_heatmaps(&stem, &super::crossplay::heatmaps(&mean, &what))?;
             *saved += 1;
         }
@@ -200,7 +200,7 @@ fn figures<'a>(
     of_variant: &dyn Fn(&str) -> Vec<&'a FigureData>,
     saved: &mut usize,
 ) -> crate::error::Result<()> {
-    let dir = exp.root.join("figures");
+    let dir = exp.figures_dir();
     let curves = |pick: &dyn Fn(&FigureData) -> Vec<f64>, x0: f64| -> Vec<Curve> {
         exp.spec
             .variants

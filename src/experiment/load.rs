@@ -66,11 +66,53 @@ fn first_difference(a: &str, b: &str) -> Option<String> {
 }
 
 /// The first value that appears twice.
-fn first_repeat<T: PartialEq>(values: &[T]) -> Option<&T> {
-    values.iter().enumerate().find(|(i, v)| values[..*i].contains(v)).map(|(_, v)| v)
+/// The first value seen twice; linear in the list (an experiment may list tens of thousands).
+fn first_repeat<T: Eq + std::hash::Hash>(values: &[T]) -> Option<&T> {
+    let mut seen = std::collections::HashSet::with_capacity(values.len());
+    values.iter().find(|v| !seen.insert(*v))
 }
 
+/// The files of an experiment's results folder (`results/NAME/`), named here only.
+pub const SUMMARY: &str = "summary.csv";
+pub const SUMMARY_MEAN: &str = "summary-mean.csv";
+pub const FIGURES: &str = "figures";
+
 impl Experiment {
+    /// `results/NAME/summary.csv`: one row per finished run.
+    pub fn summary_path(&self) -> PathBuf {
+        self.root.join(SUMMARY)
+    }
+
+    /// `results/NAME/figures/`.
+    pub fn figures_dir(&self) -> PathBuf {
+        self.root.join(FIGURES)
+    }
+
+    /// Every file aggregating and reporting this experiment writes in its results folder (the figures
+    /// aside, which are checked by their folder): checked before any run trains, so a folder, a FIFO or
+    /// a link where one goes is refused before the work, not after it.
+    pub fn check_outputs(&self) -> Result<()> {
+        let files = [
+            SUMMARY,
+            SUMMARY_MEAN,
+            super::carry::FILE,
+            super::figure_data::FILE,
+            super::registry::FILE,
+            super::report::REPORT,
+        ];
+        crate::io::check_targets(&files.map(|f| self.root.join(f)), crate::io::Existing::Replace)?;
+        for dir in [&self.root, &self.figures_dir()] {
+            match std::fs::symlink_metadata(dir) {
+                Ok(m) if m.file_type().is_symlink() => {
+                    return Err(format!("{}: is a symbolic link; coevo writes only into real folders it owns, never through a link: remove the link", dir.display()).into())
+                }
+                Ok(m) if !m.is_dir() => return Err(format!("{}: exists and is not a folder", dir.display()).into()),
+                _ => {}
+            }
+        }
+        Ok(())
+    }
+
     /// Loads an experiment file and resolves every run's scene; errors are one line naming the file and
     /// the field, as for scenes.
     pub fn load(file: &Path, results: &Path) -> Result<Experiment> {
@@ -138,16 +180,22 @@ impl Experiment {
                 ));
             }
         }
-        for (i, v) in spec.variants.iter().enumerate() {
+        // Folders and files already named, by slug: each name is checked against a set, so loading stays
+        // linear in the file's size.
+        let mut folders = std::collections::HashSet::with_capacity(spec.variants.len());
+        for v in &spec.variants {
             let field = format!("variants[{}].name", v.name);
-            crate::run::check_name(&slug(&v.name)).map_err(|m| {
-                err(&field, format!("as a folder name ({:?}) it {m}; use letters or digits", slug(&v.name)))
-            })?;
-            if spec.variants[..i].iter().any(|o| slug(&o.name) == slug(&v.name)) {
-                return Err(err(&field, format!("names the same folder ({:?}) as another variant", slug(&v.name))));
+            let folder = slug(&v.name);
+            crate::run::check_name(&folder)
+                .map_err(|m| err(&field, format!("as a folder name ({folder:?}) it {m}; use letters or digits")))?;
+            if !folders.insert(folder.clone()) {
+                return Err(err(&field, format!("names the same folder ({folder:?}) as another variant")));
             }
         }
-        for (i, e) in spec.evaluations.iter().enumerate() {
+        let variants: std::collections::HashMap<&String, &VariantFile> =
+            spec.variants.iter().map(|v| (&v.name, v)).collect();
+        let mut files = std::collections::HashSet::with_capacity(spec.evaluations.len());
+        for e in &spec.evaluations {
             let field = |f: &str| format!("evaluations[{}].{f}", e.name);
             let file = crate::run::evaluation_file_name(&slug(&e.name));
             if slug(&e.name).is_empty() {
@@ -156,7 +204,7 @@ impl Experiment {
             crate::run::RunDir::new(".")
                 .eval_output(Some(&file))
                 .map_err(|m| err(&field("name"), m.to_string().replacen("--eval-out ", "as the file ", 1)))?;
-            if spec.evaluations[..i].iter().any(|o| slug(&o.name) == slug(&e.name)) {
+            if !files.insert(slug(&e.name)) {
                 return Err(err(&field("name"), format!("names the same file ({file}) as another evaluation")));
             }
             if e.episodes == 0 || e.steps == Some(0) {
@@ -169,9 +217,10 @@ impl Experiment {
                 ));
             }
         }
-        for (i, c) in spec.claims.iter().enumerate() {
+        let mut texts = std::collections::HashSet::with_capacity(spec.claims.len());
+        for c in &spec.claims {
             // A claim is cited by its text (REPRODUCTION.md's rows, the book's citations): one row per text.
-            if spec.claims[..i].iter().any(|d| d.text == c.text) {
+            if !texts.insert(&c.text) {
                 return Err(err("claims", format!("{:?} is the text of two claims", c.text)));
             }
             if c.family.as_ref().is_some_and(|f| f.trim().is_empty()) {
@@ -196,7 +245,7 @@ impl Experiment {
                 return Err(err("claims", format!("{:?}: paper must be a finite number (got {v})", c.text)));
             }
             for v in std::iter::once(&c.variant).chain(&c.versus) {
-                if !spec.variants.iter().any(|x| &x.name == v) {
+                if !variants.contains_key(v) {
                     return Err(err("claims", format!("no variant named {v:?}")));
                 }
             }
@@ -204,8 +253,7 @@ impl Experiment {
                 return Err(err("claims", format!("{:?} is compared with itself (versus)", c.text)));
             }
             if let Some(versus) = &c.versus {
-                let source =
-                    |name: &String| spec.variants.iter().find(|v| &v.name == name).and_then(|v| v.shared_from.clone());
+                let source = |name: &String| variants.get(name).and_then(|v| v.shared_from.clone());
                 if let Some(shared) = source(&c.variant).filter(|s| Some(s) == source(versus).as_ref()) {
                     return Err(err(
                         "claims",

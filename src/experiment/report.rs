@@ -343,7 +343,7 @@ fn section(md: &mut String, Reported { exp, results, finished, summary, .. }: &R
         let shown: Vec<String> = ["variants", "training"]
             .iter()
             .map(|what| format!("{preset}-{what}.svg"))
-            .filter(|file| exp.root.join("figures").join(file).exists())
+            .filter(|file| exp.figures_dir().join(file).exists())
             .map(|file| format!("![{}]({})", file.trim_end_matches(".svg"), figures.join(&file).display()))
             .collect();
         if !shown.is_empty() {

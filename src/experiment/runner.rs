@@ -327,9 +327,11 @@ pub fn run(exp: &Experiment, opts: &RunnerOptions, only: Option<usize>) -> crate
     bar.reset_eta();
     let next = AtomicUsize::new(0);
     let failures = Mutex::new(Vec::new());
-    std::thread::scope(|scope| {
+    // Threads the system refuses (a process limit, ulimit -u) are done without; none at all is an error.
+    let started = std::thread::scope(|scope| {
+        let mut started = Ok(0);
         for _ in 0..opts.jobs.clamp(1, runs.len().max(1)) {
-            scope.spawn(|| loop {
+            let spawned = std::thread::Builder::new().spawn_scoped(scope, || loop {
                 let i = next.fetch_add(1, Ordering::SeqCst);
                 let Some(&i) = runs.get(i) else { break };
                 let run = &exp.runs[i];
@@ -353,9 +355,25 @@ pub fn run(exp: &Experiment, opts: &RunnerOptions, only: Option<usize>) -> crate
                     }
                 }
             });
+            match (spawned, &mut started) {
+                (Ok(_), Ok(n)) => *n += 1,
+                (Err(e), Ok(0)) => {
+                    started = Err(e);
+                    break;
+                }
+                _ => break,
+            }
         }
+        started
     });
     bar.finish();
+    if let Err(e) = started {
+        return Err(format!(
+            "{}: could not start a thread to run it ({e}); is a process limit (ulimit -u) too low?",
+            exp.name
+        )
+        .into());
+    }
     let failures = failures.into_inner().expect("threads joined");
     match failures.len() {
         0 => Ok(()),

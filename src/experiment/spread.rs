@@ -22,7 +22,7 @@ pub fn seeds_like(scene: &Scene) -> Option<String> {
             other == *scene
         };
         let Some(run) = exp.runs.iter().find(|r| r.shared_from.is_none() && same(&r.scene)) else { continue };
-        let Ok(Some(summary)) = Summary::read(&exp.root.join("summary.csv")) else { continue };
+        let Ok(Some(summary)) = Summary::read(&exp.summary_path()) else { continue };
         // An experiment judged when complete shows nothing of its runs until then (no interim analysis).
         if super::aggregate::in_progress(&exp, &summary) {
             continue;

@@ -87,7 +87,7 @@ pub fn before_aggregation(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> 
         .filter(|(i, _)| exp.runs[**i].shared_from.is_none())
         .map(|(i, d)| Training::new(exp, *i, &d.binaries.join(" "), d.wall_seconds))
         .collect();
-    if let Some(committed) = Summary::read(&exp.root.join("summary.csv"))? {
+    if let Some(committed) = Summary::read(&exp.summary_path())? {
         trainings.extend(from_summary(exp, &committed).into_iter().filter(|t| !data.contains_key(&t.run)));
     }
     Ok(trainings)

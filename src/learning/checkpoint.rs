@@ -158,14 +158,23 @@ pub fn save(
         return written;
     }
     // Swap: the old checkpoint stays until the new one is in place; `load` falls back to `.old`.
-    let _ = std::fs::remove_dir_all(&old);
+    remove_if_present(&old)?;
     if dir.exists() {
         std::fs::rename(&dir, &old)?;
     }
     std::fs::rename(&tmp, &dir)?;
     crate::io::unregister_temporary(&tmp);
-    let _ = std::fs::remove_dir_all(&old);
-    Ok(())
+    // The new checkpoint is whole: an old one that cannot be removed (a folder made read-only) is an
+    // error, not a `checkpoint.old/` left behind by a run that reports success.
+    remove_if_present(&old).map_err(|e| std::io::Error::new(e.kind(), format!("{}: {e}", old.display())))
+}
+
+/// Removes a folder and what it holds; a folder that is not there is no error.
+fn remove_if_present(dir: &Path) -> std::io::Result<()> {
+    match std::fs::remove_dir_all(dir) {
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(()),
+        other => other,
+    }
 }
 
 /// Completes a checkpoint swap that a kill cut short ([`save`]): where `checkpoint/` is whole (its state

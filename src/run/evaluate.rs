@@ -295,6 +295,14 @@ pub fn evaluate(opts: &EvalOptions) -> crate::error::Result<String> {
     // Nobody else writes the run while it is evaluated (a training would swap its checkpoint), and what a
     // killed process left (a checkpoint swap cut short) is put right before the actors are read.
     let _lock = dir.lock()?;
+    // Every file this evaluation writes, checked before its episodes run (a folder or a FIFO at
+    // eval-nn.csv is refused now, not after eval.csv was replaced).
+    let mut outputs = vec![path.clone()];
+    outputs.extend(super::folder::EVAL_BESIDE.iter().map(|what| crate::io::beside(&path, what)));
+    if opts.perturb.is_some() {
+        outputs.push(crate::io::beside(&path, super::folder::PERTURBATION));
+    }
+    crate::io::check_targets(&outputs, Existing::Replace)?;
     let scene = opts.overrides.load(&dir.scene())?;
     let trained = (!opts.untrained).then_some(opts.run.as_path());
     let build = || -> crate::error::Result<Simulation> {

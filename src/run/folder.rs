@@ -422,6 +422,32 @@ impl RunDir {
         .kind(Kind::RunFolder)
     }
 
+    /// Refuses, before any training, a run whose folders a resumed training rewrites (the run's own,
+    /// `checkpoint/` and `snapshots/`) cannot be written: the first checkpoint swap would fail after the
+    /// episodes it cost, or leave a `checkpoint.old/` behind. Probed by making and removing a file in
+    /// each, which asks the file system itself (permissions, ACLs, a read-only mount), not the mode bits.
+    pub fn check_writable(&self) -> crate::error::Result<()> {
+        let probe = format!(".coevo-probe-{}", std::process::id());
+        for dir in [self.path.clone(), self.checkpoint(), self.path.join(SNAPSHOTS)] {
+            if !dir.is_dir() {
+                continue;
+            }
+            let path = dir.join(&probe);
+            let made = std::fs::OpenOptions::new().write(true).create_new(true).open(&path);
+            let result = made.and_then(|_| std::fs::remove_file(&path));
+            if let Err(e) = result {
+                let _ = std::fs::remove_file(&path);
+                return Err(format!(
+                    "{}: cannot be written ({e}); resuming replaces the checkpoint there: make it writable (chmod -R u+w {})",
+                    dir.display(),
+                    self.path.display()
+                ))
+                .kind(Kind::RunFolder);
+            }
+        }
+        Ok(())
+    }
+
     /// Refuses a run whose own folders (checkpoints, snapshots, figures) are symbolic links: coevo writes
     /// into them, and would write into whatever they point to (another run, a user's folder).
     fn refuse_links(&self) -> crate::error::Result<()> {
@@ -532,7 +558,14 @@ impl RunLock {
     /// process's PID. A folder removed (or replaced) under a training would otherwise be recreated with
     /// only what is written after, a folder that is no run.
     pub fn held(&self) -> crate::error::Result<()> {
-        let ours = std::fs::read_to_string(&self.path).ok().is_some_and(|t| t.trim() == std::process::id().to_string());
+        let ours = match std::fs::read_to_string(&self.path) {
+            Ok(text) => text.trim() == std::process::id().to_string(),
+            // A lock that cannot be read (no file descriptor left, say) is not a lock that is gone.
+            Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
+                return Err(crate::error::Error::from(format!("{}: {e}", self.path.display())).of_kind(Kind::Io))
+            }
+            Err(_) => false,
+        };
         if ours {
             return Ok(());
         }

@@ -213,6 +213,9 @@ pub fn train(scene: Scene, opts: &TrainOptions) -> crate::error::Result<usize> {
     // One process per run: a resume takes it before reading what another process may be writing; a new
     // run once everything is validated and loaded, so a refused scene leaves no folder behind.
     let mut lock = if opts.resume { Some(dir.lock()?) } else { None };
+    if opts.resume {
+        dir.check_writable()?;
+    }
     let scene = if opts.resume { Scene::load(&dir.scene())? } else { scene };
     scene.validate().map_err(|e| e.in_file(run))?;
     let total = opts.episodes.unwrap_or(scene.episodes);

@@ -169,18 +169,26 @@ impl<'a> Pairs<'a> {
         }
         let (full, filled) = std::sync::mpsc::sync_channel::<Batch>(2);
         let (empty, emptied) = std::sync::mpsc::channel::<Batch>();
-        std::thread::scope(|scope| {
-            scope.spawn(move || loop {
+        let pipelined = std::thread::scope(|scope| {
+            let started = std::thread::Builder::new().spawn_scoped(scope, move || loop {
                 let mut batch = emptied.try_recv().unwrap_or_default();
                 if !self.fill(&mut at, &mut batch, PIPELINE_BATCH) || full.send(batch).is_err() {
                     return;
                 }
             });
+            if started.is_err() {
+                return false;
+            }
             for batch in filled {
                 batch.add_to(bins);
                 let _ = empty.send(batch); // for reuse; the computing thread may have finished
             }
+            true
         });
+        // A thread the system refuses (a process limit): the same terms, in the same order, on this one.
+        if !pipelined {
+            self.add_to(bins, false);
+        }
     }
 
     /// Replaces `batch` with the terms of the pairs from `at` = (i, first j) on, in (i, j) order, whole

@@ -102,6 +102,7 @@ fn workspace() -> tempfile::TempDir {
     for (name, text) in EXPERIMENTS {
         std::fs::write(root.join("experiments").join(format!("{name}.ron")), text).unwrap();
     }
+    std::fs::create_dir_all(root.join("results/report-dir/REPORT.md")).unwrap();
 
     std::fs::write(root.join("notes.csv"), "a user's file\n").unwrap();
     std::fs::write(root.join("notes.gif"), "a user's picture\n").unwrap();
@@ -198,6 +199,10 @@ fn damage(root: &Path) {
     let mut next: Vec<String> = lines[2].split(',').map(str::to_string).collect();
     next[0] = "2".into();
     write("after-checkpoint-run", format!("{}\n{}\n", lines.join("\n"), next.join(",")));
+    // Outputs that cannot be written (a folder where a file goes), refused before any episode is played:
+    // eval.csv is not replaced first, nor figures/ made before crossplay-readouts.csv.
+    std::fs::create_dir(copy("run", "eval-dir-run").join("eval-nn.csv")).unwrap();
+    std::fs::create_dir(copy("run2", "crossplay-dir-run").join("crossplay-readouts.csv")).unwrap();
     // Folders of the run that are links: figures/ to a user's folder, snapshots/ to another run's.
     #[cfg(unix)]
     {
@@ -255,6 +260,8 @@ const EXPERIMENTS: &[(&str, &str)] = &[
         r#"(base: "scenes/paper.ron", seeds: [1], variants: [(name: "a", patch: (species: [(name: "pr,ey", count: 2, mass: 1.0, radius: 0.03, max_speed: 0.5, max_thrust: 1.0, max_turn_rate: 0.5, perception: Full, topological_limit: 6, colour: (0.1, 0.1, 0.1), catches: [], policy: Random)]))])"#,
     ),
     ("fine", r#"(base: "scenes/paper.ron", seeds: [1, 2], variants: [(name: "a")])"#),
+    // Its REPORT.md is a folder (made in the workspace): refused before any run trains.
+    ("report-dir", r#"(base: "scenes/paper.ron", seeds: [1], variants: [(name: "a")])"#),
     // Found only after runs had trained, before robustness III: refused at load now.
     ("zero-crossplay", r#"(base: "scenes/paper.ron", seeds: [1], variants: [(name: "a")], crossplay: (episodes: 0))"#),
     ("nul-variant", "(base: \"scenes/paper.ron\", seeds: [1], variants: [(name: \"a\u{0}b\")])"),
@@ -311,6 +318,8 @@ fn cases() -> Vec<(Vec<&'static str>, &'static str)> {
         (vec!["--record", "out.csv", "--scene", "stiff-walls.ron"], "world.wall_stiffness"),
         (vec!["--train", "--scene", "fast.ron"], "species[prey].max_speed: a body would move"),
         (vec!["--eval", "nan-run"], "prey-actor.safetensors: tensor 0.weight holds a non-finite value"),
+        (vec!["--eval", "eval-dir-run"], "eval-dir-run/eval-nn.csv: exists and is not a regular file"),
+        (vec!["--crossplay", "crossplay-dir-run"], "crossplay-readouts.csv: exists and is not a regular file"),
         // Outputs that would destroy or replace something.
         (vec!["--train", "--out", "run"], "run: already holds a run; continue it with --resume run"),
         (vec!["--train", "--out", "mine", "--overwrite"], "mine: is not empty and holds no coevo run"),
@@ -543,6 +552,10 @@ fn cases() -> Vec<(Vec<&'static str>, &'static str)> {
             "--bench-seconds: not used by --bench-against",
         ),
         (
+            vec!["--experiment", "experiments/report-dir.ron"],
+            "results/report-dir/REPORT.md: exists and is not a regular file",
+        ),
+        (
             vec!["--plot", "results/fine"],
             "--plot results/fine: no finished run of experiments/fine.ron there, and no figure-data.ron.gz; nothing written",
         ),
@@ -772,6 +785,20 @@ fn arguments_environment_and_resource_limits_end_in_one_line_and_leave_nothing()
     };
     limited("--train --out limited --episodes 1 --quiet", "limited/checkpoint");
     limited("--record big.csv --steps 3000", "big.csv");
+
+    // An open-file limit (ulimit -n) too low to save a checkpoint: one line naming the limit, no lock or
+    // half-written checkpoint left. (A process limit, ulimit -u, binds no root process: not tested here.)
+    let out = Command::new("sh")
+        .args(["-c", "ulimit -n 5; exec \"$COEVO\" --train --out few-files --episodes 1 --quiet"])
+        .env("COEVO", env!("CARGO_BIN_EXE_coevo"))
+        .current_dir(root)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && stderr.lines().count() == 1, "ulimit -n: {stderr}");
+    assert!(stderr.contains("the limit on open files was reached, such as `ulimit -n`"), "{stderr}");
+    assert!(leftovers(root).is_empty(), "ulimit -n: left {:?}", leftovers(root));
+    assert!(!root.join("few-files/checkpoint").exists(), "ulimit -n: a checkpoint half-written");
 }
 
 #[test]
