@@ -278,7 +278,20 @@ fn figures<'a>(
             }
         }
         for q in convergence {
-            compared.push((super::claims::quantity_name(&q), "episode".into(), q));
+            // A panel's title fits its column: the quantity in short, the definition on the axis.
+            let curve = |c: &str| if c == "dos" { "DoS" } else { "DoA" };
+            let (what, x_label) = match &q {
+                Quantity::Halfway(c) => (
+                    format!("{}: halfway episode", curve(c)),
+                    format!("episode its {}-episode mean completes half its change", super::claims::HALFWAY_WINDOW),
+                ),
+                Quantity::Reaches(c, level) => (
+                    format!("{}: episode it first reaches {level}", curve(c)),
+                    format!("episode its {}-episode mean first reaches {level}", super::claims::HALFWAY_WINDOW),
+                ),
+                other => (super::claims::quantity_name(other), "episode".into()),
+            };
+            compared.push((what, x_label, q));
         }
         let panels: Vec<EstimatePanel> = compared
             .into_iter()

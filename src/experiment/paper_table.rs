@@ -76,6 +76,8 @@ fn answer(statements: &[Statement], results: &[ClaimResult]) -> String {
     let mut out = String::from("**The answer.** ");
     for (preset, values) in [("gym-pps", "the authors' code's values"), ("paper", "the paper's stated values")] {
         let mut counts = [0usize; 5];
+        // Undecided statements whose interval rules out an effect of the paper's size.
+        let mut size_excluded = 0;
         for s in statements {
             let found = found(s, preset, results);
             let shown = found.iter().find(|r| judged(r)).or(found.first()).copied();
@@ -91,11 +93,18 @@ fn answer(statements: &[Statement], results: &[ClaimResult]) -> String {
                 Some(_) => 3,
             };
             counts[k] += 1;
+            if k == 3 && matches!(outcome, Some(Outcome::Inconclusive { paper_size_excluded: true })) {
+                size_excluded += 1;
+            }
         }
         let [held, direction, not, undecided, waiting] = counts;
+        let excluded = match size_excluded {
+            0 => String::new(),
+            n => format!(" ({n} of them rule out an effect of the paper's size)"),
+        };
         write!(
             out,
-            "With {values} (`{preset}`), {held} of the {} statements hold (reproduced, equivalent, or, where the paper gives no number, detected or told apart from chance), {direction} hold in direction but not in size, {not} are not reproduced and {undecided} are undecided{}. ",
+            "With {values} (`{preset}`), {held} of the {} statements hold (reproduced, equivalent, or, where the paper gives no number, detected or told apart from chance), {direction} hold in direction but not in size, {not} are not reproduced and {undecided} are undecided{excluded}{}. ",
             statements.len(),
             match waiting {
                 0 => String::new(),
@@ -137,7 +146,8 @@ fn short(outcome: Outcome) -> &'static str {
         Outcome::DirectionReproduced { larger: true } => "◐ direction, larger",
         Outcome::DirectionReproduced { larger: false } => "◐ direction, smaller",
         Outcome::NotReproduced => "✗ not reproduced",
-        Outcome::Inconclusive => "? inconclusive",
+        Outcome::Inconclusive { paper_size_excluded: false } => "? inconclusive",
+        Outcome::Inconclusive { paper_size_excluded: true } => "? inconclusive, the paper's size excluded",
         Outcome::NoEffectDetected => "? not detected",
         Outcome::EffectDetected => "detected",
         Outcome::DetectedAsHypothesised => "detected as hypothesised",
@@ -240,7 +250,8 @@ const LEGEND: &str = "Each cell: coevo's mean over seeds ± the interval its ver
      equivalent (a claim of no change shown within its margin); ✓ apart from chance (a level the paper gives no number \
      for, told apart from chance); ◐ the paper's direction detected but not its size; ✗ not reproduced (detected the \
      other way, or a level whose interval misses the paper's value); ? inconclusive or not detected (neither shown nor \
-     excluded, or a level whose interval holds chance too: not evidence of no effect); measured (a level with neither \
+     excluded, or a level whose interval holds chance too: not evidence of no effect; \"the paper's size excluded\": its \
+     interval rules out an effect as large as the paper's, though not its direction); measured (a level with neither \
      the paper's number nor a chance level to judge it against); in progress (its experiment is judged when all its \
      runs are in). A level marked \"its contrast decides\" is reproduced as a level while the contrast the paper's \
      sentence implies (its own row) is not: the contrast decides, and the answer above counts it undecided. A \
@@ -302,7 +313,7 @@ mod tests {
             judged("sweeps", "paper", Outcome::InProgress, &[]),
             judged("standard", "paper", Outcome::NotReproduced, &[0.20, 0.21, 0.22]),
             judged("sweeps", "gym-pps", Outcome::Reproduced, &[0.18, 0.19, 0.20]),
-            judged("standard", "gym-pps", Outcome::Inconclusive, &[0.1, 0.3]),
+            judged("standard", "gym-pps", Outcome::Inconclusive { paper_size_excluded: false }, &[0.1, 0.3]),
         ];
         // The confirmatory source still running gives way to the next, and the cell says it is running.
         assert_eq!(

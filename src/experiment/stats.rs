@@ -109,11 +109,11 @@ impl Estimate {
         Some((t_quantile(0.975, df) + t_quantile(0.80, df)) * se)
     }
 
-    /// Seeds (per group, for a difference) that detect `effect` with 80 % power at α = 0.05 given the
-    /// spread seen here: the smallest m with |effect|·√m / σ ≥ t₀.₉₇₅ + t₀.₈₀ at m − 1 degrees of freedom
-    /// (one group), or |effect|·√(m/2) / σ at 2m − 2 (two groups of m, σ the pooled SD). None without
-    /// spread or beyond 10 000.
-    pub fn seeds_for(&self, effect: f64) -> Option<usize> {
+    /// Seeds (per group, for a difference) that detect `effect` with 80 % power in a two-sided test at
+    /// `alpha` given the spread seen here: the smallest m with |effect|·√m / σ ≥ t₁₋α/₂ + t₀.₈₀ at m − 1
+    /// degrees of freedom (one group), or |effect|·√(m/2) / σ at 2m − 2 (two groups of m, σ the pooled
+    /// SD). None without spread or beyond 10 000.
+    pub fn seeds_for(&self, alpha: f64, effect: f64) -> Option<usize> {
         let se = self.se.filter(|&se| se > 0.0)?;
         let (sigma, scale) = match self.two_groups {
             // se² = (s²_a + s²_b) / n with n per group: the pooled σ² = se²·n/2.
@@ -122,7 +122,7 @@ impl Estimate {
         };
         (2..=10_000).find(|&m| {
             let df = if self.two_groups { 2 * m - 2 } else { m - 1 } as f64;
-            effect.abs() * (scale * m as f64).sqrt() / sigma >= t_quantile(0.975, df) + t_quantile(0.80, df)
+            effect.abs() * (scale * m as f64).sqrt() / sigma >= t_quantile(1.0 - alpha / 2.0, df) + t_quantile(0.80, df)
         })
     }
 }
@@ -356,7 +356,7 @@ mod tests {
             df: Some((n - 1) as f64),
             two_groups: false,
         };
-        assert_eq!(sd1(10).seeds_for(0.5), Some(34));
+        assert_eq!(sd1(10).seeds_for(0.05, 0.5), Some(34));
         let sd2 = |n: usize| Estimate {
             mean: 0.0,
             ci: None,
@@ -365,7 +365,7 @@ mod tests {
             df: Some((2 * n - 2) as f64),
             two_groups: true,
         };
-        assert_eq!(sd2(10).seeds_for(0.5), Some(64));
+        assert_eq!(sd2(10).seeds_for(0.05, 0.5), Some(64));
         // The detectable effect of 34 seeds at σ = 1 is about 0.5.
         let d = sd1(34).detectable().unwrap();
         assert!((d - 0.5).abs() < 0.01, "{d}");

@@ -52,8 +52,12 @@ pub enum Outcome {
     NotReproduced,
     /// A claim of no effect shown within its margin (TOST).
     Equivalent,
-    /// Neither detected nor excluded (an effect), or not told apart from chance (a level).
-    Inconclusive,
+    /// Neither detected nor shown equivalent (an effect), or not told apart from chance (a level);
+    /// `paper_size_excluded`: the effect's interval excludes the paper's stated value, so an effect of the
+    /// paper's size is ruled out though its direction is not decided.
+    Inconclusive {
+        paper_size_excluded: bool,
+    },
     /// The project's own direction (`ours`), detected as hypothesised or against it.
     DetectedAsHypothesised,
     DetectedOpposite,
@@ -112,6 +116,10 @@ pub fn paper_precision(paper: f64) -> f64 {
     0.5 * 10f64.powi(-(decimals as i32))
 }
 
+/// What an inconclusive verdict says when no number of seeds up to [`super::stats::Estimate::seeds_for`]'s
+/// bound would decide it.
+const MORE_SEEDS: &str = "; more than 10 000 seeds per variant would be needed to detect it";
+
 /// The verdict on a claim, defined in REPRODUCTION.md's preamble. An effect is *detected* when its
 /// Holm-adjusted p-value is below [`ALPHA`], which is exactly when its interval at `level` (the family's
 /// stepped level, [`super::stats::holm_levels`]) excludes zero; an interval that contains zero is never
@@ -159,7 +167,7 @@ pub fn verdict(
                 // What the data do support: the adjusted interval lies inside a margin only wider than its
                 // farther end (rounded up, so the margin printed is never one the interval reaches past).
                 Verdict::new(
-                    Inconclusive,
+                    Inconclusive { paper_size_excluded: false },
                     format!(
                         "inconclusive: neither equivalence within ±{m} (adjusted interval [{lo:.3}, {hi:.3}]) nor an effect shown; equivalence would be shown only for a margin wider than ±{:.3} (at this test's level)",
                         (lo.abs().max(hi.abs()) * 1000.0).ceil() / 1000.0
@@ -190,16 +198,36 @@ pub fn verdict(
             Some(_) if detected => {
                 Verdict::new(NotReproduced, format!("not reproduced: detected the other way ({p_text})"))
             }
-            Some(_) if claim.direction_only => {
-                Verdict::new(Inconclusive, format!("inconclusive: no effect detected; {}", power()))
+            // The seeds that would decide it: for a direction the paper gives no size of, those that would
+            // detect the difference measured here if it were the true one (none when it points the other way).
+            Some(paper) if claim.direction_only => {
+                let seeds = match e.mean.signum() == paper.signum() {
+                    true => e.seeds_for(level, e.mean).map_or(MORE_SEEDS.into(), |n| {
+                        format!("; about {n} seeds per variant would detect a difference of the size measured here ({:+.3}) with 80 % power", e.mean)
+                    }),
+                    false => "; the estimate points away from the paper's direction, so more seeds are not expected to show it".into(),
+                };
+                Verdict::new(
+                    Inconclusive { paper_size_excluded: false },
+                    format!("inconclusive: no effect detected; {}{seeds}", power()),
+                )
             }
             Some(paper) if !inside(paper) => Verdict::new(
-                Inconclusive,
+                Inconclusive { paper_size_excluded: true },
                 format!(
                     "inconclusive: no effect detected, and the paper's {paper:+.3} is outside the adjusted interval (an effect of its size is excluded)"
                 ),
             ),
-            Some(_) => Verdict::new(Inconclusive, format!("inconclusive: no effect detected; {}", power())),
+            Some(paper) => {
+                let seeds = e.seeds_for(level, paper).map_or(MORE_SEEDS.into(), |n| match n <= e.n {
+                    true => format!("; its {} seeds had 80 % power for the paper's {paper:+.3} (about {n} would): an effect of that size would likely have been detected", e.n),
+                    false => format!("; about {n} seeds per variant would detect the paper's {paper:+.3} with 80 % power"),
+                });
+                Verdict::new(
+                    Inconclusive { paper_size_excluded: false },
+                    format!("inconclusive: no effect detected; {}{seeds}", power()),
+                )
+            }
             None if detected => Verdict::new(EffectDetected, format!("effect detected: {:+.3} ({p_text})", e.mean)),
             None => Verdict::new(NoEffectDetected, format!("no effect detected (inconclusive): {}", power())),
         };
@@ -227,11 +255,11 @@ pub fn verdict(
             )
         }
         (Some(_), Some((b, true))) => Verdict::new(
-            Inconclusive,
+            Inconclusive { paper_size_excluded: false },
             format!("inconclusive: the 95 % CI holds both the paper's value and chance ({b:.3})"),
         ),
         (Some(_), None) => Verdict::new(
-            Inconclusive,
+            Inconclusive { paper_size_excluded: false },
             "inconclusive: the paper's value is inside the 95 % CI; no chance level to tell it from",
         ),
         (None, Some((b, false))) => {
@@ -305,7 +333,10 @@ mod tests {
         assert_eq!(outcome(&claim(Some(0.82), true), Some(0.001), None), Outcome::Reproduced);
         assert_eq!(outcome(&claim(Some(0.1), true), Some(0.001), None), Outcome::DirectionReproduced { larger: true });
         assert_eq!(outcome(&claim(Some(-0.82), true), Some(0.001), None), Outcome::NotReproduced);
-        assert_eq!(outcome(&claim(Some(0.82), true), Some(0.3), None), Outcome::Inconclusive);
+        assert_eq!(
+            outcome(&claim(Some(0.82), true), Some(0.3), None),
+            Outcome::Inconclusive { paper_size_excluded: false }
+        );
         assert_eq!(outcome(&claim(None, true), Some(0.001), None), Outcome::EffectDetected);
         assert_eq!(outcome(&claim(None, true), Some(0.3), None), Outcome::NoEffectDetected);
         // Levels: the paper's value reached apart from chance, missed, or no number.
@@ -318,6 +349,6 @@ mod tests {
         assert_eq!(verdict(&claim(None, false), None, None, None, None).outcome, Outcome::NotRunYet);
         let one = verdict(&claim(None, false), estimate(&[0.8]), None, None, None);
         assert_eq!((one.outcome, one.word()), (Outcome::OneSeed, "one seed"));
-        assert!(Outcome::Equivalent.reproduced() && !Outcome::Inconclusive.reproduced());
+        assert!(Outcome::Equivalent.reproduced() && !Outcome::Inconclusive { paper_size_excluded: true }.reproduced());
     }
 }
