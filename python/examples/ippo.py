@@ -73,6 +73,7 @@ class Args:
     hidden: int = 64  # coevo's actor width (Appendix B: three hidden layers of 64)
     init_log_std: float = -0.5
     torch_threads: int = 1
+    threads: int = 0  # threads stepping the worlds (0: every core, or COEVO_THREADS)
 
 
 def mlp(d_in: int, hidden: int, d_out: int, tanh_out: bool) -> nn.Sequential:
@@ -117,7 +118,8 @@ def main(args: Args) -> None:
     torch.set_num_threads(args.torch_threads)
     rng = np.random.default_rng(args.seed)
     counts = {k: int(v) for k, v in (c.split("=") for c in args.counts.split(",") if c)}
-    env = coevo.VecEnv(args.scene, num_envs=args.num_envs, seed=args.seed, counts=counts, world_seeds=args.world_seeds)
+    env = coevo.VecEnv(args.scene, num_envs=args.num_envs, seed=args.seed, counts=counts, world_seeds=args.world_seeds,
+                       threads=args.threads or None)
     # coevo names the run folder's files (scene.ron, metrics.csv, the checkpoint's actors); a folder that
     # holds anything is refused.
     run = coevo.RunFolder.create(args.out, coevo.parallel_env(args.scene, seed=args.seed, counts=counts).scene_ron())
