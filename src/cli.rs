@@ -215,11 +215,10 @@ fn run(cli: Cli) -> crate::error::Result<()> {
         let (scene, opts) = cli.train.options(&shared)?;
         // One run is one sample: beside it, how far the seeds of its scene differ in the committed results.
         let spread = opts.progress.then(|| crate::experiment::spread::seeds_like(&scene)).flatten();
-        return train::main(scene, &opts, spread.as_deref());
+        return train::main(Some(scene), &opts, spread.as_deref());
     }
     if let Some(run) = &cli.resume.resume {
-        let (scene, opts) = cli.resume.options(run, &shared);
-        return train::main(scene, &opts, None);
+        return train::main(None, &cli.resume.options(run, &shared), None);
     }
     if let Some(run) = &cli.eval.eval {
         let report = crate::run::evaluate::evaluate(&cli.eval.options(run, &shared)?)?;

@@ -69,7 +69,7 @@ fn options_written_as_argv_read_back_the_same() {
         progress: false,
     };
     let (cli, shared) = parsed(resume.to_argv(std::path::Path::new("unused.ron"), 0));
-    assert_eq!(cli.resume.options(cli.resume.resume.as_ref().unwrap(), &shared).1, resume);
+    assert_eq!(cli.resume.options(cli.resume.resume.as_ref().unwrap(), &shared), resume);
     let fresh = train::TrainOptions {
         run: PathBuf::from("runs/new"),
         resume: false,

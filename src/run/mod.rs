@@ -1,5 +1,5 @@
 //! Run modes and their run folders: `folder.rs` owns a run folder (its names, what may be written into
-//! it, who may write); `train.rs`, `evaluate.rs`, `record.rs`, `animate.rs`, `bench.rs` are the modes,
+//! it, who may write); `train.rs` (its flags in `train_args.rs`, its closing report in `explain.rs`), `evaluate.rs`, `record.rs`, `animate.rs`, `bench.rs` are the modes,
 //! `schema.rs` their CSV columns, `provenance.rs` what made a run, `env.rs` coevo stepped from outside,
 //! `progress.rs` costly calls' notices, `args.rs` the flags several modes share (each mode's own flags sit
 //! beside it), `deploy.rs` what `--record` and `--animate` show.
@@ -20,6 +20,7 @@ pub mod provenance;
 pub mod record;
 pub mod schema;
 pub mod train;
+pub mod train_args;
 
 pub use folder::*;
 pub use progress::{announce_cost, step_bar};

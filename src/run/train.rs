@@ -2,7 +2,6 @@
 //! directly, into a run folder ([`super::RunDir`]): `metrics.csv` one row per episode
 //! ([`super::schema`]), a checkpoint every `checkpoint_every` episodes (`learning::checkpoint`).
 
-use super::args::Shared;
 use super::folder::{io_err, RunDir};
 use super::schema;
 use crate::io::Existing;
@@ -17,118 +16,19 @@ use crate::sim::species::SpeciesRegistry;
 use crate::sim::Simulation;
 use indicatif::{ProgressBar, ProgressStyle};
 use std::io::Write;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::time::Instant;
 
-#[derive(Clone, Debug, PartialEq)]
-pub struct TrainOptions {
-    pub run: PathBuf,
-    pub resume: bool,
-    /// Replace the run already in `run` (its own files only) instead of refusing.
-    pub overwrite: bool,
-    /// Total episodes of the run (the scene's `episodes` when None).
-    pub episodes: Option<usize>,
-    pub progress: bool,
-}
-
-impl TrainOptions {
-    /// A new run of `episodes` episodes (the scene's when None) into `run`, quietly: what programs and
-    /// tests train with.
-    pub fn new(run: impl Into<PathBuf>, episodes: Option<usize>) -> TrainOptions {
-        TrainOptions { run: run.into(), resume: false, overwrite: false, episodes, progress: false }
-    }
-
-    /// The call that trains `scene` (a file) with `seed` as these options say, or resumes `run`, as argv.
-    pub fn to_argv(&self, scene: &Path, seed: u64) -> Vec<String> {
-        let mut argv: Vec<String> = if self.resume {
-            vec!["--resume".into(), self.run.display().to_string()]
-        } else {
-            let mut argv = vec!["--train".into(), "--scene".into(), scene.display().to_string()];
-            argv.extend(["--seed".into(), seed.to_string(), "--out".into(), self.run.display().to_string()]);
-            argv
-        };
-        if let Some(n) = self.episodes {
-            argv.extend(["--episodes".into(), n.to_string()]);
-        }
-        if self.overwrite {
-            argv.push("--overwrite".into());
-        }
-        if !self.progress {
-            argv.push("--quiet".into());
-        }
-        argv
-    }
-}
-
-/// `--train`: a new run of a scene.
-#[derive(clap::Args, Debug, Clone, Default)]
-pub struct TrainArgs {
-    /// Train the scene's learning species headless (Algorithm 1) into --out.
-    #[arg(long, help_heading = "Modes")]
-    pub train: bool,
-    /// Run folder for --train (default runs/<scene>-seed<seed>); must be new or empty.
-    #[arg(long, help_heading = "Running", value_name = "DIR")]
-    pub out: Option<PathBuf>,
-}
-
-impl super::args::Mode for TrainArgs {
-    const MODE: &'static str = "train";
-    const TAKES: &'static [&'static str] = &["scene", "seed", "episodes", "overwrite", "quiet"];
-}
-
-/// `--resume RUN`: a killed or finished run continued.
-#[derive(clap::Args, Debug, Clone, Default)]
-pub struct ResumeArgs {
-    /// Continue a killed or finished run from its last checkpoint (to --episodes in total).
-    #[arg(long, help_heading = "Modes", value_name = "DIR")]
-    pub resume: Option<PathBuf>,
-}
-
-impl super::args::Mode for ResumeArgs {
-    const MODE: &'static str = "resume";
-    const TAKES: &'static [&'static str] = &["episodes", "quiet"];
-}
-
-impl TrainArgs {
-    /// The scene to train (--scene with --seed) and the options.
-    pub fn options(&self, shared: &Shared) -> crate::error::Result<(Scene, TrainOptions)> {
-        let (args, common) = (&shared.scene, &shared.common);
-        let (scene, path) = args.load(Path::new(super::args::STANDARD_SCENE), &args.overrides(false)?)?;
-        let stem = path.file_stem().map_or("run".into(), |s| s.to_string_lossy().into_owned());
-        let run = self.out.clone().unwrap_or_else(|| PathBuf::from(format!("runs/{stem}-seed{}", scene.seed)));
-        Ok((
-            scene,
-            TrainOptions {
-                run,
-                resume: false,
-                overwrite: common.overwrite,
-                episodes: common.episodes,
-                progress: !common.quiet,
-            },
-        ))
-    }
-}
-
-impl ResumeArgs {
-    /// The options of continuing the run (its own scene is loaded by [`train`]; the one returned is a
-    /// placeholder).
-    pub fn options(&self, run: &Path, shared: &Shared) -> (Scene, TrainOptions) {
-        let common = &shared.common;
-        let opts = TrainOptions {
-            run: run.to_path_buf(),
-            resume: true,
-            overwrite: false,
-            episodes: common.episodes,
-            progress: !common.quiet,
-        };
-        (Scene::preset("paper").expect("a preset of this program"), opts)
-    }
-}
+pub use super::train_args::{ResumeArgs, TrainArgs, TrainOptions};
 
 /// `--train` or `--resume`: trains, says where and what came out; `spread`, a line on how far seeds of the
 /// scene differ, goes beside "one run is one sample".
-pub fn main(scene: Scene, opts: &TrainOptions, spread: Option<&str>) -> crate::error::Result<()> {
-    let trained = train(scene, opts)?;
+/// `scene`: the scene of a new run; None to resume `opts.run` (which trains its own `scene.ron`).
+pub fn main(scene: Option<Scene>, opts: &TrainOptions, spread: Option<&str>) -> crate::error::Result<()> {
+    let trained = match scene {
+        Some(scene) => train(scene, opts)?,
+        None => resume(opts)?,
+    };
     crate::errln!("coevo: trained {trained} episodes into {}", opts.run.display())?;
     if opts.progress {
         // The explanation is the run's result for a reader: on stdout, so `coevo --train > log` keeps it.
@@ -199,6 +99,23 @@ fn check_resumable(
 /// summaries: a long run would hold them all; they are in `metrics.csv`). Everything is validated and
 /// loaded before the run folder is created or touched.
 pub fn train(scene: Scene, opts: &TrainOptions) -> crate::error::Result<usize> {
+    if opts.resume {
+        return Err("a resumed run trains its own scene.ron: call run::train::resume".into());
+    }
+    run_training(Some(scene), opts)
+}
+
+/// Continues the run `opts.run` (`opts.resume` set) from its last checkpoint, with the scene it was
+/// trained with; returns how many episodes this invocation trained.
+pub fn resume(opts: &TrainOptions) -> crate::error::Result<usize> {
+    if !opts.resume {
+        return Err("resume: options of a new run (resume: false); call run::train::train with its scene".into());
+    }
+    run_training(None, opts)
+}
+
+/// [`train`] (`scene` given) or [`resume`] (None: the run's own scene).
+fn run_training(scene: Option<Scene>, opts: &TrainOptions) -> crate::error::Result<usize> {
     let run = &opts.run;
     let dir = RunDir::new(run);
     if opts.resume {
@@ -216,7 +133,10 @@ pub fn train(scene: Scene, opts: &TrainOptions) -> crate::error::Result<usize> {
     if opts.resume {
         dir.check_writable()?;
     }
-    let scene = if opts.resume { Scene::load(&dir.scene())? } else { scene };
+    let scene = match scene {
+        Some(scene) => scene,
+        None => Scene::load(&dir.scene())?,
+    };
     scene.validate().map_err(|e| e.in_file(run))?;
     let total = opts.episodes.unwrap_or(scene.episodes);
     if total == 0 {

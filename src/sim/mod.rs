@@ -11,7 +11,7 @@
 //! | `Physics`  | Eq. (1): heading, velocity, speed clip, position, periodic wrap   | `physics.rs`      |
 //! | `Perceive` | the new state: cell grids, Hooke contacts, observation vectors    | `perception.rs`   |
 //! | `Reward`   | survival reward per contact pair, energy cost, wall penalty        | `reward.rs`       |
-//! | `Measure`  | DoS, DoA, order parameters, catches (`metrics.rs`, `collective.rs`) | `metrics.rs`      |
+//! | `Measure`  | DoS, DoA, order parameters (`order.rs`, `collective.rs`), catches   | `metrics.rs`      |
 //! | `Learn`    | Algorithm 1: replay buffers and DDPG updates                       | `learning/`       |
 //! | `Episode`  | end of episode: summary, respawn                                  | `episode.rs`      |
 
@@ -20,6 +20,7 @@ pub mod collective;
 pub mod components;
 pub mod episode;
 pub mod metrics;
+pub mod order;
 pub mod perception;
 pub mod physics;
 pub mod policy;

@@ -3,7 +3,7 @@
 use coevo::learning::simulation as learning_simulation;
 use coevo::learning::{checkpoint, Learners, Mode};
 use coevo::run::evaluate::{evaluate, EvalOptions};
-use coevo::run::train::{train, TrainOptions};
+use coevo::run::train::{resume, train, TrainOptions};
 use coevo::scene::Overrides;
 use coevo::scene::{Policy, Scene};
 use coevo::sim::perception::Batches;
@@ -147,7 +147,7 @@ fn resume_after_a_kill_continues_the_count_and_the_metrics() {
     .unwrap();
     std::fs::create_dir_all(run.join("checkpoint.tmp")).unwrap();
     std::fs::write(run.join("checkpoint.tmp/prey-actor.safetensors"), b"half").unwrap();
-    assert_eq!(train(tiny(4), &opts(&run, true, Some(7))).unwrap(), 3, "episodes 4, 5 and 6 trained");
+    assert_eq!(resume(&opts(&run, true, Some(7))).unwrap(), 3, "episodes 4, 5 and 6 trained");
     let after = metrics_without_wall_clock(&run);
     assert_eq!(after.len(), 8);
     let episodes: Vec<&str> = after[5..].iter().map(|l| l.split(',').next().unwrap()).collect();
@@ -162,7 +162,7 @@ fn resume_after_a_kill_continues_the_count_and_the_metrics() {
 fn corrupt_missing_or_mismatched_checkpoints_are_refused_clearly() {
     let dir = tempfile::tempdir().unwrap();
     let run = dir.path().join("run");
-    let missing = train(tiny(1), &opts(&run, true, None)).unwrap_err().to_string();
+    let missing = resume(&opts(&run, true, None)).unwrap_err().to_string();
     assert!(missing.contains("run: holds no coevo run to resume"), "{missing}");
 
     train(tiny(1), &opts(&run, false, None)).unwrap();
