@@ -799,6 +799,24 @@ fn arguments_environment_and_resource_limits_end_in_one_line_and_leave_nothing()
     assert!(stderr.contains("the limit on open files was reached, such as `ulimit -n`"), "{stderr}");
     assert!(leftovers(root).is_empty(), "ulimit -n: left {:?}", leftovers(root));
     assert!(!root.join("few-files/checkpoint").exists(), "ulimit -n: a checkpoint half-written");
+
+    // A memory limit (ulimit -v) above what the scene's estimate asks but below what 10⁵ prey take: the
+    // refused allocation ends the run in one line, nothing left behind (Rust's default would abort).
+    let out = Command::new("sh")
+        .args(["-c", "ulimit -v 650000; exec \"$COEVO\" --record crowd.csv --prey 100000 --steps 1"])
+        .env("COEVO", env!("CARGO_BIN_EXE_coevo"))
+        .current_dir(root)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    // (Before it, the notice of what 10⁵ prey cost, as any such call prints.)
+    let errors: Vec<&str> = stderr.lines().filter(|l| l.starts_with("coevo: error: ")).collect();
+    assert!(!out.status.success() && errors.len() == 1, "ulimit -v: {stderr}");
+    assert!(
+        errors[0].starts_with("coevo: error: out of memory: ") || errors[0].contains("of memory coevo may use here"),
+        "ulimit -v: {stderr}"
+    );
+    assert!(leftovers(root).is_empty() && !root.join("crowd.csv").exists(), "ulimit -v: left {:?}", leftovers(root));
 }
 
 #[test]
