@@ -10,7 +10,7 @@ use crate::experiment::crossplay::{self, CrossplayArgs};
 use crate::experiment::force_map::{self, ForceMapArgs};
 use crate::experiment::response::{self, ResponseArgs};
 use crate::run::animate::{self, AnimateArgs};
-use crate::run::args::{self, CommonArgs, DescribeArgs, Mode, SceneArgs, Shared};
+use crate::run::args::{self, CommonArgs, DescribeArgs, FingerprintArgs, Mode, SceneArgs, Shared};
 use crate::run::bench::BenchArgs;
 use crate::run::deploy::DeployArgs;
 use crate::run::evaluate::EvalArgs;
@@ -57,6 +57,8 @@ struct Cli {
     #[command(flatten)]
     describe: DescribeArgs,
     #[command(flatten)]
+    fingerprint: FingerprintArgs,
+    #[command(flatten)]
     bench: BenchArgs,
     #[command(flatten)]
     experiment: ExperimentArgs,
@@ -85,6 +87,7 @@ fn modes() -> Vec<(&'static str, Vec<String>)> {
         mode::<RecordArgs>(),
         mode::<AnimateArgs>(),
         mode::<DescribeArgs>(),
+        mode::<FingerprintArgs>(),
         mode::<BenchArgs>(),
         mode::<ExperimentArgs>(),
         mode::<PlotArgs>(),
@@ -244,6 +247,9 @@ fn run(cli: Cli) -> crate::error::Result<()> {
     }
     if let Some(path) = &cli.describe.describe_scene {
         return args::describe(path, &shared);
+    }
+    if let Some(run) = &cli.fingerprint.fingerprint {
+        return crate::outln!("{}", crate::run::provenance::fingerprint(run)?);
     }
     if cli.bench.bench {
         return cli.bench.main();

@@ -234,6 +234,21 @@ impl Mode for DescribeArgs {
     const TAKES: &'static [&'static str] = &["seed", "prey", "predators", "count", "policy"];
 }
 
+/// `--fingerprint RUN`.
+#[derive(Args, Debug, Clone, Default)]
+pub struct FingerprintArgs {
+    /// Print a run's behavioural fingerprint: a hash of its metrics.csv without wall_seconds and of its
+    /// checkpoint's files. The same short training by two builds of one commit gives the same fingerprint
+    /// (how a pinned experiment's binary is rebuilt: docs/src/guide/experiments.md).
+    #[arg(long, help_heading = "Modes", value_name = "DIR")]
+    pub fingerprint: Option<PathBuf>,
+}
+
+impl Mode for FingerprintArgs {
+    const MODE: &'static str = "fingerprint";
+    const TAKES: &'static [&'static str] = &[];
+}
+
 /// `--describe-scene FILE`: the scene with the call's overrides, described.
 pub fn describe(path: &Path, shared: &Shared) -> crate::error::Result<()> {
     let scene = shared.scene.overrides(false)?.load(path)?;

@@ -90,3 +90,40 @@ pub fn spelled() -> String {
     let shown = shown.to_string_lossy().into_owned();
     shlex::try_quote(&shown).map_or(shown.clone(), |q| q.into_owned())
 }
+
+/// A run's behavioural fingerprint: the first 16 hex digits of a BLAKE3 hash over its `metrics.csv` with
+/// the `wall_seconds` column left out and over every file of its checkpoint but the manifest (which hashes
+/// the metrics with their wall clock), by name. Two binaries built from one commit differ as files (codegen
+/// is not byte-reproducible) but compute the same numbers; the same short training by both gives the same
+/// fingerprint, which is how a pinned experiment's binary is rebuilt instead of kept in git
+/// (docs/src/guide/experiments.md, "Pinned binaries").
+pub fn fingerprint(run: &std::path::Path) -> crate::error::Result<String> {
+    let dir = super::RunDir::new(run);
+    if !dir.is_run() {
+        return Err(format!("{}: holds no coevo run to fingerprint", run.display()).into());
+    }
+    let mut hasher = blake3::Hasher::new();
+    let metrics = crate::io::read_text(&dir.metrics(), crate::io::MAX_TEXT_BYTES)?;
+    let mut lines = metrics.lines();
+    let header: Vec<&str> = lines.next().unwrap_or_default().split(',').collect();
+    let wall = header.iter().position(|c| *c == super::schema::WALL_SECONDS);
+    for line in std::iter::once(header.join(",")).chain(lines.map(str::to_string)) {
+        let kept: Vec<&str> = line.split(',').enumerate().filter(|(i, _)| Some(*i) != wall).map(|(_, c)| c).collect();
+        hasher.update(kept.join(",").as_bytes());
+        hasher.update(b"\n");
+    }
+    let checkpoint = dir.checkpoint();
+    let mut files: Vec<std::path::PathBuf> = std::fs::read_dir(&checkpoint)
+        .map_err(|e| format!("{}: {e}", checkpoint.display()))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.is_file() && p.file_name().is_some_and(|n| n != crate::learning::manifest::MANIFEST))
+        .collect();
+    files.sort();
+    for path in files {
+        hasher.update(path.file_name().unwrap_or_default().as_encoded_bytes());
+        let cannot = |e: std::io::Error| format!("{}: cannot read: {e}", path.display());
+        let mut file = crate::io::open_input(&path).map_err(cannot)?;
+        std::io::copy(&mut file, &mut hasher).map_err(cannot)?;
+    }
+    Ok(hasher.finalize().to_hex()[..16].to_string())
+}

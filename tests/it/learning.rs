@@ -565,3 +565,38 @@ fn prey_trained_only_against_past_predators_leave_the_predators_untrained() {
         assert!(err.contains(says), "{edit}: {err}");
     }
 }
+
+#[test]
+fn a_fingerprint_is_the_runs_numbers_not_its_wall_clock() {
+    use coevo::run::provenance::fingerprint;
+    let dir = tempfile::tempdir().unwrap();
+    let (a, b, c) = (dir.path().join("a"), dir.path().join("b"), dir.path().join("c"));
+    train(tiny(2), &opts(&a, false, None)).unwrap();
+    train(tiny(2), &opts(&b, false, None)).unwrap();
+    // Another wall clock in every row: the same fingerprint.
+    let metrics = std::fs::read_to_string(b.join("metrics.csv")).unwrap();
+    let slower: Vec<String> = metrics
+        .lines()
+        .enumerate()
+        .map(|(i, l)| match (i, l.rsplit_once(',')) {
+            (0, _) | (_, None) => l.to_string(),
+            (_, Some((rest, _))) => format!("{rest},999.000"),
+        })
+        .collect();
+    std::fs::write(b.join("metrics.csv"), slower.join("\n") + "\n").unwrap();
+    assert_ne!(std::fs::read(a.join("metrics.csv")).unwrap(), std::fs::read(b.join("metrics.csv")).unwrap());
+    assert_eq!(fingerprint(&a).unwrap(), fingerprint(&b).unwrap());
+    // Another seed, or one checkpoint byte changed: another fingerprint.
+    let mut other = tiny(2);
+    other.seed += 1;
+    train(other, &opts(&c, false, None)).unwrap();
+    assert_ne!(fingerprint(&a).unwrap(), fingerprint(&c).unwrap());
+    let actor = b.join("checkpoint/prey-actor.safetensors");
+    let mut bytes = std::fs::read(&actor).unwrap();
+    let n = bytes.len();
+    bytes[n - 1] ^= 1;
+    std::fs::write(&actor, bytes).unwrap();
+    assert_ne!(fingerprint(&a).unwrap(), fingerprint(&b).unwrap());
+    let none = fingerprint(&dir.path().join("nothing")).unwrap_err().to_string();
+    assert!(none.contains("holds no coevo run to fingerprint"), "{none}");
+}
