@@ -850,3 +850,31 @@ fn a_run_folder_removed_while_training_stops_the_training_and_is_not_recreated()
     assert!(stderr.contains("run: removed or replaced while this process was writing it"), "{stderr}");
     assert!(!root.join("run").exists(), "the folder was recreated");
 }
+
+#[test]
+fn a_resume_into_a_checkpoint_that_cannot_be_written_is_refused_before_training() {
+    // The checkpoint folder made immutable (chattr +i binds root too, which ignores permission bits):
+    // refused up front in one line, with no episode trained and no checkpoint.old/ left behind.
+    let dir = tempfile::tempdir().unwrap();
+    let root = dir.path();
+    std::fs::write(
+        root.join("small.ron"),
+        "(preset: \"paper\", episode_steps: 10, learning: (hidden: 8, batch_size: 16, warmup_transitions: 16, updates_per_episode: 1))",
+    )
+    .unwrap();
+    let coevo =
+        |args: &[&str]| Command::new(env!("CARGO_BIN_EXE_coevo")).args(args).current_dir(root).output().unwrap();
+    assert!(coevo(&["--train", "--scene", "small.ron", "--episodes", "1", "--out", "run", "--quiet"]).status.success());
+    let checkpoint = root.join("run/checkpoint");
+    if !Command::new("chattr").arg("+i").arg(&checkpoint).status().is_ok_and(|s| s.success()) {
+        eprintln!("skipped: chattr +i is not available here (it needs root and a file system that keeps the flag)");
+        return;
+    }
+    let before = snapshot(&root.join("run"));
+    let out = coevo(&["--resume", "run", "--episodes", "2", "--quiet"]);
+    assert!(Command::new("chattr").arg("-i").arg(&checkpoint).status().unwrap().success());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && stderr.lines().count() == 1, "{stderr}");
+    assert!(stderr.contains("run/checkpoint: cannot be written"), "{stderr}");
+    assert_eq!(snapshot(&root.join("run")), before, "the run changed");
+}
