@@ -57,12 +57,6 @@ pub use crate::sim::metrics::WINDOW;
 /// Steps at the end of an evaluation episode averaged as its settled state.
 pub const SETTLED_STEPS: usize = 50;
 
-pub fn window_mean(values: &[f64], first: bool) -> f64 {
-    let n = values.len().min(WINDOW);
-    let part = if first { &values[..n] } else { &values[values.len() - n..] };
-    mean(&part.iter().copied().filter(|v| v.is_finite()).collect::<Vec<_>>()).unwrap_or(f64::NAN)
-}
-
 /// The finite values of a quantity over `runs` (one per seed), the samples of an estimate.
 pub fn values(exp: &Experiment, runs: &[&RunData], q: &Quantity) -> Vec<f64> {
     runs.iter().map(|d| quantity(exp, d, q)).filter(|x| x.is_finite()).collect()
@@ -196,158 +190,10 @@ pub fn derive(evaluations: &[super::file::Evaluation], q: &Quantity, primitive: 
     }
 }
 
-/// Why a training-curve quantity does not take the curve it names (the curves each takes), None when it
-/// does or is another quantity: the one check of experiment files ([`super::load`]) and of curves made
-/// elsewhere ([`super::external`]).
-pub fn curve_argument_error(q: &Quantity) -> Option<String> {
-    match q {
-        Quantity::Start(c) | Quantity::FromStart(c)
-            if !CURVES.contains(&c.as_str()) && !AUTHORS_CURVES.contains(&c.as_str()) =>
-        {
-            Some(format!("Start and FromStart take \"dos\", \"doa\", \"catches\", \"authors_dos\" or \"authors_doa\" (got {c:?})"))
-        }
-        Quantity::Extreme(c) | Quantity::ExtremeEpisode(c) | Quantity::AfterExtreme(c) if c != "dos" && c != "doa" => {
-            Some(format!("Extreme, ExtremeEpisode and AfterExtreme take \"dos\" or \"doa\" (got {c:?})"))
-        }
-        Quantity::Reach90(c) if c != "dos" && c != "doa" => Some(format!("Reach90 takes \"dos\" or \"doa\" (got {c:?})")),
-        Quantity::Halfway(c) if c != "dos" && c != "doa" => Some(format!("Halfway takes \"dos\" or \"doa\" (got {c:?})")),
-        Quantity::Reaches(c, _) if c != "dos" && c != "doa" => {
-            Some(format!("Reaches takes \"dos\" or \"doa\" and a level (got {c:?})"))
-        }
-        Quantity::Reaches(_, level) if !(level.is_finite() && *level > 0.0 && *level <= 1.0) => {
-            Some(format!("Reaches takes a level in (0, 1], as DoS and DoA are (got {level})"))
-        }
-        _ => None,
-    }
-}
-
-/// The episode (from 1) at which the 100-episode running mean of `series` first completes 90 % of its
-/// change from the first 100 episodes to the last 100; NaN when there is no change to complete.
-pub fn reach90(series: &[f64]) -> f64 {
-    first_completing(series, (window_mean(series, true), window_mean(series, false)), 0.9, WINDOW)
-}
-
-/// The episode (from 1) at which the `window`-episode running mean of `series`, from its first whole
-/// window on, first completes `fraction` of the change from `start` to `end`; NaN when there is none.
-fn first_completing(series: &[f64], (start, end): (f64, f64), fraction: f64, window: usize) -> f64 {
-    if !(start.is_finite() && end.is_finite()) || start == end {
-        return f64::NAN;
-    }
-    let target = start + fraction * (end - start);
-    let running = super::stats::running_mean(series, window);
-    running
-        .iter()
-        .enumerate()
-        .skip(window.min(series.len()).saturating_sub(1))
-        // A running sum carries rounding: within 1e-9 of the change counts as reached.
-        .find(|(_, m)| (**m - target) * (end - start).signum() >= -1e-9 * (end - start).abs())
-        .map_or(f64::NAN, |(t, _)| (t + 1) as f64)
-}
-
-/// The training episodes whose mean is a curve's start ([`Quantity::Start`]).
-pub const START: usize = 10;
-
-/// The running mean's window of [`Quantity::Halfway`], in episodes: long enough to average a DoS
-/// episode's noise (its SD ~0.015 at 10 prey) down to a few thousandths, short enough to resolve
-/// curves that finish half their change within the first 100 episodes (most paper-preset DoA curves:
-/// a 100-episode window's first value, at episode 100, is already past half).
-pub const HALFWAY_WINDOW: usize = 20;
-
-/// [`Quantity::Halfway`] of a per-episode `series`: the episode (from 1) at which its
-/// [`HALFWAY_WINDOW`]-episode running mean first completes half of the change from its first [`START`]
-/// episodes to its last 100; NaN when there is no change, or the run is shorter than 100 episodes.
-fn halfway(series: &[f64]) -> f64 {
-    if series.len() < WINDOW {
-        return f64::NAN;
-    }
-    first_completing(series, (start(series), window_mean(series, false)), 0.5, HALFWAY_WINDOW)
-}
-
-/// [`Quantity::Reaches`] of a per-episode `series`: the episode (from 1) at which its
-/// [`HALFWAY_WINDOW`]-episode running mean, from its first whole window on, first gets to `level` (to it
-/// or below when `falling`, to it or above otherwise); the series' length + 1 when it never does; NaN when
-/// the run is shorter than one window.
-fn reaches(series: &[f64], level: f64, falling: bool) -> f64 {
-    if series.len() < HALFWAY_WINDOW {
-        return f64::NAN;
-    }
-    let running = super::stats::running_mean(series, HALFWAY_WINDOW);
-    let sign = if falling { -1.0 } else { 1.0 };
-    running
-        .iter()
-        .enumerate()
-        .skip(HALFWAY_WINDOW - 1)
-        // A running sum carries rounding: within 1e-9 of the level counts as there.
-        .find(|(_, m)| (**m - level) * sign >= -1e-9)
-        .map_or((series.len() + 1) as f64, |(t, _)| (t + 1) as f64)
-}
-
-/// [`Quantity::Start`] of a per-episode `series`: the mean of its first [`START`] finite values; NaN
-/// when it is shorter.
-fn start(series: &[f64]) -> f64 {
-    if series.len() < START {
-        return f64::NAN;
-    }
-    super::stats::mean(&series[..START].iter().copied().filter(|x| x.is_finite()).collect::<Vec<_>>())
-        .unwrap_or(f64::NAN)
-}
-
-/// The per-episode training series a curve quantity reads: `dos`, `doa` or `catches`.
-pub const CURVES: [&str; 3] = ["dos", "doa", "catches"];
-
-/// The training series of the authors' DoS and DoA (`metrics.csv`'s `authors_dos_<prey>` and
-/// `authors_doa_<prey>`, written with the scene's `authors_metrics`; differences 9–11 of docs/src/results/authors-code.md): besides
-/// [`CURVES`], what [`Quantity::Start`], [`Quantity::FromStart`], [`Quantity::TrainingFirst`] and
-/// [`Quantity::TrainingLast`] read, so the paper's numbers can be judged as the shipped code measures them.
-pub const AUTHORS_CURVES: [&str; 2] = crate::run::schema::AUTHORS;
-
-/// A quantity of a training curve's shape ([`Quantity::Start`], [`Quantity::Extreme`],
-/// [`Quantity::ExtremeEpisode`], [`Quantity::AfterExtreme`], [`Quantity::Halfway`]) from its per-episode
-/// `series` as the figure data keeps it (single precision), so that a summary written before these
-/// quantities existed is extended from the committed figure data to the same bits as from the run
-/// folders. NaN for other quantities, and where a run is too short: a start needs [`START`] episodes, an
-/// extreme two windows, a halfway episode one window of 100.
-pub fn curve_shape(q: &Quantity, series: &[f64]) -> f64 {
-    let mean = |v: &mut dyn Iterator<Item = f64>| super::stats::mean(&v.filter(|x| x.is_finite()).collect::<Vec<_>>());
-    match q {
-        Quantity::Halfway(_) => halfway(series),
-        Quantity::Reaches(o, level) => reaches(series, *level, o == "dos"),
-        Quantity::Start(_) => start(series),
-        Quantity::Extreme(o) | Quantity::ExtremeEpisode(o) | Quantity::AfterExtreme(o)
-            if series.len() >= 2 * WINDOW =>
-        {
-            // Windows end at episode t (1-based) for t in WINDOW..=len; within one, the odd episodes choose
-            // and the even ones measure. Episode e (1-based) is series[e - 1].
-            let half = |end: usize, odd: bool| {
-                mean(&mut (end + 1 - WINDOW..=end).filter(|e| (e % 2 == 1) == odd).map(|e| series[e - 1]))
-                    .unwrap_or(f64::NAN)
-            };
-            let peak = o == "doa";
-            let better = |a: f64, b: f64| if peak { a > b } else { a < b };
-            let mut best = WINDOW;
-            for end in WINDOW + 1..=series.len() {
-                if better(half(end, true), half(best, true)) {
-                    best = end;
-                }
-            }
-            match q {
-                Quantity::Extreme(_) => half(best, false),
-                Quantity::ExtremeEpisode(_) => best as f64,
-                _ => half(series.len(), false) - half(best, false),
-            }
-        }
-        _ => f64::NAN,
-    }
-}
-
-/// What a curve's extreme is called: DoA's peak, DoS's trough.
-pub fn extreme_word(curve: &str) -> &'static str {
-    if curve == "doa" {
-        "peak"
-    } else {
-        "trough"
-    }
-}
+pub use super::curves::{
+    curve_argument_error, curve_shape, extreme_word, reach90, window_mean, AUTHORS_CURVES, CURVES, HALFWAY_WINDOW,
+    START,
+};
 
 /// A claim checked on one preset.
 #[derive(Clone, Debug)]
@@ -791,61 +637,6 @@ pub(crate) mod tests {
     }
 
     #[test]
-    fn a_curves_start_extreme_and_fall_back_are_cross_fitted() {
-        let q = |f: fn(String) -> Quantity, curve: &str, series: &[f64]| curve_shape(&f(curve.into()), series);
-        // Constant: the start and the extreme are the constant, the first window wins ties, no fall back.
-        let flat = vec![0.75; 250];
-        assert_eq!(q(Quantity::Start, "doa", &flat), 0.75);
-        assert_eq!(q(Quantity::Extreme, "doa", &flat), 0.75);
-        assert_eq!(q(Quantity::ExtremeEpisode, "doa", &flat), WINDOW as f64);
-        assert_eq!(q(Quantity::AfterExtreme, "doa", &flat), 0.0);
-        // Odd episodes choose, even ones measure: a curve whose odd episodes sit 0.5 above its even ones
-        // has an extreme of the even level, not of the odd one.
-        let zigzag: Vec<f64> = (1..=250).map(|e| if e % 2 == 1 { 1.0 } else { 0.5 }).collect();
-        assert_eq!(q(Quantity::Extreme, "doa", &zigzag), 0.5);
-        // A ramp e (episode e holds e): DoA's peak is chosen on the odd episodes 151, …, 249, which the
-        // windows ending at 249 and 250 share: the first, 150–249, wins, measured on 150, …, 248 (mean
-        // 199), 2 below the last window's even episodes. DoS's trough is the first window, episodes
-        // 1–100, measured on its even episodes 2, 4, …, 100 (mean 51).
-        let ramp: Vec<f64> = (1..=250).map(f64::from).collect();
-        assert_eq!(q(Quantity::ExtremeEpisode, "doa", &ramp), 249.0);
-        assert_eq!(q(Quantity::Extreme, "doa", &ramp), 199.0);
-        assert_eq!(q(Quantity::AfterExtreme, "doa", &ramp), 2.0);
-        assert_eq!(q(Quantity::ExtremeEpisode, "dos", &ramp), 100.0);
-        assert_eq!(q(Quantity::Extreme, "dos", &ramp), 51.0);
-        // Last window's even episodes 152, …, 250 (mean 201) minus 51.
-        assert_eq!(q(Quantity::AfterExtreme, "dos", &ramp), 150.0);
-        assert_eq!(q(Quantity::Start, "dos", &ramp), 5.5);
-        // Too short: a start needs ten episodes, an extreme two windows.
-        assert!(q(Quantity::Start, "doa", &ramp[..9]).is_nan());
-        assert!(q(Quantity::Extreme, "doa", &ramp[..199]).is_nan());
-        assert!(q(Quantity::Extreme, "doa", &ramp[..200]).is_finite());
-    }
-
-    #[test]
-    fn the_episode_that_completes_half_a_change_from_the_start() {
-        let halfway = |series: &[f64]| curve_shape(&Quantity::Halfway("dos".into()), series);
-        // 0 for 60 episodes, then 1 for 240: the start is 0, the end 1; the 20-episode running mean at
-        // episode t (from 1) is (t − 60)/20 past 60, so it first reaches 0.5 at episode 70; the same falling.
-        let step: Vec<f64> = (0..300).map(|t| if t < 60 { 0.0 } else { 1.0 }).collect();
-        assert_eq!(halfway(&step), 70.0);
-        let falling: Vec<f64> = step.iter().map(|x| 1.0 - x).collect();
-        assert_eq!(halfway(&falling), 70.0);
-        // No window before the first whole one: a change at episode 13 is half done in the window of
-        // episodes 3–22 (the mean of 1–20 is 0.4), so episode 22.
-        let early: Vec<f64> = (0..300).map(|t| if t < 12 { 0.0 } else { 1.0 }).collect();
-        assert_eq!(halfway(&early), 22.0);
-        // The start is the first ten episodes, not the first window: a curve that starts at 1 and settles
-        // at 0 after episode 10 has all its change done by episode 20 (the mean of 1–20 is 0.5).
-        let drop: Vec<f64> = (0..300).map(|t| if t < 10 { 1.0 } else { 0.0 }).collect();
-        assert_eq!(halfway(&drop), 20.0);
-        assert!(halfway(&[0.5; 300]).is_nan(), "no change, no episode");
-        assert!(halfway(&step[..99]).is_nan(), "shorter than the last window");
-        let bad = curve_argument_error(&Quantity::Halfway("catches".into())).unwrap();
-        assert!(bad.contains("Halfway takes \"dos\" or \"doa\""), "{bad}");
-    }
-
-    #[test]
     fn a_claim_on_the_log_scale_tests_ln_1_plus_each_value() {
         use crate::experiment::file::Scale;
         assert_eq!(Scale::Linear.of(3.0), 3.0);
@@ -871,44 +662,5 @@ pub(crate) mod tests {
         .unwrap();
         let refused = Experiment::load(&file, dir.path()).unwrap_err().to_string();
         assert!(refused.contains("a scale other than Linear is for an effect"), "{refused}");
-    }
-
-    #[test]
-    fn the_episode_a_curve_gets_to_a_common_level() {
-        let reaches =
-            |curve: &str, level: f64, series: &[f64]| curve_shape(&Quantity::Reaches(curve.into(), level), series);
-        // DoA 0 for 60 episodes, then 1: the 20-episode running mean at episode t (from 1) is (t − 60)/20
-        // past 60, so it rises to 0.25 at episode 65 and to 0.75 at 75, whatever the run's own change.
-        let step: Vec<f64> = (0..300).map(|t| if t < 60 { 0.0 } else { 1.0 }).collect();
-        assert_eq!(reaches("doa", 0.25, &step), 65.0);
-        assert_eq!(reaches("doa", 0.75, &step), 75.0);
-        // DoS falls to its level: the same step mirrored.
-        let falling: Vec<f64> = step.iter().map(|x| 1.0 - x).collect();
-        assert_eq!(reaches("dos", 0.75, &falling), 65.0);
-        // Never there: one episode after the run (300 episodes), not dropped.
-        assert_eq!(reaches("doa", 0.75, &[0.5; 300]), 301.0);
-        assert_eq!(reaches("dos", 0.25, &[0.5; 300]), 301.0);
-        // Already there: the first whole window, episode 20.
-        assert_eq!(reaches("doa", 0.25, &[0.5; 300]), 20.0);
-        assert!(reaches("doa", 0.25, &[0.5; 19]).is_nan(), "shorter than one window");
-        for (bad, says) in [
-            (Quantity::Reaches("catches".into(), 0.5), "Reaches takes \"dos\" or \"doa\""),
-            (Quantity::Reaches("doa".into(), 1.5), "a level in (0, 1]"),
-            (Quantity::Reaches("doa".into(), f64::NAN), "a level in (0, 1]"),
-        ] {
-            let message = curve_argument_error(&bad).unwrap();
-            assert!(message.contains(says), "{message}");
-        }
-    }
-
-    #[test]
-    fn the_episode_that_completes_ninety_percent_of_a_change() {
-        // 0 for 200 episodes, then 1 for 200: the 100-episode running mean at episode t (from 1) is
-        // (t − 200)/100 past 200, so it first reaches 0.9 at episode 290; the same falling.
-        let step: Vec<f64> = (0..400).map(|t| if t < 200 { 0.0 } else { 1.0 }).collect();
-        assert_eq!(reach90(&step), 290.0);
-        let falling: Vec<f64> = step.iter().map(|x| 1.0 - x).collect();
-        assert_eq!(reach90(&falling), 290.0);
-        assert!(reach90(&[0.5; 300]).is_nan(), "no change, no episode");
     }
 }

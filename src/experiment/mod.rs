@@ -30,6 +30,7 @@ pub mod command;
 pub mod crossplay;
 pub mod crossplay_matrix;
 pub mod crossplay_readouts;
+pub mod curves;
 pub mod data;
 pub mod external;
 pub mod figure_data;
