@@ -687,6 +687,16 @@ fn what_may_be_written_is_written_and_nothing_else() {
 
 /// Every file under `dir` whose name says it was left half-done: a temporary, a lock, a checkpoint being
 /// written or swapped.
+/// coevo with `args` (split by the shell) in `root`, under `ulimit LIMIT` (e.g. "-f 256").
+fn under_limit(root: &Path, limit: &str, args: &str) -> std::process::Output {
+    Command::new("sh")
+        .args(["-c", &format!("ulimit {limit}; exec \"$COEVO\" {args}")])
+        .env("COEVO", env!("CARGO_BIN_EXE_coevo"))
+        .current_dir(root)
+        .output()
+        .unwrap()
+}
+
 fn leftovers(dir: &Path) -> Vec<PathBuf> {
     snapshot(dir)
         .into_keys()
@@ -770,12 +780,7 @@ fn arguments_environment_and_resource_limits_end_in_one_line_and_leave_nothing()
     // which limit, exits non-zero and leaves no temporary file, lock or half-written checkpoint. (Without
     // care SIGXFSZ kills the process where it stands.)
     let limited = |command: &str, expected_file: &str| {
-        let out = Command::new("sh")
-            .args(["-c", &format!("ulimit -f 256; exec \"$COEVO\" {command}")])
-            .env("COEVO", env!("CARGO_BIN_EXE_coevo"))
-            .current_dir(root)
-            .output()
-            .unwrap();
+        let out = under_limit(root, "-f 256", command);
         let stderr = String::from_utf8_lossy(&out.stderr);
         assert!(!out.status.success() && !stderr.contains("panicked"), "{command}: {stderr}");
         assert_eq!(stderr.lines().count(), 1, "{command}: not one line: {stderr}");
@@ -788,12 +793,7 @@ fn arguments_environment_and_resource_limits_end_in_one_line_and_leave_nothing()
 
     // An open-file limit (ulimit -n) too low to save a checkpoint: one line naming the limit, no lock or
     // half-written checkpoint left. (A process limit, ulimit -u, binds no root process: not tested here.)
-    let out = Command::new("sh")
-        .args(["-c", "ulimit -n 5; exec \"$COEVO\" --train --out few-files --episodes 1 --quiet"])
-        .env("COEVO", env!("CARGO_BIN_EXE_coevo"))
-        .current_dir(root)
-        .output()
-        .unwrap();
+    let out = under_limit(root, "-n 5", "--train --out few-files --episodes 1 --quiet");
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && stderr.lines().count() == 1, "ulimit -n: {stderr}");
     assert!(stderr.contains("the limit on open files was reached, such as `ulimit -n`"), "{stderr}");
@@ -802,12 +802,7 @@ fn arguments_environment_and_resource_limits_end_in_one_line_and_leave_nothing()
 
     // A memory limit (ulimit -v) above what the scene's estimate asks but below what 10⁵ prey take: the
     // refused allocation ends the run in one line, nothing left behind (Rust's default would abort).
-    let out = Command::new("sh")
-        .args(["-c", "ulimit -v 650000; exec \"$COEVO\" --record crowd.csv --prey 100000 --steps 1"])
-        .env("COEVO", env!("CARGO_BIN_EXE_coevo"))
-        .current_dir(root)
-        .output()
-        .unwrap();
+    let out = under_limit(root, "-v 650000", "--record crowd.csv --prey 100000 --steps 1");
     let stderr = String::from_utf8_lossy(&out.stderr);
     // (Before it, the notice of what 10⁵ prey cost, as any such call prints.)
     let errors: Vec<&str> = stderr.lines().filter(|l| l.starts_with("coevo: error: ")).collect();
