@@ -504,3 +504,35 @@ fn at_1280x720_the_plots_are_whole_with_labelled_ticks_chance_lines_and_the_last
         .count();
     assert!(doa >= 20, "{doa} pixels of the DoA curve in the step plot");
 }
+
+#[test]
+fn ctrl_c_ends_the_viewer_as_an_interruption_not_an_error() {
+    // Ctrl-C in the terminal (SIGINT to coevo, not to the X server): status 130 and one line saying so,
+    // never "coevo: error: viewer exited with code 130".
+    let _one_at_a_time = DISPLAY.lock().unwrap_or_else(|e| e.into_inner());
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("ctrl-c-once.ron");
+    std::fs::copy("scenes/standard.ron", &scene).unwrap();
+    let err = dir.path().join("stderr.txt");
+    let mut child = Command::new("xvfb-run")
+        .args(["-a", "-s", &format!("-screen 0 {WIDTH}x{HEIGHT}x24"), BIN, "--scene", scene.to_str().unwrap()])
+        .env("XDG_RUNTIME_DIR", dir.path())
+        .stdout(std::process::Stdio::null())
+        .stderr(std::fs::File::create(&err).unwrap())
+        .spawn()
+        .unwrap();
+    // The app is running (and Bevy's handler installed) once its renderer says what it runs on.
+    let start = std::time::Instant::now();
+    while !std::fs::read_to_string(&err).unwrap_or_default().contains("coevo::viewer") {
+        assert!(start.elapsed().as_secs() < 120, "the viewer did not start: {:?}", std::fs::read_to_string(&err));
+        std::thread::sleep(std::time::Duration::from_millis(200));
+    }
+    let pattern = format!("^{BIN} --scene {}", scene.display());
+    let pid = String::from_utf8(Command::new("pgrep").args(["-f", &pattern]).output().unwrap().stdout).unwrap();
+    let pid = pid.trim();
+    assert!(!pid.is_empty() && Command::new("kill").args(["-INT", pid]).status().unwrap().success(), "{pid:?}");
+    let status = child.wait().unwrap();
+    let stderr = std::fs::read_to_string(&err).unwrap();
+    assert_eq!(status.code(), Some(130), "{stderr}");
+    assert!(stderr.contains("coevo: interrupted") && !stderr.contains("coevo: error"), "{stderr}");
+}

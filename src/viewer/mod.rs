@@ -137,11 +137,19 @@ pub fn run(options: ViewerOptions) -> crate::error::Result<()> {
         track_live_run(world);
     });
     let exit = app.run();
+    // The world (a live run's lock, its files) is let go before the process may end below.
+    drop(app);
     if let Some(reason) = EXIT_REASON.lock().unwrap_or_else(|e| e.into_inner()).take() {
         return Err(reason.into());
     }
     match exit {
         AppExit::Success => Ok(()),
+        // Ctrl-C: Bevy's handler ends the app with the shell's code for an interrupted command, an
+        // ordinary way to stop, said as the headless modes say it, never as an error.
+        AppExit::Error(code) if code.get() == INTERRUPTED => {
+            eprintln!("coevo: interrupted; finished work kept");
+            std::process::exit(INTERRUPTED.into())
+        }
         AppExit::Error(code) => Err(format!("viewer exited with code {code}").into()),
     }
 }
@@ -221,6 +229,9 @@ fn unsaved_on_exit(mut exits: ResMut<Messages<AppExit>>, mut control: ResMut<Con
         exits.write(AppExit::from_code(1));
     }
 }
+
+/// The exit status of a command stopped by Ctrl-C (128 + SIGINT), which Bevy's handler exits with.
+const INTERRUPTED: u8 = 130;
 
 /// Why the window closed with an error, for [`run`]'s one error line (the app's world is gone by then).
 static EXIT_REASON: std::sync::Mutex<Option<String>> = std::sync::Mutex::new(None);
