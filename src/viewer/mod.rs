@@ -97,8 +97,9 @@ impl Plugin for ViewerPlugin {
         .insert_resource(ClearColor(draw::OUTSIDE));
         app.configure_sets(Update, (ViewerSet::Control, ViewerSet::Step, ViewerSet::Draw).chain());
         app.add_systems(Update, (apply_control.in_set(ViewerSet::Control), step.in_set(ViewerSet::Step)));
-        // After the screenshot's exit (capture.rs), so an exit asked for this frame is seen.
-        app.add_systems(Last, unsaved_on_exit.after(capture::one_shot));
+        // After the exits asked for this frame, so each is seen: the screenshot's (capture.rs) and the
+        // window's own when it is closed (bevy_window's ExitSystems, also in Last).
+        app.add_systems(Last, unsaved_on_exit.after(capture::one_shot).after(bevy::window::ExitSystems));
         app.add_plugins((
             draw::DrawPlugin { trails: o.trails, select: o.select },
             plots::PlotsPlugin,
