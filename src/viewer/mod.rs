@@ -99,6 +99,7 @@ impl Plugin for ViewerPlugin {
         app.add_systems(Update, (apply_control.in_set(ViewerSet::Control), step.in_set(ViewerSet::Step)));
         // After the exits asked for this frame, so each is seen: the screenshot's (capture.rs) and the
         // window's own when it is closed (bevy_window's ExitSystems, also in Last).
+        app.init_resource::<ExitReason>();
         app.add_systems(Last, unsaved_on_exit.after(capture::one_shot).after(bevy::window::ExitSystems));
         app.add_plugins((
             draw::DrawPlugin { trails: o.trails, select: o.select },
@@ -137,10 +138,12 @@ pub fn run(options: ViewerOptions) -> crate::error::Result<()> {
         crate::sim::episode::spawn_population(world);
         track_live_run(world);
     });
+    let reason = ExitReason::default();
+    app.insert_resource(reason.clone());
     let exit = app.run();
     // The world (a live run's lock, its files) is let go before the process may end below.
     drop(app);
-    if let Some(reason) = EXIT_REASON.lock().unwrap_or_else(|e| e.into_inner()).take() {
+    if let Some(reason) = reason.0.lock().unwrap_or_else(|e| e.into_inner()).take() {
         return Err(reason.into());
     }
     match exit {
@@ -210,7 +213,12 @@ fn respawn_with_counts(world: &mut World, counts: &[usize]) {
 
 /// A save asked for (`--save-run` or the panel) that the window is closing before: said, with a non-zero
 /// exit, never silent.
-fn unsaved_on_exit(mut exits: ResMut<Messages<AppExit>>, mut control: ResMut<Control>, live: Option<Res<LiveRun>>) {
+fn unsaved_on_exit(
+    mut exits: ResMut<Messages<AppExit>>,
+    mut control: ResMut<Control>,
+    live: Option<Res<LiveRun>>,
+    reason: Res<ExitReason>,
+) {
     if exits.is_empty() {
         return;
     }
@@ -223,7 +231,7 @@ fn unsaved_on_exit(mut exits: ResMut<Messages<AppExit>>, mut control: ResMut<Con
         );
     }
     if let Some(dir) = control.save_pending.take() {
-        *EXIT_REASON.lock().unwrap_or_else(|e| e.into_inner()) = Some(format!(
+        *reason.0.lock().unwrap_or_else(|e| e.into_inner()) = Some(format!(
             "{}: not saved: the window closed before the episode ended (a run is saved between episodes)",
             dir.display()
         ));
@@ -234,8 +242,10 @@ fn unsaved_on_exit(mut exits: ResMut<Messages<AppExit>>, mut control: ResMut<Con
 /// The exit status of a command stopped by Ctrl-C (128 + SIGINT), which Bevy's handler exits with.
 const INTERRUPTED: u8 = 130;
 
-/// Why the window closed with an error, for [`run`]'s one error line (the app's world is gone by then).
-static EXIT_REASON: std::sync::Mutex<Option<String>> = std::sync::Mutex::new(None);
+/// Why the window closed with an error, for [`run`]'s one error line: a resource whose cell [`run`] keeps
+/// a handle to, since the app's world is gone once it has run.
+#[derive(Resource, Clone, Default)]
+struct ExitReason(std::sync::Arc<std::sync::Mutex<Option<String>>>);
 
 /// Live training keeps its run ([`LiveRun`]) from its first step, so that it can be saved; other modes
 /// train nothing. Watching a run shows its training curves (its `metrics.csv`) in the per-episode plots,
