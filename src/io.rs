@@ -36,7 +36,12 @@ pub fn unregister_temporary(path: &Path) {
 
 /// Removes every registered temporary (folders whole).
 fn remove_live_temporaries() {
-    for path in LIVE_TEMPORARIES.lock().unwrap_or_else(|e| e.into_inner()).drain(..) {
+    remove_each(&mut LIVE_TEMPORARIES.lock().unwrap_or_else(|e| e.into_inner()));
+}
+
+/// Removes these files and folders (folders whole), forgetting them; what is already gone is no error.
+fn remove_each(paths: &mut Vec<PathBuf>) {
+    for path in paths.drain(..) {
         match std::fs::symlink_metadata(&path) {
             Ok(m) if m.is_dir() => drop(std::fs::remove_dir_all(&path)),
             Ok(_) => drop(std::fs::remove_file(&path)),
@@ -84,14 +89,9 @@ fn out_of_memory(bytes: usize) -> ! {
         std::process::abort();
     }
     EXITING.store(true, Ordering::SeqCst);
+    // try_lock: the refused allocation may have been this very list's, under its lock.
     if let Ok(mut live) = LIVE_TEMPORARIES.try_lock() {
-        for path in live.drain(..) {
-            match std::fs::symlink_metadata(&path) {
-                Ok(m) if m.is_dir() => drop(std::fs::remove_dir_all(&path)),
-                Ok(_) => drop(std::fs::remove_file(&path)),
-                Err(_) => {}
-            }
-        }
+        remove_each(&mut live);
     }
     let _ = writeln!(
         io::stderr(),
@@ -373,24 +373,25 @@ fn rename_new(from: &Path, to: &Path) -> io::Result<()> {
 /// folder (`figures/`, `snapshots/`, `slurm/`), and refuses it unless it is a real folder: a symbolic link
 /// there would send coevo's writes into whatever folder it points to.
 pub fn own_dir(dir: &Path) -> crate::error::Result<()> {
-    (|| -> crate::error::Result<()> {
-        let shown = || dir.display().to_string();
-        match std::fs::symlink_metadata(dir) {
-            Ok(m) if m.file_type().is_symlink() => {
-                return Err(format!(
-                    "{}: is a symbolic link; coevo writes only into real folders it owns, never through a link: remove the link",
-                    shown()
-                )
-                .into())
-            }
-            Ok(m) if !m.is_dir() => return Err(format!("{}: exists and is not a folder", shown()).into()),
-            Ok(_) => return Ok(()),
-            Err(_) => {}
-        }
-        let _writing = Writing::begin();
-        std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", shown()))?;
-        Ok(())
-    })()
+    if check_own_dir(dir)? {
+        return Ok(());
+    }
+    let _writing = Writing::begin();
+    std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display())).kind(crate::error::Kind::Io)
+}
+
+/// [`own_dir`]'s refusals without making anything: a symbolic link, or something other than a folder,
+/// where coevo will write a folder of its own. Whether the folder is there already.
+pub fn check_own_dir(dir: &Path) -> crate::error::Result<bool> {
+    match std::fs::symlink_metadata(dir) {
+        Ok(m) if m.file_type().is_symlink() => Err(format!(
+            "{}: is a symbolic link; coevo writes only into real folders it owns, never through a link: remove the link",
+            dir.display()
+        )),
+        Ok(m) if !m.is_dir() => Err(format!("{}: exists and is not a folder", dir.display())),
+        Ok(_) => Ok(true),
+        Err(_) => Ok(false),
+    }
     .kind(crate::error::Kind::Io)
 }
 

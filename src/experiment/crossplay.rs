@@ -162,9 +162,7 @@ pub fn crossplay(opts: &CrossplayOptions) -> crate::error::Result<(Vec<Matrix>, 
         .into());
     }
     crate::io::check_targets(&outputs(&dir, &pairs), crate::io::Existing::Replace)?;
-    if std::fs::symlink_metadata(dir.figures()).is_ok_and(|m| !m.is_dir()) {
-        return Err(format!("{}: exists and is not a folder", dir.figures().display()).into());
-    }
+    crate::io::check_own_dir(&dir.figures())?;
     // Every snapshot, loaded (and checked against the scene's shapes) before anything is played.
     let like = Learners::new(&scene, Mode::Evaluate);
     let mut snapshots: Vec<Vec<(usize, crate::learning::nets::Mlp)>> = vec![vec![]; registry.len()];
@@ -252,7 +250,7 @@ fn outputs(dir: &RunDir, pairs: &[Pair]) -> Vec<std::path::PathBuf> {
     let mut files = vec![];
     for p in pairs {
         files.push(dir.crossplay(&stem(p, only)));
-        files.push(dir.figures().join(stem(p, only)).with_extension("png"));
+        files.extend(plot::files(&dir.figures().join(stem(p, only))));
     }
     files.push(dir.crossplay(crate::run::CROSSPLAY_READOUTS));
     files.push(dir.crossplay(crate::run::CROSSPLAY_RATINGS));

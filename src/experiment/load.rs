@@ -101,15 +101,8 @@ impl Experiment {
             super::report::REPORT,
         ];
         crate::io::check_targets(&files.map(|f| self.root.join(f)), crate::io::Existing::Replace)?;
-        for dir in [&self.root, &self.figures_dir()] {
-            match std::fs::symlink_metadata(dir) {
-                Ok(m) if m.file_type().is_symlink() => {
-                    return Err(format!("{}: is a symbolic link; coevo writes only into real folders it owns, never through a link: remove the link", dir.display()).into())
-                }
-                Ok(m) if !m.is_dir() => return Err(format!("{}: exists and is not a folder", dir.display()).into()),
-                _ => {}
-            }
-        }
+        crate::io::check_own_dir(&self.root)?;
+        crate::io::check_own_dir(&self.figures_dir())?;
         Ok(())
     }
 

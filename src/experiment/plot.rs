@@ -432,10 +432,14 @@ pub fn save_estimates(stem: &Path, panels: &[EstimatePanel]) -> crate::error::Re
 
 fn write(stem: &Path, text: String) -> crate::error::Result<()> {
     let bytes = png(&text)?;
-    for (ext, data) in [("svg", text.as_bytes()), ("png", bytes.as_slice())] {
-        crate::io::write_file(&stem.with_extension(ext), crate::io::Existing::Replace, data)?;
-    }
-    Ok(())
+    let [svg, png] = files(stem);
+    crate::io::write_file(&svg, crate::io::Existing::Replace, text.as_bytes())?;
+    crate::io::write_file(&png, crate::io::Existing::Replace, &bytes)
+}
+
+/// The files a figure saved as `stem` is written to: its SVG and a PNG beside it.
+pub fn files(stem: &Path) -> [std::path::PathBuf; 2] {
+    [stem.with_extension("svg"), stem.with_extension("png")]
 }
 
 #[cfg(test)]

@@ -263,10 +263,7 @@ impl Env {
     /// Every agent's position (x, y), all species, ordered by agent id (`coevo --record`'s `id`).
     pub fn positions(&self) -> Vec<[f64; 2]> {
         let pop = self.world.resource::<Population>();
-        let mut by_id: Vec<(u32, [f64; 2])> =
-            pop.id.iter().zip(&pop.position).map(|(id, p)| (id.0, [p.x, p.y])).collect();
-        by_id.sort_by_key(|&(id, _)| id);
-        by_id.into_iter().map(|(_, p)| p).collect()
+        by_id(pop).into_iter().map(|i| [pop.position[i].x, pop.position[i].y]).collect()
     }
 
     /// The global state a centralised critic reads: per agent of every species, ordered by agent id,
@@ -274,9 +271,7 @@ impl Env {
     /// in the world frame whatever frame the observations use.
     pub fn state(&self) -> Vec<f32> {
         let pop = self.world.resource::<Population>();
-        let mut order: Vec<usize> = (0..pop.id.len()).collect();
-        order.sort_by_key(|&i| pop.id[i].0);
-        order
+        by_id(pop)
             .into_iter()
             .flat_map(|i| {
                 let (p, v, h) = (pop.position[i], pop.velocity[i], pop.heading[i]);
@@ -293,6 +288,14 @@ impl Env {
 
 /// Numbers per agent in [`Env::state`].
 pub const STATE_DIM: usize = 6;
+
+/// The population's rows in agent-id order (`coevo --record`'s `id`), the order of everything [`Env`]
+/// hands out about every agent.
+fn by_id(pop: &Population) -> Vec<usize> {
+    let mut order: Vec<usize> = (0..pop.id.len()).collect();
+    order.sort_by_key(|&i| pop.id[i].0);
+    order
+}
 
 /// How a [`VecEnv`]'s worlds are seeded from its one seed.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]

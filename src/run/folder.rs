@@ -428,7 +428,7 @@ impl RunDir {
     /// each, which asks the file system itself (permissions, ACLs, a read-only mount), not the mode bits.
     pub fn check_writable(&self) -> crate::error::Result<()> {
         let probe = format!(".coevo-probe-{}", std::process::id());
-        for dir in [self.path.clone(), self.checkpoint(), self.path.join(SNAPSHOTS)] {
+        for dir in [self.path.clone(), self.checkpoint(), self.snapshots()] {
             if !dir.is_dir() {
                 continue;
             }
