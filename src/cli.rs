@@ -7,6 +7,7 @@
 
 use crate::experiment::command::{self, ExperimentArgs, PlotArgs};
 use crate::experiment::crossplay::{self, CrossplayArgs};
+use crate::experiment::distill::{self, DistillArgs};
 use crate::experiment::force_map::{self, ForceMapArgs};
 use crate::experiment::response::{self, ResponseArgs};
 use crate::run::animate::{self, AnimateArgs};
@@ -47,6 +48,8 @@ struct Cli {
     #[command(flatten)]
     response: ResponseArgs,
     #[command(flatten)]
+    distill: DistillArgs,
+    #[command(flatten)]
     force_map: ForceMapArgs,
     #[command(flatten)]
     record: RecordArgs,
@@ -83,6 +86,7 @@ fn modes() -> Vec<(&'static str, Vec<String>)> {
         mode::<EvalArgs>(),
         mode::<CrossplayArgs>(),
         mode::<ResponseArgs>(),
+        mode::<DistillArgs>(),
         mode::<ForceMapArgs>(),
         mode::<RecordArgs>(),
         mode::<AnimateArgs>(),
@@ -232,6 +236,9 @@ fn run(cli: Cli) -> crate::error::Result<()> {
     }
     if let Some(run) = &cli.response.response {
         return response::main(run);
+    }
+    if let Some(run) = &cli.distill.distill {
+        return distill::main(run, &shared.scene.overrides(true)?, shared.common.episodes);
     }
     if let Some(trajectory) = &cli.force_map.force_map {
         let default =

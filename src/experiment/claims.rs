@@ -115,7 +115,8 @@ pub(super) fn primitive(d: &RunData, q: &Quantity) -> f64 {
         | Quantity::FromStart(_)
         | Quantity::InteractionDoa(_)
         | Quantity::Interaction(..)
-        | Quantity::Learned(..) => f64::NAN,
+        | Quantity::Learned(..)
+        | Quantity::EvalDifference(..) => f64::NAN,
     }
 }
 
@@ -151,7 +152,8 @@ pub fn column(q: &Quantity) -> Option<String> {
         | Quantity::FromStart(_)
         | Quantity::InteractionDoa(_)
         | Quantity::Interaction(..)
-        | Quantity::Learned(..) => return None,
+        | Quantity::Learned(..)
+        | Quantity::EvalDifference(..) => return None,
     })
 }
 
@@ -186,6 +188,7 @@ pub fn derive(evaluations: &[super::file::Evaluation], q: &Quantity, primitive: 
             Some(untrained) => of_eval(e, o) - of_eval(&untrained.name, o),
             None => f64::NAN,
         },
+        Quantity::EvalDifference(a, b, o) => of_eval(a, o) - of_eval(b, o),
         _ => primitive(q),
     }
 }
@@ -364,6 +367,7 @@ pub fn quantity_name(q: &Quantity) -> String {
         Quantity::InteractionDoa(e) => format!("DoA seeing minus \"{e}\" (interaction-driven alignment)"),
         Quantity::Interaction(e, q) => format!("{q} seeing minus \"{e}\""),
         Quantity::Learned(e, q) => format!("{q} in evaluation \"{e}\", trained minus untrained actors"),
+        Quantity::EvalDifference(a, b, q) => format!("{q} in evaluation \"{a}\" minus in \"{b}\""),
         Quantity::Reach90(q) => format!("episode at which {q}'s running mean completes 90 % of its change"),
         Quantity::Halfway(q) => format!(
             "episode at which {q}'s {HALFWAY_WINDOW}-episode running mean completes half its change from the first {START} episodes"

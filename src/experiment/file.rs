@@ -52,6 +52,47 @@ pub struct ExperimentFile {
     /// its read-outs (`Crossplay("...")`).
     #[serde(default)]
     pub crossplay: Option<CrossplaySpec>,
+    /// Fit rules to every run's trained actors (`coevo --distill`) before its evaluations, for the
+    /// evaluations that deploy them (`distilled:`).
+    #[serde(default)]
+    pub distill: Option<DistillSpec>,
+}
+
+/// How an experiment fits its runs' rules (`coevo --distill`): the actors deployed at these counts for
+/// `episodes` episodes of `steps` steps, the first half fitted, the rest held out.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct DistillSpec {
+    #[serde(default)]
+    pub counts: Vec<(String, usize)>,
+    #[serde(default = "distill_episodes")]
+    pub episodes: usize,
+    #[serde(default)]
+    pub steps: Option<usize>,
+}
+
+fn distill_episodes() -> usize {
+    crate::experiment::distill::EPISODES
+}
+
+impl DistillSpec {
+    /// What the fit changes of a run's scene.
+    pub fn overrides(&self) -> Overrides {
+        Overrides { counts: self.counts.clone(), episode_steps: self.steps, ..Default::default() }
+    }
+}
+
+/// A species an evaluation deploys as the rule fitted to it (`distilled.ron`), optionally without some of
+/// a zonal rule's terms (an ablation: `without: [Alignment]`).
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct DistilledUse {
+    pub species: String,
+    /// The rule fitted without (`Memoryless`, the default) or with (`Inertial`) the agent's own state.
+    #[serde(default)]
+    pub form: crate::scene::RuleForm,
+    #[serde(default)]
+    pub without: Vec<crate::scene::ZonalTerm>,
 }
 
 /// How an experiment cross-plays its runs.
@@ -128,6 +169,10 @@ pub struct Evaluation {
     /// against the paper's rule-based predators (`coevo --eval --policy`).
     #[serde(default)]
     pub policies: Vec<(String, crate::scene::Policy)>,
+    /// Species the evaluation deploys as the rules fitted to the run's actors (needs `distill:` in the
+    /// file): e.g. `[(species: "prey")]`, the learned prey replaced by their zonal rule.
+    #[serde(default)]
+    pub distilled: Vec<DistilledUse>,
 }
 
 impl Evaluation {
@@ -276,6 +321,10 @@ pub enum Quantity {
     /// evaluation of the trained actors minus the same evaluation of the untrained ones (same counts,
     /// episodes, steps and control, `untrained: true`), per run.
     Learned(String, String),
+    /// An order parameter (`dos`, `doa` or as [`Quantity::EvalOrder`]) in one evaluation minus the same in
+    /// another of the same run, per run (paired): e.g. `EvalDifference("50 prey, distilled prey", "50 prey",
+    /// "doa")`, what replacing the learned prey by their distilled rule changes.
+    EvalDifference(String, String, String),
     /// The episode at which the 100-episode running mean of `dos` or `doa` first completes 90 % of its
     /// change from the first 100 episodes to the last 100 (the paper's time course, Fig. 3).
     Reach90(String),
@@ -354,6 +403,7 @@ pub fn untrained_partner<'a>(evaluations: &'a [Evaluation], name: &str) -> Optio
             && e.steps == trained.steps
             && e.control == trained.control
             && e.policies == trained.policies
+            && e.distilled == trained.distilled
     })
 }
 
@@ -371,6 +421,7 @@ pub fn seeing_partner<'a>(evaluations: &'a [Evaluation], name: &str) -> Option<&
             && e.episodes == control.episodes
             && e.steps == control.steps
             && e.policies == control.policies
+            && e.distilled == control.distilled
             && e.untrained == control.untrained
     })
 }

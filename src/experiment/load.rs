@@ -203,6 +203,15 @@ impl Experiment {
             if e.episodes == 0 || e.steps == Some(0) {
                 return Err(err(&field("episodes"), "episodes and steps must be ≥ 1".into()));
             }
+            if !e.distilled.is_empty() && spec.distill.is_none() {
+                return Err(err(
+                    &field("distilled"),
+                    "deploys fitted rules: the file needs distill: (counts: [...], episodes: N)".into(),
+                ));
+            }
+            if let Some(u) = e.distilled.iter().find(|u| e.policies.iter().any(|(s, _)| s == &u.species)) {
+                return Err(err(&field("distilled"), format!("{:?} is given a policy too (policies:)", u.species)));
+            }
             if let Some(r) = e.confusion_radius.filter(|r| !(r.is_finite() && *r > 0.0)) {
                 return Err(err(
                     &field("confusion_radius"),
@@ -284,7 +293,20 @@ impl Experiment {
                     return Err(err("claims", format!("evaluation {e:?} needs an untrained partner (untrained: true, the same counts, episodes, steps and control)")));
                 }
             }
-            if let Quantity::Learned(_, q) = &c.quantity {
+            if let Quantity::EvalDifference(a, b, _) = &c.quantity {
+                for e in [a, b] {
+                    if !spec.evaluations.iter().any(|x| &x.name == e) {
+                        return Err(err("claims", format!("no evaluation named {e:?}")));
+                    }
+                }
+                if a == b {
+                    return Err(err(
+                        "claims",
+                        format!("EvalDifference({a:?}, {b:?}, ..) compares an evaluation with itself"),
+                    ));
+                }
+            }
+            if let Quantity::Learned(_, q) | Quantity::EvalDifference(_, _, q) = &c.quantity {
                 if !["dos", "doa"].contains(&q.as_str()) && !EVAL_ORDER.contains(&q.as_str()) {
                     return Err(err(
                         "claims",
@@ -355,9 +377,27 @@ impl Experiment {
                     e.overrides()
                         .apply(&mut evaluated, Path::new(&format!("evaluations[{}]", e.name)))
                         .map_err(|m| format!("{shown}: {m}"))?;
-                    e.control.resolve(&crate::sim::species::SpeciesRegistry::from_scene(&evaluated)).map_err(|m| {
+                    let registry = crate::sim::species::SpeciesRegistry::from_scene(&evaluated);
+                    e.control.resolve(&registry).map_err(|m| {
                         err(&format!("evaluations[{}].control", e.name), format!("variant {}: {m}", v.name))
                     })?;
+                    for u in &e.distilled {
+                        let Some(s) = registry.defs.iter().position(|d| d.name == u.species) else {
+                            return Err(err(
+                                &format!("evaluations[{}].distilled", e.name),
+                                format!("variant {}: no species named {:?}", v.name, u.species),
+                            ));
+                        };
+                        if !u.without.is_empty() && registry.predators_of(s).next().is_none() {
+                            return Err(err(
+                                &format!("evaluations[{}].distilled", e.name),
+                                format!(
+                                    "without: ablates a zonal rule, fitted to a species with predators; {:?} has none",
+                                    u.species
+                                ),
+                            ));
+                        }
+                    }
                 }
                 let field = |name: &str| format!("variants[{}].{name}", v.name);
                 if v.shared_from.is_some() && v.same_training_as.is_some() {

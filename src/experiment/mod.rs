@@ -32,6 +32,7 @@ pub mod crossplay_matrix;
 pub mod crossplay_readouts;
 pub mod curves;
 pub mod data;
+pub mod distill;
 pub mod external;
 pub mod figure_data;
 pub mod figures;

@@ -129,6 +129,13 @@ pub fn complete_run(exp: &Experiment, run: &Run, exe: &Path, threads: usize) -> 
         child(exe, &args).map_err(|e| format!("{dir}: {e}"))?;
     }
     drop_replay(exp, run)?;
+    let distilled = crate::run::RunDir::new(&run.dir).distilled();
+    let needs_rules = exp.spec.evaluations.iter().any(|e| !e.distilled.is_empty() && !evaluated_as(run, e));
+    if let (Some(d), true) = (&exp.spec.distill, needs_rules && !distilled.exists()) {
+        let mut argv = vec!["--distill".into(), dir.clone(), "--episodes".into(), d.episodes.to_string()];
+        argv.extend(crate::run::args::overrides_argv(&d.overrides(), &[]));
+        child(exe, &[argv, threads.clone()].concat()).map_err(|err| format!("{dir}: distilling: {err}"))?;
+    }
     for e in &exp.spec.evaluations {
         let out = eval_file(&run.dir, &e.name);
         if evaluated_as(run, e) {
@@ -148,7 +155,7 @@ pub fn complete_run(exp: &Experiment, run: &Run, exe: &Path, threads: usize) -> 
             control: e.control.clone(),
             out: Some(out.file_name().expect("a file").to_string_lossy().into_owned()),
             episodes: e.episodes,
-            overrides: e.overrides(),
+            overrides: with_distilled(e, &distilled)?,
             untrained: e.untrained,
             snapshots: vec![],
             perturb: e.perturb,
@@ -167,6 +174,35 @@ pub fn complete_run(exp: &Experiment, run: &Run, exe: &Path, threads: usize) -> 
         child(exe, &[opts.to_argv(), threads].concat()).map_err(|err| format!("{dir}: cross-play: {err}"))?;
     }
     Ok(())
+}
+
+/// An evaluation's overrides with the rules it deploys (`distilled:`) read from the run's `distilled`
+/// file, ablated as it asks.
+fn with_distilled(e: &super::file::Evaluation, distilled: &Path) -> crate::error::Result<crate::scene::Overrides> {
+    use crate::scene::Policy;
+    let mut overrides = e.overrides();
+    if e.distilled.is_empty() {
+        return Ok(overrides);
+    }
+    let file = super::distill::DistilledFile::read(distilled)?;
+    for u in &e.distilled {
+        let policy = match (file.policy(&u.species, u.form), u.without.is_empty()) {
+            (Some(Policy::Zonal(rule)), _) => Policy::Zonal(rule.without(&u.without)),
+            (Some(p), true) => p.clone(),
+            (Some(_), false) => {
+                return Err(format!(
+                    "evaluation {:?}: without: applies to a zonal rule; {}'s is not",
+                    e.name, u.species
+                )
+                .into())
+            }
+            (None, _) => {
+                return Err(format!("{}: no {:?} rule fitted for {:?}", distilled.display(), u.form, u.species).into())
+            }
+        };
+        overrides.policies.push((u.species.clone(), policy));
+    }
+    Ok(overrides)
 }
 
 /// Removes a trained run's replay buffers (`learning::replay_segments::drop_replay`) under its lock, unless the

@@ -22,6 +22,7 @@ pub fn is_effect(claim: &Claim) -> bool {
                 | Quantity::InteractionDoa(_)
                 | Quantity::Interaction(..)
                 | Quantity::Learned(..)
+                | Quantity::EvalDifference(..)
         )
         || matches!(&claim.quantity, Quantity::Crossplay(r) if super::crossplay_readouts::chance(r).is_none())
 }

@@ -153,7 +153,7 @@ impl SceneArgs {
         for p in &self.policy {
             let (name, policy) = p.split_once('=').ok_or_else(|| format!("--policy {p}: expected NAME=POLICY"))?;
             let policy = ron::from_str(policy).map_err(|_| {
-                format!("--policy {p}: {policy} is not a policy (ChaseNearest, FleeNearest, FleeInside, Random, Still, Frozen(\"RUN\"), Learned)")
+                format!("--policy {p}: {policy} is not a policy (ChaseNearest, FleeNearest, FleeInside, Random, Still, Frozen(\"RUN\"), Zonal((...)), Pursuit((...)), Learned)")
             })?;
             policies.push((name.to_string(), policy));
         }

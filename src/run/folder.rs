@@ -45,6 +45,8 @@ pub const CROSSPLAY_READOUTS: &str = "crossplay-readouts";
 pub const CROSSPLAY_RATINGS: &str = "crossplay-ratings";
 /// The checkpoint folders are the checkpoint's own (`learning::checkpoint`).
 pub use crate::learning::files::{CHECKPOINT, CHECKPOINT_OLD, CHECKPOINT_TMP, SNAPSHOTS};
+/// The rules `--distill` fitted to the run's actors (`experiment::distill`).
+pub const DISTILLED: &str = "distilled.ron";
 /// The files an evaluation writes beside its per-step CSV (`OUT-nn.csv`, ...); the confusion curve last.
 pub const EVAL_BESIDE: [&str; 3] = ["nn", "correlation", "confusion"];
 /// The file a perturbed evaluation writes beside the others (`OUT-perturbation.csv`, [`perturb`]).
@@ -59,6 +61,9 @@ const CHECKPOINT_DIRS: [&str; 4] = [CHECKPOINT, CHECKPOINT_TMP, CHECKPOINT_OLD, 
 /// evaluations under coevo's names (`eval.csv`, `eval-<name>.csv` and the files beside them) and
 /// cross-play (`crossplay*.csv`).
 fn outputs_of_the_run(name: &str) -> bool {
+    if name == DISTILLED {
+        return true;
+    }
     let (Some(stem), Some(eval)) = (name.strip_suffix(".csv"), EVAL.strip_suffix(".csv")) else { return false };
     stem == eval || stem.strip_prefix(eval).is_some_and(|rest| rest.starts_with('-')) || stem.starts_with(CROSSPLAY)
 }
@@ -123,6 +128,11 @@ impl RunDir {
     pub fn crossplay(&self, stem: &str) -> PathBuf {
         debug_assert!(stem.starts_with(CROSSPLAY));
         self.path.join(format!("{stem}.csv"))
+    }
+
+    /// The rules fitted to the run's actors ([`DISTILLED`]).
+    pub fn distilled(&self) -> PathBuf {
+        self.path.join(DISTILLED)
     }
 
     pub fn snapshots(&self) -> PathBuf {

@@ -13,8 +13,10 @@ mod diagnostics;
 pub mod layout;
 mod presets;
 mod resolve;
+mod rules;
 mod schema;
 mod validate;
 
 pub use resolve::{parse_ron, Overrides};
+pub use rules::{PursuitGains, RuleForm, ZonalTerm, ZonalThrust, ZonalTurn};
 pub use schema::*;

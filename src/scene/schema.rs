@@ -2,6 +2,7 @@
 //! with the defaults and the few questions a scene answers about itself. Read, resolved and validated by
 //! the sibling modules.
 
+pub use super::rules::{PursuitRule, ZonalRule};
 use serde::{Deserialize, Serialize};
 
 /// Declares a resolved config struct and its patch (every field optional) with `apply` between them,
@@ -92,6 +93,12 @@ pub enum Policy {
     /// paper's 2 m box); these turn along and away from them. On the torus, and away from walls, it is
     /// `FleeNearest` exactly. The viewer's rule-based prey.
     FleeInside,
+    /// A prey's zonal rule (repulsion, alignment, attraction, predator evasion), e.g. as `coevo --distill`
+    /// fitted it to a trained run ([`ZonalRule`], `sim::rules`).
+    Zonal(ZonalRule),
+    /// A predator's pursuit of the nearest prey, the centre of the prey in view and the most isolated one
+    /// ([`PursuitRule`], `sim::rules`).
+    Pursuit(PursuitRule),
     /// Trained by the learning plugin (Algorithm 1).
     Learned,
     /// A trained actor loaded from a checkpoint folder, no updates.

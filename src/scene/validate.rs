@@ -93,6 +93,24 @@ impl Scene {
             positive(s.max_speed, &f("max_speed"))?;
             non_negative(s.max_thrust, &f("max_thrust"))?;
             non_negative(s.max_turn_rate, &f("max_turn_rate"))?;
+            let rule: &[(&str, f64)] = match &s.policy {
+                Policy::Zonal(rule) => {
+                    let radii = [rule.repulsion_radius, rule.alignment_radius, rule.attraction_radius];
+                    check(radii.windows(2).all(|w| w[0] <= w[1]), &f("policy"), || {
+                        format!("Zonal: the zones are nested: repulsion_radius ≤ alignment_radius ≤ attraction_radius (got {radii:?})")
+                    })?;
+                    &rule.numbers()
+                }
+                Policy::Pursuit(rule) => &rule.numbers(),
+                _ => &[],
+            };
+            for (name, v) in rule {
+                let field = f(&format!("policy.{name}"));
+                match name.ends_with("radius") {
+                    true => non_negative(*v, &field)?,
+                    false => check(v.is_finite(), &field, || format!("must be a finite number (got {v})"))?,
+                }
+            }
             match s.perception {
                 Perception::Full => {}
                 Perception::FractionOfD(x) => positive(x, &f("perception"))?,

@@ -25,6 +25,7 @@ pub mod perception;
 pub mod physics;
 pub mod policy;
 pub mod reward;
+pub mod rules;
 pub mod schedule;
 pub mod space;
 pub mod species;

@@ -189,6 +189,19 @@ pub fn rule_action(
                 (None, None) => [1.0, 0.0],
             }
         }
+        Policy::Zonal(rule) => {
+            use super::rules::{observed, observed_of, zonal_action, Own, ZonalFeatures};
+            let frame = scene.observation_frame;
+            let kin = observed(obs, registry, s, s, frame);
+            let predators = observed_of(obs, registry, s, registry.predators_of(s), frame);
+            zonal_action(rule, &ZonalFeatures::of(rule, Own::of(obs, registry, s, frame), &kin, &predators))
+        }
+        Policy::Pursuit(rule) => {
+            use super::rules::{observed_of, pursuit_action, Own, PursuitFeatures};
+            let frame = scene.observation_frame;
+            let prey = observed_of(obs, registry, s, registry.prey_of(s), frame);
+            pursuit_action(rule, &PursuitFeatures::of(Own::of(obs, registry, s, frame), &prey))
+        }
         Policy::Learned | Policy::Frozen(_) | Policy::Plugin(_) => return None,
     })
 }

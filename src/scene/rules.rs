@@ -1,0 +1,159 @@
+//! The parameters of the distilled rules: a prey rule in the spirit of Couzin et al.'s zones (J. Theor.
+//! Biol. 2002) with predator evasion, and a predator's pursuit. `coevo --distill RUN` fits them to a
+//! trained run's actors (`experiment::distill`); a scene names them with their parameters, like any
+//! rule-based policy. What they do with an observation is `sim::rules`.
+//!
+//! Both are linear in their gains on the normalized action, clamped to [−1, 1]: every neighbour adds its
+//! unit direction (ahead, left) in the focal agent's body frame, the left part to the turn and the ahead
+//! part to the thrust, weighted by the gain of the zone it falls in. A positive turn gain on a zone turns
+//! toward its members (attraction), a negative one away (repulsion, evasion); a positive thrust gain
+//! speeds up for members ahead and slows for members behind. Two terms read the agent itself:
+//! `persistence` weighs its previous turn command (the body-frame observation's turn state; zero in a
+//! world-frame scene, which does not observe it) and `speed` its speed along its heading as a fraction of
+//! its top speed: the inertia of its turning and the regulation of its speed.
+
+use serde::{Deserialize, Serialize};
+
+/// A prey's zonal rule. Conspecifics fall in nested zones by distance d: repulsion d < `repulsion_radius`,
+/// alignment `repulsion_radius` ≤ d < `alignment_radius`, attraction `alignment_radius` ≤ d <
+/// `attraction_radius`; predators within `evasion_radius` are evaded. A zone whose inner and outer radii
+/// are equal is empty. Only the agents the observation holds count (the nearest `topological_limit`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ZonalRule {
+    /// Outer radius of each zone, in metres.
+    pub repulsion_radius: f64,
+    pub alignment_radius: f64,
+    pub attraction_radius: f64,
+    pub evasion_radius: f64,
+    pub turn: ZonalTurn,
+    pub thrust: ZonalThrust,
+}
+
+/// The turn of a [`ZonalRule`]: `bias` + `persistence`·(previous turn) + `repulsion`·Σ left +
+/// `alignment`·Σ sin(Δheading) + `attraction`·Σ left + `evasion`·Σ left, each sum over the members of its
+/// zone (left: the left component of the unit direction to a member; Δheading: the member's heading
+/// relative to the focal one).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ZonalTurn {
+    pub bias: f64,
+    pub persistence: f64,
+    pub repulsion: f64,
+    pub alignment: f64,
+    pub attraction: f64,
+    pub evasion: f64,
+}
+
+/// The thrust of a [`ZonalRule`]: `bias` + `speed`·(speed / top speed) + `repulsion`·Σ ahead +
+/// `attraction`·Σ ahead + `evasion`·Σ ahead (ahead: the component of the unit direction to a member along
+/// the focal agent's heading).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ZonalThrust {
+    pub bias: f64,
+    pub speed: f64,
+    pub repulsion: f64,
+    pub attraction: f64,
+    pub evasion: f64,
+}
+
+/// Which terms a fit may use: only the neighbours (`Memoryless`, Couzin et al.'s zones: `persistence`
+/// and `speed` held at zero) or also the agent's own state (`Inertial`). A one-step fit gives the own
+/// state what it can explain first, so the two differ in their neighbour gains, not only by two terms.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize)]
+pub enum RuleForm {
+    #[default]
+    Memoryless,
+    Inertial,
+}
+
+/// A term of a [`ZonalRule`], for ablations: [`ZonalRule::without`] zeroes its gains.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize)]
+pub enum ZonalTerm {
+    Repulsion,
+    Alignment,
+    Attraction,
+    Evasion,
+}
+
+impl ZonalRule {
+    /// The same rule with the gains of `terms` set to zero (turn and thrust): an ablation.
+    pub fn without(&self, terms: &[ZonalTerm]) -> ZonalRule {
+        let mut rule = self.clone();
+        for term in terms {
+            match term {
+                ZonalTerm::Repulsion => (rule.turn.repulsion, rule.thrust.repulsion) = (0.0, 0.0),
+                ZonalTerm::Alignment => rule.turn.alignment = 0.0,
+                ZonalTerm::Attraction => (rule.turn.attraction, rule.thrust.attraction) = (0.0, 0.0),
+                ZonalTerm::Evasion => (rule.turn.evasion, rule.thrust.evasion) = (0.0, 0.0),
+            }
+        }
+        rule
+    }
+
+    /// Every number of the rule with its field name, for validation.
+    pub fn numbers(&self) -> [(&'static str, f64); 15] {
+        let (t, f) = (&self.turn, &self.thrust);
+        [
+            ("repulsion_radius", self.repulsion_radius),
+            ("alignment_radius", self.alignment_radius),
+            ("attraction_radius", self.attraction_radius),
+            ("evasion_radius", self.evasion_radius),
+            ("turn.bias", t.bias),
+            ("turn.persistence", t.persistence),
+            ("turn.repulsion", t.repulsion),
+            ("turn.alignment", t.alignment),
+            ("turn.attraction", t.attraction),
+            ("turn.evasion", t.evasion),
+            ("thrust.bias", f.bias),
+            ("thrust.speed", f.speed),
+            ("thrust.repulsion", f.repulsion),
+            ("thrust.attraction", f.attraction),
+            ("thrust.evasion", f.evasion),
+        ]
+    }
+}
+
+/// A predator's pursuit rule: the turn and the thrust, each `bias` + `own` + `nearest`·u_nearest +
+/// `centre`·u_centre + `isolated`·u_isolated, where u is the unit direction (its left part for the turn,
+/// its ahead part for the thrust) to the nearest observed prey, to the centre of the observed prey, and to
+/// the most isolated observed prey (the one farthest from its nearest observed fellow: the paper's
+/// "marginal predation"), and `own` is `persistence`·(previous turn) for the turn, `speed`·(speed / top
+/// speed) for the thrust. Without prey in view, the bias and the own term alone.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PursuitRule {
+    pub turn: PursuitGains,
+    pub thrust: PursuitGains,
+    pub persistence: f64,
+    pub speed: f64,
+}
+
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PursuitGains {
+    pub bias: f64,
+    pub nearest: f64,
+    pub centre: f64,
+    pub isolated: f64,
+}
+
+impl PursuitRule {
+    /// Every number of the rule with its field name, for validation.
+    pub fn numbers(&self) -> [(&'static str, f64); 10] {
+        let (t, f) = (&self.turn, &self.thrust);
+        [
+            ("turn.bias", t.bias),
+            ("turn.nearest", t.nearest),
+            ("turn.centre", t.centre),
+            ("turn.isolated", t.isolated),
+            ("thrust.bias", f.bias),
+            ("thrust.nearest", f.nearest),
+            ("thrust.centre", f.centre),
+            ("thrust.isolated", f.isolated),
+            ("persistence", self.persistence),
+            ("speed", self.speed),
+        ]
+    }
+}
