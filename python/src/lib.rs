@@ -78,9 +78,17 @@ fn grid<'py>(py: Python<'py>, rows: &[Vec<f64>]) -> PyResult<Bound<'py, PyArray2
 /// The response fields of a run's species (`coevo --response`): per focal species, observed species and
 /// relative heading, a dict with `species`, `observed`, `rel_heading`, `centres` (metres), `thrust` and
 /// `turn` (`[left, ahead]` arrays, NaN where unobserved) and `alone` (thrust, turn with no one in view).
+/// With `swarm=True`, the fields amid observations of the trained swarm (a parallel neighbour only),
+/// averaged over them, `alone` then the mean action on those observations (`coevo --response`'s
+/// `response-swarm.csv`).
 #[pyfunction]
-fn response_fields<'py>(py: Python<'py>, run: &str) -> PyResult<Bound<'py, PyList>> {
-    let (_, fields) = coevo::experiment::response::of_run(Path::new(run)).map_err(err)?;
+#[pyo3(signature = (run, swarm = false))]
+fn response_fields<'py>(py: Python<'py>, run: &str, swarm: bool) -> PyResult<Bound<'py, PyList>> {
+    let background = match swarm {
+        false => coevo::experiment::response::Background::Empty,
+        true => coevo::experiment::response::Background::Swarm,
+    };
+    let (_, fields) = coevo::experiment::response::of_run(Path::new(run), background).map_err(err)?;
     let out = PyList::empty(py);
     for f in fields {
         let d = PyDict::new(py);

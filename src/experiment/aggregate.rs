@@ -2,10 +2,11 @@
 //! with the summaries (`summary.rs`) and figures (`figures.rs`) written beside them.
 
 use super::carry;
-use super::claims::{chance_level, is_effect, ClaimResult, RunData, ALPHA, WINDOW};
+use super::claims::{is_effect, ClaimResult, RunData, ALPHA, WINDOW};
 use super::figure_data;
 use super::figures;
 use super::file::Experiment;
+use super::quantity::chance_level;
 use super::registry;
 use super::stats::{difference, estimate, holm, holm_levels};
 use super::summary::{self, Summary};
@@ -205,7 +206,7 @@ pub fn tests(exp: &Experiment, table: &Summary) -> Vec<ClaimResult> {
             // are one sample, not two: no comparison, no p-value.
             let identical = theirs.as_ref().is_some_and(|t| t.len() >= 2 && *t == ours);
             // A change over training needs a first and a last window that do not overlap.
-            let overlap = super::claims::compares_windows(&claim.quantity)
+            let overlap = super::quantity::compares_windows(&claim.quantity)
                 && std::iter::once(&claim.variant)
                     .chain(&claim.versus)
                     .any(|v| table.episodes(preset, v).is_some_and(|n| n < 2 * WINDOW));

@@ -2,8 +2,8 @@
 //! the quantities computed from it ([`quantity`]), their names in reports, and a claim's result
 //! ([`ClaimResult`], judged by [`super::verdict`]).
 
-use super::file::{Claim, Experiment, Quantity};
-use super::stats::{mean, Estimate};
+use super::file::Claim;
+use super::stats::Estimate;
 use crate::sim::metrics::Swarming;
 use std::collections::BTreeMap;
 
@@ -27,6 +27,9 @@ pub struct RunData {
     pub evals: BTreeMap<String, EvalData>,
     /// The read-outs of the run's cross-play (`crossplay-readouts.csv`) by name, when it has one.
     pub crossplay: BTreeMap<String, f64>,
+    /// The numbers of the rules fitted to it (`distilled.ron`) by species, form and name
+    /// ([`super::distill::numbers`]), when it has them.
+    pub distilled: BTreeMap<(String, crate::scene::RuleForm, String), f64>,
 }
 
 /// One evaluation of a run.
@@ -56,142 +59,6 @@ pub use crate::sim::metrics::WINDOW;
 
 /// Steps at the end of an evaluation episode averaged as its settled state.
 pub const SETTLED_STEPS: usize = 50;
-
-/// The finite values of a quantity over `runs` (one per seed), the samples of an estimate.
-pub fn values(exp: &Experiment, runs: &[&RunData], q: &Quantity) -> Vec<f64> {
-    runs.iter().map(|d| quantity(exp, d, q)).filter(|x| x.is_finite()).collect()
-}
-
-/// A run's value of a quantity, from its own files ([`RunData`]).
-pub fn quantity(exp: &Experiment, d: &RunData, q: &Quantity) -> f64 {
-    derive(&exp.spec.evaluations, q, &|p| primitive(d, p))
-}
-
-/// The value of a primitive quantity (one with a [`column`] of its own) from a run's files.
-pub(super) fn primitive(d: &RunData, q: &Quantity) -> f64 {
-    let settled = |v: &[f64]| {
-        mean(&v[v.len().saturating_sub(SETTLED_STEPS)..].iter().copied().filter(|x| x.is_finite()).collect::<Vec<_>>())
-            .unwrap_or(f64::NAN)
-    };
-    let eval = |e: &str, name: &str| d.evals.get(e).map_or(f64::NAN, |x| settled(x.series(name)));
-    match q {
-        Quantity::DosFirst => window_mean(&d.dos, true),
-        Quantity::DosLast => window_mean(&d.dos, false),
-        Quantity::DoaFirst => window_mean(&d.doa, true),
-        Quantity::DoaLast => window_mean(&d.doa, false),
-        Quantity::CatchesFirst => window_mean(&d.catches, true),
-        Quantity::CatchesLast => window_mean(&d.catches, false),
-        Quantity::TrainingFirst(q) => d.orders.get(q).map_or(f64::NAN, |v| window_mean(v, true)),
-        Quantity::TrainingLast(q) => d.orders.get(q).map_or(f64::NAN, |v| window_mean(v, false)),
-        Quantity::EvalDos(e) => eval(e, "dos"),
-        Quantity::EvalDoa(e) => eval(e, "doa"),
-        Quantity::EvalOrder(e, name) if name == "edge_rank" => d.evals.get(e).map_or(f64::NAN, |x| x.edge_rank),
-        Quantity::EvalOrder(e, name) => eval(e, name),
-        Quantity::Reach90(name) => reach90(if name == "dos" { &d.dos } else { &d.doa }),
-        Quantity::Start(o)
-        | Quantity::Extreme(o)
-        | Quantity::ExtremeEpisode(o)
-        | Quantity::AfterExtreme(o)
-        | Quantity::Halfway(o)
-        | Quantity::Reaches(o, _) => {
-            let series = match o.as_str() {
-                "dos" => &d.dos,
-                "doa" => &d.doa,
-                "catches" => &d.catches,
-                // The authors' DoS and DoA (`authors_metrics`), loaded beside the order parameters.
-                other => d.orders.get(other).map_or(&[][..], |v| v.as_slice()),
-            };
-            // At single precision, as figure-data.ron.gz keeps the curve (its `single` values): a summary
-            // extended from that file gets the same bits.
-            curve_shape(q, &series.iter().map(|&x| x as f32 as f64).collect::<Vec<_>>())
-        }
-        Quantity::Crossplay(name) => d.crossplay.get(name).copied().unwrap_or(f64::NAN),
-        Quantity::Response(e, which) => d.evals.get(e).map_or(f64::NAN, |x| x.response[usize::from(which == "far")]),
-        // Derived from the ones above ([`derive`]): no value of their own. Named, not `_`, so that a new
-        // quantity is a compile error here until it is given a value or declared derived.
-        Quantity::DosChange
-        | Quantity::DoaChange
-        | Quantity::CatchesChange
-        | Quantity::FromStart(_)
-        | Quantity::InteractionDoa(_)
-        | Quantity::Interaction(..)
-        | Quantity::Learned(..)
-        | Quantity::EvalDifference(..) => f64::NAN,
-    }
-}
-
-/// The summary.csv column of a primitive quantity, None for a derived one ([`derive`]): the one place
-/// these names are made.
-pub fn column(q: &Quantity) -> Option<String> {
-    Some(match q {
-        Quantity::DosFirst => "dos_first100".into(),
-        Quantity::DosLast => "dos_last100".into(),
-        Quantity::DoaFirst => "doa_first100".into(),
-        Quantity::DoaLast => "doa_last100".into(),
-        Quantity::CatchesFirst => "catches_first100".into(),
-        Quantity::CatchesLast => "catches_last100".into(),
-        Quantity::TrainingFirst(o) => format!("{o}_first100"),
-        Quantity::TrainingLast(o) => format!("{o}_last100"),
-        Quantity::Reach90(o) => format!("{o}_reach90"),
-        Quantity::Start(o) => format!("{o}_start{START}"),
-        Quantity::Extreme(o) => format!("{o}_{}", extreme_word(o)),
-        Quantity::ExtremeEpisode(o) => format!("{o}_{}_episode", extreme_word(o)),
-        Quantity::AfterExtreme(o) => format!("{o}_after_{}", extreme_word(o)),
-        Quantity::Halfway(o) => format!("{o}_halfway"),
-        Quantity::Reaches(o, level) => format!("{o}_reaches_{level}"),
-        Quantity::EvalDos(e) => format!("eval_{}_dos_settled", super::file::slug(e)),
-        Quantity::EvalDoa(e) => format!("eval_{}_doa_settled", super::file::slug(e)),
-        Quantity::EvalOrder(e, o) => format!("eval_{}_{o}", super::file::slug(e)),
-        Quantity::Crossplay(name) => format!("crossplay_{name}"),
-        Quantity::Response(e, which) => format!("eval_{}_response_{which}", super::file::slug(e)),
-        // Derived ([`derive`]): summary.csv holds what they are computed from (and, for the interactions,
-        // a column `summary::columns` names itself).
-        Quantity::DosChange
-        | Quantity::DoaChange
-        | Quantity::CatchesChange
-        | Quantity::FromStart(_)
-        | Quantity::InteractionDoa(_)
-        | Quantity::Interaction(..)
-        | Quantity::Learned(..)
-        | Quantity::EvalDifference(..) => return None,
-    })
-}
-
-/// Every quantity from primitive ones (`primitive` gives those): the one definition of each derived
-/// quantity, for a run's files ([`quantity`]), for summary.csv (`summary::Summary::quantity`) and for
-/// curves made elsewhere ([`super::external`]) alike. `evaluations`: the experiment's, which the
-/// quantities of a control or an untrained evaluation find their partner among (none for training curves).
-pub fn derive(evaluations: &[super::file::Evaluation], q: &Quantity, primitive: &dyn Fn(&Quantity) -> f64) -> f64 {
-    // An order parameter of an evaluation: DoS and DoA settled, the others as EvalOrder has them.
-    let of_eval = |e: &str, o: &str| match o {
-        "dos" => primitive(&Quantity::EvalDos(e.into())),
-        "doa" => primitive(&Quantity::EvalDoa(e.into())),
-        _ => primitive(&Quantity::EvalOrder(e.into(), o.into())),
-    };
-    let seeing = |e: &str| super::file::seeing_partner(evaluations, e).map(|s| s.name.clone());
-    match q {
-        Quantity::DosChange => primitive(&Quantity::DosLast) - primitive(&Quantity::DosFirst),
-        Quantity::DoaChange => primitive(&Quantity::DoaLast) - primitive(&Quantity::DoaFirst),
-        Quantity::CatchesChange => primitive(&Quantity::CatchesLast) - primitive(&Quantity::CatchesFirst),
-        Quantity::FromStart(o) => {
-            let last = match o.as_str() {
-                "dos" => Quantity::DosLast,
-                "doa" => Quantity::DoaLast,
-                "catches" => Quantity::CatchesLast,
-                other => Quantity::TrainingLast(other.into()),
-            };
-            primitive(&last) - primitive(&Quantity::Start(o.clone()))
-        }
-        Quantity::InteractionDoa(e) => seeing(e).map_or(f64::NAN, |s| of_eval(&s, "doa") - of_eval(e, "doa")),
-        Quantity::Interaction(e, o) => seeing(e).map_or(f64::NAN, |s| of_eval(&s, o) - of_eval(e, o)),
-        Quantity::Learned(e, o) => match super::file::untrained_partner(evaluations, e) {
-            Some(untrained) => of_eval(e, o) - of_eval(&untrained.name, o),
-            None => f64::NAN,
-        },
-        Quantity::EvalDifference(a, b, o) => of_eval(a, o) - of_eval(b, o),
-        _ => primitive(q),
-    }
-}
 
 pub use super::curves::{
     curve_argument_error, curve_shape, extreme_word, reach90, window_mean, AUTHORS_CURVES, CURVES, HALFWAY_WINDOW,
@@ -263,76 +130,6 @@ pub type SameTest = (Vec<u64>, Option<Vec<u64>>, Option<u64>);
 // beside the quantities they read.
 pub use super::verdict::{is_effect, ALPHA};
 
-/// Whether a quantity compares the first and last 100 training episodes (meaningless when they overlap).
-pub fn compares_windows(q: &Quantity) -> bool {
-    matches!(
-        q,
-        Quantity::DosChange
-            | Quantity::DoaChange
-            | Quantity::CatchesChange
-            | Quantity::Reach90(_)
-            | Quantity::Halfway(_)
-            | Quantity::Reaches(..)
-            | Quantity::FromStart(_)
-            | Quantity::Extreme(_)
-            | Quantity::ExtremeEpisode(_)
-            | Quantity::AfterExtreme(_)
-    )
-}
-
-/// The value a level has by chance alone, which a level must be told apart from: the claim's `baseline`,
-/// else for DoA 2/π (independent uniform headings) and for DoS the DoS of uniform random positions at the
-/// density of `scene` (or of the evaluation's counts). None for other levels and for effects.
-pub fn chance_level(exp: &Experiment, claim: &Claim, scene: Option<&crate::scene::Scene>) -> Option<f64> {
-    if claim.baseline.is_some() || is_effect(claim) {
-        return claim.baseline;
-    }
-    // The scene and how many of the headline species there are: in training, or in an evaluation.
-    let headline = |evaluation: Option<&str>| {
-        let scene = scene?;
-        let registry = crate::sim::species::SpeciesRegistry::from_scene(scene);
-        let prey = registry.headline();
-        let name = &registry.defs[prey].name;
-        let counts = evaluation.and_then(|e| exp.spec.evaluations.iter().find(|x| x.name == e));
-        let n = counts
-            .and_then(|e| e.counts.iter().find(|(s, _)| s == name).map(|(_, n)| *n))
-            .unwrap_or(registry.defs[prey].count);
-        Some((scene, n))
-    };
-    let random_dos = |evaluation: Option<&str>| {
-        let (scene, n) = headline(evaluation)?;
-        let arena = crate::sim::space::Arena { edge: scene.world.arena_edge, boundary: scene.world.boundary };
-        crate::sim::metrics::random_dos(&arena, n)
-    };
-    match &claim.quantity {
-        Quantity::DoaFirst | Quantity::DoaLast | Quantity::EvalDoa(_) => Some(std::f64::consts::FRAC_2_PI),
-        Quantity::Start(o) | Quantity::Extreme(o) if o == "doa" => Some(std::f64::consts::FRAC_2_PI),
-        Quantity::DosFirst | Quantity::DosLast => random_dos(None),
-        Quantity::Start(o) | Quantity::Extreme(o) if o == "dos" => random_dos(None),
-        Quantity::EvalDos(e) => random_dos(Some(e)),
-        Quantity::Crossplay(r) => super::crossplay_readouts::chance(r),
-        // The authors' DoS and DoA of random positions and headings at the training density.
-        Quantity::Start(o) | Quantity::TrainingFirst(o) | Quantity::TrainingLast(o)
-            if AUTHORS_CURVES.contains(&o.as_str()) =>
-        {
-            let (scene, n) = headline(None)?;
-            let which = AUTHORS_CURVES.iter().position(|c| c == o)?;
-            crate::sim::metrics::random_authors(scene.world.arena_edge, n).map(|v| v[which])
-        }
-        // Caught prey ranked at random within their group: the mean edge rank of no marginal predation.
-        Quantity::EvalOrder(_, q) | Quantity::TrainingFirst(q) | Quantity::TrainingLast(q)
-            if q == crate::run::schema::EDGE_RANK =>
-        {
-            Some(0.5)
-        }
-        // Independent headings: no correlation between nearest neighbours.
-        Quantity::EvalOrder(_, q) | Quantity::TrainingFirst(q) | Quantity::TrainingLast(q) if q == "nn_correlation" => {
-            Some(0.0)
-        }
-        _ => None,
-    }
-}
-
 impl ClaimResult {
     /// The half-width of the interval shown for this claim: at its family-adjusted level for an effect
     /// (the (1 − 2α_k) interval of TOST for a claim of no effect), the plain 95 % interval for a level.
@@ -346,49 +143,11 @@ impl ClaimResult {
     }
 }
 
-pub fn quantity_name(q: &Quantity) -> String {
-    match q {
-        Quantity::DosFirst => "DoS, first 100 episodes".into(),
-        Quantity::TrainingFirst(q) => format!("{q}, first 100 episodes"),
-        Quantity::TrainingLast(q) => format!("{q}, last 100 episodes"),
-        Quantity::DosLast => "DoS, last 100 episodes".into(),
-        Quantity::DoaFirst => "DoA, first 100 episodes".into(),
-        Quantity::DoaLast => "DoA, last 100 episodes".into(),
-        Quantity::DosChange => "DoS change, last − first 100".into(),
-        Quantity::DoaChange => "DoA change, last − first 100".into(),
-        Quantity::CatchesChange => "catches per episode, change, last − first 100".into(),
-        Quantity::CatchesFirst => "catches per episode, first 100".into(),
-        Quantity::CatchesLast => "catches per episode, last 100".into(),
-        Quantity::Crossplay(r) => format!("cross-play read-out {r}"),
-        Quantity::Response(e, w) => format!("{w} response to one prey turned, in evaluation \"{e}\" (rad)"),
-        Quantity::EvalDos(e) => format!("DoS settled in evaluation \"{e}\""),
-        Quantity::EvalDoa(e) => format!("DoA settled in evaluation \"{e}\""),
-        Quantity::EvalOrder(e, q) => format!("{q} in evaluation \"{e}\""),
-        Quantity::InteractionDoa(e) => format!("DoA seeing minus \"{e}\" (interaction-driven alignment)"),
-        Quantity::Interaction(e, q) => format!("{q} seeing minus \"{e}\""),
-        Quantity::Learned(e, q) => format!("{q} in evaluation \"{e}\", trained minus untrained actors"),
-        Quantity::EvalDifference(a, b, q) => format!("{q} in evaluation \"{a}\" minus in \"{b}\""),
-        Quantity::Reach90(q) => format!("episode at which {q}'s running mean completes 90 % of its change"),
-        Quantity::Halfway(q) => format!(
-            "episode at which {q}'s {HALFWAY_WINDOW}-episode running mean completes half its change from the first {START} episodes"
-        ),
-        Quantity::Reaches(q, level) => format!(
-            "episode at which {q}'s {HALFWAY_WINDOW}-episode running mean first {} {level} (after the run when never)",
-            if q == "dos" { "falls to" } else { "rises to" }
-        ),
-        Quantity::Start(q) => format!("{q}, first {START} episodes (the untrained start)"),
-        Quantity::FromStart(q) => format!("{q}, last 100 episodes minus the first {START}"),
-        Quantity::Extreme(q) => {
-            format!("{q}'s {} 100-episode mean (window chosen on odd episodes, measured on even)", extreme_word(q))
-        }
-        Quantity::ExtremeEpisode(q) => format!("episode ending {q}'s {} 100-episode window", extreme_word(q)),
-        Quantity::AfterExtreme(q) => format!("{q}, last 100 episodes minus its {} (even episodes)", extreme_word(q)),
-    }
-}
-
 #[cfg(test)]
 pub(crate) mod tests {
     use super::*;
+    use crate::experiment::file::{Experiment, Quantity};
+    use crate::experiment::quantity::quantity;
     use crate::experiment::verdict::{hypothesis, paper_precision};
     use std::path::Path;
 

@@ -81,6 +81,7 @@ pub fn load(exp: &Experiment) -> crate::error::Result<BTreeMap<usize, RunData>> 
                 .collect(),
             evals: BTreeMap::new(),
             crossplay: super::crossplay_readouts::read_readouts(&run.dir, &prey)?,
+            distilled: super::distill::read_numbers(&RunDir::new(&run.dir).distilled())?,
             binaries: vec!["unknown".into()],
             kernels: String::new(),
         };

@@ -4,9 +4,9 @@
 //! prey, the centre of the prey in view, the most isolated one), both [`crate::scene`] policies that run
 //! everywhere a rule-based policy runs.
 //!
-//! The data: the run's trained actors deployed without noise (as `--eval` deploys them, at the counts
-//! asked for), every learned agent's observation and the action its actor took on it, step by step. The
-//! first half of the episodes fits, the second half is held out.
+//! The data: the trained swarm at the counts asked for ([`super::swarm::record`]), every learned agent's
+//! observation and the action its actor took on it, step by step. The first half of the episodes fits,
+//! the second half is held out.
 //!
 //! The loss: least squares on the two normalized actions together (thrust and turn in [−1, 1]), the rule
 //! linear in its gains. The zones' radii are chosen from [`RADII`] (fractions of the arena's edge) by
@@ -14,9 +14,7 @@
 //! zone at zero. How well a rule fits is the fraction of each action's variance it explains, as the rule
 //! acts (clamped to [−1, 1]), on the held-out episodes and on the fitted ones.
 
-use crate::learning::Mode;
 use crate::scene::{Overrides, Policy, PursuitGains, PursuitRule, RuleForm, Scene, ZonalRule, ZonalThrust, ZonalTurn};
-use crate::sim::perception::Batches;
 use crate::sim::rules::{observed, observed_of, Own, PursuitFeatures, Seen};
 use crate::sim::species::{SpeciesRegistry, ACTION_DIM};
 use serde::{Deserialize, Serialize};
@@ -71,49 +69,72 @@ impl DistilledFile {
     }
 }
 
-/// Every learned agent's observations and actions, per species, split by episode into fit and held out.
-struct Samples {
-    dim: usize,
-    fit: (Vec<f32>, Vec<f32>),
-    held_out: (Vec<f32>, Vec<f32>),
+/// The numbers of a fitted rule, by name: its policy's ([`ZonalRule::numbers`], [`PursuitRule::numbers`])
+/// and how much it explains on the held-out episodes (`explained_thrust`, `explained_turn`; NaN for an
+/// action that never varied).
+pub fn numbers(d: &Distilled) -> Vec<(String, f64)> {
+    let mut out: Vec<(String, f64)> = match &d.policy {
+        Policy::Zonal(rule) => rule.numbers().iter().map(|(n, v)| (n.to_string(), *v)).collect(),
+        Policy::Pursuit(rule) => rule.numbers().iter().map(|(n, v)| (n.to_string(), *v)).collect(),
+        _ => vec![],
+    };
+    for (name, value) in ["explained_thrust", "explained_turn"].into_iter().zip(d.explained_held_out) {
+        out.push((name.to_string(), value.unwrap_or(f64::NAN)));
+    }
+    // A gain the ridge held at zero may be −0: the same number, shown as 0.
+    out.into_iter().map(|(name, v)| (name, v + 0.0)).collect()
 }
 
-/// Deploys `run`'s actors on `scene` for `episodes` episodes and keeps, per learned species, each agent's
-/// observation and the action it took on it.
-fn collect(scene: &Scene, run: &Path, episodes: usize) -> crate::error::Result<Vec<Option<Samples>>> {
-    let mut learners = crate::learning::Learners::new(scene, Mode::Evaluate);
-    learners.load_actors(scene, Some(run))?;
-    let learned: Vec<bool> = learners.species.iter().map(|l| l.is_some()).collect();
-    let mut sim = crate::learning::simulation_of(scene.clone(), learners, |_| {})?;
+/// Every name [`numbers`] gives, of either rule.
+pub fn names() -> Vec<&'static str> {
+    let mut names: Vec<&str> = ZonalRule::default().numbers().iter().map(|(n, _)| *n).collect();
+    names.extend(
+        PursuitRule::default().numbers().iter().map(|(n, _)| *n).filter(|n| !names.contains(n)).collect::<Vec<_>>(),
+    );
+    names.extend(["explained_thrust", "explained_turn"]);
+    names
+}
+
+/// A run's fitted numbers by (species, form, name); empty without `distilled.ron`.
+pub fn read_numbers(path: &Path) -> crate::error::Result<std::collections::BTreeMap<(String, RuleForm, String), f64>> {
+    if !path.exists() {
+        return Ok(Default::default());
+    }
+    let file = DistilledFile::read(path)?;
+    Ok(file
+        .species
+        .iter()
+        .flat_map(|d| numbers(d).into_iter().map(|(name, v)| ((d.species.clone(), d.form, name), v)))
+        .collect())
+}
+
+/// The (species, form, name) of every number `--distill` fits on runs of `scene`: for every learned
+/// species, a zonal rule's where it has predators, else a pursuit rule's where it has prey.
+pub fn columns(scene: &Scene) -> Vec<(String, RuleForm, String)> {
     let registry = SpeciesRegistry::from_scene(scene);
-    let mut samples: Vec<Option<Samples>> = (0..registry.len())
-        .map(|s| {
-            learned[s].then(|| Samples {
-                dim: registry.observation_dim(s),
-                fit: Default::default(),
-                held_out: Default::default(),
-            })
-        })
-        .collect();
-    let bar = crate::run::step_bar(scene, episodes * scene.episode_steps);
-    for episode in 0..episodes {
-        for _ in 0..scene.episode_steps {
-            let before: Vec<Vec<f32>> =
-                sim.world().resource::<Batches>().species.iter().map(|b| b.observations.clone()).collect();
-            sim.step();
-            sim.check()?;
-            let batches = sim.world().resource::<Batches>();
-            for (s, out) in samples.iter_mut().enumerate() {
-                let Some(out) = out else { continue };
-                let (obs, actions) = if episode < episodes.div_ceil(2) { &mut out.fit } else { &mut out.held_out };
-                let n = batches.species[s].n;
-                obs.extend_from_slice(&before[s][..n * out.dim]);
-                actions.extend_from_slice(&batches.species[s].actions[..n * ACTION_DIM]);
-            }
-            bar.inc(1);
+    let mut out = vec![];
+    for (s, def) in scene.species.iter().enumerate().filter(|(_, d)| d.policy == Policy::Learned) {
+        let policy = if registry.predators_of(s).next().is_some() {
+            Policy::Zonal(ZonalRule::default())
+        } else if registry.prey_of(s).next().is_some() {
+            Policy::Pursuit(PursuitRule::default())
+        } else {
+            continue;
+        };
+        for form in [RuleForm::Memoryless, RuleForm::Inertial] {
+            let d = Distilled {
+                species: def.name.clone(),
+                form,
+                policy: policy.clone(),
+                rows_fitted: 0,
+                rows_held_out: 0,
+                explained_held_out: [None; ACTION_DIM],
+                explained_fitted: [None; ACTION_DIM],
+            };
+            out.extend(numbers(&d).into_iter().map(|(name, _)| (def.name.clone(), form, name)));
         }
     }
-    Ok(samples)
+    out
 }
 
 /// Least squares with [`RIDGE`]: the gains β minimising |y − Xβ|² given XᵀX (`gram`, k×k, row-major),
@@ -384,13 +405,16 @@ pub fn distill(run: &Path, overrides: &Overrides, episodes: usize) -> crate::err
     let dir = crate::run::RunDir::new(run);
     let scene = overrides.load(&dir.scene())?;
     let registry = SpeciesRegistry::from_scene(&scene);
-    let samples = collect(&scene, run, episodes)?;
+    let recorded = super::swarm::record(&scene, run, episodes, 1)?;
     let mut species = vec![];
-    for (s, samples) in samples.iter().enumerate() {
-        let Some(Samples { dim, fit, held_out }) = samples else { continue };
+    for (s, r) in recorded.iter().enumerate() {
+        let Some(r) = r else { continue };
+        // The first half of the episodes fits, the rest is held out.
+        let (dim, fit, held_out) =
+            (&r.dim, r.episodes(episodes.div_ceil(2), false), r.episodes(episodes.div_ceil(2), true));
         let has_predators = registry.predators_of(s).next().is_some();
         for form in [RuleForm::Memoryless, RuleForm::Inertial] {
-            let data = (&fit.0[..], &fit.1[..], *dim);
+            let data = (fit.0, fit.1, *dim);
             let policy = if has_predators {
                 Policy::Zonal(fit_zonal(&scene, &registry, s, data, form))
             } else if registry.prey_of(s).next().is_some() {
@@ -401,8 +425,8 @@ pub fn distill(run: &Path, overrides: &Overrides, episodes: usize) -> crate::err
             species.push(Distilled {
                 species: registry.defs[s].name.clone(),
                 form,
-                explained_held_out: explained(&scene, s, &policy, &held_out.0, &held_out.1, *dim),
-                explained_fitted: explained(&scene, s, &policy, &fit.0, &fit.1, *dim),
+                explained_held_out: explained(&scene, s, &policy, held_out.0, held_out.1, *dim),
+                explained_fitted: explained(&scene, s, &policy, fit.0, fit.1, *dim),
                 rows_fitted: fit.1.len() / ACTION_DIM,
                 rows_held_out: held_out.1.len() / ACTION_DIM,
                 policy,
@@ -489,6 +513,7 @@ mod tests {
     /// Observations of a prey in the standard scene's layout, with its actions from `rule` itself.
     fn rule_data(scene: &Scene, rule: &ZonalRule, rows: usize) -> (Vec<f32>, Vec<f32>) {
         use rand::{Rng, SeedableRng};
+        use std::f32::consts::PI;
         let registry = SpeciesRegistry::from_scene(scene);
         let s = registry.defs.iter().position(|d| d.name == "prey").unwrap();
         let (kin, pred) = (registry.block_offset(s, s), registry.block_offset(s, 1 - s));
@@ -499,7 +524,7 @@ mod tests {
             for (at, n) in [(kin, registry.slots(s, s)), (pred, registry.slots(s, 1 - s))] {
                 for slot in 0..rng.gen_range(0..=n) {
                     let (d, b, h): (f32, f32, f32) =
-                        (rng.gen_range(0.01..1.0), rng.gen_range(-3.14..3.14), rng.gen_range(-3.14..3.14));
+                        (rng.gen_range(0.01..1.0), rng.gen_range(-PI..PI), rng.gen_range(-PI..PI));
                     let i = at + 4 * slot;
                     o[i..i + 4].copy_from_slice(&[d * b.cos(), d * b.sin(), h.cos() - 1.0, h.sin()]);
                 }

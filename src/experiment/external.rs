@@ -1,14 +1,13 @@
 //! Training curves made outside coevo's run folders (another implementation's runs of a scene: the
 //! authors' learner on coevo's world, `python/examples/gym_pps_learner.py`), compared with
-//! coevo's own as a report compares two variants: the same quantities ([`super::claims::derive`]), the
+//! coevo's own as a report compares two variants: the same quantities ([`super::quantity::derive`]), the
 //! same test (Welch's difference, TOST within a margin fixed beforehand), Holm over the family
 //! ([`super::aggregate::adjust`]), and the same words ([`super::verdict::verdict`]). Nothing here reads a
 //! file: the caller hands over each run's per-episode DoS, DoA and catches.
 
-use super::claims::{
-    compares_windows, curve_argument_error, derive, is_effect, primitive, ClaimResult, RunData, CURVES, WINDOW,
-};
+use super::claims::{curve_argument_error, is_effect, ClaimResult, RunData, CURVES, WINDOW};
 use super::file::{Claim, Quantity};
+use super::quantity::{compares_windows, derive, primitive};
 use super::stats::difference;
 use crate::error::{Error, Kind, Result};
 

@@ -186,7 +186,7 @@ fn levels(exp: &Experiment, preset: &str, curve: &str, episodes: usize) -> Vec<L
     let base = exp.spec.variants.first().map(|v| v.name.clone()).unwrap_or_default();
     let scene = exp.runs.iter().find(|r| r.preset == preset && r.variant == base).map(|r| &r.scene);
     let probe = super::file::Claim::of("", &base, last);
-    if let Some(y) = super::claims::chance_level(exp, &probe, scene) {
+    if let Some(y) = super::quantity::chance_level(exp, &probe, scene) {
         out.push(Level { label: "chance".into(), y, x: None, chance: true, colour: 0 });
     }
     out
@@ -289,7 +289,7 @@ fn figures<'a>(
                     format!("{}: episode it first reaches {level}", curve(c)),
                     format!("episode its {}-episode mean first reaches {level}", super::claims::HALFWAY_WINDOW),
                 ),
-                other => (super::claims::quantity_name(other), "episode".into()),
+                other => (super::quantity::quantity_name(other), "episode".into()),
             };
             compared.push((what, x_label, q));
         }

@@ -325,6 +325,11 @@ pub enum Quantity {
     /// another of the same run, per run (paired): e.g. `EvalDifference("50 prey, distilled prey", "50 prey",
     /// "doa")`, what replacing the learned prey by their distilled rule changes.
     EvalDifference(String, String, String),
+    /// A number of the rule `coevo --distill` fitted to one species of the run (`distilled.ron`; needs
+    /// `distill:` in the file): a parameter of its policy by field name (`turn.alignment`,
+    /// `repulsion_radius`, `persistence`, ...) or how much it explains on the held-out episodes
+    /// (`explained_thrust`, `explained_turn`), e.g. `Distilled("prey", Memoryless, "turn.alignment")`.
+    Distilled(String, crate::scene::RuleForm, String),
     /// The episode at which the 100-episode running mean of `dos` or `doa` first completes 90 % of its
     /// change from the first 100 episodes to the last 100 (the paper's time course, Fig. 3).
     Reach90(String),

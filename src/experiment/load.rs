@@ -328,6 +328,21 @@ impl Experiment {
                     ));
                 }
             }
+            if let Quantity::Distilled(_, _, name) = &c.quantity {
+                if spec.distill.is_none() {
+                    return Err(err(
+                        "claims",
+                        format!("Distilled(.., {name:?}) needs distill: (counts: [...], episodes: N) in the file"),
+                    ));
+                }
+                let known = super::distill::names();
+                if !known.contains(&name.as_str()) {
+                    return Err(err(
+                        "claims",
+                        format!("Distilled: no number named {name:?} (one of {})", known.join(", ")),
+                    ));
+                }
+            }
             if let Quantity::Crossplay(r) = &c.quantity {
                 if !crossplay_readouts::READOUTS.contains(&r.as_str()) {
                     return Err(err(

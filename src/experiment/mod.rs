@@ -41,6 +41,7 @@ pub mod force_map;
 mod load;
 pub mod paper_table;
 pub mod plot;
+pub mod quantity;
 pub mod registry;
 pub mod report;
 pub mod response;
@@ -48,6 +49,7 @@ pub mod runner;
 pub mod spread;
 pub mod stats;
 pub mod summary;
+pub mod swarm;
 pub mod trainings;
 pub mod verdict;
 

@@ -1,8 +1,9 @@
 //! What an experiment reports: its REPORT.md, and REPRODUCTION.md over the project's experiment files
 //! (written by `--experiment` and `--plot`, [`super::command`]).
 
-use super::claims::{quantity_name, ClaimResult};
+use super::claims::ClaimResult;
 use super::file::{Experiment, Quantity, EVAL_ORDER, EVAL_ORDER_DIGITS, EVAL_ORDER_LABELS};
+use super::quantity::quantity_name;
 use super::summary;
 use super::verdict::p_shown;
 use crate::sim::metrics::Swarming;

@@ -10,6 +10,13 @@
 //! radius holds no value: no agent there is observed. Beside each field, the action with no one in view
 //! (`alone`), which a neighbour's effect is read against. The action is the normalized one in [−1, 1]: thrust
 //! (−1 none, +1 full) and turn (+1 the fastest turn to the left, −1 to the right).
+//!
+//! A network need not add its inputs' effects, so the same field is also read on a realistic background
+//! ([`Background::Swarm`]): the focal agent's own state and every other slot taken from observations of the
+//! trained swarm (the run's actors deployed without noise, one observation of each agent every
+//! [`SWARM_EVERY`] steps), the probe neighbour placed among the recorded ones by distance as perception
+//! would (a probe farther than every neighbour of a full block is not seen, as in the swarm), and the
+//! actions averaged over the backgrounds; `alone` is then the mean action on the backgrounds themselves.
 
 use crate::learning::{Learners, Mode};
 use crate::scene::{ObservationFrame, Policy, Scene};
@@ -43,13 +50,41 @@ pub struct Field {
     pub alone: [f64; ACTION_DIM],
 }
 
+/// What surrounds the probe neighbour of a field.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Background {
+    /// No one else in view: the focal agent straight ahead at its top speed, every other slot empty.
+    Empty,
+    /// Observations recorded in the trained swarm.
+    Swarm,
+}
+
+/// How many observations of the swarm a field averages over at most, per focal species.
+pub const SWARM_BACKGROUNDS: usize = 64;
+
+/// Steps between two recorded observations of the swarm (so the backgrounds are not one moment).
+pub const SWARM_EVERY: usize = 25;
+
 /// A policy as a function of a batch of observations (`rows` of them, one after the other): `rows` ×
 /// [`ACTION_DIM`] normalized actions.
 pub type Actor<'a> = dyn Fn(usize, &[f32], usize) -> Vec<f32> + 'a;
 
 /// The fields of every species `decides` (an actor per species index, None for a species without one),
-/// for every species it observes (not blind to, with at least one slot), at every [`REL_HEADINGS`].
+/// for every species it observes (not blind to, with at least one slot), at every [`REL_HEADINGS`], with
+/// no one else in view.
 pub fn fields(scene: &Scene, decides: &[bool], act: &Actor) -> Vec<Field> {
+    fields_on(scene, decides, act, &[], &REL_HEADINGS)
+}
+
+/// [`fields`] on the observations `backgrounds[s]` of each species s (rows of its layout), averaged over
+/// them; a species without any gets the empty background. At the relative headings `headings`.
+pub fn fields_on(
+    scene: &Scene,
+    decides: &[bool],
+    act: &Actor,
+    backgrounds: &[Vec<Vec<f32>>],
+    headings: &[f64],
+) -> Vec<Field> {
     let registry = SpeciesRegistry::from_scene(scene);
     let mut out = Vec::new();
     for s in (0..registry.len()).filter(|&s| decides.get(s).copied().unwrap_or(false)) {
@@ -62,30 +97,42 @@ pub fn fields(scene: &Scene, decides: &[bool], act: &Actor) -> Vec<Field> {
         let mut blank = vec![0.0f32; layout.dim()];
         // A full energy budget: the authors' energy input 2·E/E_max − 1.
         layout.place_own(&mut blank, own, 1.0);
-        let alone = act(s, &blank, 1);
-        let alone = [alone[0] as f64, alone[1] as f64];
+        let backs: Vec<Vec<f32>> = match backgrounds.get(s) {
+            Some(b) if !b.is_empty() => b.clone(),
+            _ => vec![blank],
+        };
+        let mean_of = |actions: &[f32], k: usize| {
+            actions.chunks_exact(ACTION_DIM).map(|a| a[k] as f64).sum::<f64>() / backs.len() as f64
+        };
+        let on_backs = act(s, &backs.concat(), backs.len());
+        let alone = [mean_of(&on_backs, 0), mean_of(&on_backs, 1)];
         for t in (0..registry.len()).filter(|&t| registry.slots(s, t) > 0 && !registry.blind[s][t]) {
             // Within the perception radius, and within the half edge (a neighbour farther on the torus is
             // nearer through the other side).
             let reach = registry.perception_radii[s][t].min(scene.world.arena_edge / 2.0);
             let centres: Vec<f64> = (0..GRID).map(|k| reach * (2.0 * (k as f64 + 0.5) / GRID as f64 - 1.0)).collect();
-            let at = registry.block_offset(s, t);
-            for &phi in &REL_HEADINGS {
-                let mut batch = Vec::with_capacity(GRID * GRID * blank.len());
+            let (at, slots) = (registry.block_offset(s, t), registry.slots(s, t));
+            for &phi in headings {
+                let dim = layout.dim();
+                let mut batch = Vec::with_capacity(GRID * GRID * backs.len() * dim);
                 for &left in &centres {
                     for &ahead in &centres {
-                        let mut obs = blank.clone();
-                        let slot = [ahead, left, phi.cos() - 1.0, phi.sin()];
-                        obs[at..at + NEIGHBOUR_DIM].copy_from_slice(&slot.map(|c| c as f32));
-                        batch.extend_from_slice(&obs);
+                        let slot = [ahead, left, phi.cos() - 1.0, phi.sin()].map(|c| c as f32);
+                        for back in &backs {
+                            let mut obs = back.clone();
+                            place_probe(&mut obs[at..at + slots * NEIGHBOUR_DIM], slot);
+                            batch.extend_from_slice(&obs);
+                        }
                     }
                 }
-                let actions = act(s, &batch, GRID * GRID);
+                let actions = act(s, &batch, GRID * GRID * backs.len());
+                let per_cell = backs.len() * ACTION_DIM;
                 let cell = |row: usize, column: usize, k: usize| {
                     let (ahead, left) = (centres[column], centres[row]);
                     let seen = ahead.hypot(left) <= registry.perception_radii[s][t] && (ahead, left) != (0.0, 0.0);
                     if seen {
-                        actions[(row * GRID + column) * ACTION_DIM + k] as f64
+                        let from = (row * GRID + column) * per_cell;
+                        mean_of(&actions[from..from + per_cell], k)
                     } else {
                         f64::NAN
                     }
@@ -106,11 +153,34 @@ pub fn fields(scene: &Scene, decides: &[bool], act: &Actor) -> Vec<Field> {
     out
 }
 
+/// Places the probe `slot` into a block of neighbour slots (nearest first, empty ones zero) where its
+/// distance puts it, the farthest dropping out of a full block: as perception would have written the block
+/// with one more agent there.
+fn place_probe(block: &mut [f32], slot: [f32; NEIGHBOUR_DIM]) {
+    let distance = |s: &[f32]| s[0].hypot(s[1]);
+    let mut seen: Vec<[f32; NEIGHBOUR_DIM]> = block
+        .chunks_exact(NEIGHBOUR_DIM)
+        .map(|s| s.try_into().expect("a slot"))
+        .filter(|s: &[f32; NEIGHBOUR_DIM]| *s != [0.0; NEIGHBOUR_DIM])
+        .collect();
+    let k = seen.iter().position(|s| distance(s) > distance(&slot)).unwrap_or(seen.len());
+    seen.insert(k, slot);
+    block.fill(0.0);
+    for (to, from) in block.chunks_exact_mut(NEIGHBOUR_DIM).zip(&seen) {
+        to.copy_from_slice(from);
+    }
+}
+
 /// The fields of a run's trained actors (its `Learned` and `Frozen` species) and of its rule-based
-/// species (the rules read the same observations).
-pub fn of_run(run: &Path) -> crate::error::Result<(Scene, Vec<Field>)> {
+/// species (the rules read the same observations), on `background`: with no one else in view at every
+/// [`REL_HEADINGS`], or in the trained swarm for a parallel neighbour.
+pub fn of_run(run: &Path, background: Background) -> crate::error::Result<(Scene, Vec<Field>)> {
     let dir = a_run(run)?;
     let scene = Scene::load(&dir.scene())?;
+    let (backgrounds, headings) = match background {
+        Background::Empty => (vec![], &REL_HEADINGS[..]),
+        Background::Swarm => (swarm(&scene, run)?, &REL_HEADINGS[..1]),
+    };
     let mut learners = Learners::new(&scene, Mode::Evaluate);
     learners.load_actors(&scene, Some(run))?;
     let registry = SpeciesRegistry::from_scene(&scene);
@@ -131,8 +201,23 @@ pub fn of_run(run: &Path) -> crate::error::Result<(Scene, Vec<Field>)> {
                 .collect(),
         }
     };
-    let fields = fields(&scene, &decides, &act);
+    let fields = fields_on(&scene, &decides, &act, &backgrounds, headings);
     Ok((scene, fields))
+}
+
+/// Observations of the trained swarm per species, at most [`SWARM_BACKGROUNDS`] each, evenly spread over
+/// one episode of the run's scene sampled every [`SWARM_EVERY`] steps.
+fn swarm(scene: &Scene, run: &Path) -> crate::error::Result<Vec<Vec<Vec<f32>>>> {
+    let recorded = super::swarm::record(scene, run, 1, SWARM_EVERY)?;
+    Ok(recorded
+        .into_iter()
+        .map(|r| {
+            let Some(r) = r else { return vec![] };
+            let rows: Vec<&[f32]> = r.observations.chunks_exact(r.dim).collect();
+            let step = rows.len().div_ceil(SWARM_BACKGROUNDS).max(1);
+            rows.into_iter().step_by(step).map(<[f32]>::to_vec).collect()
+        })
+        .collect())
 }
 
 /// `run` as a run folder with trained actors this program can deploy (its species plugins).
@@ -178,8 +263,9 @@ pub fn csv(fields: &[Field]) -> String {
 #[derive(clap::Args, Debug, Clone, Default)]
 pub struct ResponseArgs {
     /// The rule each species of a run follows: its thrust and turn as a function of where one neighbour of
-    /// each observed species is (the response field, read off the trained actors and the rules); writes
-    /// DIR/response.csv and heat maps in DIR/figures/.
+    /// each observed species is (the response field, read off the trained actors and the rules), with no
+    /// one else in view (DIR/response.csv) and amid observations of the trained swarm
+    /// (DIR/response-swarm.csv); heat maps of both in DIR/figures/.
     #[arg(long, help_heading = "Modes", value_name = "DIR")]
     pub response: Option<PathBuf>,
 }
@@ -196,20 +282,25 @@ pub fn main(run: &Path) -> crate::error::Result<()> {
     let dir = a_run(run)?;
     // A writer of a run: refuses a shipped run and one another process is writing.
     let _lock = dir.lock()?;
-    let (_, fields) = of_run(run)?;
-    let csv_path = run.join("response.csv");
-    crate::io::write_file(&csv_path, crate::io::Existing::Replace, csv(&fields).as_bytes())?;
     crate::io::own_dir(&dir.figures())?;
-    let mut written = vec![csv_path.display().to_string()];
-    for f in fields.iter().filter(|f| f.rel_heading == 0.0) {
-        let map = |what: &str, values: &[Vec<f64>], diverging: bool, alone: f64| {
-            let title = format!("{}: {what}, one {} parallel (alone: {alone:+.2})", f.species, f.observed);
-            super::plot::Heatmap::body_frame(title, &f.centres, values, diverging)
-        };
-        let stem = dir.figures().join(format!("response-{}-{}", f.species, f.observed));
-        let maps = [map("turn (+ left)", &f.turn, true, f.alone[1]), map("thrust", &f.thrust, false, f.alone[0])];
-        super::plot::save_heatmaps(&stem, &maps)?;
-        written.push(format!("{}.svg", stem.display()));
+    let mut written = vec![];
+    for (background, stem, context) in
+        [(Background::Empty, "response", "parallel"), (Background::Swarm, "response-swarm", "parallel, in the swarm")]
+    {
+        let (_, fields) = of_run(run, background)?;
+        let csv_path = run.join(format!("{stem}.csv"));
+        crate::io::write_file(&csv_path, crate::io::Existing::Replace, csv(&fields).as_bytes())?;
+        written.push(csv_path.display().to_string());
+        for f in fields.iter().filter(|f| f.rel_heading == 0.0) {
+            let map = |what: &str, values: &[Vec<f64>], diverging: bool, alone: f64| {
+                let title = format!("{}: {what}, one {} {context} (alone: {alone:+.2})", f.species, f.observed);
+                super::plot::Heatmap::body_frame(title, &f.centres, values, diverging)
+            };
+            let path = dir.figures().join(format!("{stem}-{}-{}", f.species, f.observed));
+            let maps = [map("turn (+ left)", &f.turn, true, f.alone[1]), map("thrust", &f.thrust, false, f.alone[0])];
+            super::plot::save_heatmaps(&path, &maps)?;
+            written.push(format!("{}.svg", path.display()));
+        }
     }
     for line in written {
         crate::outln!("wrote {line}")?;
@@ -292,5 +383,48 @@ mod tests {
         // Alone, a fleer runs straight at full thrust.
         assert_eq!(f.alone, [1.0, 0.0]);
         assert!(!csv.contains("NaN"));
+    }
+
+    #[test]
+    fn a_probe_is_placed_among_the_recorded_neighbours_by_distance() {
+        let slot = |d: f32| [d, 0.0, 0.0, 0.0];
+        let mut block: Vec<f32> = [slot(0.2), slot(0.5), [0.0; 4]].concat();
+        place_probe(&mut block, slot(0.3));
+        assert_eq!(block, [slot(0.2), slot(0.3), slot(0.5)].concat());
+        // A full block: a nearer probe pushes the farthest out, a farther one is not seen.
+        place_probe(&mut block, slot(0.1));
+        assert_eq!(block, [slot(0.1), slot(0.2), slot(0.3)].concat());
+        place_probe(&mut block, slot(0.7));
+        assert_eq!(block, [slot(0.1), slot(0.2), slot(0.3)].concat());
+    }
+
+    #[test]
+    fn a_field_on_the_empty_background_is_the_field_alone_and_a_swarm_background_averages() {
+        let scene = rules();
+        let registry = SpeciesRegistry::from_scene(&scene);
+        let act = |s: usize, batch: &[f32], _: usize| -> Vec<f32> {
+            let mut rng = rand::rngs::mock::StepRng::new(0, 0);
+            batch
+                .chunks_exact(registry.observation_dim(s))
+                .flat_map(|o| crate::sim::policy::rule_action(o, &registry, s, &scene, &mut rng).unwrap())
+                .collect()
+        };
+        let decides = vec![true; registry.len()];
+        // (compared as their CSV: NaN, where unobserved, equals nothing)
+        assert!(csv(&fields_on(&scene, &decides, &act, &[], &REL_HEADINGS)) == csv(&rule_fields(&scene)));
+        // A prey background with a predator close on its right: the fleer turns left (+1) there unless the
+        // probe predator is nearer; alone (no probe) it turns left.
+        let prey = registry.defs.iter().position(|d| d.name == "prey").unwrap();
+        let predator = 1 - prey;
+        let mut back = vec![0.0f32; registry.observation_dim(prey)];
+        let at = registry.block_offset(prey, predator);
+        back[at..at + 4].copy_from_slice(&[0.0, -0.2, 0.0, 0.0]);
+        let mut backgrounds = vec![vec![]; registry.len()];
+        backgrounds[prey] = vec![back];
+        let all = fields_on(&scene, &decides, &act, &backgrounds, &REL_HEADINGS[..1]);
+        let f = all.iter().find(|f| f.species == "prey" && f.observed == "predator").unwrap();
+        assert_eq!(f.alone[1], 1.0);
+        assert!(turn_at(f, 0.0, 0.1) < 0.0, "a nearer predator on the left turns it right");
+        assert_eq!(turn_at(f, 0.0, 0.5), 1.0, "a farther one leaves the nearest recorded predator to flee");
     }
 }

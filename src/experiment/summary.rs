@@ -2,8 +2,9 @@
 //! written and read by one definition of their columns ([`columns`]). The claims are computed from
 //! `summary.csv` alone, so a clone without run folders recomputes them exactly.
 
-use super::claims::{column, derive, quantity, window_mean, RunData};
+use super::claims::{window_mean, RunData};
 use super::file::{slug, Experiment, Quantity};
+use super::quantity::{column, derive, quantity};
 use super::stats::estimate;
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
@@ -49,6 +50,13 @@ pub fn columns(exp: &Experiment) -> Vec<(String, Quantity)> {
     if exp.spec.crossplay.is_some() {
         quantities
             .extend(super::crossplay_readouts::READOUTS.iter().map(|r| named(Quantity::Crossplay(r.to_string()))));
+    }
+    if exp.spec.distill.is_some() {
+        if let Some(run) = exp.runs.first() {
+            quantities.extend(
+                super::distill::columns(&run.scene).into_iter().map(|(s, f, n)| named(Quantity::Distilled(s, f, n))),
+            );
+        }
     }
     quantities.extend([named(Quantity::CatchesFirst), named(Quantity::CatchesLast)]);
     // A level some claim times a curve against (`Reaches`): a column only in the experiments that ask for
@@ -293,7 +301,7 @@ impl Summary {
         self.columns.iter().position(|c| c == column).map_or(f64::NAN, |i| row.values[i])
     }
 
-    /// A run's value of a quantity, from its row ([`super::claims::quantity`] computes the same from the
+    /// A run's value of a quantity, from its row ([`super::quantity::quantity`] computes the same from the
     /// run's own files; both through [`derive`]).
     pub fn quantity(&self, exp: &Experiment, row: &SummaryRow, q: &Quantity) -> f64 {
         derive(&exp.spec.evaluations, q, &|p| column(p).map_or(f64::NAN, |c| self.value(row, &c)))

@@ -41,8 +41,9 @@ pub struct SceneArgs {
     #[arg(long, help_heading = "Scene", value_name = "NAME=N")]
     pub count: Vec<String>,
     /// A species' policy, as NAME=POLICY with POLICY as a scene file writes it: ChaseNearest, FleeNearest,
-    /// FleeInside, Random, Still, Frozen("RUN") (repeatable; --eval, --record, --animate, --describe-scene), e.g.
-    /// --policy predator=ChaseNearest evaluates trained prey against the paper's rule-based predators.
+    /// FleeInside, Random, Still, Frozen("RUN"), or a rule --distill fitted, Zonal((...)) or Pursuit((...))
+    /// (repeatable; --eval, --record, --animate, --describe-scene), e.g. --policy predator=ChaseNearest
+    /// evaluates trained prey against the paper's rule-based predators.
     #[arg(long, help_heading = "Scene", value_name = "NAME=POLICY")]
     pub policy: Vec<String>,
     /// Deploy a species' snapshot instead of its trained actor, as NAME=EPISODE (repeatable; --eval,

@@ -392,7 +392,8 @@ pub fn evaluate(opts: &EvalOptions) -> crate::error::Result<String> {
         .defs
         .iter()
         .map(|d| match opts.overrides.policies.iter().any(|(name, _)| *name == d.name) {
-            true => format!("{} {} ({:?})", d.count, d.name, d.policy),
+            // As a scene file or --policy writes it (a fitted rule with all its numbers).
+            true => format!("{} {} ({})", d.count, d.name, ron::to_string(&d.policy).unwrap_or_default()),
             false => format!("{} {}", d.count, d.name),
         })
         .collect();

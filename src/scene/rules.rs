@@ -18,7 +18,7 @@ use serde::{Deserialize, Serialize};
 /// alignment `repulsion_radius` ≤ d < `alignment_radius`, attraction `alignment_radius` ≤ d <
 /// `attraction_radius`; predators within `evasion_radius` are evaded. A zone whose inner and outer radii
 /// are equal is empty. Only the agents the observation holds count (the nearest `topological_limit`).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ZonalRule {
     /// Outer radius of each zone, in metres.

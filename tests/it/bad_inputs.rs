@@ -213,7 +213,8 @@ fn damage(root: &Path) {
     }
 }
 
-fn copy_dir(from: &Path, to: &Path) {
+/// A copy of the folder `from` at `to` (files and folders only).
+pub(super) fn copy_dir(from: &Path, to: &Path) {
     std::fs::create_dir_all(to).unwrap();
     for entry in std::fs::read_dir(from).unwrap() {
         let entry = entry.unwrap();

@@ -1249,3 +1249,65 @@ fn every_committed_mean_rederives_from_its_summary() {
     }
     assert!(checked > 1000, "{checked} lines");
 }
+
+#[test]
+fn an_experiment_distills_its_runs_and_deploys_the_rules_with_their_ablations() {
+    let dir = workspace();
+    let text = TINY
+        .replace(
+            "(name: \"50 prey, blind\",",
+            "(name: \"50 prey, distilled prey\", counts: [(\"prey\", 50)], episodes: 2, steps: 20, distilled: [(species: \"prey\")]),\n        \
+             (name: \"50 prey, distilled prey without alignment\", counts: [(\"prey\", 50)], episodes: 2, steps: 20, distilled: [(species: \"prey\", without: [Alignment])]),\n        \
+             (name: \"50 prey, inertial distilled\", counts: [(\"prey\", 50)], episodes: 2, steps: 20, distilled: [(species: \"prey\", form: Inertial), (species: \"predator\", form: Inertial)]),\n        \
+             (name: \"50 prey, blind\",",
+        )
+        .replace("    claims: [", "    distill: (counts: [(\"prey\", 20)], episodes: 2, steps: 20),\n    claims: [")
+        .replace(
+            "(text: \"catches\",",
+            "(text: \"distilled minus learned\", variant: \"5:3\", quantity: EvalDifference(\"50 prey, distilled prey\", \"50 prey\", \"doa\"), margin: 0.05),\n        \
+             (text: \"the fitted alignment gain\", variant: \"5:3\", quantity: Distilled(\"prey\", Memoryless, \"turn.alignment\")),\n        \
+             (text: \"catches\",",
+        );
+    std::fs::write(dir.path().join("experiments/tiny.ron"), &text).unwrap();
+    let out = coevo(dir.path(), &["--experiment", "experiments/tiny.ron", "--jobs", "2"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let run = dir.path().join("results/tiny/paper/5-3/seed1");
+    let fitted = coevo::experiment::distill::DistilledFile::read(&run.join("distilled.ron")).unwrap();
+    assert_eq!(
+        (fitted.counts.iter().find(|(s, _)| s == "prey").unwrap().1, fitted.episodes, fitted.steps),
+        (20, 2, 20)
+    );
+    assert_eq!(fitted.species.len(), 4, "prey and predators, memoryless and inertial");
+    // The distilled evaluation ran the fitted rule: its file names it, and it differs from the learned prey.
+    for name in ["distilled-prey", "distilled-prey-without-alignment", "inertial-distilled"] {
+        assert!(run.join(format!("eval-50-prey-{name}.csv")).exists(), "{name}");
+    }
+    let summary = std::fs::read_to_string(dir.path().join("results/tiny/summary.csv")).unwrap();
+    let header: Vec<&str> = summary.lines().next().unwrap().split(',').collect();
+    for column in [
+        "distilled_prey_memoryless_turn_alignment",
+        "distilled_predator_inertial_persistence",
+        "distilled_prey_inertial_explained_turn",
+    ] {
+        let at = header.iter().position(|h| *h == column).unwrap_or_else(|| panic!("a column {column}"));
+        for row in summary.lines().skip(1) {
+            assert!(row.split(',').nth(at).unwrap().parse::<f64>().unwrap().is_finite(), "{column}: {row}");
+        }
+    }
+    let md = std::fs::read_to_string(dir.path().join("results/tiny/REPORT.md")).unwrap();
+    assert!(md.contains("doa in evaluation \"50 prey, distilled prey\" minus in \"50 prey\""), "{md}");
+    assert!(md.contains("turn.alignment of the Memoryless rule fitted to the prey"), "{md}");
+    redrawn_without_run_folders(dir.path());
+    // Deploying fitted rules needs the fit; an ablation needs a zonal rule; a number must be one a rule has.
+    for (from, to, says) in [
+        ("    distill: (counts: [(\"prey\", 20)], episodes: 2, steps: 20),\n", "", "needs distill:"),
+        ("(species: \"prey\", without: [Alignment])", "(species: \"predator\", without: [Alignment])", "has none"),
+        ("\"turn.alignment\"", "\"turn.nope\"", "no number named \"turn.nope\""),
+    ] {
+        let bad = text.replace(from, to);
+        assert_ne!(bad, text);
+        std::fs::write(dir.path().join("experiments/bad.ron"), bad).unwrap();
+        let stderr = refused(dir.path(), &["--experiment", "experiments/bad.ron"]);
+        assert!(stderr.contains(says), "{stderr}");
+    }
+}

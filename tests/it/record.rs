@@ -259,3 +259,34 @@ fn a_response_of_no_run_is_one_line_and_makes_nothing() {
     assert!(!o.status.success() && stderr.lines().count() == 1 && stderr.contains("not a run folder"), "{stderr}");
     assert!(!missing.exists(), "no folder made for a path that was not there");
 }
+
+#[test]
+fn distilled_rules_are_fitted_to_a_trained_run_and_deployed_as_scene_policies() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = dir.path().join("trained");
+    super::bad_inputs::copy_dir(std::path::Path::new("assets/trained-standard"), &run);
+    let r = run.to_str().unwrap();
+    let o = coevo(&["--distill", r, "--prey", "20", "--episodes", "2", "--steps", "60", "--quiet"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(stdout.contains("prey (Memoryless): variance explained on held-out episodes"), "{stdout}");
+    let fitted = coevo::experiment::distill::DistilledFile::read(&run.join("distilled.ron")).unwrap();
+    let rule = fitted.policy("prey", coevo::scene::RuleForm::Inertial).unwrap();
+    assert!(matches!(rule, coevo::scene::Policy::Zonal(_)));
+    assert!(matches!(
+        fitted.policy("predator", coevo::scene::RuleForm::Memoryless),
+        Some(coevo::scene::Policy::Pursuit(_))
+    ));
+    // The fitted rule is a policy like any other: --eval deploys it, and says so.
+    let policy = format!("prey={}", ron::to_string(rule).unwrap());
+    let o = coevo(&["--eval", r, "--prey", "20", "--steps", "30", "--policy", &policy, "--eval-out", "eval-rule.csv"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(String::from_utf8_lossy(&o.stdout).contains("20 prey (Zonal((repulsion_radius:"));
+    // One line, nothing written: too few episodes to hold any out, and a folder without a run.
+    let o = coevo(&["--distill", r, "--episodes", "1"]);
+    assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).lines().count() == 1);
+    assert!(String::from_utf8_lossy(&o.stderr).contains("needs ≥ 2"));
+    let o = coevo(&["--distill", dir.path().join("none").to_str().unwrap()]);
+    assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("not a run folder with trained actors"));
+    assert!(!dir.path().join("none").exists());
+}
