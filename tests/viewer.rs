@@ -536,3 +536,26 @@ fn ctrl_c_ends_the_viewer_as_an_interruption_not_an_error() {
     assert_eq!(status.code(), Some(130), "{stderr}");
     assert!(stderr.contains("coevo: interrupted") && !stderr.contains("coevo: error"), "{stderr}");
 }
+
+#[test]
+fn the_selected_agents_rule_is_drawn_around_it_and_a_bad_species_is_one_line() {
+    // The shipped run, paused on its first state, the same agent selected: with the overlay the arena
+    // gains the field's red and blue cells around the selected prey, and nothing else changes (the panel's
+    // checkbox aside, the same frame).
+    let run = "assets/trained-standard";
+    let args = ["--watch", run, "--select", "5", "--paused", "--seed", "4"];
+    let (w, h, plain) = screenshot(&args);
+    let (_, _, ruled) = screenshot(&[&args[..], &["--rule-of", "predator"]].concat());
+    // Only the arena (between the panels) counts: the panel's checkbox differs too.
+    let (x0, x1) = (w * 3 / 10, w * 7 / 10);
+    let tinted = |p: &[u8; 3]| (p[0] as i32 - p[1] as i32).abs() > 25 || (p[2] as i32 - p[1] as i32).abs() > 25;
+    let changed = (0..h)
+        .flat_map(|y| (x0..x1).map(move |x| (y * w + x) as usize))
+        .filter(|&i| plain[i] != ruled[i] && tinted(&ruled[i]))
+        .count();
+    assert!(changed > 2000, "{changed} arena pixels tinted by the rule overlay");
+    let out = under_xvfb(&["--watch", run, "--select", "5", "--rule-of", "hawk", "--screenshot", "/tmp/none.png"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && stderr.contains("--rule-of hawk: no species of that name"), "{stderr}");
+    assert!(!Path::new("/tmp/none.png").exists());
+}

@@ -187,22 +187,46 @@ pub fn of_run(run: &Path, background: Background) -> crate::error::Result<(Scene
     let decides: Vec<bool> =
         (0..registry.len()).map(|s| !matches!(registry.policy(s), Policy::Plugin(_) | Policy::Random)).collect();
     let dev = crate::learning::nets::Dev::default();
-    let mut rng = rand::rngs::mock::StepRng::new(0, 0);
-    let rng = std::cell::RefCell::new(&mut rng);
-    let act = |s: usize, batch: &[f32], rows: usize| -> Vec<f32> {
-        match &learners.species[s] {
-            Some(l) => l.ddpg.act(&dev, batch, rows),
-            None => batch
-                .chunks_exact(registry.observation_dim(s))
-                .flat_map(|obs| {
-                    crate::sim::policy::rule_action(obs, &registry, s, &scene, &mut **rng.borrow_mut())
-                        .unwrap_or([0.0; ACTION_DIM])
-                })
-                .collect(),
-        }
-    };
+    let act = |s: usize, batch: &[f32], rows: usize| actions(&learners, &registry, &scene, &dev, s, batch, rows);
     let fields = fields_on(&scene, &decides, &act, &backgrounds, headings);
     Ok((scene, fields))
+}
+
+/// What species `s` does on `rows` observations (`batch`, one after the other): its actor's actions where
+/// it has one (without noise), else its rule's ([`crate::sim::policy::rule_action`]; zeros for a species
+/// neither decides, and `Random`'s stream held still).
+pub fn actions(
+    learners: &Learners,
+    registry: &SpeciesRegistry,
+    scene: &Scene,
+    dev: &crate::learning::nets::Dev,
+    s: usize,
+    batch: &[f32],
+    rows: usize,
+) -> Vec<f32> {
+    match learners.species.get(s).and_then(Option::as_ref) {
+        Some(l) => l.ddpg.act(dev, batch, rows),
+        None => {
+            let mut rng = rand::rngs::mock::StepRng::new(0, 0);
+            batch
+                .chunks_exact(registry.observation_dim(s))
+                .flat_map(|obs| {
+                    crate::sim::policy::rule_action(obs, registry, s, scene, &mut rng).unwrap_or([0.0; ACTION_DIM])
+                })
+                .collect()
+        }
+    }
+}
+
+/// The field of species `s` for one more agent of species `t`, parallel to it, amid the observation `obs`
+/// of one of its agents: the rule that agent follows where it is now (the viewer's overlay).
+pub fn field_here(scene: &Scene, act: &Actor, s: usize, t: usize, obs: &[f32]) -> Option<Field> {
+    let registry = SpeciesRegistry::from_scene(scene);
+    let decides: Vec<bool> = (0..registry.len()).map(|k| k == s).collect();
+    let mut backgrounds = vec![vec![]; registry.len()];
+    backgrounds[s] = vec![obs.to_vec()];
+    let observed = registry.defs.get(t)?.name.clone();
+    fields_on(scene, &decides, act, &backgrounds, &REL_HEADINGS[..1]).into_iter().find(|f| f.observed == observed)
 }
 
 /// Observations of the trained swarm per species, at most [`SWARM_BACKGROUNDS`] each, evenly spread over

@@ -40,6 +40,10 @@ pub struct ViewerArgs {
     /// Viewer: select the agent with this id (its perception radius, neighbours and observation).
     #[arg(long, help_heading = "Viewer", value_name = "ID")]
     pub select: Option<u32>,
+    /// Viewer, with --select: show the selected agent's rule from the start: how it would turn with one
+    /// more agent of SPECIES at each place around it, amid what it sees now (the panel's "its rule").
+    #[arg(long, help_heading = "Viewer", value_name = "SPECIES")]
+    pub rule_of: Option<String>,
 }
 
 impl crate::run::args::Mode for ViewerArgs {

@@ -43,7 +43,15 @@ pub struct Overlays {
     pub trail_length: usize,
     pub catches: bool,
     pub perception: bool,
+    /// The rule of the selected agent where it is now: how it would turn with one more agent of species
+    /// `rule_of` at each place around it (its response field amid its current observation).
+    pub rule: bool,
+    pub rule_of: usize,
 }
+
+/// The gizmos of the rule overlay ([`draw_rule`]): thicker lines, so its hatched cells read as filled.
+#[derive(Default, Reflect, GizmoConfigGroup)]
+struct RuleGizmos;
 
 /// The selected agent, by id so that it stays selected across respawns.
 #[derive(Resource, Default, Clone, Copy, Debug)]
@@ -82,30 +90,45 @@ struct Looks {
 pub struct DrawPlugin {
     pub trails: bool,
     pub select: Option<u32>,
+    pub rule_of: Option<usize>,
 }
 
 impl Plugin for DrawPlugin {
     fn build(&self, app: &mut App) {
-        app.insert_resource(Overlays { trails: self.trails, trail_length: 60, catches: true, perception: true })
-            .insert_resource(Selection(self.select.map(AgentId)))
-            .init_resource::<PanelSpace>()
-            .init_resource::<Looks>()
-            .add_systems(Startup, spawn_camera)
-            .add_systems(PostStartup, no_msaa_on_software_rendering)
-            .add_systems(
-                Update,
-                (
-                    dress_scene.run_if(resource_changed::<ActiveScene>),
-                    dress_agents,
-                    place_agents,
-                    place_ghosts,
-                    fit_camera,
-                    select_on_click,
-                    draw_overlays,
-                )
-                    .chain()
-                    .in_set(ViewerSet::Draw),
-            );
+        app.insert_resource(Overlays {
+            trails: self.trails,
+            trail_length: 60,
+            catches: true,
+            perception: true,
+            rule: self.rule_of.is_some(),
+            rule_of: self.rule_of.unwrap_or(0),
+        })
+        .insert_resource(Selection(self.select.map(AgentId)))
+        .init_resource::<PanelSpace>()
+        .init_resource::<Looks>()
+        .init_gizmo_group::<RuleGizmos>()
+        .add_systems(
+            Startup,
+            (spawn_camera, |mut store: ResMut<GizmoConfigStore>| {
+                store.config_mut::<RuleGizmos>().0.line.width = 3.0;
+            }),
+        )
+        .add_systems(PostStartup, no_msaa_on_software_rendering)
+        .add_systems(
+            Update,
+            (
+                dress_scene.run_if(resource_changed::<ActiveScene>),
+                dress_agents,
+                place_agents,
+                place_ghosts,
+                fit_camera,
+                select_on_click,
+                draw_overlays,
+                draw_rule,
+            )
+                .chain()
+                .in_set(ViewerSet::Draw),
+        );
     }
 }
 
@@ -474,6 +497,71 @@ fn draw_overlays(
                         wrapped_line(&mut gizmos, &arena, x.0, to, (c, c));
                     }
                 }
+            }
+        }
+    }
+}
+
+/// The field last drawn: the observation it was computed on, the probed species and the field.
+type DrawnRule = Option<(Vec<f32>, usize, crate::experiment::response::Field)>;
+
+/// The selected agent's response field amid its current observation ([`Overlays::rule`]): a cell per
+/// place of the probe agent, red where the probe would turn the agent more to the left than it turns
+/// now, blue more to the right, as strong as the difference. The field is computed again only when the
+/// observation or the probed species changes.
+#[allow(clippy::too_many_arguments)]
+fn draw_rule(
+    mut gizmos: Gizmos<RuleGizmos>,
+    overlays: Res<Overlays>,
+    selection: Res<Selection>,
+    arena: Res<Arena>,
+    batches: Res<Batches>,
+    scene: Res<crate::sim::ActiveScene>,
+    learners: Res<crate::learning::Learners>,
+    agents: Query<(&AgentId, &Position, &Heading, &SpeciesId, &Slot)>,
+    mut drawn: Local<DrawnRule>,
+) {
+    use crate::experiment::response::{actions, field_here};
+    if !overlays.rule {
+        return;
+    }
+    let Some((_, x, heading, s, slot)) = agents.iter().find(|(id, ..)| selection.0 == Some(**id)) else { return };
+    let Some(batch) = batches.species.get(s.0).filter(|b| (slot.row as usize) < b.n) else { return };
+    let obs = batch.observation(slot.row as usize);
+    let t = overlays.rule_of;
+    if !drawn.as_ref().is_some_and(|(o, probed, _)| o == obs && *probed == t) {
+        let registry = SpeciesRegistry::from_scene(&scene.0);
+        let dev = crate::learning::nets::Dev::default();
+        let act = |k: usize, b: &[f32], rows: usize| actions(&learners, &registry, &scene.0, &dev, k, b, rows);
+        *drawn = field_here(&scene.0, &act, s.0, t, obs).map(|f| (obs.to_vec(), t, f));
+    }
+    let Some((_, _, field)) = drawn.as_ref() else { return };
+    let width = (field.centres[1] - field.centres[0]) as f32;
+    let turned = |d: DVec2| match scene.0.observation_frame {
+        crate::scene::ObservationFrame::World => d,
+        crate::scene::ObservationFrame::Body => d.rotate(heading.unit()),
+    };
+    let angle = match scene.0.observation_frame {
+        crate::scene::ObservationFrame::World => 0.0,
+        crate::scene::ObservationFrame::Body => heading.unit().to_angle() as f32,
+    };
+    // Each cell hatched with lines across it, so it reads as filled at any zoom the arena is drawn at.
+    const HATCHES: usize = 4;
+    let across = Vec2::from_angle(angle + std::f32::consts::FRAC_PI_2);
+    let along = Vec2::from_angle(angle);
+    for (row, &left) in field.centres.iter().enumerate() {
+        for (column, &ahead) in field.centres.iter().enumerate() {
+            let change = field.turn[row][column] - field.alone[1];
+            if !change.is_finite() || change.abs() < 0.02 {
+                continue;
+            }
+            let at = arena.wrap(x.0 + turned(DVec2::new(ahead, left))).as_vec2();
+            let colour = if change > 0.0 { Color::srgb(0.8, 0.1, 0.1) } else { Color::srgb(0.1, 0.25, 0.85) };
+            let colour = colour.with_alpha(0.85 * (2.0 * change.abs()).min(1.0) as f32);
+            for k in 0..HATCHES {
+                let offset = across * width * ((k as f32 + 0.5) / HATCHES as f32 - 0.5);
+                let half = along * width * 0.5;
+                gizmos.line_2d(at + offset - half, at + offset + half, colour);
             }
         }
     }

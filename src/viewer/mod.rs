@@ -57,6 +57,8 @@ pub struct ViewerOptions {
     pub trails: bool,
     /// The agent selected at start, by id.
     pub select: Option<u32>,
+    /// Show the selected agent's rule against this species (its index) from the start.
+    pub rule_of: Option<usize>,
     /// Render this many frames, save a PNG and exit.
     pub screenshot: Option<ScreenshotRequest>,
     /// Live training: save the run into this folder when the current episode ends.
@@ -102,7 +104,7 @@ impl Plugin for ViewerPlugin {
         app.init_resource::<ExitReason>();
         app.add_systems(Last, unsaved_on_exit.after(capture::one_shot).after(bevy::window::ExitSystems));
         app.add_plugins((
-            draw::DrawPlugin { trails: o.trails, select: o.select },
+            draw::DrawPlugin { trails: o.trails, select: o.select, rule_of: o.rule_of },
             plots::PlotsPlugin,
             panel::PanelPlugin,
         ));
@@ -398,6 +400,18 @@ impl args::ViewerArgs {
                 .map_err(|e| format!("--screenshot {}: {e}", path.display()))?;
         }
         let snapshots = scene.snapshots(self.watch.as_deref(), "--watch")?;
+        let rule_of = match (&self.rule_of, self.select) {
+            (None, _) => None,
+            (Some(name), None) => {
+                return Err(
+                    format!("--rule-of {name}: shows the selected agent's rule; select one with --select ID").into()
+                )
+            }
+            (Some(name), Some(_)) => Some(loaded.species.iter().position(|d| &d.name == name).ok_or_else(|| {
+                let known: Vec<&str> = loaded.species.iter().map(|d| d.name.as_str()).collect();
+                format!("--rule-of {name}: no species of that name in the scene ({})", known.join(", "))
+            })?),
+        };
         if let Some(dir) = &self.save_run {
             if self.watch.is_some() || self.rules {
                 return Err(
@@ -416,6 +430,7 @@ impl args::ViewerArgs {
             fast: self.fast || (self.watch.is_none() && !self.rules && draw.steps_per_frame.is_none() && !self.paused),
             trails: draw.trails,
             select: self.select,
+            rule_of,
             screenshot: self
                 .screenshot
                 .clone()

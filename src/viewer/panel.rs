@@ -97,6 +97,17 @@ fn controls(
                 );
                 ui.checkbox(&mut overlays.catches, "highlight catches");
                 ui.checkbox(&mut overlays.perception, "perception of the selected agent");
+                ui.horizontal(|ui| {
+                    ui.checkbox(&mut overlays.rule, "its rule: turn with one more")
+                        .on_hover_text("red: it would turn left, blue: right, with one more agent of this species there (its response field amid what it sees now)");
+                    let names: Vec<String> = world.registry.defs.iter().map(|d| d.name.clone()).collect();
+                    let shown = names.get(overlays.rule_of).cloned().unwrap_or_default();
+                    egui::ComboBox::from_id_salt("rule of").selected_text(shown).show_ui(ui, |ui| {
+                        for (t, name) in names.iter().enumerate() {
+                            ui.selectable_value(&mut overlays.rule_of, t, name);
+                        }
+                    });
+                });
                 if ui.button("Screenshot (F12)").clicked() {
                     shots.0.push(super::capture::timestamped_path());
                 }
