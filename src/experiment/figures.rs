@@ -157,6 +157,89 @@ fn crossplay_figures(
     Ok(())
 }
 
+/// An experiment that distills its runs (`distill:`): every evaluation side by side (the learned agents,
+/// the rules in their place, the ablations), and the numbers of the fitted rules across seeds; mean over
+/// seeds with its 95 % CI, for the first variant.
+fn distilled_figures(
+    exp: &Experiment,
+    preset: &str,
+    table: &super::summary::Summary,
+    dir: &Path,
+    title: &dyn Fn(&str) -> String,
+) -> crate::error::Result<()> {
+    use crate::scene::RuleForm;
+    let variant = exp.spec.variants.first().map(|v| v.name.clone()).unwrap_or_default();
+    let row = |label: &str, q: Quantity| {
+        let e = estimate(&table.values(exp, preset, &variant, &q));
+        Row { label: format!("{label} ({})", e.map_or(0, |e| e.n)), mean: e.map_or(f64::NAN, |e| e.mean), ci: e.and_then(|e| e.ci) }
+    };
+    let orders = [("DoA", "doa"), ("DoS", "dos"), ("polarization", "polarization"), ("milling", "milling")];
+    // Evaluations named "50 prey", "50 prey, distilled prey", ...: the rows drop the common "50 prey, ".
+    let first = exp.spec.evaluations.first().map(|e| format!("{}, ", e.name)).unwrap_or_default();
+    let short = |name: &str| name.strip_prefix(first.as_str()).unwrap_or(name).to_string();
+    let panels: Vec<EstimatePanel> = orders
+        .iter()
+        .map(|(shown, order)| {
+            let rows = exp.spec.evaluations.iter().map(|e| {
+                let q = match *order {
+                    "doa" => Quantity::EvalDoa(e.name.clone()),
+                    "dos" => Quantity::EvalDos(e.name.clone()),
+                    other => Quantity::EvalOrder(e.name.clone(), other.into()),
+                };
+                row(&short(&e.name), q)
+            });
+            EstimatePanel {
+                title: title(&format!("{shown} by evaluation ({} ...)", first.trim_end_matches(", "))),
+                x_label: format!("{shown}, last {SETTLED_STEPS} steps"),
+                rows: rows.collect(),
+            }
+        })
+        .collect();
+    plot::save_estimates(&dir.join(format!("{preset}-evaluations")), &panels)?;
+    // The rules: per species and form, its gains; then how much of each action each explains.
+    let scene = exp.runs.first().map(|r| r.scene.clone());
+    let columns = scene.as_ref().map(super::distill::columns).unwrap_or_default();
+    let mut panels = vec![];
+    let mut explained = vec![];
+    for ((species, form), numbers) in
+        columns.iter().fold(Vec::<((String, RuleForm), Vec<String>)>::new(), |mut acc, (s, f, n)| {
+            match acc.last_mut() {
+                Some((key, names)) if key.0 == *s && key.1 == *f => names.push(n.clone()),
+                _ => acc.push(((s.clone(), *f), vec![n.clone()])),
+            }
+            acc
+        })
+    {
+        let q = |n: &str| Quantity::Distilled(species.clone(), form, n.to_string());
+        // A gain belongs to the turn or the thrust by its prefix, or (a pursuit rule's own-state terms) by name.
+        for (part, own, shown) in [("turn.", "persistence", "turn"), ("thrust.", "speed", "thrust")] {
+            // A memoryless rule's own-state terms are zero by construction: not shown.
+            let own_term = |n: &str| n == own || n.ends_with(&format!(".{own}"));
+            let gain = |n: &&String| {
+                ((n.starts_with(part) && !n.ends_with("bias")) || n.as_str() == own)
+                    && !(form == RuleForm::Memoryless && own_term(n))
+            };
+            let rows: Vec<Row> = numbers.iter().filter(gain).map(|n| row(n.trim_start_matches(part), q(n))).collect();
+            panels.push(EstimatePanel {
+                title: title(&format!("{species}, {form:?}: {shown} gains")),
+                x_label: format!("gain on the normalized {shown}"),
+                rows,
+            });
+        }
+        explained.extend(
+            ["explained_thrust", "explained_turn"]
+                .iter()
+                .map(|n| row(&format!("{species} {form:?} {}", n.trim_start_matches("explained_")), q(n))),
+        );
+    }
+    panels.push(EstimatePanel {
+        title: title("variance explained, held-out episodes"),
+        x_label: "fraction of the action's variance".into(),
+        rows: explained,
+    });
+    plot::save_estimates(&dir.join(format!("{preset}-distilled")), &panels)
+}
+
 /// The training curves, the variants compared (from the per-run values of `table`), catches, and per
 /// evaluation its per-step curves and confusion curve.
 /// The values a training curve of `curve` ("dos" or "doa") is read against: the paper's start and end
@@ -306,6 +389,10 @@ fn figures<'a>(
             .collect();
         plot::save_estimates(&dir.join(format!("{preset}-variants")), &panels)?;
         *saved += 1;
+    }
+    if exp.spec.distill.is_some() {
+        distilled_figures(exp, preset, table, &dir, &title)?;
+        *saved += 2;
     }
     let catches = [Panel {
         title: title("catches per episode"),
