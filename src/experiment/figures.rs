@@ -171,7 +171,11 @@ fn distilled_figures(
     let variant = exp.spec.variants.first().map(|v| v.name.clone()).unwrap_or_default();
     let row = |label: &str, q: Quantity| {
         let e = estimate(&table.values(exp, preset, &variant, &q));
-        Row { label: format!("{label} ({})", e.map_or(0, |e| e.n)), mean: e.map_or(f64::NAN, |e| e.mean), ci: e.and_then(|e| e.ci) }
+        Row {
+            label: format!("{label} ({})", e.map_or(0, |e| e.n)),
+            mean: e.map_or(f64::NAN, |e| e.mean),
+            ci: e.and_then(|e| e.ci),
+        }
     };
     let orders = [("DoA", "doa"), ("DoS", "dos"), ("polarization", "polarization"), ("milling", "milling")];
     // Evaluations named "50 prey", "50 prey, distilled prey", ...: the rows drop the common "50 prey, ".

@@ -404,15 +404,42 @@ fn draw_panel(panel: &Panel, area: &Area) -> crate::error::Result<()> {
             });
         }
     }
+    let entries = panel.curves.len() + named.iter().filter(|&&n| n).count();
     chart
         .configure_series_labels()
         .background_style(WHITE.mix(0.85))
         .border_style(BLACK.mix(0.3))
         .label_font(("sans-serif", 13))
-        .position(SeriesLabelPosition::UpperRight)
+        .position(legend_corner(panel, (x0, x1), (y0, y1), entries))
         .draw()
         .map_err(draw_err)?;
     Ok(())
+}
+
+/// Where a panel's legend covers the least of its data: the upper right corner unless curves or levels
+/// pass there, else the corner with the fewest points under the box the legend takes (about a third of
+/// the width, and a line of 8 % of the height per entry).
+fn legend_corner(panel: &Panel, (x0, x1): (f64, f64), (y0, y1): (f64, f64), entries: usize) -> SeriesLabelPosition {
+    let (w, h) = (0.36 * (x1 - x0), (0.08 * entries as f64 + 0.04).min(0.9) * (y1 - y0));
+    let covered = |right: bool, top: bool| {
+        let (bx0, bx1) = if right { (x1 - w, x1) } else { (x0, x0 + w) };
+        let (by0, by1) = if top { (y1 - h, y1) } else { (y0, y0 + h) };
+        let inside = |x: f64, y: f64| (bx0..=bx1).contains(&x) && (by0..=by1).contains(&y);
+        let points = panel.curves.iter().flat_map(|c| c.x.iter().zip(&c.mean)).filter(|(&x, &y)| inside(x, y)).count();
+        // A level line across the box counts as many points as it would take to cross it.
+        let levels = panel.levels.iter().filter(|l| (by0..=by1).contains(&l.y)).count() * 50;
+        points + levels
+    };
+    let corners = [
+        (true, true, SeriesLabelPosition::UpperRight),
+        (false, true, SeriesLabelPosition::UpperLeft),
+        (true, false, SeriesLabelPosition::LowerRight),
+        (false, false, SeriesLabelPosition::LowerLeft),
+    ];
+    if covered(true, true) == 0 {
+        return SeriesLabelPosition::UpperRight;
+    }
+    corners.into_iter().min_by_key(|&(right, top, _)| covered(right, top)).map(|c| c.2).expect("four corners")
 }
 
 /// Rasterizes SVG text to PNG bytes.

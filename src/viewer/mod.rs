@@ -305,7 +305,9 @@ fn save_live_run(world: &mut World) {
             let notice =
                 format!("saved {episodes} episodes into {} (--resume, --eval, --watch take it)", dir.display());
             println!("coevo: {notice}");
-            c.notice = Some(notice);
+            // The folder `--save-run` keeps grows every episode: the panel says how far it goes then,
+            // not what its first save wrote.
+            c.notice = (c.keep_in.as_ref() != Some(&dir)).then_some(notice);
             c.error = None;
             // A panel save into another folder is a one-shot copy; the `--save-run` folder is still kept.
             c.keeping = c.keeping || c.keep_in.as_ref() == Some(&dir);

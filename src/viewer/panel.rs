@@ -153,7 +153,17 @@ fn status(ui: &mut egui::Ui, c: &Control, playback: &Playback, w: &Status) {
 
 /// Live training as a run folder: saved when the current episode ends, never over an existing folder.
 fn save_run(ui: &mut egui::Ui, c: &mut Control, live: &crate::run::live::LiveRun, episode: &Episode) {
-    ui.label("Save this run");
+    // `--save-run`: the folder the run is kept in, and how far it goes now (it grows every episode).
+    let kept = c.keep_in.clone().filter(|_| c.keeping);
+    if let Some(dir) = &kept {
+        ui.label(format!(
+            "kept in {}: {} episodes written, the last checkpoint after episode {} (--resume continues from it)",
+            dir.display(),
+            live.episodes(),
+            live.checkpointed()
+        ));
+    }
+    ui.label(if kept.is_some() { "Save a copy" } else { "Save this run" });
     if let Some(why) = &live.altered {
         ui.label(format!("not savable: {why} (restart to train a savable run)"));
         return;
@@ -162,6 +172,7 @@ fn save_run(ui: &mut egui::Ui, c: &mut Control, live: &crate::run::live::LiveRun
         ui.label("into");
         ui.text_edit_singleline(&mut c.save_folder);
     });
+    let into_kept = kept.as_ref().is_some_and(|dir| Path::new(c.save_folder.trim()) == dir.as_path());
     match &c.save_pending {
         Some(dir) => {
             ui.label(format!("saving into {} when episode {} ends…", dir.display(), episode.index));
@@ -170,12 +181,16 @@ fn save_run(ui: &mut egui::Ui, c: &mut Control, live: &crate::run::live::LiveRun
             }
         }
         None => {
-            if ui.button("Save at the end of this episode").clicked() {
+            let button = ui.add_enabled(!into_kept, egui::Button::new("Save at the end of this episode"));
+            if into_kept {
+                button.on_disabled_hover_text("the run is kept there already; name another folder for a copy");
+            } else if button.clicked() {
                 c.save_pending = Some(PathBuf::from(c.save_folder.trim()));
                 c.notice = None;
             }
         }
     }
+    // What the last save (a copy) wrote; the kept folder's line above says how far that one goes now.
     if let Some(notice) = &c.notice {
         ui.colored_label(egui::Color32::from_rgb(60, 150, 80), notice);
     }

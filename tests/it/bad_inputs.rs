@@ -411,7 +411,7 @@ fn cases() -> Vec<(Vec<&'static str>, &'static str)> {
         (vec!["--bench", "--seed", "3"], "'--bench' cannot be used with '--seed <S>'"),
         (
             vec!["--episodes", "5"],
-            "the following required arguments were not provided: <--train|--resume <DIR>|--eval <DIR>|--crossplay <DIR>>",
+            "the following required arguments were not provided: <--train|--resume <DIR>|--eval <DIR>|--crossplay <DIR>|--distill <DIR>>",
         ),
         (vec!["--train", "--episodes", "0"], "--episodes: must be ≥ 1"),
         (vec!["--train", "--scene", "no-episodes.ron"], "no-episodes.ron:1: episodes: must be ≥ 1"),
