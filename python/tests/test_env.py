@@ -496,6 +496,13 @@ def test_response_fields_of_the_shipped_run():
     ahead = int(np.argmin(np.abs(f["centres"] - 0.0)))
     assert f["turn"][row(0.1), ahead] < 0 < f["turn"][row(-0.1), ahead]
     assert len(f["alone"]) == 2
+    # Amid observations of the trained swarm: one field per observed species (a parallel neighbour), the
+    # same evasion, and `alone` the mean action on the swarm's own observations.
+    swarm = coevo.response_fields(os.path.join(ROOT, "assets", "trained-standard"), swarm=True)
+    assert {f["rel_heading"] for f in swarm} == {0.0}
+    s = [f for f in swarm if f["species"] == "prey" and f["observed"] == "predator"][0]
+    assert s["turn"][row(0.1), ahead] < 0 < s["turn"][row(-0.1), ahead]
+    assert s["alone"] != f["alone"]
 
 
 def test_force_maps_of_a_hand_made_trajectory(tmp_path):
