@@ -34,7 +34,37 @@ pub fn curve_argument_error(q: &Quantity) -> Option<String> {
         Quantity::Reaches(_, level) if !(level.is_finite() && *level > 0.0 && *level <= 1.0) => {
             Some(format!("Reaches takes a level in (0, 1], as DoS and DoA are (got {level})"))
         }
-        _ => None,
+        // Every other quantity, and the ones above with the curves they take (named, not `_`: a new
+        // quantity is a compile error here until it says whether it takes a curve).
+        Quantity::DosFirst
+        | Quantity::DosLast
+        | Quantity::DoaFirst
+        | Quantity::DoaLast
+        | Quantity::DosChange
+        | Quantity::DoaChange
+        | Quantity::CatchesChange
+        | Quantity::CatchesFirst
+        | Quantity::CatchesLast
+        | Quantity::TrainingFirst(_)
+        | Quantity::TrainingLast(_)
+        | Quantity::EvalDos(_)
+        | Quantity::EvalDoa(_)
+        | Quantity::EvalOrder(..)
+        | Quantity::InteractionDoa(_)
+        | Quantity::Interaction(..)
+        | Quantity::Learned(..)
+        | Quantity::EvalDifference(..)
+        | Quantity::Distilled(..)
+        | Quantity::Reach90(_)
+        | Quantity::Start(_)
+        | Quantity::FromStart(_)
+        | Quantity::Extreme(_)
+        | Quantity::ExtremeEpisode(_)
+        | Quantity::AfterExtreme(_)
+        | Quantity::Halfway(_)
+        | Quantity::Reaches(..)
+        | Quantity::Response(..)
+        | Quantity::Crossplay(_) => None,
     }
 }
 
@@ -147,13 +177,41 @@ pub fn curve_shape(q: &Quantity, series: &[f64]) -> f64 {
                     best = end;
                 }
             }
-            match q {
-                Quantity::Extreme(_) => half(best, false),
-                Quantity::ExtremeEpisode(_) => best as f64,
-                _ => half(series.len(), false) - half(best, false),
+            if matches!(q, Quantity::Extreme(_)) {
+                half(best, false)
+            } else if matches!(q, Quantity::ExtremeEpisode(_)) {
+                best as f64
+            } else {
+                half(series.len(), false) - half(best, false)
             }
         }
-        _ => f64::NAN,
+        // Not a curve's shape, or an extreme of a run too short for two windows.
+        Quantity::DosFirst
+        | Quantity::DosLast
+        | Quantity::DoaFirst
+        | Quantity::DoaLast
+        | Quantity::DosChange
+        | Quantity::DoaChange
+        | Quantity::CatchesChange
+        | Quantity::CatchesFirst
+        | Quantity::CatchesLast
+        | Quantity::TrainingFirst(_)
+        | Quantity::TrainingLast(_)
+        | Quantity::EvalDos(_)
+        | Quantity::EvalDoa(_)
+        | Quantity::EvalOrder(..)
+        | Quantity::InteractionDoa(_)
+        | Quantity::Interaction(..)
+        | Quantity::Learned(..)
+        | Quantity::EvalDifference(..)
+        | Quantity::Distilled(..)
+        | Quantity::Reach90(_)
+        | Quantity::FromStart(_)
+        | Quantity::Extreme(_)
+        | Quantity::ExtremeEpisode(_)
+        | Quantity::AfterExtreme(_)
+        | Quantity::Response(..)
+        | Quantity::Crossplay(_) => f64::NAN,
     }
 }
 

@@ -63,7 +63,10 @@ fn of_training_curves(q: &Quantity) -> bool {
         | Extreme(c)
         | ExtremeEpisode(c)
         | AfterExtreme(c) => CURVES.contains(&c.as_str()),
-        _ => false,
+        // Evaluations, other order parameters, cross-play and fitted rules: not in a curve of DoS, DoA and
+        // catches.
+        TrainingFirst(_) | TrainingLast(_) | EvalDos(_) | EvalDoa(_) | EvalOrder(..) | InteractionDoa(_)
+        | Interaction(..) | Learned(..) | EvalDifference(..) | Distilled(..) | Response(..) | Crossplay(_) => false,
     }
 }
 

@@ -148,7 +148,29 @@ pub fn derive(evaluations: &[super::file::Evaluation], q: &Quantity, primitive: 
             None => f64::NAN,
         },
         Quantity::EvalDifference(a, b, o) => of_eval(a, o) - of_eval(b, o),
-        _ => primitive(q),
+        // Primitive: a run's files or summary.csv hold them. Named, not `_`, so that a new quantity is a
+        // compile error here until it is derived or declared primitive.
+        Quantity::DosFirst
+        | Quantity::DosLast
+        | Quantity::DoaFirst
+        | Quantity::DoaLast
+        | Quantity::CatchesFirst
+        | Quantity::CatchesLast
+        | Quantity::TrainingFirst(_)
+        | Quantity::TrainingLast(_)
+        | Quantity::EvalDos(_)
+        | Quantity::EvalDoa(_)
+        | Quantity::EvalOrder(..)
+        | Quantity::Reach90(_)
+        | Quantity::Start(_)
+        | Quantity::Extreme(_)
+        | Quantity::ExtremeEpisode(_)
+        | Quantity::AfterExtreme(_)
+        | Quantity::Halfway(_)
+        | Quantity::Reaches(..)
+        | Quantity::Response(..)
+        | Quantity::Crossplay(_)
+        | Quantity::Distilled(..) => primitive(q),
     }
 }
 
@@ -218,7 +240,30 @@ pub fn chance_level(exp: &Experiment, claim: &Claim, scene: Option<&crate::scene
         Quantity::EvalOrder(_, q) | Quantity::TrainingFirst(q) | Quantity::TrainingLast(q) if q == "nn_correlation" => {
             Some(0.0)
         }
-        _ => None,
+        // No value by chance: the other order parameters, timings, and numbers of a fitted rule (effects
+        // returned above). Named, not `_`, so that a new quantity says whether chance gives it a value.
+        Quantity::DosChange
+        | Quantity::DoaChange
+        | Quantity::CatchesChange
+        | Quantity::CatchesFirst
+        | Quantity::CatchesLast
+        | Quantity::TrainingFirst(_)
+        | Quantity::TrainingLast(_)
+        | Quantity::EvalOrder(..)
+        | Quantity::InteractionDoa(_)
+        | Quantity::Interaction(..)
+        | Quantity::Learned(..)
+        | Quantity::EvalDifference(..)
+        | Quantity::Reach90(_)
+        | Quantity::Start(_)
+        | Quantity::FromStart(_)
+        | Quantity::Extreme(_)
+        | Quantity::ExtremeEpisode(_)
+        | Quantity::AfterExtreme(_)
+        | Quantity::Halfway(_)
+        | Quantity::Reaches(..)
+        | Quantity::Response(..)
+        | Quantity::Distilled(..) => None,
     }
 }
 
