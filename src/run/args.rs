@@ -262,7 +262,7 @@ pub const STANDARD_SCENE: &str = "scenes/standard.ron";
 /// The default scene's text, built into the binary ([`SceneArgs::load`]).
 /// The scenes shipped in `scenes/`, built into the binary (and the Python package) by the path a clone
 /// gives them, so that they load outside the clone too (after `cargo install`, from an installed wheel).
-const SHIPPED_SCENES: [(&str, &str); 7] = [
+const SHIPPED_SCENES: [(&str, &str); 8] = [
     (STANDARD_SCENE, include_str!("../../scenes/standard.ron")),
     ("scenes/paper.ron", include_str!("../../scenes/paper.ron")),
     ("scenes/gym-pps.ron", include_str!("../../scenes/gym-pps.ron")),
@@ -270,6 +270,7 @@ const SHIPPED_SCENES: [(&str, &str); 7] = [
     ("scenes/confined.ron", include_str!("../../scenes/confined.ron")),
     ("scenes/confined-penalty.ron", include_str!("../../scenes/confined-penalty.ron")),
     ("scenes/many-eyes.ron", include_str!("../../scenes/many-eyes.ron")),
+    ("scenes/distilled.ron", include_str!("../../scenes/distilled.ron")),
 ];
 
 /// A scene file with `overrides` applied and validated: the file at `path` when there is one, else, when

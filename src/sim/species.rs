@@ -277,8 +277,8 @@ pub fn describe(scene: &Scene, source: &str) -> String {
     for (s, d) in r.defs.iter().enumerate() {
         let _ = writeln!(
             out,
-            "  {s} {}: {} agents, policy {:?}, mass {} kg, radius {} m, max speed {} m/s, perception R = {:.4} m, at most {} observed per species{}",
-            d.name, d.count, d.policy, d.mass, d.radius, d.max_speed, r.perception_radius[s], d.topological_limit,
+            "  {s} {}: {} agents, policy {}, mass {} kg, radius {} m, max speed {} m/s, perception R = {:.4} m, at most {} observed per species{}",
+            d.name, d.count, ron::to_string(&d.policy).unwrap_or_default(), d.mass, d.radius, d.max_speed, r.perception_radius[s], d.topological_limit,
             d.topological_limit_of.iter().map(|(t, k)| format!(", {k} of {t}")).collect::<String>()
         );
     }
