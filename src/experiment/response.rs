@@ -323,7 +323,7 @@ pub fn main(run: &Path) -> crate::error::Result<()> {
             let path = dir.figures().join(format!("{stem}-{}-{}", f.species, f.observed));
             let maps = [map("turn (+ left)", &f.turn, true, f.alone[1]), map("thrust", &f.thrust, false, f.alone[0])];
             super::plot::save_heatmaps(&path, &maps)?;
-            written.push(format!("{}.svg", path.display()));
+            written.push(format!("{}.svg (and .png)", path.display()));
         }
     }
     for line in written {

@@ -22,7 +22,8 @@ pub trait Mode: Args {
 /// Which scene a call runs and what it changes of it.
 #[derive(Args, Debug, Clone, Default)]
 pub struct SceneArgs {
-    /// Scene file to run [default: scenes/standard.ron].
+    /// Scene file to run [default: scenes/standard.ron]; the shipped scenes/*.ron are built in, so they
+    /// load from any folder (a file of that name in the working folder wins).
     #[arg(long, help_heading = "Scene", value_name = "PATH")]
     pub scene: Option<PathBuf>,
     /// Override the scene's random seed.
@@ -252,7 +253,7 @@ impl Mode for FingerprintArgs {
 
 /// `--describe-scene FILE`: the scene with the call's overrides, described.
 pub fn describe(path: &Path, shared: &Shared) -> crate::error::Result<()> {
-    let scene = shared.scene.overrides(false)?.load(path)?;
+    let scene = load_scene(path, &shared.scene.overrides(false)?)?;
     crate::io::out_text(format_args!("{}", crate::sim::species::describe(&scene, &path.display().to_string())))
 }
 

@@ -286,7 +286,8 @@ pub fn evaluate(opts: &EvalOptions) -> crate::error::Result<String> {
     let dir = RunDir::new(&opts.run);
     let path = dir.eval_output(opts.out.as_deref())?;
     if !dir.is_run() {
-        return Err(format!("{}: holds no coevo run to evaluate", opts.run.display()).into());
+        let what = if opts.run.exists() { "holds no coevo run to evaluate" } else { "no such folder" };
+        return Err(format!("{}: {what}", opts.run.display()).into());
     }
     dir.check_plugins()?;
     if opts.episodes == 0 {
@@ -398,7 +399,7 @@ pub fn evaluate(opts: &EvalOptions) -> crate::error::Result<String> {
         })
         .collect();
     Ok(format!(
-        "eval {}{}{}: {} episodes × {} steps, {}: {}; per step in {}",
+        "eval {}{}{}: {} × {} steps, {}: {}; per step in {}",
         opts.run.display(),
         if opts.untrained {
             " (untrained actors, as initialised from the run's seed)".to_string()
@@ -409,7 +410,7 @@ pub fn evaluate(opts: &EvalOptions) -> crate::error::Result<String> {
             true => String::new(),
             false => format!(" (control {}: {})", opts.control.texts().join(" + "), opts.control.describe()),
         },
-        opts.episodes,
+        if opts.episodes == 1 { "1 episode".to_string() } else { format!("{} episodes", opts.episodes) },
         scene.episode_steps,
         counts.join(" + "),
         acc.summary(

@@ -10,15 +10,15 @@ use crate::sim::species::SpeciesRegistry;
 use std::path::Path;
 
 /// The command that opens the viewer on run `r`, as it runs where the user is: this executable when it
-/// was built with the window; in a clone (a `Cargo.toml` here), the build that adds it; else how to
-/// install one that has it.
+/// was built with the window; in a clone (a `Cargo.toml` here), the build that adds it; else what it
+/// takes, in words (only the source builds the window, and its folder is the user's to name).
 fn watch(r: &str, coevo: &str) -> String {
     if cfg!(feature = "viewer") {
         format!("{coevo} --watch {r}")
     } else if Path::new("Cargo.toml").is_file() {
         format!("cargo run --release --features viewer -- --watch {r}")
     } else {
-        format!("cargo install --locked --features viewer --path CLONE && coevo --watch {r}")
+        format!("{coevo} --watch {r}, with a coevo built with the window (--features viewer, from its source)")
     }
 }
 
@@ -93,7 +93,7 @@ pub fn explain(run: &Path, spread: Option<&str>) -> crate::error::Result<String>
         out.push_str(&course("DoS", &dos, false, 3));
         out.push_str(&course("catches per episode", &catches, true, 1));
     }
-    out.push_str("  one run is one sample: seeds of the same scene differ widely; compare seeds with an experiment file (docs/src/guide/experiments.md)\n");
+    out.push_str("  one run is one sample: seeds of the same scene differ widely; compare seeds with an experiment file (the book's experiments guide, docs/src/guide/experiments.md in coevo's source)\n");
     out.push_str(spread.unwrap_or_default());
     let r = run.display();
     // Each next command with what it does, the comments in one column, coevo spelled as it runs here.

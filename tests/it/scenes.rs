@@ -135,4 +135,18 @@ fn the_default_scene_works_outside_the_clone() {
     let out = coevo(&["--train", "--episodes", "1", "--scene", "scenes/mine.ron", "--out", "other"]);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && stderr.contains("scenes/mine.ron: cannot read scene"), "{stderr}");
+    // Every shipped scene is described there too, as in the clone.
+    for entry in std::fs::read_dir("scenes").unwrap() {
+        let name = format!("scenes/{}", entry.unwrap().file_name().to_string_lossy());
+        let out = coevo(&["--describe-scene", &name]);
+        assert!(out.status.success(), "{name}: {}", String::from_utf8_lossy(&out.stderr));
+        let here =
+            std::process::Command::new(env!("CARGO_BIN_EXE_coevo")).args(["--describe-scene", &name]).output().unwrap();
+        let text = |o: &std::process::Output| String::from_utf8_lossy(&o.stdout).into_owned();
+        assert_eq!(text(&out), text(&here), "{name}: the built-in copy is the file");
+    }
+    // After a training outside the clone, the hint to watch it names no folder the user did not give.
+    let out = coevo(&["--train", "--episodes", "1", "--out", "hinted"]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("--watch hinted") && !stdout.contains("CLONE"), "{stdout}");
 }
