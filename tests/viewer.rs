@@ -514,13 +514,23 @@ fn ctrl_c_ends_the_viewer_as_an_interruption_not_an_error() {
     let scene = dir.path().join("ctrl-c-once.ron");
     std::fs::copy("scenes/standard.ron", &scene).unwrap();
     let err = dir.path().join("stderr.txt");
-    let mut child = Command::new("xvfb-run")
+    let mut command = Command::new("xvfb-run");
+    command
         .args(["-a", "-s", &format!("-screen 0 {WIDTH}x{HEIGHT}x24"), BIN, "--scene", scene.to_str().unwrap()])
         .env("XDG_RUNTIME_DIR", dir.path())
         .stdout(std::process::Stdio::null())
-        .stderr(std::fs::File::create(&err).unwrap())
-        .spawn()
-        .unwrap();
+        .stderr(std::fs::File::create(&err).unwrap());
+    // A test harness started in the background (`cmd &` in a script) ignores SIGINT, and an ignored signal
+    // stays ignored across exec: the viewer would never see the Ctrl-C this test sends. Restored to the
+    // default, as a terminal's foreground job has it.
+    // SAFETY: between fork and exec only `signal`, which is async-signal-safe, is called.
+    unsafe {
+        std::os::unix::process::CommandExt::pre_exec(&mut command, || {
+            libc::signal(libc::SIGINT, libc::SIG_DFL);
+            Ok(())
+        });
+    }
+    let mut child = command.spawn().unwrap();
     // The app is running (and Bevy's handler installed) once its renderer says what it runs on.
     let start = std::time::Instant::now();
     while !std::fs::read_to_string(&err).unwrap_or_default().contains("coevo::viewer") {
@@ -531,7 +541,18 @@ fn ctrl_c_ends_the_viewer_as_an_interruption_not_an_error() {
     let pid = String::from_utf8(Command::new("pgrep").args(["-f", &pattern]).output().unwrap().stdout).unwrap();
     let pid = pid.trim();
     assert!(!pid.is_empty() && Command::new("kill").args(["-INT", pid]).status().unwrap().success(), "{pid:?}");
-    let status = child.wait().unwrap();
+    // Never a hang: a viewer still running a minute after Ctrl-C fails the test.
+    let start = std::time::Instant::now();
+    let status = loop {
+        if let Some(status) = child.try_wait().unwrap() {
+            break status;
+        }
+        if start.elapsed().as_secs() > 60 {
+            let _ = Command::new("kill").args(["-KILL", pid]).status();
+            panic!("the viewer did not end within 60 s of Ctrl-C: {}", std::fs::read_to_string(&err).unwrap());
+        }
+        std::thread::sleep(std::time::Duration::from_millis(200));
+    };
     let stderr = std::fs::read_to_string(&err).unwrap();
     assert_eq!(status.code(), Some(130), "{stderr}");
     assert!(stderr.contains("coevo: interrupted") && !stderr.contains("coevo: error"), "{stderr}");
