@@ -285,6 +285,8 @@ pub fn evaluate(opts: &EvalOptions) -> crate::error::Result<String> {
     }
     let dir = RunDir::new(&opts.run);
     let path = dir.eval_output(opts.out.as_deref())?;
+    // An evaluation replaces its files whole; the line says so when an earlier one was there.
+    let replaced = path.exists();
     if !dir.is_run() {
         let what = if opts.run.exists() { "holds no coevo run to evaluate" } else { "no such folder" };
         return Err(format!("{}: {what}", opts.run.display()).into());
@@ -388,18 +390,19 @@ pub fn evaluate(opts: &EvalOptions) -> crate::error::Result<String> {
     for (what, text) in super::folder::EVAL_BESIDE.iter().zip(files) {
         crate::io::write_file(&crate::io::beside(&path, what), Existing::Replace, text.as_bytes())?;
     }
-    // A replaced policy is named beside its species: "3 predator (ChaseNearest) + 50 prey".
+    // Each species with its count (species names are not pluralized: "prey: 50", not "50 prey"), a replaced
+    // policy beside it: "predator: 3 (ChaseNearest), prey: 50".
     let counts: Vec<String> = registry
         .defs
         .iter()
         .map(|d| match opts.overrides.policies.iter().any(|(name, _)| *name == d.name) {
             // As a scene file or --policy writes it (a fitted rule with all its numbers).
-            true => format!("{} {} ({})", d.count, d.name, ron::to_string(&d.policy).unwrap_or_default()),
-            false => format!("{} {}", d.count, d.name),
+            true => format!("{}: {} ({})", d.name, d.count, ron::to_string(&d.policy).unwrap_or_default()),
+            false => format!("{}: {}", d.name, d.count),
         })
         .collect();
     Ok(format!(
-        "eval {}{}{}: {} × {} steps, {}: {}; per step in {}",
+        "eval {}{}{}: {} × {} steps ({}): {}; per step in {}{}",
         opts.run.display(),
         if opts.untrained {
             " (untrained actors, as initialised from the run's seed)".to_string()
@@ -412,13 +415,14 @@ pub fn evaluate(opts: &EvalOptions) -> crate::error::Result<String> {
         },
         if opts.episodes == 1 { "1 episode".to_string() } else { format!("{} episodes", opts.episodes) },
         scene.episode_steps,
-        counts.join(" + "),
+        counts.join(", "),
         acc.summary(
             name,
             correlation_length,
             crate::sim::metrics::random_dos(sim.world().resource::<Arena>(), registry.defs[prey].count)
         ),
-        path.display()
+        path.display(),
+        if replaced { " (it replaced the earlier one)" } else { "" }
     ) + &twin.map_or(String::new(), |(_, r)| format!("; {}", r.summary())))
 }
 

@@ -142,7 +142,7 @@ fn status(ui: &mut egui::Ui, c: &Control, playback: &Playback, w: &Status) {
     for (s, l) in w.learners.species.iter().enumerate() {
         if let Some(l) = l {
             let what = if l.frozen {
-                "frozen".to_string()
+                "frozen (its trained actor acts, without noise; nothing learns)".to_string()
             } else {
                 format!("learning: σ {:.3}, ε {:.3}, {} transitions", l.noise_std, l.epsilon, l.buffer.len)
             };

@@ -217,7 +217,7 @@ fn evaluation_deploys_on_fifty_prey_and_without_predators() {
         perturb_step: None,
     })
     .unwrap();
-    assert!(line.contains("0 predator + 50 prey"), "{line}");
+    assert!(line.contains("predator: 0, prey: 50"), "{line}");
     let csv = std::fs::read_to_string(run.join("eval.csv")).unwrap();
     assert_eq!(csv.lines().count(), 1 + 2 * 30);
     assert!(csv.lines().skip(1).all(|l| l.ends_with(",0")), "no predators, no catches");

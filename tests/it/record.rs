@@ -281,7 +281,7 @@ fn distilled_rules_are_fitted_to_a_trained_run_and_deployed_as_scene_policies() 
     let policy = format!("prey={}", ron::to_string(rule).unwrap());
     let o = coevo(&["--eval", r, "--prey", "20", "--steps", "30", "--policy", &policy, "--eval-out", "eval-rule.csv"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    assert!(String::from_utf8_lossy(&o.stdout).contains("20 prey (Zonal((repulsion_radius:"));
+    assert!(String::from_utf8_lossy(&o.stdout).contains("prey: 20 (Zonal((repulsion_radius:"));
     // One line, nothing written: too few episodes to hold any out, and a folder without a run.
     let o = coevo(&["--distill", r, "--episodes", "1"]);
     assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).lines().count() == 1);
