@@ -580,3 +580,22 @@ fn the_selected_agents_rule_is_drawn_around_it_and_a_bad_species_is_one_line() {
     assert!(!out.status.success() && stderr.contains("--rule-of hawk: no species of that name"), "{stderr}");
     assert!(!Path::new("/tmp/none.png").exists());
 }
+
+#[test]
+fn watching_fifty_prey_the_plots_are_whole_and_a_smaller_window_is_refused() {
+    // Watching a run, the per-episode plot's title is the longest (the run's training, then the episodes
+    // watched): the three plots still fit at the minimum size, the catches plot with its axis.
+    let (w, h, pixels) = screenshot(&["--watch", "assets/trained-standard", "--prey", "50", "--steps-per-frame", "5"]);
+    let frames = plot_frames(w, h, &pixels);
+    assert_eq!(frames.len(), 3, "per episode, step by step, catches: {frames:?}");
+    let (_, last_bottom, _, _) = frames[2];
+    assert!(last_bottom + 30 <= h, "the catches plot and its axis are whole: frame ends at row {last_bottom} of {h}");
+    // Below the minimum: one line, no window.
+    let out = under_xvfb(&["--window", "1024x600", "--frames", "2", "--screenshot", "/tmp/coevo-too-small.png"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && stderr.contains("--window 1024x600: expected WxH of at least 1280x720"),
+        "{stderr}"
+    );
+    assert!(!Path::new("/tmp/coevo-too-small.png").exists());
+}

@@ -27,7 +27,7 @@ pub struct ViewerArgs {
     /// Viewer: frames to render before --screenshot [default: 60].
     #[arg(long, help_heading = "Viewer", value_name = "N", value_parser = crate::run::args::at_least_one)]
     pub frames: Option<usize>,
-    /// Viewer: window size in pixels [default: 1280x720].
+    /// Viewer: window size in pixels, at least 1280x720 [default: 1280x720].
     #[arg(long, help_heading = "Viewer", value_name = "WxH")]
     pub window: Option<String>,
     /// Viewer: step as fast as possible, still drawing every frame (the default of live training unless

@@ -119,6 +119,11 @@ pub fn run(options: ViewerOptions) -> crate::error::Result<()> {
     let mut window = Window {
         title: format!("coevo: {} ({})", options.setup.source.display(), options.setup.mode.label()),
         resolution: WindowResolution::new(options.window.x, options.window.y),
+        resize_constraints: bevy::window::WindowResizeConstraints {
+            min_width: MIN_WINDOW.x as f32,
+            min_height: MIN_WINDOW.y as f32,
+            ..default()
+        },
         ..default()
     };
     if options.screenshot.is_some() {
@@ -240,6 +245,10 @@ fn unsaved_on_exit(
         exits.write(AppExit::from_code(1));
     }
 }
+
+/// The smallest window, in logical pixels: the size at which both panels and every plot fit whole
+/// (`tests/viewer.rs` checks it in each mode); `--window` refuses less and resizing stops there.
+const MIN_WINDOW: UVec2 = UVec2::new(1280, 720);
 
 /// The exit status of a command stopped by Ctrl-C (128 + SIGINT), which Bevy's handler exits with.
 const INTERRUPTED: u8 = 130;
@@ -392,8 +401,10 @@ impl args::ViewerArgs {
         let window = size
             .split_once('x')
             .and_then(|(w, h)| Some(bevy::math::UVec2::new(w.parse().ok()?, h.parse().ok()?)))
-            .filter(|s| s.x >= 320 && s.y >= 240)
-            .ok_or_else(|| format!("--window {size}: expected WxH of at least 320x240, e.g. 1280x720"))?;
+            .filter(|s| s.x >= MIN_WINDOW.x && s.y >= MIN_WINDOW.y)
+            .ok_or_else(|| {
+                format!("--window {size}: expected WxH of at least 1280x720 (where the panels and plots fit whole), e.g. 1920x1080")
+            })?;
         if let Some(path) = &self.screenshot {
             if path.extension().is_none_or(|e| e != "png") {
                 return Err(format!("--screenshot {}: the file must end in .png", path.display()).into());
