@@ -272,7 +272,7 @@ impl Accumulated {
             "mean DoS {dos:.4}{random}, DoA {doa:.4} (random headings 0.637), polarization {polarization:.3}, milling {milling:.3}, \
              {clusters:.1} clusters (largest {:.0} %), C_nn {c_nn:.3} (independent headings 0), correlation length {}, {edge} ({name})",
             100.0 * largest,
-            correlation_length.map_or("beyond half the arena".to_string(), |xi| format!("{xi:.3} m"))
+            correlation_length.map_or("beyond half the arena".to_string(), |xi| format!("{xi:.3} m (where the heading fluctuations' C(r) first crosses 0)"))
         )
     }
 }
