@@ -366,7 +366,7 @@ fn draw_panel(panel: &Panel, area: &Area) -> crate::error::Result<()> {
         .configure_mesh()
         .x_desc(&panel.x_label)
         .y_desc(&panel.y_label)
-        .label_style(("sans-serif", 13))
+        .label_style(("sans-serif", 15))
         .x_label_formatter(&|x| format!("{x:.0}"))
         .light_line_style(WHITE.mix(0.0))
         .draw()
@@ -409,7 +409,7 @@ fn draw_panel(panel: &Panel, area: &Area) -> crate::error::Result<()> {
         .configure_series_labels()
         .background_style(WHITE.mix(0.85))
         .border_style(BLACK.mix(0.3))
-        .label_font(("sans-serif", 13))
+        .label_font(("sans-serif", 14))
         .position(legend_corner(panel, (x0, x1), (y0, y1), entries))
         .draw()
         .map_err(draw_err)?;
