@@ -325,7 +325,7 @@ fn a_live_run_saved_from_the_window_resumes_to_the_headless_run() {
     ]);
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(out.status.success(), "{}\n{stdout}", String::from_utf8_lossy(&out.stderr));
-    assert!(stdout.contains(&format!("coevo: saved 1 episodes into {saved_s}")), "{stdout}");
+    assert!(stdout.contains(&format!("coevo: saved 1 episode into {saved_s}")), "{stdout}");
     // --save-run keeps the whole run: every episode the window trained is in its metrics.csv, and the
     // exit says how far it goes and where its last checkpoint is.
     let trained = std::fs::read_to_string(saved.join("metrics.csv")).unwrap().lines().count() - 1;

@@ -311,8 +311,8 @@ fn save_live_run(world: &mut World) {
     let mut c = world.resource_mut::<Control>();
     match saved {
         Ok(episodes) => {
-            let notice =
-                format!("saved {episodes} episodes into {} (--resume, --eval, --watch take it)", dir.display());
+            let episodes = if episodes == 1 { "1 episode".to_string() } else { format!("{episodes} episodes") };
+            let notice = format!("saved {episodes} into {} (--resume, --eval, --watch take it)", dir.display());
             println!("coevo: {notice}");
             // The folder `--save-run` keeps grows every episode: the panel says how far it goes then,
             // not what its first save wrote.
