@@ -43,16 +43,34 @@ impl BenchArgs {
         }
         let budget = Duration::from_secs_f64(seconds);
         crate::outln!(
-            "coevo {} ({}), {} matrix-product kernels, {} threads",
+            "coevo {} ({}), {} matrix-product kernels, {} threads, on {}",
             env!("CARGO_PKG_VERSION"),
             env!("COEVO_GIT_COMMIT"),
             crate::learning::nets::kernels(),
-            crate::parallel::threads()
+            crate::parallel::threads(),
+            machine()
         )?;
         print(&environment(budget))?;
         print(&learning(budget))?;
         print(&external(budget))
     }
+}
+
+/// The machine the figures are of: its CPU model (Linux's /proc/cpuinfo) and how many cores this process
+/// may use. Figures from another machine, or this one on a busier day, differ: compare binaries paired on
+/// one machine (`--bench-against`).
+fn machine() -> String {
+    let model = std::fs::read_to_string("/proc/cpuinfo")
+        .ok()
+        .and_then(|text| {
+            text.lines()
+                .find(|l| l.starts_with("model name"))
+                .map(|l| l.split(':').nth(1).unwrap_or("").trim().to_string())
+        })
+        .filter(|m| !m.is_empty())
+        .unwrap_or_else(|| "an unknown CPU".into());
+    let cores = std::thread::available_parallelism().map_or(0, |n| n.get());
+    format!("{model}, {cores} cores available")
 }
 
 /// One measured configuration.
