@@ -59,7 +59,7 @@ pub struct DistilledFile {
 
 impl DistilledFile {
     pub fn read(path: &Path) -> crate::error::Result<DistilledFile> {
-        let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+        let text = crate::io::read_text(path, crate::io::MAX_TEXT_BYTES)?;
         crate::scene::parse_ron(&text, &path.display().to_string())
     }
 
@@ -69,29 +69,46 @@ impl DistilledFile {
     }
 }
 
-/// The numbers of a fitted rule, by name: its policy's ([`ZonalRule::numbers`], [`PursuitRule::numbers`])
-/// and how much it explains on the held-out episodes (`explained_thrust`, `explained_turn`; NaN for an
-/// action that never varied).
-pub fn numbers(d: &Distilled) -> Vec<(String, f64)> {
-    let mut out: Vec<(String, f64)> = match &d.policy {
-        Policy::Zonal(rule) => rule.numbers().iter().map(|(n, v)| (n.to_string(), *v)).collect(),
-        Policy::Pursuit(rule) => rule.numbers().iter().map(|(n, v)| (n.to_string(), *v)).collect(),
-        _ => vec![],
-    };
-    for (name, value) in ["explained_thrust", "explained_turn"].into_iter().zip(d.explained_held_out) {
-        out.push((name.to_string(), value.unwrap_or(f64::NAN)));
+/// The rule `--distill` fits to species `s`, with every gain zero: a zonal rule where it has predators,
+/// else a pursuit rule where it has prey; None for a species with neither.
+pub fn rule_for(registry: &SpeciesRegistry, s: usize) -> Option<Policy> {
+    if registry.predators_of(s).next().is_some() {
+        Some(Policy::Zonal(ZonalRule::default()))
+    } else if registry.prey_of(s).next().is_some() {
+        Some(Policy::Pursuit(PursuitRule::default()))
+    } else {
+        None
     }
+}
+
+/// The names of how much a rule explains on the held-out episodes, [thrust, turn].
+pub const EXPLAINED: [&str; ACTION_DIM] = ["explained_thrust", "explained_turn"];
+
+/// A rule's parameters by name ([`ZonalRule::numbers`], [`PursuitRule::numbers`]); none for another policy.
+fn parameters(policy: &Policy) -> Vec<(&'static str, f64)> {
+    match policy {
+        Policy::Zonal(rule) => rule.numbers().to_vec(),
+        Policy::Pursuit(rule) => rule.numbers().to_vec(),
+        _ => vec![],
+    }
+}
+
+/// The numbers of a fitted rule, by name: its policy's parameters and how much it explains on the
+/// held-out episodes ([`EXPLAINED`]; NaN for an action that never varied).
+pub fn numbers(d: &Distilled) -> Vec<(String, f64)> {
+    let explained = EXPLAINED.into_iter().zip(d.explained_held_out.map(|v| v.unwrap_or(f64::NAN)));
     // A gain the ridge held at zero may be −0: the same number, shown as 0.
-    out.into_iter().map(|(name, v)| (name, v + 0.0)).collect()
+    parameters(&d.policy).into_iter().chain(explained).map(|(name, v)| (name.to_string(), v + 0.0)).collect()
 }
 
 /// Every name [`numbers`] gives, of either rule.
 pub fn names() -> Vec<&'static str> {
-    let mut names: Vec<&str> = ZonalRule::default().numbers().iter().map(|(n, _)| *n).collect();
-    names.extend(
-        PursuitRule::default().numbers().iter().map(|(n, _)| *n).filter(|n| !names.contains(n)).collect::<Vec<_>>(),
-    );
-    names.extend(["explained_thrust", "explained_turn"]);
+    let mut names: Vec<&str> = vec![];
+    for policy in [Policy::Zonal(ZonalRule::default()), Policy::Pursuit(PursuitRule::default())] {
+        names
+            .extend(parameters(&policy).into_iter().map(|(n, _)| n).filter(|n| !names.contains(n)).collect::<Vec<_>>());
+    }
+    names.extend(EXPLAINED);
     names
 }
 
@@ -108,33 +125,27 @@ pub fn read_numbers(path: &Path) -> crate::error::Result<std::collections::BTree
         .collect())
 }
 
-/// The (species, form, name) of every number `--distill` fits on runs of `scene`: for every learned
-/// species, a zonal rule's where it has predators, else a pursuit rule's where it has prey.
-pub fn columns(scene: &Scene) -> Vec<(String, RuleForm, String)> {
+/// The rules `--distill` fits on runs of `scene`, each with the names of its numbers ([`numbers`]): for
+/// every learned species ([`rule_for`]), in both forms.
+pub fn rules(scene: &Scene) -> Vec<(String, RuleForm, Vec<&'static str>)> {
     let registry = SpeciesRegistry::from_scene(scene);
     let mut out = vec![];
     for (s, def) in scene.species.iter().enumerate().filter(|(_, d)| d.policy == Policy::Learned) {
-        let policy = if registry.predators_of(s).next().is_some() {
-            Policy::Zonal(ZonalRule::default())
-        } else if registry.prey_of(s).next().is_some() {
-            Policy::Pursuit(PursuitRule::default())
-        } else {
-            continue;
-        };
+        let Some(policy) = rule_for(&registry, s) else { continue };
+        let names: Vec<&str> = parameters(&policy).into_iter().map(|(n, _)| n).chain(EXPLAINED).collect();
         for form in [RuleForm::Memoryless, RuleForm::Inertial] {
-            let d = Distilled {
-                species: def.name.clone(),
-                form,
-                policy: policy.clone(),
-                rows_fitted: 0,
-                rows_held_out: 0,
-                explained_held_out: [None; ACTION_DIM],
-                explained_fitted: [None; ACTION_DIM],
-            };
-            out.extend(numbers(&d).into_iter().map(|(name, _)| (def.name.clone(), form, name)));
+            out.push((def.name.clone(), form, names.clone()));
         }
     }
     out
+}
+
+/// The (species, form, name) of every number `--distill` fits on runs of `scene` ([`rules`]).
+pub fn columns(scene: &Scene) -> Vec<(String, RuleForm, String)> {
+    rules(scene)
+        .into_iter()
+        .flat_map(|(species, form, names)| names.into_iter().map(move |n| (species.clone(), form, n.to_string())))
+        .collect()
 }
 
 /// Least squares with [`RIDGE`]: the gains β minimising |y − Xβ|² given XᵀX (`gram`, k×k, row-major),
@@ -253,26 +264,27 @@ fn binned(own: Own, kin: &[Seen], predators: &[Seen], edges: &[f64]) -> Vec<f64>
     f
 }
 
-/// Fits a [`ZonalRule`] to species `s`'s observations and actions.
-fn fit_zonal(
-    scene: &Scene,
-    registry: &SpeciesRegistry,
-    s: usize,
-    data: (&[f32], &[f32], usize),
-    form: RuleForm,
-) -> ZonalRule {
+/// The normal equations of a zonal rule's binned features ([`binned`]) over species `s`'s observations
+/// and actions, which every form and choice of radii is fitted from.
+fn zonal_normal(scene: &Scene, registry: &SpeciesRegistry, s: usize, data: (&[f32], &[f32], usize)) -> Normal {
     let (obs, actions, dim) = data;
-    // A memoryless rule's own-state columns are empty: the ridge holds their gains at zero.
-    let own = |column: usize| if form == RuleForm::Inertial { vec![column] } else { vec![] };
     let edges = edges(scene);
-    let bins = edges.len() - 1;
     let frame = scene.observation_frame;
-    let mut normal = Normal::new(LEADING + 5 * bins);
+    let mut normal = Normal::new(LEADING + 5 * (edges.len() - 1));
     for (o, a) in obs.chunks_exact(dim).zip(actions.chunks_exact(ACTION_DIM)) {
         let kin = observed(o, registry, s, s, frame);
         let predators = observed_of(o, registry, s, registry.predators_of(s), frame);
         normal.add(&binned(Own::of(o, registry, s, frame), &kin, &predators, &edges), a);
     }
+    normal
+}
+
+/// Fits a [`ZonalRule`] in `form` from its normal equations ([`zonal_normal`]).
+fn fit_zonal(scene: &Scene, normal: &Normal, form: RuleForm) -> ZonalRule {
+    // A memoryless rule's own-state columns are empty: the ridge holds their gains at zero.
+    let own = |column: usize| if form == RuleForm::Inertial { vec![column] } else { vec![] };
+    let edges = edges(scene);
+    let bins = edges.len() - 1;
     let (ahead, left, sin) =
         (|b: usize| LEADING + 3 * b, |b: usize| LEADING + 1 + 3 * b, |b: usize| LEADING + 2 + 3 * b);
     let (p_ahead, p_left) = (|b: usize| LEADING + 3 * bins + 2 * b, |b: usize| LEADING + 1 + 3 * bins + 2 * b);
@@ -323,14 +335,8 @@ fn fit_zonal(
     best.expect("at least one choice of radii").1
 }
 
-/// Fits a [`PursuitRule`] to species `s`'s observations and actions.
-fn fit_pursuit(
-    scene: &Scene,
-    registry: &SpeciesRegistry,
-    s: usize,
-    data: (&[f32], &[f32], usize),
-    form: RuleForm,
-) -> PursuitRule {
+/// The normal equations of a pursuit rule's features over species `s`'s observations and actions.
+fn pursuit_normal(scene: &Scene, registry: &SpeciesRegistry, s: usize, data: (&[f32], &[f32], usize)) -> Normal {
     let (obs, actions, dim) = data;
     // Per row: a constant, the previous turn, the speed, then the nearest's, the centre's and the most
     // isolated's [ahead, left].
@@ -352,6 +358,11 @@ fn fit_pursuit(
         ];
         normal.add(&row, a);
     }
+    normal
+}
+
+/// Fits a [`PursuitRule`] in `form` from its normal equations ([`pursuit_normal`]).
+fn fit_pursuit(normal: &Normal, form: RuleForm) -> PursuitRule {
     // The thrust reads the speed and the ahead parts, the turn the previous turn and the left parts.
     let gains = |a: usize, own: usize, component: usize| {
         let own = if form == RuleForm::Inertial { vec![own] } else { vec![] };
@@ -408,19 +419,19 @@ pub fn distill(run: &Path, overrides: &Overrides, episodes: usize) -> crate::err
     let recorded = super::swarm::record(&scene, run, episodes, 1)?;
     let mut species = vec![];
     for (s, r) in recorded.iter().enumerate() {
-        let Some(r) = r else { continue };
+        let (Some(r), Some(kind)) = (r, rule_for(&registry, s)) else { continue };
         // The first half of the episodes fits, the rest is held out.
-        let (dim, fit, held_out) =
-            (&r.dim, r.episodes(episodes.div_ceil(2), false), r.episodes(episodes.div_ceil(2), true));
-        let has_predators = registry.predators_of(s).next().is_some();
+        let (dim, [fit, held_out]) = (&r.dim, r.split(episodes.div_ceil(2)));
+        let data = (fit.0, fit.1, *dim);
+        // One pass over the rows for both forms.
+        let normal = match kind {
+            Policy::Zonal(_) => zonal_normal(&scene, &registry, s, data),
+            _ => pursuit_normal(&scene, &registry, s, data),
+        };
         for form in [RuleForm::Memoryless, RuleForm::Inertial] {
-            let data = (fit.0, fit.1, *dim);
-            let policy = if has_predators {
-                Policy::Zonal(fit_zonal(&scene, &registry, s, data, form))
-            } else if registry.prey_of(s).next().is_some() {
-                Policy::Pursuit(fit_pursuit(&scene, &registry, s, data, form))
-            } else {
-                break; // neither prey nor predator: no rule of this kind describes it
+            let policy = match kind {
+                Policy::Zonal(_) => Policy::Zonal(fit_zonal(&scene, &normal, form)),
+                _ => Policy::Pursuit(fit_pursuit(&normal, form)),
             };
             species.push(Distilled {
                 species: registry.defs[s].name.clone(),
@@ -569,7 +580,8 @@ mod tests {
         let s = registry.defs.iter().position(|d| d.name == "prey").unwrap();
         let (obs, actions) = rule_data(&scene, &rule, 4000);
         let dim = registry.observation_dim(s);
-        let fitted = fit_zonal(&scene, &registry, s, (&obs, &actions, dim), RuleForm::Inertial);
+        let normal = zonal_normal(&scene, &registry, s, (&obs, &actions, dim));
+        let fitted = fit_zonal(&scene, &normal, RuleForm::Inertial);
         assert_eq!(
             [fitted.repulsion_radius, fitted.alignment_radius, fitted.attraction_radius, fitted.evasion_radius],
             [rule.repulsion_radius, rule.alignment_radius, rule.attraction_radius, rule.evasion_radius]
@@ -583,7 +595,7 @@ mod tests {
         let ablated = Policy::Zonal(fitted.without(&[ZonalTerm::Alignment]));
         assert!(explained(&scene, s, &ablated, &obs, &actions, dim)[1].unwrap() < 0.95);
         // Fitted without its own state, the rule holds persistence and speed at zero.
-        let memoryless = fit_zonal(&scene, &registry, s, (&obs, &actions, dim), RuleForm::Memoryless);
+        let memoryless = fit_zonal(&scene, &normal, RuleForm::Memoryless);
         assert_eq!((memoryless.turn.persistence, memoryless.thrust.speed), (0.0, 0.0));
     }
 }

@@ -201,26 +201,17 @@ fn distilled_figures(
         .collect();
     plot::save_estimates(&dir.join(format!("{preset}-evaluations")), &panels)?;
     // The rules: per species and form, its gains; then how much of each action each explains.
-    let scene = exp.runs.first().map(|r| r.scene.clone());
-    let columns = scene.as_ref().map(super::distill::columns).unwrap_or_default();
+    let rules = exp.runs.first().map(|r| super::distill::rules(&r.scene)).unwrap_or_default();
     let mut panels = vec![];
     let mut explained = vec![];
-    for ((species, form), numbers) in
-        columns.iter().fold(Vec::<((String, RuleForm), Vec<String>)>::new(), |mut acc, (s, f, n)| {
-            match acc.last_mut() {
-                Some((key, names)) if key.0 == *s && key.1 == *f => names.push(n.clone()),
-                _ => acc.push(((s.clone(), *f), vec![n.clone()])),
-            }
-            acc
-        })
-    {
+    for (species, form, numbers) in rules {
         let q = |n: &str| Quantity::Distilled(species.clone(), form, n.to_string());
         // A gain belongs to the turn or the thrust by its prefix, or (a pursuit rule's own-state terms) by name.
         for (part, own, shown) in [("turn.", "persistence", "turn"), ("thrust.", "speed", "thrust")] {
             // A memoryless rule's own-state terms are zero by construction: not shown.
             let own_term = |n: &str| n == own || n.ends_with(&format!(".{own}"));
-            let gain = |n: &&String| {
-                ((n.starts_with(part) && !n.ends_with("bias")) || n.as_str() == own)
+            let gain = |n: &&&str| {
+                ((n.starts_with(part) && !n.ends_with("bias")) || **n == own)
                     && !(form == RuleForm::Memoryless && own_term(n))
             };
             let rows: Vec<Row> = numbers.iter().filter(gain).map(|n| row(n.trim_start_matches(part), q(n))).collect();
@@ -231,7 +222,7 @@ fn distilled_figures(
             });
         }
         explained.extend(
-            ["explained_thrust", "explained_turn"]
+            super::distill::EXPLAINED
                 .iter()
                 .map(|n| row(&format!("{species} {form:?} {}", n.trim_start_matches("explained_")), q(n))),
         );

@@ -403,7 +403,9 @@ impl Experiment {
                                 format!("variant {}: no species named {:?}", v.name, u.species),
                             ));
                         };
-                        if !u.without.is_empty() && registry.predators_of(s).next().is_none() {
+                        let zonal =
+                            matches!(super::distill::rule_for(&registry, s), Some(crate::scene::Policy::Zonal(_)));
+                        if !u.without.is_empty() && !zonal {
                             return Err(err(
                                 &format!("evaluations[{}].distilled", e.name),
                                 format!(

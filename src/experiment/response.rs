@@ -175,21 +175,32 @@ fn place_probe(block: &mut [f32], slot: [f32; NEIGHBOUR_DIM]) {
 /// species (the rules read the same observations), on `background`: with no one else in view at every
 /// [`REL_HEADINGS`], or in the trained swarm for a parallel neighbour.
 pub fn of_run(run: &Path, background: Background) -> crate::error::Result<(Scene, Vec<Field>)> {
+    let (scene, learners) = deployed(run)?;
+    let fields = on(&scene, &learners, run, background)?;
+    Ok((scene, fields))
+}
+
+/// A run's scene and its trained actors, loaded to be read.
+fn deployed(run: &Path) -> crate::error::Result<(Scene, Learners)> {
     let dir = a_run(run)?;
     let scene = Scene::load(&dir.scene())?;
-    let (backgrounds, headings) = match background {
-        Background::Empty => (vec![], &REL_HEADINGS[..]),
-        Background::Swarm => (swarm(&scene, run)?, &REL_HEADINGS[..1]),
-    };
     let mut learners = Learners::new(&scene, Mode::Evaluate);
     learners.load_actors(&scene, Some(run))?;
-    let registry = SpeciesRegistry::from_scene(&scene);
+    Ok((scene, learners))
+}
+
+/// The fields of a run's species ([`of_run`]), its scene and actors loaded.
+fn on(scene: &Scene, learners: &Learners, run: &Path, background: Background) -> crate::error::Result<Vec<Field>> {
+    let (backgrounds, headings) = match background {
+        Background::Empty => (vec![], &REL_HEADINGS[..]),
+        Background::Swarm => (swarm(scene, run)?, &REL_HEADINGS[..1]),
+    };
+    let registry = SpeciesRegistry::from_scene(scene);
     let decides: Vec<bool> =
         (0..registry.len()).map(|s| !matches!(registry.policy(s), Policy::Plugin(_) | Policy::Random)).collect();
     let dev = crate::learning::nets::Dev::default();
-    let act = |s: usize, batch: &[f32], rows: usize| actions(&learners, &registry, &scene, &dev, s, batch, rows);
-    let fields = fields_on(&scene, &decides, &act, &backgrounds, headings);
-    Ok((scene, fields))
+    let act = |s: usize, batch: &[f32], rows: usize| actions(learners, &registry, scene, &dev, s, batch, rows);
+    Ok(fields_on(scene, &decides, &act, &backgrounds, headings))
 }
 
 /// What species `s` does on `rows` observations (`batch`, one after the other): its actor's actions where
@@ -307,11 +318,12 @@ pub fn main(run: &Path) -> crate::error::Result<()> {
     // A writer of a run: refuses a shipped run and one another process is writing.
     let _lock = dir.lock()?;
     crate::io::own_dir(&dir.figures())?;
+    let (scene, learners) = deployed(run)?;
     let mut written = vec![];
     for (background, stem, context) in
         [(Background::Empty, "response", "parallel"), (Background::Swarm, "response-swarm", "parallel, in the swarm")]
     {
-        let (_, fields) = of_run(run, background)?;
+        let fields = on(&scene, &learners, run, background)?;
         let csv_path = run.join(format!("{stem}.csv"));
         crate::io::write_file(&csv_path, crate::io::Existing::Replace, csv(&fields).as_bytes())?;
         written.push(csv_path.display().to_string());
@@ -347,16 +359,23 @@ mod tests {
         scene
     }
 
-    fn rule_fields(scene: &Scene) -> Vec<Field> {
-        let registry = SpeciesRegistry::from_scene(scene);
-        let mut rng = rand::rngs::mock::StepRng::new(0, 0);
-        let rng = std::cell::RefCell::new(&mut rng);
-        let act = |s: usize, batch: &[f32], _: usize| -> Vec<f32> {
+    /// The rules of `scene` as an actor; every species must have one.
+    fn rule_actor<'a>(
+        scene: &'a Scene,
+        registry: &'a SpeciesRegistry,
+    ) -> impl Fn(usize, &[f32], usize) -> Vec<f32> + 'a {
+        move |s, batch, _| {
+            let mut rng = rand::rngs::mock::StepRng::new(0, 0);
             batch
                 .chunks_exact(registry.observation_dim(s))
-                .flat_map(|o| crate::sim::policy::rule_action(o, &registry, s, scene, &mut **rng.borrow_mut()).unwrap())
+                .flat_map(|o| crate::sim::policy::rule_action(o, registry, s, scene, &mut rng).unwrap())
                 .collect()
-        };
+        }
+    }
+
+    fn rule_fields(scene: &Scene) -> Vec<Field> {
+        let registry = SpeciesRegistry::from_scene(scene);
+        let act = rule_actor(scene, &registry);
         fields(scene, &vec![true; registry.len()], &act)
     }
 
@@ -426,13 +445,7 @@ mod tests {
     fn a_field_on_the_empty_background_is_the_field_alone_and_a_swarm_background_averages() {
         let scene = rules();
         let registry = SpeciesRegistry::from_scene(&scene);
-        let act = |s: usize, batch: &[f32], _: usize| -> Vec<f32> {
-            let mut rng = rand::rngs::mock::StepRng::new(0, 0);
-            batch
-                .chunks_exact(registry.observation_dim(s))
-                .flat_map(|o| crate::sim::policy::rule_action(o, &registry, s, &scene, &mut rng).unwrap())
-                .collect()
-        };
+        let act = rule_actor(&scene, &registry);
         let decides = vec![true; registry.len()];
         // (compared as their CSV: NaN, where unobserved, equals nothing)
         assert!(csv(&fields_on(&scene, &decides, &act, &[], &REL_HEADINGS)) == csv(&rule_fields(&scene)));

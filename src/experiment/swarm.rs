@@ -18,14 +18,11 @@ pub struct Recorded {
 }
 
 impl Recorded {
-    /// Rows from episode `from` on (to the end) or before it, as (observations, actions).
-    pub fn episodes(&self, from: usize, after: bool) -> (&[f32], &[f32]) {
-        let row = self.episode_starts.get(from).copied().unwrap_or(self.actions.len() / ACTION_DIM);
-        let (o, a) = (row * self.dim, row * ACTION_DIM);
-        match after {
-            true => (&self.observations[o..], &self.actions[a..]),
-            false => (&self.observations[..o], &self.actions[..a]),
-        }
+    /// The rows before episode `episode` and from it on, each as (observations, actions).
+    pub fn split(&self, episode: usize) -> [(&[f32], &[f32]); 2] {
+        let row = self.episode_starts.get(episode).copied().unwrap_or(self.actions.len() / ACTION_DIM);
+        let (o, a) = (self.observations.split_at(row * self.dim), self.actions.split_at(row * ACTION_DIM));
+        [(o.0, a.0), (o.1, a.1)]
     }
 }
 
@@ -53,23 +50,22 @@ pub fn record(scene: &Scene, run: &Path, episodes: usize, every: usize) -> crate
             r.episode_starts.push(r.actions.len() / ACTION_DIM);
         }
         for step in 0..scene.episode_steps {
+            // The observations the step decides on, then the actions it decided.
             let kept = step % every.max(1) == 0;
-            let before: Vec<Vec<f32>> = match kept {
-                true => sim.world().resource::<Batches>().species.iter().map(|b| b.observations.clone()).collect(),
-                false => vec![],
-            };
+            if kept {
+                let batches = &sim.world().resource::<Batches>().species;
+                for (r, b) in recorded.iter_mut().zip(batches).filter_map(|(r, b)| Some((r.as_mut()?, b))) {
+                    r.observations.extend_from_slice(&b.observations[..b.n * r.dim]);
+                }
+            }
             sim.step();
             sim.check()?;
             bar.inc(1);
-            if !kept {
-                continue;
-            }
-            let batches = sim.world().resource::<Batches>();
-            for (s, r) in recorded.iter_mut().enumerate() {
-                let Some(r) = r else { continue };
-                let n = batches.species[s].n;
-                r.observations.extend_from_slice(&before[s][..n * r.dim]);
-                r.actions.extend_from_slice(&batches.species[s].actions[..n * ACTION_DIM]);
+            if kept {
+                let batches = &sim.world().resource::<Batches>().species;
+                for (r, b) in recorded.iter_mut().zip(batches).filter_map(|(r, b)| Some((r.as_mut()?, b))) {
+                    r.actions.extend_from_slice(&b.actions[..b.n * ACTION_DIM]);
+                }
             }
         }
     }

@@ -517,6 +517,7 @@ fn draw_rule(
     arena: Res<Arena>,
     batches: Res<Batches>,
     scene: Res<crate::sim::ActiveScene>,
+    registry: Res<SpeciesRegistry>,
     learners: Res<crate::learning::Learners>,
     agents: Query<(&AgentId, &Position, &Heading, &SpeciesId, &Slot)>,
     mut drawn: Local<DrawnRule>,
@@ -530,21 +531,18 @@ fn draw_rule(
     let obs = batch.observation(slot.row as usize);
     let t = overlays.rule_of;
     if !drawn.as_ref().is_some_and(|(o, probed, _)| o == obs && *probed == t) {
-        let registry = SpeciesRegistry::from_scene(&scene.0);
         let dev = crate::learning::nets::Dev::default();
         let act = |k: usize, b: &[f32], rows: usize| actions(&learners, &registry, &scene.0, &dev, k, b, rows);
         *drawn = field_here(&scene.0, &act, s.0, t, obs).map(|f| (obs.to_vec(), t, f));
     }
     let Some((_, _, field)) = drawn.as_ref() else { return };
     let width = (field.centres[1] - field.centres[0]) as f32;
-    let turned = |d: DVec2| match scene.0.observation_frame {
-        crate::scene::ObservationFrame::World => d,
-        crate::scene::ObservationFrame::Body => d.rotate(heading.unit()),
+    // The field's frame in the world: the agent's body frame, or the world's own.
+    let facing = match scene.0.observation_frame {
+        crate::scene::ObservationFrame::World => DVec2::X,
+        crate::scene::ObservationFrame::Body => heading.unit(),
     };
-    let angle = match scene.0.observation_frame {
-        crate::scene::ObservationFrame::World => 0.0,
-        crate::scene::ObservationFrame::Body => heading.unit().to_angle() as f32,
-    };
+    let angle = facing.to_angle() as f32;
     // Each cell hatched with lines across it, so it reads as filled at any zoom the arena is drawn at.
     const HATCHES: usize = 4;
     let across = Vec2::from_angle(angle + std::f32::consts::FRAC_PI_2);
@@ -555,7 +553,7 @@ fn draw_rule(
             if !change.is_finite() || change.abs() < 0.02 {
                 continue;
             }
-            let at = arena.wrap(x.0 + turned(DVec2::new(ahead, left))).as_vec2();
+            let at = arena.wrap(x.0 + DVec2::new(ahead, left).rotate(facing)).as_vec2();
             let colour = if change > 0.0 { Color::srgb(0.8, 0.1, 0.1) } else { Color::srgb(0.1, 0.25, 0.85) };
             let colour = colour.with_alpha(0.85 * (2.0 * change.abs()).min(1.0) as f32);
             for k in 0..HATCHES {
