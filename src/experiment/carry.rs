@@ -204,7 +204,9 @@ pub fn carried(exp: &Experiment, data: &BTreeMap<usize, RunData>, header: &[Stri
     if !exp.spec.mixed_binaries {
         let here: BTreeSet<&str> = data.values().flat_map(|d| d.binaries.iter().map(String::as_str)).collect();
         for (i, row) in summary.runs(exp).into_iter().filter(|(i, _)| missing.contains(i)) {
-            if let Some(other) = row.binary.split(' ').find(|b| !here.contains(b)) {
+            let pin = exp.pin.as_ref();
+            if let Some(other) = row.binary.split(' ').find(|b| !here.iter().any(|h| super::pin::Pin::same(pin, h, b)))
+            {
                 return Err(format!(
                     "{}: runs of more than one binary (the committed {} by {other}, the run folders here by {}); rerun them with one coevo or set mixed_binaries: true",
                     exp.file.display(),

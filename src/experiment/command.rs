@@ -28,6 +28,10 @@ pub struct ExperimentArgs {
     /// --experiment: write a Slurm job array and a dependent aggregate job instead of running.
     #[arg(long, help_heading = "Experiments")]
     pub emit_slurm: bool,
+    /// --experiment: make a pinned experiment's runs (results/NAME/binary/pin.ron) with this build of its
+    /// commit instead of rebuilding it; used only if it reproduces the pin's fingerprint.
+    #[arg(long, help_heading = "Experiments", value_name = "PATH")]
+    pub pinned_binary: Option<PathBuf>,
 }
 
 impl crate::run::args::Mode for ExperimentArgs {
@@ -45,12 +49,21 @@ pub struct Request<'a> {
     pub task: Option<usize>,
     /// Write Slurm scripts instead of running.
     pub emit_slurm: bool,
+    /// A build of a pinned experiment's commit (`--pinned-binary`).
+    pub pinned_binary: Option<&'a Path>,
     pub quiet: bool,
 }
 
 impl ExperimentArgs {
-    pub fn request<'a>(&self, which: &'a str, shared: &crate::run::args::Shared) -> Request<'a> {
-        Request { which, jobs: self.jobs, task: self.task, emit_slurm: self.emit_slurm, quiet: shared.common.quiet }
+    pub fn request<'a>(&'a self, which: &'a str, shared: &crate::run::args::Shared) -> Request<'a> {
+        Request {
+            which,
+            jobs: self.jobs,
+            task: self.task,
+            emit_slurm: self.emit_slurm,
+            pinned_binary: self.pinned_binary.as_deref(),
+            quiet: shared.common.quiet,
+        }
     }
 }
 
@@ -108,7 +121,11 @@ pub fn experiment(request: &Request) -> crate::error::Result<()> {
         }
         let exe = std::env::current_exe().map_err(|e| format!("cannot find the coevo binary: {e}"))?;
         for exp in &experiments {
-            let dir = runner::emit_slurm(exp, &exe)?;
+            // A pinned experiment's binary is rebuilt and checked here, once, so that the tasks find it
+            // verified; a build named by --pinned-binary is handed on to them.
+            let made_by = super::pin::executable(exp, request.pinned_binary)?.path;
+            let pinned = (made_by != exe).then_some(made_by);
+            let dir = runner::emit_slurm(exp, &exe, pinned.as_deref())?;
             // Quoted as the scripts quote it, so the line can be pasted into a shell as it is.
             let submit = dir.join("submit.sh").to_string_lossy().into_owned();
             let submit = shlex::try_quote(&submit).map_or(submit.clone(), |q| q.into_owned());
@@ -117,7 +134,7 @@ pub fn experiment(request: &Request) -> crate::error::Result<()> {
         return Ok(());
     }
     let opts = runner::RunnerOptions {
-        exe: std::env::current_exe().map_err(|e| format!("cannot find the coevo binary: {e}"))?,
+        pinned_binary: request.pinned_binary.map(Path::to_path_buf),
         jobs: request.jobs.unwrap_or(2),
         progress: !request.quiet,
     };

@@ -140,8 +140,9 @@ pub fn load(exp: &Experiment) -> crate::error::Result<BTreeMap<usize, RunData>> 
     Ok(data)
 }
 
-/// Refuses runs (training, resumes, evaluations) made by more than one executable, or on more than one
-/// family of matrix-product kernels, unless the experiment file says `mixed_binaries: true`: its numbers
+/// Refuses runs (training, resumes, evaluations) made by more than one executable (a pinned binary and
+/// its verified rebuilds count as one, [`super::pin`]), or on more than one family of matrix-product
+/// kernels, unless the experiment file says `mixed_binaries: true`: its numbers
 /// would not come from one program.
 fn check_one_binary(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> crate::error::Result<()> {
     if exp.spec.mixed_binaries {
@@ -167,7 +168,7 @@ fn check_one_binary(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> crate:
         for b in &d.binaries {
             match first {
                 None => first = Some((b, dir)),
-                Some((a, other)) if a != b => {
+                Some((a, other)) if !super::pin::Pin::same(exp.pin.as_ref(), a, b) => {
                     return Err(format!(
                         "{}: runs of more than one binary ({} by {a}, {} by {b}); rerun them with one coevo or set mixed_binaries: true",
                         exp.file.display(),

@@ -457,6 +457,8 @@ pub struct Experiment {
     pub root: PathBuf,
     /// Every preset × variant × seed, in that order.
     pub runs: Vec<Run>,
+    /// The binary every run is made by, when the experiment is pinned (`results/<name>/binary/pin.ron`).
+    pub pin: Option<super::pin::Pin>,
 }
 
 /// The longest variant or evaluation name: it becomes a folder or file name (`eval-NAME-confusion.csv`),

@@ -510,7 +510,8 @@ impl Experiment {
                 ));
             }
         }
-        Ok(Experiment { name, file: file.to_path_buf(), spec, root, runs })
+        let pin = super::pin::Pin::read(&root)?;
+        Ok(Experiment { name, file: file.to_path_buf(), spec, root, runs, pin })
     }
 
     /// Every experiment file under `dir`, sorted.

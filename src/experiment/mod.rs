@@ -40,6 +40,7 @@ pub mod file;
 pub mod force_map;
 mod load;
 pub mod paper_table;
+pub mod pin;
 pub mod plot;
 pub mod quantity;
 pub mod registry;

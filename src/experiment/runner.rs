@@ -5,6 +5,7 @@
 //! to continue; no finished run is redone.
 
 use super::file::{eval_file, Experiment, Run};
+use super::pin::Executable;
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -12,8 +13,9 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Mutex;
 
 pub struct RunnerOptions {
-    /// The `coevo` binary the runs are started with.
-    pub exe: PathBuf,
+    /// `--pinned-binary`: a build of a pinned experiment's commit to make its runs with (checked by its
+    /// fingerprint, [`super::pin`]) instead of a rebuild.
+    pub pinned_binary: Option<PathBuf>,
     /// Runs at a time.
     pub jobs: usize,
     pub progress: bool,
@@ -60,13 +62,13 @@ pub fn stage(run: &Run) -> crate::error::Result<Stage> {
 }
 
 /// Runs one child process; Err is its one-line error.
-fn child(exe: &Path, args: &[String]) -> crate::error::Result<()> {
-    let mut command = Command::new(exe);
+fn child(exe: &Executable, args: &[String]) -> crate::error::Result<()> {
+    let mut command = Command::new(&exe.path);
     command.args(args);
-    // Every run of an experiment on the parent's kernel family, whatever pinned it.
-    command.env("COEVO_KERNELS", crate::learning::nets::kernels());
+    // Every run of an experiment on one kernel family: the pinned one, or the parent's, whatever pinned it.
+    command.env("COEVO_KERNELS", &exe.kernels);
     dies_with_parent(&mut command);
-    let out = command.output().map_err(|e| format!("{}: cannot start: {e}", exe.display()))?;
+    let out = command.output().map_err(|e| format!("{}: cannot start: {e}", exe.path.display()))?;
     if out.status.success() {
         // A child that succeeds may still warn (a resume that refills dropped buffers): pass it on.
         for line in String::from_utf8_lossy(&out.stderr).lines().filter(|l| l.starts_with("coevo: warning: ")) {
@@ -109,7 +111,7 @@ fn dies_with_parent(command: &mut Command) {
 
 /// Trains (or resumes) one run and runs its missing evaluations, on `threads` threads (results do not
 /// depend on it).
-pub fn complete_run(exp: &Experiment, run: &Run, exe: &Path, threads: usize) -> crate::error::Result<()> {
+pub fn complete_run(exp: &Experiment, run: &Run, exe: &Executable, threads: usize) -> crate::error::Result<()> {
     let dir = run.dir.to_string_lossy().into_owned();
     let threads = crate::run::args::threads_argv(threads.max(1));
     let train = |resume: bool, overwrite: bool| crate::run::train::TrainOptions {
@@ -310,18 +312,24 @@ fn prepare(exp: &Experiment) -> crate::error::Result<()> {
 pub fn run(exp: &Experiment, opts: &RunnerOptions, only: Option<usize>) -> crate::error::Result<()> {
     // Runs finished on another machine: their rows are committed, and aggregation carries them.
     let elsewhere = super::carry::finished_elsewhere(exp)?;
+    // The executable that makes the runs: this one, or the pinned commit's verified rebuild.
+    let exe = super::pin::executable(exp, opts.pinned_binary.as_deref())?;
     // They are carried only beside runs of the same binary, on the same family of matrix-product kernels
     // (this machine's, or the one pinned): continuing them otherwise is refused now, not after hours of
     // runs that aggregation would then refuse to mix with them.
     if !exp.spec.mixed_binaries {
-        let (me, kernels) = (crate::run::provenance::binary(), crate::learning::nets::kernels());
+        let (me, kernels) = (exe.blake3.as_str(), exe.kernels.as_str());
         let key = |i: usize| super::figure_data::key(&exp.runs[i]);
-        if let Some((&i, other)) = elsewhere.iter().find(|(_, e)| e.binary.split(' ').any(|b| b != me)) {
+        let pin = exp.pin.as_ref();
+        if let Some((&i, other)) =
+            elsewhere.iter().find(|(_, e)| e.binary.split(' ').any(|b| !super::pin::Pin::same(pin, b, me)))
+        {
             return Err(format!(
-                "{}: the committed run {} was made by the coevo binary {}, this one is {me}; continue the experiment with that binary (see the experiment file), or set mixed_binaries: true",
+                "{}: the committed run {} was made by the coevo binary {}, the runs here would be made by {me}; continue it with that binary (pin its commit in {}, see the book's \"Pinned binaries\"), or set mixed_binaries: true",
                 exp.file.display(),
                 key(i),
-                other.binary
+                other.binary,
+                super::pin::Pin::path(&exp.root).display()
             )
             .into());
         }
@@ -383,7 +391,7 @@ pub fn run(exp: &Experiment, opts: &RunnerOptions, only: Option<usize>) -> crate
                     continue;
                 }
                 // The cores are shared among the runs at a time (one run alone updates its species on all).
-                match complete_run(exp, run, &opts.exe, crate::parallel::threads() / opts.jobs.max(1)) {
+                match complete_run(exp, run, &exe, crate::parallel::threads() / opts.jobs.max(1)) {
                     Ok(()) => bar.inc(1),
                     Err(e) => {
                         bar.println(format!("coevo: {e}"));
@@ -436,9 +444,13 @@ fn shell_word(what: &str, text: Option<&str>) -> crate::error::Result<String> {
 /// cluster. Written to `results/<experiment>/slurm/`; `submit.sh` submits both. Every path and name is a
 /// quoted word of a command line ([`shell_word`]); the `#SBATCH` lines hold numbers only, so job names
 /// and log files are given on `sbatch`'s command line, where they can be quoted.
-pub fn emit_slurm(exp: &Experiment, exe: &Path) -> crate::error::Result<PathBuf> {
+pub fn emit_slurm(exp: &Experiment, exe: &Path, pinned: Option<&Path>) -> crate::error::Result<PathBuf> {
     let dir = exp.root.join("slurm");
     let exe = shell_word("the coevo binary's path", exe.to_str())?;
+    let pinned = match pinned {
+        Some(path) => format!(" --pinned-binary {}", shell_word("the pinned binary's path", path.to_str())?),
+        None => String::new(),
+    };
     let file = shell_word("the experiment file's path", exp.file.to_str())?;
     // The results folder is checked once (no control character, no %); the words built on it are then
     // quoted as they stand, the log pattern's %A_%a being Slurm's.
@@ -456,7 +468,7 @@ pub fn emit_slurm(exp: &Experiment, exe: &Path) -> crate::error::Result<PathBuf>
         "#!/bin/bash\n#SBATCH --array=0-{last}\n#SBATCH --cpus-per-task=1\n#SBATCH --mem=2G\n#SBATCH --time=02:00:00\n\
          # One run of the experiment (train, resume or skip, then its evaluations) per array task; submit.sh\n\
          # names the job and its log.\n\
-         exec {exe} --experiment {file} --task \"$SLURM_ARRAY_TASK_ID\" --quiet\n",
+         exec {exe} --experiment {file} --task \"$SLURM_ARRAY_TASK_ID\"{pinned} --quiet\n",
     );
     let aggregate = format!(
         "#!/bin/bash\n#SBATCH --cpus-per-task=1\n#SBATCH --mem=4G\n#SBATCH --time=00:30:00\n\

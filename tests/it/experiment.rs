@@ -1311,3 +1311,81 @@ fn an_experiment_distills_its_runs_and_deploys_the_rules_with_their_ablations() 
         assert!(stderr.contains(says), "{stderr}");
     }
 }
+
+/// A pinned experiment (`results/NAME/binary/pin.ron`) is continued only by a build that reproduces the
+/// pin's fingerprint; such a build is then recorded among the pin's rebuilds, and its runs are the pin's.
+#[test]
+fn a_pinned_experiment_runs_only_with_a_build_that_reproduces_its_fingerprint() {
+    // The fingerprint is of the AVX2-FMA kernels' numbers: elsewhere there is nothing to compare with.
+    #[cfg(target_arch = "x86_64")]
+    let fma = std::arch::is_x86_feature_detected!("fma");
+    #[cfg(not(target_arch = "x86_64"))]
+    let fma = false;
+    if !fma {
+        eprintln!("skipped: the pinned fingerprint is of the AVX2-FMA kernels, which this machine lacks");
+        return;
+    }
+    let one_run = r#"(
+    base: "scenes/paper.ron",
+    seeds: [1],
+    episodes: 2,
+    variants: [(name: "1:1", patch: (episode_steps: 30, learning: (hidden: 16, batch_size: 32, warmup_transitions: 32, updates_per_episode: 3)))],
+    evaluations: [(name: "50 prey", counts: [("prey", 50)], episodes: 1, steps: 20)],
+)"#;
+    let dir = workspace_with("tiny", one_run);
+    let root = dir.path();
+    // The pinned commit: a repository holding the standard scene the fingerprint run is trained on.
+    std::fs::copy("scenes/standard.ron", root.join("scenes/standard.ron")).unwrap();
+    let git = |args: &[&str]| {
+        let out = Command::new("git")
+            .args(["-c", "user.name=coevo", "-c", "user.email=coevo@example.org"])
+            .args(args)
+            .current_dir(root)
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "git {args:?}: {}", String::from_utf8_lossy(&out.stderr));
+        String::from_utf8_lossy(&out.stdout).trim().to_string()
+    };
+    git(&["init", "-q"]);
+    git(&["add", "scenes"]);
+    git(&["commit", "-q", "-m", "scenes"]);
+    let commit = git(&["rev-parse", "--short", "HEAD"]);
+    let pin = |fingerprint: &str| {
+        format!(
+            "(commit: \"{commit}\", blake3: \"0000000000000000\", toolchain: \"rustc\", cargo_lock: \"0\", kernels: \"avx2-fma\", fingerprint: \"{fingerprint}\")"
+        )
+    };
+    let pin_file = root.join("results/tiny/binary/pin.ron");
+    std::fs::create_dir_all(pin_file.parent().unwrap()).unwrap();
+    let me = env!("CARGO_BIN_EXE_coevo");
+    let args = ["--experiment", "experiments/tiny.ron", "--pinned-binary", me, "--quiet"];
+
+    // A build that computes other numbers than the pinned binary is refused, before any run.
+    std::fs::write(&pin_file, pin("ffffffffffffffff")).unwrap();
+    let err = refused(root, &args);
+    assert!(
+        err.contains("gives fingerprint 2eee7e2b9b23e15b where results/tiny/binary/pin.ron says ffffffffffffffff"),
+        "{err}"
+    );
+    assert!(!root.join("results/tiny/paper").exists(), "a run started with a refused binary");
+
+    // One that reproduces it makes the runs, on the pin's kernels, and is recorded as a rebuild.
+    std::fs::write(&pin_file, pin("2eee7e2b9b23e15b")).unwrap();
+    let out = coevo(root, &args);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("reproduced"));
+    let recorded = coevo::experiment::pin::Pin::read(&root.join("results/tiny")).unwrap().unwrap();
+    assert_eq!(recorded.rebuilds.len(), 1);
+    let provenance = std::fs::read_to_string(root.join("results/tiny/paper/1-1/seed1/provenance.ron")).unwrap();
+    assert!(provenance.contains(&format!("binary: \"{}\"", recorded.rebuilds[0])), "{provenance}");
+    assert!(provenance.contains("kernels: \"avx2-fma\""), "{provenance}");
+    // Recorded, it continues the experiment unchecked, by itself.
+    let again = coevo(root, &["--experiment", "experiments/tiny.ron", "--quiet"]);
+    let said = String::from_utf8_lossy(&again.stderr);
+    assert!(again.status.success() && !said.contains("reproduced") && !said.contains("building"), "{said}");
+
+    // An experiment without a pin takes no pinned binary.
+    std::fs::remove_file(&pin_file).unwrap();
+    let err = refused(root, &args);
+    assert!(err.contains("--pinned-binary: experiments/tiny.ron is not pinned"), "{err}");
+}

@@ -1,0 +1,311 @@
+//! A pinned experiment's binary, `results/NAME/binary/pin.ron`: the commit every run of the experiment is
+//! made at, recorded instead of the executable (git keeps no executables). Continuing such an experiment
+//! rebuilds that commit in a git worktree under `target/pinned/` and refuses to go on unless the rebuild
+//! reproduces the pin's behavioural fingerprint; the runs are then made by the rebuild, while this binary
+//! only orchestrates and aggregates (docs/src/guide/experiments.md, "Pinned binaries").
+//!
+//! Two builds of one commit are different files (codegen is not byte-reproducible here) that compute the
+//! same numbers, so a verified rebuild's BLAKE3 prefix is added to the pin's `rebuilds`: the runner and
+//! aggregation count runs of the original and of its verified rebuilds as one binary's.
+
+use crate::error::{Result, ResultExt};
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+
+/// The folder of an experiment's results that records its binary (`results/NAME/binary/`).
+pub const BINARY_DIR: &str = "binary";
+/// The pin itself, in that folder.
+pub const PIN: &str = "pin.ron";
+/// Where rebuilds are made: a worktree, its target folder and the executable per commit.
+const PINNED: &str = "target/pinned";
+/// The fixed run a fingerprint is taken of, on the AVX2-FMA kernels (every x86-64 machine coevo tests
+/// has them): `COEVO_KERNELS=avx2 coevo --train --seed 1 --episodes 4`, in a folder holding the commit's
+/// `scenes/standard.ron`.
+const FINGERPRINT_RUN: [&str; 5] = ["--train", "--seed", "1", "--episodes", "4"];
+const FINGERPRINT_KERNELS: &str = "avx2";
+
+/// What a pinned experiment records of its binary.
+#[derive(Serialize, Deserialize, Clone, Debug, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Pin {
+    /// The commit the binary is built at (`cargo build --release`, no viewer).
+    pub commit: String,
+    /// The original executable's BLAKE3 prefix: every run's `provenance.ron` `binary`.
+    pub blake3: String,
+    /// `rustc --version` of the original build (a rebuild with another is warned about; its
+    /// fingerprint decides).
+    pub toolchain: String,
+    /// BLAKE3 prefix of the commit's `Cargo.lock`: a rebuild whose worktree holds another is refused.
+    pub cargo_lock: String,
+    /// The matrix-product kernel family of its runs (`provenance.ron`'s `kernels`): its runs are
+    /// continued on it, whatever this machine would pick.
+    pub kernels: String,
+    /// `coevo --fingerprint` of the fixed run above, by the original.
+    pub fingerprint: String,
+    /// BLAKE3 prefixes of rebuilds that reproduced the fingerprint; their runs count as the original's.
+    #[serde(default)]
+    pub rebuilds: Vec<String>,
+}
+
+impl Pin {
+    /// `results/NAME/binary/pin.ron` of the experiment whose results folder is `root`.
+    pub fn path(root: &Path) -> PathBuf {
+        root.join(BINARY_DIR).join(PIN)
+    }
+
+    /// The pin of the experiment whose results folder is `root`, None when it is not pinned.
+    pub fn read(root: &Path) -> Result<Option<Pin>> {
+        let path = Pin::path(root);
+        if !path.exists() {
+            return Ok(None);
+        }
+        let text = crate::io::read_text(&path, crate::io::MAX_TEXT_BYTES)?;
+        let pin: Pin = crate::scene::parse_ron(&text, &path.display().to_string())?;
+        if pin.commit.is_empty() || pin.commit.starts_with('-') || !pin.commit.chars().all(|c| c.is_ascii_hexdigit()) {
+            return Err(
+                format!("{}: commit {:?} is not a commit's hexadecimal name", path.display(), pin.commit).into()
+            );
+        }
+        Ok(Some(pin))
+    }
+
+    /// Whether runs by the executable with this BLAKE3 prefix are the pinned binary's.
+    pub fn accepts(&self, blake3: &str) -> bool {
+        blake3 == self.blake3 || self.rebuilds.iter().any(|r| r == blake3)
+    }
+
+    /// Whether two executables' runs are one binary's: the same file, or both the pin's.
+    pub fn same(pin: Option<&Pin>, a: &str, b: &str) -> bool {
+        a == b || pin.is_some_and(|p| p.accepts(a) && p.accepts(b))
+    }
+
+    fn to_ron(&self) -> String {
+        let config = ron::ser::PrettyConfig::new().struct_names(false);
+        ron::ser::to_string_pretty(self, config).expect("a pin serializes") + "\n"
+    }
+}
+
+/// The executable an experiment's runs are made by, and the kernel family they run on.
+pub struct Executable {
+    pub path: PathBuf,
+    /// Its BLAKE3 prefix (what its runs' provenance will say).
+    pub blake3: String,
+    pub kernels: String,
+}
+
+/// The executable to make `exp`'s runs with: this one when the experiment is not pinned or this is its
+/// binary; otherwise `given` (`--pinned-binary`) or a rebuild of the pinned commit, each used only after
+/// it reproduced the pin's fingerprint (which then records it among the pin's rebuilds).
+pub fn executable(exp: &super::Experiment, given: Option<&Path>) -> Result<Executable> {
+    let me = std::env::current_exe().map_err(|e| format!("cannot find the coevo binary: {e}"))?;
+    let this = crate::run::provenance::binary();
+    let Some(pin) = &exp.pin else {
+        if given.is_some() {
+            return Err(format!(
+                "--pinned-binary: {} is not pinned (it has no {})",
+                exp.file.display(),
+                Pin::path(&exp.root).display()
+            )
+            .into());
+        }
+        return Ok(Executable { path: me, blake3: this.to_string(), kernels: crate::learning::nets::kernels().into() });
+    };
+    let (path, blake3) = match given {
+        Some(path) => {
+            let blake3 = blake3_prefix(path).map_err(|e| format!("--pinned-binary: {e}"))?;
+            (std::path::absolute(path).map_err(|e| format!("--pinned-binary: {}: {e}", path.display()))?, blake3)
+        }
+        None if pin.accepts(this) => (me, this.to_string()),
+        None => {
+            let cached = Path::new(PINNED).join(format!("coevo-{}", pin.commit));
+            let path = if cached.is_file() { cached } else { rebuild(exp, pin)? };
+            let blake3 = blake3_prefix(&path)?;
+            (path, blake3)
+        }
+    };
+    if !pin.accepts(&blake3) {
+        verify(exp, pin, &path)?;
+        let mut recorded = pin.clone();
+        recorded.rebuilds.push(blake3.clone());
+        crate::io::write_file(&Pin::path(&exp.root), crate::io::Existing::Replace, recorded.to_ron().as_bytes())?;
+        crate::errln!(
+            "coevo: {} reproduced {}'s fingerprint {}: its runs count as the pinned binary's (recorded in {})",
+            path.display(),
+            pin.commit,
+            pin.fingerprint,
+            Pin::path(&exp.root).display()
+        )?;
+    }
+    Ok(Executable { path, blake3, kernels: pin.kernels.clone() })
+}
+
+/// The first 16 hexadecimal digits of a file's BLAKE3 hash (how provenance names an executable).
+fn blake3_prefix(path: &Path) -> Result<String> {
+    let bytes = std::fs::read(path).map_err(|e| format!("{}: cannot read: {e}", path.display()))?;
+    Ok(blake3::hash(&bytes).to_hex()[..16].to_string())
+}
+
+/// Runs a command to its end; Err is `what` with the last line it wrote.
+fn run(what: &str, command: &mut Command) -> Result<String> {
+    let out = command.stdin(Stdio::null()).output().map_err(|e| format!("{what}: cannot start: {e}"))?;
+    if !out.status.success() {
+        let said = String::from_utf8_lossy(&out.stderr);
+        let last = said.lines().rev().find(|l| !l.trim().is_empty()).unwrap_or("failed without a message");
+        return Err(format!("{what}: {last}").into());
+    }
+    Ok(String::from_utf8_lossy(&out.stdout).into_owned())
+}
+
+/// The pinned commit's `path`, read from git.
+fn at_commit(pin: &Pin, path: &str) -> Result<Vec<u8>> {
+    let what = format!("git show {}:{path}", pin.commit);
+    let out = Command::new("git")
+        .args(["show", &format!("{}:{path}", pin.commit)])
+        .stdin(Stdio::null())
+        .output()
+        .map_err(|e| format!("{what}: cannot start git: {e}"))?;
+    if !out.status.success() {
+        return Err(format!("{what}: {}", String::from_utf8_lossy(&out.stderr).trim()).into());
+    }
+    Ok(out.stdout)
+}
+
+/// Builds the pinned commit in a worktree of this clone (`target/pinned/src-COMMIT`, its own target
+/// folder beside it) and copies its executable to `target/pinned/coevo-COMMIT`.
+fn rebuild(exp: &super::Experiment, pin: &Pin) -> Result<PathBuf> {
+    let pinned = std::path::absolute(PINNED).map_err(|e| format!("{PINNED}: {e}"))?;
+    let source = pinned.join(format!("src-{}", pin.commit));
+    let lock = at_commit(pin, "Cargo.lock")?;
+    let lock_hash = &blake3::hash(&lock).to_hex()[..16];
+    if lock_hash != pin.cargo_lock {
+        return Err(format!(
+            "{}: commit {}'s Cargo.lock hashes to {lock_hash}, the pin says {}; not rebuilt",
+            Pin::path(&exp.root).display(),
+            pin.commit,
+            pin.cargo_lock
+        )
+        .into());
+    }
+    if !source.join("Cargo.toml").is_file() {
+        std::fs::create_dir_all(&pinned).map_err(|e| format!("{}: {e}", pinned.display()))?;
+        let _ = run("git worktree prune", Command::new("git").args(["worktree", "prune"]));
+        let _ = std::fs::remove_dir_all(&source);
+        run(
+            &format!("git worktree add {} {}", source.display(), pin.commit),
+            Command::new("git").args(["worktree", "add", "--detach", "--force"]).arg(&source).arg(&pin.commit),
+        )?;
+    }
+    let toolchain = run("rustc --version", Command::new("rustc").arg("--version"))?;
+    if toolchain.trim() != pin.toolchain {
+        crate::errln!(
+            "coevo: warning: {} was built with {}, this machine has {}; its fingerprint decides",
+            pin.commit,
+            pin.toolchain,
+            toolchain.trim()
+        )?;
+    }
+    let target = pinned.join(format!("target-{}", pin.commit));
+    crate::errln!(
+        "coevo: {} is pinned to commit {}: building it in {} (cargo build --release --locked, some minutes)",
+        exp.file.display(),
+        pin.commit,
+        source.display()
+    )?;
+    run(
+        &format!("cargo build --release in {}", source.display()),
+        Command::new("cargo")
+            .args(["build", "--release", "--locked", "--quiet"])
+            .current_dir(&source)
+            .env("CARGO_TARGET_DIR", &target),
+    )?;
+    let built = target.join("release").join("coevo");
+    let exe = pinned.join(format!("coevo-{}", pin.commit));
+    let temporary = pinned.join(format!(".coevo-{}.{}.tmp", pin.commit, std::process::id()));
+    std::fs::copy(&built, &temporary)
+        .and_then(|_| std::fs::rename(&temporary, &exe))
+        .map_err(|e| format!("{}: cannot copy to {}: {e}", built.display(), exe.display()))
+        .kind(crate::error::Kind::Io)?;
+    Ok(exe)
+}
+
+/// Runs the fixed fingerprint run with `exe` (in a scratch folder holding the pinned commit's standard
+/// scene, the one a `--train` without `--scene` reads there) and refuses unless it gives the pin's
+/// fingerprint.
+fn verify(exp: &super::Experiment, pin: &Pin, exe: &Path) -> Result<()> {
+    let pinned = std::path::absolute(PINNED).map_err(|e| format!("{PINNED}: {e}"))?;
+    let scratch = pinned.join(format!("fingerprint-{}-{}", pin.commit, std::process::id()));
+    let _ = std::fs::remove_dir_all(&scratch);
+    let scene = scratch.join(crate::run::args::STANDARD_SCENE);
+    std::fs::create_dir_all(scene.parent().expect("in scenes/")).map_err(|e| format!("{}: {e}", scratch.display()))?;
+    let out = scratch.join("run");
+    let result = (|| {
+        crate::io::write_file(
+            &scene,
+            crate::io::Existing::Replace,
+            &at_commit(pin, crate::run::args::STANDARD_SCENE)?,
+        )?;
+        run(
+            &format!("{} (the fingerprint run)", exe.display()),
+            Command::new(exe)
+                .args(FINGERPRINT_RUN)
+                .args(["--quiet", "--out"])
+                .arg(&out)
+                .current_dir(&scratch)
+                .env("COEVO_KERNELS", FINGERPRINT_KERNELS),
+        )?;
+        crate::run::provenance::fingerprint(&out)
+    })();
+    let _ = std::fs::remove_dir_all(&scratch);
+    let fingerprint = result?;
+    if fingerprint != pin.fingerprint {
+        return Err(format!(
+            "{}: {} gives fingerprint {fingerprint} where {} says {}: it does not compute what the pinned binary computed; refusing to continue the experiment with it",
+            exp.file.display(),
+            exe.display(),
+            Pin::path(&exp.root).display(),
+            pin.fingerprint
+        )
+        .into());
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn pin() -> Pin {
+        Pin {
+            commit: "d0d37db".into(),
+            blake3: "9c75d3d457b4067d".into(),
+            toolchain: "rustc 1.95.0".into(),
+            cargo_lock: "0".into(),
+            kernels: "avx512".into(),
+            fingerprint: "2eee7e2b9b23e15b".into(),
+            rebuilds: vec!["aaaa".into()],
+        }
+    }
+
+    #[test]
+    fn the_original_and_its_verified_rebuilds_are_one_binary() {
+        let p = pin();
+        assert!(Pin::same(Some(&p), "9c75d3d457b4067d", "aaaa"));
+        assert!(!Pin::same(Some(&p), "9c75d3d457b4067d", "bbbb"));
+        assert!(!Pin::same(None, "9c75d3d457b4067d", "aaaa"));
+        assert!(Pin::same(None, "bbbb", "bbbb"));
+    }
+
+    #[test]
+    fn a_pin_reads_back_what_it_wrote_and_refuses_a_commit_that_is_not_one() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = Pin::path(dir.path());
+        std::fs::create_dir_all(path.parent().unwrap()).unwrap();
+        std::fs::write(&path, pin().to_ron()).unwrap();
+        assert_eq!(Pin::read(dir.path()).unwrap(), Some(pin()));
+        std::fs::write(&path, pin().to_ron().replace("d0d37db", "--help")).unwrap();
+        let err = Pin::read(dir.path()).unwrap_err().to_string();
+        assert!(err.contains("pin.ron") && err.contains("is not a commit"), "{err}");
+        assert_eq!(Pin::read(&dir.path().join("elsewhere")).unwrap(), None);
+    }
+}
