@@ -14,12 +14,12 @@ use std::path::Path;
 #[error("{}", self.line_text())]
 pub struct Error {
     /// The file (or flag, such as `--eval-out x.csv`) the error concerns.
-    pub file: Option<String>,
+    pub(crate) file: Option<String>,
     /// The line in that file, when the error comes from reading it.
-    pub line: Option<usize>,
+    pub(crate) line: Option<usize>,
     /// The field, as a path such as `species[prey].mass`.
     pub field: Option<String>,
-    pub message: String,
+    pub(crate) message: String,
     /// What went wrong, for programs (not printed).
     pub kind: Kind,
 }
@@ -47,11 +47,11 @@ pub enum Kind {
 }
 
 /// What coevo's fallible functions return.
-pub type Result<T> = std::result::Result<T, Error>;
+pub(crate) type Result<T> = std::result::Result<T, Error>;
 
 impl Error {
     /// An error about a field: `field: message`.
-    pub fn field(field: String, message: String) -> Error {
+    pub(crate) fn field(field: String, message: String) -> Error {
         Error { file: None, line: None, field: Some(field), message, kind: Kind::Other }
     }
 
@@ -64,7 +64,7 @@ impl Error {
     }
 
     /// The error as it concerns `file`, unless it already names one.
-    pub fn in_file(mut self, file: &Path) -> Error {
+    pub(crate) fn in_file(mut self, file: &Path) -> Error {
         self.file.get_or_insert_with(|| file.display().to_string());
         self
     }
@@ -94,7 +94,7 @@ impl From<String> for Error {
 }
 
 /// `.kind(Kind::Scene)` on any coevo result: classifies its error ([`Error::of_kind`]).
-pub trait ResultExt<T> {
+pub(crate) trait ResultExt<T> {
     fn kind(self, kind: Kind) -> Result<T>;
 }
 

@@ -25,12 +25,12 @@ use std::sync::Mutex;
 static LIVE_TEMPORARIES: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
 
 /// Registers a temporary file or folder (and the lock files of [`crate::run`]) for removal on a signal.
-pub fn register_temporary(path: &Path) {
+pub(crate) fn register_temporary(path: &Path) {
     LIVE_TEMPORARIES.lock().unwrap_or_else(|e| e.into_inner()).push(path.to_path_buf());
 }
 
 /// Forgets a temporary: it was renamed into place or removed.
-pub fn unregister_temporary(path: &Path) {
+pub(crate) fn unregister_temporary(path: &Path) {
     LIVE_TEMPORARIES.lock().unwrap_or_else(|e| e.into_inner()).retain(|p| p != path);
 }
 
@@ -118,10 +118,10 @@ thread_local! {
 /// handler never removes a temporary that a writer is about to rename or write into, and a writer never
 /// creates one after the handler has cleaned up. Long streaming writes (a record of many steps) hold none
 /// between their steps, so a signal still stops them at once.
-pub struct Writing(());
+pub(crate) struct Writing(());
 
 impl Writing {
-    pub fn begin() -> Writing {
+    pub(crate) fn begin() -> Writing {
         DEPTH.with(|depth| {
             if depth.get() == 0 {
                 loop {
@@ -158,7 +158,7 @@ const WRITING_GRACE: std::time::Duration = std::time::Duration::from_secs(60);
 /// On SIGINT, SIGTERM or SIGHUP: let the step of file writing under way finish ([`Writing`]), remove
 /// this process's temporaries and lock files, then exit with 130 (the shell's code for an interrupted
 /// command). Headless modes only: the viewer keeps Bevy's handler.
-pub fn install_signal_cleanup() {
+pub(crate) fn install_signal_cleanup() {
     let _ = ctrlc::set_handler(|| {
         EXITING.store(true, Ordering::SeqCst);
         let waited = std::time::Instant::now();
@@ -175,14 +175,14 @@ pub fn install_signal_cleanup() {
 
 /// Writes to standard output; a closed or full stream is an error (one line, a non-zero exit), never a
 /// panic as `print!` would give ([`outln!`](crate::outln)).
-pub fn out_text(args: std::fmt::Arguments) -> crate::error::Result<()> {
+pub(crate) fn out_text(args: std::fmt::Arguments) -> crate::error::Result<()> {
     let mut out = io::stdout().lock();
     write!(out, "{args}").and_then(|()| out.flush()).map_err(|e| format!("standard output: {e}").into())
 }
 
 /// Writes to standard error (what coevo says besides its results); a closed or full stream is an error,
 /// never a panic as `eprintln!` would give ([`errln!`](crate::errln)).
-pub fn err_text(args: std::fmt::Arguments) -> crate::error::Result<()> {
+pub(crate) fn err_text(args: std::fmt::Arguments) -> crate::error::Result<()> {
     let mut err = io::stderr().lock();
     write!(err, "{args}").and_then(|()| err.flush()).map_err(|e| format!("standard error: {e}").into())
 }
@@ -201,7 +201,7 @@ macro_rules! errln {
 
 /// Whether a process with this PID exists (a PID that is ours is alive; `kill(pid, 0)` asks without
 /// sending anything, EPERM means it exists under another user).
-pub fn process_alive(pid: u32) -> bool {
+pub(crate) fn process_alive(pid: u32) -> bool {
     if pid == std::process::id() {
         return true;
     }
@@ -220,7 +220,7 @@ fn temporary_owner(file_name: &str) -> Option<(&str, u32)> {
 
 /// Removes the temporaries in `dir` left by processes that no longer run (killed mid-write), for every
 /// target, or only for `target` (a file name) when given. Returns how many were removed.
-pub fn remove_stale_temporaries(dir: &Path, target: Option<&str>) -> usize {
+pub(crate) fn remove_stale_temporaries(dir: &Path, target: Option<&str>) -> usize {
     let mut removed = 0;
     // An unreadable folder holds nothing to remove.
     for entry in std::fs::read_dir(dir).into_iter().flatten().flatten() {
@@ -248,7 +248,7 @@ pub enum Existing {
 }
 
 /// Refuses a target that exists and is not a regular file, or that exists at all under `Existing::Refuse`.
-pub fn check_target(path: &Path, existing: Existing) -> io::Result<()> {
+pub(crate) fn check_target(path: &Path, existing: Existing) -> io::Result<()> {
     match std::fs::symlink_metadata(path) {
         Err(e) if e.kind() == io::ErrorKind::NotFound => Ok(()),
         Err(e) => Err(e),
@@ -263,7 +263,7 @@ pub fn check_target(path: &Path, existing: Existing) -> io::Result<()> {
 }
 
 /// [`check_target`] of every file a mode will write, before its work: one line naming the first refused.
-pub fn check_targets(paths: &[PathBuf], existing: Existing) -> crate::error::Result<()> {
+pub(crate) fn check_targets(paths: &[PathBuf], existing: Existing) -> crate::error::Result<()> {
     for path in paths {
         check_target(path, existing).map_err(|e| format!("{}: {e}", path.display())).kind(crate::error::Kind::Io)?;
     }
@@ -273,7 +273,7 @@ pub fn check_targets(paths: &[PathBuf], existing: Existing) -> crate::error::Res
 /// A file being written: all writes go to a temporary file beside the target, which [`AtomicFile::commit`]
 /// renames over it. Dropped without a commit (an error, a panic), the temporary is removed and the target
 /// is untouched.
-pub struct AtomicFile {
+pub(crate) struct AtomicFile {
     target: PathBuf,
     tmp: PathBuf,
     existing: Existing,
@@ -282,7 +282,7 @@ pub struct AtomicFile {
 
 impl AtomicFile {
     /// Starts writing `path`, after checking that it may be written ([`check_target`]).
-    pub fn create(path: &Path, existing: Existing) -> io::Result<AtomicFile> {
+    pub(crate) fn create(path: &Path, existing: Existing) -> io::Result<AtomicFile> {
         check_target(path, existing)?;
         let _writing = Writing::begin();
         if let Some(name) = path.file_name() {
@@ -298,14 +298,14 @@ impl AtomicFile {
     }
 
     /// The writer.
-    pub fn writer(&mut self) -> &mut BufWriter<File> {
+    pub(crate) fn writer(&mut self) -> &mut BufWriter<File> {
         self.out.as_mut().expect("an uncommitted file has its writer")
     }
 
     /// Flushes, syncs and renames the temporary over the target. A target the caller may not replace
     /// ([`Existing::Refuse`]) is still refused if another process created it meanwhile: the rename then
     /// does not replace ([`rename_new`]), so of two processes writing one new file only one succeeds.
-    pub fn commit(mut self) -> io::Result<()> {
+    pub(crate) fn commit(mut self) -> io::Result<()> {
         let mut out = self.out.take().expect("commit once");
         out.flush()?;
         out.get_ref().sync_all()?;
@@ -372,7 +372,7 @@ fn rename_new(from: &Path, to: &Path) -> io::Result<()> {
 /// Creates the folder `dir` (and its parents) where coevo writes its own files inside a run or results
 /// folder (`figures/`, `snapshots/`, `slurm/`), and refuses it unless it is a real folder: a symbolic link
 /// there would send coevo's writes into whatever folder it points to.
-pub fn own_dir(dir: &Path) -> crate::error::Result<()> {
+pub(crate) fn own_dir(dir: &Path) -> crate::error::Result<()> {
     if check_own_dir(dir)? {
         return Ok(());
     }
@@ -382,7 +382,7 @@ pub fn own_dir(dir: &Path) -> crate::error::Result<()> {
 
 /// [`own_dir`]'s refusals without making anything: a symbolic link, or something other than a folder,
 /// where coevo will write a folder of its own. Whether the folder is there already.
-pub fn check_own_dir(dir: &Path) -> crate::error::Result<bool> {
+pub(crate) fn check_own_dir(dir: &Path) -> crate::error::Result<bool> {
     match std::fs::symlink_metadata(dir) {
         Ok(m) if m.file_type().is_symlink() => Err(format!(
             "{}: is a symbolic link; coevo writes only into real folders it owns, never through a link: remove the link",
@@ -396,7 +396,7 @@ pub fn check_own_dir(dir: &Path) -> crate::error::Result<bool> {
 }
 
 /// Writes `path` atomically with `write`; on error the target is untouched and the temporary removed.
-pub fn write_atomically(
+pub(crate) fn write_atomically(
     path: &Path,
     existing: Existing,
     write: impl FnOnce(&mut BufWriter<File>) -> io::Result<()>,
@@ -409,7 +409,7 @@ pub fn write_atomically(
 /// [`write_atomically`] of whole bytes, with the error as one line naming the file.
 /// The file written beside `path` under the same stem: `OUT.csv` → `OUT-{what}.csv` (an evaluation's
 /// distributions, a record's order parameters).
-pub fn beside(path: &Path, what: &str) -> PathBuf {
+pub(crate) fn beside(path: &Path, what: &str) -> PathBuf {
     let stem = path.file_stem().unwrap_or_default().to_string_lossy();
     path.with_file_name(format!("{stem}-{what}.csv"))
 }
@@ -441,7 +441,7 @@ const NOT_REGULAR: &str = "is not a regular file (a folder, pipe or device); coe
 /// Opens an input file, every input's one way in: asked first whether it is a regular file, since opening
 /// a FIFO blocks until a writer comes and a device may never end (refused as `InvalidInput`, its message
 /// saying so). A missing file is the `NotFound` error it is, for callers to whom absent is an answer.
-pub fn open_input(path: &Path) -> io::Result<File> {
+pub(crate) fn open_input(path: &Path) -> io::Result<File> {
     if !std::fs::metadata(path)?.is_file() {
         return Err(io::Error::new(io::ErrorKind::InvalidInput, NOT_REGULAR));
     }
@@ -480,7 +480,7 @@ pub fn bytes_shown(bytes: f64) -> String {
 /// limit of its cgroup (v2 `memory.max`, v1 `memory.limit_in_bytes`) and the address space left under
 /// `ulimit -v` (`RLIMIT_AS` minus what the process already maps), or 1 TB where none can be read. Sizes
 /// are validated against it before anything is allocated, so a limit is one error line, never an abort.
-pub fn memory_bytes() -> f64 {
+pub(crate) fn memory_bytes() -> f64 {
     [mem_available(), cgroup_limit(), address_space_left()].into_iter().flatten().fold(1e12, f64::min)
 }
 

@@ -12,6 +12,30 @@
 //! | `viewer/` | the window (`--features viewer`) |
 //! | `cli.rs` | the command line (`main.rs` and examples call [`cli::main`]) |
 //! | `error.rs`, `io.rs`, `parallel.rs`, `svg.rs` | the one error type, files written safely, threads that never change a result, SVG to pixels |
+//!
+//! # The public API
+//!
+//! Everything else is `pub(crate)`: the crate's own plumbing, free to change. What is public is what its
+//! three kinds of users need (the integration tests in `tests/` are written as such a user):
+//!
+//! - **A species plugin** (`examples/hawk.rs`, `tests/species_plugin.rs`, the book's "Adding a species"):
+//!   [`sim::species`] (`SpeciesPlugin`, `SpeciesPlugins`, `SpeciesTemplate`, `SpeciesRegistry`), the
+//!   components of [`sim::components`], [`sim::perception`]'s batches, [`sim::reward`], [`sim::space::Arena`],
+//!   [`sim::SimSet`] and [`sim::Simulation`], the scene types of [`scene`], and [`cli::main`] to run it all.
+//! - **A binding or driver** (the Python package, `python/src/lib.rs`): [`run::env`] (`Env`, `VecEnv`),
+//!   [`run::RunDir`] and [`run::schema::Table`] to read run folders, [`run::args::load_scene`],
+//!   [`learning::control::ObservationControl`], [`experiment::stats`], [`experiment::response`],
+//!   [`experiment::force_map`], [`experiment::external`], [`error`] (`Error`, `Kind`) and [`io`]'s safe
+//!   writes.
+//! - **A downstream crate** training and evaluating: [`run::train`] (`train`, `resume`, `TrainOptions`),
+//!   [`run::evaluate`], [`run::animate`], [`learning`] (`Learners`, `Mode`, `simulation`), [`sim::metrics`]
+//!   and [`experiment::Experiment`] with its crossplay, distillation and summary readers.
+//!
+//! A few items stay public only because the integration tests check them from outside (checkpoint
+//! manifests and snapshots in [`learning`], [`cli::check_args`], [`io::bytes_shown`]); they are not meant
+//! to be built on. The docs link private items as well: read them with `cargo doc --document-private-items`.
+
+#![allow(rustdoc::private_intra_doc_links)]
 
 /// The crate's version (`provenance.ron`'s `coevo_version`; the Python package's `__version__`).
 pub const VERSION: &str = env!("CARGO_PKG_VERSION");

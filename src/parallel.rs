@@ -16,7 +16,7 @@ static THREADS: AtomicUsize = AtomicUsize::new(0);
 
 /// Worker threads for coarse-grained work: set by `--threads`, else `COEVO_THREADS`, else the machine's
 /// available cores.
-pub fn threads() -> usize {
+pub(crate) fn threads() -> usize {
     match THREADS.load(Ordering::Relaxed) {
         0 => {
             let n = std::env::var("COEVO_THREADS")
@@ -40,7 +40,7 @@ pub fn set_threads(n: usize) {
 /// threads to split a product over, so that pool gets one thread (whatever `RAYON_NUM_THREADS` says).
 /// Called once per process, before the first network is built; a no-op when the embedding program has
 /// already built rayon's global pool (results are the same, only slower).
-pub fn single_threaded_kernels() {
+pub(crate) fn single_threaded_kernels() {
     static ONCE: Once = Once::new();
     ONCE.call_once(|| {
         let _ = rayon::ThreadPoolBuilder::new().num_threads(1).build_global();
@@ -55,12 +55,12 @@ pub fn single_threaded_kernels() {
 /// not schedule (other work on its core) takes no item and holds nothing up: the calling thread does its
 /// share, and waits only for items a worker has actually begun. Which thread computes an item never
 /// changes what it computes.
-pub fn for_each_mut<T: Send>(items: &mut [T], f: impl Fn(&mut T) + Sync) {
+pub(crate) fn for_each_mut<T: Send>(items: &mut [T], f: impl Fn(&mut T) + Sync) {
     for_each_mut_on(items, threads(), f);
 }
 
 /// [`for_each_mut`] on at most `workers` threads (at least one, at most [`threads`]).
-pub fn for_each_mut_on<T: Send>(items: &mut [T], workers: usize, f: impl Fn(&mut T) + Sync) {
+pub(crate) fn for_each_mut_on<T: Send>(items: &mut [T], workers: usize, f: impl Fn(&mut T) + Sync) {
     let workers = workers.clamp(1, threads()).min(items.len());
     if workers <= 1 {
         items.iter_mut().for_each(f);
@@ -88,7 +88,7 @@ fn on_pool<T: Send>(items: &mut [T], helpers: usize, f: impl Fn(&mut T) + Sync) 
 /// [`Adaptive::EXPLORE_EVERY`]th call tries the other choice, so a change in the machine's load is seen.
 /// Only speed depends on it: which thread computes an item never changes what it computes.
 #[derive(Clone, Debug, Default)]
-pub struct Adaptive {
+pub(crate) struct Adaptive {
     /// Running mean of seconds per call, on one thread (0) and on all (1); None until tried.
     seconds: [Option<f64>; 2],
     /// Calls made with each choice.
@@ -98,7 +98,7 @@ pub struct Adaptive {
 
 impl Adaptive {
     /// One call in this many runs on the choice that looks slower.
-    pub const EXPLORE_EVERY: u64 = 32;
+    pub(crate) const EXPLORE_EVERY: u64 = 32;
     /// Weight of the newest call in the running means.
     const WEIGHT: f64 = 0.125;
     /// All threads are chosen when their mean time is below this fraction of one thread's.
@@ -106,7 +106,7 @@ impl Adaptive {
 
     /// Runs `f` with the worker count to use (1, or `cap` threads: None for [`threads`], never more)
     /// and learns from its wall time.
-    pub fn run_at_most<R>(&mut self, cap: Option<usize>, f: impl FnOnce(usize) -> R) -> R {
+    pub(crate) fn run_at_most<R>(&mut self, cap: Option<usize>, f: impl FnOnce(usize) -> R) -> R {
         self.run_among(cap.map_or(threads(), |c| c.clamp(1, threads())), f)
     }
 
@@ -289,18 +289,18 @@ impl Pool {
 
 /// Runs `f(chunk_index, chunk)` over consecutive chunks of `chunk_len` items of `data`, in parallel when
 /// there is more than one chunk. The chunking depends only on `chunk_len`, never on the thread count.
-pub fn for_each_chunk<T: Send>(data: &mut [T], chunk_len: usize, f: impl Fn(usize, &mut [T]) + Sync) {
+pub(crate) fn for_each_chunk<T: Send>(data: &mut [T], chunk_len: usize, f: impl Fn(usize, &mut [T]) + Sync) {
     let mut chunks: Vec<(usize, &mut [T])> = data.chunks_mut(chunk_len.max(1)).enumerate().collect();
     for_each_mut(&mut chunks, |(i, c)| f(*i, c));
 }
 
 /// Per-agent work over populations up to this size runs on the calling thread: starting threads costs
 /// more than the contacts of a thousand agents (3 + 1 000 steps ran 10 % slower split in chunks of 512).
-pub const ALONE_UP_TO: usize = 4096;
+pub(crate) const ALONE_UP_TO: usize = 4096;
 
 /// The length of the chunks per-agent work over `n` agents is split into: all of them up to
 /// [`ALONE_UP_TO`], else one chunk per worker thread.
-pub fn chunk_len(n: usize) -> usize {
+pub(crate) fn chunk_len(n: usize) -> usize {
     if n > ALONE_UP_TO {
         n.div_ceil(threads())
     } else {
@@ -309,7 +309,7 @@ pub fn chunk_len(n: usize) -> usize {
 }
 
 /// Contiguous ranges of [`chunk_len`] covering `0..n`.
-pub fn ranges(n: usize) -> impl Iterator<Item = std::ops::Range<usize>> {
+pub(crate) fn ranges(n: usize) -> impl Iterator<Item = std::ops::Range<usize>> {
     let len = chunk_len(n);
     (0..n).step_by(len).map(move |start| start..(start + len).min(n))
 }
@@ -317,7 +317,7 @@ pub fn ranges(n: usize) -> impl Iterator<Item = std::ops::Range<usize>> {
 /// `f` of each of [`ranges`]`(n)`, on all worker threads, the results in range order. For work where each
 /// item is computed alone: callers that then sum the items do so in item order, so neither the split nor
 /// the thread count changes a number.
-pub fn map_ranges<T: Send>(n: usize, f: impl Fn(std::ops::Range<usize>) -> T + Sync) -> Vec<T> {
+pub(crate) fn map_ranges<T: Send>(n: usize, f: impl Fn(std::ops::Range<usize>) -> T + Sync) -> Vec<T> {
     if chunk_len(n) >= n {
         return vec![f(0..n)]; // one range: no bookkeeping (the small groups of every training step)
     }

@@ -7,7 +7,7 @@ use resvg::usvg;
 use std::sync::Arc;
 
 /// Parse options with the bundled font as every family: build once, reuse for every frame.
-pub fn options() -> usvg::Options<'static> {
+pub(crate) fn options() -> usvg::Options<'static> {
     let mut options = usvg::Options::default();
     let fonts = Arc::make_mut(&mut options.fontdb);
     fonts.load_font_data(epaint_default_fonts::UBUNTU_LIGHT.to_vec());
@@ -20,7 +20,7 @@ pub fn options() -> usvg::Options<'static> {
 }
 
 /// Rasterizes SVG text at its own size.
-pub fn rasterize(svg: &str, options: &usvg::Options) -> crate::error::Result<Pixmap> {
+pub(crate) fn rasterize(svg: &str, options: &usvg::Options) -> crate::error::Result<Pixmap> {
     let draw_err = |e: &dyn std::fmt::Display| format!("cannot draw: {e}");
     let tree = usvg::Tree::from_str(svg, options).map_err(|e| draw_err(&e))?;
     let size = tree.size().to_int_size();

@@ -17,7 +17,7 @@ use std::collections::BTreeMap;
 /// there are any, writes its summaries and figures. The results are not yet judged: [`adjust`] does that
 /// over their families, which may span experiment files. Claims with no run yet say so. `carried`: the
 /// committed runs finished elsewhere, written beside the folders here ([`super::data::check_complete`]).
-pub fn aggregate(
+pub(crate) fn aggregate(
     exp: &Experiment,
     data: &BTreeMap<usize, RunData>,
     carried: carry::Carried,
@@ -104,19 +104,19 @@ pub fn aggregate(
 }
 
 /// What [`aggregate`] found, and what it wrote.
-pub struct Aggregated {
+pub(crate) struct Aggregated {
     /// Estimated and tested, not yet adjusted or judged ([`adjust`]).
-    pub results: Vec<ClaimResult>,
+    pub(crate) results: Vec<ClaimResult>,
     /// The per-run values the claims were computed from (written now, or the committed summary.csv).
-    pub summary: Summary,
+    pub(crate) summary: Summary,
     /// How many figures it drew (each as .svg and .png): from the run folders, or in a clone from the
     /// committed figure data. None when it drew none (a clone of a commit without figure data).
-    pub figures: Option<usize>,
+    pub(crate) figures: Option<usize>,
     /// Whether the run folders were here, so summary.csv, summary-mean.csv and figure-data.ron.gz were
     /// written from them (else the committed ones were read and left as they are).
-    pub from_folders: bool,
+    pub(crate) from_folders: bool,
     /// Whether a committed summary.csv was extended with its curve columns ([`summary::extend`]).
-    pub extended: bool,
+    pub(crate) extended: bool,
 }
 
 /// The verdict on a change over training (or a curve's shape) of runs shorter than two windows.
@@ -135,7 +135,7 @@ const IDENTICAL: &str = "not a comparison: the two variants' runs are identical 
 /// The tests of an experiment from its committed summary.csv (extended in memory with its curve columns
 /// from the committed figure data, as [`aggregate`] extends it), without writing anything: another file's
 /// tests, for the families a report shares with it.
-pub fn committed_tests(exp: &Experiment) -> crate::error::Result<Vec<ClaimResult>> {
+pub(crate) fn committed_tests(exp: &Experiment) -> crate::error::Result<Vec<ClaimResult>> {
     let Some(table) = Summary::read(&exp.summary_path())? else {
         return Ok(tests(exp, &Summary::default()));
     };
@@ -169,7 +169,7 @@ fn with_curve_columns(
 
 /// Every claim of `exp` on every preset, estimated and tested on the per-run values of `table` (the
 /// experiment's summary.csv): its estimate and unadjusted p-value, not yet adjusted or judged.
-pub fn tests(exp: &Experiment, table: &Summary) -> Vec<ClaimResult> {
+pub(crate) fn tests(exp: &Experiment, table: &Summary) -> Vec<ClaimResult> {
     let mut results = Vec::new();
     // A claim of a preset, not yet estimated, tested or judged; its chance level from the variant's scene.
     let untested = |preset: &String, claim: &super::file::Claim| {
@@ -240,7 +240,7 @@ pub fn tests(exp: &Experiment, table: &Summary) -> Vec<ClaimResult> {
 /// its Holm step's level. A test that reads the same samples in the same way as an earlier test of its
 /// family (the same runs, the same quantity: e.g. a variant shared from another experiment) is that test,
 /// counted once: the first of them in `results`' order (the files' order) is tested, the others name it.
-pub fn adjust(results: &mut [ClaimResult]) {
+pub(crate) fn adjust(results: &mut [ClaimResult]) {
     let key = |r: &ClaimResult| match &r.claim.family {
         Some(name) => (name.clone(), String::new()),
         None => (String::new(), r.experiment.clone()),
@@ -284,7 +284,7 @@ pub fn adjust(results: &mut [ClaimResult]) {
 }
 
 /// How a level's verdict says that it disagrees with its contrast (read by `paper_table`).
-pub const DISAGREES: &str = "disagrees with the primary contrast";
+pub(crate) const DISAGREES: &str = "disagrees with the primary contrast";
 
 /// One sentence of the paper often gives a level and the contrast it implies ("at R = D/3, DoA drops to
 /// 0.75", against 0.82 at R = D): the contrast (the variant against its base, the same quantity) is the

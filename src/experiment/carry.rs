@@ -15,13 +15,13 @@ use std::collections::{BTreeMap, BTreeSet};
 use std::fmt::Write as _;
 
 /// The record of which scene each committed row was trained on, beside `summary.csv`.
-pub const FILE: &str = "runs.csv";
+pub(crate) const FILE: &str = "runs.csv";
 
 /// What a committed row is a row of, as one word: the first 16 hex digits of the BLAKE3 hash of the run's
 /// scene (seed included) and of what the experiment asks of a finished run: each evaluation's name,
 /// episodes, what its actors see, whether it deploys untrained actors, its perturbation and the scene it
 /// is evaluated in, and the cross-play's episodes. A row is carried only while the experiment file asks for the same.
-pub fn identity(exp: &Experiment, run: &super::file::Run) -> String {
+pub(crate) fn identity(exp: &Experiment, run: &super::file::Run) -> String {
     let mut what = run.scene.to_ron();
     for e in &exp.spec.evaluations {
         // Added to the words only when set, so the identities of rows recorded before it stay valid.
@@ -52,7 +52,7 @@ pub fn identity(exp: &Experiment, run: &super::file::Run) -> String {
 /// `runs.csv` for the rows of a summary (`runs`: indices into the experiment's runs, in the summary's
 /// order, each with the family of matrix-product kernels it ran on, empty when not known): each run's key,
 /// the identity of its scene and its kernels.
-pub fn text(exp: &Experiment, runs: impl Iterator<Item = (usize, String)>) -> String {
+pub(crate) fn text(exp: &Experiment, runs: impl Iterator<Item = (usize, String)>) -> String {
     let mut out = String::from("preset,variant,seed,scene,kernels\n");
     for (i, kernels) in runs {
         let r = &exp.runs[i];
@@ -64,12 +64,12 @@ pub fn text(exp: &Experiment, runs: impl Iterator<Item = (usize, String)>) -> St
 
 /// What `runs.csv` records of a committed run.
 #[derive(Clone, Debug, Default, PartialEq)]
-pub struct Record {
+pub(crate) struct Record {
     /// Its [`identity`].
-    pub scene: String,
+    pub(crate) scene: String,
     /// The family of matrix-product kernels it ran on; empty when not recorded (a `runs.csv` written
     /// before the column).
-    pub kernels: String,
+    pub(crate) kernels: String,
 }
 
 /// What `runs.csv` records of each committed run, by run index; empty without the file.
@@ -117,16 +117,16 @@ fn uncarriable(exp: &Experiment, i: usize, recorded: &BTreeMap<usize, Record>) -
 /// A run finished on another machine: the binaries that made it and the kernels it ran on (empty when
 /// not recorded).
 #[derive(Clone, Debug)]
-pub struct Elsewhere {
-    pub binary: String,
-    pub kernels: String,
+pub(crate) struct Elsewhere {
+    pub(crate) binary: String,
+    pub(crate) kernels: String,
 }
 
 /// The runs finished on another machine: a committed row of the scene and evaluations the experiment
 /// file gives it now, with its curves in the committed figure data, and no folder here (a folder here is
 /// resumed or rerun, and aggregated when it is finished). An experiment whose committed rows cannot be
 /// carried has none, so the runner runs them again.
-pub fn finished_elsewhere(exp: &Experiment) -> crate::error::Result<BTreeMap<usize, Elsewhere>> {
+pub(crate) fn finished_elsewhere(exp: &Experiment) -> crate::error::Result<BTreeMap<usize, Elsewhere>> {
     let Some(summary) = Summary::read(&exp.summary_path())? else { return Ok(BTreeMap::new()) };
     // A summary without every column written now (an older coevo's) carries nothing: its runs are rerun.
     let header = super::summary::header(&super::summary::columns(exp));
@@ -149,7 +149,7 @@ pub fn finished_elsewhere(exp: &Experiment) -> crate::error::Result<BTreeMap<usi
 }
 
 /// The committed runs of the experiment file (rows of its committed summary.csv), by run index.
-pub fn committed_runs(exp: &Experiment) -> crate::error::Result<BTreeSet<usize>> {
+pub(crate) fn committed_runs(exp: &Experiment) -> crate::error::Result<BTreeSet<usize>> {
     Ok(Summary::read(&exp.summary_path())?
         .map_or(BTreeSet::new(), |s| s.runs(exp).into_iter().map(|(i, _)| i).collect()))
 }
@@ -157,18 +157,22 @@ pub fn committed_runs(exp: &Experiment) -> crate::error::Result<BTreeSet<usize>>
 /// What aggregation carries of the committed results: the summary line and the figure data of each
 /// committed run whose folder is not among `data`, by run index.
 #[derive(Default)]
-pub struct Carried {
-    pub lines: BTreeMap<usize, String>,
-    pub figures: BTreeMap<usize, FigureData>,
+pub(crate) struct Carried {
+    pub(crate) lines: BTreeMap<usize, String>,
+    pub(crate) figures: BTreeMap<usize, FigureData>,
     /// The kernels each ran on, as `runs.csv` records them.
-    pub kernels: BTreeMap<usize, String>,
+    pub(crate) kernels: BTreeMap<usize, String>,
 }
 
 /// The committed runs of `exp` that `data` (the run folders here) lacks, carried as [`Carried`] into a
 /// summary of columns `header`. Refused, in one line naming the run and why, when one cannot be carried
 /// (no record of its scene, another scene, a column or figure data missing, another binary or family of
 /// kernels): then aggregating would drop a finished run or mix it with others.
-pub fn carried(exp: &Experiment, data: &BTreeMap<usize, RunData>, header: &[String]) -> crate::error::Result<Carried> {
+pub(crate) fn carried(
+    exp: &Experiment,
+    data: &BTreeMap<usize, RunData>,
+    header: &[String],
+) -> crate::error::Result<Carried> {
     let path = exp.summary_path();
     if data.is_empty() || !path.exists() {
         return Ok(Carried::default());

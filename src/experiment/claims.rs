@@ -10,66 +10,65 @@ use std::collections::BTreeMap;
 /// A run's episodes (prey, or the headline species) and its evaluations.
 #[derive(Clone, Debug, Default)]
 pub struct RunData {
-    pub dos: Vec<f64>,
-    pub doa: Vec<f64>,
-    pub catches: Vec<f64>,
-    pub returns: Vec<f64>,
+    pub(crate) dos: Vec<f64>,
+    pub(crate) doa: Vec<f64>,
+    pub(crate) catches: Vec<f64>,
+    pub(crate) returns: Vec<f64>,
     /// The other per-episode order parameters by name ([`super::file::EVAL_ORDER`]); NaN for episodes (or
     /// runs) written before they were measured.
-    pub orders: BTreeMap<String, Vec<f64>>,
-    pub wall_seconds: f64,
+    pub(crate) orders: BTreeMap<String, Vec<f64>>,
+    pub(crate) wall_seconds: f64,
     /// The executables that made the run (`provenance.ron`; "unknown" before provenance files).
-    pub binaries: Vec<String>,
+    pub(crate) binaries: Vec<String>,
     /// The family of matrix-product kernels it ran on (`provenance.ron`; empty when not recorded): the
     /// same binary computes other numbers on another family.
-    pub kernels: String,
+    pub(crate) kernels: String,
     /// Per evaluation, by name.
-    pub evals: BTreeMap<String, EvalData>,
+    pub(crate) evals: BTreeMap<String, EvalData>,
     /// The read-outs of the run's cross-play (`crossplay-readouts.csv`) by name, when it has one.
-    pub crossplay: BTreeMap<String, f64>,
+    pub(crate) crossplay: BTreeMap<String, f64>,
     /// The numbers of the rules fitted to it (`distilled.ron`) by species, form and name
     /// ([`super::distill::numbers`]), when it has them.
-    pub distilled: BTreeMap<(String, crate::scene::RuleForm, String), f64>,
+    pub(crate) distilled: BTreeMap<(String, crate::scene::RuleForm, String), f64>,
 }
 
 /// One evaluation of a run.
 #[derive(Clone, Debug, Default)]
-pub struct EvalData {
+pub(crate) struct EvalData {
     /// Per order parameter of [`Swarming::NAMES`] (DoS, DoA, polarization, ...): its value per step,
     /// averaged over the evaluation's episodes (NaN throughout for columns an older coevo did not write).
-    pub per_step: Vec<Vec<f64>>,
+    pub(crate) per_step: Vec<Vec<f64>>,
     /// Mean edge rank over the evaluation's steps with a ranked catch, each step's own mean (NaN without one).
-    pub edge_rank: f64,
+    pub(crate) edge_rank: f64,
     /// The confusion curve of the first predator species in `<eval>-confusion.csv`, per bin of prey in
     /// view: mean |turn command|, mean speed / max speed, catches per predator-step (NaN for empty bins;
     /// empty when the file is absent).
-    pub confusion: Vec<[f64; 3]>,
+    pub(crate) confusion: Vec<[f64; 3]>,
     /// With a perturbation: the near and far responses ([`Quantity::Response`]); NaN otherwise.
-    pub response: [f64; 2],
+    pub(crate) response: [f64; 2],
 }
 
 impl EvalData {
-    pub fn series(&self, name: &str) -> &[f64] {
+    pub(crate) fn series(&self, name: &str) -> &[f64] {
         Swarming::NAMES.iter().position(|n| *n == name).and_then(|i| self.per_step.get(i)).map_or(&[], |v| v.as_slice())
     }
 }
 
 /// The paper's running-mean window, in episodes (owned by `sim::metrics`, beside the running mean).
-pub use crate::sim::metrics::WINDOW;
+pub(crate) use crate::sim::metrics::WINDOW;
 
 /// Steps at the end of an evaluation episode averaged as its settled state.
-pub const SETTLED_STEPS: usize = 50;
+pub(crate) const SETTLED_STEPS: usize = 50;
 
-pub use super::curves::{
-    curve_argument_error, curve_shape, extreme_word, reach90, window_mean, AUTHORS_CURVES, CURVES, HALFWAY_WINDOW,
-    START,
+pub(crate) use super::curves::{
+    curve_argument_error, curve_shape, window_mean, AUTHORS_CURVES, CURVES, HALFWAY_WINDOW,
 };
 
 /// A claim checked on one preset.
 #[derive(Clone, Debug)]
 pub struct ClaimResult {
-    pub experiment: String,
-    pub preset: String,
+    pub(crate) experiment: String,
+    pub(crate) preset: String,
     pub claim: Claim,
     pub estimate: Option<Estimate>,
     /// For an effect: the two-sided p-value of "no effect" (TOST's for a claim of no effect), and Holm's
@@ -81,19 +80,19 @@ pub struct ClaimResult {
     /// its TOST interval is the (1 − 2α_k) one.
     pub level: Option<f64>,
     /// How many tests its family holds, across every experiment file that names it (0 when untested).
-    pub family_tests: usize,
+    pub(crate) family_tests: usize,
     /// What its test reads, to the bit (its samples and margin): tests of one family that read the same
     /// are one test ([`super::aggregate::adjust`]). None when untested.
-    pub same_test: Option<SameTest>,
+    pub(crate) same_test: Option<SameTest>,
     /// The test of its family it repeats ("experiment / preset / claim"), counted once.
-    pub same_as: Option<String>,
+    pub(crate) same_as: Option<String>,
     /// Whether it stands as recorded with its results ([`super::registry`]).
-    pub stated: super::registry::Stated,
+    pub(crate) stated: super::registry::Stated,
     /// For a level: the value chance alone gives ([`chance_level`]).
-    pub baseline: Option<f64>,
+    pub(crate) baseline: Option<f64>,
     /// None until it is judged ([`super::aggregate::adjust`]), or given before its test (in progress,
     /// identical runs, windows that overlap).
-    pub verdict: Option<super::verdict::Verdict>,
+    pub(crate) verdict: Option<super::verdict::Verdict>,
 }
 
 impl ClaimResult {
@@ -104,7 +103,7 @@ impl ClaimResult {
 
     /// A claim of `experiment` on `preset`, not yet estimated, tested or judged; `baseline` its chance
     /// level ([`chance_level`]).
-    pub fn untested(experiment: &str, preset: &str, claim: &Claim, baseline: Option<f64>) -> ClaimResult {
+    pub(crate) fn untested(experiment: &str, preset: &str, claim: &Claim, baseline: Option<f64>) -> ClaimResult {
         ClaimResult {
             experiment: experiment.into(),
             preset: preset.into(),
@@ -124,16 +123,16 @@ impl ClaimResult {
 }
 
 /// A test's samples (this variant's, and the compared variant's) and margin, as bits.
-pub type SameTest = (Vec<u64>, Option<Vec<u64>>, Option<u64>);
+pub(crate) type SameTest = (Vec<u64>, Option<Vec<u64>>, Option<u64>);
 
 // What kind of test a claim gets and at which level are the verdict's (`verdict.rs`), re-exported here
 // beside the quantities they read.
-pub use super::verdict::{is_effect, ALPHA};
+pub(crate) use super::verdict::{is_effect, ALPHA};
 
 impl ClaimResult {
     /// The half-width of the interval shown for this claim: at its family-adjusted level for an effect
     /// (the (1 − 2α_k) interval of TOST for a claim of no effect), the plain 95 % interval for a level.
-    pub fn shown_half_width(&self) -> Option<f64> {
+    pub(crate) fn shown_half_width(&self) -> Option<f64> {
         let e = self.estimate?;
         match (self.level, self.claim.margin) {
             (Some(level), Some(_)) => e.half_width(2.0 * level),

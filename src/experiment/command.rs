@@ -13,25 +13,25 @@ use std::path::{Path, PathBuf};
 
 /// `--experiment FILE|all` and its own flags.
 #[derive(clap::Args, Debug, Clone, Default)]
-pub struct ExperimentArgs {
+pub(crate) struct ExperimentArgs {
     /// Run an experiment file (experiments/*.ron), or `all` of them: every preset × variant × seed as a
     /// run under results/, resuming killed runs and skipping finished ones, then evaluations, summaries,
     /// figures and results/NAME/REPORT.md (claims and verdicts); `all` also rewrites REPRODUCTION.md.
     #[arg(long, help_heading = "Modes", value_name = "FILE|all")]
-    pub experiment: Option<String>,
+    pub(crate) experiment: Option<String>,
     /// --experiment: runs at a time, sharing the cores (--threads / J each) [default: 2].
     #[arg(long, help_heading = "Experiments", value_name = "J", value_parser = crate::run::args::at_least_one)]
-    pub jobs: Option<usize>,
+    pub(crate) jobs: Option<usize>,
     /// --experiment: only run index N of the experiment (what a Slurm array task runs).
     #[arg(long, help_heading = "Experiments", value_name = "N")]
-    pub task: Option<usize>,
+    pub(crate) task: Option<usize>,
     /// --experiment: write a Slurm job array and a dependent aggregate job instead of running.
     #[arg(long, help_heading = "Experiments")]
-    pub emit_slurm: bool,
+    pub(crate) emit_slurm: bool,
     /// --experiment: make a pinned experiment's runs (results/NAME/binary/pin.ron) with this build of its
     /// commit instead of rebuilding it; used only if it reproduces the pin's fingerprint.
     #[arg(long, help_heading = "Experiments", value_name = "PATH")]
-    pub pinned_binary: Option<PathBuf>,
+    pub(crate) pinned_binary: Option<PathBuf>,
 }
 
 impl crate::run::args::Mode for ExperimentArgs {
@@ -40,22 +40,22 @@ impl crate::run::args::Mode for ExperimentArgs {
 }
 
 /// What `--experiment` was asked.
-pub struct Request<'a> {
+pub(crate) struct Request<'a> {
     /// An experiment file, or `all` of `experiments/`.
-    pub which: &'a str,
+    pub(crate) which: &'a str,
     /// Runs at a time [default 2].
-    pub jobs: Option<usize>,
+    pub(crate) jobs: Option<usize>,
     /// Only this run (a Slurm array task).
-    pub task: Option<usize>,
+    pub(crate) task: Option<usize>,
     /// Write Slurm scripts instead of running.
-    pub emit_slurm: bool,
+    pub(crate) emit_slurm: bool,
     /// A build of a pinned experiment's commit (`--pinned-binary`).
-    pub pinned_binary: Option<&'a Path>,
-    pub quiet: bool,
+    pub(crate) pinned_binary: Option<&'a Path>,
+    pub(crate) quiet: bool,
 }
 
 impl ExperimentArgs {
-    pub fn request<'a>(&'a self, which: &'a str, shared: &crate::run::args::Shared) -> Request<'a> {
+    pub(crate) fn request<'a>(&'a self, which: &'a str, shared: &crate::run::args::Shared) -> Request<'a> {
         Request {
             which,
             jobs: self.jobs,
@@ -69,17 +69,17 @@ impl ExperimentArgs {
 
 /// `--plot DIR|all` and its own flag.
 #[derive(clap::Args, Debug, Clone, Default)]
-pub struct PlotArgs {
+pub(crate) struct PlotArgs {
     /// Regenerate summaries, figures and REPORT.md from CSV files alone: an experiment's results folder
     /// (results/NAME, with experiments/NAME.ron), one run folder, or `all` (every experiment, and
     /// REPRODUCTION.md; an experiment whose run folders are not all here keeps its summaries, and its
     /// figures are redrawn from its committed figure-data.ron.gz).
     #[arg(long, help_heading = "Modes", value_name = "DIR")]
-    pub plot: Option<PathBuf>,
+    pub(crate) plot: Option<PathBuf>,
     /// --plot: draw a run stopped after its last checkpoint, or an experiment whose runs are not all
     /// finished, from what there is (marked partial) instead of refusing.
     #[arg(long, help_heading = "Experiments")]
-    pub partial: bool,
+    pub(crate) partial: bool,
 }
 
 impl crate::run::args::Mode for PlotArgs {
@@ -92,7 +92,7 @@ const REPRODUCTION: &str = "REPRODUCTION.md";
 
 /// `--experiment FILE|all`: run, evaluate and aggregate; then REPRODUCTION.md from every experiment's
 /// results so far (the project's experiment files), or the experiment's own summaries (any other file).
-pub fn experiment(request: &Request) -> crate::error::Result<()> {
+pub(crate) fn experiment(request: &Request) -> crate::error::Result<()> {
     let which = request.which;
     let files = match which {
         "all" => Experiment::files(Path::new(EXPERIMENTS))?,
@@ -188,7 +188,7 @@ fn check_trainings_once(exp: &Experiment, data: &BTreeMap<usize, super::claims::
 /// Summaries, figures and REPORT.md of every experiment of `experiments/`, and REPRODUCTION.md over all of
 /// them. An experiment some but not all of whose runs are finished (in its run folders, or in its
 /// committed summary) is refused unless `partial`, and then its reports say "partial".
-pub fn write_reproduction(partial: bool) -> crate::error::Result<()> {
+pub(crate) fn write_reproduction(partial: bool) -> crate::error::Result<()> {
     // Everything loaded and checked before anything is written.
     let mut loaded = Vec::new();
     for file in Experiment::files(Path::new(EXPERIMENTS))? {
@@ -368,7 +368,7 @@ fn report(exp: Experiment, aggregated: aggregate::Aggregated) -> crate::error::R
 /// alone.
 /// With `partial`, a run stopped after its last checkpoint, or an experiment whose runs are not all
 /// finished, is drawn from what there is (marked partial); without, either is refused.
-pub fn plot(dir: &Path, partial: bool) -> crate::error::Result<()> {
+pub(crate) fn plot(dir: &Path, partial: bool) -> crate::error::Result<()> {
     if dir == Path::new("all") {
         return write_reproduction(partial);
     }

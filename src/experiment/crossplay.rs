@@ -41,12 +41,12 @@ pub struct CrossplayOptions {
 
 /// `--crossplay RUN`.
 #[derive(clap::Args, Debug, Clone, Default)]
-pub struct CrossplayArgs {
+pub(crate) struct CrossplayArgs {
     /// Play every prey snapshot of a run against every predator snapshot (noise off, the same seeds in
     /// every cell; --episodes per cell, default 5); writes DIR/crossplay.csv, crossplay-readouts.csv and
     /// heat maps in DIR/figures/.
     #[arg(long, help_heading = "Modes", value_name = "DIR")]
-    pub crossplay: Option<PathBuf>,
+    pub(crate) crossplay: Option<PathBuf>,
 }
 
 impl crate::run::args::Mode for CrossplayArgs {
@@ -55,7 +55,7 @@ impl crate::run::args::Mode for CrossplayArgs {
 }
 
 impl CrossplayArgs {
-    pub fn options(&self, run: &std::path::Path, shared: &Shared) -> crate::error::Result<CrossplayOptions> {
+    pub(crate) fn options(&self, run: &std::path::Path, shared: &Shared) -> crate::error::Result<CrossplayOptions> {
         Ok(CrossplayOptions {
             run: run.to_path_buf(),
             episodes: shared.common.episodes.unwrap_or(5),
@@ -67,7 +67,7 @@ impl CrossplayArgs {
 
 impl CrossplayOptions {
     /// The call that runs this cross-play, as argv.
-    pub fn to_argv(&self) -> Vec<String> {
+    pub(crate) fn to_argv(&self) -> Vec<String> {
         let mut argv =
             vec!["--crossplay".into(), self.run.display().to_string(), "--episodes".into(), self.episodes.to_string()];
         argv.extend(crate::run::args::overrides_argv(&self.overrides, &[]));
@@ -79,7 +79,7 @@ impl CrossplayOptions {
 }
 
 /// `--crossplay`: plays the run and prints each matrix's read-outs and the files written.
-pub fn main(opts: &CrossplayOptions) -> crate::error::Result<()> {
+pub(crate) fn main(opts: &CrossplayOptions) -> crate::error::Result<()> {
     let (matrices, written) = crossplay(opts)?;
     for m in &matrices {
         crate::outln!(
@@ -258,7 +258,7 @@ fn outputs(dir: &RunDir, pairs: &[Pair]) -> Vec<std::path::PathBuf> {
 }
 
 /// The heat maps of a matrix (catches and the prey's DoA over prey × predator snapshots).
-pub fn heatmaps(m: &Matrix, what: &str) -> Vec<plot::Heatmap> {
+pub(crate) fn heatmaps(m: &Matrix, what: &str) -> Vec<plot::Heatmap> {
     let grid = |f: fn(&Cell) -> f64| m.cells.iter().map(|r| r.iter().map(f).collect()).collect();
     let map = |title: String, values: Vec<Vec<f64>>, log: bool| plot::Heatmap {
         title,

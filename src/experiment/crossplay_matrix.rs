@@ -8,8 +8,8 @@ use crate::sim::species::SpeciesRegistry;
 /// A pair of learning species: `prey` (the matrix's rows) caught by `predator` (its columns).
 #[derive(Clone, Debug)]
 pub struct Pair {
-    pub prey: usize,
-    pub predator: usize,
+    pub(crate) prey: usize,
+    pub(crate) predator: usize,
     pub prey_name: String,
     pub predator_name: String,
 }
@@ -19,22 +19,22 @@ pub struct Pair {
 pub struct Cell {
     /// Catches of the prey by the predator species, per episode.
     pub catches: f64,
-    pub dos: f64,
+    pub(crate) dos: f64,
     pub doa: f64,
-    pub nn_correlation: f64,
-    pub polarization: f64,
+    pub(crate) nn_correlation: f64,
+    pub(crate) polarization: f64,
 }
 
 impl Cell {
-    pub const NAMES: [&'static str; 5] = ["catches", "dos", "doa", "nn_correlation", "polarization"];
+    pub(crate) const NAMES: [&'static str; 5] = ["catches", "dos", "doa", "nn_correlation", "polarization"];
 
     /// The cell's values in [`Cell::NAMES`] order.
-    pub fn values(&self) -> [f64; 5] {
+    pub(crate) fn values(&self) -> [f64; 5] {
         [self.catches, self.dos, self.doa, self.nn_correlation, self.polarization]
     }
 
     /// The cell of values in [`Cell::NAMES`] order.
-    pub fn from_values([catches, dos, doa, nn_correlation, polarization]: [f64; 5]) -> Cell {
+    pub(crate) fn from_values([catches, dos, doa, nn_correlation, polarization]: [f64; 5]) -> Cell {
         Cell { catches, dos, doa, nn_correlation, polarization }
     }
 }
@@ -50,7 +50,7 @@ pub struct Matrix {
 }
 
 /// The predator–prey pairs among the learning species.
-pub fn pairs(registry: &SpeciesRegistry) -> Vec<Pair> {
+pub(crate) fn pairs(registry: &SpeciesRegistry) -> Vec<Pair> {
     let learned = |s: usize| matches!(registry.policy(s), Policy::Learned);
     (0..registry.len())
         .filter(|&prey| learned(prey))
@@ -65,7 +65,7 @@ pub fn pairs(registry: &SpeciesRegistry) -> Vec<Pair> {
 }
 
 /// The cells of a matrix as CSV, one row per cell.
-pub fn cells_csv(m: &Matrix) -> String {
+pub(crate) fn cells_csv(m: &Matrix) -> String {
     let mut out = format!(
         "{}_episode,{}_episode,{}\n",
         m.pair.prey_name,
@@ -139,7 +139,7 @@ pub fn mean_matrix(matrices: &[Matrix]) -> Option<Matrix> {
 }
 
 /// The pair a scene's cross-play is of, when it has exactly one.
-pub fn only_pair(scene: &Scene) -> Option<Pair> {
+pub(crate) fn only_pair(scene: &Scene) -> Option<Pair> {
     let found = pairs(&SpeciesRegistry::from_scene(scene));
     (found.len() == 1).then(|| found[0].clone())
 }

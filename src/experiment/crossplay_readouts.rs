@@ -10,7 +10,7 @@ use crate::run::RunDir;
 pub struct Readout {
     pub name: &'static str,
     pub value: Option<f64>,
-    pub meaning: &'static str,
+    pub(crate) meaning: &'static str,
 }
 
 fn mean(values: impl Iterator<Item = f64>) -> Option<f64> {
@@ -63,7 +63,7 @@ pub fn ratings(m: &Matrix) -> (Vec<f64>, Vec<f64>) {
 }
 
 /// The ratings as CSV: one row per snapshot.
-pub fn ratings_csv(matrices: &[Matrix]) -> String {
+pub(crate) fn ratings_csv(matrices: &[Matrix]) -> String {
     let mut out = String::from("prey,predator,species,episode,rating\n");
     for m in matrices {
         let (prey, predators) = ratings(m);
@@ -128,13 +128,13 @@ pub const READOUTS: [&str; 19] = [
 
 /// The value a read-out that is a share takes without any order (0.5 for the regress shares): in claims
 /// it is a level told apart from that chance; every other read-out is an effect tested against zero.
-pub fn chance(readout: &str) -> Option<f64> {
+pub(crate) fn chance(readout: &str) -> Option<f64> {
     readout.contains("_regress_").then_some(0.5)
 }
 
 /// The read-outs of a run, as written in `crossplay-readouts.csv` ([`readouts_csv`]), of the pair whose
 /// prey is `prey` (its first predator species); empty without the file.
-pub fn read_readouts(
+pub(crate) fn read_readouts(
     run: &std::path::Path,
     prey: &str,
 ) -> crate::error::Result<std::collections::BTreeMap<String, f64>> {
@@ -277,7 +277,7 @@ pub fn readouts(m: &Matrix) -> Vec<Readout> {
 }
 
 /// The read-outs of every matrix as CSV.
-pub fn readouts_csv(matrices: &[Matrix]) -> String {
+pub(crate) fn readouts_csv(matrices: &[Matrix]) -> String {
     let mut out = String::from("prey,predator,readout,value,meaning\n");
     for m in matrices {
         for r in readouts(m) {

@@ -7,7 +7,7 @@ use super::stats::mean;
 use crate::sim::metrics::WINDOW;
 
 /// The mean of a curve's first or last [`WINDOW`] values (its finite ones; NaN without any).
-pub fn window_mean(values: &[f64], first: bool) -> f64 {
+pub(crate) fn window_mean(values: &[f64], first: bool) -> f64 {
     let n = values.len().min(WINDOW);
     let part = if first { &values[..n] } else { &values[values.len() - n..] };
     mean(&part.iter().copied().filter(|v| v.is_finite()).collect::<Vec<_>>()).unwrap_or(f64::NAN)
@@ -16,7 +16,7 @@ pub fn window_mean(values: &[f64], first: bool) -> f64 {
 /// Why a training-curve quantity does not take the curve it names (the curves each takes), None when it
 /// does or is another quantity: the one check of experiment files ([`super::load`]) and of curves made
 /// elsewhere ([`super::external`]).
-pub fn curve_argument_error(q: &Quantity) -> Option<String> {
+pub(crate) fn curve_argument_error(q: &Quantity) -> Option<String> {
     match q {
         Quantity::Start(c) | Quantity::FromStart(c)
             if !CURVES.contains(&c.as_str()) && !AUTHORS_CURVES.contains(&c.as_str()) =>
@@ -70,7 +70,7 @@ pub fn curve_argument_error(q: &Quantity) -> Option<String> {
 
 /// The episode (from 1) at which the 100-episode running mean of `series` first completes 90 % of its
 /// change from the first 100 episodes to the last 100; NaN when there is no change to complete.
-pub fn reach90(series: &[f64]) -> f64 {
+pub(crate) fn reach90(series: &[f64]) -> f64 {
     first_completing(series, (window_mean(series, true), window_mean(series, false)), 0.9, WINDOW)
 }
 
@@ -92,13 +92,13 @@ fn first_completing(series: &[f64], (start, end): (f64, f64), fraction: f64, win
 }
 
 /// The training episodes whose mean is a curve's start ([`Quantity::Start`]).
-pub const START: usize = 10;
+pub(crate) const START: usize = 10;
 
 /// The running mean's window of [`Quantity::Halfway`], in episodes: long enough to average a DoS
 /// episode's noise (its SD ~0.015 at 10 prey) down to a few thousandths, short enough to resolve
 /// curves that finish half their change within the first 100 episodes (most paper-preset DoA curves:
 /// a 100-episode window's first value, at episode 100, is already past half).
-pub const HALFWAY_WINDOW: usize = 20;
+pub(crate) const HALFWAY_WINDOW: usize = 20;
 
 /// [`Quantity::Halfway`] of a per-episode `series`: the episode (from 1) at which its
 /// [`HALFWAY_WINDOW`]-episode running mean first completes half of the change from its first [`START`]
@@ -140,13 +140,13 @@ fn start(series: &[f64]) -> f64 {
 }
 
 /// The per-episode training series a curve quantity reads: `dos`, `doa` or `catches`.
-pub const CURVES: [&str; 3] = ["dos", "doa", "catches"];
+pub(crate) const CURVES: [&str; 3] = ["dos", "doa", "catches"];
 
 /// The training series of the authors' DoS and DoA (`metrics.csv`'s `authors_dos_<prey>` and
 /// `authors_doa_<prey>`, written with the scene's `authors_metrics`; differences 9–11 of docs/src/results/authors-code.md): besides
 /// [`CURVES`], what [`Quantity::Start`], [`Quantity::FromStart`], [`Quantity::TrainingFirst`] and
 /// [`Quantity::TrainingLast`] read, so the paper's numbers can be judged as the shipped code measures them.
-pub const AUTHORS_CURVES: [&str; 2] = crate::run::schema::AUTHORS;
+pub(crate) const AUTHORS_CURVES: [&str; 2] = crate::run::schema::AUTHORS;
 
 /// A quantity of a training curve's shape ([`Quantity::Start`], [`Quantity::Extreme`],
 /// [`Quantity::ExtremeEpisode`], [`Quantity::AfterExtreme`], [`Quantity::Halfway`]) from its per-episode
@@ -154,7 +154,7 @@ pub const AUTHORS_CURVES: [&str; 2] = crate::run::schema::AUTHORS;
 /// quantities existed is extended from the committed figure data to the same bits as from the run
 /// folders. NaN for other quantities, and where a run is too short: a start needs [`START`] episodes, an
 /// extreme two windows, a halfway episode one window of 100.
-pub fn curve_shape(q: &Quantity, series: &[f64]) -> f64 {
+pub(crate) fn curve_shape(q: &Quantity, series: &[f64]) -> f64 {
     let mean = |v: &mut dyn Iterator<Item = f64>| super::stats::mean(&v.filter(|x| x.is_finite()).collect::<Vec<_>>());
     match q {
         Quantity::Halfway(_) => halfway(series),
@@ -216,7 +216,7 @@ pub fn curve_shape(q: &Quantity, series: &[f64]) -> f64 {
 }
 
 /// What a curve's extreme is called: DoA's peak, DoS's trough.
-pub fn extreme_word(curve: &str) -> &'static str {
+pub(crate) fn extreme_word(curve: &str) -> &'static str {
     if curve == "doa" {
         "peak"
     } else {

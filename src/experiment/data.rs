@@ -46,7 +46,7 @@ pub(super) fn headline(exp: &Experiment) -> String {
 }
 
 /// The data of every finished run, by run index.
-pub fn load(exp: &Experiment) -> crate::error::Result<BTreeMap<usize, RunData>> {
+pub(crate) fn load(exp: &Experiment) -> crate::error::Result<BTreeMap<usize, RunData>> {
     let prey = headline(exp);
     let mut data = BTreeMap::new();
     for (i, run) in exp.runs.iter().enumerate() {
@@ -190,7 +190,7 @@ fn check_one_binary(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> crate:
 /// aggregating would drop it from the summary and the figures. Nothing is written then. With no run folder
 /// at all (a fresh clone) nothing is carried: the committed summary.csv is read as it is and nothing of it
 /// is rewritten.
-pub fn check_complete(
+pub(crate) fn check_complete(
     exp: &Experiment,
     data: &BTreeMap<usize, RunData>,
 ) -> crate::error::Result<super::carry::Carried> {

@@ -22,7 +22,7 @@ use std::path::{Path, PathBuf};
 
 /// The radii a zone may end at, as fractions of the arena's edge: 0 leaves a zone empty, 1.5 reaches
 /// every agent (the torus's farthest is 0.71 edges away, a box's 1.41).
-pub const RADII: [f64; 12] = [0.0, 0.025, 0.05, 0.075, 0.1, 0.15, 0.2, 0.3, 0.4, 0.5, 0.75, 1.5];
+pub(crate) const RADII: [f64; 12] = [0.0, 0.025, 0.05, 0.075, 0.1, 0.15, 0.2, 0.3, 0.4, 0.5, 0.75, 1.5];
 
 /// The ridge added to every diagonal of the normal equations, per row: small enough not to shrink a
 /// gain that has data (1e-9 of a unit feature's sum of squares), large enough to zero one that has none.
@@ -32,18 +32,18 @@ const RIDGE: f64 = 1e-9;
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Distilled {
-    pub species: String,
-    pub form: RuleForm,
+    pub(crate) species: String,
+    pub(crate) form: RuleForm,
     /// `Zonal(..)` for a species that has predators, `Pursuit(..)` for one that only has prey.
-    pub policy: Policy,
+    pub(crate) policy: Policy,
     /// Rows (agent-steps) fitted, and held out.
-    pub rows_fitted: usize,
-    pub rows_held_out: usize,
+    pub(crate) rows_fitted: usize,
+    pub(crate) rows_held_out: usize,
     /// Fraction of each action's variance the rule explains on the held-out episodes, [thrust, turn]
     /// (None for an action that never varied).
-    pub explained_held_out: [Option<f64>; ACTION_DIM],
+    pub(crate) explained_held_out: [Option<f64>; ACTION_DIM],
     /// The same on the fitted episodes.
-    pub explained_fitted: [Option<f64>; ACTION_DIM],
+    pub(crate) explained_fitted: [Option<f64>; ACTION_DIM],
 }
 
 /// `distilled.ron`: the rules fitted to a run, and the evaluation they were fitted on.
@@ -53,7 +53,7 @@ pub struct DistilledFile {
     pub counts: Vec<(String, usize)>,
     pub episodes: usize,
     pub steps: usize,
-    pub seed: u64,
+    pub(crate) seed: u64,
     pub species: Vec<Distilled>,
 }
 
@@ -71,7 +71,7 @@ impl DistilledFile {
 
 /// The rule `--distill` fits to species `s`, with every gain zero: a zonal rule where it has predators,
 /// else a pursuit rule where it has prey; None for a species with neither.
-pub fn rule_for(registry: &SpeciesRegistry, s: usize) -> Option<Policy> {
+pub(crate) fn rule_for(registry: &SpeciesRegistry, s: usize) -> Option<Policy> {
     if registry.predators_of(s).next().is_some() {
         Some(Policy::Zonal(ZonalRule::default()))
     } else if registry.prey_of(s).next().is_some() {
@@ -82,7 +82,7 @@ pub fn rule_for(registry: &SpeciesRegistry, s: usize) -> Option<Policy> {
 }
 
 /// The names of how much a rule explains on the held-out episodes, [thrust, turn].
-pub const EXPLAINED: [&str; ACTION_DIM] = ["explained_thrust", "explained_turn"];
+pub(crate) const EXPLAINED: [&str; ACTION_DIM] = ["explained_thrust", "explained_turn"];
 
 /// A rule's parameters by name ([`ZonalRule::numbers`], [`PursuitRule::numbers`]); none for another policy.
 fn parameters(policy: &Policy) -> Vec<(&'static str, f64)> {
@@ -95,14 +95,14 @@ fn parameters(policy: &Policy) -> Vec<(&'static str, f64)> {
 
 /// The numbers of a fitted rule, by name: its policy's parameters and how much it explains on the
 /// held-out episodes ([`EXPLAINED`]; NaN for an action that never varied).
-pub fn numbers(d: &Distilled) -> Vec<(String, f64)> {
+pub(crate) fn numbers(d: &Distilled) -> Vec<(String, f64)> {
     let explained = EXPLAINED.into_iter().zip(d.explained_held_out.map(|v| v.unwrap_or(f64::NAN)));
     // A gain the ridge held at zero may be −0: the same number, shown as 0.
     parameters(&d.policy).into_iter().chain(explained).map(|(name, v)| (name.to_string(), v + 0.0)).collect()
 }
 
 /// Every name [`numbers`] gives, of either rule.
-pub fn names() -> Vec<&'static str> {
+pub(crate) fn names() -> Vec<&'static str> {
     let mut names: Vec<&str> = vec![];
     for policy in [Policy::Zonal(ZonalRule::default()), Policy::Pursuit(PursuitRule::default())] {
         names
@@ -113,7 +113,9 @@ pub fn names() -> Vec<&'static str> {
 }
 
 /// A run's fitted numbers by (species, form, name); empty without `distilled.ron`.
-pub fn read_numbers(path: &Path) -> crate::error::Result<std::collections::BTreeMap<(String, RuleForm, String), f64>> {
+pub(crate) fn read_numbers(
+    path: &Path,
+) -> crate::error::Result<std::collections::BTreeMap<(String, RuleForm, String), f64>> {
     if !path.exists() {
         return Ok(Default::default());
     }
@@ -127,7 +129,7 @@ pub fn read_numbers(path: &Path) -> crate::error::Result<std::collections::BTree
 
 /// The rules `--distill` fits on runs of `scene`, each with the names of its numbers ([`numbers`]): for
 /// every learned species ([`rule_for`]), in both forms.
-pub fn rules(scene: &Scene) -> Vec<(String, RuleForm, Vec<&'static str>)> {
+pub(crate) fn rules(scene: &Scene) -> Vec<(String, RuleForm, Vec<&'static str>)> {
     let registry = SpeciesRegistry::from_scene(scene);
     let mut out = vec![];
     for (s, def) in scene.species.iter().enumerate().filter(|(_, d)| d.policy == Policy::Learned) {
@@ -141,7 +143,7 @@ pub fn rules(scene: &Scene) -> Vec<(String, RuleForm, Vec<&'static str>)> {
 }
 
 /// The (species, form, name) of every number `--distill` fits on runs of `scene` ([`rules`]).
-pub fn columns(scene: &Scene) -> Vec<(String, RuleForm, String)> {
+pub(crate) fn columns(scene: &Scene) -> Vec<(String, RuleForm, String)> {
     rules(scene)
         .into_iter()
         .flat_map(|(species, form, names)| names.into_iter().map(move |n| (species.clone(), form, n.to_string())))
@@ -407,7 +409,7 @@ fn explained(
 
 /// Fits the rules of every learned species of `run`, deployed on its scene with `overrides`, over
 /// `episodes` episodes (the first half fitted, the rest held out).
-pub fn distill(run: &Path, overrides: &Overrides, episodes: usize) -> crate::error::Result<DistilledFile> {
+pub(crate) fn distill(run: &Path, overrides: &Overrides, episodes: usize) -> crate::error::Result<DistilledFile> {
     if episodes < 2 {
         return Err(
             format!("--episodes {episodes}: --distill needs ≥ 2 (the first half fits, the rest is held out)").into()
@@ -455,13 +457,13 @@ pub fn distill(run: &Path, overrides: &Overrides, episodes: usize) -> crate::err
 
 /// `--distill RUN`.
 #[derive(clap::Args, Debug, Clone, Default)]
-pub struct DistillArgs {
+pub(crate) struct DistillArgs {
     /// Fit readable rules to a run's trained actors: a zonal rule (repulsion, alignment, attraction,
     /// predator evasion) for prey, a pursuit rule for predators, on the actors deployed without noise
     /// (--episodes, default 4: the first half fits, the rest is held out; --prey, --count, --steps, --seed
     /// as for --eval). Writes DIR/distilled.ron, whose policies a scene or --policy takes as they are.
     #[arg(long, help_heading = "Modes", value_name = "DIR")]
-    pub distill: Option<PathBuf>,
+    pub(crate) distill: Option<PathBuf>,
 }
 
 impl crate::run::args::Mode for DistillArgs {
@@ -470,10 +472,10 @@ impl crate::run::args::Mode for DistillArgs {
 }
 
 /// The episodes `--distill` deploys the actors for unless told.
-pub const EPISODES: usize = 4;
+pub(crate) const EPISODES: usize = 4;
 
 /// `--distill RUN`: fits, writes `RUN/distilled.ron` and prints each rule with how much it explains.
-pub fn main(run: &Path, overrides: &Overrides, episodes: Option<usize>) -> crate::error::Result<()> {
+pub(crate) fn main(run: &Path, overrides: &Overrides, episodes: Option<usize>) -> crate::error::Result<()> {
     let dir = crate::run::RunDir::new(run);
     if !dir.has_actors() {
         return Err(format!("--distill {}: not a run folder with trained actors", run.display()).into());

@@ -15,11 +15,11 @@ use crate::error::{Error, Kind, Result};
 #[derive(Clone, Debug)]
 pub struct Comparison {
     /// What it asks, in words.
-    pub text: String,
+    pub(crate) text: String,
     /// A training-curve quantity (first or last 100 episodes, the start, the change over training, ...).
-    pub quantity: Quantity,
+    pub(crate) quantity: Quantity,
     /// The equivalence margin: "the same" within ±margin (TOST); None for a two-sided test of a difference.
-    pub margin: Option<f64>,
+    pub(crate) margin: Option<f64>,
 }
 
 impl Comparison {

@@ -21,52 +21,52 @@ use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 
 /// The file, in an experiment's results folder.
-pub const FILE: &str = "figure-data.ron.gz";
+pub(crate) const FILE: &str = "figure-data.ron.gz";
 
 /// The response of the other prey to the turned one, by lag: the rank bins it averages (`run::perturb`).
-pub const RESPONSE_RANKS: [(&str, std::ops::RangeInclusive<f64>); 2] =
+pub(crate) const RESPONSE_RANKS: [(&str, std::ops::RangeInclusive<f64>); 2] =
     [("ranks 1–6", 1.0..=6.0), ("ranks 25+", 25.0..=f64::INFINITY)];
 
 /// What the figures plot of one run.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-pub struct FigureData {
+pub(crate) struct FigureData {
     /// Per training episode, of the headline species.
     #[serde(with = "single")]
-    pub dos: Vec<f64>,
+    pub(crate) dos: Vec<f64>,
     #[serde(with = "single")]
-    pub doa: Vec<f64>,
+    pub(crate) doa: Vec<f64>,
     /// Per training episode.
     #[serde(with = "single")]
-    pub catches: Vec<f64>,
+    pub(crate) catches: Vec<f64>,
     /// Per evaluation, by name.
-    pub evals: BTreeMap<String, EvalFigures>,
+    pub(crate) evals: BTreeMap<String, EvalFigures>,
     /// The cross-play matrix, when the run was cross-played.
-    pub crossplay: Option<CrossplayCells>,
+    pub(crate) crossplay: Option<CrossplayCells>,
 }
 
 /// What the figures plot of one evaluation.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-pub struct EvalFigures {
+pub(crate) struct EvalFigures {
     /// Per step, mean over the evaluation's episodes.
     #[serde(with = "single")]
-    pub dos: Vec<f64>,
+    pub(crate) dos: Vec<f64>,
     #[serde(with = "single")]
-    pub doa: Vec<f64>,
+    pub(crate) doa: Vec<f64>,
     /// Per bin of prey in view: mean |turn command|, mean speed / max speed, catches per predator-step.
     #[serde(with = "single")]
-    pub confusion: Vec<[f64; 3]>,
+    pub(crate) confusion: Vec<[f64; 3]>,
     /// With a perturbation: the response per lag of each of [`RESPONSE_RANKS`].
     #[serde(with = "single")]
-    pub response: Option<Vec<Vec<f64>>>,
+    pub(crate) response: Option<Vec<Vec<f64>>>,
 }
 
 /// A cross-play matrix's cells (`Cell::NAMES` in order), with the snapshots' episodes.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-pub struct CrossplayCells {
-    pub prey_episodes: Vec<usize>,
-    pub predator_episodes: Vec<usize>,
+pub(crate) struct CrossplayCells {
+    pub(crate) prey_episodes: Vec<usize>,
+    pub(crate) predator_episodes: Vec<usize>,
     #[serde(with = "single")]
-    pub cells: Vec<Vec<[f64; 5]>>,
+    pub(crate) cells: Vec<Vec<[f64; 5]>>,
 }
 
 /// Values stored at single precision: each f64 written as the f32 nearest it and read back as that f32,
@@ -75,7 +75,7 @@ mod single {
     use serde::de::DeserializeOwned;
     use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
-    pub trait Single: Sized {
+    pub(crate) trait Single: Sized {
         type Stored: Serialize + DeserializeOwned;
         fn store(&self) -> Self::Stored;
         fn load(stored: Self::Stored) -> Self;
@@ -128,21 +128,21 @@ mod single {
     arrays!(3, 5);
 
     /// The value as the file holds it.
-    pub fn round<T: Single>(value: &T) -> T {
+    pub(crate) fn round<T: Single>(value: &T) -> T {
         T::load(value.store())
     }
 
-    pub fn serialize<T: Single, S: Serializer>(value: &T, s: S) -> Result<S::Ok, S::Error> {
+    pub(crate) fn serialize<T: Single, S: Serializer>(value: &T, s: S) -> Result<S::Ok, S::Error> {
         value.store().serialize(s)
     }
 
-    pub fn deserialize<'de, T: Single, D: Deserializer<'de>>(d: D) -> Result<T, D::Error> {
+    pub(crate) fn deserialize<'de, T: Single, D: Deserializer<'de>>(d: D) -> Result<T, D::Error> {
         T::Stored::deserialize(d).map(T::load)
     }
 }
 
 impl CrossplayCells {
-    pub fn matrix(&self, pair: Pair) -> Matrix {
+    pub(crate) fn matrix(&self, pair: Pair) -> Matrix {
         Matrix {
             pair,
             prey_episodes: self.prey_episodes.clone(),
@@ -154,7 +154,7 @@ impl CrossplayCells {
 
 impl FigureData {
     /// A training series by name: `dos`, `doa` or `catches`.
-    pub fn curve(&self, name: &str) -> &[f64] {
+    pub(crate) fn curve(&self, name: &str) -> &[f64] {
         match name {
             "dos" => &self.dos,
             "doa" => &self.doa,
@@ -164,7 +164,7 @@ impl FigureData {
 }
 
 /// A run's key in the file.
-pub fn key(run: &Run) -> String {
+pub(crate) fn key(run: &Run) -> String {
     format!("{}/{}/seed{}", run.preset, run.variant, run.seed)
 }
 
@@ -174,7 +174,7 @@ fn path(exp: &Experiment) -> PathBuf {
 
 /// What the figures plot of a trained run: its loaded `data` and, from its folder, the perturbation
 /// responses and the cross-play matrix.
-pub fn of_run(exp: &Experiment, run: &Run, data: &RunData) -> crate::error::Result<FigureData> {
+pub(crate) fn of_run(exp: &Experiment, run: &Run, data: &RunData) -> crate::error::Result<FigureData> {
     let mut evals = BTreeMap::new();
     for (name, e) in &data.evals {
         let spec = exp.spec.evaluations.iter().find(|s| &s.name == name);
@@ -224,7 +224,7 @@ fn response_by_lag(path: &Path) -> crate::error::Result<Option<Vec<Vec<f64>>>> {
 }
 
 /// Writes an experiment's figure data (by run index), replacing the file whole.
-pub fn write(exp: &Experiment, data: &BTreeMap<usize, FigureData>) -> crate::error::Result<()> {
+pub(crate) fn write(exp: &Experiment, data: &BTreeMap<usize, FigureData>) -> crate::error::Result<()> {
     let keyed: BTreeMap<String, &FigureData> = data.iter().map(|(i, d)| (key(&exp.runs[*i]), d)).collect();
     let text = ron::to_string(&keyed).map_err(|e| format!("{}: {e}", path(exp).display()))?;
     let mut gz = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::best());
@@ -246,13 +246,13 @@ fn open(exp: &Experiment) -> crate::error::Result<Option<std::fs::File>> {
 }
 
 /// Whether the experiment has its figure data ([`open`]'s checks).
-pub fn present(exp: &Experiment) -> crate::error::Result<bool> {
+pub(crate) fn present(exp: &Experiment) -> crate::error::Result<bool> {
     Ok(open(exp)?.is_some())
 }
 
 /// Reads an experiment's committed figure data, by run index: None without the file; an error when it
 /// cannot be read or lacks one of `runs` (indices into the experiment's runs).
-pub fn read(exp: &Experiment, runs: &[usize]) -> crate::error::Result<Option<BTreeMap<usize, FigureData>>> {
+pub(crate) fn read(exp: &Experiment, runs: &[usize]) -> crate::error::Result<Option<BTreeMap<usize, FigureData>>> {
     let path = path(exp);
     let Some(file) = open(exp)? else { return Ok(None) };
     let mut text = String::new();

@@ -17,7 +17,7 @@ use std::path::Path;
 /// `carried` figure data of the runs finished elsewhere ([`super::carry`]), or in a clone from that
 /// committed file, checked against the committed summary `table`, so both draw the same
 /// figures byte for byte. None when there is nothing to draw.
-pub fn data(
+pub(crate) fn data(
     exp: &Experiment,
     data: &BTreeMap<usize, RunData>,
     carried: BTreeMap<usize, FigureData>,
@@ -55,7 +55,7 @@ pub fn data(
 
 /// Every figure of one preset: the training curves, the variants compared, catches, each evaluation's
 /// curves, the cross-play heat maps and the perturbation responses; `saved` counts them.
-pub fn draw(
+pub(crate) fn draw(
     exp: &Experiment,
     preset: &str,
     table: &Summary,
@@ -462,7 +462,7 @@ fn figures<'a>(
 /// One run's learning curves (DoS and DoA of the headline species, 100-episode running means) into
 /// `RUN/figures/training.png`, from its `metrics.csv`, checked whole ([`RunDir::checked_metrics`]);
 /// with `partial` a run stopped after its last checkpoint is drawn too, its titles saying so.
-pub fn plot_run(dir: &Path, partial: bool) -> crate::error::Result<std::path::PathBuf> {
+pub(crate) fn plot_run(dir: &Path, partial: bool) -> crate::error::Result<std::path::PathBuf> {
     let run = RunDir::new(dir);
     run.refuse_if_shipped()?;
     let scene = crate::scene::Scene::load(&run.scene())?;

@@ -13,62 +13,62 @@ use std::path::PathBuf;
 #[serde(deny_unknown_fields)]
 pub struct ExperimentFile {
     #[serde(default)]
-    pub description: String,
+    pub(crate) description: String,
     /// The scene file every variant starts from.
-    pub base: String,
+    pub(crate) base: String,
     #[serde(default = "default_presets")]
-    pub presets: Vec<String>,
-    pub seeds: Vec<u64>,
+    pub(crate) presets: Vec<String>,
+    pub(crate) seeds: Vec<u64>,
     #[serde(default)]
-    pub episodes: Option<usize>,
-    pub variants: Vec<VariantFile>,
+    pub(crate) episodes: Option<usize>,
+    pub(crate) variants: Vec<VariantFile>,
     #[serde(default)]
-    pub evaluations: Vec<Evaluation>,
+    pub(crate) evaluations: Vec<Evaluation>,
     #[serde(default)]
     pub claims: Vec<Claim>,
     /// The family of every claim that names none ([`Claim::family`]); without it, such claims are the
     /// file's own family.
     #[serde(default)]
-    pub family: Option<String>,
+    pub(crate) family: Option<String>,
     /// Compare runs made by different executables (`provenance.ron`'s `binary` and `also_by`) or on
     /// different families of matrix-product kernels (its `kernels`). Off by default: every number of an
     /// experiment comes from one binary on one family, and the runner and aggregation refuse otherwise.
     #[serde(default)]
-    pub mixed_binaries: bool,
+    pub(crate) mixed_binaries: bool,
     /// No interim analysis: while some of its runs are not finished, reports show how many are, never an
     /// estimate, a verdict or a figure (a confirmatory experiment whose seeds were fixed beforehand). Its
     /// finished runs are still aggregated into `summary.csv` and `figure-data.ron.gz`, so that another
     /// machine carries them ([`super::carry`]), and such an experiment in progress is reported without
     /// `--partial`. Off by default: `--partial` reports the finished runs' numbers, marked partial.
     #[serde(default)]
-    pub judged_when_complete: bool,
+    pub(crate) judged_when_complete: bool,
     /// Keep each run's replay buffers once it is trained (~0.45 GB a run of the standard scene), so that
     /// `coevo --resume RUN --episodes N` can extend it exactly as an uninterrupted longer run. Off by
     /// default: a finished run's buffers are removed (`learning::replay_segments::drop_replay`), so a suite of
     /// 150 runs needs ~1 GB rather than ~70 GB.
     #[serde(default)]
-    pub keep_replay: bool,
+    pub(crate) keep_replay: bool,
     /// Cross-play every run's snapshots (`coevo --crossplay`) after its evaluations, so claims can name
     /// its read-outs (`Crossplay("...")`).
     #[serde(default)]
-    pub crossplay: Option<CrossplaySpec>,
+    pub(crate) crossplay: Option<CrossplaySpec>,
     /// Fit rules to every run's trained actors (`coevo --distill`) before its evaluations, for the
     /// evaluations that deploy them (`distilled:`).
     #[serde(default)]
-    pub distill: Option<DistillSpec>,
+    pub(crate) distill: Option<DistillSpec>,
 }
 
 /// How an experiment fits its runs' rules (`coevo --distill`): the actors deployed at these counts for
 /// `episodes` episodes of `steps` steps, the first half fitted, the rest held out.
 #[derive(Clone, Debug, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
-pub struct DistillSpec {
+pub(crate) struct DistillSpec {
     #[serde(default)]
-    pub counts: Vec<(String, usize)>,
+    pub(crate) counts: Vec<(String, usize)>,
     #[serde(default = "distill_episodes")]
-    pub episodes: usize,
+    pub(crate) episodes: usize,
     #[serde(default)]
-    pub steps: Option<usize>,
+    pub(crate) steps: Option<usize>,
 }
 
 fn distill_episodes() -> usize {
@@ -77,7 +77,7 @@ fn distill_episodes() -> usize {
 
 impl DistillSpec {
     /// What the fit changes of a run's scene.
-    pub fn overrides(&self) -> Overrides {
+    pub(crate) fn overrides(&self) -> Overrides {
         Overrides { counts: self.counts.clone(), episode_steps: self.steps, ..Default::default() }
     }
 }
@@ -86,22 +86,22 @@ impl DistillSpec {
 /// a zonal rule's terms (an ablation: `without: [Alignment]`).
 #[derive(Clone, Debug, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
-pub struct DistilledUse {
-    pub species: String,
+pub(crate) struct DistilledUse {
+    pub(crate) species: String,
     /// The rule fitted without (`Memoryless`, the default) or with (`Inertial`) the agent's own state.
     #[serde(default)]
-    pub form: crate::scene::RuleForm,
+    pub(crate) form: crate::scene::RuleForm,
     #[serde(default)]
-    pub without: Vec<crate::scene::ZonalTerm>,
+    pub(crate) without: Vec<crate::scene::ZonalTerm>,
 }
 
 /// How an experiment cross-plays its runs.
 #[derive(Clone, Debug, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
-pub struct CrossplaySpec {
+pub(crate) struct CrossplaySpec {
     /// Episodes per cell.
     #[serde(default = "five")]
-    pub episodes: usize,
+    pub(crate) episodes: usize,
 }
 
 fn five() -> usize {
@@ -115,15 +115,15 @@ fn default_presets() -> Vec<String> {
 /// A named change of the base scene.
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct VariantFile {
-    pub name: String,
+pub(crate) struct VariantFile {
+    pub(crate) name: String,
     #[serde(default)]
-    pub patch: ScenePatch,
+    pub(crate) patch: ScenePatch,
     /// `"EXPERIMENT/VARIANT"`: this variant's runs are that experiment's runs (same preset and seed, the
     /// same resolved scene, checked), not trained or copied again: a shared run is one training, counted
     /// once, and never compared with itself.
     #[serde(default)]
-    pub shared_from: Option<String>,
+    pub(crate) shared_from: Option<String>,
     /// `"EXPERIMENT/VARIANT"`: this variant's runs were trained again in its own folders and are that
     /// variant's trainings (same preset, seed and resolved scene, checked; by the same binary, a
     /// deterministic re-training), declared so: one training, counted once in the suite's totals. A
@@ -131,53 +131,53 @@ pub struct VariantFile {
     /// ([`super::trainings`]). For runs made before their evaluations could differ from their owner's
     /// (body-frame's); a new file shares the runs instead.
     #[serde(default)]
-    pub same_training_as: Option<String>,
+    pub(crate) same_training_as: Option<String>,
 }
 
 /// How the trained policies of every run are deployed (`coevo --eval`): species counts, episodes and
 /// steps; its per-step DoS/DoA land in `eval-<name>.csv`.
 #[derive(Clone, Debug, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
-pub struct Evaluation {
-    pub name: String,
+pub(crate) struct Evaluation {
+    pub(crate) name: String,
     /// Species counts for the evaluation, e.g. `[("prey", 50), ("predator", 0)]`.
     #[serde(default)]
-    pub counts: Vec<(String, usize)>,
+    pub(crate) counts: Vec<(String, usize)>,
     #[serde(default = "three")]
-    pub episodes: usize,
+    pub(crate) episodes: usize,
     /// Steps per episode (default: the scene's).
     #[serde(default)]
-    pub steps: Option<usize>,
+    pub(crate) steps: Option<usize>,
     /// What the actors see (`learning::control`): `Blind`, `Shuffled`, a block form such as
     /// `"blind:prey:prey"`, or a list of block forms (default: seeing).
     #[serde(default)]
-    pub control: crate::learning::control::ObservationControl,
+    pub(crate) control: crate::learning::control::ObservationControl,
     /// Radius (m) of "prey in view" for the confusion curve (default: the scene's).
     #[serde(default)]
-    pub confusion_radius: Option<f64>,
+    pub(crate) confusion_radius: Option<f64>,
     /// Deploy the actors as initialised before training (`coevo --eval --untrained`): the start against
     /// which [`Quantity::Learned`] measures what training changed.
     #[serde(default)]
-    pub untrained: bool,
+    pub(crate) untrained: bool,
     /// Also turn one prey of a twin world by this many radians (`coevo --eval --perturb`) after
     /// `perturb_step` (default: half the episode), for [`Quantity::Response`].
     #[serde(default)]
-    pub perturb: Option<f64>,
+    pub(crate) perturb: Option<f64>,
     #[serde(default)]
-    pub perturb_step: Option<usize>,
+    pub(crate) perturb_step: Option<usize>,
     /// Species whose policy the evaluation replaces, e.g. `[("predator", ChaseNearest)]`: trained prey
     /// against the paper's rule-based predators (`coevo --eval --policy`).
     #[serde(default)]
-    pub policies: Vec<(String, crate::scene::Policy)>,
+    pub(crate) policies: Vec<(String, crate::scene::Policy)>,
     /// Species the evaluation deploys as the rules fitted to the run's actors (needs `distill:` in the
     /// file): e.g. `[(species: "prey")]`, the learned prey replaced by their zonal rule.
     #[serde(default)]
-    pub distilled: Vec<DistilledUse>,
+    pub(crate) distilled: Vec<DistilledUse>,
 }
 
 impl Evaluation {
     /// What the evaluation changes of a run's scene.
-    pub fn overrides(&self) -> Overrides {
+    pub(crate) fn overrides(&self) -> Overrides {
         Overrides {
             counts: self.counts.clone(),
             policies: self.policies.clone(),
@@ -198,41 +198,41 @@ fn three() -> usize {
 pub struct Claim {
     /// The paper's words.
     pub text: String,
-    pub variant: String,
+    pub(crate) variant: String,
     pub quantity: Quantity,
     /// The paper's number, when it gives one.
     #[serde(default)]
-    pub paper: Option<f64>,
+    pub(crate) paper: Option<f64>,
     /// Compare with this variant: the claim's number becomes `variant`'s mean minus this variant's, with
     /// Welch's 95 % interval (e.g. an ablation variant against the base it changes one thing of).
     #[serde(default)]
-    pub versus: Option<String>,
+    pub(crate) versus: Option<String>,
     /// For a claim of no effect ("unchanged", "flat"): the margin m of the equivalence test (TOST): the
     /// claim is reproduced when the effect's 90 % interval lies inside (−m, m).
     #[serde(default)]
-    pub margin: Option<f64>,
+    pub(crate) margin: Option<f64>,
     /// For a level: the value that chance alone gives, which the level must be told apart from (DoA's
     /// 2/π and DoS at random positions are filled in when not given).
     #[serde(default)]
-    pub baseline: Option<f64>,
+    pub(crate) baseline: Option<f64>,
     /// The paper states only the direction of this effect (e.g. "faster convergence"): `paper` then gives
     /// its sign (+1 or −1), never a size the interval could exclude.
     #[serde(default)]
-    pub direction_only: bool,
+    pub(crate) direction_only: bool,
     /// The direction is the project's own hypothesis, for a question the paper does not ask (e.g.
     /// `league.ron`'s "the pool lowers predator regress"), not the paper's: reports show no paper's value
     /// and judge it *detected as hypothesised*, *detected opposite to the hypothesis* or *inconclusive*,
     /// never *reproduced*. Only with `direction_only`. Who states the direction does not change the test,
     /// so the claim's fingerprint (`registry.rs`) leaves this out.
     #[serde(default)]
-    pub ours: bool,
+    pub(crate) ours: bool,
     /// The family whose tests are adjusted together (Holm), fixed with the hypothesis. A family is named
     /// by its hypotheses, not by its file: every claim of that name in the files of `experiments/` is one
     /// family (the project's are "the paper's claims", "mechanism and controls", "exploratory", and the
     /// pre-registered confirmatory ones). Without a name, the file's `family`; without that, the claim is
     /// in its own file's family. Resolved when the file is loaded, so after loading None means the file's.
     #[serde(default)]
-    pub family: Option<String>,
+    pub(crate) family: Option<String>,
     /// The scale the test reads its samples on, fixed with the hypothesis: `Linear` (the default, the
     /// quantity as it is) or `Log1p`, ln(1 + x) of each run's value, for counts whose seeds spread over
     /// orders of magnitude (catches: a few seeds far above the rest make Welch's interval on the raw counts
@@ -240,13 +240,13 @@ pub struct Claim {
     /// `Log1p` a difference of two arms is the log of the ratio of their geometric means of 1 + x. Only for
     /// effects; the paper's value, when given, is on the same scale.
     #[serde(default, skip_serializing_if = "crate::scene::is_default")]
-    pub scale: Scale,
+    pub(crate) scale: Scale,
 }
 
 impl Claim {
     /// A claim of `quantity` on `variant` with every other field at its default: no paper's value, no
     /// contrast, margin or baseline, a two-sided test on the linear scale in its file's family.
-    pub fn of(text: &str, variant: &str, quantity: Quantity) -> Claim {
+    pub(crate) fn of(text: &str, variant: &str, quantity: Quantity) -> Claim {
         Claim {
             text: text.into(),
             variant: variant.into(),
@@ -265,7 +265,7 @@ impl Claim {
 
 /// The scale a claim's test reads ([`Claim::scale`]).
 #[derive(Clone, Copy, Debug, Default, Deserialize, serde::Serialize, PartialEq, Eq)]
-pub enum Scale {
+pub(crate) enum Scale {
     #[default]
     Linear,
     /// ln(1 + x) of each run's value.
@@ -274,7 +274,7 @@ pub enum Scale {
 
 impl Scale {
     /// A run's value on this scale: NaN (no sample) where ln(1 + x) is not defined.
-    pub fn of(self, x: f64) -> f64 {
+    pub(crate) fn of(self, x: f64) -> f64 {
         match self {
             Scale::Linear => x,
             Scale::Log1p if x > -1.0 => x.ln_1p(),
@@ -333,7 +333,7 @@ pub enum Quantity {
     /// The episode at which the 100-episode running mean of `dos` or `doa` first completes 90 % of its
     /// change from the first 100 episodes to the last 100 (the paper's time course, Fig. 3).
     Reach90(String),
-    /// Mean of the first [`START`](super::claims::START) training episodes of `dos`, `doa` or `catches`
+    /// Mean of the first [`START`](super::curves::START) training episodes of `dos`, `doa` or `catches`
     /// (or `authors_dos`, `authors_doa`: the shipped code's metric, in runs with `authors_metrics`):
     /// the untrained level the paper's curves start from (the actors learn from the first episodes on,
     /// so this is the nearest a training run gives; `Learned` evaluations measure untrained actors directly).
@@ -354,7 +354,7 @@ pub enum Quantity {
     AfterExtreme(String),
     /// How fast a curve converges: the episode at which the [`HALFWAY_WINDOW`](super::claims::HALFWAY_WINDOW)-
     /// episode running mean of `dos` or `doa` first completes half of its change from the start (the
-    /// first [`START`](super::claims::START) episodes) to the last 100 episodes. Half the change is crossed
+    /// first [`START`](super::curves::START) episodes) to the last 100 episodes. Half the change is crossed
     /// where the curve is steepest, so its seed-to-seed spread is small (the 90 % of
     /// [`Quantity::Reach90`] is crossed where the curve is flat); the short window resolves curves that
     /// do most of their change within the first 100 episodes.
@@ -382,7 +382,7 @@ pub const EVAL_ORDER: [&str; EVAL_ORDERS] = eval_order(Swarming::NAMES, EDGE_RAN
 
 /// The report-table heading and digits of each of [`EVAL_ORDER`], in its order.
 pub const EVAL_ORDER_LABELS: [&str; EVAL_ORDERS] = eval_order(Swarming::LABELS, "edge rank");
-pub const EVAL_ORDER_DIGITS: [usize; EVAL_ORDERS] = eval_order(Swarming::DIGITS, 3);
+pub(crate) const EVAL_ORDER_DIGITS: [usize; EVAL_ORDERS] = eval_order(Swarming::DIGITS, 3);
 
 const EVAL_ORDERS: usize = Swarming::N - 2 + 1;
 
@@ -399,7 +399,7 @@ const fn eval_order<T: Copy>(per_swarming: [T; Swarming::N], edge_rank: T) -> [T
 
 /// The untrained evaluation a trained evaluation `name` is compared with: same counts, policies, episodes,
 /// steps and control, `untrained: true`.
-pub fn untrained_partner<'a>(evaluations: &'a [Evaluation], name: &str) -> Option<&'a Evaluation> {
+pub(crate) fn untrained_partner<'a>(evaluations: &'a [Evaluation], name: &str) -> Option<&'a Evaluation> {
     let trained = evaluations.iter().find(|e| e.name == name && !e.untrained)?;
     evaluations.iter().find(|e| {
         e.untrained
@@ -415,7 +415,7 @@ pub fn untrained_partner<'a>(evaluations: &'a [Evaluation], name: &str) -> Optio
 /// The seeing evaluation a control evaluation `name` is compared with: same counts, policies, episodes,
 /// steps and training state.
 /// None when `name` is no control or has no such partner.
-pub fn seeing_partner<'a>(evaluations: &'a [Evaluation], name: &str) -> Option<&'a Evaluation> {
+pub(crate) fn seeing_partner<'a>(evaluations: &'a [Evaluation], name: &str) -> Option<&'a Evaluation> {
     let control = evaluations.iter().find(|e| e.name == name)?;
     if control.control.is_seeing() {
         return None;
@@ -434,7 +434,7 @@ pub fn seeing_partner<'a>(evaluations: &'a [Evaluation], name: &str) -> Option<&
 /// One run of an experiment.
 #[derive(Clone, Debug)]
 pub struct Run {
-    pub preset: String,
+    pub(crate) preset: String,
     pub variant: String,
     pub seed: u64,
     /// The variant's resolved scene, seed applied.
@@ -442,16 +442,16 @@ pub struct Run {
     /// The run's folder: under this experiment's results, or the owner's for a shared run.
     pub dir: PathBuf,
     /// The experiment whose run this is, for a variant with `shared_from`.
-    pub shared_from: Option<String>,
+    pub(crate) shared_from: Option<String>,
     /// The variant's `same_training_as`: the `"EXPERIMENT/VARIANT"` this run is a declared re-training of.
-    pub same_training_as: Option<String>,
+    pub(crate) same_training_as: Option<String>,
 }
 
 /// A loaded and validated experiment.
 #[derive(Clone, Debug)]
 pub struct Experiment {
     pub name: String,
-    pub file: PathBuf,
+    pub(crate) file: PathBuf,
     pub spec: ExperimentFile,
     /// `results/<name>`.
     pub root: PathBuf,
@@ -466,13 +466,13 @@ pub struct Experiment {
 pub(super) const MAX_NAME: usize = 100;
 
 /// The file an evaluation of a run writes (named by the run folder's owner, `run::RunDir`).
-pub fn eval_file(dir: &std::path::Path, evaluation: &str) -> std::path::PathBuf {
+pub(crate) fn eval_file(dir: &std::path::Path, evaluation: &str) -> std::path::PathBuf {
     crate::run::RunDir::new(dir).evaluation(&slug(evaluation))
 }
 
 /// A folder-safe version of a name: runs of other characters become one `-` ("5:3" → "5-3",
 /// "n0 = 1" → "n0-1", "50 prey, blind" → "50-prey-blind").
-pub fn slug(name: &str) -> String {
+pub(crate) fn slug(name: &str) -> String {
     let mut out = String::new();
     for c in name.chars() {
         if c.is_ascii_alphanumeric() || c == '.' || c == '_' {

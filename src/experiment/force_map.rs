@@ -17,19 +17,19 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 /// Bins per side of a map (the focal agent in the centre bin).
-pub const GRID: usize = 21;
+pub(crate) const GRID: usize = 21;
 
 /// Samples a bin needs before its mean is shown.
-pub const MIN_COUNT: usize = 20;
+pub(crate) const MIN_COUNT: usize = 20;
 
 /// One agent at one step, as the trajectory holds it.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct State {
-    pub id: u64,
-    pub species: usize,
-    pub position: DVec2,
-    pub velocity: DVec2,
-    pub theta: f64,
+    pub(crate) id: u64,
+    pub(crate) species: usize,
+    pub(crate) position: DVec2,
+    pub(crate) velocity: DVec2,
+    pub(crate) theta: f64,
 }
 
 /// The map of one focal species against its nearest neighbour of one species.
@@ -183,7 +183,7 @@ pub fn read(path: &Path, names: &[String]) -> crate::error::Result<Vec<Vec<State
 }
 
 /// `force-map.csv`: one row per map and bin with samples.
-pub fn csv(maps: &[ForceMap]) -> String {
+pub(crate) fn csv(maps: &[ForceMap]) -> String {
     let mut out = String::from("species,observed,ahead,left,count,turning,speeding\n");
     for m in maps {
         for (r, &left) in m.centres.iter().enumerate() {
@@ -210,12 +210,12 @@ pub fn csv(maps: &[ForceMap]) -> String {
 
 /// `--force-map TRAJ.csv`.
 #[derive(clap::Args, Debug, Clone, Default)]
-pub struct ForceMapArgs {
+pub(crate) struct ForceMapArgs {
     /// Force maps of a recorded trajectory (--record): each species' mean turning and speeding against
     /// where its nearest neighbour of each species is (bins with fewer than 20 samples blank), in the
     /// arena of --scene (or the run's with --run); writes TRAJ-force-map.csv and heat maps beside it.
     #[arg(long, help_heading = "Modes", value_name = "TRAJ.csv")]
-    pub force_map: Option<PathBuf>,
+    pub(crate) force_map: Option<PathBuf>,
 }
 
 impl crate::run::args::Mode for ForceMapArgs {
@@ -224,7 +224,7 @@ impl crate::run::args::Mode for ForceMapArgs {
 }
 
 /// Writes the force maps of a trajectory recorded in `scene`.
-pub fn main(trajectory: &Path, scene: &Scene, overwrite: bool) -> crate::error::Result<()> {
+pub(crate) fn main(trajectory: &Path, scene: &Scene, overwrite: bool) -> crate::error::Result<()> {
     let names: Vec<String> = scene.species.iter().map(|d| d.name.clone()).collect();
     let steps = read(trajectory, &names)?;
     if steps.len() < 2 {

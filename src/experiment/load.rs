@@ -73,25 +73,25 @@ fn first_repeat<T: Eq + std::hash::Hash>(values: &[T]) -> Option<&T> {
 }
 
 /// The files of an experiment's results folder (`results/NAME/`), named here only.
-pub const SUMMARY: &str = "summary.csv";
-pub const SUMMARY_MEAN: &str = "summary-mean.csv";
-pub const FIGURES: &str = "figures";
+pub(crate) const SUMMARY: &str = "summary.csv";
+pub(crate) const SUMMARY_MEAN: &str = "summary-mean.csv";
+pub(crate) const FIGURES: &str = "figures";
 
 impl Experiment {
     /// `results/NAME/summary.csv`: one row per finished run.
-    pub fn summary_path(&self) -> PathBuf {
+    pub(crate) fn summary_path(&self) -> PathBuf {
         self.root.join(SUMMARY)
     }
 
     /// `results/NAME/figures/`.
-    pub fn figures_dir(&self) -> PathBuf {
+    pub(crate) fn figures_dir(&self) -> PathBuf {
         self.root.join(FIGURES)
     }
 
     /// Every file aggregating and reporting this experiment writes in its results folder (the figures
     /// aside, which are checked by their folder): checked before any run trains, so a folder, a FIFO or
     /// a link where one goes is refused before the work, not after it.
-    pub fn check_outputs(&self) -> Result<()> {
+    pub(crate) fn check_outputs(&self) -> Result<()> {
         let files = [
             SUMMARY,
             SUMMARY_MEAN,

@@ -13,7 +13,7 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 /// The statements and the claims that answer them.
-pub const STATEMENTS: &str = "experiments/the-paper/statements.ron";
+pub(crate) const STATEMENTS: &str = "experiments/the-paper/statements.ron";
 
 /// The book's page of the table, written beside REPRODUCTION.md when the book is there.
 pub const BOOK_PAGE: &str = "docs/src/results/the-paper.md";
@@ -223,7 +223,7 @@ fn cell(s: &Statement, preset: &str, results: &[ClaimResult], link: &dyn Fn(&str
 
 /// The table with the legend under it, None without [`STATEMENTS`]. `link`: how an experiment's evidence is linked
 /// from where the table is written.
-pub fn table(results: &[ClaimResult], link: &dyn Fn(&str) -> String) -> crate::error::Result<Option<String>> {
+pub(crate) fn table(results: &[ClaimResult], link: &dyn Fn(&str) -> String) -> crate::error::Result<Option<String>> {
     let Some(statements) = statements(results)? else { return Ok(None) };
     let mut md = answer(&statements, results);
     md.push_str(
@@ -263,7 +263,7 @@ const LEGEND: &str = "Each cell: coevo's mean over seeds ± the interval its ver
      presets\").";
 
 /// The book's page of the table (`table`, linked from the book).
-pub fn book_page(table: &str) -> String {
+pub(crate) fn book_page(table: &str) -> String {
     // The answer, then the training curves against the paper's levels, then the rows.
     let (answer, rows) = table.split_once("\n\n").unwrap_or(("", table));
     format!(

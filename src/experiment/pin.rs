@@ -14,9 +14,9 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 
 /// The folder of an experiment's results that records its binary (`results/NAME/binary/`).
-pub const BINARY_DIR: &str = "binary";
+pub(crate) const BINARY_DIR: &str = "binary";
 /// The pin itself, in that folder.
-pub const PIN: &str = "pin.ron";
+pub(crate) const PIN: &str = "pin.ron";
 /// Where rebuilds are made: a worktree, its target folder and the executable per commit.
 const PINNED: &str = "target/pinned";
 /// The fixed run a fingerprint is taken of, on the AVX2-FMA kernels (every x86-64 machine coevo tests
@@ -30,19 +30,19 @@ const FINGERPRINT_KERNELS: &str = "avx2";
 #[serde(deny_unknown_fields)]
 pub struct Pin {
     /// The commit the binary is built at (`cargo build --release`, no viewer).
-    pub commit: String,
+    pub(crate) commit: String,
     /// The original executable's BLAKE3 prefix: every run's `provenance.ron` `binary`.
-    pub blake3: String,
+    pub(crate) blake3: String,
     /// `rustc --version` of the original build (a rebuild with another is warned about; its
     /// fingerprint decides).
-    pub toolchain: String,
+    pub(crate) toolchain: String,
     /// BLAKE3 prefix of the commit's `Cargo.lock`: a rebuild whose worktree holds another is refused.
-    pub cargo_lock: String,
+    pub(crate) cargo_lock: String,
     /// The matrix-product kernel family of its runs (`provenance.ron`'s `kernels`): its runs are
     /// continued on it, whatever this machine would pick.
-    pub kernels: String,
+    pub(crate) kernels: String,
     /// `coevo --fingerprint` of the fixed run above, by the original.
-    pub fingerprint: String,
+    pub(crate) fingerprint: String,
     /// BLAKE3 prefixes of rebuilds that reproduced the fingerprint; their runs count as the original's.
     #[serde(default)]
     pub rebuilds: Vec<String>,
@@ -50,7 +50,7 @@ pub struct Pin {
 
 impl Pin {
     /// `results/NAME/binary/pin.ron` of the experiment whose results folder is `root`.
-    pub fn path(root: &Path) -> PathBuf {
+    pub(crate) fn path(root: &Path) -> PathBuf {
         root.join(BINARY_DIR).join(PIN)
     }
 
@@ -71,12 +71,12 @@ impl Pin {
     }
 
     /// Whether runs by the executable with this BLAKE3 prefix are the pinned binary's.
-    pub fn accepts(&self, blake3: &str) -> bool {
+    pub(crate) fn accepts(&self, blake3: &str) -> bool {
         blake3 == self.blake3 || self.rebuilds.iter().any(|r| r == blake3)
     }
 
     /// Whether two executables' runs are one binary's: the same file, or both the pin's.
-    pub fn same(pin: Option<&Pin>, a: &str, b: &str) -> bool {
+    pub(crate) fn same(pin: Option<&Pin>, a: &str, b: &str) -> bool {
         a == b || pin.is_some_and(|p| p.accepts(a) && p.accepts(b))
     }
 
@@ -87,17 +87,17 @@ impl Pin {
 }
 
 /// The executable an experiment's runs are made by, and the kernel family they run on.
-pub struct Executable {
-    pub path: PathBuf,
+pub(crate) struct Executable {
+    pub(crate) path: PathBuf,
     /// Its BLAKE3 prefix (what its runs' provenance will say).
-    pub blake3: String,
-    pub kernels: String,
+    pub(crate) blake3: String,
+    pub(crate) kernels: String,
 }
 
 /// The executable to make `exp`'s runs with: this one when the experiment is not pinned or this is its
 /// binary; otherwise `given` (`--pinned-binary`) or a rebuild of the pinned commit, each used only after
 /// it reproduced the pin's fingerprint (which then records it among the pin's rebuilds).
-pub fn executable(exp: &super::Experiment, given: Option<&Path>) -> Result<Executable> {
+pub(crate) fn executable(exp: &super::Experiment, given: Option<&Path>) -> Result<Executable> {
     let me = std::env::current_exe().map_err(|e| format!("cannot find the coevo binary: {e}"))?;
     let this = crate::run::provenance::binary();
     let Some(pin) = &exp.pin else {

@@ -7,74 +7,74 @@ use plotters::prelude::*;
 use std::path::Path;
 
 /// One curve: its mean and, where known, the lower and upper ends of its band.
-pub struct Curve {
-    pub label: String,
-    pub x: Vec<f64>,
-    pub mean: Vec<f64>,
-    pub band: Option<(Vec<f64>, Vec<f64>)>,
+pub(crate) struct Curve {
+    pub(crate) label: String,
+    pub(crate) x: Vec<f64>,
+    pub(crate) mean: Vec<f64>,
+    pub(crate) band: Option<(Vec<f64>, Vec<f64>)>,
 }
 
 /// One panel of a figure.
-pub struct Panel {
-    pub title: String,
-    pub x_label: String,
-    pub y_label: String,
-    pub curves: Vec<Curve>,
+pub(crate) struct Panel {
+    pub(crate) title: String,
+    pub(crate) x_label: String,
+    pub(crate) y_label: String,
+    pub(crate) curves: Vec<Curve>,
     /// Values to read the curves against, dashed: the paper's and chance's.
-    pub levels: Vec<Level>,
+    pub(crate) levels: Vec<Level>,
 }
 
 /// A value drawn as a dashed line: over `x` (a span of the x axis, e.g. the paper's start over the
 /// first episodes and its end over the last 100), or across the panel when None.
-pub struct Level {
-    pub label: String,
-    pub y: f64,
-    pub x: Option<(f64, f64)>,
+pub(crate) struct Level {
+    pub(crate) label: String,
+    pub(crate) y: f64,
+    pub(crate) x: Option<(f64, f64)>,
     /// Chance (grey, thin) or a stated value (in the colour of the curve it is about: `colour`, the
     /// curve's index).
-    pub chance: bool,
-    pub colour: usize,
+    pub(crate) chance: bool,
+    pub(crate) colour: usize,
 }
 
 /// One row of an [`EstimatePanel`]: a variant's mean over seeds and the half-width of its 95 % CI (None
 /// with one seed; a mean of NaN when the variant has no run yet).
-pub struct Row {
-    pub label: String,
-    pub mean: f64,
-    pub ci: Option<f64>,
+pub(crate) struct Row {
+    pub(crate) label: String,
+    pub(crate) mean: f64,
+    pub(crate) ci: Option<f64>,
 }
 
 /// A panel of estimates, one row per variant, top to bottom, against a line at zero: which variants
 /// change a quantity, and whether the change is outside the 95 % CI. The first row's interval is shaded
 /// across the panel: the base the other variants are read against.
-pub struct EstimatePanel {
-    pub title: String,
-    pub x_label: String,
-    pub rows: Vec<Row>,
+pub(crate) struct EstimatePanel {
+    pub(crate) title: String,
+    pub(crate) x_label: String,
+    pub(crate) rows: Vec<Row>,
 }
 
 /// A matrix of values drawn as coloured cells (cross-play: rows the prey's snapshots, columns the
 /// predators'), row 0 at the bottom, on the viridis scale from its smallest value to its largest.
-pub struct Heatmap {
-    pub title: String,
-    pub x_label: String,
-    pub y_label: String,
+pub(crate) struct Heatmap {
+    pub(crate) title: String,
+    pub(crate) x_label: String,
+    pub(crate) y_label: String,
     /// The column labels (one per column) and the row labels (one per row).
-    pub x_ticks: Vec<String>,
-    pub y_ticks: Vec<String>,
+    pub(crate) x_ticks: Vec<String>,
+    pub(crate) y_ticks: Vec<String>,
     /// `values[row][column]`; a value that is not finite is a grey cell (no value).
-    pub values: Vec<Vec<f64>>,
+    pub(crate) values: Vec<Vec<f64>>,
     /// Colour by log(1 + value) (counts spanning orders of magnitude, as catches against untrained prey).
-    pub log: bool,
+    pub(crate) log: bool,
     /// Colour a signed value: blue below zero, white at zero, red above, on a scale symmetric about zero
     /// (a turn to the right or to the left), instead of viridis from the smallest value to the largest.
-    pub diverging: bool,
+    pub(crate) diverging: bool,
 }
 
 impl Heatmap {
     /// A map over a focal agent's body frame (`experiment::response`, `experiment::force_map`): columns
     /// ahead, rows to the left, both at `centres` (metres), `values[row][column]`.
-    pub fn body_frame(title: String, centres: &[f64], values: &[Vec<f64>], diverging: bool) -> Heatmap {
+    pub(crate) fn body_frame(title: String, centres: &[f64], values: &[Vec<f64>], diverging: bool) -> Heatmap {
         let ticks: Vec<String> = centres.iter().map(|c| format!("{c:.2}")).collect();
         Heatmap {
             title,
@@ -90,10 +90,10 @@ impl Heatmap {
 }
 
 /// Size in pixels of one heat map (panels side by side).
-pub const HEATMAP_SIZE: (u32, u32) = (560, 520);
+pub(crate) const HEATMAP_SIZE: (u32, u32) = (560, 520);
 
 /// Size in pixels of one panel of curves (panels side by side).
-pub const PANEL_SIZE: (u32, u32) = (640, 420);
+pub(crate) const PANEL_SIZE: (u32, u32) = (640, 420);
 /// Width in pixels of one estimates panel, and height per row (panels two to a row).
 const ESTIMATE_PANEL_WIDTH: u32 = 600;
 const ESTIMATE_ROW_HEIGHT: u32 = 34;
@@ -165,7 +165,7 @@ fn without_repeated_points(svg: &str) -> String {
 }
 
 /// A figure of curves, its panels side by side, as SVG text.
-pub fn svg(panels: &[Panel]) -> crate::error::Result<String> {
+pub(crate) fn svg(panels: &[Panel]) -> crate::error::Result<String> {
     figure(panels, panels.len(), PANEL_SIZE, &draw_panel)
 }
 
@@ -323,7 +323,7 @@ fn draw_heatmap(map: &Heatmap, area: &Area) -> crate::error::Result<()> {
 }
 
 /// Writes heat maps side by side as `stem.svg` and `stem.png` (atomically, replacing earlier figures).
-pub fn save_heatmaps(stem: &Path, maps: &[Heatmap]) -> crate::error::Result<()> {
+pub(crate) fn save_heatmaps(stem: &Path, maps: &[Heatmap]) -> crate::error::Result<()> {
     write(stem, figure(maps, maps.len(), HEATMAP_SIZE, &draw_heatmap)?)
 }
 
@@ -443,17 +443,17 @@ fn legend_corner(panel: &Panel, (x0, x1): (f64, f64), (y0, y1): (f64, f64), entr
 }
 
 /// Rasterizes SVG text to PNG bytes.
-pub fn png(svg: &str) -> crate::error::Result<Vec<u8>> {
+pub(crate) fn png(svg: &str) -> crate::error::Result<Vec<u8>> {
     Ok(crate::svg::rasterize(svg, &crate::svg::options())?.encode_png().map_err(draw_err)?)
 }
 
 /// Writes a figure of curves as `stem.svg` and `stem.png` (atomically, replacing earlier figures).
-pub fn save(stem: &Path, panels: &[Panel]) -> crate::error::Result<()> {
+pub(crate) fn save(stem: &Path, panels: &[Panel]) -> crate::error::Result<()> {
     write(stem, svg(panels)?)
 }
 
 /// Writes a figure of estimates as `stem.svg` and `stem.png` (atomically, replacing earlier figures).
-pub fn save_estimates(stem: &Path, panels: &[EstimatePanel]) -> crate::error::Result<()> {
+pub(crate) fn save_estimates(stem: &Path, panels: &[EstimatePanel]) -> crate::error::Result<()> {
     write(stem, estimates_svg(panels)?)
 }
 
@@ -465,7 +465,7 @@ fn write(stem: &Path, text: String) -> crate::error::Result<()> {
 }
 
 /// The files a figure saved as `stem` is written to: its SVG and a PNG beside it.
-pub fn files(stem: &Path) -> [std::path::PathBuf; 2] {
+pub(crate) fn files(stem: &Path) -> [std::path::PathBuf; 2] {
     [stem.with_extension("svg"), stem.with_extension("png")]
 }
 

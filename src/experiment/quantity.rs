@@ -10,13 +10,8 @@ use super::file::{Claim, Experiment, Quantity};
 use super::stats::mean;
 use super::verdict::is_effect;
 
-/// The finite values of a quantity over `runs` (one per seed), the samples of an estimate.
-pub fn values(exp: &Experiment, runs: &[&RunData], q: &Quantity) -> Vec<f64> {
-    runs.iter().map(|d| quantity(exp, d, q)).filter(|x| x.is_finite()).collect()
-}
-
 /// A run's value of a quantity, from its own files ([`RunData`]).
-pub fn quantity(exp: &Experiment, d: &RunData, q: &Quantity) -> f64 {
+pub(crate) fn quantity(exp: &Experiment, d: &RunData, q: &Quantity) -> f64 {
     derive(&exp.spec.evaluations, q, &|p| primitive(d, p))
 }
 
@@ -78,7 +73,7 @@ pub(super) fn primitive(d: &RunData, q: &Quantity) -> f64 {
 
 /// The summary.csv column of a primitive quantity, None for a derived one ([`derive`]): the one place
 /// these names are made.
-pub fn column(q: &Quantity) -> Option<String> {
+pub(crate) fn column(q: &Quantity) -> Option<String> {
     Some(match q {
         Quantity::DosFirst => "dos_first100".into(),
         Quantity::DosLast => "dos_last100".into(),
@@ -120,7 +115,11 @@ pub fn column(q: &Quantity) -> Option<String> {
 /// quantity, for a run's files ([`quantity`]), for summary.csv (`summary::Summary::quantity`) and for
 /// curves made elsewhere ([`super::external`]) alike. `evaluations`: the experiment's, which the
 /// quantities of a control or an untrained evaluation find their partner among (none for training curves).
-pub fn derive(evaluations: &[super::file::Evaluation], q: &Quantity, primitive: &dyn Fn(&Quantity) -> f64) -> f64 {
+pub(crate) fn derive(
+    evaluations: &[super::file::Evaluation],
+    q: &Quantity,
+    primitive: &dyn Fn(&Quantity) -> f64,
+) -> f64 {
     // An order parameter of an evaluation: DoS and DoA settled, the others as EvalOrder has them.
     let of_eval = |e: &str, o: &str| match o {
         "dos" => primitive(&Quantity::EvalDos(e.into())),
@@ -175,7 +174,7 @@ pub fn derive(evaluations: &[super::file::Evaluation], q: &Quantity, primitive: 
 }
 
 /// Whether a quantity compares the first and last 100 training episodes (meaningless when they overlap).
-pub fn compares_windows(q: &Quantity) -> bool {
+pub(crate) fn compares_windows(q: &Quantity) -> bool {
     matches!(
         q,
         Quantity::DosChange
@@ -194,7 +193,7 @@ pub fn compares_windows(q: &Quantity) -> bool {
 /// The value a level has by chance alone, which a level must be told apart from: the claim's `baseline`,
 /// else for DoA 2/π (independent uniform headings) and for DoS the DoS of uniform random positions at the
 /// density of `scene` (or of the evaluation's counts). None for other levels and for effects.
-pub fn chance_level(exp: &Experiment, claim: &Claim, scene: Option<&crate::scene::Scene>) -> Option<f64> {
+pub(crate) fn chance_level(exp: &Experiment, claim: &Claim, scene: Option<&crate::scene::Scene>) -> Option<f64> {
     if claim.baseline.is_some() || is_effect(claim) {
         return claim.baseline;
     }
@@ -267,7 +266,7 @@ pub fn chance_level(exp: &Experiment, claim: &Claim, scene: Option<&crate::scene
     }
 }
 
-pub fn quantity_name(q: &Quantity) -> String {
+pub(crate) fn quantity_name(q: &Quantity) -> String {
     match q {
         Quantity::DosFirst => "DoS, first 100 episodes".into(),
         Quantity::TrainingFirst(q) => format!("{q}, first 100 episodes"),

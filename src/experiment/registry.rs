@@ -6,13 +6,13 @@ use super::file::{Claim, Experiment};
 use std::path::Path;
 
 /// The file, beside `summary.csv`.
-pub const FILE: &str = "claims.csv";
+pub(crate) const FILE: &str = "claims.csv";
 
 /// What a claim says, to the bit, as a short hash (BLAKE3, `blake3` crate): its text, variants, quantity,
 /// the paper's value, margin, baseline and whether only a direction is claimed. Not its family, which sorts
 /// claims for the adjustment rather than stating what a claim expects, and not `ours` (whether the direction
 /// is the paper's or the project's), which names who expects it and leaves the test as it is.
-pub fn fingerprint(claim: &Claim) -> String {
+pub(crate) fn fingerprint(claim: &Claim) -> String {
     let bits = |x: Option<f64>| x.map_or(String::from("-"), |x| format!("{:016x}", x.to_bits()));
     let canonical = format!(
         "{}\u{1f}{}\u{1f}{}\u{1f}{:?}\u{1f}{}\u{1f}{}\u{1f}{}\u{1f}{}",
@@ -36,7 +36,7 @@ pub fn fingerprint(claim: &Claim) -> String {
 
 /// How a claim stands against the fingerprints recorded with its experiment's results.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Stated {
+pub(crate) enum Stated {
     /// As recorded before (or, for a record begun late, when) its results existed.
     AsRecorded,
     /// Its text is recorded with another fingerprint: edited after its results existed.
@@ -51,7 +51,7 @@ pub enum Stated {
 
 impl Stated {
     /// The words a report adds to the claim's hypothesis; empty when nothing is to be said.
-    pub fn flag(self) -> &'static str {
+    pub(crate) fn flag(self) -> &'static str {
         match self {
             Stated::Edited => " — **edited after its results existed** (post hoc)",
             Stated::Added => " — **added after its results existed** (post hoc)",
@@ -64,9 +64,9 @@ impl Stated {
 /// A claim as recorded: its fingerprint and its family ("" for its file's own; None in a record written
 /// before families were recorded).
 #[derive(Clone, Debug, PartialEq)]
-pub struct Recorded {
-    pub fingerprint: String,
-    pub family: Option<String>,
+pub(crate) struct Recorded {
+    pub(crate) fingerprint: String,
+    pub(crate) family: Option<String>,
 }
 
 fn family_of(claim: &Claim) -> String {
@@ -74,7 +74,7 @@ fn family_of(claim: &Claim) -> String {
 }
 
 /// The recorded claims, by text, in the record's order; None without the file.
-pub fn read(root: &Path) -> crate::error::Result<Option<Vec<(String, Recorded)>>> {
+pub(crate) fn read(root: &Path) -> crate::error::Result<Option<Vec<(String, Recorded)>>> {
     let path = root.join(FILE);
     let mut text = String::new();
     let read = |f: std::fs::File| {
@@ -116,7 +116,7 @@ fn write(exp: &Experiment, recorded: &[(String, Recorded)]) -> crate::error::Res
 /// new text whose variants (`unfinished`: a variant some run of which has not finished) still have runs to
 /// come. A recorded claim is never rewritten, so an edit after its results stays flagged. Called when an
 /// experiment's runs start, and by the aggregation when it finds results without a record.
-pub fn record(exp: &Experiment, unfinished: &dyn Fn(&str) -> bool) -> crate::error::Result<()> {
+pub(crate) fn record(exp: &Experiment, unfinished: &dyn Fn(&str) -> bool) -> crate::error::Result<()> {
     let old = read(&exp.root)?;
     let mut recorded = old.clone().unwrap_or_default();
     for claim in &exp.spec.claims {
@@ -137,7 +137,7 @@ pub fn record(exp: &Experiment, unfinished: &dyn Fn(&str) -> bool) -> crate::err
 }
 
 /// How `claim` stands against `recorded` ([`read`]).
-pub fn stated(claim: &Claim, recorded: Option<&[(String, Recorded)]>) -> Stated {
+pub(crate) fn stated(claim: &Claim, recorded: Option<&[(String, Recorded)]>) -> Stated {
     let Some(recorded) = recorded else { return Stated::Unknown };
     match recorded.iter().find(|(text, _)| *text == claim.text) {
         None => Stated::Added,

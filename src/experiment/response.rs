@@ -25,12 +25,12 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 /// Cells per side of a field's grid (odd, so the focal agent sits in the centre cell).
-pub const GRID: usize = 41;
+pub(crate) const GRID: usize = 41;
 
 /// The relative headings of the neighbour a field is computed for (radians to the left of the focal
 /// agent's heading): parallel, crossing to the left, facing it, crossing to the right. The figures draw
 /// the parallel one, Katz et al.'s case.
-pub const REL_HEADINGS: [f64; 4] =
+pub(crate) const REL_HEADINGS: [f64; 4] =
     [0.0, std::f64::consts::FRAC_PI_2, std::f64::consts::PI, -std::f64::consts::FRAC_PI_2];
 
 /// The response of one species' policy to one neighbour of one observed species.
@@ -60,25 +60,26 @@ pub enum Background {
 }
 
 /// How many observations of the swarm a field averages over at most, per focal species.
-pub const SWARM_BACKGROUNDS: usize = 64;
+pub(crate) const SWARM_BACKGROUNDS: usize = 64;
 
 /// Steps between two recorded observations of the swarm (so the backgrounds are not one moment).
-pub const SWARM_EVERY: usize = 25;
+pub(crate) const SWARM_EVERY: usize = 25;
 
 /// A policy as a function of a batch of observations (`rows` of them, one after the other): `rows` ×
 /// [`ACTION_DIM`] normalized actions.
-pub type Actor<'a> = dyn Fn(usize, &[f32], usize) -> Vec<f32> + 'a;
+pub(crate) type Actor<'a> = dyn Fn(usize, &[f32], usize) -> Vec<f32> + 'a;
 
 /// The fields of every species `decides` (an actor per species index, None for a species without one),
 /// for every species it observes (not blind to, with at least one slot), at every [`REL_HEADINGS`], with
 /// no one else in view.
-pub fn fields(scene: &Scene, decides: &[bool], act: &Actor) -> Vec<Field> {
+#[cfg(test)]
+pub(crate) fn fields(scene: &Scene, decides: &[bool], act: &Actor) -> Vec<Field> {
     fields_on(scene, decides, act, &[], &REL_HEADINGS)
 }
 
 /// [`fields`] on the observations `backgrounds[s]` of each species s (rows of its layout), averaged over
 /// them; a species without any gets the empty background. At the relative headings `headings`.
-pub fn fields_on(
+pub(crate) fn fields_on(
     scene: &Scene,
     decides: &[bool],
     act: &Actor,
@@ -206,7 +207,7 @@ fn on(scene: &Scene, learners: &Learners, run: &Path, background: Background) ->
 /// What species `s` does on `rows` observations (`batch`, one after the other): its actor's actions where
 /// it has one (without noise), else its rule's ([`crate::sim::policy::rule_action`]; zeros for a species
 /// neither decides, and `Random`'s stream held still).
-pub fn actions(
+pub(crate) fn actions(
     learners: &Learners,
     registry: &SpeciesRegistry,
     scene: &Scene,
@@ -231,7 +232,8 @@ pub fn actions(
 
 /// The field of species `s` for one more agent of species `t`, parallel to it, amid the observation `obs`
 /// of one of its agents: the rule that agent follows where it is now (the viewer's overlay).
-pub fn field_here(scene: &Scene, act: &Actor, s: usize, t: usize, obs: &[f32]) -> Option<Field> {
+#[cfg(feature = "viewer")]
+pub(crate) fn field_here(scene: &Scene, act: &Actor, s: usize, t: usize, obs: &[f32]) -> Option<Field> {
     let registry = SpeciesRegistry::from_scene(scene);
     let decides: Vec<bool> = (0..registry.len()).map(|k| k == s).collect();
     let mut backgrounds = vec![vec![]; registry.len()];
@@ -266,7 +268,7 @@ fn a_run(run: &Path) -> crate::error::Result<crate::run::RunDir> {
 }
 
 /// `response.csv`: one row per field and cell with a value.
-pub fn csv(fields: &[Field]) -> String {
+pub(crate) fn csv(fields: &[Field]) -> String {
     let mut out =
         String::from("species,observed,rel_heading,ahead,left,distance,bearing,thrust,turn,thrust_alone,turn_alone\n");
     for f in fields {
@@ -296,13 +298,13 @@ pub fn csv(fields: &[Field]) -> String {
 
 /// `--response RUN`.
 #[derive(clap::Args, Debug, Clone, Default)]
-pub struct ResponseArgs {
+pub(crate) struct ResponseArgs {
     /// The rule each species of a run follows: its thrust and turn as a function of where one neighbour of
     /// each observed species is (the response field, read off the trained actors and the rules), with no
     /// one else in view (DIR/response.csv) and amid observations of the trained swarm
     /// (DIR/response-swarm.csv); heat maps of both in DIR/figures/.
     #[arg(long, help_heading = "Modes", value_name = "DIR")]
-    pub response: Option<PathBuf>,
+    pub(crate) response: Option<PathBuf>,
 }
 
 impl crate::run::args::Mode for ResponseArgs {
@@ -312,7 +314,7 @@ impl crate::run::args::Mode for ResponseArgs {
 
 /// Writes a run's response fields: the CSV and, per species and observed species, the turn and thrust
 /// maps for a parallel neighbour.
-pub fn main(run: &Path) -> crate::error::Result<()> {
+pub(crate) fn main(run: &Path) -> crate::error::Result<()> {
     // Checked before the lock, which would make the folder of a path that is not there.
     let dir = a_run(run)?;
     // A writer of a run: refuses a shipped run and one another process is writing.

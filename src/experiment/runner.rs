@@ -12,18 +12,18 @@ use std::process::Command;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Mutex;
 
-pub struct RunnerOptions {
+pub(crate) struct RunnerOptions {
     /// `--pinned-binary`: a build of a pinned experiment's commit to make its runs with (checked by its
     /// fingerprint, [`super::pin`]) instead of a rebuild.
-    pub pinned_binary: Option<PathBuf>,
+    pub(crate) pinned_binary: Option<PathBuf>,
     /// Runs at a time.
-    pub jobs: usize,
-    pub progress: bool,
+    pub(crate) jobs: usize,
+    pub(crate) progress: bool,
 }
 
 /// Where a run folder stands.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Stage {
+pub(crate) enum Stage {
     /// Nothing yet.
     Fresh,
     /// Started, killed before its first checkpoint: started again.
@@ -41,7 +41,7 @@ fn variant_scene(run: &Run) -> PathBuf {
 
 /// The stage of a run, and a refusal when its folder holds a run of another scene (the experiment file
 /// changed under it: coevo never mixes the two).
-pub fn stage(run: &Run) -> crate::error::Result<Stage> {
+pub(crate) fn stage(run: &Run) -> crate::error::Result<Stage> {
     if !crate::run::is_run(&run.dir) {
         return Ok(Stage::Fresh);
     }
@@ -111,7 +111,7 @@ fn dies_with_parent(command: &mut Command) {
 
 /// Trains (or resumes) one run and runs its missing evaluations, on `threads` threads (results do not
 /// depend on it).
-pub fn complete_run(exp: &Experiment, run: &Run, exe: &Executable, threads: usize) -> crate::error::Result<()> {
+pub(crate) fn complete_run(exp: &Experiment, run: &Run, exe: &Executable, threads: usize) -> crate::error::Result<()> {
     let dir = run.dir.to_string_lossy().into_owned();
     let threads = crate::run::args::threads_argv(threads.max(1));
     let train = |resume: bool, overwrite: bool| crate::run::train::TrainOptions {
@@ -226,7 +226,7 @@ fn crossplayed(run: &Run) -> bool {
 }
 
 /// Whether a run is trained and has every evaluation (and its cross-play, when asked).
-pub fn finished(exp: &Experiment, run: &Run) -> bool {
+pub(crate) fn finished(exp: &Experiment, run: &Run) -> bool {
     stage(run) == Ok(Stage::Trained)
         && exp.spec.evaluations.iter().all(|e| evaluated_as(run, e))
         && (exp.spec.crossplay.is_none() || crossplayed(run))
@@ -248,7 +248,7 @@ fn evaluated_as(run: &Run, e: &super::file::Evaluation) -> bool {
 }
 
 /// The first evaluation of the experiment's trained runs that is stale ([`stale`]), if any.
-pub fn first_stale(exp: &Experiment) -> Option<String> {
+pub(crate) fn first_stale(exp: &Experiment) -> Option<String> {
     exp.runs
         .iter()
         .filter(|r| stage(r) == Ok(Stage::Trained))
@@ -258,7 +258,7 @@ pub fn first_stale(exp: &Experiment) -> Option<String> {
 
 /// How an existing evaluation differs from what the experiment file asks for now (an edited file: its
 /// episodes or steps changed), from the last row of its per-step CSV; None when it matches.
-pub fn stale(run: &Run, e: &super::file::Evaluation) -> Option<String> {
+pub(crate) fn stale(run: &Run, e: &super::file::Evaluation) -> Option<String> {
     let path = eval_file(&run.dir, &e.name);
     // Only the last row counts: read the file's tail (a per-step CSV runs to megabytes, and every run's
     // evaluations are checked each time an experiment starts).
@@ -309,7 +309,7 @@ fn prepare(exp: &Experiment) -> crate::error::Result<()> {
 
 /// Runs the experiment's runs (all, or only `only`, an index into `exp.runs` as a Slurm array task
 /// does), `jobs` at a time. Every run is attempted; Err lists the ones that failed.
-pub fn run(exp: &Experiment, opts: &RunnerOptions, only: Option<usize>) -> crate::error::Result<()> {
+pub(crate) fn run(exp: &Experiment, opts: &RunnerOptions, only: Option<usize>) -> crate::error::Result<()> {
     // Runs finished on another machine: their rows are committed, and aggregation carries them.
     let elsewhere = super::carry::finished_elsewhere(exp)?;
     // The executable that makes the runs: this one, or the pinned commit's verified rebuild.
@@ -444,7 +444,7 @@ fn shell_word(what: &str, text: Option<&str>) -> crate::error::Result<String> {
 /// cluster. Written to `results/<experiment>/slurm/`; `submit.sh` submits both. Every path and name is a
 /// quoted word of a command line ([`shell_word`]); the `#SBATCH` lines hold numbers only, so job names
 /// and log files are given on `sbatch`'s command line, where they can be quoted.
-pub fn emit_slurm(exp: &Experiment, exe: &Path, pinned: Option<&Path>) -> crate::error::Result<PathBuf> {
+pub(crate) fn emit_slurm(exp: &Experiment, exe: &Path, pinned: Option<&Path>) -> crate::error::Result<PathBuf> {
     let dir = exp.root.join("slurm");
     let exe = shell_word("the coevo binary's path", exe.to_str())?;
     let pinned = match pinned {

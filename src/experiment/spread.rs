@@ -11,7 +11,7 @@ use std::path::Path;
 /// `experiments/` (in the working folder) that trained it on the most seeds, read from its committed
 /// summary.csv: the range of the last-100 DoA, DoS and catches per episode. None when no experiment here
 /// trained it. An experiment in progress that is judged only when complete is passed over.
-pub fn seeds_like(scene: &Scene) -> Option<String> {
+pub(crate) fn seeds_like(scene: &Scene) -> Option<String> {
     let files = Experiment::files(Path::new(EXPERIMENTS)).ok()?;
     let mut best: Option<(usize, String)> = None;
     for file in files {

@@ -5,21 +5,21 @@
 //! of a design (the smallest effect its seeds detect with 80 % power, the seeds an effect needs).
 //! Student t quantiles and distribution functions come from `statrs`.
 
-pub use crate::sim::metrics::running_mean;
+pub(crate) use crate::sim::metrics::running_mean;
 
 /// Mean of a slice (None when empty).
-pub fn mean(values: &[f64]) -> Option<f64> {
+pub(crate) fn mean(values: &[f64]) -> Option<f64> {
     (!values.is_empty()).then(|| values.iter().sum::<f64>() / values.len() as f64)
 }
 
 /// The `p` quantile of Student's t with `df` degrees of freedom (NaN for df ≤ 0).
-pub fn t_quantile(p: f64, df: f64) -> f64 {
+pub(crate) fn t_quantile(p: f64, df: f64) -> f64 {
     use statrs::distribution::{ContinuousCDF, StudentsT};
     StudentsT::new(0.0, 1.0, df).map_or(f64::NAN, |t| t.inverse_cdf(p))
 }
 
 /// The two-sided 95 % quantile of Student's t with `df` degrees of freedom.
-pub fn t95(df: usize) -> f64 {
+pub(crate) fn t95(df: usize) -> f64 {
     t_quantile(0.975, df as f64)
 }
 
@@ -33,10 +33,10 @@ pub struct Estimate {
     /// Samples: seeds, or for a difference the smaller of the two counts.
     pub n: usize,
     /// Standard error of the mean (or of the difference) and its degrees of freedom.
-    pub se: Option<f64>,
+    pub(crate) se: Option<f64>,
     pub df: Option<f64>,
     /// Whether this is a difference of two independent groups (Welch) rather than one group's mean.
-    pub two_groups: bool,
+    pub(crate) two_groups: bool,
 }
 
 pub fn estimate(samples: &[f64]) -> Option<Estimate> {
@@ -76,7 +76,7 @@ pub fn difference(a: &[f64], b: &[f64]) -> Option<Estimate> {
 impl Estimate {
     /// A claim's own test of this estimate: TOST's p-value of equivalence within ±`margin` for a claim of
     /// no effect, else the two-sided test of none ([`Estimate::p_value`]).
-    pub fn test_p(&self, margin: Option<f64>) -> Option<f64> {
+    pub(crate) fn test_p(&self, margin: Option<f64>) -> Option<f64> {
         match margin {
             Some(m) => self.tost_p(m),
             None => self.p_value(),
@@ -97,14 +97,16 @@ impl Estimate {
 
     /// The 90 % interval [lo, hi] of the two one-sided tests (TOST) at α = 0.05: equivalence within ±m
     /// holds when it lies inside (−m, m).
-    pub fn tost_interval(&self) -> Option<(f64, f64)> {
+    #[cfg(test)]
+    pub(crate) fn tost_interval(&self) -> Option<(f64, f64)> {
         let half = t_quantile(0.95, self.df?) * self.se?;
         Some((self.mean - half, self.mean + half))
     }
 
     /// The smallest |effect| this design detects with 80 % power in a two-sided test at α = 0.05:
     /// (t₀.₉₇₅ + t₀.₈₀) · standard error, the standard approximation of the noncentral t.
-    pub fn detectable(&self) -> Option<f64> {
+    #[cfg(test)]
+    pub(crate) fn detectable(&self) -> Option<f64> {
         let (se, df) = (self.se?, self.df?);
         Some((t_quantile(0.975, df) + t_quantile(0.80, df)) * se)
     }
@@ -113,7 +115,7 @@ impl Estimate {
     /// `alpha` given the spread seen here: the smallest m with |effect|·√m / σ ≥ t₁₋α/₂ + t₀.₈₀ at m − 1
     /// degrees of freedom (one group), or |effect|·√(m/2) / σ at 2m − 2 (two groups of m, σ the pooled
     /// SD). None without spread or beyond 10 000.
-    pub fn seeds_for(&self, alpha: f64, effect: f64) -> Option<usize> {
+    pub(crate) fn seeds_for(&self, alpha: f64, effect: f64) -> Option<usize> {
         let se = self.se.filter(|&se| se > 0.0)?;
         let (sigma, scale) = match self.two_groups {
             // se² = (s²_a + s²_b) / n with n per group: the pooled σ² = se²·n/2.
@@ -130,7 +132,7 @@ impl Estimate {
 /// Holm's step-down adjustment of a family of p-values (same order as given): the k-th smallest becomes
 /// max over j ≤ k of min(1, (m − j + 1)·p₍ⱼ₎). Controls the family-wise error rate at α without assuming
 /// independence.
-pub fn holm(p: &[f64]) -> Vec<f64> {
+pub(crate) fn holm(p: &[f64]) -> Vec<f64> {
     let m = p.len();
     let mut order: Vec<usize> = (0..m).collect();
     order.sort_by(|&a, &b| p[a].total_cmp(&p[b]));
@@ -149,7 +151,7 @@ pub fn holm(p: &[f64]) -> Vec<f64> {
 /// step's level, every test from the first failure on at the failed step's level (its p-value is at least
 /// the failed one's, so its interval holds zero). Bonferroni's α/m for the smallest p-value, and never
 /// wider than Bonferroni's interval for a rejected test.
-pub fn holm_levels(p: &[f64], alpha: f64) -> Vec<f64> {
+pub(crate) fn holm_levels(p: &[f64], alpha: f64) -> Vec<f64> {
     let m = p.len();
     // The decisions are holm()'s own (so a p-value one rounding away from a step boundary is judged the
     // same way in both); a NaN p-value counts as 1.
@@ -173,14 +175,14 @@ pub fn holm_levels(p: &[f64], alpha: f64) -> Vec<f64> {
 impl Estimate {
     /// The two-sided (1 − `alpha`) interval's half-width: Student (one group) or Welch (two), at this
     /// estimate's degrees of freedom. None without spread information (one sample).
-    pub fn half_width(&self, alpha: f64) -> Option<f64> {
+    pub(crate) fn half_width(&self, alpha: f64) -> Option<f64> {
         Some(t_quantile(1.0 - alpha / 2.0, self.df?) * self.se?)
     }
 
     /// The p-value of the two one-sided tests (TOST) of equivalence within ±`margin`: the larger of the
     /// p-values of "effect ≤ −margin" and "effect ≥ +margin". Equivalence holds at level α when it is
     /// below α, which is when the (1 − 2α) interval lies inside (−margin, margin).
-    pub fn tost_p(&self, margin: f64) -> Option<f64> {
+    pub(crate) fn tost_p(&self, margin: f64) -> Option<f64> {
         use statrs::distribution::{ContinuousCDF, StudentsT};
         let (se, df) = (self.se?, self.df?);
         if se == 0.0 {
@@ -194,7 +196,7 @@ impl Estimate {
 
     /// The smallest |effect| a two-sided test at `alpha` detects with 80 % power:
     /// (t_{1−α/2} + t₀.₈₀) · standard error.
-    pub fn detectable_at(&self, alpha: f64) -> Option<f64> {
+    pub(crate) fn detectable_at(&self, alpha: f64) -> Option<f64> {
         let (se, df) = (self.se?, self.df?);
         Some((t_quantile(1.0 - alpha / 2.0, df) + t_quantile(0.80, df)) * se)
     }
@@ -203,7 +205,7 @@ impl Estimate {
 /// Kendall's rank correlation τ_b of paired values (ties counted as in τ_b): +1 when `y` rises with `x`
 /// in every pair, −1 when it always falls. None with fewer than two pairs, a non-finite value, or no
 /// untied pair in `x` or in `y`.
-pub fn kendall_tau(x: &[f64], y: &[f64]) -> Option<f64> {
+pub(crate) fn kendall_tau(x: &[f64], y: &[f64]) -> Option<f64> {
     let n = x.len().min(y.len());
     if n < 2 || x[..n].iter().chain(&y[..n]).any(|v| !v.is_finite()) {
         return None;

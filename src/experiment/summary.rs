@@ -92,7 +92,7 @@ pub fn curve_columns() -> Vec<(String, Quantity)> {
 /// The header of `summary.csv` for `quantities` ([`columns`]): preset, variant, seed, episodes, the
 /// quantities, returns, wall time, binaries, the experiment a run is shared from, then the
 /// [`curve_columns`].
-pub fn header(quantities: &[(String, Quantity)]) -> Vec<String> {
+pub(crate) fn header(quantities: &[(String, Quantity)]) -> Vec<String> {
     let mut header: Vec<String> = ["preset", "variant", "seed", "episodes"].map(String::from).into();
     header.extend(quantities.iter().map(|(name, _)| name.clone()));
     header.extend(["return_first100", "return_last100", "wall_seconds", "binary", "shared_from"].map(String::from));
@@ -104,7 +104,7 @@ pub fn header(quantities: &[(String, Quantity)]) -> Vec<String> {
 /// (its folder here) with its values of `quantities` ([`columns`]), blank where a run has none, then its
 /// returns, wall time, binaries and the experiment it is shared from, then its [`curve_columns`]; and
 /// the `carried` lines of runs finished elsewhere ([`super::carry`]), as committed.
-pub fn text(
+pub(crate) fn text(
     exp: &Experiment,
     data: &BTreeMap<usize, RunData>,
     quantities: &[(String, Quantity)],
@@ -151,7 +151,7 @@ fn field(v: f64) -> String {
 /// A summary.csv `text` written before its [`curve_columns`] existed, extended with them from the
 /// committed figure data's training curves (`curves`, by run index): every byte it held is kept, and each
 /// row gains the values a summary written from the run folders has. None when it has them already.
-pub fn extend(
+pub(crate) fn extend(
     exp: &Experiment,
     text: &str,
     table: &Summary,
@@ -213,21 +213,21 @@ pub fn means_text(exp: &Experiment, table: &Summary, quantities: &[(String, Quan
 /// are computed from it alone.
 #[derive(Clone, Debug, Default)]
 pub struct Summary {
-    pub columns: Vec<String>,
-    pub rows: Vec<SummaryRow>,
+    pub(crate) columns: Vec<String>,
+    pub(crate) rows: Vec<SummaryRow>,
 }
 
 #[derive(Clone, Debug)]
-pub struct SummaryRow {
-    pub preset: String,
-    pub variant: String,
-    pub seed: u64,
+pub(crate) struct SummaryRow {
+    pub(crate) preset: String,
+    pub(crate) variant: String,
+    pub(crate) seed: u64,
     /// Every column's value (NaN where blank or not a number), in `columns` order.
-    pub values: Vec<f64>,
+    pub(crate) values: Vec<f64>,
     /// The executables that made the run (`binary` column; "unknown" for runs before provenance files).
-    pub binary: String,
+    pub(crate) binary: String,
     /// The experiment that trained the run, when this experiment shares it (`shared_from`); empty else.
-    pub shared_from: String,
+    pub(crate) shared_from: String,
 }
 
 impl Summary {
@@ -240,7 +240,7 @@ impl Summary {
         }
     }
 
-    pub fn parse(text: &str, path: &Path) -> crate::error::Result<Summary> {
+    pub(crate) fn parse(text: &str, path: &Path) -> crate::error::Result<Summary> {
         let bad = |e: csv::Error| format!("{}: {e}", path.display());
         let mut reader = csv::Reader::from_reader(text.as_bytes());
         let columns: Vec<String> = reader.headers().map_err(bad)?.iter().map(str::to_string).collect();
@@ -284,7 +284,7 @@ impl Summary {
     }
 
     /// The rows of runs the experiment file still has, each with its index into the experiment's runs.
-    pub fn runs<'a>(&'a self, exp: &Experiment) -> Vec<(usize, &'a SummaryRow)> {
+    pub(crate) fn runs<'a>(&'a self, exp: &Experiment) -> Vec<(usize, &'a SummaryRow)> {
         self.rows
             .iter()
             .filter_map(|row| {
@@ -297,18 +297,18 @@ impl Summary {
             .collect()
     }
 
-    pub fn value(&self, row: &SummaryRow, column: &str) -> f64 {
+    pub(crate) fn value(&self, row: &SummaryRow, column: &str) -> f64 {
         self.columns.iter().position(|c| c == column).map_or(f64::NAN, |i| row.values[i])
     }
 
     /// A run's value of a quantity, from its row ([`super::quantity::quantity`] computes the same from the
     /// run's own files; both through [`derive`]).
-    pub fn quantity(&self, exp: &Experiment, row: &SummaryRow, q: &Quantity) -> f64 {
+    pub(crate) fn quantity(&self, exp: &Experiment, row: &SummaryRow, q: &Quantity) -> f64 {
         derive(&exp.spec.evaluations, q, &|p| column(p).map_or(f64::NAN, |c| self.value(row, &c)))
     }
 
     /// The fewest episodes any run of one preset and variant trained, None without a run.
-    pub fn episodes(&self, preset: &str, variant: &str) -> Option<usize> {
+    pub(crate) fn episodes(&self, preset: &str, variant: &str) -> Option<usize> {
         self.rows
             .iter()
             .filter(|r| r.preset == preset && r.variant == variant)
@@ -319,7 +319,7 @@ impl Summary {
     }
 
     /// The finite values of a quantity over the runs of one preset and variant (one per seed).
-    pub fn values(&self, exp: &Experiment, preset: &str, variant: &str, q: &Quantity) -> Vec<f64> {
+    pub(crate) fn values(&self, exp: &Experiment, preset: &str, variant: &str, q: &Quantity) -> Vec<f64> {
         self.rows
             .iter()
             .filter(|r| r.preset == preset && r.variant == variant)

@@ -9,17 +9,17 @@ use crate::sim::species::{SpeciesRegistry, ACTION_DIM};
 use std::path::Path;
 
 /// Observations of one learned species and the actions its actor took on them, row by row.
-pub struct Recorded {
-    pub dim: usize,
+pub(crate) struct Recorded {
+    pub(crate) dim: usize,
     /// Per episode, where its rows begin.
-    pub episode_starts: Vec<usize>,
-    pub observations: Vec<f32>,
-    pub actions: Vec<f32>,
+    pub(crate) episode_starts: Vec<usize>,
+    pub(crate) observations: Vec<f32>,
+    pub(crate) actions: Vec<f32>,
 }
 
 impl Recorded {
     /// The rows before episode `episode` and from it on, each as (observations, actions).
-    pub fn split(&self, episode: usize) -> [(&[f32], &[f32]); 2] {
+    pub(crate) fn split(&self, episode: usize) -> [(&[f32], &[f32]); 2] {
         let row = self.episode_starts.get(episode).copied().unwrap_or(self.actions.len() / ACTION_DIM);
         let (o, a) = (self.observations.split_at(row * self.dim), self.actions.split_at(row * ACTION_DIM));
         [(o.0, a.0), (o.1, a.1)]
@@ -28,7 +28,12 @@ impl Recorded {
 
 /// Deploys `run`'s actors on `scene` without noise for `episodes` episodes and keeps, per learned species
 /// (None for the others), each agent's observation and the action it took on it, every `every` steps.
-pub fn record(scene: &Scene, run: &Path, episodes: usize, every: usize) -> crate::error::Result<Vec<Option<Recorded>>> {
+pub(crate) fn record(
+    scene: &Scene,
+    run: &Path,
+    episodes: usize,
+    every: usize,
+) -> crate::error::Result<Vec<Option<Recorded>>> {
     let mut learners = crate::learning::Learners::new(scene, Mode::Evaluate);
     learners.load_actors(scene, Some(run))?;
     let learned: Vec<bool> = learners.species.iter().map(|l| l.is_some()).collect();

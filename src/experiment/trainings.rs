@@ -12,22 +12,22 @@ use std::collections::BTreeMap;
 
 /// A finished training an experiment made itself (not a run it shares from another experiment).
 #[derive(Clone, Debug)]
-pub struct Training {
-    pub experiment: String,
+pub(crate) struct Training {
+    pub(crate) experiment: String,
     /// The run's index among its experiment's runs.
-    pub run: usize,
-    pub preset: String,
-    pub variant: String,
-    pub seed: u64,
+    pub(crate) run: usize,
+    pub(crate) preset: String,
+    pub(crate) variant: String,
+    pub(crate) seed: u64,
     /// Its identity: the scene's id ([`crate::learning::tensors::scene_id`]) and the binary.
-    pub key: (String, String),
+    pub(crate) key: (String, String),
     /// The variant's `same_training_as`, when it declares one.
-    pub declared: Option<String>,
+    pub(crate) declared: Option<String>,
     /// Its own wall clock (`metrics.csv`'s `wall_seconds`), 0 where not finite.
-    pub seconds: f64,
+    pub(crate) seconds: f64,
     /// The numbers of its training (its summary row's columns but the evaluations, cross-play and wall
     /// clock), to the bit, by column (from a summary only).
-    pub outcome: Option<BTreeMap<String, u64>>,
+    pub(crate) outcome: Option<BTreeMap<String, u64>>,
 }
 
 impl Training {
@@ -59,7 +59,7 @@ impl Training {
 
 /// The trainings of an experiment's rows (`summary`): each finished run it trained itself, once (a run
 /// whose rows two machines' summaries both hold is carried once, `carry`).
-pub fn from_summary(exp: &Experiment, summary: &Summary) -> Vec<Training> {
+pub(crate) fn from_summary(exp: &Experiment, summary: &Summary) -> Vec<Training> {
     let wall = summary.columns.iter().position(|c| c == crate::run::schema::WALL_SECONDS);
     let mut seen = std::collections::BTreeSet::new();
     summary
@@ -81,7 +81,10 @@ pub fn from_summary(exp: &Experiment, summary: &Summary) -> Vec<Training> {
 
 /// The trainings of an experiment before it is aggregated: its finished run folders (`data`), and the
 /// runs its committed summary holds that are not here (finished elsewhere, or a clone without folders).
-pub fn before_aggregation(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> crate::error::Result<Vec<Training>> {
+pub(crate) fn before_aggregation(
+    exp: &Experiment,
+    data: &BTreeMap<usize, RunData>,
+) -> crate::error::Result<Vec<Training>> {
     let mut trainings: Vec<Training> = data
         .iter()
         .filter(|(i, _)| exp.runs[**i].shared_from.is_none())
@@ -96,7 +99,7 @@ pub fn before_aggregation(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> 
 /// Refuses a training found twice (the same scene and seed by the same binary) unless all but one of its
 /// holders declare that one (`same_training_as`), and a declaration that is not true (the run it names,
 /// when finished, is another training): one line naming both runs and the ways out.
-pub fn check_once(trainings: &[Training]) -> crate::error::Result<()> {
+pub(crate) fn check_once(trainings: &[Training]) -> crate::error::Result<()> {
     for t in trainings {
         if let Some(o) = trainings.iter().find(|o| t.declares(o)).filter(|o| o.key != t.key) {
             let why = match o.key.0 == t.key.0 {
@@ -147,7 +150,7 @@ pub fn check_once(trainings: &[Training]) -> crate::error::Result<()> {
 
 /// How many trainings are finished, how many distinct, and the wall-clock seconds of the distinct ones
 /// (the first of each kept).
-pub fn count(trainings: &[Training]) -> (usize, usize, f64) {
+pub(crate) fn count(trainings: &[Training]) -> (usize, usize, f64) {
     let mut distinct: BTreeMap<&(String, String), f64> = BTreeMap::new();
     for t in trainings {
         distinct.entry(&t.key).or_insert(t.seconds);
@@ -159,7 +162,7 @@ pub fn count(trainings: &[Training]) -> (usize, usize, f64) {
 /// Distinct trainings (of another scene) whose every training number equals another's of the same preset
 /// and seed to the bit, in whichever experiment: a switch that never acted (the energy budget in 500-step
 /// episodes). They are trained and counted; the report names each pair of variants and how many seeds.
-pub fn same_outcomes(trainings: &[Training]) -> BTreeMap<(String, String), usize> {
+pub(crate) fn same_outcomes(trainings: &[Training]) -> BTreeMap<(String, String), usize> {
     // The columns both rows have (files differ in evaluations, not in training columns), DoA among them.
     let same_numbers = |a: &BTreeMap<String, u64>, b: &BTreeMap<String, u64>| {
         a.contains_key("doa_last100") && a.iter().all(|(c, v)| b.get(c).is_none_or(|w| w == v))

@@ -6,11 +6,11 @@ use super::file::{Claim, Quantity};
 use super::stats::Estimate;
 
 /// Significance level of every test, after Holm's adjustment.
-pub const ALPHA: f64 = 0.05;
+pub(crate) const ALPHA: f64 = 0.05;
 
 /// Whether a claim is about an effect (a change over training, what a control removes, or a difference
 /// of two variants) rather than a level.
-pub fn is_effect(claim: &Claim) -> bool {
+pub(crate) fn is_effect(claim: &Claim) -> bool {
     claim.versus.is_some()
         || matches!(
             claim.quantity,
@@ -29,7 +29,7 @@ pub fn is_effect(claim: &Claim) -> bool {
 
 /// What a claim's test came to.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Outcome {
+pub(crate) enum Outcome {
     /// No finished run of its variant.
     NotRunYet,
     /// One seed: no interval, no test.
@@ -73,31 +73,32 @@ pub enum Outcome {
 
 impl Outcome {
     /// Whether the paper's statement holds, in its direction at least.
-    pub fn reproduced(self) -> bool {
+    #[cfg(test)]
+    pub(crate) fn reproduced(self) -> bool {
         matches!(self, Outcome::Reproduced | Outcome::DirectionReproduced { .. } | Outcome::Equivalent)
     }
 }
 
 /// A claim's verdict: its outcome and the sentence reports print.
 #[derive(Clone, Debug, PartialEq)]
-pub struct Verdict {
-    pub outcome: Outcome,
-    pub text: String,
+pub(crate) struct Verdict {
+    pub(crate) outcome: Outcome,
+    pub(crate) text: String,
 }
 
 impl Verdict {
-    pub fn new(outcome: Outcome, text: impl Into<String>) -> Verdict {
+    pub(crate) fn new(outcome: Outcome, text: impl Into<String>) -> Verdict {
         Verdict { outcome, text: text.into() }
     }
 
     /// The verdict's first words, as a note on another row names it ("reproduced", "not reproduced",
     /// "direction reproduced, smaller than the paper's -0.010 ").
-    pub fn word(&self) -> &str {
+    pub(crate) fn word(&self) -> &str {
         self.text.split([':', '(']).next().unwrap_or_default().trim()
     }
 
     /// Adds a note to the sentence (the test it repeats, a disagreement with its contrast).
-    pub fn note(&mut self, note: &str) {
+    pub(crate) fn note(&mut self, note: &str) {
         self.text.push_str(note);
     }
 }
@@ -111,7 +112,7 @@ impl std::fmt::Display for Verdict {
 /// Half a unit of the last decimal the paper's number is written with: the precision it states ("22 %"
 /// is 0.22 ± 0.005). Read from the number as stored, so a number the paper writes with trailing zeros
 /// ("0.20") would be taken as coarser ("0.2" ± 0.05); no claim of the paper's has one.
-pub fn paper_precision(paper: f64) -> f64 {
+pub(crate) fn paper_precision(paper: f64) -> f64 {
     let text = format!("{}", paper.abs());
     let decimals = text.split_once('.').map_or(0, |(_, d)| d.len());
     0.5 * 10f64.powi(-(decimals as i32))
@@ -129,7 +130,7 @@ const MORE_SEEDS: &str = "; more than 10 000 seeds per variant would be needed t
 /// way, or an effect shown where the claim is of none), *equivalent within ±m* (TOST, adjusted),
 /// *inconclusive*. Levels: the plain 95 % interval against the paper's value at the precision it states,
 /// and against chance.
-pub fn verdict(
+pub(crate) fn verdict(
     claim: &Claim,
     e: Option<Estimate>,
     p_holm: Option<f64>,
@@ -277,7 +278,7 @@ pub fn verdict(
 /// The hypothesis a claim tests, as reports print it beside its verdict: an effect in the paper's
 /// direction, any effect (two-sided), equivalence within a margin, or a level against the paper's value at
 /// its precision and against chance.
-pub fn hypothesis(claim: &Claim, baseline: Option<f64>) -> String {
+pub(crate) fn hypothesis(claim: &Claim, baseline: Option<f64>) -> String {
     if is_effect(claim) {
         let direction = |p: f64| if p < 0.0 { "an effect < 0" } else { "an effect > 0" };
         return match (claim.margin, claim.paper) {
@@ -297,7 +298,7 @@ pub fn hypothesis(claim: &Claim, baseline: Option<f64>) -> String {
 }
 
 /// A test's level as reports show it: [`ALPHA`] over the Holm step's divisor (`0.05/44`; `0.05` alone).
-pub fn alpha_shown(level: f64) -> String {
+pub(crate) fn alpha_shown(level: f64) -> String {
     match (ALPHA / level).round() as usize {
         0 | 1 => format!("{ALPHA}"),
         d => format!("{ALPHA}/{d}"),
@@ -305,7 +306,7 @@ pub fn alpha_shown(level: f64) -> String {
 }
 
 /// A p-value as reports show it.
-pub fn p_shown(p: f64) -> String {
+pub(crate) fn p_shown(p: f64) -> String {
     if p < 0.001 {
         "< 0.001".into()
     } else if (0.0445..0.0555).contains(&p) {

@@ -58,44 +58,44 @@ use std::path::Path;
 /// Everything but the networks that a run needs to resume.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct TrainingState {
-    pub scene: Scene,
-    pub episodes_done: usize,
-    pub sim_rng: ChaCha8Rng,
+    pub(crate) scene: Scene,
+    pub(crate) episodes_done: usize,
+    pub(crate) sim_rng: ChaCha8Rng,
     /// The environment stream as it stood before the next episode's population was spawned: a resume
     /// spawns that population again from it (absent in checkpoints of coevo before exact resumes, which
     /// spawn from `sim_rng`).
     #[serde(default)]
-    pub spawn_rng: Option<ChaCha8Rng>,
-    pub species: Vec<Option<SpeciesState>>,
+    pub(crate) spawn_rng: Option<ChaCha8Rng>,
+    pub(crate) species: Vec<Option<SpeciesState>>,
     /// metrics.csv as it stood at this checkpoint, in checkpoints of a coevo before manifests (empty, and
     /// not written, since: the manifest hashes `metrics.csv` itself up to the checkpoint).
     #[serde(default, skip_serializing_if = "String::is_empty")]
-    pub metrics_csv: String,
+    pub(crate) metrics_csv: String,
     /// Opponents from the past (`learning.opponents`): the league's draws and record; absent in runs
     /// without a pool, so their checkpoints are as before.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub league: Option<super::league::LeagueState>,
+    pub(crate) league: Option<super::league::LeagueState>,
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize)]
-pub struct SpeciesState {
-    pub name: String,
-    pub noise_std: f64,
-    pub epsilon: f64,
-    pub actor_adam_step: u64,
-    pub critic_adam_step: u64,
+pub(crate) struct SpeciesState {
+    pub(crate) name: String,
+    pub(crate) noise_std: f64,
+    pub(crate) epsilon: f64,
+    pub(crate) actor_adam_step: u64,
+    pub(crate) critic_adam_step: u64,
     /// The species' exploration and sampling stream (absent in checkpoints of coevo before per-species
     /// streams: a resumed run then continues on a fresh stream of the seed).
     #[serde(default)]
-    pub rng: Option<ChaCha8Rng>,
+    pub(crate) rng: Option<ChaCha8Rng>,
     /// Transitions the species has stored so far; its replay segments hold the last ones (absent in
     /// checkpoints of coevo before saved buffers: a resumed run then refills its buffer).
     #[serde(default)]
-    pub transitions: Option<u64>,
+    pub(crate) transitions: Option<u64>,
     /// Transitions offered to the buffer, kept or not, where they differ from those stored (the authors'
     /// replay window, `learning.replay_window`); absent otherwise.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub offered: Option<u64>,
+    pub(crate) offered: Option<u64>,
 }
 
 /// The manifest of a checkpoint folder, and a damaged checkpoint where it should have one: its
@@ -118,7 +118,7 @@ pub(super) fn run_manifest(dir: &Path) -> crate::error::Result<Option<Manifest>>
 
 /// Loads a species' actor from a run folder into `like` (which fixes the expected shapes), checked
 /// against the checkpoint's manifest and the file's metadata.
-pub fn load_actor(run: &Path, species: &str, like: &Mlp) -> crate::error::Result<Mlp> {
+pub(crate) fn load_actor(run: &Path, species: &str, like: &Mlp) -> crate::error::Result<Mlp> {
     (|| -> crate::error::Result<Mlp> {
         let dir = checkpoint_dir(run);
         let path = dir.join(actor_name(species));
@@ -136,7 +136,7 @@ pub fn load_actor(run: &Path, species: &str, like: &Mlp) -> crate::error::Result
 
 /// Saves learners and state into `run/checkpoint/`, atomically as a folder, its manifest written last
 /// ([`Manifest`]): `metrics` is the digest of `metrics.csv` as it stands (its rows up to this checkpoint).
-pub fn save(
+pub(crate) fn save(
     run: &Path,
     learners: &[Option<SpeciesLearner>],
     names: &[String],
@@ -180,7 +180,7 @@ fn remove_if_present(dir: &Path) -> std::io::Result<()> {
 /// Completes a checkpoint swap that a kill cut short ([`save`]): where `checkpoint/` is whole (its state
 /// file is there) a leftover `checkpoint.old/` is removed; where it is missing, `checkpoint.old/` is put
 /// back. Only with the run's lock held.
-pub fn finish_swap(run: &Path) {
+pub(crate) fn finish_swap(run: &Path) {
     let (dir, old) = (checkpoint_dir(run), run.join(CHECKPOINT_OLD));
     if !old.exists() {
         return;
@@ -272,7 +272,7 @@ fn snapshot_digests(
 }
 
 /// Reads a checkpoint's state file.
-pub fn read_state(path: &Path) -> crate::error::Result<TrainingState> {
+pub(crate) fn read_state(path: &Path) -> crate::error::Result<TrainingState> {
     let text = crate::io::read_text(path, crate::io::MAX_TEXT_BYTES)?;
     state_from(path, &text)
 }
@@ -283,7 +283,7 @@ fn state_from(path: &Path, text: &str) -> crate::error::Result<TrainingState> {
 
 /// The checkpoint's state file, checked against its manifest, and the manifest (None for a checkpoint of
 /// a coevo before manifests): what `--resume` continues from and what `--plot` counts rows against.
-pub fn read_checked_state(dir: &Path) -> crate::error::Result<(TrainingState, Option<Manifest>)> {
+pub(crate) fn read_checked_state(dir: &Path) -> crate::error::Result<(TrainingState, Option<Manifest>)> {
     (|| -> crate::error::Result<(TrainingState, Option<Manifest>)> {
         let path = dir.join(STATE);
         let manifest = run_manifest(dir)?;

@@ -15,7 +15,7 @@ use std::ops::Range;
 
 /// What a control does to the slots it touches.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Alteration {
+pub(crate) enum Alteration {
     /// Zero, as if nothing were within the perception radius.
     Blind,
     /// The slots of another individual of the observer's species (a fresh random permutation every step).
@@ -25,10 +25,10 @@ pub enum Alteration {
 /// One form of `--control`: an alteration of every neighbour block of every learning species, or of the
 /// block in which species `observer` sees species `observed`.
 #[derive(Clone, Debug, PartialEq, Eq)]
-pub struct ControlForm {
-    pub alteration: Alteration,
+pub(crate) struct ControlForm {
+    pub(crate) alteration: Alteration,
     /// (observer, observed); None: every neighbour block of every learning species.
-    pub block: Option<(String, String)>,
+    pub(crate) block: Option<(String, String)>,
 }
 
 /// The controls of an evaluation (none: the observations as perceived, `seeing`). Written as
@@ -37,11 +37,11 @@ pub struct ControlForm {
 #[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(try_from = "ControlFile", into = "Vec<String>")]
 pub struct ObservationControl {
-    pub forms: Vec<ControlForm>,
+    pub(crate) forms: Vec<ControlForm>,
 }
 
 /// The forms `--control` and experiment files accept.
-pub const CONTROL_FORMS: &str =
+pub(crate) const CONTROL_FORMS: &str =
     "seeing, blind, shuffled, blind:OBSERVER:OBSERVED or shuffled:OBSERVER:OBSERVED (species names)";
 
 impl std::str::FromStr for ControlForm {
@@ -96,12 +96,12 @@ impl ObservationControl {
         Ok(ObservationControl { forms })
     }
 
-    pub fn is_seeing(&self) -> bool {
+    pub(crate) fn is_seeing(&self) -> bool {
         self.forms.is_empty()
     }
 
     /// The forms as written (`seeing` for none): what `--control` takes, one per flag.
-    pub fn texts(&self) -> Vec<String> {
+    pub(crate) fn texts(&self) -> Vec<String> {
         match self.forms.is_empty() {
             true => vec!["seeing".into()],
             false => self.forms.iter().map(ControlForm::to_string).collect(),
@@ -109,7 +109,7 @@ impl ObservationControl {
     }
 
     /// Exactly which slots the controls touch, for summaries and `--help`.
-    pub fn describe(&self) -> String {
+    pub(crate) fn describe(&self) -> String {
         let one = |f: &ControlForm| {
             let what = match f.alteration {
                 Alteration::Blind => "zeroed",
@@ -125,7 +125,7 @@ impl ObservationControl {
 
     /// The controls resolved against a scene's species; Err names the form and what is wrong (an unknown
     /// species, or an observer that does not learn, whose actions no actor decides).
-    pub fn resolve(&self, registry: &SpeciesRegistry) -> Result<ResolvedControl, String> {
+    pub(crate) fn resolve(&self, registry: &SpeciesRegistry) -> Result<ResolvedControl, String> {
         use crate::scene::Policy;
         let learns = |s: usize| registry.defs[s].policy == Policy::Learned;
         let index = |name: &str, form: &ControlForm| {
@@ -198,19 +198,19 @@ impl From<ObservationControl> for Vec<String> {
 /// The controls of an evaluation resolved to slots: per species, the alterations and the ranges of its
 /// observation row they touch, in order.
 #[derive(Resource, Clone, Debug, Default, PartialEq, Eq)]
-pub struct ResolvedControl {
-    pub per_species: Vec<Vec<(Alteration, Range<usize>)>>,
+pub(crate) struct ResolvedControl {
+    pub(crate) per_species: Vec<Vec<(Alteration, Range<usize>)>>,
 }
 
 impl ResolvedControl {
     /// Whether the observations of species `s` are altered.
-    pub fn touches(&self, s: usize) -> bool {
+    pub(crate) fn touches(&self, s: usize) -> bool {
         self.per_species.get(s).is_some_and(|t| !t.is_empty())
     }
 
     /// The observations species `s`'s actor is given: `observations` (`[n × d]`) with the touched slots
     /// altered. Each shuffled range draws its own permutation from `rng` and copies from the unaltered rows.
-    pub fn apply(&self, s: usize, observations: &[f32], n: usize, rng: &mut ChaCha8Rng) -> Vec<f32> {
+    pub(crate) fn apply(&self, s: usize, observations: &[f32], n: usize, rng: &mut ChaCha8Rng) -> Vec<f32> {
         let mut out = observations.to_vec();
         let d = observations.len() / n.max(1);
         for (alteration, range) in self.per_species.get(s).into_iter().flatten() {

@@ -11,7 +11,7 @@
 //! Episodes end by a time limit, not by a terminal state, so the target always bootstraps.
 //!
 //! The update is written twice: [`Ddpg::update`] computes it with the passes of `fused.rs` (buffers reused,
-//! only the gradients it needs), [`Ddpg::update_reference`] with dfdx's tape. The tests below train the same
+//! only the gradients it needs), `Ddpg::update_reference` (built for the tests) with dfdx's tape. The tests below train the same
 //! networks both ways and require the same parameters.
 
 use super::fused::{gradients_like, Workspace};
@@ -19,36 +19,39 @@ use super::nets::{matrix, Adam, Dev, Mlp, Output};
 use super::replay::Batch;
 use crate::scene::LearningParams;
 use crate::sim::species::ACTION_DIM;
+// dfdx's tape: the reference update only.
+#[cfg(test)]
 use dfdx::losses::mse_loss;
+#[cfg(test)]
 use dfdx::prelude::*;
 use rand_chacha::ChaCha8Rng;
 
 /// Rows per actor forward pass in [`Ddpg::act_into`]: large populations are split into chunks of this
 /// many agents, processed in parallel.
-pub const ACT_CHUNK: usize = 1024;
+pub(crate) const ACT_CHUNK: usize = 1024;
 
 /// Actor, critic, targets and optimizers of one species.
 #[derive(Clone, Debug)]
 pub struct Ddpg {
     pub actor: Mlp,
-    pub critic: Mlp,
-    pub target_actor: Mlp,
-    pub target_critic: Mlp,
-    pub actor_opt: Adam,
-    pub critic_opt: Adam,
+    pub(crate) critic: Mlp,
+    pub(crate) target_actor: Mlp,
+    pub(crate) target_critic: Mlp,
+    pub(crate) actor_opt: Adam,
+    pub(crate) critic_opt: Adam,
     /// Discount factor γ.
-    pub gamma: f32,
+    pub(crate) gamma: f32,
     /// Soft update rate τ.
-    pub tau: f32,
+    pub(crate) tau: f32,
     /// The update's buffers (not part of the learner's state: rebuilt at the first update).
-    pub work: Workspace,
+    pub(crate) work: Workspace,
 }
 
 /// Losses of one update.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct Losses {
-    pub critic: f32,
-    pub actor: f32,
+pub(crate) struct Losses {
+    pub(crate) critic: f32,
+    pub(crate) actor: f32,
 }
 
 impl Ddpg {
@@ -71,7 +74,7 @@ impl Ddpg {
         }
     }
 
-    pub fn obs_dim(&self) -> usize {
+    pub(crate) fn obs_dim(&self) -> usize {
         self.actor.input_width()
     }
 
@@ -92,7 +95,7 @@ impl Ddpg {
 
     /// One DDPG update on a mini-batch (the body of Algorithm 1's inner loop after sampling), in the
     /// reused buffers of `fused.rs`.
-    pub fn update(&mut self, b: &Batch) -> Losses {
+    pub(crate) fn update(&mut self, b: &Batch) -> Losses {
         let (n, d, w) = (b.n, self.obs_dim(), &mut self.work);
         gradients_like(&mut w.critic_gradients, &self.critic);
         gradients_like(&mut w.actor_gradients, &self.actor);
@@ -132,7 +135,8 @@ impl Ddpg {
     }
 
     /// [`Ddpg::update`] computed by dfdx's tape: the reference the fused update is tested against.
-    pub fn update_reference(&mut self, dev: &Dev, b: Batch) -> Losses {
+    #[cfg(test)]
+    pub(crate) fn update_reference(&mut self, dev: &Dev, b: Batch) -> Losses {
         let d = self.obs_dim();
         let obs = matrix(dev, b.obs, b.n, d);
         let actions = matrix(dev, b.actions, b.n, ACTION_DIM);
@@ -168,14 +172,14 @@ impl Ddpg {
     }
 
     /// Whether every parameter of every network is finite.
-    pub fn is_finite(&self) -> bool {
+    pub(crate) fn is_finite(&self) -> bool {
         [&self.actor, &self.critic, &self.target_actor, &self.target_critic].iter().all(|n| n.is_finite())
     }
 }
 
 /// `actor`'s μ(o) into `actions`, as [`Ddpg::act_into`] computes it: any actor of the species' shape (a
 /// snapshot standing in for the species, `league.rs`) acts to the bit as it did when it was kept.
-pub fn act_with(actor: &Mlp, observations: &[f32], actions: &mut [f32]) {
+pub(crate) fn act_with(actor: &Mlp, observations: &[f32], actions: &mut [f32]) {
     let d = actor.input_width();
     crate::parallel::for_each_chunk(actions, ACT_CHUNK * ACTION_DIM, |i, out| {
         let rows = out.len() / ACTION_DIM;

@@ -5,21 +5,21 @@
 use std::path::{Path, PathBuf};
 
 /// The checkpoint folder of a run, the one being written, and the previous one during the swap.
-pub const CHECKPOINT: &str = "checkpoint";
+pub(crate) const CHECKPOINT: &str = "checkpoint";
 
-pub const CHECKPOINT_TMP: &str = "checkpoint.tmp";
+pub(crate) const CHECKPOINT_TMP: &str = "checkpoint.tmp";
 
-pub const CHECKPOINT_OLD: &str = "checkpoint.old";
+pub(crate) const CHECKPOINT_OLD: &str = "checkpoint.old";
 
 /// Everything but the networks and buffers ([`TrainingState`]).
-pub const STATE: &str = "state.ron";
+pub(crate) const STATE: &str = "state.ron";
 
-pub fn checkpoint_dir(run: &Path) -> PathBuf {
+pub(crate) fn checkpoint_dir(run: &Path) -> PathBuf {
     run.join(CHECKPOINT)
 }
 
 /// The folder of a run's actor snapshots.
-pub const SNAPSHOTS: &str = "snapshots";
+pub(crate) const SNAPSHOTS: &str = "snapshots";
 
 pub(super) fn snapshot_path(run: &Path, species: &str, episode: usize) -> PathBuf {
     run.join(SNAPSHOTS).join(snapshot_name(species, episode))
@@ -48,7 +48,7 @@ pub(super) fn parse_segment_name(name: &str) -> Option<(&str, u64, u64)> {
 }
 
 /// The file name of a species' actor in a checkpoint (and in a run trained outside coevo).
-pub fn actor_name(species: &str) -> String {
+pub(crate) fn actor_name(species: &str) -> String {
     format!("{species}-actor.safetensors")
 }
 

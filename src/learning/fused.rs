@@ -15,7 +15,7 @@ use std::ops::Range;
 
 /// One network's forward pass over a batch, kept for its backward pass.
 #[derive(Clone, Debug, Default)]
-pub struct Pass {
+pub(crate) struct Pass {
     rows: usize,
     /// `acts[0]` is the input `[rows × in]`; `acts[l]` is layer l's output after its ReLU / tanh.
     acts: Vec<Vec<f32>>,
@@ -30,7 +30,7 @@ thread_local! {
 }
 
 /// Runs `f` with this thread's inference pass.
-pub fn with_pass<R>(f: impl FnOnce(&mut Pass) -> R) -> R {
+pub(crate) fn with_pass<R>(f: impl FnOnce(&mut Pass) -> R) -> R {
     INFERENCE.with(|pass| f(&mut pass.borrow_mut()))
 }
 
@@ -47,7 +47,7 @@ impl Pass {
 
     /// The forward pass of `net` on the row-wise concatenation `[a | b]` (b may be empty): the critic's
     /// input (o, a) is built in place.
-    pub fn forward(&mut self, net: &Mlp, rows: usize, a: &[f32], b: &[f32]) {
+    pub(crate) fn forward(&mut self, net: &Mlp, rows: usize, a: &[f32], b: &[f32]) {
         self.shape_for(net, rows);
         let (wa, wb) = (a.len() / rows, b.len() / rows);
         debug_assert_eq!(wa + wb, net.input_width());
@@ -93,14 +93,14 @@ impl Pass {
     }
 
     /// The network's output `[rows × out]`.
-    pub fn output(&self) -> &[f32] {
+    pub(crate) fn output(&self) -> &[f32] {
         self.acts.last().expect("a forward pass ran")
     }
 
     /// Back-propagates `d_output` (dL/d output, `[rows × out]`) through `net`, whose forward pass this
     /// holds. Writes the parameter gradients into `gradients` (in [`Mlp::parameters`] order) when asked,
     /// and dL/d input for the input columns `columns` into `d_input` (`[rows × columns.len()]`) when asked.
-    pub fn backward(
+    pub(crate) fn backward(
         &mut self,
         net: &Mlp,
         d_output: &[f32],
@@ -239,25 +239,25 @@ unsafe fn product(
 
 /// Buffers of one species' update, allocated at its first update and reused by every later one.
 #[derive(Clone, Debug, Default)]
-pub struct Workspace {
+pub(crate) struct Workspace {
     /// μ'(o') and Q'(o', μ'(o')): the TD target's passes.
-    pub target_actor: Pass,
-    pub target_critic: Pass,
+    pub(crate) target_actor: Pass,
+    pub(crate) target_critic: Pass,
     /// Q(o, a): the critic step's pass.
-    pub critic: Pass,
+    pub(crate) critic: Pass,
     /// μ(o) and Q(o, μ(o)): the actor step's passes.
-    pub actor: Pass,
-    pub actor_value: Pass,
+    pub(crate) actor: Pass,
+    pub(crate) actor_value: Pass,
     /// dL/dQ per row, reused by both steps.
-    pub d_q: Vec<f32>,
+    pub(crate) d_q: Vec<f32>,
     /// dL/dμ(o) `[rows × actions]`: the critic's input gradient in its action columns.
-    pub d_actions: Vec<f32>,
-    pub critic_gradients: Vec<Vec<f32>>,
-    pub actor_gradients: Vec<Vec<f32>>,
+    pub(crate) d_actions: Vec<f32>,
+    pub(crate) critic_gradients: Vec<Vec<f32>>,
+    pub(crate) actor_gradients: Vec<Vec<f32>>,
 }
 
 /// Gradient buffers shaped like `net`'s parameters (allocated once).
-pub fn gradients_like(buffers: &mut Vec<Vec<f32>>, net: &Mlp) {
+pub(crate) fn gradients_like(buffers: &mut Vec<Vec<f32>>, net: &Mlp) {
     if buffers.len() != 2 * net.layers.len() {
         *buffers = net.layers.iter().flat_map(|l| [vec![0.0; l.weight_len()], vec![0.0; l.outputs()]]).collect();
     }

@@ -29,7 +29,7 @@ const LEAGUE_STREAM: u64 = 2;
 
 /// The league of a training run with at least one pool.
 #[derive(Clone, Debug)]
-pub struct League {
+pub(crate) struct League {
     /// Species names, registry order.
     names: Vec<String>,
     /// Per species: its pool's probability and rule, None for the latest opponents.
@@ -44,40 +44,40 @@ pub struct League {
     last: Option<Match>,
     /// The trainee's summed rewards in the current episode.
     episode_return: f64,
-    pub state: LeagueState,
+    pub(crate) state: LeagueState,
 }
 
 /// Who plays a pool episode: `trainee` trains against the snapshots `stand_in` names.
 #[derive(Clone, Debug, PartialEq)]
-pub struct Match {
-    pub trainee: usize,
+pub(crate) struct Match {
+    pub(crate) trainee: usize,
     /// Per species: the episode of its snapshot that acts for it (None: it plays itself).
-    pub stand_in: Vec<Option<usize>>,
+    pub(crate) stand_in: Vec<Option<usize>>,
 }
 
 /// What a checkpoint keeps of the league: the draws' stream and the record of returns.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct LeagueState {
-    pub rng: ChaCha8Rng,
+pub(crate) struct LeagueState {
+    pub(crate) rng: ChaCha8Rng,
     /// Per trainee, opponent and snapshot played: the episodes and the trainee's summed return.
-    pub record: Vec<Outcome>,
+    pub(crate) record: Vec<Outcome>,
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct Outcome {
-    pub trainee: String,
-    pub opponent: String,
+pub(crate) struct Outcome {
+    pub(crate) trainee: String,
+    pub(crate) opponent: String,
     /// The opponent's snapshot: its actor after this many episodes.
-    pub snapshot: usize,
-    pub episodes: u64,
+    pub(crate) snapshot: usize,
+    pub(crate) episodes: u64,
     /// The trainee's rewards summed over its individuals, the episodes' steps and the episodes.
-    pub return_sum: f64,
+    pub(crate) return_sum: f64,
 }
 
 impl League {
     /// The league of a scene, None when no species trains against a pool. `species` are the fresh
     /// learners: their actors are the snapshots of episode 0.
-    pub fn new(scene: &Scene, species: &[Option<SpeciesLearner>]) -> Option<League> {
+    pub(crate) fn new(scene: &Scene, species: &[Option<SpeciesLearner>]) -> Option<League> {
         let pools: Vec<Option<(f64, Pick)>> = scene
             .species
             .iter()
@@ -112,7 +112,7 @@ impl League {
     /// The league as a checkpoint after `episodes` episodes left it: `state` from the checkpoint, the
     /// pool read back from the run's snapshots of those episodes by `load` (species, episode, an actor of
     /// its shape: `snapshots::load_snapshot`, which checks them against the checkpoint's manifest).
-    pub fn restore(
+    pub(crate) fn restore(
         &mut self,
         run: &Path,
         species: &[Option<SpeciesLearner>],
@@ -140,7 +140,7 @@ impl League {
     /// The match of episode `index` (None: every species plays itself), drawn at its first step: the
     /// species with a pool draw in registry order, and the first whose draw falls under its p trains
     /// against the past this episode.
-    pub fn play(&mut self, index: usize) -> Option<&Match> {
+    pub(crate) fn play(&mut self, index: usize) -> Option<&Match> {
         if self.current.as_ref().is_none_or(|(i, _)| *i != index) {
             self.episode_return = 0.0;
             let drawn = self.draw_match();
@@ -150,14 +150,14 @@ impl League {
     }
 
     /// The actor standing in for species `s` in the current episode, if a snapshot plays it.
-    pub fn stand_in(&self, s: usize) -> Option<&Mlp> {
+    pub(crate) fn stand_in(&self, s: usize) -> Option<&Mlp> {
         let m = self.current.as_ref()?.1.as_ref()?;
         let episode = m.stand_in.get(s).copied().flatten()?;
         self.history[s].iter().find(|(e, _)| *e == episode).map(|(_, actor)| actor)
     }
 
     /// Adds a step's rewards of the current episode's trainee to its return.
-    pub fn add_rewards(&mut self, s: usize, rewards: &[f32]) {
+    pub(crate) fn add_rewards(&mut self, s: usize, rewards: &[f32]) {
         if self.current.as_ref().and_then(|(_, m)| m.as_ref()).is_some_and(|m| m.trainee == s) {
             self.episode_return += rewards.iter().map(|&r| r as f64).sum::<f64>();
         }
@@ -165,7 +165,7 @@ impl League {
 
     /// Closes episode `index`: records the trainee's return against each snapshot it met, and keeps every
     /// drawn-from species' actor when the run keeps a snapshot (`species` after the episode's updates).
-    pub fn end_episode(&mut self, index: usize, species: &[Option<SpeciesLearner>]) {
+    pub(crate) fn end_episode(&mut self, index: usize, species: &[Option<SpeciesLearner>]) {
         let played = self.current.take().filter(|(i, _)| *i == index).and_then(|(_, m)| m);
         if let Some(m) = &played {
             for (o, snapshot) in m.stand_in.iter().enumerate() {
@@ -248,12 +248,12 @@ impl League {
 
     /// The columns of `metrics.csv` a league adds, per drawn-from species: `stand_in_NAME`, the episode of
     /// the snapshot that played it (blank: it played itself).
-    pub fn columns(&self) -> Vec<String> {
+    pub(crate) fn columns(&self) -> Vec<String> {
         self.drawn().map(|o| format!("stand_in_{}", self.names[o])).collect()
     }
 
     /// The last ended episode's cells of [`League::columns`].
-    pub fn cells(&self) -> Vec<String> {
+    pub(crate) fn cells(&self) -> Vec<String> {
         self.drawn()
             .map(|o| {
                 self.last

@@ -14,19 +14,19 @@ use rand_chacha::ChaCha8Rng;
 /// (docs/src/results/authors-code.md; each switch of [`LearningParams`]). The defaults store what the actor outputs into a ring of
 /// the last `buffer_capacity` transitions and draw mini-batches with replacement.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct Storing {
+pub(crate) struct Storing {
     /// [`ReplayWindow::AuthorsFirstRows`]: (rows, first rows): transition k of the species goes to row
     /// k mod rows, and only the first rows are drawn from, so only those are kept.
-    pub first_rows: Option<(u64, u64)>,
+    pub(crate) first_rows: Option<(u64, u64)>,
     /// [`StoredAction::AuthorsRescaled`]: the physical scale of each action component (thrust in N, turn
     /// in rad per step) the stored action is rescaled to.
-    pub rescaled: Option<[f32; ACTION_DIM]>,
-    pub draw: BatchDraw,
+    pub(crate) rescaled: Option<[f32; ACTION_DIM]>,
+    pub(crate) draw: BatchDraw,
 }
 
 impl Storing {
     /// A species of `count` individuals with `max_thrust` (N) and `turn_per_step` (rad).
-    pub fn of(p: &LearningParams, count: usize, max_thrust: f64, turn_per_step: f64) -> Storing {
+    pub(crate) fn of(p: &LearningParams, count: usize, max_thrust: f64, turn_per_step: f64) -> Storing {
         let n = count.max(1) as u64;
         let rows = p.buffer_capacity as u64;
         Storing {
@@ -39,7 +39,7 @@ impl Storing {
     }
 
     /// How many transitions the buffer holds at most.
-    pub fn capacity(&self, p: &LearningParams) -> usize {
+    pub(crate) fn capacity(&self, p: &LearningParams) -> usize {
         self.first_rows.map_or(p.buffer_capacity, |(_, first)| first as usize)
     }
 }
@@ -51,33 +51,33 @@ pub struct SpeciesLearner {
     /// The species' own dfdx device: every tensor holds a handle to its device, so species that share one
     /// would contend for its reference counts when they update concurrently.
     pub dev: Dev,
-    pub buffer: ReplayBuffer,
+    pub(crate) buffer: ReplayBuffer,
     /// Loaded from a checkpoint and never updated.
     pub frozen: bool,
     /// Current exploration noise std σ and random-action probability ε.
-    pub noise_std: f64,
-    pub epsilon: f64,
+    pub(crate) noise_std: f64,
+    pub(crate) epsilon: f64,
     /// The species' own random stream: exploration noise and mini-batch sampling. One stream per species
     /// lets species update concurrently without changing which random numbers go where.
-    pub rng: ChaCha8Rng,
+    pub(crate) rng: ChaCha8Rng,
     /// The observations the current actions were chosen on (o_t), to pair with o_{t+1}.
     pub(super) pending_obs: Vec<f32>,
     /// The mini-batch buffers, reused by every update.
     batch: Batch,
     /// Sum and count of losses since the last episode summary.
-    pub loss_sum: Losses,
-    pub updates: usize,
-    pub storing: Storing,
+    pub(crate) loss_sum: Losses,
+    pub(crate) updates: usize,
+    pub(crate) storing: Storing,
     /// Transitions offered to the buffer so far, kept or not ([`Storing::first_rows`] keeps only those
     /// whose row is drawn from); equal to the buffer's `pushed` when every transition is kept.
-    pub offered: u64,
+    pub(crate) offered: u64,
 }
 
 impl SpeciesLearner {
     /// A species' fresh learner: networks drawn from `init_rng` (the scene's initialization stream, shared
     /// by the species in registry order), an empty buffer, exploration at its initial σ and ε, and `rng`
     /// its own stream ([`super::species_stream`]).
-    pub fn new(
+    pub(crate) fn new(
         obs_dim: usize,
         p: &LearningParams,
         storing: Storing,
@@ -104,7 +104,7 @@ impl SpeciesLearner {
     }
 
     /// A copy of the networks and exploration state with an empty replay buffer: what a checkpoint holds.
-    pub fn without_buffer(&self) -> SpeciesLearner {
+    pub(crate) fn without_buffer(&self) -> SpeciesLearner {
         SpeciesLearner {
             ddpg: self.ddpg.clone(),
             dev: self.dev.clone(),

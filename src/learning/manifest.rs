@@ -19,17 +19,17 @@ pub const MANIFEST: &str = "manifest.ron";
 /// The size and BLAKE3 hash of some bytes.
 #[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub struct Digest {
-    pub bytes: u64,
-    pub blake3: String,
+    pub(crate) bytes: u64,
+    pub(crate) blake3: String,
 }
 
 impl Digest {
-    pub fn of(bytes: &[u8]) -> Digest {
+    pub(crate) fn of(bytes: &[u8]) -> Digest {
         Digest { bytes: bytes.len() as u64, blake3: blake3::hash(bytes).to_hex().to_string() }
     }
 
     /// The digest of what `hasher` was fed, `bytes` long.
-    pub fn of_hasher(hasher: &blake3::Hasher, bytes: u64) -> Digest {
+    pub(crate) fn of_hasher(hasher: &blake3::Hasher, bytes: u64) -> Digest {
         Digest { bytes, blake3: hasher.finalize().to_hex().to_string() }
     }
 
@@ -44,24 +44,24 @@ impl Digest {
 
 /// What a checkpoint holds of one learning species.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct SpeciesEntry {
-    pub name: String,
+pub(crate) struct SpeciesEntry {
+    pub(crate) name: String,
     /// d_o, the actor's input.
-    pub observation: usize,
-    pub hidden: usize,
+    pub(crate) observation: usize,
+    pub(crate) hidden: usize,
     /// Transitions `from..to` (among all the species ever stored) its replay segments hold.
-    pub transitions: Option<(u64, u64)>,
+    pub(crate) transitions: Option<(u64, u64)>,
 }
 
 /// `checkpoint/manifest.ron`.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct Manifest {
-    pub episodes_done: usize,
+    pub(crate) episodes_done: usize,
     /// The run's scene ([`super::tensors::scene_id`]): every network file and snapshot names it too.
-    pub scene: String,
-    pub species: Vec<SpeciesEntry>,
+    pub(crate) scene: String,
+    pub(crate) species: Vec<SpeciesEntry>,
     /// Every file of the checkpoint folder but the manifest, by name.
-    pub files: BTreeMap<String, Digest>,
+    pub(crate) files: BTreeMap<String, Digest>,
     /// Every snapshot of the run (`snapshots/`) of an episode up to `episodes_done`, by name.
     pub snapshots: BTreeMap<String, Digest>,
     /// `metrics.csv`'s first `bytes` bytes: its header and the rows of episodes up to `episodes_done`.
@@ -88,7 +88,7 @@ impl Manifest {
 
     /// Checks `bytes`, read from `path`, against the entry `name` of `entries` (the checkpoint's files or
     /// the run's snapshots): listed, of that size and hash.
-    pub fn check(
+    pub(crate) fn check(
         entries: &BTreeMap<String, Digest>,
         name: &str,
         path: &Path,
@@ -119,18 +119,18 @@ impl Manifest {
 }
 
 /// A writer that hashes what passes through it (a replay segment is hashed as it is streamed to disk).
-pub struct Hashing<W> {
-    pub inner: W,
-    pub hasher: blake3::Hasher,
-    pub bytes: u64,
+pub(crate) struct Hashing<W> {
+    pub(crate) inner: W,
+    pub(crate) hasher: blake3::Hasher,
+    pub(crate) bytes: u64,
 }
 
 impl<W> Hashing<W> {
-    pub fn new(inner: W) -> Hashing<W> {
+    pub(crate) fn new(inner: W) -> Hashing<W> {
         Hashing { inner, hasher: blake3::Hasher::new(), bytes: 0 }
     }
 
-    pub fn digest(&self) -> Digest {
+    pub(crate) fn digest(&self) -> Digest {
         Digest::of_hasher(&self.hasher, self.bytes)
     }
 }

@@ -15,16 +15,16 @@
 pub mod checkpoint;
 pub mod control;
 pub mod ddpg;
-pub mod files;
-pub mod fused;
-pub mod league;
-pub mod learner;
+pub(crate) mod files;
+pub(crate) mod fused;
+pub(crate) mod league;
+pub(crate) mod learner;
 pub mod manifest;
 pub mod nets;
-pub mod replay;
-pub mod replay_segments;
+pub(crate) mod replay;
+pub(crate) mod replay_segments;
 pub mod snapshots;
-pub mod tensors;
+pub(crate) mod tensors;
 
 use crate::scene::{LearningParams, NoiseDraw, Policy, Scene};
 use crate::sim::clock::Episode;
@@ -41,7 +41,7 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 use std::path::{Path, PathBuf};
 
-pub use learner::{SpeciesLearner, Storing};
+pub(crate) use learner::{SpeciesLearner, Storing};
 
 /// Train (explore, store, update) or only act (evaluation: no noise, no updates).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -50,8 +50,8 @@ pub enum Mode {
     Evaluate,
 }
 
-pub struct LearningPlugin {
-    pub mode: Mode,
+pub(crate) struct LearningPlugin {
+    pub(crate) mode: Mode,
 }
 
 /// Every learned species' learner (None for rule-based species).
@@ -59,20 +59,20 @@ pub struct LearningPlugin {
 pub struct Learners {
     pub species: Vec<Option<SpeciesLearner>>,
     pub mode: Mode,
-    pub params: LearningParams,
+    pub(crate) params: LearningParams,
     /// Set when a loss or parameter stops being finite; training stops with this message.
-    pub failure: Option<String>,
+    pub(crate) failure: Option<String>,
     /// The learners as they were before the last episode's updates, for saving after a failure.
-    pub last_good: Option<Vec<Option<SpeciesLearner>>>,
+    pub(crate) last_good: Option<Vec<Option<SpeciesLearner>>>,
     /// Species names, registry order.
-    pub names: Vec<String>,
+    pub(crate) names: Vec<String>,
     /// Opponents from the past (`learning.opponents`), when training and a species has a pool.
-    pub league: Option<league::League>,
+    pub(crate) league: Option<league::League>,
 }
 
 impl Learners {
     /// Mean losses since the last call, per species, and resets the sums.
-    pub fn take_losses(&mut self) -> Vec<Option<Losses>> {
+    pub(crate) fn take_losses(&mut self) -> Vec<Option<Losses>> {
         self.species
             .iter_mut()
             .map(|l| {
@@ -144,7 +144,7 @@ impl Learners {
     /// Replaces the actors of the named learning species by their snapshots of `run` after the given
     /// episodes (`--snapshot prey=300`; cross-play deploys the same files). Fails, changing nothing, on a
     /// species that is not learned in the scene or an episode the run kept no snapshot of.
-    pub fn load_snapshots(
+    pub(crate) fn load_snapshots(
         &mut self,
         scene: &Scene,
         run: &Path,
@@ -190,7 +190,7 @@ pub fn simulation(scene: Scene, mode: Mode, eval_run: Option<&Path>) -> crate::e
 }
 
 /// [`simulation`] with more plugins (a species of your own) added by `extra`.
-pub fn simulation_with(
+pub(crate) fn simulation_with(
     scene: Scene,
     mode: Mode,
     eval_run: Option<&Path>,
@@ -218,7 +218,7 @@ pub fn simulation_of(
 
 /// The random stream of learned species `s`: stream 16 + s of the seed (0 is the environment's, 1 the
 /// networks' initialisation).
-pub fn species_stream(seed: u64, s: usize) -> ChaCha8Rng {
+pub(crate) fn species_stream(seed: u64, s: usize) -> ChaCha8Rng {
     SimRng::stream(seed, 16 + s as u64)
 }
 
@@ -263,7 +263,13 @@ fn decide_learned(
 /// Exploration (Algorithm 1, "a_i = μ(o_i) + N_t"): with probability ε the species acts uniformly at
 /// random for the step (each individual and component drawn), else Gaussian noise of std σ is added to
 /// the actors' `actions` (normalized, then clamped to [−1, 1]), drawn as `draw` says.
-pub fn explore_actions(actions: &mut [f32], epsilon: f64, noise_std: f64, draw: NoiseDraw, rng: &mut ChaCha8Rng) {
+pub(crate) fn explore_actions(
+    actions: &mut [f32],
+    epsilon: f64,
+    noise_std: f64,
+    draw: NoiseDraw,
+    rng: &mut ChaCha8Rng,
+) {
     if rng.gen_bool(epsilon.clamp(0.0, 1.0)) {
         actions.iter_mut().for_each(|a| *a = rng.gen_range(-1.0..=1.0));
     } else if noise_std > 0.0 {

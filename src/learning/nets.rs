@@ -15,7 +15,7 @@ pub type Dev = Cpu;
 /// code) unless pinned by [`pin_kernels`]. Results are bit-identical within a family at any thread count;
 /// across families they may differ in the last bits, so a run records its family (`provenance.ron`) and
 /// is resumed only on the same one.
-pub fn kernels() -> &'static str {
+pub(crate) fn kernels() -> &'static str {
     #[cfg(target_arch = "x86_64")]
     {
         use gemm_common::kernel_cap::{get, AUTO, AVX2_FMA};
@@ -30,13 +30,13 @@ pub fn kernels() -> &'static str {
 }
 
 /// The families `--kernels` and `COEVO_KERNELS` accept.
-pub const KERNEL_CHOICES: &str = "auto, avx512, avx2 or portable";
+pub(crate) const KERNEL_CHOICES: &str = "auto, avx512, avx2 or portable";
 
 /// Pins the kernel family (`auto`, `avx512`, `avx2`, `portable`), so that machines with different CPUs
 /// compute identical runs: e.g. `avx2` on a cluster whose nodes only partly have AVX-512. gemm fixes its
 /// choice at its first product, so this must run before the first network is used (the CLI does it
 /// first). Err names what is wrong: an unknown family, or one this CPU cannot run.
-pub fn pin_kernels(family: &str) -> Result<(), String> {
+pub(crate) fn pin_kernels(family: &str) -> Result<(), String> {
     use gemm_common::kernel_cap::{set, AUTO, AVX2_FMA, PORTABLE};
     #[cfg(target_arch = "x86_64")]
     let (avx512, fma) = (std::arch::is_x86_feature_detected!("avx512f"), std::arch::is_x86_feature_detected!("fma"));
@@ -56,35 +56,35 @@ pub fn pin_kernels(family: &str) -> Result<(), String> {
     Ok(())
 }
 
-pub type Matrix<T = NoneTape> = Tensor<(usize, usize), f32, Dev, T>;
-pub type Vector = Tensor<(usize,), f32, Dev>;
+pub(crate) type Matrix<T = NoneTape> = Tensor<(usize, usize), f32, Dev, T>;
+pub(crate) type Vector = Tensor<(usize,), f32, Dev>;
 
 /// One fully connected layer: y = x·Wᵀ + b.
 #[derive(Clone, Debug)]
-pub struct Dense {
+pub(crate) struct Dense {
     /// (out, in).
-    pub weight: Matrix,
+    pub(crate) weight: Matrix,
     /// (out,).
-    pub bias: Vector,
+    pub(crate) bias: Vector,
 }
 
 impl Dense {
-    pub fn inputs(&self) -> usize {
+    pub(crate) fn inputs(&self) -> usize {
         self.weight.shape().1
     }
 
-    pub fn outputs(&self) -> usize {
+    pub(crate) fn outputs(&self) -> usize {
         self.weight.shape().0
     }
 
-    pub fn weight_len(&self) -> usize {
+    pub(crate) fn weight_len(&self) -> usize {
         self.inputs() * self.outputs()
     }
 }
 
 /// What follows the last layer.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Output {
+pub(crate) enum Output {
     /// The actor: tanh into [−1, 1].
     Tanh,
     /// The critic: a plain value.
@@ -94,13 +94,13 @@ pub enum Output {
 /// Dense layers with ReLU between them (Appendix B: three hidden layers of 64).
 #[derive(Clone, Debug)]
 pub struct Mlp {
-    pub layers: Vec<Dense>,
-    pub output: Output,
+    pub(crate) layers: Vec<Dense>,
+    pub(crate) output: Output,
 }
 
 impl Mlp {
     /// Layers of the given widths, initialised as PyTorch's `nn.Linear`: U(−1/√in, 1/√in).
-    pub fn new(dev: &Dev, widths: &[usize], output: Output, rng: &mut ChaCha8Rng) -> Mlp {
+    pub(crate) fn new(dev: &Dev, widths: &[usize], output: Output, rng: &mut ChaCha8Rng) -> Mlp {
         let layers = widths
             .windows(2)
             .map(|w| {
@@ -116,16 +116,17 @@ impl Mlp {
         Mlp { layers, output }
     }
 
-    pub fn input_width(&self) -> usize {
+    pub(crate) fn input_width(&self) -> usize {
         self.layers[0].weight.shape().1
     }
 
-    pub fn output_width(&self) -> usize {
+    #[cfg(test)]
+    pub(crate) fn output_width(&self) -> usize {
         self.layers.last().unwrap().weight.shape().0
     }
 
     /// Forward pass of a batch `[n × in]`; the tape of `x` (if any) records every operation.
-    pub fn forward<T: Tape<f32, Dev> + Merge<T>>(&self, x: Matrix<T>) -> Matrix<T> {
+    pub(crate) fn forward<T: Tape<f32, Dev> + Merge<T>>(&self, x: Matrix<T>) -> Matrix<T> {
         let last = self.layers.len() - 1;
         let mut h = x;
         for (i, layer) in self.layers.iter().enumerate() {
@@ -160,40 +161,41 @@ impl Mlp {
     }
 
     /// Every parameter in place, in `parameters()` order.
-    pub fn parameters_mut(&mut self) -> impl Iterator<Item = &mut [f32]> {
+    pub(crate) fn parameters_mut(&mut self) -> impl Iterator<Item = &mut [f32]> {
         self.layers.iter_mut().flat_map(|l| [l.weight.as_mut_slice(), l.bias.as_mut_slice()])
     }
 
     /// Every parameter read in place, in `parameters()` order.
-    pub fn parameter_slices(&self) -> impl Iterator<Item = &[f32]> {
+    pub(crate) fn parameter_slices(&self) -> impl Iterator<Item = &[f32]> {
         self.layers.iter().flat_map(|l| [l.weight.as_slice(), l.bias.as_slice()])
     }
 
     /// Gradients of every parameter, in `parameters()` order.
-    pub fn gradients(&self, grads: &Gradients<f32, Dev>) -> Vec<Vec<f32>> {
+    #[cfg(test)]
+    pub(crate) fn gradients(&self, grads: &Gradients<f32, Dev>) -> Vec<Vec<f32>> {
         self.layers.iter().flat_map(|l| [grads.get(&l.weight).as_vec(), grads.get(&l.bias).as_vec()]).collect()
     }
 
     /// Soft target update θ' ← τ·θ + (1 − τ)·θ' (Algorithm 1, last line), in place.
-    pub fn soft_update_towards(&mut self, online: &Mlp, tau: f32) {
+    pub(crate) fn soft_update_towards(&mut self, online: &Mlp, tau: f32) {
         for (target, online) in self.parameters_mut().zip(online.parameter_slices()) {
             target.iter_mut().zip(online).for_each(|(t, o)| *t = tau * o + (1.0 - tau) * *t);
         }
     }
 
     /// Whether every parameter is finite.
-    pub fn is_finite(&self) -> bool {
+    pub(crate) fn is_finite(&self) -> bool {
         self.parameter_slices().flatten().all(|x| x.is_finite())
     }
 }
 
 /// Adam (Kingma & Ba), with PyTorch's defaults β = (0.9, 0.999), ε = 1e-8.
 #[derive(Clone, Debug, PartialEq)]
-pub struct Adam {
-    pub lr: f32,
-    pub step: u64,
-    pub m: Vec<Vec<f32>>,
-    pub v: Vec<Vec<f32>>,
+pub(crate) struct Adam {
+    pub(crate) lr: f32,
+    pub(crate) step: u64,
+    pub(crate) m: Vec<Vec<f32>>,
+    pub(crate) v: Vec<Vec<f32>>,
 }
 
 const BETA1: f32 = 0.9;
@@ -201,13 +203,13 @@ const BETA2: f32 = 0.999;
 const EPSILON: f32 = 1e-8;
 
 impl Adam {
-    pub fn new(lr: f32, net: &Mlp) -> Adam {
+    pub(crate) fn new(lr: f32, net: &Mlp) -> Adam {
         let zeros: Vec<Vec<f32>> = net.parameters().iter().map(|p| vec![0.0; p.len()]).collect();
         Adam { lr, step: 0, m: zeros.clone(), v: zeros }
     }
 
     /// One descent step of `net` along `gradients` (of a loss to minimise), in place.
-    pub fn update(&mut self, net: &mut Mlp, gradients: &[Vec<f32>]) {
+    pub(crate) fn update(&mut self, net: &mut Mlp, gradients: &[Vec<f32>]) {
         self.step += 1;
         let correct1 = 1.0 - BETA1.powi(self.step as i32);
         let correct2 = 1.0 - BETA2.powi(self.step as i32);
@@ -236,6 +238,6 @@ fn flush_subnormal(x: f32) -> f32 {
 }
 
 /// A `[rows × cols]` matrix from row-major data.
-pub fn matrix(dev: &Dev, data: Vec<f32>, rows: usize, cols: usize) -> Matrix {
+pub(crate) fn matrix(dev: &Dev, data: Vec<f32>, rows: usize, cols: usize) -> Matrix {
     dev.tensor_from_vec(data, (rows, cols))
 }

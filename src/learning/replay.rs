@@ -6,18 +6,18 @@ use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 
 #[derive(Clone, Debug)]
-pub struct ReplayBuffer {
-    pub capacity: usize,
-    pub obs_dim: usize,
-    pub act_dim: usize,
+pub(crate) struct ReplayBuffer {
+    pub(crate) capacity: usize,
+    pub(crate) obs_dim: usize,
+    pub(crate) act_dim: usize,
     /// Transitions held (≤ capacity).
-    pub len: usize,
+    pub(crate) len: usize,
     /// Where the next transition goes; wraps to 0 at capacity, overwriting the oldest.
     next: usize,
     /// Transitions ever pushed: transition k (from 0) sits in slot k mod capacity while it is held, which
     /// is what a checkpoint saves and restores (`learning::checkpoint`), so a resumed run samples exactly
     /// what the uninterrupted one would.
-    pub pushed: u64,
+    pub(crate) pushed: u64,
     obs: Vec<f32>,
     actions: Vec<f32>,
     rewards: Vec<f32>,
@@ -26,17 +26,17 @@ pub struct ReplayBuffer {
 
 /// A mini-batch, row-major.
 #[derive(Clone, Debug, Default, PartialEq)]
-pub struct Batch {
-    pub n: usize,
-    pub obs: Vec<f32>,
-    pub actions: Vec<f32>,
-    pub rewards: Vec<f32>,
-    pub next_obs: Vec<f32>,
+pub(crate) struct Batch {
+    pub(crate) n: usize,
+    pub(crate) obs: Vec<f32>,
+    pub(crate) actions: Vec<f32>,
+    pub(crate) rewards: Vec<f32>,
+    pub(crate) next_obs: Vec<f32>,
 }
 
 impl ReplayBuffer {
     /// An empty buffer; memory grows with use up to `capacity` transitions.
-    pub fn new(capacity: usize, obs_dim: usize, act_dim: usize) -> Self {
+    pub(crate) fn new(capacity: usize, obs_dim: usize, act_dim: usize) -> Self {
         ReplayBuffer {
             capacity,
             obs_dim,
@@ -51,7 +51,7 @@ impl ReplayBuffer {
         }
     }
 
-    pub fn push(&mut self, obs: &[f32], action: &[f32], reward: f32, next_obs: &[f32]) {
+    pub(crate) fn push(&mut self, obs: &[f32], action: &[f32], reward: f32, next_obs: &[f32]) {
         let (d, a) = (self.obs_dim, self.act_dim);
         if self.len < self.capacity {
             self.obs.extend_from_slice(obs);
@@ -71,13 +71,13 @@ impl ReplayBuffer {
     }
 
     /// The oldest transition still held (its index among all ever pushed).
-    pub fn first_held(&self) -> u64 {
+    pub(crate) fn first_held(&self) -> u64 {
         self.pushed - self.len as u64
     }
 
     /// Transition `k` (an index among all ever pushed, from [`ReplayBuffer::first_held`] on):
     /// (o, a, r, o').
-    pub fn transition(&self, k: u64) -> (&[f32], &[f32], f32, &[f32]) {
+    pub(crate) fn transition(&self, k: u64) -> (&[f32], &[f32], f32, &[f32]) {
         assert!(k >= self.first_held() && k < self.pushed, "transition {k} is not held");
         let (d, a, i) = (self.obs_dim, self.act_dim, (k % self.capacity as u64) as usize);
         (
@@ -90,7 +90,7 @@ impl ReplayBuffer {
 
     /// An empty frame of the buffer as it stood after `pushed` transitions: [`ReplayBuffer::put`] each
     /// transition it held (`first_held()..pushed`) back, and it samples exactly as the saved one did.
-    pub fn restoring(capacity: usize, obs_dim: usize, act_dim: usize, pushed: u64) -> Self {
+    pub(crate) fn restoring(capacity: usize, obs_dim: usize, act_dim: usize, pushed: u64) -> Self {
         let len = pushed.min(capacity as u64) as usize;
         ReplayBuffer {
             capacity,
@@ -107,7 +107,7 @@ impl ReplayBuffer {
     }
 
     /// Puts transition `k` back in its slot (see [`ReplayBuffer::restoring`]).
-    pub fn put(&mut self, k: u64, obs: &[f32], action: &[f32], reward: f32, next_obs: &[f32]) {
+    pub(crate) fn put(&mut self, k: u64, obs: &[f32], action: &[f32], reward: f32, next_obs: &[f32]) {
         assert!(k >= self.first_held() && k < self.pushed, "transition {k} is not held");
         let (d, a, i) = (self.obs_dim, self.act_dim, (k % self.capacity as u64) as usize);
         self.obs[i * d..(i + 1) * d].copy_from_slice(obs);
@@ -117,21 +117,22 @@ impl ReplayBuffer {
     }
 
     /// `n` transitions drawn uniformly (with replacement) from all held.
-    pub fn sample(&self, n: usize, rng: &mut ChaCha8Rng) -> Batch {
+    #[cfg(test)]
+    pub(crate) fn sample(&self, n: usize, rng: &mut ChaCha8Rng) -> Batch {
         let mut b = Batch::default();
         self.sample_into(&mut b, n, rng);
         b
     }
 
     /// `n` transitions drawn uniformly with replacement into `b`, whose buffers are reused.
-    pub fn sample_into(&self, b: &mut Batch, n: usize, rng: &mut ChaCha8Rng) {
+    pub(crate) fn sample_into(&self, b: &mut Batch, n: usize, rng: &mut ChaCha8Rng) {
         assert!(self.len > 0, "sampling an empty replay buffer");
         self.fill(b, (0..n).map(|_| rng.gen_range(0..self.len)).collect::<Vec<_>>());
     }
 
     /// `n` distinct transitions drawn uniformly without replacement into `b` (the authors' buffer.py);
     /// `n` must not exceed what the buffer holds.
-    pub fn sample_distinct_into(&self, b: &mut Batch, n: usize, rng: &mut ChaCha8Rng) {
+    pub(crate) fn sample_distinct_into(&self, b: &mut Batch, n: usize, rng: &mut ChaCha8Rng) {
         assert!(n <= self.len, "drawing {n} distinct transitions from {}", self.len);
         self.fill(b, rand::seq::index::sample(rng, self.len, n).into_vec());
     }

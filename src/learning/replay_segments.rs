@@ -13,7 +13,7 @@ use std::path::{Path, PathBuf};
 /// of the standard scene) and returns the bytes freed. Only resumed training reads them; evaluation,
 /// cross-play and the viewer need the networks alone. A run resumed without them refills its buffers
 /// and says so ([`load`]), as with a checkpoint of an older coevo.
-pub fn drop_replay(run: &Path) -> std::io::Result<u64> {
+pub(crate) fn drop_replay(run: &Path) -> std::io::Result<u64> {
     let dir = checkpoint_dir(run);
     let entries = match std::fs::read_dir(&dir) {
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(0),

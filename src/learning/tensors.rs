@@ -12,7 +12,7 @@ use std::path::Path;
 
 /// A scene's identity in the metadata of the networks trained on it: the first 16 hex digits of the
 /// BLAKE3 hash of its resolved RON.
-pub fn scene_id(scene: &Scene) -> String {
+pub(crate) fn scene_id(scene: &Scene) -> String {
     blake3::hash(scene.to_ron().as_bytes()).to_hex()[..16].to_string()
 }
 

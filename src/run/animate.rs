@@ -37,7 +37,7 @@ pub struct AnimateOptions {
 }
 
 /// Trail length in steps.
-pub const TRAIL_STEPS: usize = 40;
+pub(crate) const TRAIL_STEPS: usize = 40;
 /// Trails fade with age in this many steps of opacity.
 const FADE_BANDS: usize = 2;
 /// Caption height in pixels.
@@ -56,29 +56,29 @@ const CATCH: [u8; 3] = [217, 13, 26];
 #[derive(Clone, Debug, Default)]
 pub struct AnimationSummary {
     pub frames: usize,
-    pub bytes: u64,
+    pub(crate) bytes: u64,
     /// Means over the clip's states, headline species: polarization, milling, DoA.
     pub polarization: f64,
     pub milling: f64,
-    pub doa: f64,
+    pub(crate) doa: f64,
 }
 
 /// `--animate OUT.gif` and its own flags.
 #[derive(clap::Args, Debug, Clone, Default)]
-pub struct AnimateArgs {
+pub(crate) struct AnimateArgs {
     /// Render an episode to an animated GIF, headless (no window, no GPU): species colours, heading
     /// lines, optional --trails, a caption with the step and the live DoS/DoA/polarization/milling.
     #[arg(long, help_heading = "Modes", value_name = "OUT.gif")]
-    pub animate: Option<std::path::PathBuf>,
+    pub(crate) animate: Option<std::path::PathBuf>,
     /// --animate: width of the arena image in pixels [default: 480].
     #[arg(long, help_heading = "Recording and animation", value_name = "PX", value_parser = clap::value_parser!(u32).range(64..=2048))]
-    pub size: Option<u32>,
+    pub(crate) size: Option<u32>,
     /// --animate, viewer: fixed steps per frame [default: 1].
     #[arg(long, help_heading = "Recording and animation", value_name = "N", value_parser = super::args::at_least_one)]
-    pub steps_per_frame: Option<usize>,
+    pub(crate) steps_per_frame: Option<usize>,
     /// --animate, viewer: draw fading trajectory tails (in the viewer, from the start).
     #[arg(long, help_heading = "Recording and animation")]
-    pub trails: bool,
+    pub(crate) trails: bool,
 }
 
 impl super::args::Mode for AnimateArgs {
@@ -88,7 +88,7 @@ impl super::args::Mode for AnimateArgs {
 }
 
 /// `--animate OUT.gif`: the deployed scene ([`super::deploy`]) drawn.
-pub fn main(
+pub(crate) fn main(
     out: &Path,
     args: &AnimateArgs,
     deploy: &super::deploy::DeployArgs,
@@ -215,7 +215,7 @@ pub fn animate(
 
 /// The current state of a world drawn as an animation frame (`size` pixels square plus the caption),
 /// as RGBA bytes, row by row: what the Python package's `render()` returns.
-pub fn render_rgba(
+pub(crate) fn render_rgba(
     world: &mut bevy::prelude::World,
     size: u32,
     title: &str,

@@ -14,72 +14,72 @@ use std::path::{Path, PathBuf};
 
 /// A mode's own arguments: its mode flag (`MODE`, the clap id; "" for the viewer, the call without one)
 /// and the flags declared elsewhere that it takes besides its own, `--threads` and `--kernels`.
-pub trait Mode: Args {
+pub(crate) trait Mode: Args {
     const MODE: &'static str;
     const TAKES: &'static [&'static str];
 }
 
 /// Which scene a call runs and what it changes of it.
 #[derive(Args, Debug, Clone, Default)]
-pub struct SceneArgs {
+pub(crate) struct SceneArgs {
     /// Scene file to run [default: scenes/standard.ron]; the shipped scenes/*.ron are built in, so they
     /// load from any folder (a file of that name in the working folder wins).
     #[arg(long, help_heading = "Scene", value_name = "PATH")]
-    pub scene: Option<PathBuf>,
+    pub(crate) scene: Option<PathBuf>,
     /// Override the scene's random seed.
     #[arg(long, help_heading = "Scene", value_name = "S")]
-    pub seed: Option<u64>,
+    pub(crate) seed: Option<u64>,
     /// Steps to simulate (--record) or per episode (--eval).
     #[arg(long, help_heading = "Scene", value_name = "N", value_parser = at_least_one)]
-    pub steps: Option<usize>,
+    pub(crate) steps: Option<usize>,
     /// Number of prey (--eval, --record, viewer; the paper evaluates on 50).
     #[arg(long, help_heading = "Scene", value_name = "N")]
-    pub prey: Option<usize>,
+    pub(crate) prey: Option<usize>,
     /// Number of predators (--eval, --record, viewer; 0 removes them, as in the paper's Fig. 5a).
     #[arg(long, help_heading = "Scene", value_name = "N")]
-    pub predators: Option<usize>,
+    pub(crate) predators: Option<usize>,
     /// Any species' count, as NAME=N (repeatable; --eval, --record, viewer).
     #[arg(long, help_heading = "Scene", value_name = "NAME=N")]
-    pub count: Vec<String>,
+    pub(crate) count: Vec<String>,
     /// A species' policy, as NAME=POLICY with POLICY as a scene file writes it: ChaseNearest, FleeNearest,
     /// FleeInside, Random, Still, Frozen("RUN"), or a rule --distill fitted, Zonal((...)) or Pursuit((...))
     /// (repeatable; --eval, --record, --animate, --describe-scene), e.g. --policy predator=ChaseNearest
     /// evaluates trained prey against the paper's rule-based predators.
     #[arg(long, help_heading = "Scene", value_name = "NAME=POLICY")]
-    pub policy: Vec<String>,
+    pub(crate) policy: Vec<String>,
     /// Deploy a species' snapshot instead of its trained actor, as NAME=EPISODE (repeatable; --eval,
     /// --record and --animate with --run, viewer with --watch), e.g. --snapshot prey=300.
     #[arg(long, help_heading = "Scene", value_name = "NAME=EPISODE")]
-    pub snapshot: Vec<String>,
+    pub(crate) snapshot: Vec<String>,
 }
 
 /// Flags of how a call runs rather than what it runs.
 #[derive(Args, Debug, Clone, Default)]
-pub struct CommonArgs {
+pub(crate) struct CommonArgs {
     /// Episodes of the training run (default: the scene's `episodes`) or of the evaluation (default 1).
     #[arg(long, help_heading = "Running", value_name = "N")]
-    pub episodes: Option<usize>,
+    pub(crate) episodes: Option<usize>,
     /// --train into a folder that holds a run, or --record/--animate/--screenshot over an existing file:
     /// replace it (coevo's own files only).
     #[arg(long, help_heading = "Running")]
-    pub overwrite: bool,
+    pub(crate) overwrite: bool,
     /// No progress bar (--train, --resume, --crossplay, --animate, --experiment), and no explanation at the
     /// end of --train and --resume (which goes to stdout otherwise; progress and errors to stderr).
     #[arg(long, help_heading = "Running")]
-    pub quiet: bool,
+    pub(crate) quiet: bool,
     /// Worker threads (default: COEVO_THREADS, else all cores). Results never depend on it.
     #[arg(long, help_heading = "Running", value_name = "N", value_parser = at_least_one)]
-    pub threads: Option<usize>,
+    pub(crate) threads: Option<usize>,
     /// Matrix-product kernels: auto, avx512, avx2 or portable (default: COEVO_KERNELS, else auto). Pin one
     /// family so CPUs with and without AVX-512 compute identical runs.
     #[arg(long, help_heading = "Running", value_name = "FAMILY")]
-    pub kernels: Option<String>,
+    pub(crate) kernels: Option<String>,
 }
 
 impl CommonArgs {
     /// Sets what is process-wide: the worker threads, and the matrix-product kernels (--kernels, else
     /// COEVO_KERNELS) before any network exists, since gemm fixes its kernels at its first product.
-    pub fn apply_to_process(&self) -> crate::error::Result<()> {
+    pub(crate) fn apply_to_process(&self) -> crate::error::Result<()> {
         // Each environment variable is read as its flag is, and refused as its flag would be.
         match (self.threads, environment("COEVO_THREADS")?) {
             (Some(n), _) => crate::parallel::set_threads(n),
@@ -99,7 +99,7 @@ impl CommonArgs {
     }
 
     /// The existing-file rule of --overwrite.
-    pub fn existing(&self) -> crate::io::Existing {
+    pub(crate) fn existing(&self) -> crate::io::Existing {
         if self.overwrite {
             crate::io::Existing::Replace
         } else {
@@ -110,19 +110,19 @@ impl CommonArgs {
 
 /// The flags of [`SceneArgs`] and [`CommonArgs`] as a call gave them, handed to every mode.
 #[derive(Debug, Clone, Default)]
-pub struct Shared {
-    pub scene: SceneArgs,
-    pub common: CommonArgs,
+pub(crate) struct Shared {
+    pub(crate) scene: SceneArgs,
+    pub(crate) common: CommonArgs,
 }
 
 /// A child process's worker threads, as argv (the experiment runner's children).
-pub fn threads_argv(threads: usize) -> Vec<String> {
+pub(crate) fn threads_argv(threads: usize) -> Vec<String> {
     vec!["--threads".into(), threads.to_string()]
 }
 
 /// clap's parser of a count that must be ≥ 1.
 /// An environment variable coevo reads: None where it is unset, an error where it is not UTF-8.
-pub fn environment(name: &str) -> crate::error::Result<Option<String>> {
+pub(crate) fn environment(name: &str) -> crate::error::Result<Option<String>> {
     match std::env::var(name) {
         Ok(text) => Ok(Some(text)),
         Err(std::env::VarError::NotPresent) => Ok(None),
@@ -132,7 +132,7 @@ pub fn environment(name: &str) -> crate::error::Result<Option<String>> {
     }
 }
 
-pub fn at_least_one(text: &str) -> Result<usize, String> {
+pub(crate) fn at_least_one(text: &str) -> Result<usize, String> {
     match text.parse::<usize>() {
         Ok(0) => Err("must be ≥ 1".into()),
         Ok(n) => Ok(n),
@@ -144,7 +144,7 @@ impl SceneArgs {
     /// What the call changes of the scene it loads: --prey, --predators and --count (in that order),
     /// --seed, and --steps per episode when `steps` (--eval; --record and --animate run --steps as one
     /// episode).
-    pub fn overrides(&self, steps: bool) -> crate::error::Result<Overrides> {
+    pub(crate) fn overrides(&self, steps: bool) -> crate::error::Result<Overrides> {
         let mut counts: Vec<(String, usize)> = self.prey.map(|n| ("prey".to_string(), n)).into_iter().collect();
         counts.extend(self.predators.map(|n| ("predator".to_string(), n)));
         for c in &self.count {
@@ -170,7 +170,7 @@ impl SceneArgs {
 
     /// The --snapshot requests (NAME=EPISODE); they need a run whose snapshots to deploy (`run`, given
     /// with the flag `what`).
-    pub fn snapshots(&self, run: Option<&Path>, what: &str) -> crate::error::Result<Vec<(String, usize)>> {
+    pub(crate) fn snapshots(&self, run: Option<&Path>, what: &str) -> crate::error::Result<Vec<(String, usize)>> {
         if !self.snapshot.is_empty() && run.is_none() {
             return Err(format!("--snapshot: deploys a run's snapshots; give the run with {what}").into());
         }
@@ -191,7 +191,7 @@ impl SceneArgs {
     /// The scene file of the call (--scene, else `default`) with `overrides` applied and validated. The
     /// default scene is built into the binary too, so a call without --scene works outside the clone (a
     /// `scenes/standard.ron` in the working folder still wins).
-    pub fn load(&self, default: &Path, overrides: &Overrides) -> crate::error::Result<(Scene, PathBuf)> {
+    pub(crate) fn load(&self, default: &Path, overrides: &Overrides) -> crate::error::Result<(Scene, PathBuf)> {
         let path = self.scene.clone().unwrap_or_else(|| default.to_path_buf());
         Ok((load_scene(&path, overrides)?, path))
     }
@@ -200,7 +200,7 @@ impl SceneArgs {
 /// `overrides` and `snapshots` as the flags that ask for them: counts as --count (applied in order, as
 /// --prey and --predators are), the seed, --steps per episode (the modes that take it per episode). The
 /// confusion radius is --eval's own flag ([`super::evaluate::EvalOptions::to_argv`]).
-pub fn overrides_argv(overrides: &Overrides, snapshots: &[(String, usize)]) -> Vec<String> {
+pub(crate) fn overrides_argv(overrides: &Overrides, snapshots: &[(String, usize)]) -> Vec<String> {
     let mut argv = vec![];
     let mut flag = |name: &str, value: String| argv.extend([name.to_string(), value]);
     if let Some(seed) = overrides.seed {
@@ -223,12 +223,12 @@ pub fn overrides_argv(overrides: &Overrides, snapshots: &[(String, usize)]) -> V
 
 /// `--describe-scene FILE`.
 #[derive(Args, Debug, Clone, Default)]
-pub struct DescribeArgs {
+pub(crate) struct DescribeArgs {
     /// Print a scene as the simulation will run it: species, counts, who catches whom with the reward of
     /// each contact, the observation layout of each observer species with offsets, and every resolved
     /// parameter (with the species plugins of this program).
     #[arg(long, help_heading = "Modes", value_name = "FILE")]
-    pub describe_scene: Option<PathBuf>,
+    pub(crate) describe_scene: Option<PathBuf>,
 }
 
 impl Mode for DescribeArgs {
@@ -238,12 +238,12 @@ impl Mode for DescribeArgs {
 
 /// `--fingerprint RUN`.
 #[derive(Args, Debug, Clone, Default)]
-pub struct FingerprintArgs {
+pub(crate) struct FingerprintArgs {
     /// Print a run's behavioural fingerprint: a hash of its metrics.csv without wall_seconds and of its
     /// checkpoint's files. The same short training by two builds of one commit gives the same fingerprint
     /// (how a pinned experiment's binary is rebuilt: docs/src/guide/experiments.md).
     #[arg(long, help_heading = "Modes", value_name = "DIR")]
-    pub fingerprint: Option<PathBuf>,
+    pub(crate) fingerprint: Option<PathBuf>,
 }
 
 impl Mode for FingerprintArgs {
@@ -252,13 +252,13 @@ impl Mode for FingerprintArgs {
 }
 
 /// `--describe-scene FILE`: the scene with the call's overrides, described.
-pub fn describe(path: &Path, shared: &Shared) -> crate::error::Result<()> {
+pub(crate) fn describe(path: &Path, shared: &Shared) -> crate::error::Result<()> {
     let scene = load_scene(path, &shared.scene.overrides(false)?)?;
     crate::io::out_text(format_args!("{}", crate::sim::species::describe(&scene, &path.display().to_string())))
 }
 
 /// The default scene of every mode that loads one.
-pub const STANDARD_SCENE: &str = "scenes/standard.ron";
+pub(crate) const STANDARD_SCENE: &str = "scenes/standard.ron";
 
 /// The default scene's text, built into the binary ([`SceneArgs::load`]).
 /// The scenes shipped in `scenes/`, built into the binary (and the Python package) by the path a clone

@@ -10,17 +10,17 @@ use std::time::{Duration, Instant};
 
 /// `--bench` and its own flag.
 #[derive(clap::Args, Debug, Clone, Default)]
-pub struct BenchArgs {
+pub(crate) struct BenchArgs {
     /// Print throughput figures for this machine.
     #[arg(long, help_heading = "Modes")]
-    pub bench: bool,
+    pub(crate) bench: bool,
     /// Seconds per benchmark figure (--bench), in (0, 3600].
     #[arg(long, help_heading = "Modes", value_name = "SECONDS")]
-    pub bench_seconds: Option<f64>,
+    pub(crate) bench_seconds: Option<f64>,
     /// Instead of the figures, time one short training with this binary and with BINARY (another coevo,
     /// e.g. built from an earlier commit), paired and alternating, and print the CPU-time ratio (--bench)
     #[arg(long, help_heading = "Modes", value_name = "BINARY")]
-    pub bench_against: Option<std::path::PathBuf>,
+    pub(crate) bench_against: Option<std::path::PathBuf>,
 }
 
 impl super::args::Mode for BenchArgs {
@@ -30,7 +30,7 @@ impl super::args::Mode for BenchArgs {
 
 impl BenchArgs {
     /// `--bench`: what ran the figures, then the environment, learning and external figures.
-    pub fn main(&self) -> crate::error::Result<()> {
+    pub(crate) fn main(&self) -> crate::error::Result<()> {
         if let Some(other) = &self.bench_against {
             if self.bench_seconds.is_some() {
                 return Err("--bench-seconds: not used by --bench-against (it times whole trainings)".into());
@@ -74,10 +74,10 @@ fn machine() -> String {
 }
 
 /// One measured configuration.
-pub struct Figure {
-    pub label: String,
-    pub per_second: f64,
-    pub unit: &'static str,
+pub(crate) struct Figure {
+    pub(crate) label: String,
+    pub(crate) per_second: f64,
+    pub(crate) unit: &'static str,
 }
 
 /// The scene used for environment benchmarks: random policies, `predators` + `prey` agents, the arena
@@ -97,7 +97,7 @@ pub fn bench_scene(predators: usize, prey: usize, keep_density: bool) -> Scene {
 }
 
 /// Runs `step` repeatedly for about `budget` (at least `min_iters` times) and returns calls per second.
-pub fn per_second(budget: Duration, min_iters: usize, mut step: impl FnMut()) -> f64 {
+pub(crate) fn per_second(budget: Duration, min_iters: usize, mut step: impl FnMut()) -> f64 {
     let start = Instant::now();
     let mut iters = 0usize;
     while iters < min_iters || start.elapsed() < budget {
@@ -108,7 +108,7 @@ pub fn per_second(budget: Duration, min_iters: usize, mut step: impl FnMut()) ->
 }
 
 /// Environment steps per second for the four populations.
-pub fn environment(budget: Duration) -> Vec<Figure> {
+pub(crate) fn environment(budget: Duration) -> Vec<Figure> {
     [(3, 10, false), (3, 50, false), (3, 1_000, true), (3, 10_000, true)]
         .into_iter()
         .map(|(p, e, scaled)| {
@@ -128,7 +128,7 @@ pub fn environment(budget: Duration) -> Vec<Figure> {
 
 /// Stepping from outside (`run::env`, what the Python package drives): one world of the standard scene,
 /// and 64 worlds stepped together, constant actions; world steps per second summed over worlds.
-pub fn external(budget: Duration) -> Vec<Figure> {
+pub(crate) fn external(budget: Duration) -> Vec<Figure> {
     use crate::run::env::{Env, VecEnv};
     let scene = || {
         Scene::load(std::path::Path::new("scenes/standard.ron")).unwrap_or_else(|_| {
@@ -176,7 +176,7 @@ pub fn external(budget: Duration) -> Vec<Figure> {
     figures
 }
 
-pub fn print(figures: &[Figure]) -> crate::error::Result<()> {
+pub(crate) fn print(figures: &[Figure]) -> crate::error::Result<()> {
     for f in figures {
         crate::outln!("{:<72} {:>12.0} {}", f.label, f.per_second, f.unit)?;
     }
@@ -185,7 +185,7 @@ pub fn print(figures: &[Figure]) -> crate::error::Result<()> {
 
 /// Learning figures: one DDPG update per species at batch 256, batched actor inference, and a policy
 /// (evaluation mode: one batched forward pass per species per step) driving 3 + 10 000 agents.
-pub fn learning(budget: Duration) -> Vec<Figure> {
+pub(crate) fn learning(budget: Duration) -> Vec<Figure> {
     use crate::learning::{ddpg::Ddpg, nets::Dev, replay::Batch, Mode};
     use rand::{Rng, SeedableRng};
     let dev = Dev::default();

@@ -13,12 +13,12 @@ use std::process::{Command, Stdio};
 
 /// Episodes of each timed training: long enough to include two checkpoints of full replay buffers (the
 /// standard scene's prey fill theirs in 100 episodes), short enough for five pairs in a few minutes.
-pub const EPISODES: usize = 200;
+pub(crate) const EPISODES: usize = 200;
 
 /// Timed pairs.
-pub const PAIRS: usize = 5;
+pub(crate) const PAIRS: usize = 5;
 
-pub fn main(other: &Path) -> crate::error::Result<()> {
+pub(crate) fn main(other: &Path) -> crate::error::Result<()> {
     match std::fs::metadata(other) {
         Ok(m) if m.is_file() => {}
         Ok(_) => return Err(format!("--bench-against {}: not a file", other.display()).into()),

@@ -9,24 +9,24 @@ use std::path::{Path, PathBuf};
 
 /// `--run DIR`, shared by --record and --animate.
 #[derive(clap::Args, Debug, Clone, Default)]
-pub struct DeployArgs {
+pub(crate) struct DeployArgs {
     /// --record, --animate: the run whose trained actors drive the scene's learned species (default: the
     /// seed's freshly initialized actors); its scene.ron is the scene unless --scene is given.
     #[arg(long, help_heading = "Recording and animation", value_name = "DIR")]
-    pub run: Option<PathBuf>,
+    pub(crate) run: Option<PathBuf>,
 }
 
 /// The deployed simulation, the steps to run and a note saying which actors drive it.
-pub struct Deployed {
-    pub sim: Simulation,
-    pub steps: usize,
-    pub actors: String,
+pub(crate) struct Deployed {
+    pub(crate) sim: Simulation,
+    pub(crate) steps: usize,
+    pub(crate) actors: String,
 }
 
 impl DeployArgs {
     /// The scene of --run (or --scene) with the counts applied and --steps as one episode, every species
     /// acting exactly as in --eval.
-    pub fn deploy(&self, scene: &SceneArgs) -> crate::error::Result<Deployed> {
+    pub(crate) fn deploy(&self, scene: &SceneArgs) -> crate::error::Result<Deployed> {
         if let Some(run) = &self.run {
             super::folder::RunDir::new(run).check_plugins()?;
         }
@@ -64,7 +64,7 @@ impl DeployArgs {
     }
 
     /// What the clip or record shows, for a caption: the run, else the scene file.
-    pub fn title(&self, scene: &SceneArgs) -> String {
+    pub(crate) fn title(&self, scene: &SceneArgs) -> String {
         match (&self.run, &scene.scene) {
             (Some(run), _) => format!("trained run {}", run.display()),
             (None, Some(scene)) => scene.display().to_string(),

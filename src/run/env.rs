@@ -36,7 +36,7 @@ use rand_chacha::ChaCha8Rng;
 const CONTROL_STREAM: u64 = 1 << 32;
 
 /// The policy name the externally decided species get (`Plugin("external")`).
-pub const EXTERNAL: &str = "external";
+pub(crate) const EXTERNAL: &str = "external";
 
 /// The actions given from outside, per species (empty for species decided inside).
 #[derive(Resource, Default, Clone, Debug)]
@@ -202,12 +202,12 @@ impl Env {
 
     /// The summaries of the episodes finished since the last call (time averages, catches, returns: what a
     /// `metrics.csv` row holds), numbered by this world.
-    pub fn take_episodes(&mut self) -> Vec<EpisodeSummary> {
+    pub(crate) fn take_episodes(&mut self) -> Vec<EpisodeSummary> {
         std::mem::take(&mut self.world.resource_mut::<EpisodeLog>().episodes)
     }
 
     /// `metrics.csv`'s header for this scene with its outside-decided species as the learning ones.
-    pub fn metrics_header(&self) -> String {
+    pub(crate) fn metrics_header(&self) -> String {
         let learning: Vec<usize> = self.external.iter().map(|&(s, _)| s).collect();
         let authors = self.world.resource::<crate::sim::ActiveScene>().0.authors_metrics;
         super::schema::metrics_header_for(self.world.resource::<SpeciesRegistry>(), &learning, authors)
@@ -281,7 +281,7 @@ impl Env {
     }
 
     /// Agents of every species (the rows of [`Env::state`]).
-    pub fn population(&self) -> usize {
+    pub(crate) fn population(&self) -> usize {
         self.world.resource::<Population>().id.len()
     }
 }
@@ -367,7 +367,7 @@ impl VecEnv {
     }
 
     /// As [`VecEnv::new`], every world's observations altered by `control` ([`Env::with_control`]).
-    pub fn with_control(
+    pub(crate) fn with_control(
         scene: Scene,
         worlds: usize,
         seed: u64,

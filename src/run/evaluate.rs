@@ -53,36 +53,36 @@ pub struct EvalOptions {
 
 /// `--eval RUN`: the evaluation's own flags.
 #[derive(clap::Args, Debug, Clone, Default)]
-pub struct EvalArgs {
+pub(crate) struct EvalArgs {
     /// Evaluate a run's policies without noise; writes DIR/eval.csv (per-step DoS/DoA).
     #[arg(long, help_heading = "Modes", value_name = "DIR")]
-    pub eval: Option<PathBuf>,
+    pub(crate) eval: Option<PathBuf>,
     /// --eval: what the actors see of their neighbours (controls for alignment claims) [default: seeing].
     /// `blind` zeroes, `shuffled` swaps between individuals, every neighbour block of every learning
     /// species; `blind:OBSERVER:OBSERVED` / `shuffled:OBSERVER:OBSERVED` only the block in which species
     /// OBSERVER sees species OBSERVED (`blind:prey:prey`: prey blind to each other, still seeing the
     /// predators; the predators untouched). Block forms repeat: --control blind:prey:prey --control ...
     #[arg(long, help_heading = "Evaluation", value_name = "CONTROL")]
-    pub control: Vec<String>,
+    pub(crate) control: Vec<String>,
     /// --eval: also run a twin world in which one prey is turned by this many radians, and write how the
     /// other prey's headings respond, by topological rank and lag, to NAME-perturbation.csv (information
     /// transfer; not in the paper).
     #[arg(long, help_heading = "Evaluation", value_name = "RADIANS")]
-    pub perturb: Option<f64>,
+    pub(crate) perturb: Option<f64>,
     /// --eval --perturb: the step of each episode after which the prey is turned [default: half the episode].
     #[arg(long, help_heading = "Evaluation", value_name = "N")]
-    pub perturb_step: Option<usize>,
+    pub(crate) perturb_step: Option<usize>,
     /// --eval: the file name of the per-step CSV inside the run folder [default: eval.csv].
     #[arg(long, help_heading = "Evaluation", value_name = "NAME.csv")]
-    pub eval_out: Option<String>,
+    pub(crate) eval_out: Option<String>,
     /// --eval: prey within this many metres of a predator count as in view for the confusion curve
     /// (NAME-confusion.csv) [default: the scene's confusion_radius, else the perception radius].
     #[arg(long, help_heading = "Evaluation", value_name = "M")]
-    pub confusion_radius: Option<f64>,
+    pub(crate) confusion_radius: Option<f64>,
     /// --eval: deploy the run's actors as they were before training (initialised from the run's scene and
     /// seed), the baseline of what training changed.
     #[arg(long, help_heading = "Evaluation")]
-    pub untrained: bool,
+    pub(crate) untrained: bool,
 }
 
 impl super::args::Mode for EvalArgs {
@@ -93,7 +93,7 @@ impl super::args::Mode for EvalArgs {
 
 impl EvalArgs {
     /// The evaluation of `run` the flags ask for.
-    pub fn options(&self, run: &Path, shared: &Shared) -> crate::error::Result<EvalOptions> {
+    pub(crate) fn options(&self, run: &Path, shared: &Shared) -> crate::error::Result<EvalOptions> {
         let (scene, common) = (&shared.scene, &shared.common);
         if self.untrained && scene.seed.is_some() {
             return Err("--untrained: deploys the networks the run was initialised with, from the run's seed; --seed would initialise others".into());
@@ -118,7 +118,7 @@ impl EvalArgs {
 
 impl EvalOptions {
     /// The call that runs this evaluation, as argv.
-    pub fn to_argv(&self) -> Vec<String> {
+    pub(crate) fn to_argv(&self) -> Vec<String> {
         let mut argv =
             vec!["--eval".into(), self.run.display().to_string(), "--episodes".into(), self.episodes.to_string()];
         argv.extend(super::args::overrides_argv(&self.overrides, &self.snapshots));
@@ -427,7 +427,7 @@ pub fn evaluate(opts: &EvalOptions) -> crate::error::Result<String> {
 }
 
 /// The snapshots an evaluation deploys, as its summary line names them.
-pub fn snapshots_shown(snapshots: &[(String, usize)]) -> String {
+pub(crate) fn snapshots_shown(snapshots: &[(String, usize)]) -> String {
     match snapshots.is_empty() {
         true => String::new(),
         false => {

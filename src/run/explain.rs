@@ -48,7 +48,7 @@ fn course(what: &str, values: &[f64], highest: bool, digits: usize) -> String {
 
 /// What a finished `--train` says about its run: first → last DoS, DoA and catches with the baselines of
 /// no swarming at that density, overlapping windows named as such, and the next commands for this run.
-pub fn explain(run: &Path, spread: Option<&str>) -> crate::error::Result<String> {
+pub(crate) fn explain(run: &Path, spread: Option<&str>) -> crate::error::Result<String> {
     use crate::sim::metrics::WINDOW;
     let dir = RunDir::new(run);
     let scene = Scene::load(&dir.scene())?;

@@ -27,30 +27,31 @@ pub const SHIPPED_RUN: &str = "assets/trained-standard";
 
 /// Every shipped run, first in the picker: the default scene's, then learned prey fleeing rule-based
 /// predators in a box (`scenes/confined.ron`).
-pub const SHIPPED_RUNS: [&str; 2] = [SHIPPED_RUN, "assets/trained-confined"];
+#[cfg(feature = "viewer")]
+pub(crate) const SHIPPED_RUNS: [&str; 2] = [SHIPPED_RUN, "assets/trained-confined"];
 
-pub const SCENE: &str = "scene.ron";
-pub const PROVENANCE: &str = "provenance.ron";
-pub const METRICS: &str = "metrics.csv";
+pub(crate) const SCENE: &str = "scene.ron";
+pub(crate) const PROVENANCE: &str = "provenance.ron";
+pub(crate) const METRICS: &str = "metrics.csv";
 /// The default evaluation output.
-pub const EVAL: &str = "eval.csv";
-pub const LOCK: &str = "coevo.lock";
+pub(crate) const EVAL: &str = "eval.csv";
+pub(crate) const LOCK: &str = "coevo.lock";
 /// The run's figures folder.
-pub const FIGURES: &str = "figures";
+pub(crate) const FIGURES: &str = "figures";
 /// The stem every cross-play output begins with.
-pub const CROSSPLAY: &str = "crossplay";
+pub(crate) const CROSSPLAY: &str = "crossplay";
 /// The stem of the cross-play read-outs (`crossplay-readouts.csv`).
-pub const CROSSPLAY_READOUTS: &str = "crossplay-readouts";
+pub(crate) const CROSSPLAY_READOUTS: &str = "crossplay-readouts";
 /// The stem of every snapshot's rating from the cross-play matrix (`crossplay-ratings.csv`).
-pub const CROSSPLAY_RATINGS: &str = "crossplay-ratings";
+pub(crate) const CROSSPLAY_RATINGS: &str = "crossplay-ratings";
 /// The checkpoint folders are the checkpoint's own (`learning::checkpoint`).
-pub use crate::learning::files::{CHECKPOINT, CHECKPOINT_OLD, CHECKPOINT_TMP, SNAPSHOTS};
+pub(crate) use crate::learning::files::{CHECKPOINT, CHECKPOINT_OLD, CHECKPOINT_TMP, SNAPSHOTS};
 /// The rules `--distill` fitted to the run's actors (`experiment::distill`).
-pub const DISTILLED: &str = "distilled.ron";
+pub(crate) const DISTILLED: &str = "distilled.ron";
 /// The files an evaluation writes beside its per-step CSV (`OUT-nn.csv`, ...); the confusion curve last.
-pub const EVAL_BESIDE: [&str; 3] = ["nn", "correlation", "confusion"];
+pub(crate) const EVAL_BESIDE: [&str; 3] = ["nn", "correlation", "confusion"];
 /// The file a perturbed evaluation writes beside the others (`OUT-perturbation.csv`, [`perturb`]).
-pub const PERTURBATION: &str = "perturbation";
+pub(crate) const PERTURBATION: &str = "perturbation";
 
 /// The files and folders coevo writes in a run folder and owns.
 const RUN_FILES: [&str; 4] = [SCENE, PROVENANCE, METRICS, EVAL];
@@ -74,7 +75,7 @@ pub(super) fn io_err(path: &Path) -> impl Fn(std::io::Error) -> String + '_ {
 
 /// The file name of an experiment's evaluation named `slug` (a name made folder-safe) in a run folder:
 /// `eval-<slug>.csv`, beside the run's own `eval.csv`.
-pub fn evaluation_file_name(slug: &str) -> String {
+pub(crate) fn evaluation_file_name(slug: &str) -> String {
     format!("{}-{slug}.csv", EVAL.trim_end_matches(".csv"))
 }
 
@@ -110,12 +111,12 @@ impl RunDir {
         self.checkpoint().join(crate::learning::files::actor_name(species))
     }
 
-    pub fn provenance(&self) -> PathBuf {
+    pub(crate) fn provenance(&self) -> PathBuf {
         self.path.join(PROVENANCE)
     }
 
     /// Figures of the run (`--plot RUN`, `--crossplay RUN`).
-    pub fn figures(&self) -> PathBuf {
+    pub(crate) fn figures(&self) -> PathBuf {
         self.path.join(FIGURES)
     }
 
@@ -125,29 +126,29 @@ impl RunDir {
     }
 
     /// A cross-play output, `<stem>.csv` (`experiment::crossplay`); stems begin with `crossplay`.
-    pub fn crossplay(&self, stem: &str) -> PathBuf {
+    pub(crate) fn crossplay(&self, stem: &str) -> PathBuf {
         debug_assert!(stem.starts_with(CROSSPLAY));
         self.path.join(format!("{stem}.csv"))
     }
 
     /// The rules fitted to the run's actors ([`DISTILLED`]).
-    pub fn distilled(&self) -> PathBuf {
+    pub(crate) fn distilled(&self) -> PathBuf {
         self.path.join(DISTILLED)
     }
 
-    pub fn snapshots(&self) -> PathBuf {
+    pub(crate) fn snapshots(&self) -> PathBuf {
         self.path.join(SNAPSHOTS)
     }
 
     /// The checkpoint's state (`learning::checkpoint::TrainingState`).
-    pub fn state(&self) -> PathBuf {
+    pub(crate) fn state(&self) -> PathBuf {
         self.checkpoint().join(crate::learning::files::STATE)
     }
 
     /// `metrics.csv`'s rows up to the checkpoint whose manifest gives `expected` (the digest of its first
     /// `expected.bytes` bytes): refused in one line where they differ from what was trained (edited, cut
     /// or lost since). Rows after them (episodes trained after the checkpoint) are not returned.
-    pub fn metrics_up_to(&self, expected: &crate::learning::manifest::Digest) -> crate::error::Result<String> {
+    pub(crate) fn metrics_up_to(&self, expected: &crate::learning::manifest::Digest) -> crate::error::Result<String> {
         let text = crate::io::read_text(&self.metrics(), crate::io::MAX_TEXT_BYTES)?;
         Ok(self.rows_as_trained(&text, expected)?.to_string())
     }
@@ -174,7 +175,7 @@ impl RunDir {
     /// up to the checkpoint as trained ([`RunDir::metrics_up_to`]) and exactly as many as the checkpoint's
     /// episodes. With `partial`, rows after the checkpoint (a run stopped before its next one, or still
     /// without one) and a last row cut short are accepted, and the second value says so.
-    pub fn checked_metrics(&self, partial: bool) -> crate::error::Result<(schema::Table, Option<String>)> {
+    pub(crate) fn checked_metrics(&self, partial: bool) -> crate::error::Result<(schema::Table, Option<String>)> {
         (|| -> crate::error::Result<(schema::Table, Option<String>)> {
             // Read once: parsed into the table, and its bytes checked against the manifest.
             let text = crate::io::read_text(&self.metrics(), crate::io::MAX_TEXT_BYTES)?;
@@ -219,12 +220,12 @@ impl RunDir {
 
     /// Whether the run has trained actors to deploy: its scene and a checkpoint (what `--watch` and the
     /// viewer's run picker offer).
-    pub fn has_actors(&self) -> bool {
+    pub(crate) fn has_actors(&self) -> bool {
         self.checkpoint().is_dir() && self.scene().is_file()
     }
 
     /// Whether the folder holds a run (any of coevo's run files).
-    pub fn is_run(&self) -> bool {
+    pub(crate) fn is_run(&self) -> bool {
         RUN_FILES.iter().chain(&CHECKPOINT_DIRS).any(|f| self.path.join(f).exists())
     }
 
@@ -340,7 +341,7 @@ impl RunDir {
     }
 
     /// Removes the run's own files (after [`RunDir::check_new`] with `overwrite`), keeping the lock.
-    pub fn clear(&self) -> crate::error::Result<()> {
+    pub(crate) fn clear(&self) -> crate::error::Result<()> {
         for dir in CHECKPOINT_DIRS.iter().map(|d| self.path.join(d)).filter(|d| d.exists()) {
             std::fs::remove_dir_all(&dir).map_err(io_err(&dir))?;
         }
@@ -365,7 +366,7 @@ impl RunDir {
     /// Refuses a shipped run where it was shipped ([`Provenance::shipped`]): the folder sits at that path
     /// under a source tree (a `Cargo.toml` there). Read leniently, so a damaged `provenance.ron` is left
     /// to whoever reads it for its own purpose (and `--overwrite` may still replace it).
-    pub fn refuse_if_shipped(&self) -> crate::error::Result<()> {
+    pub(crate) fn refuse_if_shipped(&self) -> crate::error::Result<()> {
         (|| -> crate::error::Result<()> {
             let Some(at) = self.read_provenance().ok().flatten().and_then(|p| p.shipped) else { return Ok(()) };
             let at_path = Path::new(&at);
@@ -436,7 +437,7 @@ impl RunDir {
     /// `checkpoint/` and `snapshots/`) cannot be written: the first checkpoint swap would fail after the
     /// episodes it cost, or leave a `checkpoint.old/` behind. Probed by making and removing a file in
     /// each, which asks the file system itself (permissions, ACLs, a read-only mount), not the mode bits.
-    pub fn check_writable(&self) -> crate::error::Result<()> {
+    pub(crate) fn check_writable(&self) -> crate::error::Result<()> {
         let probe = format!(".coevo-probe-{}", std::process::id());
         for dir in [self.path.clone(), self.checkpoint(), self.snapshots()] {
             if !dir.is_dir() {
@@ -486,7 +487,7 @@ impl RunDir {
     }
 
     /// Writes what made the run: the version and the species plugins its scene needs.
-    pub fn write_provenance(&self, scene: &crate::scene::Scene) -> crate::error::Result<()> {
+    pub(crate) fn write_provenance(&self, scene: &crate::scene::Scene) -> crate::error::Result<()> {
         let provenance = Provenance::of(scene);
         let text = ron::ser::to_string_pretty(&provenance, ron::ser::PrettyConfig::new().struct_names(false))
             .map_err(|e| format!("{}: {e}", self.provenance().display()))?;
@@ -494,7 +495,7 @@ impl RunDir {
     }
 
     /// The run's provenance, None for runs older than provenance files.
-    pub fn read_provenance(&self) -> crate::error::Result<Option<Provenance>> {
+    pub(crate) fn read_provenance(&self) -> crate::error::Result<Option<Provenance>> {
         let path = self.provenance();
         if !path.exists() {
             return Ok(None);
@@ -505,7 +506,7 @@ impl RunDir {
 
     /// Records that this executable, not the run's creator, resumes or evaluates the run (once per
     /// executable). Runs older than provenance files are left alone.
-    pub fn note_binary(&self) -> crate::error::Result<()> {
+    pub(crate) fn note_binary(&self) -> crate::error::Result<()> {
         let Some(mut p) = self.read_provenance()? else { return Ok(()) };
         if p.binaries().contains(&binary()) {
             return Ok(());
@@ -518,7 +519,7 @@ impl RunDir {
 
     /// Refuses to continue training on another family of matrix-product kernels than the run began on:
     /// the continuation would differ in the last bits from the uninterrupted run.
-    pub fn check_kernels(&self) -> crate::error::Result<()> {
+    pub(crate) fn check_kernels(&self) -> crate::error::Result<()> {
         (|| -> crate::error::Result<()> {
             let now = crate::learning::nets::kernels();
             match self.read_provenance()? {
@@ -537,7 +538,7 @@ impl RunDir {
     /// Refuses a run that needs species plugins this program does not have (resumed or evaluated by a
     /// binary without the plugin, its species would lose their systems). Runs older than provenance files
     /// need none.
-    pub fn check_plugins(&self) -> crate::error::Result<()> {
+    pub(crate) fn check_plugins(&self) -> crate::error::Result<()> {
         (|| -> crate::error::Result<()> {
             let Some(p) = self.read_provenance()? else { return Ok(()) };
             match p.plugins.iter().find(|name| crate::sim::species::catalog::get(name).is_none()) {
@@ -553,7 +554,7 @@ impl RunDir {
 }
 
 /// Whether a folder holds a run.
-pub fn is_run(dir: &Path) -> bool {
+pub(crate) fn is_run(dir: &Path) -> bool {
     RunDir::new(dir).is_run()
 }
 
@@ -567,7 +568,7 @@ impl RunLock {
     /// Whether the run folder is still the one this lock was taken in: its lock file there, holding this
     /// process's PID. A folder removed (or replaced) under a training would otherwise be recreated with
     /// only what is written after, a folder that is no run.
-    pub fn held(&self) -> crate::error::Result<()> {
+    pub(crate) fn held(&self) -> crate::error::Result<()> {
         let ours = match std::fs::read_to_string(&self.path) {
             Ok(text) => text.trim() == std::process::id().to_string(),
             // A lock that cannot be read (no file descriptor left, say) is not a lock that is gone.
@@ -600,7 +601,7 @@ impl Drop for RunLock {
 /// Checks that a user-chosen name (an experiment, a variant's or an evaluation's folder-safe slug, an
 /// output stem) is one safe path component: not empty, no separator, no leading dot (so never `.`, `..`
 /// or a hidden file), no control character.
-pub fn check_name(name: &str) -> crate::error::Result<()> {
+pub(crate) fn check_name(name: &str) -> crate::error::Result<()> {
     if name.is_empty() {
         return Err("must not be empty".into());
     }

@@ -7,20 +7,20 @@
 pub mod animate;
 pub mod args;
 pub mod bench;
-pub mod bench_against;
-pub mod deploy;
+pub(crate) mod bench_against;
+pub(crate) mod deploy;
 pub mod env;
 pub mod evaluate;
-pub mod explain;
-pub mod folder;
+pub(crate) mod explain;
+pub(crate) mod folder;
 pub mod live;
-pub mod perturb;
-pub mod progress;
+pub(crate) mod perturb;
+pub(crate) mod progress;
 pub mod provenance;
-pub mod record;
+pub(crate) mod record;
 pub mod schema;
 pub mod train;
-pub mod train_args;
+pub(crate) mod train_args;
 
 pub use folder::*;
 pub use progress::{announce_cost, step_bar};

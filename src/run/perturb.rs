@@ -13,22 +13,22 @@ use crate::sim::space::Arena;
 use crate::sim::Simulation;
 
 /// Topological rank bins of the other prey, by distance to the turned prey at the turn (1 = nearest).
-pub const RANK_BINS: [(usize, usize); 7] = [(1, 1), (2, 2), (3, 3), (4, 6), (7, 12), (13, 24), (25, usize::MAX)];
+pub(crate) const RANK_BINS: [(usize, usize); 7] = [(1, 1), (2, 2), (3, 3), (4, 6), (7, 12), (13, 24), (25, usize::MAX)];
 
 /// Steps after the turn over which the response is followed.
-pub const LAGS: usize = 50;
+pub(crate) const LAGS: usize = 50;
 
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Perturbation {
+pub(crate) struct Perturbation {
     /// The turn given to one prey, radians (positive: counter-clockwise).
-    pub angle: f64,
+    pub(crate) angle: f64,
     /// The step of each episode after which it is turned.
-    pub step: usize,
+    pub(crate) step: usize,
 }
 
 /// The rows of a perturbation file ([`Response::csv`]) as (lag, first rank of the bin, mean |Δheading|,
 /// samples); None without the file.
-pub fn read_rows(path: &std::path::Path) -> crate::error::Result<Option<Vec<[f64; 4]>>> {
+pub(crate) fn read_rows(path: &std::path::Path) -> crate::error::Result<Option<Vec<[f64; 4]>>> {
     if !path.exists() {
         return Ok(None);
     }
@@ -43,7 +43,7 @@ pub fn read_rows(path: &std::path::Path) -> crate::error::Result<Option<Vec<[f64
 
 /// The sample-weighted mean |Δheading| of the rows whose lag lies in `lags` and whose rank bin starts in
 /// `ranks` (NaN without samples).
-pub fn weighted_mean(
+pub(crate) fn weighted_mean(
     rows: &[[f64; 4]],
     lags: std::ops::RangeInclusive<f64>,
     ranks: std::ops::RangeInclusive<f64>,
@@ -60,8 +60,8 @@ pub fn weighted_mean(
 }
 
 /// The response accumulated over episodes: Σ |Δheading| and samples per lag (1..=LAGS) and rank bin.
-pub struct Response {
-    pub perturbation: Perturbation,
+pub(crate) struct Response {
+    pub(crate) perturbation: Perturbation,
     species: usize,
     sums: Vec<[(f64, u64); RANK_BINS.len()]>,
     /// Per slot of the species (other than the turned one), its rank bin in the current episode.
@@ -73,14 +73,14 @@ fn angle_between(a: bevy::math::DVec2, b: bevy::math::DVec2) -> f64 {
 }
 
 impl Response {
-    pub fn new(perturbation: Perturbation, species: usize) -> Response {
+    pub(crate) fn new(perturbation: Perturbation, species: usize) -> Response {
         Response { perturbation, species, sums: vec![[(0.0, 0); RANK_BINS.len()]; LAGS], bins: vec![] }
     }
 
     /// After both worlds simulated `step` of an episode: turns the twin's prey at the perturbation step,
     /// and afterwards adds the differences of headings. Err when the two worlds' agents differ (they are
     /// built alike, so they never should).
-    pub fn step(&mut self, world: &Simulation, twin: &mut Simulation, step: usize) -> crate::error::Result<()> {
+    pub(crate) fn step(&mut self, world: &Simulation, twin: &mut Simulation, step: usize) -> crate::error::Result<()> {
         let p = self.perturbation;
         if step == p.step {
             let (entity, ranks) = {
@@ -131,13 +131,13 @@ impl Response {
     }
 
     /// The mean |Δheading| (radians) at `lag` over the rank bin `bin`, None without samples.
-    pub fn mean(&self, lag: usize, bin: usize) -> Option<f64> {
+    pub(crate) fn mean(&self, lag: usize, bin: usize) -> Option<f64> {
         let (sum, n) = self.sums.get(lag.checked_sub(1)?)?[bin];
         (n > 0).then(|| sum / n as f64)
     }
 
     /// The file `OUT-perturbation.csv`: one row per lag and rank bin.
-    pub fn csv(&self) -> String {
+    pub(crate) fn csv(&self) -> String {
         let mut out = String::from("lag,rank_from,rank_to,mean_abs_heading_change,samples\n");
         for lag in 1..=LAGS {
             for (bin, (lo, hi)) in RANK_BINS.iter().enumerate() {
@@ -151,7 +151,7 @@ impl Response {
     }
 
     /// The response in words: near (ranks 1–6) against far (ranks 25 and beyond) at lags 1 and 10.
-    pub fn summary(&self) -> String {
+    pub(crate) fn summary(&self) -> String {
         let near = |lag: usize| {
             let (s, n) = (0..4).map(|b| self.sums[lag - 1][b]).fold((0.0, 0), |(a, c), (s, n)| (a + s, c + n));
             (n > 0).then(|| s / n as f64)

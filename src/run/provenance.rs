@@ -7,30 +7,30 @@ use serde::{Deserialize, Serialize};
 /// not write read as empty.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct Provenance {
-    pub coevo_version: String,
+    pub(crate) coevo_version: String,
     /// The commit the binary was built from (`git describe --always --dirty`).
     #[serde(default)]
-    pub git_commit: String,
+    pub(crate) git_commit: String,
     /// The matrix-product kernels it ran on ([`crate::learning::nets::kernels`]).
     #[serde(default)]
-    pub kernels: String,
+    pub(crate) kernels: String,
     /// Worker threads when the run was created (results never depend on them).
     #[serde(default)]
-    pub threads: usize,
+    pub(crate) threads: usize,
     /// Species of the scene that come from species plugins of the program that trained it.
-    pub plugins: Vec<String>,
+    pub(crate) plugins: Vec<String>,
     /// The executable that created the run ([`binary`]).
     #[serde(default)]
-    pub binary: String,
+    pub(crate) binary: String,
     /// Other executables that later resumed or evaluated it, in order: a run with any is not a run of
     /// one binary, which the experiment layer refuses to compare unless told (`mixed_binaries`).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub also_by: Vec<String>,
+    pub(crate) also_by: Vec<String>,
     /// Where a run shipped with coevo sits in the source tree (`assets/trained-standard`): there it is
     /// kept as committed, so nothing writes into it (evaluations, cross-play, resumed training and
     /// `--plot` refuse it, [`RunDir::refuse_if_shipped`]); a copy anywhere else is an ordinary run.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub shipped: Option<String>,
+    pub(crate) shipped: Option<String>,
 }
 
 /// The running executable's identity: the first 16 hex digits of the BLAKE3 hash of its file (`blake3`
@@ -48,12 +48,12 @@ pub fn binary() -> &'static str {
 
 impl Provenance {
     /// Every executable that wrote into the run: its creator, then the others.
-    pub fn binaries(&self) -> Vec<&str> {
+    pub(crate) fn binaries(&self) -> Vec<&str> {
         let creator = if self.binary.is_empty() { "unknown" } else { self.binary.as_str() };
         std::iter::once(creator).chain(self.also_by.iter().map(String::as_str)).collect()
     }
 
-    pub fn of(scene: &crate::scene::Scene) -> Provenance {
+    pub(crate) fn of(scene: &crate::scene::Scene) -> Provenance {
         Provenance {
             binary: binary().to_string(),
             also_by: vec![],
@@ -75,7 +75,7 @@ impl Provenance {
 /// How a printed command should spell coevo so that it runs where the user is: `coevo` when that name on
 /// the `PATH` is this executable (installed with `cargo install`), else this executable's path, relative
 /// to the working folder when inside it (`target/release/coevo` after `cargo run --release`).
-pub fn spelled() -> String {
+pub(crate) fn spelled() -> String {
     let Some(exe) = std::env::current_exe().ok().and_then(|e| std::fs::canonicalize(e).ok()) else {
         return "coevo".into();
     };

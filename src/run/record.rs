@@ -20,14 +20,14 @@ use crate::sim::Simulation;
 use std::io::{self, Write};
 use std::path::Path;
 
-pub const HEADER: &str = "step,id,species,x,y,vx,vy,theta,thrust,turn_rate,reward";
+pub(crate) const HEADER: &str = "step,id,species,x,y,vx,vy,theta,thrust,turn_rate,reward";
 
 /// `--record OUT.csv`.
 #[derive(clap::Args, Debug, Clone, Default)]
-pub struct RecordArgs {
+pub(crate) struct RecordArgs {
     /// Record a trajectory CSV: step,id,species,x,y,vx,vy,theta,thrust,turn_rate,reward.
     #[arg(long, help_heading = "Modes", value_name = "OUT.csv")]
-    pub record: Option<std::path::PathBuf>,
+    pub(crate) record: Option<std::path::PathBuf>,
 }
 
 impl super::args::Mode for RecordArgs {
@@ -37,7 +37,11 @@ impl super::args::Mode for RecordArgs {
 }
 
 /// `--record OUT.csv`: the deployed scene ([`super::deploy`]) recorded.
-pub fn main(out: &Path, deploy: &super::deploy::DeployArgs, shared: &super::args::Shared) -> crate::error::Result<()> {
+pub(crate) fn main(
+    out: &Path,
+    deploy: &super::deploy::DeployArgs,
+    shared: &super::args::Shared,
+) -> crate::error::Result<()> {
     let mut d = deploy.deploy(&shared.scene)?;
     record(&mut d.sim, d.steps, out, shared.common.existing())?;
     crate::errln!("coevo: wrote {} steps to {}{}", d.steps, out.display(), d.actors)?;
@@ -47,7 +51,7 @@ pub fn main(out: &Path, deploy: &super::deploy::DeployArgs, shared: &super::args
 /// Runs `steps` steps of `sim` and streams the trajectory to `path`, which appears only when complete
 /// (see [`crate::io::AtomicFile`]). Stops with an error, writing nothing, if the state stops being
 /// physical ([`Simulation::check`]).
-pub fn record(sim: &mut Simulation, steps: usize, path: &Path, existing: Existing) -> crate::error::Result<()> {
+pub(crate) fn record(sim: &mut Simulation, steps: usize, path: &Path, existing: Existing) -> crate::error::Result<()> {
     let io_err = |e: io::Error| format!("{}: {e}", path.display());
     let order_path = crate::io::beside(path, "order");
     let order_err = |e: io::Error| format!("{}: {e}", order_path.display());

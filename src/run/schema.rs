@@ -10,29 +10,29 @@ use crate::sim::metrics::{EpisodeSummary, Swarming};
 use crate::sim::species::SpeciesRegistry;
 use std::path::Path;
 
-pub const EPISODE: &str = "episode";
-pub const STEPS: &str = "steps";
-pub const STEP: &str = "step";
-pub const CATCHES: &str = "catches";
-pub const WALL_SECONDS: &str = "wall_seconds";
+pub(crate) const EPISODE: &str = "episode";
+pub(crate) const STEPS: &str = "steps";
+pub(crate) const STEP: &str = "step";
+pub(crate) const CATCHES: &str = "catches";
+pub(crate) const WALL_SECONDS: &str = "wall_seconds";
 /// The per-step quantity of an evaluation (and per-episode one of training) besides [`Swarming::NAMES`].
-pub const EDGE_RANK: &str = "edge_rank";
+pub(crate) const EDGE_RANK: &str = "edge_rank";
 /// The authors' DoS and DoA (`sim::metrics::authors_dos_doa`), per species, with `authors_metrics`.
-pub const AUTHORS: [&str; 2] = ["authors_dos", "authors_doa"];
+pub(crate) const AUTHORS: [&str; 2] = ["authors_dos", "authors_doa"];
 
 /// The column of a per-species quantity: `dos_prey`, `edge_rank_prey`, `return_predator`.
-pub fn of(quantity: &str, species: &str) -> String {
+pub(crate) fn of(quantity: &str, species: &str) -> String {
     format!("{quantity}_{species}")
 }
 
 /// The catches column of one catcher species (scenes where more than one species catches).
-pub fn catches_by(species: &str) -> String {
+pub(crate) fn catches_by(species: &str) -> String {
     format!("catches_by_{species}")
 }
 
 /// The species whose catches are also given apart (`catches_by_<name>`): every species that catches,
 /// when more than one does (a third species); none in the two-species scenes.
-pub fn split_catchers(registry: &SpeciesRegistry) -> Vec<usize> {
+pub(crate) fn split_catchers(registry: &SpeciesRegistry) -> Vec<usize> {
     let catchers: Vec<usize> = (0..registry.len()).filter(|&s| registry.prey_of(s).next().is_some()).collect();
     if catchers.len() > 1 {
         catchers
@@ -57,7 +57,7 @@ fn species_cells(swarming: Option<Swarming>, edge_rank: Option<f64>) -> impl Ite
 
 /// `metrics.csv`'s header.
 /// `authors`: the scene's `authors_metrics` (the authors' DoS and DoA columns after the returns).
-pub fn metrics_header(registry: &SpeciesRegistry, learners: &Learners, authors: bool) -> String {
+pub(crate) fn metrics_header(registry: &SpeciesRegistry, learners: &Learners, authors: bool) -> String {
     let learning: Vec<usize> =
         (0..learners.species.len()).filter(|&s| learners.species[s].as_ref().is_some_and(|l| !l.frozen)).collect();
     let league = learners.league.as_ref().map(|g| g.columns()).unwrap_or_default();
@@ -99,7 +99,7 @@ fn header(registry: &SpeciesRegistry, learning: &[usize], league: &[String], aut
 }
 
 /// One episode's row of `metrics.csv` (takes the losses since the last row from the learners).
-pub fn metrics_row(
+pub(crate) fn metrics_row(
     e: &EpisodeSummary,
     registry: &SpeciesRegistry,
     learners: &mut Learners,
@@ -137,7 +137,7 @@ pub fn episode_cells(e: &EpisodeSummary, registry: &SpeciesRegistry) -> Vec<Stri
 }
 
 /// An evaluation's per-step header: the headline species' order parameters and the catches.
-pub fn eval_header(registry: &SpeciesRegistry, prey: usize) -> String {
+pub(crate) fn eval_header(registry: &SpeciesRegistry, prey: usize) -> String {
     let columns: Vec<String> = species_columns(&registry.defs[prey].name).collect();
     let by: String =
         split_catchers(registry).iter().map(|&s| format!(",{}", catches_by(&registry.defs[s].name))).collect();
@@ -145,7 +145,7 @@ pub fn eval_header(registry: &SpeciesRegistry, prey: usize) -> String {
 }
 
 /// One step's row of an evaluation.
-pub fn eval_row(
+pub(crate) fn eval_row(
     episode: usize,
     step: usize,
     swarming: Option<Swarming>,
@@ -160,7 +160,7 @@ pub fn eval_row(
 
 /// CSV `text` rewritten under `header`: each row's cells moved to the columns of the same name, columns
 /// the old header lacks left blank, columns the new one lacks dropped. Identity when the headers agree.
-pub fn with_header(text: &str, header: &str) -> String {
+pub(crate) fn with_header(text: &str, header: &str) -> String {
     let mut lines = text.lines();
     let old: Vec<&str> = lines.next().unwrap_or("").split(',').collect();
     if old.join(",") == header {
@@ -178,7 +178,7 @@ pub fn with_header(text: &str, header: &str) -> String {
 }
 
 /// The wall_seconds of the last row of a metrics text (0 without rows).
-pub fn last_wall_seconds(metrics: &str) -> f64 {
+pub(crate) fn last_wall_seconds(metrics: &str) -> f64 {
     let mut lines = metrics.lines();
     let header: Vec<&str> = lines.next().unwrap_or("").split(',').collect();
     let col = header.iter().position(|h| *h == WALL_SECONDS);
@@ -264,7 +264,7 @@ impl Table {
         Ok(Table { header, rows, path: path.to_path_buf() })
     }
 
-    pub fn read(path: &Path) -> crate::error::Result<Table> {
+    pub(crate) fn read(path: &Path) -> crate::error::Result<Table> {
         let text = crate::io::read_text(path, crate::io::MAX_TEXT_BYTES)?;
         let mut lines = text.lines();
         let header: Vec<String> = lines.next().unwrap_or("").split(',').map(str::to_string).collect();
@@ -277,7 +277,7 @@ impl Table {
     }
 
     /// A column by name.
-    pub fn column(&self, name: &str) -> crate::error::Result<Vec<f64>> {
+    pub(crate) fn column(&self, name: &str) -> crate::error::Result<Vec<f64>> {
         let i = self
             .header
             .iter()

@@ -24,7 +24,7 @@ pub use super::train_args::{ResumeArgs, TrainArgs, TrainOptions};
 /// `--train` or `--resume`: trains, says where and what came out; `spread`, a line on how far seeds of the
 /// scene differ, goes beside "one run is one sample".
 /// `scene`: the scene of a new run; None to resume `opts.run` (which trains its own `scene.ron`).
-pub fn main(scene: Option<Scene>, opts: &TrainOptions, spread: Option<&str>) -> crate::error::Result<()> {
+pub(crate) fn main(scene: Option<Scene>, opts: &TrainOptions, spread: Option<&str>) -> crate::error::Result<()> {
     let trained = match scene {
         Some(scene) => train(scene, opts)?,
         None => resume(opts)?,

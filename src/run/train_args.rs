@@ -24,7 +24,7 @@ impl TrainOptions {
     }
 
     /// The call that trains `scene` (a file) with `seed` as these options say, or resumes `run`, as argv.
-    pub fn to_argv(&self, scene: &Path, seed: u64) -> Vec<String> {
+    pub(crate) fn to_argv(&self, scene: &Path, seed: u64) -> Vec<String> {
         let mut argv: Vec<String> = if self.resume {
             vec!["--resume".into(), self.run.display().to_string()]
         } else {
@@ -50,10 +50,10 @@ impl TrainOptions {
 pub struct TrainArgs {
     /// Train the scene's learning species headless (Algorithm 1) into --out.
     #[arg(long, help_heading = "Modes")]
-    pub train: bool,
+    pub(crate) train: bool,
     /// Run folder for --train (default runs/<scene>-seed<seed>); must be new or empty.
     #[arg(long, help_heading = "Running", value_name = "DIR")]
-    pub out: Option<PathBuf>,
+    pub(crate) out: Option<PathBuf>,
 }
 
 impl super::args::Mode for TrainArgs {
@@ -66,7 +66,7 @@ impl super::args::Mode for TrainArgs {
 pub struct ResumeArgs {
     /// Continue a killed or finished run from its last checkpoint (to --episodes in total).
     #[arg(long, help_heading = "Modes", value_name = "DIR")]
-    pub resume: Option<PathBuf>,
+    pub(crate) resume: Option<PathBuf>,
 }
 
 impl super::args::Mode for ResumeArgs {
@@ -76,7 +76,7 @@ impl super::args::Mode for ResumeArgs {
 
 impl TrainArgs {
     /// The scene to train (--scene with --seed) and the options.
-    pub fn options(&self, shared: &Shared) -> crate::error::Result<(Scene, TrainOptions)> {
+    pub(crate) fn options(&self, shared: &Shared) -> crate::error::Result<(Scene, TrainOptions)> {
         let (args, common) = (&shared.scene, &shared.common);
         let (scene, path) = args.load(Path::new(super::args::STANDARD_SCENE), &args.overrides(false)?)?;
         let stem = path.file_stem().map_or("run".into(), |s| s.to_string_lossy().into_owned());
@@ -96,7 +96,7 @@ impl TrainArgs {
 
 impl ResumeArgs {
     /// The options of continuing the run `run` (which trains its own scene, [`super::train::resume`]).
-    pub fn options(&self, run: &Path, shared: &Shared) -> TrainOptions {
+    pub(crate) fn options(&self, run: &Path, shared: &Shared) -> TrainOptions {
         let common = &shared.common;
         TrainOptions {
             run: run.to_path_buf(),

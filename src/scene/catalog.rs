@@ -20,7 +20,7 @@ static SPECIES: RwLock<Vec<SpeciesTemplate>> = RwLock::new(Vec::new());
 
 /// Adds a species template: Ok(true) when new, Ok(false) for the same template again, an error for
 /// another template of the same name.
-pub fn insert(t: SpeciesTemplate) -> crate::error::Result<bool> {
+pub(crate) fn insert(t: SpeciesTemplate) -> crate::error::Result<bool> {
     let mut all = SPECIES.write().unwrap_or_else(|e| e.into_inner());
     match all.iter().find(|o| o.def.name == t.def.name) {
         Some(o) if *o == t => Ok(false),
@@ -33,6 +33,6 @@ pub fn insert(t: SpeciesTemplate) -> crate::error::Result<bool> {
 }
 
 /// The template of a species name, if a plugin of this program defines it.
-pub fn get(name: &str) -> Option<SpeciesTemplate> {
+pub(crate) fn get(name: &str) -> Option<SpeciesTemplate> {
     SPECIES.read().unwrap_or_else(|e| e.into_inner()).iter().find(|t| t.def.name == name).cloned()
 }

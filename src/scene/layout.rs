@@ -9,23 +9,23 @@ use super::schema::{ObservationLayout, Scene, SpeciesDef};
 use std::ops::Range;
 
 /// Own state in the paper's observation: [x, y, v_x, v_y, h_x, h_y].
-pub const OWN_STATE_DIM: usize = 6;
+pub(crate) const OWN_STATE_DIM: usize = 6;
 /// Per observed neighbour: [Δx, Δy, h_jx − h_ix, h_jy − h_iy].
-pub const NEIGHBOUR_DIM: usize = 4;
+pub(crate) const NEIGHBOUR_DIM: usize = 4;
 /// An action is [thrust, turn rate], normalized to [−1, 1] each.
-pub const ACTION_DIM: usize = 2;
+pub(crate) const ACTION_DIM: usize = 2;
 
 /// Where the parts of one species' observation sit.
 #[derive(Clone, Debug, PartialEq, Eq)]
-pub struct Layout {
-    pub order: ObservationLayout,
+pub(crate) struct Layout {
+    pub(crate) order: ObservationLayout,
     /// Neighbour slots per observed species, in the scene's species order.
-    pub slots: Vec<usize>,
+    pub(crate) slots: Vec<usize>,
 }
 
 impl Layout {
     /// The numbers of own state before the blocks: the paper's six, or the authors' [x, y, v_x, v_y].
-    pub fn leading(&self) -> usize {
+    pub(crate) fn leading(&self) -> usize {
         match self.order {
             ObservationLayout::Paper => OWN_STATE_DIM,
             ObservationLayout::Authors => 4,
@@ -38,22 +38,22 @@ impl Layout {
     }
 
     /// The block of observed species `t`: `slots[t]` neighbours of [`NEIGHBOUR_DIM`] numbers each.
-    pub fn block(&self, t: usize) -> Range<usize> {
+    pub(crate) fn block(&self, t: usize) -> Range<usize> {
         self.offset(t)..self.offset(t + 1)
     }
 
     /// Every neighbour block, which lie side by side.
-    pub fn neighbours(&self) -> Range<usize> {
+    pub(crate) fn neighbours(&self) -> Range<usize> {
         self.leading()..self.offset(self.slots.len())
     }
 
     /// The energy input, in the authors' order only.
-    pub fn energy(&self) -> Option<usize> {
+    pub(crate) fn energy(&self) -> Option<usize> {
         (self.order == ObservationLayout::Authors).then(|| self.neighbours().end)
     }
 
     /// Own heading [h_x, h_y] (in the body frame, the paper's order holds other own numbers there).
-    pub fn heading(&self) -> Range<usize> {
+    pub(crate) fn heading(&self) -> Range<usize> {
         match self.energy() {
             None => 4..6,
             Some(e) => e + 1..e + 3,
@@ -62,7 +62,7 @@ impl Layout {
 
     /// Writes own state into `out`, a row of this layout: the paper's six numbers `own` in order, or in the
     /// authors' order `own`'s position and velocity first, `energy` after the blocks, then `own`'s heading.
-    pub fn place_own<T: Copy>(&self, out: &mut [T], own: [T; OWN_STATE_DIM], energy: T) {
+    pub(crate) fn place_own<T: Copy>(&self, out: &mut [T], own: [T; OWN_STATE_DIM], energy: T) {
         match self.energy() {
             None => out[..OWN_STATE_DIM].copy_from_slice(&own),
             Some(e) => {
@@ -74,26 +74,26 @@ impl Layout {
     }
 
     /// d_o.
-    pub fn dim(&self) -> usize {
+    pub(crate) fn dim(&self) -> usize {
         self.neighbours().end.saturating_add(if self.energy().is_some() { 3 } else { 0 })
     }
 }
 
 /// The slots an observer of species `def` has for `observed`: its `topological_limit_of` entry, else its
 /// `topological_limit`.
-pub fn slots(def: &SpeciesDef, observed: &str) -> usize {
+pub(crate) fn slots(def: &SpeciesDef, observed: &str) -> usize {
     def.topological_limit_of.iter().find(|(name, _)| name == observed).map_or(def.topological_limit, |&(_, k)| k)
 }
 
 impl Scene {
     /// The layout of species `s`'s observation.
-    pub fn layout(&self, s: usize) -> Layout {
+    pub(crate) fn layout(&self, s: usize) -> Layout {
         let def = &self.species[s];
         Layout { order: self.observation_layout, slots: self.species.iter().map(|t| slots(def, &t.name)).collect() }
     }
 
     /// d_o of species `s` of this scene.
-    pub fn observation_dim(&self, s: usize) -> usize {
+    pub(crate) fn observation_dim(&self, s: usize) -> usize {
         self.layout(s).dim()
     }
 }

@@ -8,9 +8,9 @@
 //!
 //! Every error is one line naming the file, the line when it is known, and the field.
 
-pub mod catalog;
+pub(crate) mod catalog;
 mod diagnostics;
-pub mod layout;
+pub(crate) mod layout;
 mod presets;
 mod resolve;
 mod rules;

@@ -75,7 +75,7 @@ impl Scene {
     }
 
     /// Applies a scene patch (an experiment's variant) and validates the result.
-    pub fn patched(&self, patch: ScenePatch) -> Result<Scene> {
+    pub(crate) fn patched(&self, patch: ScenePatch) -> Result<Scene> {
         let mut scene = self.clone();
         scene.apply(patch)?;
         scene.validate()?;
@@ -194,7 +194,7 @@ impl Overrides {
     }
 
     /// Applies the overrides to `scene` (read from `source`, which errors name) and validates the result.
-    pub fn apply(&self, scene: &mut Scene, source: &Path) -> Result<()> {
+    pub(crate) fn apply(&self, scene: &mut Scene, source: &Path) -> Result<()> {
         for (name, n) in &self.counts {
             scene.set_count(name, *n).map_err(|e| format!("{}: {e}", source.display()))?;
         }

@@ -22,12 +22,12 @@ use serde::{Deserialize, Serialize};
 #[serde(deny_unknown_fields)]
 pub struct ZonalRule {
     /// Outer radius of each zone, in metres.
-    pub repulsion_radius: f64,
-    pub alignment_radius: f64,
-    pub attraction_radius: f64,
-    pub evasion_radius: f64,
-    pub turn: ZonalTurn,
-    pub thrust: ZonalThrust,
+    pub(crate) repulsion_radius: f64,
+    pub(crate) alignment_radius: f64,
+    pub(crate) attraction_radius: f64,
+    pub(crate) evasion_radius: f64,
+    pub(crate) turn: ZonalTurn,
+    pub(crate) thrust: ZonalThrust,
 }
 
 /// The turn of a [`ZonalRule`]: `bias` + `persistence`·(previous turn) + `repulsion`·Σ left +
@@ -37,12 +37,12 @@ pub struct ZonalRule {
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ZonalTurn {
-    pub bias: f64,
-    pub persistence: f64,
-    pub repulsion: f64,
-    pub alignment: f64,
-    pub attraction: f64,
-    pub evasion: f64,
+    pub(crate) bias: f64,
+    pub(crate) persistence: f64,
+    pub(crate) repulsion: f64,
+    pub(crate) alignment: f64,
+    pub(crate) attraction: f64,
+    pub(crate) evasion: f64,
 }
 
 /// The thrust of a [`ZonalRule`]: `bias` + `speed`·(speed / top speed) + `repulsion`·Σ ahead +
@@ -51,11 +51,11 @@ pub struct ZonalTurn {
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ZonalThrust {
-    pub bias: f64,
-    pub speed: f64,
-    pub repulsion: f64,
-    pub attraction: f64,
-    pub evasion: f64,
+    pub(crate) bias: f64,
+    pub(crate) speed: f64,
+    pub(crate) repulsion: f64,
+    pub(crate) attraction: f64,
+    pub(crate) evasion: f64,
 }
 
 /// Which terms a fit may use: only the neighbours (`Memoryless`, Couzin et al.'s zones: `persistence`
@@ -79,7 +79,7 @@ pub enum ZonalTerm {
 
 impl ZonalRule {
     /// The same rule with the gains of `terms` set to zero (turn and thrust): an ablation.
-    pub fn without(&self, terms: &[ZonalTerm]) -> ZonalRule {
+    pub(crate) fn without(&self, terms: &[ZonalTerm]) -> ZonalRule {
         let mut rule = self.clone();
         for term in terms {
             match term {
@@ -93,7 +93,7 @@ impl ZonalRule {
     }
 
     /// Every number of the rule with its field name, for validation.
-    pub fn numbers(&self) -> [(&'static str, f64); 15] {
+    pub(crate) fn numbers(&self) -> [(&'static str, f64); 15] {
         let (t, f) = (&self.turn, &self.thrust);
         [
             ("repulsion_radius", self.repulsion_radius),
@@ -124,24 +124,24 @@ impl ZonalRule {
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct PursuitRule {
-    pub turn: PursuitGains,
-    pub thrust: PursuitGains,
-    pub persistence: f64,
-    pub speed: f64,
+    pub(crate) turn: PursuitGains,
+    pub(crate) thrust: PursuitGains,
+    pub(crate) persistence: f64,
+    pub(crate) speed: f64,
 }
 
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct PursuitGains {
-    pub bias: f64,
-    pub nearest: f64,
-    pub centre: f64,
-    pub isolated: f64,
+    pub(crate) bias: f64,
+    pub(crate) nearest: f64,
+    pub(crate) centre: f64,
+    pub(crate) isolated: f64,
 }
 
 impl PursuitRule {
     /// Every number of the rule with its field name, for validation.
-    pub fn numbers(&self) -> [(&'static str, f64); 10] {
+    pub(crate) fn numbers(&self) -> [(&'static str, f64); 10] {
         let (t, f) = (&self.turn, &self.thrust);
         [
             ("turn.bias", t.bias),

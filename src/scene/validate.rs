@@ -280,7 +280,7 @@ impl Scene {
     /// Bodies within contact reach of one agent, on average over the arena: the density of all agents
     /// times the area within twice the largest radius. Contacts and the nearest-neighbour search scan
     /// about this many bodies per agent, so a step costs about agents × (1 + this).
-    pub fn bodies_within_reach(&self) -> f64 {
+    pub(crate) fn bodies_within_reach(&self) -> f64 {
         let n = self.agents() as f64;
         let r = self.species.iter().map(|s| s.radius).fold(0.0, f64::max);
         n * std::f64::consts::PI * (2.0 * r).powi(2) / self.world.arena_edge.powi(2)
@@ -289,19 +289,19 @@ impl Scene {
     /// About how many seconds one step of this scene takes on one core: 1.5e-7 s per agent and body
     /// within its reach ([`Scene::bodies_within_reach`]), measured with `coevo --record` of 10 000 and
     /// 30 000 prey in the default arena (0.06 and 0.5 s a step); an order of magnitude, not a promise.
-    pub fn estimated_step_seconds(&self) -> f64 {
+    pub(crate) fn estimated_step_seconds(&self) -> f64 {
         1.5e-7 * self.agents() as f64 * (1.0 + self.bodies_within_reach())
     }
 
     /// Agents of every species.
-    pub fn agents(&self) -> usize {
+    pub(crate) fn agents(&self) -> usize {
         self.species.iter().map(|s| s.count).sum()
     }
 
     /// The bytes one world of this scene holds for its agents, without networks or replay buffers (an
     /// environment stepped from outside, `run::env`, has neither): observations, the copy paired with the
     /// next step's, and an inference chunk's; ~512 B of components and perception arrays per agent.
-    pub fn agent_bytes(&self) -> f64 {
+    pub(crate) fn agent_bytes(&self) -> f64 {
         (0..self.species.len()).map(|s| self.species_agent_bytes(s)).sum()
     }
 
@@ -309,7 +309,7 @@ impl Scene {
         self.species[s].count as f64 * (3.0 * self.observation_dim(s) as f64 * 4.0 + 512.0)
     }
 
-    pub fn check_memory(&self, limit: f64) -> crate::error::Result<()> {
+    pub(crate) fn check_memory(&self, limit: f64) -> crate::error::Result<()> {
         let gb = crate::io::bytes_shown;
         let refuse = |field: String, what: String, bytes: f64| {
             Err(Error::field(field, format!("{what} would need {}, more than the {} of memory coevo may use here (the least of free memory, the cgroup limit and ulimit -v)", gb(bytes), gb(limit))))

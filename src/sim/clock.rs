@@ -9,14 +9,14 @@ use bevy::prelude::*;
 pub struct Episode {
     pub index: usize,
     pub step: usize,
-    pub length: usize,
+    pub(crate) length: usize,
     /// Respawn when an episode ends (off while recording one continuous trajectory).
-    pub auto_reset: bool,
+    pub(crate) auto_reset: bool,
 }
 
 impl Episode {
     /// True during the step that completes the episode (from Measure on).
-    pub fn is_done(&self) -> bool {
+    pub(crate) fn is_done(&self) -> bool {
         self.step == self.length
     }
 }

@@ -22,7 +22,7 @@ use std::ops::Range;
 
 /// Single-linkage clusters of `members` (indices into `positions`, the members of `grid`): the cluster
 /// label of each member, in member order, labels 0..k numbered by first appearance.
-pub fn cluster_labels(
+pub(crate) fn cluster_labels(
     arena: &Arena,
     positions: &[DVec2],
     grid: &CellGrid,
@@ -72,7 +72,7 @@ pub fn cluster_labels(
 }
 
 /// Sizes of the clusters of [`cluster_labels`], by label.
-pub fn cluster_sizes(labels: &[u32]) -> Vec<usize> {
+pub(crate) fn cluster_sizes(labels: &[u32]) -> Vec<usize> {
     let mut sizes = vec![0; labels.iter().map(|&l| l as usize + 1).max().unwrap_or(0)];
     labels.iter().for_each(|&l| sizes[l as usize] += 1);
     sizes
@@ -80,7 +80,7 @@ pub fn cluster_sizes(labels: &[u32]) -> Vec<usize> {
 
 /// C_nn of unit `headings` given each one's nearest neighbour `nearest[j]` (an index into `headings`).
 /// 0 when the headings do not fluctuate at all (a perfectly polarized group has nothing to correlate).
-pub fn nn_correlation(headings: &[DVec2], nearest: &[usize]) -> f64 {
+pub(crate) fn nn_correlation(headings: &[DVec2], nearest: &[usize]) -> f64 {
     let n = headings.len().max(1) as f64;
     let mean = headings.iter().copied().sum::<DVec2>() / n;
     let variance: f64 = headings.iter().map(|h| (*h - mean).length_squared()).sum();
@@ -96,7 +96,7 @@ pub fn nn_correlation(headings: &[DVec2], nearest: &[usize]) -> f64 {
 /// 2010): for every pair (i, j) at minimum-image distance r in bin ⌊r / width⌋, `bins[b]` collects
 /// Σ δh_i·δh_j and the pair count; `variance` collects Σ_j |δh_j|² and the agents, to normalize:
 /// C(r) = (Σ_pairs δh_i·δh_j / pairs) / (Σ |δh|² / N). Pairs beyond the last bin are left out.
-pub fn add_heading_correlation(
+pub(crate) fn add_heading_correlation(
     arena: &Arena,
     positions: &[DVec2],
     headings: &[DVec2],
@@ -248,7 +248,11 @@ impl<'a> Pairs<'a> {
 /// C(r) per bin from [`add_heading_correlation`]'s sums (None for empty bins or no fluctuation), and
 /// the correlation length: the r where C first crosses zero, interpolated between bin centres (None if
 /// it stays positive).
-pub fn heading_correlation(bins: &[(f64, u64)], variance: (f64, u64), width: f64) -> (Vec<Option<f64>>, Option<f64>) {
+pub(crate) fn heading_correlation(
+    bins: &[(f64, u64)],
+    variance: (f64, u64),
+    width: f64,
+) -> (Vec<Option<f64>>, Option<f64>) {
     let v = if variance.1 > 0 { variance.0 / variance.1 as f64 } else { 0.0 };
     let c: Vec<Option<f64>> = bins.iter().map(|&(sum, n)| (n > 0 && v > 1e-12).then(|| sum / n as f64 / v)).collect();
     let centre = |b: usize| (b as f64 + 0.5) * width;
@@ -272,7 +276,7 @@ pub fn heading_correlation(bins: &[(f64, u64)], variance: (f64, u64), width: f64
 /// The edge rank of agent `j` within `group` (indices into `positions`, j among them); None for groups
 /// of fewer than three. The centre is the mean of the members' minimum-image offsets from j, so it is
 /// well defined for a group straddling the torus seam.
-pub fn edge_rank(arena: &Arena, positions: &[DVec2], group: &[usize], j: usize) -> Option<f64> {
+pub(crate) fn edge_rank(arena: &Arena, positions: &[DVec2], group: &[usize], j: usize) -> Option<f64> {
     if group.len() < 3 {
         return None;
     }
@@ -299,13 +303,14 @@ pub fn edge_rank(arena: &Arena, positions: &[DVec2], group: &[usize], j: usize) 
 
 /// Bins of "prey within the predator's perception radius" for the confusion curve: 0, 1, 2, 3–4, 5–8,
 /// 9–16, 17–32, 33+ (doubling, so a few predators among thousands of prey still fill the upper bins).
-pub const CONFUSION_BINS: [(u32, u32); 8] = [(0, 0), (1, 1), (2, 2), (3, 4), (5, 8), (9, 16), (17, 32), (33, u32::MAX)];
+pub(crate) const CONFUSION_BINS: [(u32, u32); 8] =
+    [(0, 0), (1, 1), (2, 2), (3, 4), (5, 8), (9, 16), (17, 32), (33, u32::MAX)];
 
-pub fn confusion_bin(prey_in_range: u32) -> usize {
+pub(crate) fn confusion_bin(prey_in_range: u32) -> usize {
     CONFUSION_BINS.iter().position(|&(lo, hi)| (lo..=hi).contains(&prey_in_range)).expect("bins cover u32")
 }
 
-pub fn confusion_bin_label(b: usize) -> String {
+pub(crate) fn confusion_bin_label(b: usize) -> String {
     match CONFUSION_BINS[b] {
         (lo, u32::MAX) => format!("{lo}+"),
         (lo, hi) if lo == hi => lo.to_string(),
@@ -316,17 +321,17 @@ pub fn confusion_bin_label(b: usize) -> String {
 /// One bin of the confusion curve: predator decisions taken with this many prey in view, and what
 /// followed (the turn command's magnitude, the speed reached, the catches made).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct ConfusionBin {
-    pub samples: u64,
+pub(crate) struct ConfusionBin {
+    pub(crate) samples: u64,
     /// Σ |turn command|, normalized to [0, 1] (1 = the species' max turn rate).
-    pub turn: f64,
+    pub(crate) turn: f64,
     /// Σ speed / max_speed.
-    pub speed: f64,
-    pub catches: u64,
+    pub(crate) speed: f64,
+    pub(crate) catches: u64,
 }
 
 impl ConfusionBin {
-    pub fn add(&mut self, turn: f64, speed: f64, catches: u32) {
+    pub(crate) fn add(&mut self, turn: f64, speed: f64, catches: u32) {
         self.samples += 1;
         self.turn += turn.abs();
         self.speed += speed;
@@ -334,7 +339,7 @@ impl ConfusionBin {
     }
 
     /// (mean |turn|, mean speed fraction, catches per predator-step); None when empty.
-    pub fn means(&self) -> Option<(f64, f64, f64)> {
+    pub(crate) fn means(&self) -> Option<(f64, f64, f64)> {
         (self.samples > 0).then(|| {
             let n = self.samples as f64;
             (self.turn / n, self.speed / n, self.catches as f64 / n)

@@ -30,7 +30,7 @@ pub struct Heading(pub f64);
 
 impl Heading {
     /// The unit heading vector h.
-    pub fn unit(self) -> DVec2 {
+    pub(crate) fn unit(self) -> DVec2 {
         DVec2::new(self.0.cos(), self.0.sin())
     }
 }
@@ -38,7 +38,7 @@ impl Heading {
 /// The body: mass m_i in kg and radius in m.
 #[derive(Component, Clone, Copy, Debug, PartialEq)]
 pub struct Body {
-    pub mass: f64,
+    pub(crate) mass: f64,
     pub radius: f64,
 }
 
@@ -69,7 +69,7 @@ pub struct ContactCounts {
     pub walls: u32,
     /// The summed contact rewards of those contacts, pair by pair
     /// ([`crate::sim::species::SpeciesRegistry::contact_reward`]).
-    pub contact_reward: f64,
+    pub(crate) contact_reward: f64,
 }
 
 /// Contacts at the current state and at the state before it (for rewards judged before the move).
@@ -88,21 +88,21 @@ pub struct Energy(pub f64);
 #[derive(Component, Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub struct Slot {
     pub index: u32,
-    pub row: u32,
+    pub(crate) row: u32,
 }
 
 /// Everything an agent is spawned with.
 #[derive(Bundle, Clone, Debug)]
-pub struct AgentBundle {
-    pub id: AgentId,
-    pub species: SpeciesId,
-    pub position: Position,
-    pub velocity: Velocity,
-    pub heading: Heading,
-    pub body: Body,
-    pub action: Action,
-    pub reward: Reward,
-    pub contact_force: ContactForce,
-    pub contacts: Contacts,
-    pub slot: Slot,
+pub(crate) struct AgentBundle {
+    pub(crate) id: AgentId,
+    pub(crate) species: SpeciesId,
+    pub(crate) position: Position,
+    pub(crate) velocity: Velocity,
+    pub(crate) heading: Heading,
+    pub(crate) body: Body,
+    pub(crate) action: Action,
+    pub(crate) reward: Reward,
+    pub(crate) contact_force: ContactForce,
+    pub(crate) contacts: Contacts,
+    pub(crate) slot: Slot,
 }

@@ -24,11 +24,11 @@ use std::f64::consts::PI;
 
 /// The environment's random stream (spawning, random policies), seeded from the scene.
 #[derive(Resource, Clone, Debug)]
-pub struct SimRng(pub ChaCha8Rng);
+pub(crate) struct SimRng(pub ChaCha8Rng);
 
 impl SimRng {
     /// Independent streams per purpose, so that e.g. exploration noise never shifts the spawn positions.
-    pub fn stream(seed: u64, stream: u64) -> ChaCha8Rng {
+    pub(crate) fn stream(seed: u64, stream: u64) -> ChaCha8Rng {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         rng.set_stream(stream);
         rng
@@ -38,9 +38,9 @@ impl SimRng {
 /// The environment stream as it stood before the current population was spawned: with it, a resumed run
 /// spawns exactly the population the uninterrupted run had (`learning::checkpoint`).
 #[derive(Resource, Clone, Debug)]
-pub struct SpawnedFrom(pub ChaCha8Rng);
+pub(crate) struct SpawnedFrom(pub ChaCha8Rng);
 
-pub struct EpisodePlugin;
+pub(crate) struct EpisodePlugin;
 
 impl Plugin for EpisodePlugin {
     fn build(&self, app: &mut App) {
@@ -71,7 +71,7 @@ fn end_episode(world: &mut World) {
 
 /// Starts the next episode: the clock at its step 0 and a fresh population (what auto-reset does at the
 /// end of an episode; runs that read the last step's state first call it themselves).
-pub fn next_episode(world: &mut World) {
+pub(crate) fn next_episode(world: &mut World) {
     let mut e = world.resource_mut::<Episode>();
     e.index += 1;
     e.step = 0;
@@ -99,7 +99,7 @@ fn authors_positions(registry: &SpeciesRegistry, arena: &Arena, rng: &mut ChaCha
 }
 
 /// Despawns every agent, spawns the scene's population anew and perceives the new state.
-pub fn spawn_population(world: &mut World) {
+pub(crate) fn spawn_population(world: &mut World) {
     let agents: Vec<Entity> = world.query_filtered::<Entity, With<AgentId>>().iter(world).collect();
     for e in agents {
         world.despawn(e);

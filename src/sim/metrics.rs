@@ -23,7 +23,7 @@ pub use super::order::{centre, polarization_and_milling, swarming, swarming_of, 
 
 /// The running mean over the last `window` values (fewer at the start): the paper's 100-episode curves,
 /// the viewer's live plots and the experiment figures.
-pub fn running_mean(values: &[f64], window: usize) -> Vec<f64> {
+pub(crate) fn running_mean(values: &[f64], window: usize) -> Vec<f64> {
     let mut sum = 0.0;
     values
         .iter()
@@ -48,12 +48,12 @@ pub struct SwarmMetrics {
     pub catches_now: u32,
     /// The same by catcher species (per pair when a species catches one species, as in every shipped
     /// scene and example).
-    pub catches_now_by: Vec<u32>,
+    pub(crate) catches_now_by: Vec<u32>,
     /// Per species: each agent's nearest-neighbour distance (m) at this state.
     pub nn_distances_now: Vec<Vec<f64>>,
     /// Per prey species: the edge ranks of the prey caught at this step (contacts that began with it),
     /// among groups of three or more ([`collective::edge_rank`]).
-    pub edge_ranks_now: Vec<Vec<f64>>,
+    pub(crate) edge_ranks_now: Vec<Vec<f64>>,
     /// Prey in view of each agent at the previous state of this episode (index as [`Population`]): the
     /// decision taken there is scored at the next step.
     in_view: Vec<u32>,
@@ -63,7 +63,7 @@ pub struct SwarmMetrics {
 /// The confusion curve since the scene started: per species (empty bins for species that catch
 /// nothing), predator decisions by [`collective::CONFUSION_BINS`] of prey in view.
 #[derive(Resource, Default, Debug, Clone)]
-pub struct Confusion(pub Vec<[ConfusionBin; CONFUSION_BINS.len()]>);
+pub(crate) struct Confusion(pub Vec<[ConfusionBin; CONFUSION_BINS.len()]>);
 
 #[derive(Default, Debug, Clone)]
 struct EpisodeSums {
@@ -82,18 +82,18 @@ struct EpisodeSums {
 /// One episode's summary: the time averages of the paper's figures.
 #[derive(Clone, Debug, PartialEq)]
 pub struct EpisodeSummary {
-    pub episode: usize,
-    pub steps: usize,
+    pub(crate) episode: usize,
+    pub(crate) steps: usize,
     /// Per species, time-averaged; None where the species had fewer than two agents.
-    pub swarming: Vec<Option<Swarming>>,
+    pub(crate) swarming: Vec<Option<Swarming>>,
     /// Catches summed over the episode's steps.
-    pub catches: u64,
+    pub(crate) catches: u64,
     /// The same by catcher species.
-    pub catches_by: Vec<u64>,
+    pub(crate) catches_by: Vec<u64>,
     /// Per species: summed reward over the episode divided by the number of agents (mean return).
-    pub mean_return: Vec<f64>,
+    pub(crate) mean_return: Vec<f64>,
     /// Per species: the mean edge rank of its prey caught this episode; None without a ranked catch.
-    pub edge_rank: Vec<Option<f64>>,
+    pub(crate) edge_rank: Vec<Option<f64>>,
     /// Per species, the authors' DoS and DoA averaged over the episode's states 0…T−1 ([`authors_dos_doa`]),
     /// None where it had fewer than two agents; empty unless the scene asks (`authors_metrics`).
     pub authors: Vec<Option<[f64; 2]>>,
@@ -107,7 +107,7 @@ pub struct EpisodeLog {
 
 impl SwarmMetrics {
     /// Closes the running episode into a summary and starts a new one.
-    pub fn finish_episode(&mut self, episode: usize) -> EpisodeSummary {
+    pub(crate) fn finish_episode(&mut self, episode: usize) -> EpisodeSummary {
         let sums = std::mem::take(&mut self.episode);
         let t = sums.steps.max(1) as f64;
         EpisodeSummary {
@@ -138,7 +138,7 @@ impl SwarmMetrics {
     }
 }
 
-pub struct MetricsPlugin;
+pub(crate) struct MetricsPlugin;
 
 impl Plugin for MetricsPlugin {
     fn build(&self, app: &mut App) {
@@ -294,7 +294,7 @@ fn measure(
 }
 
 /// The paper's running-mean window, in episodes (its learning curves are 100-episode running means).
-pub const WINDOW: usize = 100;
+pub(crate) const WINDOW: usize = 100;
 
 /// Uniform random positions, `n` of them in the arena, through the DoS formula (Eq. 2): the DoS a
 /// population has without any cohesion, at that density (a Monte Carlo estimate, fixed seed).
@@ -321,7 +321,7 @@ pub fn random_dos(arena: &crate::sim::space::Arena, n: usize) -> Option<f64> {
 /// authors' formulas ([`authors_dos_doa`]): their DoS and DoA of a population without any order (a Monte
 /// Carlo estimate, fixed seed), the chance level a claim on them is told apart from. The most opposed
 /// partner puts the code's DoA of random headings at 0.154 for 10 agents, not the paper's 2/π.
-pub fn random_authors(edge: f64, n: usize) -> Option<[f64; 2]> {
+pub(crate) fn random_authors(edge: f64, n: usize) -> Option<[f64; 2]> {
     use rand::{Rng, SeedableRng};
     if n < 2 {
         return None;

@@ -15,18 +15,18 @@
 //! | `Learn`    | Algorithm 1: replay buffers and DDPG updates                       | `learning/`       |
 //! | `Episode`  | end of episode: summary, respawn                                  | `episode.rs`      |
 
-pub mod clock;
-pub mod collective;
+pub(crate) mod clock;
+pub(crate) mod collective;
 pub mod components;
-pub mod episode;
+pub(crate) mod episode;
 pub mod metrics;
-pub mod order;
+pub(crate) mod order;
 pub mod perception;
 pub mod physics;
 pub mod policy;
 pub mod reward;
-pub mod rules;
-pub mod schedule;
+pub(crate) mod rules;
+pub(crate) mod schedule;
 pub mod space;
 pub mod species;
 
@@ -43,8 +43,8 @@ use reward::RewardPlugin;
 pub use schedule::{ActiveScene, SimSet};
 
 /// The simulation: every stage's plugin, the scene's resources and the step's order.
-pub struct SimulationPlugin {
-    pub scene: Scene,
+pub(crate) struct SimulationPlugin {
+    pub(crate) scene: Scene,
 }
 
 impl Plugin for SimulationPlugin {
@@ -81,7 +81,7 @@ impl Plugin for SimulationPlugin {
 /// Puts a scene into a world, replacing the scene before: the scene itself, the episode clock, the
 /// environment's random stream, arena, species and cleared metrics. Agents are spawned separately
 /// ([`episode::spawn_population`]), and learners by the learning plugin ([`learning::Learners::new`]).
-pub fn insert_scene(world: &mut World, scene: &Scene) {
+pub(crate) fn insert_scene(world: &mut World, scene: &Scene) {
     world.insert_resource(ActiveScene(scene.clone()));
     world.insert_resource(Episode { index: 0, step: 0, length: scene.episode_steps, auto_reset: true });
     world.insert_resource(SimRng(SimRng::stream(scene.seed, 0)));
@@ -95,7 +95,7 @@ pub fn insert_scene(world: &mut World, scene: &Scene) {
 /// A headless simulation: the app, its schedule driven directly one fixed step at a time, as fast as it
 /// goes (not paced by wall-clock time).
 pub struct Simulation {
-    pub app: App,
+    pub(crate) app: App,
 }
 
 impl Simulation {
@@ -153,13 +153,13 @@ impl Simulation {
 /// world's trackers. Without it the removed-component records of every despawned agent (a respawn every
 /// episode) are never dropped: a 20 000-episode run grew by ~2.6 kB an episode. Nothing in the step reads
 /// change or removal trackers, so the step computes the same either way.
-pub fn step_world(world: &mut World) {
+pub(crate) fn step_world(world: &mut World) {
     world.run_schedule(FixedUpdate);
     world.clear_trackers();
 }
 
 /// [`Simulation::check`] for any world running the simulation (the viewer's too).
-pub fn check_state(world: &World) -> crate::error::Result<()> {
+pub(crate) fn check_state(world: &World) -> crate::error::Result<()> {
     let Some(f) = &world.resource::<physics::StateFault>().0 else {
         return Ok(());
     };

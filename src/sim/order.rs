@@ -27,15 +27,15 @@ macro_rules! order_parameters {
             /// Column names, in the order of [`Swarming::values`] (CSV headers append `_<species>`).
             pub const NAMES: [&'static str; Self::N] = [$(stringify!($field)),*];
             /// How report tables head each column.
-            pub const LABELS: [&'static str; Self::N] = [$($label),*];
+            pub(crate) const LABELS: [&'static str; Self::N] = [$($label),*];
             /// Digits report tables show of each.
-            pub const DIGITS: [usize; Self::N] = [$($digits),*];
+            pub(crate) const DIGITS: [usize; Self::N] = [$($digits),*];
 
             pub fn values(&self) -> [f64; Self::N] {
                 [$(self.$field),*]
             }
 
-            pub fn from_values(v: [f64; Self::N]) -> Self {
+            pub(crate) fn from_values(v: [f64; Self::N]) -> Self {
                 let [$($field),*] = v;
                 Swarming { $($field),* }
             }

@@ -44,39 +44,35 @@ pub enum PerceiveSet {
 /// points here; species s occupies `ranges[s]`.
 #[derive(Resource, Default, Debug)]
 pub struct Population {
-    pub entity: Vec<Entity>,
+    pub(crate) entity: Vec<Entity>,
     pub id: Vec<AgentId>,
-    pub species: Vec<usize>,
+    pub(crate) species: Vec<usize>,
     pub position: Vec<DVec2>,
-    pub velocity: Vec<DVec2>,
+    pub(crate) velocity: Vec<DVec2>,
     /// Unit heading vectors h.
     pub heading: Vec<DVec2>,
-    pub radius: Vec<f64>,
+    pub(crate) radius: Vec<f64>,
     /// The turn command of each agent's last action, normalized to [−1, 1] (its "turn state").
-    pub turn: Vec<f64>,
+    pub(crate) turn: Vec<f64>,
     /// The authors' energy budget of each agent ([`FULL_ENERGY`] for an agent without one).
-    pub energy: Vec<f64>,
+    pub(crate) energy: Vec<f64>,
     pub ranges: Vec<Range<usize>>,
     /// One grid per species over its slots.
-    pub grids: Vec<CellGrid>,
+    pub(crate) grids: Vec<CellGrid>,
     /// Largest body radius per species (bounds the contact search).
-    pub max_radius: Vec<f64>,
+    pub(crate) max_radius: Vec<f64>,
     /// The nearest other agent of the same species, when observation found one within the perception
     /// radius (it is then the positionally nearest kin, which DoS/DoA need: metrics reuse it).
     pub nearest_kin: Vec<Option<u32>>,
 }
 
 impl Population {
-    pub fn len(&self) -> usize {
+    pub(crate) fn len(&self) -> usize {
         self.entity.len()
     }
 
-    pub fn is_empty(&self) -> bool {
-        self.entity.is_empty()
-    }
-
     /// Number of agents of species s.
-    pub fn count(&self, s: usize) -> usize {
+    pub(crate) fn count(&self, s: usize) -> usize {
         self.ranges.get(s).map_or(0, |r| r.len())
     }
 }
@@ -103,7 +99,7 @@ impl SpeciesBatch {
         &self.observations[row * self.obs_dim..(row + 1) * self.obs_dim]
     }
 
-    pub fn action(&self, row: usize) -> [f32; ACTION_DIM] {
+    pub(crate) fn action(&self, row: usize) -> [f32; ACTION_DIM] {
         [self.actions[row * ACTION_DIM], self.actions[row * ACTION_DIM + 1]]
     }
 
@@ -116,7 +112,7 @@ impl SpeciesBatch {
     }
 }
 
-pub struct PerceptionPlugin;
+pub(crate) struct PerceptionPlugin;
 
 impl Plugin for PerceptionPlugin {
     fn build(&self, app: &mut App) {
@@ -135,7 +131,7 @@ impl Plugin for PerceptionPlugin {
 }
 
 /// Runs [`Perceive`] from inside another schedule (the step's `SimSet::Perceive`).
-pub fn run_perceive(world: &mut World) {
+pub(crate) fn run_perceive(world: &mut World) {
     world.run_schedule(Perceive);
 }
 
@@ -409,7 +405,7 @@ fn observe_rows(
 /// vector's rotated components are bounded by its length. With walls every neighbour block takes the bound
 /// of the farthest-reaching species (one bound for every observed species); a margin of 1e-6 covers
 /// rounding.
-pub fn observation_high(scene: &Scene, registry: &SpeciesRegistry, s: usize) -> Vec<f32> {
+pub(crate) fn observation_high(scene: &Scene, registry: &SpeciesRegistry, s: usize) -> Vec<f32> {
     let w = &scene.world;
     let half = w.arena_edge / 2.0;
     let walls = w.boundary == crate::scene::Boundary::Walls;
@@ -455,7 +451,7 @@ pub fn observation_high(scene: &Scene, registry: &SpeciesRegistry, s: usize) -> 
 }
 
 /// The displacement from `x` to the nearest point of the walls; zero on the torus, which has none.
-pub fn nearest_wall(arena: &Arena, x: DVec2) -> DVec2 {
+pub(crate) fn nearest_wall(arena: &Arena, x: DVec2) -> DVec2 {
     if arena.boundary == crate::scene::Boundary::Periodic {
         return DVec2::ZERO;
     }
@@ -467,7 +463,7 @@ pub fn nearest_wall(arena: &Arena, x: DVec2) -> DVec2 {
 }
 
 /// Slot `n` of the `species` block in an observation of an `observer`; None when masked (empty).
-pub fn neighbour_slot(
+pub(crate) fn neighbour_slot(
     obs: &[f32],
     registry: &SpeciesRegistry,
     observer: usize,

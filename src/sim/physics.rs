@@ -24,31 +24,31 @@ use std::f64::consts::PI;
 
 /// The stages of one physics step, in order.
 #[derive(SystemSet, Clone, Debug, PartialEq, Eq, Hash)]
-pub enum PhysicsSet {
+pub(crate) enum PhysicsSet {
     /// Forces, heading, velocity and position updates.
     Integrate,
     /// Periodic wrap.
     Boundary,
 }
 
-pub struct PhysicsPlugin;
+pub(crate) struct PhysicsPlugin;
 
 /// The first agent whose state stopped being physical during a step (a non-finite velocity or position,
 /// or a body that left a walled arena). Validated scenes keep the integrator stable
 /// ([`crate::scene::Scene::validate`]); this guard catches whatever still goes wrong, so a run stops with one
 /// line naming the agent instead of writing NaN as results. Checked by [`crate::sim::Simulation::check`].
 #[derive(Resource, Clone, Debug, Default, PartialEq)]
-pub struct StateFault(pub Option<Fault>);
+pub(crate) struct StateFault(pub Option<Fault>);
 
 #[derive(Clone, Debug, PartialEq)]
-pub struct Fault {
+pub(crate) struct Fault {
     /// Episode index and the step (1-based) during which it happened.
-    pub episode: usize,
-    pub step: usize,
-    pub agent: u32,
-    pub species: usize,
+    pub(crate) episode: usize,
+    pub(crate) step: usize,
+    pub(crate) agent: u32,
+    pub(crate) species: usize,
     /// What went wrong, e.g. "velocity is not finite".
-    pub what: String,
+    pub(crate) what: String,
 }
 
 impl StateFault {
@@ -106,7 +106,7 @@ pub fn clip_speed(v: DVec2, max_speed: f64, how: SpeedClip) -> DVec2 {
 /// Energy below which an exhausted agent stops (the authors' energy budget).
 const EXHAUSTED: f64 = 0.5;
 /// Full energy, and the starting value.
-pub const FULL_ENERGY: f64 = 1000.0;
+pub(crate) const FULL_ENERGY: f64 = 1000.0;
 
 type IntegrateQuery<'w, 's> = Query<
     'w,

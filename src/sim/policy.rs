@@ -14,7 +14,7 @@ use crate::sim::species::{SpeciesRegistry, ACTION_DIM};
 use bevy::prelude::*;
 use rand::Rng;
 
-pub struct PolicyPlugin;
+pub(crate) struct PolicyPlugin;
 
 /// The names of the `Plugin(name)` policies that some plugin of this app decides. A plugin that writes a
 /// species' actions registers its name ([`PolicyPlugins::register`]); a scene that names a policy nobody
@@ -29,7 +29,7 @@ impl PolicyPlugins {
     }
 
     /// Err naming the first species whose `Plugin(name)` policy nothing registered.
-    pub fn check(&self, scene: &crate::scene::Scene) -> crate::error::Result<()> {
+    pub(crate) fn check(&self, scene: &crate::scene::Scene) -> crate::error::Result<()> {
         for def in &scene.species {
             if let Policy::Plugin(name) = &def.policy {
                 if !self.0.contains(name) {
@@ -143,7 +143,7 @@ fn decide_rule_based(
 /// The normalized action a rule-based species `s` takes on one observation `obs`; None for a species its
 /// rule does not decide (`Learned`, `Frozen`, `Plugin`). A function of the observation alone (and of `rng`
 /// for `Random`), so it can also be read off synthetic observations (`experiment::response`).
-pub fn rule_action(
+pub(crate) fn rule_action(
     obs: &[f32],
     registry: &SpeciesRegistry,
     s: usize,

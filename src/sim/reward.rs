@@ -25,7 +25,7 @@ pub enum RewardStage {
     Survival,
 }
 
-pub struct RewardPlugin;
+pub(crate) struct RewardPlugin;
 
 impl Plugin for RewardPlugin {
     fn build(&self, app: &mut App) {
@@ -40,7 +40,7 @@ pub fn add_reward(batches: &mut Batches, species: SpeciesId, slot: Slot, reward:
 }
 
 /// The reward of one agent for one transition.
-pub fn reward(params: &RewardParams, action: &Action, contacts: &Contacts) -> f64 {
+pub(crate) fn reward(params: &RewardParams, action: &Action, contacts: &Contacts) -> f64 {
     let c = match params.contacts_judged {
         ContactJudging::AfterMove => contacts.now,
         ContactJudging::BeforeMove => contacts.before,

@@ -10,19 +10,19 @@ use crate::sim::species::{SpeciesRegistry, ACTION_DIM};
 /// One observed agent in the focal agent's body frame: where it is (metres ahead, to the left) and the
 /// sine of its heading relative to the focal agent's (+ when it heads to the left of it).
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Seen {
-    pub ahead: f64,
-    pub left: f64,
-    pub sin_heading: f64,
+pub(crate) struct Seen {
+    pub(crate) ahead: f64,
+    pub(crate) left: f64,
+    pub(crate) sin_heading: f64,
 }
 
 impl Seen {
-    pub fn distance(&self) -> f64 {
+    pub(crate) fn distance(&self) -> f64 {
         self.ahead.hypot(self.left)
     }
 
     /// The unit direction to it, [ahead, left]; zero for an agent at the focal agent's centre.
-    pub fn unit(&self) -> [f64; 2] {
+    pub(crate) fn unit(&self) -> [f64; 2] {
         let d = self.distance();
         if d > 0.0 {
             [self.ahead / d, self.left / d]
@@ -34,7 +34,13 @@ impl Seen {
 
 /// The agents of species `t` in an observation `obs` of species `s`, nearest first, in the body frame
 /// whatever the scene's observation frame (a world-frame observation is turned by the observer's heading).
-pub fn observed(obs: &[f32], registry: &SpeciesRegistry, s: usize, t: usize, frame: ObservationFrame) -> Vec<Seen> {
+pub(crate) fn observed(
+    obs: &[f32],
+    registry: &SpeciesRegistry,
+    s: usize,
+    t: usize,
+    frame: ObservationFrame,
+) -> Vec<Seen> {
     let heading = match frame {
         ObservationFrame::World => {
             let h = registry.layouts[s].heading();
@@ -62,13 +68,13 @@ pub fn observed(obs: &[f32], registry: &SpeciesRegistry, s: usize, t: usize, fra
 /// observation's turn state; 0 in the world frame, which does not hold it) and its speed along its heading
 /// as a fraction of its top speed.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct Own {
-    pub turn: f64,
-    pub speed: f64,
+pub(crate) struct Own {
+    pub(crate) turn: f64,
+    pub(crate) speed: f64,
 }
 
 impl Own {
-    pub fn of(obs: &[f32], registry: &SpeciesRegistry, s: usize, frame: ObservationFrame) -> Own {
+    pub(crate) fn of(obs: &[f32], registry: &SpeciesRegistry, s: usize, frame: ObservationFrame) -> Own {
         let top = registry.defs[s].max_speed;
         match frame {
             // Own state [v ahead, v left, turn, wall ahead, wall left, 0].
@@ -85,16 +91,16 @@ impl Own {
 /// The sums a [`ZonalRule`] weighs: per zone the unit directions [ahead, left] of its members, and the
 /// alignment zone's Σ sin(Δheading).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct ZonalFeatures {
-    pub own: Own,
-    pub repulsion: [f64; 2],
-    pub alignment: f64,
-    pub attraction: [f64; 2],
-    pub evasion: [f64; 2],
+pub(crate) struct ZonalFeatures {
+    pub(crate) own: Own,
+    pub(crate) repulsion: [f64; 2],
+    pub(crate) alignment: f64,
+    pub(crate) attraction: [f64; 2],
+    pub(crate) evasion: [f64; 2],
 }
 
 impl ZonalFeatures {
-    pub fn of(rule: &ZonalRule, own: Own, kin: &[Seen], predators: &[Seen]) -> ZonalFeatures {
+    pub(crate) fn of(rule: &ZonalRule, own: Own, kin: &[Seen], predators: &[Seen]) -> ZonalFeatures {
         let mut f = ZonalFeatures { own, ..Default::default() };
         let add = |sum: &mut [f64; 2], u: [f64; 2]| *sum = [sum[0] + u[0], sum[1] + u[1]];
         for k in kin {
@@ -115,7 +121,7 @@ impl ZonalFeatures {
 }
 
 /// The normalized action [thrust, turn] of a [`ZonalRule`] on its features.
-pub fn zonal_action(rule: &ZonalRule, f: &ZonalFeatures) -> [f32; ACTION_DIM] {
+pub(crate) fn zonal_action(rule: &ZonalRule, f: &ZonalFeatures) -> [f32; ACTION_DIM] {
     let (t, u) = (&rule.turn, &rule.thrust);
     let turn = t.bias
         + t.persistence * f.own.turn
@@ -133,15 +139,15 @@ pub fn zonal_action(rule: &ZonalRule, f: &ZonalFeatures) -> [f32; ACTION_DIM] {
 
 /// The unit directions [ahead, left] a [`PursuitRule`] weighs; zero without prey in view.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct PursuitFeatures {
-    pub own: Own,
-    pub nearest: [f64; 2],
-    pub centre: [f64; 2],
-    pub isolated: [f64; 2],
+pub(crate) struct PursuitFeatures {
+    pub(crate) own: Own,
+    pub(crate) nearest: [f64; 2],
+    pub(crate) centre: [f64; 2],
+    pub(crate) isolated: [f64; 2],
 }
 
 impl PursuitFeatures {
-    pub fn of(own: Own, prey: &[Seen]) -> PursuitFeatures {
+    pub(crate) fn of(own: Own, prey: &[Seen]) -> PursuitFeatures {
         let Some(nearest) = prey.iter().min_by(|a, b| a.distance().total_cmp(&b.distance())) else {
             return PursuitFeatures { own, ..Default::default() };
         };
@@ -163,7 +169,7 @@ impl PursuitFeatures {
 }
 
 /// The normalized action [thrust, turn] of a [`PursuitRule`] on its features.
-pub fn pursuit_action(rule: &PursuitRule, f: &PursuitFeatures) -> [f32; ACTION_DIM] {
+pub(crate) fn pursuit_action(rule: &PursuitRule, f: &PursuitFeatures) -> [f32; ACTION_DIM] {
     let weigh = |g: &PursuitGains, k: usize| {
         g.bias + g.nearest * f.nearest[k] + g.centre * f.centre[k] + g.isolated * f.isolated[k]
     };
@@ -173,7 +179,7 @@ pub fn pursuit_action(rule: &PursuitRule, f: &PursuitFeatures) -> [f32; ACTION_D
 }
 
 /// The agents of every species in `of` seen in `obs`, in one list.
-pub fn observed_of(
+pub(crate) fn observed_of(
     obs: &[f32],
     registry: &SpeciesRegistry,
     s: usize,

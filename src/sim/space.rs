@@ -18,7 +18,7 @@ impl Arena {
     }
 
     /// D, the largest possible distance between two agents (definition of DoS).
-    pub fn max_distance(&self) -> f64 {
+    pub(crate) fn max_distance(&self) -> f64 {
         scene::max_distance(self.boundary, self.edge)
     }
 
@@ -33,7 +33,7 @@ impl Arena {
 
     /// Periodic wrap (Appendix B): leaving one edge re-enters at the opposite one by the overshoot.
     /// Walls leave the position as it is (the wall force keeps bodies in).
-    pub fn wrap(&self, p: DVec2) -> DVec2 {
+    pub(crate) fn wrap(&self, p: DVec2) -> DVec2 {
         match self.boundary {
             Boundary::Walls => p,
             Boundary::Periodic => DVec2::new(wrap_coord(p.x, self.half()), wrap_coord(p.y, self.half())),
@@ -42,7 +42,7 @@ impl Arena {
 
     /// Hooke force of every wall a body of `radius` at `x` penetrates, plus damping on the normal
     /// velocity component, and the number of walls touched. Zero on the torus.
-    pub fn wall_contact(&self, x: DVec2, v: DVec2, radius: f64, stiffness: f64, damping: f64) -> (DVec2, u32) {
+    pub(crate) fn wall_contact(&self, x: DVec2, v: DVec2, radius: f64, stiffness: f64, damping: f64) -> (DVec2, u32) {
         if self.boundary == Boundary::Periodic {
             return (DVec2::ZERO, 0);
         }
@@ -75,7 +75,7 @@ pub fn min_image(d: f64, edge: f64) -> f64 {
 }
 
 /// Wraps one coordinate into [−half, half) by the overshoot. One step never moves more than an edge.
-pub fn wrap_coord(x: f64, half: f64) -> f64 {
+pub(crate) fn wrap_coord(x: f64, half: f64) -> f64 {
     if x >= half {
         x - 2.0 * half
     } else if x < -half {
@@ -108,7 +108,7 @@ const SORTED_RING_CELLS: usize = 24;
 
 impl CellGrid {
     /// Rebuilds the grid over `members`, which index `positions`.
-    pub fn rebuild(&mut self, arena: &Arena, positions: &[DVec2], members: std::ops::Range<usize>) {
+    pub(crate) fn rebuild(&mut self, arena: &Arena, positions: &[DVec2], members: std::ops::Range<usize>) {
         let n = members.len();
         let per_side = ((n as f64 / 2.0).sqrt().floor() as usize).clamp(1, 2048);
         self.cells_per_side = per_side;
@@ -170,7 +170,7 @@ impl CellGrid {
 
     /// Calls `f` with every member (index, position) that may lie within `radius` of `p` (a superset:
     /// callers check the distance). Each member at most once.
-    pub fn for_each_near(&self, p: DVec2, radius: f64, mut f: impl FnMut(u32, DVec2)) {
+    pub(crate) fn for_each_near(&self, p: DVec2, radius: f64, mut f: impl FnMut(u32, DVec2)) {
         let n = self.cells_per_side;
         let floor = |v: f64| {
             let t = v as isize;
@@ -202,7 +202,15 @@ impl CellGrid {
 
     /// The `k` members nearest to `p` within `radius` (distance as `arena.delta`), nearest first, ties
     /// broken by index, skipping `exclude`. `out` holds (squared distance, index).
-    pub fn k_nearest(&self, arena: &Arena, p: DVec2, k: usize, radius: f64, exclude: u32, out: &mut Vec<(f64, u32)>) {
+    pub(crate) fn k_nearest(
+        &self,
+        arena: &Arena,
+        p: DVec2,
+        k: usize,
+        radius: f64,
+        exclude: u32,
+        out: &mut Vec<(f64, u32)>,
+    ) {
         out.clear();
         if k == 0 || self.items.is_empty() {
             return;

@@ -13,26 +13,26 @@ use bevy::prelude::*;
 use std::sync::Arc;
 
 pub use crate::scene::catalog::SpeciesTemplate;
-pub use crate::scene::layout::{Layout, ACTION_DIM, NEIGHBOUR_DIM, OWN_STATE_DIM};
+pub(crate) use crate::scene::layout::{Layout, ACTION_DIM, NEIGHBOUR_DIM, OWN_STATE_DIM};
 
 /// The species of the scene, in registry order (which is also the order of observation blocks).
 #[derive(Resource, Clone, Debug)]
 pub struct SpeciesRegistry {
     pub defs: Vec<SpeciesDef>,
     /// `catches[a][b]`: species a catches species b on contact.
-    pub catches: Vec<Vec<bool>>,
+    pub(crate) catches: Vec<Vec<bool>>,
     /// Perception radius R in metres, resolved against D.
-    pub perception_radius: Vec<f64>,
+    pub(crate) perception_radius: Vec<f64>,
     /// `perception_radii[a][b]`: the radius within which species a perceives species b (R of a, unless
     /// a's `perception_of` names b).
-    pub perception_radii: Vec<Vec<f64>>,
+    pub(crate) perception_radii: Vec<Vec<f64>>,
     /// `blind[a][b]`: species a never sees species b (`blind_to`): its block of b stays zero.
-    pub blind: Vec<Vec<bool>>,
+    pub(crate) blind: Vec<Vec<bool>>,
     /// `contact_reward[a][b]`: (to the catcher, to the caught) per contact where a catches b; ±contact
     /// unless the scene's `contact_rewards` sets the pair.
-    pub contact_reward: Vec<Vec<(f64, f64)>>,
+    pub(crate) contact_reward: Vec<Vec<(f64, f64)>>,
     /// Where each part of species a's observation sits (its blocks' slots, the order of its parts).
-    pub layouts: Vec<Layout>,
+    pub(crate) layouts: Vec<Layout>,
 }
 
 impl SpeciesRegistry {
@@ -105,7 +105,7 @@ impl SpeciesRegistry {
     }
 
     /// The block of species `t` in the observation of species `s`.
-    pub fn block(&self, s: usize, t: usize) -> std::ops::Range<usize> {
+    pub(crate) fn block(&self, s: usize, t: usize) -> std::ops::Range<usize> {
         self.layouts[s].block(t)
     }
 
@@ -115,21 +115,21 @@ impl SpeciesRegistry {
     }
 
     /// How many agents of species `t` an agent of species `s` observes at most.
-    pub fn slots(&self, s: usize, t: usize) -> usize {
+    pub(crate) fn slots(&self, s: usize, t: usize) -> usize {
         self.layouts[s].slots[t]
     }
 
     /// The species whose DoS/DoA headline a run: the first that something catches and that catches nothing
     /// (the prey, also in a scene where hawks catch predators), else the first that something catches, else
     /// the first with at least two agents.
-    pub fn headline(&self) -> usize {
+    pub(crate) fn headline(&self) -> usize {
         self.headline_counting(true)
     }
 
     /// The headline species as the species define it, whatever their counts: [`SpeciesRegistry::headline`]
     /// without its "two or more" condition on caught species, so it never moves to another species when the
     /// prey are few (a step's reported DoS and DoA are then NaN, not the predators').
-    pub fn headline_by_kind(&self) -> usize {
+    pub(crate) fn headline_by_kind(&self) -> usize {
         self.headline_counting(false)
     }
 
@@ -144,7 +144,7 @@ impl SpeciesRegistry {
     }
 
     /// What decides the actions of species `s`.
-    pub fn policy(&self, s: usize) -> &Policy {
+    pub(crate) fn policy(&self, s: usize) -> &Policy {
         &self.defs[s].policy
     }
 
@@ -154,7 +154,7 @@ impl SpeciesRegistry {
     }
 
     /// Species that catch species `s`.
-    pub fn predators_of(&self, s: usize) -> impl Iterator<Item = usize> + '_ {
+    pub(crate) fn predators_of(&self, s: usize) -> impl Iterator<Item = usize> + '_ {
         (0..self.len()).filter(move |&t| self.catches[t][s])
     }
 }
@@ -230,21 +230,21 @@ impl SpeciesPlugins {
 
 /// The species templates of this program, read when scenes are resolved (scenes are read before any app
 /// exists, like the presets, so this is program-wide state, filled once at start-up).
-pub mod catalog {
+pub(crate) mod catalog {
     use super::SpeciesTemplate;
     use bevy::prelude::App;
     use std::sync::{Arc, RwLock};
 
-    pub use crate::scene::catalog::get;
+    pub(crate) use crate::scene::catalog::get;
 
     /// Adds a species plugin to an app.
-    pub type Builder = Arc<dyn Fn(&mut App) + Send + Sync>;
+    pub(crate) type Builder = Arc<dyn Fn(&mut App) + Send + Sync>;
 
     static BUILDERS: RwLock<Vec<Builder>> = RwLock::new(Vec::new());
 
     /// Adds a species (its template to the scenes' catalog, its systems to every app); the same template
     /// again is a no-op, another one of the same name an error.
-    pub fn insert(t: SpeciesTemplate, build: Builder) -> crate::error::Result<()> {
+    pub(crate) fn insert(t: SpeciesTemplate, build: Builder) -> crate::error::Result<()> {
         if crate::scene::catalog::insert(t)? {
             BUILDERS.write().unwrap_or_else(|e| e.into_inner()).push(build);
         }
@@ -253,7 +253,7 @@ pub mod catalog {
 
     /// Adds every registered species plugin to an app (what [`crate::sim::SimulationPlugin`] does); their
     /// systems find their species in the registry and do nothing in a scene without it.
-    pub fn build_plugins(app: &mut App) {
+    pub(crate) fn build_plugins(app: &mut App) {
         let builders: Vec<Builder> = BUILDERS.read().unwrap_or_else(|e| e.into_inner()).clone();
         for b in builders {
             b(app);

@@ -9,14 +9,14 @@ use std::time::Instant;
 
 /// `--screenshot PATH --frames N`.
 #[derive(Clone, Debug)]
-pub struct ScreenshotRequest {
-    pub path: PathBuf,
-    pub frames: usize,
+pub(crate) struct ScreenshotRequest {
+    pub(crate) path: PathBuf,
+    pub(crate) frames: usize,
 }
 
 /// Screenshots to take this frame.
 #[derive(Resource, Default)]
-pub struct ScreenshotQueue(pub Vec<PathBuf>);
+pub(crate) struct ScreenshotQueue(pub Vec<PathBuf>);
 
 /// The `--screenshot` run: frames rendered, when the frame-rate window began, and the save's outcome.
 #[derive(Resource)]
@@ -33,8 +33,8 @@ const WARM_UP_FRAMES: usize = 10;
 /// Frames to wait for a requested screenshot before giving up.
 const SAVE_TIMEOUT_FRAMES: usize = 600;
 
-pub struct CapturePlugin {
-    pub request: Option<ScreenshotRequest>,
+pub(crate) struct CapturePlugin {
+    pub(crate) request: Option<ScreenshotRequest>,
 }
 
 impl Plugin for CapturePlugin {
@@ -53,7 +53,7 @@ impl Plugin for CapturePlugin {
 }
 
 /// `screenshots/coevo-<unix seconds>.png`.
-pub fn timestamped_path() -> PathBuf {
+pub(crate) fn timestamped_path() -> PathBuf {
     let secs = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_secs());
     PathBuf::from(format!("screenshots/coevo-{secs}.png"))
 }

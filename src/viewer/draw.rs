@@ -23,9 +23,9 @@ use bevy_egui::input::EguiWantsInput;
 use std::collections::VecDeque;
 
 /// Around the arena and behind the panels.
-pub const OUTSIDE: Color = Color::srgb(0.13, 0.13, 0.15);
+pub(crate) const OUTSIDE: Color = Color::srgb(0.13, 0.13, 0.15);
 /// The arena floor (the paper's figures are on white).
-pub const FLOOR: Color = Color::srgb(0.98, 0.98, 0.97);
+pub(crate) const FLOOR: Color = Color::srgb(0.98, 0.98, 0.97);
 const WALL: Color = Color::srgb(0.42, 0.42, 0.46);
 const SEAM: Color = Color::srgba(0.5, 0.5, 0.55, 0.5);
 const CATCH: Color = Color::srgb(0.85, 0.05, 0.1);
@@ -37,16 +37,16 @@ const MARGIN: f32 = 0.04;
 
 /// What the overlays show.
 #[derive(Resource, Clone, Debug)]
-pub struct Overlays {
-    pub trails: bool,
+pub(crate) struct Overlays {
+    pub(crate) trails: bool,
     /// Trail length in steps.
-    pub trail_length: usize,
-    pub catches: bool,
-    pub perception: bool,
+    pub(crate) trail_length: usize,
+    pub(crate) catches: bool,
+    pub(crate) perception: bool,
     /// The rule of the selected agent where it is now: how it would turn with one more agent of species
     /// `rule_of` at each place around it (its response field amid its current observation).
-    pub rule: bool,
-    pub rule_of: usize,
+    pub(crate) rule: bool,
+    pub(crate) rule_of: usize,
 }
 
 /// The gizmos of the rule overlay ([`draw_rule`]): thicker lines, so its hatched cells read as filled.
@@ -55,18 +55,18 @@ struct RuleGizmos;
 
 /// The selected agent, by id so that it stays selected across respawns.
 #[derive(Resource, Default, Clone, Copy, Debug)]
-pub struct Selection(pub Option<AgentId>);
+pub(crate) struct Selection(pub Option<AgentId>);
 
 /// Room the egui panels take at the window's edges, in logical pixels (written by the panel).
 #[derive(Resource, Default, Clone, Copy, Debug)]
-pub struct PanelSpace {
-    pub left: f32,
-    pub right: f32,
+pub(crate) struct PanelSpace {
+    pub(crate) left: f32,
+    pub(crate) right: f32,
 }
 
 /// Past positions of an agent, newest last.
 #[derive(Component, Default)]
-pub struct Trail(pub VecDeque<DVec2>);
+pub(crate) struct Trail(pub VecDeque<DVec2>);
 
 /// A periodic image of a body near an edge; `heading` is its heading line's entity.
 #[derive(Component)]
@@ -87,10 +87,10 @@ struct Looks {
     heading: Vec<Handle<ColorMaterial>>,
 }
 
-pub struct DrawPlugin {
-    pub trails: bool,
-    pub select: Option<u32>,
-    pub rule_of: Option<usize>,
+pub(crate) struct DrawPlugin {
+    pub(crate) trails: bool,
+    pub(crate) select: Option<u32>,
+    pub(crate) rule_of: Option<usize>,
 }
 
 impl Plugin for DrawPlugin {
@@ -200,7 +200,7 @@ fn dress_scene(
 }
 
 /// A species' colour as its scene gives it (sRGB).
-pub fn species_colour(c: [f32; 3]) -> Color {
+pub(crate) fn species_colour(c: [f32; 3]) -> Color {
     Color::srgb(c[0], c[1], c[2])
 }
 
@@ -403,7 +403,7 @@ fn wrapped_circle(gizmos: &mut Gizmos, arena: &Arena, centre: DVec2, radius: f64
 }
 
 /// After each step: appends every agent's position to its trail (when trails are shown).
-pub fn record_trails(world: &mut World) {
+pub(crate) fn record_trails(world: &mut World) {
     let overlays = world.resource::<Overlays>().clone();
     if !overlays.trails {
         return;

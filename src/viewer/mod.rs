@@ -20,13 +20,13 @@
 // tuples: both lints flag the ordinary shape of a system.
 #![allow(clippy::too_many_arguments, clippy::type_complexity)]
 
-pub mod args;
+pub(crate) mod args;
 mod capture;
 mod draw;
 mod panel;
 mod plots;
-pub mod schedule;
-pub mod setup;
+pub(crate) mod schedule;
+pub(crate) mod setup;
 
 use crate::learning::{Learners, LearningPlugin, Mode};
 use crate::run::live::LiveRun;
@@ -41,35 +41,35 @@ use bevy_egui::EguiPlugin;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
-pub use capture::ScreenshotRequest;
-pub use schedule::ViewerSet;
+pub(crate) use capture::ScreenshotRequest;
+pub(crate) use schedule::ViewerSet;
 pub use setup::{run_folders, scene_files, Control, Playback, RunMode, Setup};
 
 /// Command-line options of the viewer.
 #[derive(Clone, Debug)]
-pub struct ViewerOptions {
-    pub setup: Setup,
-    pub window: UVec2,
-    pub steps_per_frame: usize,
-    pub paused: bool,
+pub(crate) struct ViewerOptions {
+    pub(crate) setup: Setup,
+    pub(crate) window: UVec2,
+    pub(crate) steps_per_frame: usize,
+    pub(crate) paused: bool,
     /// Start in "as fast as possible".
-    pub fast: bool,
-    pub trails: bool,
+    pub(crate) fast: bool,
+    pub(crate) trails: bool,
     /// The agent selected at start, by id.
-    pub select: Option<u32>,
+    pub(crate) select: Option<u32>,
     /// Show the selected agent's rule against this species (its index) from the start.
-    pub rule_of: Option<usize>,
+    pub(crate) rule_of: Option<usize>,
     /// Render this many frames, save a PNG and exit.
-    pub screenshot: Option<ScreenshotRequest>,
+    pub(crate) screenshot: Option<ScreenshotRequest>,
     /// Live training: save the run into this folder when the current episode ends.
-    pub save_run: Option<PathBuf>,
+    pub(crate) save_run: Option<PathBuf>,
 }
 
 /// Wall-clock time spent stepping per frame in "as fast as possible": the rest of the frame draws.
 const FAST_FRAME_BUDGET: Duration = Duration::from_millis(40);
 
-pub struct ViewerPlugin {
-    pub options: ViewerOptions,
+pub(crate) struct ViewerPlugin {
+    pub(crate) options: ViewerOptions,
 }
 
 impl Plugin for ViewerPlugin {
@@ -113,7 +113,7 @@ impl Plugin for ViewerPlugin {
 }
 
 /// Opens the window and runs until it is closed (or the screenshot is saved).
-pub fn run(options: ViewerOptions) -> crate::error::Result<()> {
+pub(crate) fn run(options: ViewerOptions) -> crate::error::Result<()> {
     // Refuse a bad scene or checkpoint before a window opens.
     let (scene, learners) = options.setup.prepare()?;
     let mut window = Window {
@@ -376,7 +376,7 @@ fn step(world: &mut World) {
 
 impl args::ViewerArgs {
     /// Opens the window as the flags say.
-    pub fn main(
+    pub(crate) fn main(
         &self,
         draw: &crate::run::animate::AnimateArgs,
         shared: &crate::run::args::Shared,

@@ -16,47 +16,47 @@ const RUNNING_MEAN: usize = 100;
 
 /// What the plots show, collected after every step.
 #[derive(Resource, Default, Debug)]
-pub struct History {
+pub(crate) struct History {
     /// Per finished episode: [episode, DoS], [episode, DoA], [episode, catches].
-    pub dos: Vec<[f64; 2]>,
-    pub doa: Vec<[f64; 2]>,
-    pub catches: Vec<[f64; 2]>,
+    pub(crate) dos: Vec<[f64; 2]>,
+    pub(crate) doa: Vec<[f64; 2]>,
+    pub(crate) catches: Vec<[f64; 2]>,
     /// Within the current episode, step by step.
-    pub steps: StepCurves,
+    pub(crate) steps: StepCurves,
     /// The last finished episode's (its index), shown "as fast as possible".
-    pub last_steps: Option<(usize, StepCurves)>,
+    pub(crate) last_steps: Option<(usize, StepCurves)>,
     /// Chance levels of the headline species at the density of this world: (its count, DoS of uniform
     /// random positions at that count); DoA's is 2/π at any count.
-    pub chance: Option<(usize, Option<f64>)>,
+    pub(crate) chance: Option<(usize, Option<f64>)>,
     /// Watching a run: how many of the headline species it trained with (its training curves' density).
-    pub trained_count: Option<usize>,
+    pub(crate) trained_count: Option<usize>,
     /// Watching a run: its training curves from its `metrics.csv` ([episode, value] for DoS, DoA,
     /// catches), shown before the episodes watched here.
-    pub training: Option<[Vec<[f64; 2]>; 3]>,
+    pub(crate) training: Option<[Vec<[f64; 2]>; 3]>,
     /// Watching a run that was cross-played: every snapshot's rating per species ([episode, rating],
     /// `crossplay-ratings.csv`), the arms race over training.
-    pub ratings: Option<Vec<(String, Vec<[f64; 2]>)>>,
+    pub(crate) ratings: Option<Vec<(String, Vec<[f64; 2]>)>>,
 }
 
 /// One episode's order parameters, step by step: [step, value].
 #[derive(Default, Debug, Clone)]
-pub struct StepCurves {
-    pub dos: Vec<[f64; 2]>,
-    pub doa: Vec<[f64; 2]>,
-    pub polarization: Vec<[f64; 2]>,
-    pub milling: Vec<[f64; 2]>,
-    pub largest_cluster: Vec<[f64; 2]>,
-    pub nn_correlation: Vec<[f64; 2]>,
+pub(crate) struct StepCurves {
+    pub(crate) dos: Vec<[f64; 2]>,
+    pub(crate) doa: Vec<[f64; 2]>,
+    pub(crate) polarization: Vec<[f64; 2]>,
+    pub(crate) milling: Vec<[f64; 2]>,
+    pub(crate) largest_cluster: Vec<[f64; 2]>,
+    pub(crate) nn_correlation: Vec<[f64; 2]>,
 }
 
 impl History {
-    pub fn clear(&mut self) {
+    pub(crate) fn clear(&mut self) {
         *self = History::default();
     }
 
     /// A new episode starts (or the population changed): its curves start empty. A finished episode's
     /// (`finished`: its index) are kept as the last one.
-    pub fn start_episode(&mut self, finished: Option<usize>) {
+    pub(crate) fn start_episode(&mut self, finished: Option<usize>) {
         let steps = std::mem::take(&mut self.steps);
         if let Some(episode) = finished.filter(|_| !steps.dos.is_empty()) {
             self.last_steps = Some((episode, steps));
@@ -64,7 +64,7 @@ impl History {
     }
 }
 
-pub struct PlotsPlugin;
+pub(crate) struct PlotsPlugin;
 
 impl Plugin for PlotsPlugin {
     fn build(&self, app: &mut App) {
@@ -73,7 +73,7 @@ impl Plugin for PlotsPlugin {
 }
 
 /// After a step: the step's DoS/DoA, and any episode that just ended.
-pub fn record_step(world: &mut World) {
+pub(crate) fn record_step(world: &mut World) {
     let prey = world.resource::<SpeciesRegistry>().headline();
     let ended = std::mem::take(&mut world.resource_mut::<EpisodeLog>().episodes);
     let step = world.resource::<Episode>().step as f64;
@@ -107,7 +107,7 @@ pub fn record_step(world: &mut World) {
 }
 
 /// Running mean over the last `window` points (fewer at the start).
-pub fn running_mean(points: &[[f64; 2]], window: usize) -> Vec<[f64; 2]> {
+pub(crate) fn running_mean(points: &[[f64; 2]], window: usize) -> Vec<[f64; 2]> {
     let values: Vec<f64> = points.iter().map(|p| p[1]).collect();
     points.iter().zip(crate::sim::metrics::running_mean(&values, window)).map(|(p, m)| [p[0], m]).collect()
 }
@@ -137,7 +137,7 @@ const CATCHES: egui::Color32 = egui::Color32::from_rgb(200, 40, 40);
 
 /// Reads a watched run's training curves of `species` (DoS, DoA, catches per episode) from its
 /// `metrics.csv`; None when it has none to show.
-pub fn training_curves(run: &std::path::Path, species: &str) -> Option<[Vec<[f64; 2]>; 3]> {
+pub(crate) fn training_curves(run: &std::path::Path, species: &str) -> Option<[Vec<[f64; 2]>; 3]> {
     use crate::run::schema::{self, Table};
     let table = Table::read(&crate::run::RunDir::new(run).metrics()).ok()?;
     let column = |name: &str| -> Option<Vec<[f64; 2]>> {
@@ -148,7 +148,7 @@ pub fn training_curves(run: &std::path::Path, species: &str) -> Option<[Vec<[f64
 }
 
 /// How many of `species` a watched run trained with (its `scene.ron`); None without one.
-pub fn trained_count(run: &std::path::Path, species: &str) -> Option<usize> {
+pub(crate) fn trained_count(run: &std::path::Path, species: &str) -> Option<usize> {
     let scene = crate::scene::Scene::load(&crate::run::RunDir::new(run).scene()).ok()?;
     scene.species.iter().find(|d| d.name == species).map(|d| d.count)
 }
@@ -172,7 +172,7 @@ const GRID_MIN_PX: f64 = 8.0;
 /// 1, 2, 5 × 10^k) spaced at least `label_px` pixels apart, so that every tick is labelled at any plot
 /// size (egui_plot's default ticks step in powers of ten, and a 300 px plot of 900 episodes then labels
 /// only 0); thinner unlabelled grid lines at a fifth of the step.
-pub fn ticks(label_px: f64, whole: bool) -> impl Fn(GridInput) -> Vec<GridMark> {
+pub(crate) fn ticks(label_px: f64, whole: bool) -> impl Fn(GridInput) -> Vec<GridMark> {
     move |input: GridInput| {
         let per_px = input.base_step_size / GRID_MIN_PX;
         let (lo, hi) = input.bounds;
@@ -232,7 +232,7 @@ fn plot(id: &str, height: f32, x: &str, whole_x: bool, y: &str) -> Plot<'static>
 }
 
 /// Chance levels are drawn dashed in this near-white, which nothing else inside a plot uses.
-pub const CHANCE: egui::Color32 = egui::Color32::from_rgb(225, 225, 225);
+pub(crate) const CHANCE: egui::Color32 = egui::Color32::from_rgb(225, 225, 225);
 
 /// The chance lines of a DoS/DoA plot: DoA 2/π (random headings), DoS of uniform random positions at the
 /// density shown.
@@ -256,7 +256,7 @@ fn chance_key(ui: &mut egui::Ui, h: &History) {
 /// The plots, stacked, each with labelled axes and its key above it, sized to fit the window's height
 /// below where they start (never under 170 px each, about 130 of them the frame: then the panel scrolls). `fast`: "as fast as
 /// possible", where the step plot shows the last finished episode.
-pub fn show(ui: &mut egui::Ui, h: &History, species: &str, fast: bool) {
+pub(crate) fn show(ui: &mut egui::Ui, h: &History, species: &str, fast: bool) {
     let plots = if h.ratings.is_some() { 4.0 } else { 3.0 };
     // Each plot's title, key and spacing take about 56 px above and below its frame.
     let below = ui.clip_rect().bottom() - ui.cursor().top();

@@ -5,7 +5,7 @@ use bevy::prelude::*;
 
 /// The stages of a viewer frame, in order.
 #[derive(SystemSet, Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum ViewerSet {
+pub(crate) enum ViewerSet {
     Control,
     Step,
     Draw,

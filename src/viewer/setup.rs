@@ -21,7 +21,7 @@ pub enum RunMode {
 }
 
 impl RunMode {
-    pub fn label(&self) -> String {
+    pub(crate) fn label(&self) -> String {
         match self {
             RunMode::LiveTraining => "live training".into(),
             RunMode::Watch(run) => format!("watching {}", run.display()),
@@ -80,40 +80,40 @@ impl Setup {
 /// Play, pause and pace.
 #[derive(Resource, Clone, Debug)]
 pub struct Playback {
-    pub playing: bool,
+    pub(crate) playing: bool,
     /// Fixed steps per rendered frame.
-    pub steps_per_frame: usize,
+    pub(crate) steps_per_frame: usize,
     /// Step for `FAST_FRAME_BUDGET` per frame instead (live training at full speed, still drawn).
-    pub as_fast_as_possible: bool,
+    pub(crate) as_fast_as_possible: bool,
     /// One step on the next frame, even when paused.
-    pub step_once: bool,
+    pub(crate) step_once: bool,
     /// Steps per second of wall-clock time, measured over the last frames.
-    pub steps_per_second: f64,
-    pub total_steps: u64,
+    pub(crate) steps_per_second: f64,
+    pub(crate) total_steps: u64,
 }
 
 /// What runs now and what the panel asked for.
 #[derive(Resource, Clone, Debug)]
 pub struct Control {
-    pub current: Setup,
+    pub(crate) current: Setup,
     /// Applied at the start of the next frame (a restart with new learners).
-    pub restart: Option<Setup>,
+    pub(crate) restart: Option<Setup>,
     /// New counts per species: respawn now, keep the learners (the networks do not depend on counts).
-    pub respawn: Option<Vec<usize>>,
+    pub(crate) respawn: Option<Vec<usize>>,
     /// The last thing that could not be done, shown in the panel until the next success.
-    pub error: Option<String>,
+    pub(crate) error: Option<String>,
     /// Live training: the folder the panel offers to save the run into, and the save asked for, done when
     /// the current episode ends (a run is saved between episodes, as `--train` checkpoints it).
-    pub save_folder: String,
-    pub save_pending: Option<PathBuf>,
+    pub(crate) save_folder: String,
+    pub(crate) save_pending: Option<PathBuf>,
     /// `--save-run`: the folder the whole live run is kept in. Once the first save has made it, every
     /// episode's metrics row, snapshot and checkpoint go there as `--train` writes them, until the window
     /// closes or the world restarts.
-    pub keep_in: Option<PathBuf>,
+    pub(crate) keep_in: Option<PathBuf>,
     /// Set when the first save into `keep_in` succeeded.
-    pub keeping: bool,
+    pub(crate) keeping: bool,
     /// What was last saved, shown in the panel.
-    pub notice: Option<String>,
+    pub(crate) notice: Option<String>,
 }
 
 /// The folder the panel offers for saving a live run of `setup`: `runs/live-<scene>-seed<seed>`.
