@@ -64,21 +64,15 @@ impl Pass {
             // z first and accumulating the product onto it (one product pass at these sizes, and
             // b + s = s + b exactly), without a copy of b into every row.
             let w = layer.weight.as_slice();
+            let wt: (*const f32, (usize, usize)) = match super::nets::direct() {
+                true => (net.transposed(l).as_ptr(), (outputs, 1)),
+                false => (w.as_ptr(), (1, inputs)),
+            };
             // SAFETY: every pointer and stride below addresses only the buffers' own extents:
-            // z is rows × outputs, x is rows × inputs, Wᵀ is read as inputs × outputs from W (outputs × inputs).
+            // z is rows × outputs, x is rows × inputs, Wᵀ is read as inputs × outputs from W (outputs × inputs)
+            // or from its transposed copy.
             unsafe {
-                product(
-                    rows,
-                    outputs,
-                    inputs,
-                    z.as_mut_ptr(),
-                    outputs,
-                    false,
-                    x.as_ptr(),
-                    (inputs, 1),
-                    w.as_ptr(),
-                    (1, inputs),
-                );
+                product(rows, outputs, inputs, z.as_mut_ptr(), outputs, false, x.as_ptr(), (inputs, 1), wt.0, wt.1);
             }
             let bias = layer.bias.as_slice();
             let rows_of = |z: &mut [f32], f: fn(f32) -> f32| {
@@ -202,7 +196,7 @@ impl Pass {
 /// # Safety
 /// Every element the strides address must lie inside the pointed-to buffers.
 #[allow(clippy::too_many_arguments)]
-unsafe fn product(
+pub(crate) unsafe fn product(
     m: usize,
     n: usize,
     k: usize,
@@ -214,6 +208,12 @@ unsafe fn product(
     rhs: *const f32,
     (rhs_rs, rhs_cs): (usize, usize),
 ) {
+    #[cfg(target_arch = "x86_64")]
+    if super::nets::direct() && rhs_cs == 1 && n <= super::direct::MAX_WIDTH && !accumulate {
+        // SAFETY: the family is chosen only on a CPU with AVX-512F; the extents are the caller's.
+        unsafe { super::direct::product(m, n, k, dst, dst_rs, lhs, (lhs_rs, lhs_cs), rhs, rhs_rs) };
+        return;
+    }
     gemm::gemm(
         m,
         n,

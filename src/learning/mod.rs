@@ -15,6 +15,7 @@
 pub mod checkpoint;
 pub mod control;
 pub mod ddpg;
+pub(crate) mod direct;
 pub(crate) mod files;
 pub(crate) mod fused;
 pub(crate) mod league;

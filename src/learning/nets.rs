@@ -16,6 +16,9 @@ pub type Dev = Cpu;
 /// across families they may differ in the last bits, so a run records its family (`provenance.ron`) and
 /// is resumed only on the same one.
 pub(crate) fn kernels() -> &'static str {
+    if direct() {
+        return "avx512-direct";
+    }
     #[cfg(target_arch = "x86_64")]
     {
         use gemm_common::kernel_cap::{get, AUTO, AVX2_FMA};
@@ -30,7 +33,15 @@ pub(crate) fn kernels() -> &'static str {
 }
 
 /// The families `--kernels` and `COEVO_KERNELS` accept.
-pub(crate) const KERNEL_CHOICES: &str = "auto, avx512, avx2 or portable";
+pub(crate) const KERNEL_CHOICES: &str = "auto, avx512, avx512-direct, avx2 or portable";
+
+/// Whether the update's products run on coevo's own AVX-512 kernels (`super::direct`) instead of gemm's.
+static DIRECT: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+/// Whether this process runs the `avx512-direct` family.
+pub(crate) fn direct() -> bool {
+    DIRECT.load(std::sync::atomic::Ordering::Relaxed)
+}
 
 /// Pins the kernel family (`auto`, `avx512`, `avx2`, `portable`), so that machines with different CPUs
 /// compute identical runs: e.g. `avx2` on a cluster whose nodes only partly have AVX-512. gemm fixes its
@@ -43,6 +54,11 @@ pub(crate) fn pin_kernels(family: &str) -> Result<(), String> {
     #[cfg(not(target_arch = "x86_64"))]
     let (avx512, fma) = (false, false);
     let cap = match family {
+        "avx512-direct" if super::direct::available() => {
+            DIRECT.store(true, std::sync::atomic::Ordering::Relaxed);
+            AUTO
+        }
+        "avx512-direct" => return Err(format!("this CPU cannot run the {family} kernels (it runs {})", kernels())),
         "auto" => AUTO,
         "avx512" if avx512 => AUTO,
         "avx2" | "avx2-fma" if fma => AVX2_FMA,
@@ -96,6 +112,10 @@ pub(crate) enum Output {
 pub struct Mlp {
     pub(crate) layers: Vec<Dense>,
     pub(crate) output: Output,
+    /// Each layer's Wᵀ (inputs × outputs), which the `avx512-direct` forward pass multiplies by: made at
+    /// the first forward pass after the parameters last changed. Every change goes through
+    /// [`Mlp::parameters_mut`] or [`Mlp::set_parameters`], which drop it.
+    transposed: std::sync::OnceLock<Vec<Vec<f32>>>,
 }
 
 impl Mlp {
@@ -113,7 +133,7 @@ impl Mlp {
                 }
             })
             .collect();
-        Mlp { layers, output }
+        Mlp { layers, output, transposed: std::sync::OnceLock::new() }
     }
 
     pub(crate) fn input_width(&self) -> usize {
@@ -154,6 +174,7 @@ impl Mlp {
 
     /// Overwrites every parameter from flat vectors in `parameters()` order.
     pub fn set_parameters(&mut self, values: &[Vec<f32>]) {
+        self.transposed = std::sync::OnceLock::new();
         for (l, pair) in self.layers.iter_mut().zip(values.chunks(2)) {
             l.weight.copy_from(&pair[0]);
             l.bias.copy_from(&pair[1]);
@@ -162,7 +183,27 @@ impl Mlp {
 
     /// Every parameter in place, in `parameters()` order.
     pub(crate) fn parameters_mut(&mut self) -> impl Iterator<Item = &mut [f32]> {
+        self.transposed = std::sync::OnceLock::new();
         self.layers.iter_mut().flat_map(|l| [l.weight.as_mut_slice(), l.bias.as_mut_slice()])
+    }
+
+    /// Layer `l`'s Wᵀ, laid out (inputs × outputs).
+    pub(crate) fn transposed(&self, l: usize) -> &[f32] {
+        &self.transposed.get_or_init(|| {
+            self.layers
+                .iter()
+                .map(|layer| {
+                    let (inputs, outputs) = (layer.inputs(), layer.outputs());
+                    let w = layer.weight.as_slice();
+                    let mut t = vec![0.0; w.len()];
+                    for (i, column) in t.chunks_exact_mut(outputs).enumerate() {
+                        column.iter_mut().zip(w[i..].iter().step_by(inputs)).for_each(|(t, &w)| *t = w);
+                    }
+                    debug_assert_eq!(inputs * outputs, w.len());
+                    t
+                })
+                .collect()
+        })[l]
     }
 
     /// Every parameter read in place, in `parameters()` order.

@@ -183,6 +183,46 @@ pub(crate) fn print(figures: &[Figure]) -> crate::error::Result<()> {
     Ok(())
 }
 
+/// The update's largest product, a batch of 256 through a 64-wide layer (256 × 64 × 64), on this process's
+/// kernel family, beside the core's fused multiply-add peak: how far faster kernels could go.
+fn products(budget: Duration) -> Vec<Figure> {
+    let (m, n, k) = (256, 64, 64);
+    let (x, w) = (vec![0.5f32; m * k], vec![0.25f32; k * n]);
+    let mut z = vec![0.0f32; m * n];
+    let flop = 2.0 * (m * n * k) as f64 / 1e9;
+    let mut figures = vec![Figure {
+        label: format!("matrix product {m} × {k} · {k} × {n} ({} kernels)", crate::learning::nets::kernels()),
+        per_second: flop
+            * per_second(budget, 20, || {
+                // SAFETY: z is m × n, x m × k, w k × n, all row-major.
+                unsafe {
+                    crate::learning::fused::product(
+                        m,
+                        n,
+                        k,
+                        z.as_mut_ptr(),
+                        n,
+                        false,
+                        x.as_ptr(),
+                        (k, 1),
+                        w.as_ptr(),
+                        (n, 1),
+                    )
+                };
+                std::hint::black_box(&mut z);
+            }),
+        unit: "GFLOP/s",
+    }];
+    if let Some(peak) = crate::learning::direct::fma_peak(budget) {
+        figures.push(Figure {
+            label: "this core's fused multiply-add peak (12 independent chains)".into(),
+            per_second: peak / 1e9,
+            unit: "GFLOP/s",
+        });
+    }
+    figures
+}
+
 /// Learning figures: one DDPG update per species at batch 256, batched actor inference, and a policy
 /// (evaluation mode: one batched forward pass per species per step) driving 3 + 10 000 agents.
 pub(crate) fn learning(budget: Duration) -> Vec<Figure> {
@@ -194,13 +234,14 @@ pub(crate) fn learning(budget: Duration) -> Vec<Figure> {
     let mut ddpg = Ddpg::new(&dev, 54, &params, &mut rng);
     let mut draw = |k: usize| (0..k).map(|_| rng.gen_range(-1.0f32..1.0)).collect::<Vec<f32>>();
     let batch = Batch { n: 256, obs: draw(256 * 54), actions: draw(512), rewards: draw(256), next_obs: draw(256 * 54) };
-    let mut figures = vec![Figure {
+    let mut figures = products(budget);
+    figures.push(Figure {
         label: "DDPG update (critic + actor + soft update), batch 256, d_o 54".into(),
         per_second: per_second(budget, 20, || {
             ddpg.update(&batch);
         }),
         unit: "updates/s",
-    }];
+    });
     for n in [13, 50, 1_000, 10_000] {
         let (obs, mut actions) = (draw(n * 54), vec![0.0; n * 2]);
         figures.push(Figure {
