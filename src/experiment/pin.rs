@@ -102,12 +102,7 @@ pub(crate) fn executable(exp: &super::Experiment, given: Option<&Path>) -> Resul
     let this = crate::run::provenance::binary();
     let Some(pin) = &exp.pin else {
         if given.is_some() {
-            return Err(format!(
-                "--pinned-binary: {} is not pinned (it has no {})",
-                exp.file.display(),
-                Pin::path(&exp.root).display()
-            )
-            .into());
+            return Err(not_pinned(exp));
         }
         return Ok(Executable { path: me, blake3: this.to_string(), kernels: crate::learning::nets::kernels().into() });
     };
@@ -138,6 +133,12 @@ pub(crate) fn executable(exp: &super::Experiment, given: Option<&Path>) -> Resul
         )?;
     }
     Ok(Executable { path, blake3, kernels: pin.kernels.clone() })
+}
+
+/// The refusal of `--pinned-binary` for an experiment that is not pinned.
+pub(crate) fn not_pinned(exp: &super::Experiment) -> crate::error::Error {
+    format!("--pinned-binary: {} is not pinned (it has no {})", exp.file.display(), Pin::path(&exp.root).display())
+        .into()
 }
 
 /// The first 16 hexadecimal digits of a file's BLAKE3 hash (how provenance names an executable).

@@ -312,12 +312,24 @@ fn prepare(exp: &Experiment) -> crate::error::Result<()> {
 pub(crate) fn run(exp: &Experiment, opts: &RunnerOptions, only: Option<usize>) -> crate::error::Result<()> {
     // Runs finished on another machine: their rows are committed, and aggregation carries them.
     let elsewhere = super::carry::finished_elsewhere(exp)?;
-    // The executable that makes the runs: this one, or the pinned commit's verified rebuild.
-    let exe = super::pin::executable(exp, opts.pinned_binary.as_deref())?;
+    if opts.pinned_binary.is_some() && exp.pin.is_none() {
+        return Err(super::pin::not_pinned(exp));
+    }
+    let done = |i: usize| elsewhere.contains_key(&i) || finished(exp, &exp.runs[i]);
+    let pending = match only {
+        Some(i) => i < exp.runs.len() && !done(i),
+        None => (0..exp.runs.len()).any(|i| !done(i)),
+    };
+    // The executable that makes the runs: this one, or the pinned commit's verified rebuild; none when
+    // every run is made (a pinned experiment is not rebuilt to run nothing).
+    let exe = match pending {
+        true => Some(super::pin::executable(exp, opts.pinned_binary.as_deref())?),
+        false => None,
+    };
     // They are carried only beside runs of the same binary, on the same family of matrix-product kernels
     // (this machine's, or the one pinned): continuing them otherwise is refused now, not after hours of
     // runs that aggregation would then refuse to mix with them.
-    if !exp.spec.mixed_binaries {
+    if let Some(exe) = exe.as_ref().filter(|_| !exp.spec.mixed_binaries) {
         let (me, kernels) = (exe.blake3.as_str(), exe.kernels.as_str());
         let key = |i: usize| super::figure_data::key(&exp.runs[i]);
         let pin = exp.pin.as_ref();
@@ -345,7 +357,6 @@ pub(crate) fn run(exp: &Experiment, opts: &RunnerOptions, only: Option<usize>) -
         }
     }
     prepare(exp)?;
-    let done = |i: usize| elsewhere.contains_key(&i) || finished(exp, &exp.runs[i]);
     // The claims are recorded before the runs they are judged on (the registry flags later edits).
     let unfinished = |variant: &str| (0..exp.runs.len()).any(|i| exp.runs[i].variant == variant && !done(i));
     super::registry::record(exp, &unfinished)?;
@@ -391,7 +402,8 @@ pub(crate) fn run(exp: &Experiment, opts: &RunnerOptions, only: Option<usize>) -
                     continue;
                 }
                 // The cores are shared among the runs at a time (one run alone updates its species on all).
-                match complete_run(exp, run, &exe, crate::parallel::threads() / opts.jobs.max(1)) {
+                let exe = exe.as_ref().expect("resolved: a run is pending");
+                match complete_run(exp, run, exe, crate::parallel::threads() / opts.jobs.max(1)) {
                     Ok(()) => bar.inc(1),
                     Err(e) => {
                         bar.println(format!("coevo: {e}"));

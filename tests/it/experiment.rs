@@ -553,13 +553,17 @@ fn a_tiny_experiment_runs_resumes_and_gives_the_same_summary_at_one_or_two_jobs(
         stderr.contains("runs of more than one binary (the committed paper/1:1/seed1 by 0123456789abcdef"),
         "{stderr}"
     );
-    // The runner refuses to continue them with another binary before running anything.
+    // The runner refuses to continue them with another binary before running anything (a fourth seed
+    // gives it a run to make: with none, it makes nothing and aggregation refuses as above).
+    let with_seed_4 = TINY.replacen("seeds: [1, 2],", "seeds: [1, 2, 3, 4],", 1);
+    std::fs::write(&tiny, &with_seed_4).unwrap();
     let stderr = refused(one.path(), &["--experiment", "experiments/tiny.ron", "--quiet"]);
     assert!(
         stderr.contains("the committed run paper/1:1/seed1 was made by the coevo binary 0123456789abcdef"),
         "{stderr}"
     );
     assert!(!one.path().join("results/tiny/paper/1-1").exists(), "nothing written");
+    std::fs::write(&tiny, TINY.replacen("seeds: [1, 2],", "seeds: [1, 2, 3],", 1)).unwrap();
     std::fs::write(&summary, &ledger).unwrap();
     // Nor are rows committed from runs on another family of matrix-product kernels (the same binary
     // computes other numbers there): refused by aggregation, and by the runner before anything runs.
@@ -580,6 +584,7 @@ fn a_tiny_experiment_runs_resumes_and_gives_the_same_summary_at_one_or_two_jobs(
         )),
         "{stderr}"
     );
+    std::fs::write(&tiny, &with_seed_4).unwrap();
     let stderr = refused(one.path(), &["--experiment", "experiments/tiny.ron", "--quiet"]);
     assert!(
         stderr.contains(&format!(
