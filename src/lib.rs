@@ -29,7 +29,8 @@
 //!   writes.
 //! - **A downstream crate** training and evaluating: [`run::train`] (`train`, `resume`, `TrainOptions`),
 //!   [`run::evaluate`], [`run::animate`], [`learning`] (`Learners`, `Mode`, `simulation`), [`sim::metrics`]
-//!   and [`experiment::Experiment`] with its crossplay, distillation and summary readers.
+//!   and [`experiment::Experiment`] with its crossplay, distillation and summary readers, and
+//!   [`experiment::pin::Pin`], a pinned experiment's record of its binary.
 //!
 //! A few items stay public only because the integration tests check them from outside (checkpoint
 //! manifests and snapshots in [`learning`], [`cli::check_args`], [`io::bytes_shown`]); they are not meant

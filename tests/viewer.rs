@@ -554,7 +554,7 @@ fn ctrl_c_ends_the_viewer_as_an_interruption_not_an_error() {
         std::thread::sleep(std::time::Duration::from_millis(200));
     };
     let stderr = std::fs::read_to_string(&err).unwrap();
-    assert_eq!(status.code(), Some(130), "{stderr}");
+    assert_eq!(status.code(), Some(130), "exit {status:?}: {stderr}");
     assert!(stderr.contains("coevo: interrupted") && !stderr.contains("coevo: error"), "{stderr}");
 }
 

@@ -121,10 +121,13 @@ pub(crate) fn experiment(request: &Request) -> crate::error::Result<()> {
         }
         let exe = std::env::current_exe().map_err(|e| format!("cannot find the coevo binary: {e}"))?;
         for exp in &experiments {
-            // A pinned experiment's binary is rebuilt and checked here, once, so that the tasks find it
-            // verified; a build named by --pinned-binary is handed on to them.
-            let made_by = super::pin::executable(exp, request.pinned_binary)?.path;
-            let pinned = (made_by != exe).then_some(made_by);
+            // A pinned experiment with runs left is built and checked here, once, so that its tasks find
+            // the build verified; it (or the one --pinned-binary names) is handed on to them.
+            let pending = runner::pending(exp, &super::carry::finished_elsewhere(exp)?, None);
+            let pinned = match pending || request.pinned_binary.is_some() {
+                true => Some(super::pin::executable(exp, request.pinned_binary)?.path).filter(|p| *p != exe),
+                false => None,
+            };
             let dir = runner::emit_slurm(exp, &exe, pinned.as_deref())?;
             // Quoted as the scripts quote it, so the line can be pasted into a shell as it is.
             let submit = dir.join("submit.sh").to_string_lossy().into_owned();
@@ -156,7 +159,9 @@ pub(crate) fn experiment(request: &Request) -> crate::error::Result<()> {
     if which == "all" {
         return write_reproduction(false);
     }
-    for exp in experiments {
+    for mut exp in experiments {
+        // As the runs left it: a verified rebuild may have joined the pin.
+        exp.pin = super::pin::Pin::read(&exp.root)?;
         let data = data::load(&exp)?;
         let carried = data::check_complete(&exp, &data)?;
         check_trainings_once(&exp, &data)?;

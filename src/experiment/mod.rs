@@ -54,4 +54,5 @@ pub(crate) mod swarm;
 pub(crate) mod trainings;
 pub(crate) mod verdict;
 
+pub use claims::{ClaimResult, RunData};
 pub use file::*;

@@ -20,8 +20,8 @@ pub(crate) const PIN: &str = "pin.ron";
 /// Where rebuilds are made: a worktree, its target folder and the executable per commit.
 const PINNED: &str = "target/pinned";
 /// The fixed run a fingerprint is taken of, on the AVX2-FMA kernels (every x86-64 machine coevo tests
-/// has them): `COEVO_KERNELS=avx2 coevo --train --seed 1 --episodes 4`, in a folder holding the commit's
-/// `scenes/standard.ron`.
+/// has them): `COEVO_KERNELS=avx2 coevo --train --seed 1 --episodes 4`, in an empty folder (every pinned
+/// commit has the shipped scenes built in, so it trains its own `scenes/standard.ron`).
 const FINGERPRINT_RUN: [&str; 5] = ["--train", "--seed", "1", "--episodes", "4"];
 const FINGERPRINT_KERNELS: &str = "avx2";
 
@@ -36,7 +36,7 @@ pub struct Pin {
     /// `rustc --version` of the original build (a rebuild with another is warned about; its
     /// fingerprint decides).
     pub(crate) toolchain: String,
-    /// BLAKE3 prefix of the commit's `Cargo.lock`: a rebuild whose worktree holds another is refused.
+    /// BLAKE3 prefix of the commit's `Cargo.lock`: a worktree holding another is not built.
     pub(crate) cargo_lock: String,
     /// The matrix-product kernel family of its runs (`provenance.ron`'s `kernels`): its runs are
     /// continued on it, whatever this machine would pick.
@@ -86,53 +86,105 @@ impl Pin {
     }
 }
 
-/// The executable an experiment's runs are made by, and the kernel family they run on.
+/// The executable an experiment's runs are made by, the kernel family they run on, and the experiment's
+/// pin as it stands once that executable is recorded in it.
 pub(crate) struct Executable {
     pub(crate) path: PathBuf,
     /// Its BLAKE3 prefix (what its runs' provenance will say).
     pub(crate) blake3: String,
     pub(crate) kernels: String,
+    pub(crate) pin: Option<Pin>,
 }
 
 /// The executable to make `exp`'s runs with: this one when the experiment is not pinned or this is its
-/// binary; otherwise `given` (`--pinned-binary`) or a rebuild of the pinned commit, each used only after
-/// it reproduced the pin's fingerprint (which then records it among the pin's rebuilds).
+/// binary; otherwise `given` (`--pinned-binary`) or a build of the pinned commit (kept from an earlier
+/// call, else rebuilt), each used only after it reproduced the pin's fingerprint as a clean build of the
+/// pinned commit, which then records it among the pin's rebuilds. What is checked is a copy named by its
+/// hash (`target/pinned/coevo-COMMIT-HASH`), and that copy makes the runs: replacing the file it came
+/// from changes nothing.
 pub(crate) fn executable(exp: &super::Experiment, given: Option<&Path>) -> Result<Executable> {
     let me = std::env::current_exe().map_err(|e| format!("cannot find the coevo binary: {e}"))?;
-    let this = crate::run::provenance::binary();
+    let this = crate::run::provenance::binary().to_string();
     let Some(pin) = &exp.pin else {
         if given.is_some() {
             return Err(not_pinned(exp));
         }
-        return Ok(Executable { path: me, blake3: this.to_string(), kernels: crate::learning::nets::kernels().into() });
+        return Ok(Executable { path: me, blake3: this, kernels: crate::learning::nets::kernels().into(), pin: None });
     };
+    if given.is_none() && pin.accepts(&this) {
+        return Ok(Executable { path: me, blake3: this, kernels: pin.kernels.clone(), pin: Some(pin.clone()) });
+    }
+    let pinned = std::path::absolute(PINNED).map_err(|e| format!("{PINNED}: {e}"))?;
     let (path, blake3) = match given {
         Some(path) => {
-            let blake3 = blake3_prefix(path).map_err(|e| format!("--pinned-binary: {e}"))?;
-            (std::path::absolute(path).map_err(|e| format!("--pinned-binary: {}: {e}", path.display()))?, blake3)
+            let path = std::path::absolute(path).map_err(|e| format!("--pinned-binary: {}: {e}", path.display()))?;
+            checked(exp, pin, &pinned, &path)?
         }
-        None if pin.accepts(this) => (me, this.to_string()),
         None => {
-            let cached = Path::new(PINNED).join(format!("coevo-{}", pin.commit));
-            let path = if cached.is_file() { cached } else { rebuild(exp, pin)? };
-            let blake3 = blake3_prefix(&path)?;
-            (path, blake3)
+            let cached = pinned.join(format!("coevo-{}", pin.commit));
+            match cached.is_file().then(|| checked(exp, pin, &pinned, &cached)) {
+                Some(Ok(found)) => found,
+                // None kept, or one that fails the check (another commit's, a damaged file): built anew.
+                failed => {
+                    if let Some(Err(e)) = failed {
+                        crate::errln!("coevo: warning: {e}; building the commit again")?;
+                    }
+                    let built = rebuild(exp, pin)?;
+                    checked(exp, pin, &pinned, &built)?
+                }
+            }
         }
     };
+    let pin = record(exp, &blake3)?;
+    Ok(Executable { path, blake3, kernels: pin.kernels.clone(), pin: Some(pin) })
+}
+
+/// Copies `exe` to `target/pinned/coevo-COMMIT-HASH` and checks that copy (unless the pin already lists
+/// its hash): its path and hash.
+fn checked(exp: &super::Experiment, pin: &Pin, pinned: &Path, exe: &Path) -> Result<(PathBuf, String)> {
+    std::fs::create_dir_all(pinned).map_err(|e| format!("{}: {e}", pinned.display()))?;
+    let copy = pinned.join(format!(".coevo-{}.{}.tmp", pin.commit, unique()));
+    std::fs::copy(exe, &copy).map_err(|e| format!("{}: cannot copy to {}: {e}", exe.display(), copy.display()))?;
+    let kept = blake3_prefix(&copy).and_then(|blake3| {
+        let kept = pinned.join(format!("coevo-{}-{blake3}", pin.commit));
+        std::fs::rename(&copy, &kept)
+            .map_err(|e| format!("{}: cannot keep a copy as {}: {e}", exe.display(), kept.display()))?;
+        Ok((kept, blake3))
+    });
+    let _ = std::fs::remove_file(&copy);
+    let (kept, blake3) = kept?;
     if !pin.accepts(&blake3) {
-        verify(exp, pin, &path)?;
-        let mut recorded = pin.clone();
-        recorded.rebuilds.push(blake3.clone());
-        crate::io::write_file(&Pin::path(&exp.root), crate::io::Existing::Replace, recorded.to_ron().as_bytes())?;
+        verify(pin, &kept).map_err(|e| {
+            let _ = std::fs::remove_file(&kept);
+            format!("{} ({}): {e}", exe.display(), Pin::path(&exp.root).display())
+        })?;
         crate::errln!(
-            "coevo: {} reproduced {}'s fingerprint {}: its runs count as the pinned binary's (recorded in {})",
-            path.display(),
+            "coevo: {} reproduced {}'s fingerprint {} as a clean build of it; its runs count as the pinned binary's",
+            exe.display(),
             pin.commit,
-            pin.fingerprint,
-            Pin::path(&exp.root).display()
+            pin.fingerprint
         )?;
     }
-    Ok(Executable { path, blake3, kernels: pin.kernels.clone() })
+    Ok((kept, blake3))
+}
+
+/// Adds `blake3` to the pin's verified rebuilds, read afresh from its file (another process may have added
+/// its own since this one loaded it); the pin as it now stands.
+fn record(exp: &super::Experiment, blake3: &str) -> Result<Pin> {
+    let path = Pin::path(&exp.root);
+    let mut pin =
+        Pin::read(&exp.root)?.ok_or_else(|| format!("{}: removed while the experiment ran", path.display()))?;
+    if !pin.accepts(blake3) {
+        pin.rebuilds.push(blake3.to_string());
+        crate::io::write_file(&path, crate::io::Existing::Replace, pin.to_ron().as_bytes())?;
+    }
+    Ok(pin)
+}
+
+/// A name part no other process uses at the same time, also on another node sharing the folder.
+fn unique() -> String {
+    let nanos = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_nanos());
+    format!("{}-{nanos}", std::process::id())
 }
 
 /// The refusal of `--pinned-binary` for an experiment that is not pinned.
@@ -158,44 +210,43 @@ fn run(what: &str, command: &mut Command) -> Result<String> {
     Ok(String::from_utf8_lossy(&out.stdout).into_owned())
 }
 
-/// The pinned commit's `path`, read from git.
-fn at_commit(pin: &Pin, path: &str) -> Result<Vec<u8>> {
-    let what = format!("git show {}:{path}", pin.commit);
-    let out = Command::new("git")
-        .args(["show", &format!("{}:{path}", pin.commit)])
-        .stdin(Stdio::null())
-        .output()
-        .map_err(|e| format!("{what}: cannot start git: {e}"))?;
-    if !out.status.success() {
-        return Err(format!("{what}: {}", String::from_utf8_lossy(&out.stderr).trim()).into());
-    }
-    Ok(out.stdout)
-}
-
 /// Builds the pinned commit in a worktree of this clone (`target/pinned/src-COMMIT`, its own target
-/// folder beside it) and copies its executable to `target/pinned/coevo-COMMIT`.
+/// folder beside it): a worktree left there is used only when it is at the commit with nothing changed,
+/// else made anew; its `Cargo.lock` must hash as the pin says. The built executable's path.
 fn rebuild(exp: &super::Experiment, pin: &Pin) -> Result<PathBuf> {
     let pinned = std::path::absolute(PINNED).map_err(|e| format!("{PINNED}: {e}"))?;
     let source = pinned.join(format!("src-{}", pin.commit));
-    let lock = at_commit(pin, "Cargo.lock")?;
-    let lock_hash = &blake3::hash(&lock).to_hex()[..16];
+    let git = |dir: Option<&Path>, args: &[&str]| {
+        let mut command = Command::new("git");
+        if let Some(dir) = dir {
+            command.arg("-C").arg(dir);
+        }
+        run(&format!("git {}", args.join(" ")), command.args(args))
+    };
+    let commit = git(None, &["rev-parse", "--verify", &format!("{}^{{commit}}", pin.commit)])
+        .map_err(|e| format!("{}: commit {} is not in this clone ({e})", Pin::path(&exp.root).display(), pin.commit))?;
+    let commit = commit.trim();
+    let intact = source.join("Cargo.toml").is_file()
+        && git(Some(&source), &["rev-parse", "HEAD"]).is_ok_and(|head| head.trim() == commit)
+        && git(Some(&source), &["status", "--porcelain"]).is_ok_and(|changes| changes.trim().is_empty());
+    if !intact {
+        std::fs::create_dir_all(&pinned).map_err(|e| format!("{}: {e}", pinned.display()))?;
+        let _ = std::fs::remove_dir_all(&source);
+        let _ = git(None, &["worktree", "prune"]);
+        let target = source.to_string_lossy().into_owned();
+        git(None, &["worktree", "add", "--detach", "--force", &target, commit])?;
+    }
+    let lock = source.join("Cargo.lock");
+    let lock_bytes = std::fs::read(&lock).map_err(|e| format!("{}: {e}", lock.display()))?;
+    let lock_hash = &blake3::hash(&lock_bytes).to_hex()[..16];
     if lock_hash != pin.cargo_lock {
         return Err(format!(
-            "{}: commit {}'s Cargo.lock hashes to {lock_hash}, the pin says {}; not rebuilt",
+            "{}: {} hashes to {lock_hash}, the pin says {}; not built",
             Pin::path(&exp.root).display(),
-            pin.commit,
+            lock.display(),
             pin.cargo_lock
         )
         .into());
-    }
-    if !source.join("Cargo.toml").is_file() {
-        std::fs::create_dir_all(&pinned).map_err(|e| format!("{}: {e}", pinned.display()))?;
-        let _ = run("git worktree prune", Command::new("git").args(["worktree", "prune"]));
-        let _ = std::fs::remove_dir_all(&source);
-        run(
-            &format!("git worktree add {} {}", source.display(), pin.commit),
-            Command::new("git").args(["worktree", "add", "--detach", "--force"]).arg(&source).arg(&pin.commit),
-        )?;
     }
     let toolchain = run("rustc --version", Command::new("rustc").arg("--version"))?;
     if toolchain.trim() != pin.toolchain {
@@ -230,22 +281,15 @@ fn rebuild(exp: &super::Experiment, pin: &Pin) -> Result<PathBuf> {
     Ok(exe)
 }
 
-/// Runs the fixed fingerprint run with `exe` (in a scratch folder holding the pinned commit's standard
-/// scene, the one a `--train` without `--scene` reads there) and refuses unless it gives the pin's
-/// fingerprint.
-fn verify(exp: &super::Experiment, pin: &Pin, exe: &Path) -> Result<()> {
+/// Runs the fixed fingerprint run with `exe` in an empty folder (so it trains its own built-in standard
+/// scene, the commit's) and refuses unless it is a clean build of the pinned commit (its run's provenance
+/// says so) that gives the pin's fingerprint.
+fn verify(pin: &Pin, exe: &Path) -> Result<()> {
     let pinned = std::path::absolute(PINNED).map_err(|e| format!("{PINNED}: {e}"))?;
-    let scratch = pinned.join(format!("fingerprint-{}-{}", pin.commit, std::process::id()));
-    let _ = std::fs::remove_dir_all(&scratch);
-    let scene = scratch.join(crate::run::args::STANDARD_SCENE);
-    std::fs::create_dir_all(scene.parent().expect("in scenes/")).map_err(|e| format!("{}: {e}", scratch.display()))?;
+    let scratch = pinned.join(format!("fingerprint-{}-{}", pin.commit, unique()));
+    std::fs::create_dir_all(&scratch).map_err(|e| format!("{}: {e}", scratch.display()))?;
     let out = scratch.join("run");
     let result = (|| {
-        crate::io::write_file(
-            &scene,
-            crate::io::Existing::Replace,
-            &at_commit(pin, crate::run::args::STANDARD_SCENE)?,
-        )?;
         run(
             &format!("{} (the fingerprint run)", exe.display()),
             Command::new(exe)
@@ -255,16 +299,22 @@ fn verify(exp: &super::Experiment, pin: &Pin, exe: &Path) -> Result<()> {
                 .current_dir(&scratch)
                 .env("COEVO_KERNELS", FINGERPRINT_KERNELS),
         )?;
-        crate::run::provenance::fingerprint(&out)
+        let commit = crate::run::RunDir::new(&out).read_provenance()?.map(|p| p.git_commit).unwrap_or_default();
+        Ok::<_, crate::error::Error>((commit, crate::run::provenance::fingerprint(&out)?))
     })();
     let _ = std::fs::remove_dir_all(&scratch);
-    let fingerprint = result?;
+    let (commit, fingerprint) = result?;
+    let (a, b) = (commit.as_str(), pin.commit.as_str());
+    if commit.ends_with("-dirty") || a.len() < 7 || !(a.starts_with(b) || b.starts_with(a)) {
+        return Err(format!(
+            "it is a build of {commit}, not a clean build of the pinned commit {}; refusing to continue the experiment with it",
+            pin.commit
+        )
+        .into());
+    }
     if fingerprint != pin.fingerprint {
         return Err(format!(
-            "{}: {} gives fingerprint {fingerprint} where {} says {}: it does not compute what the pinned binary computed; refusing to continue the experiment with it",
-            exp.file.display(),
-            exe.display(),
-            Pin::path(&exp.root).display(),
+            "it gives fingerprint {fingerprint} where the pin says {}: it does not compute what the pinned binary computed; refusing to continue the experiment with it",
             pin.fingerprint
         )
         .into());

@@ -7,6 +7,7 @@
 use super::file::{eval_file, Experiment, Run};
 use super::pin::Executable;
 use indicatif::{ProgressBar, ProgressStyle};
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -307,6 +308,19 @@ fn prepare(exp: &Experiment) -> crate::error::Result<()> {
     Ok(())
 }
 
+/// Whether a run is left to make (of all, or only `only`): not finished here nor carried from elsewhere.
+pub(crate) fn pending(
+    exp: &Experiment,
+    elsewhere: &BTreeMap<usize, super::carry::Elsewhere>,
+    only: Option<usize>,
+) -> bool {
+    let done = |i: usize| elsewhere.contains_key(&i) || finished(exp, &exp.runs[i]);
+    match only {
+        Some(i) => i < exp.runs.len() && !done(i),
+        None => (0..exp.runs.len()).any(|i| !done(i)),
+    }
+}
+
 /// Runs the experiment's runs (all, or only `only`, an index into `exp.runs` as a Slurm array task
 /// does), `jobs` at a time. Every run is attempted; Err lists the ones that failed.
 pub(crate) fn run(exp: &Experiment, opts: &RunnerOptions, only: Option<usize>) -> crate::error::Result<()> {
@@ -316,10 +330,7 @@ pub(crate) fn run(exp: &Experiment, opts: &RunnerOptions, only: Option<usize>) -
         return Err(super::pin::not_pinned(exp));
     }
     let done = |i: usize| elsewhere.contains_key(&i) || finished(exp, &exp.runs[i]);
-    let pending = match only {
-        Some(i) => i < exp.runs.len() && !done(i),
-        None => (0..exp.runs.len()).any(|i| !done(i)),
-    };
+    let pending = pending(exp, &elsewhere, only);
     // The executable that makes the runs: this one, or the pinned commit's verified rebuild; none when
     // every run is made (a pinned experiment is not rebuilt to run nothing).
     let exe = match pending {
@@ -332,7 +343,7 @@ pub(crate) fn run(exp: &Experiment, opts: &RunnerOptions, only: Option<usize>) -
     if let Some(exe) = exe.as_ref().filter(|_| !exp.spec.mixed_binaries) {
         let (me, kernels) = (exe.blake3.as_str(), exe.kernels.as_str());
         let key = |i: usize| super::figure_data::key(&exp.runs[i]);
-        let pin = exp.pin.as_ref();
+        let pin = exe.pin.as_ref();
         if let Some((&i, other)) =
             elsewhere.iter().find(|(_, e)| e.binary.split(' ').any(|b| !super::pin::Pin::same(pin, b, me)))
         {

@@ -209,7 +209,7 @@ pub(crate) unsafe fn product(
     (rhs_rs, rhs_cs): (usize, usize),
 ) {
     #[cfg(target_arch = "x86_64")]
-    if super::nets::direct() && rhs_cs == 1 && n <= super::direct::MAX_WIDTH && !accumulate {
+    if super::nets::direct() && rhs_cs == 1 && n > 0 && n <= super::direct::MAX_WIDTH && !accumulate {
         // SAFETY: the family is chosen only on a CPU with AVX-512F; the extents are the caller's.
         unsafe { super::direct::product(m, n, k, dst, dst_rs, lhs, (lhs_rs, lhs_cs), rhs, rhs_rs) };
         return;

@@ -54,10 +54,7 @@ pub(crate) fn pin_kernels(family: &str) -> Result<(), String> {
     #[cfg(not(target_arch = "x86_64"))]
     let (avx512, fma) = (false, false);
     let cap = match family {
-        "avx512-direct" if super::direct::available() => {
-            DIRECT.store(true, std::sync::atomic::Ordering::Relaxed);
-            AUTO
-        }
+        "avx512-direct" if super::direct::available() => AUTO,
         "avx512-direct" => return Err(format!("this CPU cannot run the {family} kernels (it runs {})", kernels())),
         "auto" => AUTO,
         "avx512" if avx512 => AUTO,
@@ -68,6 +65,7 @@ pub(crate) fn pin_kernels(family: &str) -> Result<(), String> {
         }
         other => return Err(format!("must be {KERNEL_CHOICES} (got {other:?})")),
     };
+    DIRECT.store(family == "avx512-direct", std::sync::atomic::Ordering::Relaxed);
     set(cap);
     Ok(())
 }

@@ -1339,22 +1339,12 @@ fn a_pinned_experiment_runs_only_with_a_build_that_reproduces_its_fingerprint() 
 )"#;
     let dir = workspace_with("tiny", one_run);
     let root = dir.path();
-    // The pinned commit: a repository holding the standard scene the fingerprint run is trained on.
-    std::fs::copy("scenes/standard.ron", root.join("scenes/standard.ron")).unwrap();
-    let git = |args: &[&str]| {
-        let out = Command::new("git")
-            .args(["-c", "user.name=coevo", "-c", "user.email=coevo@example.org"])
-            .args(args)
-            .current_dir(root)
-            .output()
-            .unwrap();
-        assert!(out.status.success(), "git {args:?}: {}", String::from_utf8_lossy(&out.stderr));
-        String::from_utf8_lossy(&out.stdout).trim().to_string()
-    };
-    git(&["init", "-q"]);
-    git(&["add", "scenes"]);
-    git(&["commit", "-q", "-m", "scenes"]);
-    let commit = git(&["rev-parse", "--short", "HEAD"]);
+    // Pinned to the commit this test's coevo was built from.
+    let commit = coevo::GIT_COMMIT.trim_end_matches("-dirty");
+    if !commit.chars().all(|c| c.is_ascii_hexdigit()) {
+        eprintln!("skipped: this coevo was not built from a git checkout ({commit})");
+        return;
+    }
     let pin = |fingerprint: &str| {
         format!(
             "(commit: \"{commit}\", blake3: \"0000000000000000\", toolchain: \"rustc\", cargo_lock: \"0\", kernels: \"avx2-fma\", fingerprint: \"{fingerprint}\")"
@@ -1364,15 +1354,24 @@ fn a_pinned_experiment_runs_only_with_a_build_that_reproduces_its_fingerprint() 
     std::fs::create_dir_all(pin_file.parent().unwrap()).unwrap();
     let me = env!("CARGO_BIN_EXE_coevo");
     let args = ["--experiment", "experiments/tiny.ron", "--pinned-binary", me, "--quiet"];
+    // An experiment without a pin takes no pinned binary.
+    let err = refused(root, &args);
+    assert!(err.contains("--pinned-binary: experiments/tiny.ron is not pinned"), "{err}");
 
-    // A build that computes other numbers than the pinned binary is refused, before any run.
+    // A build that computes other numbers than the pinned binary is refused, before any run; so is a build
+    // of uncommitted changes (when this test's coevo is one, nothing else can be checked here).
     std::fs::write(&pin_file, pin("ffffffffffffffff")).unwrap();
     let err = refused(root, &args);
-    assert!(
-        err.contains("gives fingerprint 2eee7e2b9b23e15b where results/tiny/binary/pin.ron says ffffffffffffffff"),
-        "{err}"
-    );
+    let expected = match coevo::GIT_COMMIT.ends_with("-dirty") {
+        true => format!("it is a build of {}, not a clean build of the pinned commit {commit}", coevo::GIT_COMMIT),
+        false => "it gives fingerprint 2eee7e2b9b23e15b where the pin says ffffffffffffffff".to_string(),
+    };
+    assert!(err.contains("results/tiny/binary/pin.ron") && err.contains(&expected), "{err}");
     assert!(!root.join("results/tiny/paper").exists(), "a run started with a refused binary");
+    if coevo::GIT_COMMIT.ends_with("-dirty") {
+        eprintln!("the rest skipped: this coevo is a build of uncommitted changes");
+        return;
+    }
 
     // One that reproduces it makes the runs, on the pin's kernels, and is recorded as a rebuild.
     std::fs::write(&pin_file, pin("2eee7e2b9b23e15b")).unwrap();
@@ -1383,14 +1382,11 @@ fn a_pinned_experiment_runs_only_with_a_build_that_reproduces_its_fingerprint() 
     assert_eq!(recorded.rebuilds.len(), 1);
     let provenance = std::fs::read_to_string(root.join("results/tiny/paper/1-1/seed1/provenance.ron")).unwrap();
     assert!(provenance.contains(&format!("binary: \"{}\"", recorded.rebuilds[0])), "{provenance}");
+    // Made by the checked copy, named by its hash.
+    assert!(root.join(format!("target/pinned/coevo-{commit}-{}", recorded.rebuilds[0])).is_file());
     assert!(provenance.contains("kernels: \"avx2-fma\""), "{provenance}");
     // Recorded, it continues the experiment unchecked, by itself.
     let again = coevo(root, &["--experiment", "experiments/tiny.ron", "--quiet"]);
     let said = String::from_utf8_lossy(&again.stderr);
     assert!(again.status.success() && !said.contains("reproduced") && !said.contains("building"), "{said}");
-
-    // An experiment without a pin takes no pinned binary.
-    std::fs::remove_file(&pin_file).unwrap();
-    let err = refused(root, &args);
-    assert!(err.contains("--pinned-binary: experiments/tiny.ron is not pinned"), "{err}");
 }
