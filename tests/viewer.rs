@@ -537,10 +537,6 @@ fn ctrl_c_ends_the_viewer_as_an_interruption_not_an_error() {
         assert!(start.elapsed().as_secs() < 120, "the viewer did not start: {:?}", std::fs::read_to_string(&err));
         std::thread::sleep(std::time::Duration::from_millis(200));
     }
-    // Under a loaded machine (the whole suite at once) a Ctrl-C right at that line has twice ended the
-    // viewer without its line, as if no handler were installed yet: the app is given a moment to be in its
-    // loop, as a person pressing Ctrl-C would.
-    std::thread::sleep(std::time::Duration::from_secs(2));
     let pattern = format!("^{BIN} --scene {}", scene.display());
     let pid = String::from_utf8(Command::new("pgrep").args(["-f", &pattern]).output().unwrap().stdout).unwrap();
     let pid = pid.trim();
