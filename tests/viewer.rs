@@ -520,13 +520,17 @@ fn ctrl_c_ends_the_viewer_as_an_interruption_not_an_error() {
         .env("XDG_RUNTIME_DIR", dir.path())
         .stdout(std::process::Stdio::null())
         .stderr(std::fs::File::create(&err).unwrap());
-    // A test harness started in the background (`cmd &` in a script) ignores SIGINT, and an ignored signal
-    // stays ignored across exec: the viewer would never see the Ctrl-C this test sends. Restored to the
-    // default, as a terminal's foreground job has it.
+    // A test harness started in the background (`cmd &` in a script) ignores SIGINT, one started by nohup
+    // ignores SIGHUP, and an ignored signal stays ignored across exec. Either leaves the viewer without
+    // Bevy's Ctrl-C handler: ctrlc installs it only over the default dispositions of SIGINT, SIGTERM and
+    // SIGHUP (ctrlc 3.5, `termination`), and the Ctrl-C this test sends then kills it outright. Restored to
+    // the defaults, as a terminal's foreground job has them.
     // SAFETY: between fork and exec only `signal`, which is async-signal-safe, is called.
     unsafe {
         std::os::unix::process::CommandExt::pre_exec(&mut command, || {
-            libc::signal(libc::SIGINT, libc::SIG_DFL);
+            for signal in [libc::SIGINT, libc::SIGTERM, libc::SIGHUP] {
+                libc::signal(signal, libc::SIG_DFL);
+            }
             Ok(())
         });
     }
