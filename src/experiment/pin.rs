@@ -8,7 +8,7 @@
 //! same numbers, so a verified rebuild's BLAKE3 prefix is added to the pin's `rebuilds`: the runner and
 //! aggregation count runs of the original and of its verified rebuilds as one binary's.
 
-use crate::error::{Result, ResultExt};
+use crate::error::Result;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
@@ -121,7 +121,7 @@ pub(crate) fn executable(exp: &super::Experiment, given: Option<&Path>) -> Resul
             checked(exp, pin, &pinned, &path)?
         }
         None => {
-            let cached = pinned.join(format!("coevo-{}", pin.commit));
+            let cached = built(&pinned, pin);
             match cached.is_file().then(|| checked(exp, pin, &pinned, &cached)) {
                 Some(Ok(found)) => found,
                 // None kept, or one that fails the check (another commit's, a damaged file): built anew.
@@ -193,10 +193,9 @@ pub(crate) fn not_pinned(exp: &super::Experiment) -> crate::error::Error {
         .into()
 }
 
-/// The first 16 hexadecimal digits of a file's BLAKE3 hash (how provenance names an executable).
+/// A file's BLAKE3 prefix, as provenance names executables ([`crate::run::provenance::file_hash`]).
 fn blake3_prefix(path: &Path) -> Result<String> {
-    let bytes = std::fs::read(path).map_err(|e| format!("{}: cannot read: {e}", path.display()))?;
-    Ok(blake3::hash(&bytes).to_hex()[..16].to_string())
+    crate::run::provenance::file_hash(path).map_err(|e| format!("{}: cannot read: {e}", path.display()).into())
 }
 
 /// Runs a command to its end; Err is `what` with the last line it wrote.
@@ -237,8 +236,7 @@ fn rebuild(exp: &super::Experiment, pin: &Pin) -> Result<PathBuf> {
         git(None, &["worktree", "add", "--detach", "--force", &target, commit])?;
     }
     let lock = source.join("Cargo.lock");
-    let lock_bytes = std::fs::read(&lock).map_err(|e| format!("{}: {e}", lock.display()))?;
-    let lock_hash = &blake3::hash(&lock_bytes).to_hex()[..16];
+    let lock_hash = blake3_prefix(&lock)?;
     if lock_hash != pin.cargo_lock {
         return Err(format!(
             "{}: {} hashes to {lock_hash}, the pin says {}; not built",
@@ -257,7 +255,6 @@ fn rebuild(exp: &super::Experiment, pin: &Pin) -> Result<PathBuf> {
             toolchain.trim()
         )?;
     }
-    let target = pinned.join(format!("target-{}", pin.commit));
     crate::errln!(
         "coevo: {} is pinned to commit {}: building it in {} (cargo build --release --locked, some minutes)",
         exp.file.display(),
@@ -269,16 +266,19 @@ fn rebuild(exp: &super::Experiment, pin: &Pin) -> Result<PathBuf> {
         Command::new("cargo")
             .args(["build", "--release", "--locked", "--quiet"])
             .current_dir(&source)
-            .env("CARGO_TARGET_DIR", &target),
+            .env("CARGO_TARGET_DIR", target_dir(&pinned, pin)),
     )?;
-    let built = target.join("release").join("coevo");
-    let exe = pinned.join(format!("coevo-{}", pin.commit));
-    let temporary = pinned.join(format!(".coevo-{}.{}.tmp", pin.commit, std::process::id()));
-    std::fs::copy(&built, &temporary)
-        .and_then(|_| std::fs::rename(&temporary, &exe))
-        .map_err(|e| format!("{}: cannot copy to {}: {e}", built.display(), exe.display()))
-        .kind(crate::error::Kind::Io)?;
-    Ok(exe)
+    Ok(built(&pinned, pin))
+}
+
+/// The pinned commit's own cargo target folder.
+fn target_dir(pinned: &Path, pin: &Pin) -> PathBuf {
+    pinned.join(format!("target-{}", pin.commit))
+}
+
+/// Where [`rebuild`] leaves the pinned commit's executable (kept for later calls).
+fn built(pinned: &Path, pin: &Pin) -> PathBuf {
+    target_dir(pinned, pin).join("release").join("coevo")
 }
 
 /// Runs the fixed fingerprint run with `exe` in an empty folder (so it trains its own built-in standard

@@ -38,12 +38,13 @@ pub struct Provenance {
 /// (a `-dirty` tree), so "one binary" means one file.
 pub fn binary() -> &'static str {
     static BINARY: std::sync::OnceLock<String> = std::sync::OnceLock::new();
-    BINARY.get_or_init(|| {
-        std::env::current_exe()
-            .and_then(std::fs::read)
-            .map(|bytes| blake3::hash(&bytes).to_hex()[..16].to_string())
-            .unwrap_or_else(|_| "unknown".into())
-    })
+    BINARY.get_or_init(|| std::env::current_exe().and_then(|exe| file_hash(&exe)).unwrap_or_else(|_| "unknown".into()))
+}
+
+/// The first 16 hexadecimal digits of a file's BLAKE3 hash: how provenance names an executable (and a
+/// pinned experiment its binaries and `Cargo.lock`).
+pub(crate) fn file_hash(path: &std::path::Path) -> std::io::Result<String> {
+    Ok(blake3::hash(&std::fs::read(path)?).to_hex()[..16].to_string())
 }
 
 impl Provenance {
