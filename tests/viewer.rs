@@ -606,37 +606,7 @@ fn watching_fifty_prey_the_plots_are_whole_and_a_smaller_window_is_refused() {
 
 /// Asks every top-level window named "coevo…" to close, as a window manager's close button does
 /// (WM_DELETE_WINDOW): once one exists and `after` seconds have passed. Debian's python3-xlib (.ci/run).
-const CLOSE_WINDOW: &str = r#"
-import sys, time
-from Xlib import display, protocol, X
-after = float(sys.argv[1])
-d = display.Display()
-root = d.screen().root
-def windows(w):
-    for c in w.query_tree().children:
-        yield c
-        yield from windows(c)
-def named():
-    out = []
-    for w in windows(root):
-        try:
-            name = w.get_wm_name()
-        except Exception:
-            continue
-        if name and 'coevo' in str(name):
-            out.append(w)
-    return out
-start = time.time()
-while not named():
-    if time.time() - start > 120:
-        sys.exit("no coevo window")
-    time.sleep(0.2)
-time.sleep(after)
-protocols, delete = d.intern_atom('WM_PROTOCOLS'), d.intern_atom('WM_DELETE_WINDOW')
-for w in named():
-    w.send_event(protocol.event.ClientMessage(window=w, client_type=protocols, data=(32, [delete, X.CurrentTime, 0, 0, 0])))
-d.flush()
-"#;
+const CLOSE_WINDOW: &str = include_str!("close_window.py");
 
 #[test]
 fn closing_the_window_during_save_run_says_how_far_the_kept_folder_goes() {
@@ -652,15 +622,20 @@ fn closing_the_window_during_save_run_says_how_far_the_kept_folder_goes() {
     let close = dir.path().join("close.py");
     std::fs::write(&close, CLOSE_WINDOW).unwrap();
     let (saved, out, status) = (dir.path().join("saved"), dir.path().join("out.txt"), dir.path().join("status"));
+    let (closer, err) = (dir.path().join("closer.txt"), dir.path().join("err.txt"));
     let script = format!(
         // A viewer that ignored the close is killed after a minute (status 137): a failure, never a hang.
-        "{BIN} --scene {} --steps-per-frame 25 --save-run {} > {} 2>/dev/null & pid=$!; /usr/bin/python3 {} 8; \
+        "{BIN} --scene {} --steps-per-frame 25 --save-run {} > {} 2>{} & pid=$!; /usr/bin/python3 {} 8 > {} 2>&1; \
+         echo \"closer: $?\" >> {}; \
          for i in $(seq 300); do kill -0 $pid 2>/dev/null || break; sleep 0.2; done; kill -9 $pid 2>/dev/null; \
          wait $pid; echo $? > {}",
         file.display(),
         saved.display(),
         out.display(),
+        err.display(),
         close.display(),
+        closer.display(),
+        closer.display(),
         status.display()
     );
     let run = Command::new("xvfb-run")
@@ -670,7 +645,10 @@ fn closing_the_window_during_save_run_says_how_far_the_kept_folder_goes() {
         .expect("xvfb-run");
     assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
     let stdout = std::fs::read_to_string(&out).unwrap();
-    assert_eq!(std::fs::read_to_string(&status).unwrap().trim(), "0", "{stdout}");
+    let closer = std::fs::read_to_string(&closer).unwrap();
+    assert!(closer.ends_with("closer: 0\n"), "the close was not sent: {closer}");
+    let stderr = std::fs::read_to_string(&err).unwrap();
+    assert_eq!(std::fs::read_to_string(&status).unwrap().trim(), "0", "{stdout}{stderr}");
     let line = stdout.lines().find(|l| l.contains("holds the live run's")).unwrap_or_else(|| panic!("{stdout}"));
     let episodes: usize =
         line.split("holds the live run's ").nth(1).unwrap().split(' ').next().unwrap().parse().unwrap();

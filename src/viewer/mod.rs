@@ -102,7 +102,10 @@ impl Plugin for ViewerPlugin {
         // After the exits asked for this frame, so each is seen: the screenshot's (capture.rs) and the
         // window's own when it is closed (bevy_window's ExitSystems, also in Last).
         app.init_resource::<ExitReason>();
-        app.add_systems(Last, unsaved_on_exit.after(capture::one_shot).after(bevy::window::ExitSystems));
+        app.add_systems(
+            Last,
+            (unsaved_on_exit, end_on_exit).chain().after(capture::one_shot).after(bevy::window::ExitSystems),
+        );
         app.add_plugins((
             draw::DrawPlugin { trails: o.trails, select: o.select, rule_of: o.rule_of },
             plots::PlotsPlugin,
@@ -148,9 +151,16 @@ pub(crate) fn run(options: ViewerOptions) -> crate::error::Result<()> {
     let reason = ExitReason::default();
     app.insert_resource(reason.clone());
     let exit = app.run();
-    // The world (a live run's lock, its files) is let go before the process may end below.
+    // Reached only if the app ends without an exit message (end_on_exit ends the process otherwise).
     drop(app);
-    if let Some(reason) = reason.0.lock().unwrap_or_else(|e| e.into_inner()).take() {
+    let reason = reason.0.lock().unwrap_or_else(|e| e.into_inner()).take();
+    end(&exit, reason)
+}
+
+/// How the viewer ends, once it is to: an error line for a save the window closed before (`reason`) or an
+/// error exit, the headless modes' line for Ctrl-C, nothing for an ordinary close.
+fn end(exit: &AppExit, reason: Option<String>) -> crate::error::Result<()> {
+    if let Some(reason) = reason {
         return Err(reason.into());
     }
     match exit {
@@ -163,6 +173,28 @@ pub(crate) fn run(options: ViewerOptions) -> crate::error::Result<()> {
         }
         AppExit::Error(code) => Err(format!("viewer exited with code {code}").into()),
     }
+}
+
+/// Ends the process in the frame an exit is asked for (the window closed, Ctrl-C, a screenshot saved),
+/// after [`unsaved_on_exit`] has said how far the kept folder goes: coevo's work is finished and written
+/// (saves happen within a frame, between episodes), so nothing is left to do. The teardown that would
+/// follow, the window destroyed and then the renderer's Vulkan objects on it, is skipped: under Xvfb with
+/// Mesa's software Vulkan it sometimes crashed (SIGSEGV after "Closing window", found by
+/// tests/stress/viewer-close.sh), turning a complete, resumable run into a failed exit.
+fn end_on_exit(mut exits: MessageReader<AppExit>, reason: Res<ExitReason>) {
+    let Some(exit) = exits.read().next().cloned() else { return };
+    let reason = reason.0.lock().unwrap_or_else(|e| e.into_inner()).take();
+    let code = match end(&exit, reason) {
+        Ok(()) => 0,
+        Err(e) => {
+            eprintln!("coevo: error: {e}");
+            1
+        }
+    };
+    use std::io::Write;
+    let _ = std::io::stdout().flush();
+    let _ = std::io::stderr().flush();
+    std::process::exit(code)
 }
 
 /// Applies what the panel asked for, before this frame's steps.

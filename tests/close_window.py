@@ -1,0 +1,32 @@
+# Closes every window named "coevo" as a window manager's close button does: a WM_DELETE_WINDOW client
+# message, sent ARGV[1] seconds after the first such window appears. Used by tests/viewer.rs and by
+# tests/stress/viewer-close.sh (Debian's python3-xlib).
+import sys, time
+from Xlib import display, protocol, X
+after = float(sys.argv[1])
+d = display.Display()
+root = d.screen().root
+def windows(w):
+    for c in w.query_tree().children:
+        yield c
+        yield from windows(c)
+def named():
+    out = []
+    for w in windows(root):
+        try:
+            name = w.get_wm_name()
+        except Exception:
+            continue
+        if name and 'coevo' in str(name):
+            out.append(w)
+    return out
+start = time.time()
+while not named():
+    if time.time() - start > 120:
+        sys.exit("no coevo window")
+    time.sleep(0.2)
+time.sleep(after)
+protocols, delete = d.intern_atom('WM_PROTOCOLS'), d.intern_atom('WM_DELETE_WINDOW')
+for w in named():
+    w.send_event(protocol.event.ClientMessage(window=w, client_type=protocols, data=(32, [delete, X.CurrentTime, 0, 0, 0])))
+d.flush()
