@@ -290,7 +290,7 @@ fn write(run: &std::path::Path, matrices: &[Matrix]) -> crate::error::Result<Vec
         let figure = figures.join(stem(&m.pair, only));
         plot::save_heatmaps(&figure, &heatmaps(m, ""))?;
         written.push(csv.display().to_string());
-        written.push(figure.with_extension("png").display().to_string());
+        written.push(plot::files(&figure)[1].display().to_string());
     }
     let readouts = dir.crossplay(crate::run::CROSSPLAY_READOUTS);
     crate::io::write_file(&readouts, Existing::Replace, readouts_csv(matrices).as_bytes())?;

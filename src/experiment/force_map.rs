@@ -58,20 +58,30 @@ pub fn maps(steps: &[Vec<State>], names: &[String], arena: &Arena, dt: f64, reac
     };
     // Sums per (focal species, observed species): count, turning, speeding per bin.
     let mut sums = vec![vec![vec![[0.0f64; 3]; GRID * GRID]; n]; n];
+    // Each step's agents grouped by species, one cell grid a species: the nearest neighbour of each is a
+    // query of a few cells, so a step costs ~O(agents), as a simulation step does (sim::space).
+    let mut grids = vec![crate::sim::space::CellGrid::default(); n];
+    let mut found = Vec::new();
     for pair in steps.windows(2) {
         let next: BTreeMap<u64, &State> = pair[1].iter().map(|a| (a.id, a)).collect();
-        for a in &pair[0] {
+        let mut order: Vec<usize> = (0..pair[0].len()).collect();
+        order.sort_by_key(|&i| pair[0][i].species);
+        let positions: Vec<DVec2> = order.iter().map(|&i| pair[0][i].position).collect();
+        let mut first = 0;
+        for (t, grid) in grids.iter_mut().enumerate() {
+            let end = first + order[first..].iter().take_while(|&&i| pair[0][i].species == t).count();
+            grid.rebuild(arena, &positions, first..end);
+            first = end;
+        }
+        for (k, a) in order.iter().map(|&i| &pair[0][i]).enumerate() {
             let Some(b) = next.get(&a.id) else { continue };
             let turning = wrap(b.theta - a.theta) / dt;
             let speeding = (b.velocity.length() - a.velocity.length()) / dt;
             let h = DVec2::new(a.theta.cos(), a.theta.sin());
             for (t, sum) in sums[a.species].iter_mut().enumerate() {
-                let nearest = pair[0]
-                    .iter()
-                    .filter(|o| o.species == t && o.id != a.id)
-                    .map(|o| arena.delta(a.position, o.position))
-                    .min_by(|p, q| p.length_squared().total_cmp(&q.length_squared()));
-                let Some(d) = nearest else { continue };
+                grids[t].k_nearest(arena, a.position, 1, f64::INFINITY, k as u32, &mut found);
+                let Some(&(_, j)) = found.first() else { continue };
+                let d = arena.delta(a.position, positions[j as usize]);
                 let (ahead, left) = (d.dot(h), d.dot(DVec2::new(-h.y, h.x)));
                 if let (Some(c), Some(r)) = (bin(ahead), bin(left)) {
                     let cell = &mut sum[r * GRID + c];
@@ -145,6 +155,10 @@ pub fn read(path: &Path, names: &[String]) -> crate::error::Result<Vec<Vec<State
     }
     let mut steps: Vec<Vec<State>> = Vec::new();
     let mut step_of: Option<u64> = None;
+    // Each id once a step and of one species throughout: an agent's change of heading is read between
+    // its rows, so a repeated or re-labelled id would mix two agents.
+    let mut species_of: std::collections::HashMap<u64, usize> = std::collections::HashMap::new();
+    let mut seen: std::collections::HashSet<u64> = std::collections::HashSet::new();
     for (k, line) in lines.enumerate() {
         let bad = |what: &str| format!("{}: line {}: {what}", path.display(), k + 2);
         let cells: Vec<&str> = line.split(',').collect();
@@ -170,7 +184,15 @@ pub fn read(path: &Path, names: &[String]) -> crate::error::Result<Vec<Vec<State
             }
             steps.push(Vec::new());
             step_of = Some(step);
+            seen.clear();
         }
+        if !seen.insert(id) {
+            return Err(bad(&format!("id {id} appears twice at step {step}")).into());
+        }
+        if let Some(&was) = species_of.get(&id).filter(|&&was| was != species) {
+            return Err(bad(&format!("id {id} was a {} earlier and is a {} here", names[was], names[species])).into());
+        }
+        species_of.insert(id, species);
         steps.last_mut().expect("pushed above").push(State {
             id,
             species,
@@ -223,7 +245,23 @@ impl crate::run::args::Mode for ForceMapArgs {
     const TAKES: &'static [&'static str] = &["scene", "run", "overwrite"];
 }
 
-/// Writes the force maps of a trajectory recorded in `scene`.
+/// Agent-steps above which `--force-map` says what it is about to cost before it starts.
+const COSTLY_AGENT_STEPS: usize = 1_000_000;
+
+/// The files `--force-map TRAJ.csv` writes for `maps`, all beside the trajectory and named by appending to
+/// its name less a `.csv` ending, so that none can be the trajectory itself or lose part of a name with dots
+/// (`exp.v2.csv` gives `exp.v2-force-map.csv` and `exp.v2-force-map-prey-predator.svg`): the CSV, then each
+/// map's figure stem.
+fn outputs(trajectory: &Path, maps: &[ForceMap]) -> (PathBuf, Vec<PathBuf>) {
+    let name = trajectory.file_name().unwrap_or_default().to_string_lossy();
+    let stem = name.strip_suffix(".csv").unwrap_or(&name);
+    let beside = |suffix: String| trajectory.with_file_name(format!("{stem}-force-map{suffix}"));
+    let figures = maps.iter().map(|m| beside(format!("-{}-{}", m.species, m.observed))).collect();
+    (beside(".csv".into()), figures)
+}
+
+/// Writes the force maps of a trajectory recorded in `scene`: every output checked before the first is
+/// written (refused if it exists, unless `overwrite`), and each announced once it is written.
 pub(crate) fn main(trajectory: &Path, scene: &Scene, overwrite: bool) -> crate::error::Result<()> {
     let names: Vec<String> = scene.species.iter().map(|d| d.name.clone()).collect();
     let steps = read(trajectory, &names)?;
@@ -231,27 +269,55 @@ pub(crate) fn main(trajectory: &Path, scene: &Scene, overwrite: bool) -> crate::
         return Err(format!("{}: fewer than two steps, so no change to measure", trajectory.display()).into());
     }
     let arena = Arena { edge: scene.world.arena_edge, boundary: scene.world.boundary };
+    // A position farther out than an edge is no agent of this arena (a wall presses bodies back within a
+    // body's depth): another scene's trajectory, or a corrupt one.
+    if let Some((t, a)) = steps
+        .iter()
+        .enumerate()
+        .find_map(|(t, s)| s.iter().find(|a| a.position.abs().max_element() > arena.edge).map(|a| (t, a)))
+    {
+        return Err(format!(
+            "{}: agent {} at step {t} of the file is at ({}, {}), outside the scene's {} m arena: pass the scene it was recorded in (--scene or --run)",
+            trajectory.display(),
+            a.id,
+            a.position.x,
+            a.position.y,
+            arena.edge
+        )
+        .into());
+    }
+    let agent_steps: usize = steps.iter().map(Vec::len).sum();
+    if agent_steps >= COSTLY_AGENT_STEPS {
+        crate::errln!(
+            "coevo: {agent_steps} agent-steps of {} species: about {:.0} s (an estimate); Ctrl-C stops it",
+            names.len(),
+            (agent_steps * names.len()) as f64 * SECONDS_PER_QUERY
+        )?;
+    }
     let maps = maps(&steps, &names, &arena, scene.world.dt, arena.half());
-    let stem = trajectory.with_extension("");
-    let stem = format!("{}-force-map", stem.display());
+    let (csv_path, figures) = outputs(trajectory, &maps);
+    let mut every = vec![csv_path.clone()];
+    every.extend(figures.iter().flat_map(|f| super::plot::files(f)));
     let existing = if overwrite { crate::io::Existing::Replace } else { crate::io::Existing::Refuse };
-    let csv_path = PathBuf::from(format!("{stem}.csv"));
+    crate::io::check_targets(&every, existing)?;
     crate::io::write_file(&csv_path, existing, csv(&maps).as_bytes())?;
     crate::outln!("wrote {}", csv_path.display())?;
-    for m in &maps {
+    for (m, figure) in maps.iter().zip(&figures) {
         let map = |what: &str, values: &[Vec<f64>]| {
             let title = format!("{}: {what}, nearest {}", m.species, m.observed);
             super::plot::Heatmap::body_frame(title, &m.centres, values, true)
         };
-        let figure = PathBuf::from(format!("{stem}-{}-{}", m.species, m.observed));
         super::plot::save_heatmaps(
-            &figure,
+            figure,
             &[map("turning (rad/s, + left)", &m.turning), map("speeding (m/s²)", &m.speeding)],
         )?;
-        crate::outln!("wrote {}.svg", figure.display())?;
+        crate::outln!("wrote {}.svg (and .png)", figure.display())?;
     }
     Ok(())
 }
+
+/// Seconds one nearest-neighbour query (an agent at a step, against one species) takes, for the estimate.
+const SECONDS_PER_QUERY: f64 = 1e-6;
 
 #[cfg(test)]
 mod tests {
@@ -294,6 +360,71 @@ mod tests {
 
     fn maps_of(steps: &[Vec<State>], names: &[String], arena: &Arena) -> Vec<ForceMap> {
         maps(steps, names, arena, 0.1, 1.0)
+    }
+
+    #[test]
+    fn the_cell_grid_finds_the_same_nearest_neighbours_as_a_scan_of_every_agent() {
+        // The maps as a scan of every pair makes them (quadratic), against maps(), on both boundaries.
+        use rand::{Rng, SeedableRng};
+        let names = vec!["prey".to_string(), "predator".to_string()];
+        for boundary in [crate::scene::Boundary::Periodic, crate::scene::Boundary::Walls] {
+            let arena = Arena { edge: 2.0, boundary };
+            let mut rng = rand::rngs::StdRng::seed_from_u64(7);
+            let mut agent = |id: u64| {
+                let theta: f64 = rng.gen_range(-3.0..3.0);
+                state(id, (id % 5 == 0) as usize, rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0), theta, 0.3)
+            };
+            let steps: Vec<Vec<State>> = (0..30).map(|_| (0..200).map(&mut agent).collect()).collect();
+            let mut sums = vec![vec![vec![0usize; GRID * GRID]; 2]; 2];
+            let bin = |x: f64| {
+                let k = ((x + 1.0) / 2.0 * GRID as f64).floor();
+                (0.0..GRID as f64).contains(&k).then_some(k as usize)
+            };
+            for step in &steps[..steps.len() - 1] {
+                for a in step {
+                    let h = DVec2::new(a.theta.cos(), a.theta.sin());
+                    for (t, sum) in sums[a.species].iter_mut().enumerate() {
+                        let d = step
+                            .iter()
+                            .filter(|o| o.species == t && o.id != a.id)
+                            .map(|o| arena.delta(a.position, o.position))
+                            .min_by(|p, q| p.length_squared().total_cmp(&q.length_squared()))
+                            .unwrap();
+                        if let (Some(c), Some(r)) = (bin(d.dot(h)), bin(d.dot(DVec2::new(-h.y, h.x)))) {
+                            sum[r * GRID + c] += 1;
+                        }
+                    }
+                }
+            }
+            let maps = maps_of(&steps, &names, &arena);
+            assert_eq!(maps.len(), 4);
+            for m in &maps {
+                let (s, t) = (
+                    names.iter().position(|n| *n == m.species).unwrap(),
+                    names.iter().position(|n| *n == m.observed).unwrap(),
+                );
+                let counts: Vec<usize> = m.count.iter().flatten().copied().collect();
+                assert_eq!(counts, sums[s][t], "{boundary:?}: {} against {}", m.species, m.observed);
+            }
+        }
+    }
+
+    #[test]
+    fn outputs_append_to_the_trajectory_name_and_keep_its_dots() {
+        let m = |s: &str, o: &str| ForceMap {
+            species: s.into(),
+            observed: o.into(),
+            centres: vec![],
+            count: vec![],
+            turning: vec![],
+            speeding: vec![],
+        };
+        let (csv, figures) = outputs(Path::new("d/exp.v2.csv"), &[m("prey", "prey"), m("prey", "predator")]);
+        assert_eq!(csv, Path::new("d/exp.v2-force-map.csv"));
+        assert_eq!(figures, [Path::new("d/exp.v2-force-map-prey-prey"), Path::new("d/exp.v2-force-map-prey-predator")]);
+        let files: Vec<PathBuf> = figures.iter().flat_map(|f| crate::experiment::plot::files(f)).collect();
+        assert_eq!(files[3], Path::new("d/exp.v2-force-map-prey-predator.png"));
+        assert_eq!(outputs(Path::new("traj"), &[]).0, Path::new("traj-force-map.csv"));
     }
 
     #[test]

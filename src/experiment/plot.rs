@@ -4,7 +4,7 @@
 //! Ubuntu font, so no system font is needed.
 
 use plotters::prelude::*;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// One curve: its mean and, where known, the lower and upper ends of its band.
 pub(crate) struct Curve {
@@ -465,8 +465,14 @@ fn write(stem: &Path, text: String) -> crate::error::Result<()> {
 }
 
 /// The files a figure saved as `stem` is written to: its SVG and a PNG beside it.
-pub(crate) fn files(stem: &Path) -> [std::path::PathBuf; 2] {
-    [stem.with_extension("svg"), stem.with_extension("png")]
+pub(crate) fn files(stem: &Path) -> [PathBuf; 2] {
+    // Appended, not `with_extension`: a stem with a dot in its name (`exp.v2-force-map-prey-prey`) keeps it.
+    let with = |ending: &str| {
+        let mut name = stem.as_os_str().to_owned();
+        name.push(ending);
+        PathBuf::from(name)
+    };
+    [with(".svg"), with(".png")]
 }
 
 #[cfg(test)]

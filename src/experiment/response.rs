@@ -319,29 +319,42 @@ pub(crate) fn main(run: &Path) -> crate::error::Result<()> {
     let dir = a_run(run)?;
     // A writer of a run: refuses a shipped run and one another process is writing.
     let _lock = dir.lock()?;
-    crate::io::own_dir(&dir.figures())?;
+    crate::io::check_own_dir(&dir.figures())?;
     let (scene, learners) = deployed(run)?;
-    let mut written = vec![];
+    // Both backgrounds' fields first, then every output checked, then written: a refusal (a link or a
+    // folder where a file goes) leaves nothing behind, not half the files and an empty figures/.
+    let mut outputs = vec![];
     for (background, stem, context) in
         [(Background::Empty, "response", "parallel"), (Background::Swarm, "response-swarm", "parallel, in the swarm")]
     {
         let fields = on(&scene, &learners, run, background)?;
-        let csv_path = run.join(format!("{stem}.csv"));
+        let figures: Vec<_> = fields
+            .iter()
+            .filter(|f| f.rel_heading == 0.0)
+            .map(|f| (dir.figures().join(format!("{stem}-{}-{}", f.species, f.observed)), f.clone()))
+            .collect();
+        outputs.push((run.join(format!("{stem}.csv")), fields, figures, context));
+    }
+    let every: Vec<_> = outputs
+        .iter()
+        .flat_map(|(csv, _, figures, _)| {
+            std::iter::once(csv.clone()).chain(figures.iter().flat_map(|(path, _)| super::plot::files(path)))
+        })
+        .collect();
+    crate::io::check_targets(&every, crate::io::Existing::Replace)?;
+    crate::io::own_dir(&dir.figures())?;
+    for (csv_path, fields, figures, context) in outputs {
         crate::io::write_file(&csv_path, crate::io::Existing::Replace, csv(&fields).as_bytes())?;
-        written.push(csv_path.display().to_string());
-        for f in fields.iter().filter(|f| f.rel_heading == 0.0) {
+        crate::outln!("wrote {}", csv_path.display())?;
+        for (path, f) in figures {
             let map = |what: &str, values: &[Vec<f64>], diverging: bool, alone: f64| {
                 let title = format!("{}: {what}, one {} {context} (alone: {alone:+.2})", f.species, f.observed);
                 super::plot::Heatmap::body_frame(title, &f.centres, values, diverging)
             };
-            let path = dir.figures().join(format!("{stem}-{}-{}", f.species, f.observed));
             let maps = [map("turn (+ left)", &f.turn, true, f.alone[1]), map("thrust", &f.thrust, false, f.alone[0])];
             super::plot::save_heatmaps(&path, &maps)?;
-            written.push(format!("{}.svg (and .png)", path.display()));
+            crate::outln!("wrote {}.svg (and .png)", path.display())?;
         }
-    }
-    for line in written {
-        crate::outln!("wrote {line}")?;
     }
     Ok(())
 }

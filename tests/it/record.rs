@@ -251,6 +251,63 @@ fn the_force_map_of_fleeing_prey_shows_them_turning_away_from_the_predator() {
 }
 
 #[test]
+fn a_force_map_of_a_dotted_name_writes_only_the_files_it_names_and_leaves_the_users_untouched() {
+    // `exp.v2.csv` beside the user's own `exp.svg` and `exp.png`: every pair's figure is named after the
+    // whole trajectory name, the user's files stay as they were, and what is announced exists.
+    let dir = tempfile::tempdir().unwrap();
+    let traj = dir.path().join("exp.v2.csv");
+    let (t, scene) = (traj.to_str().unwrap(), "scenes/standard.ron");
+    let o = coevo(&["--record", t, "--scene", scene, "--steps", "60", "--prey", "8"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    for mine in ["exp.svg", "exp.png"] {
+        std::fs::write(dir.path().join(mine), "the user's own").unwrap();
+    }
+    let o = coevo(&["--force-map", t, "--scene", scene]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    for mine in ["exp.svg", "exp.png"] {
+        assert_eq!(std::fs::read_to_string(dir.path().join(mine)).unwrap(), "the user's own", "{mine}");
+    }
+    let said = String::from_utf8_lossy(&o.stdout);
+    let announced: Vec<&str> = said.lines().filter_map(|l| l.strip_prefix("wrote ")).collect();
+    assert_eq!(announced.len(), 5, "the CSV and four maps: {said}");
+    for line in announced {
+        let path = line.trim_end_matches(" (and .png)");
+        assert!(std::path::Path::new(path).is_file(), "announced but not written: {path}");
+        assert!(path.contains("exp.v2-force-map"), "{path}");
+    }
+    // A refusal comes before any output: a folder where the last figure goes leaves nothing new behind.
+    let fresh = dir.path().join("again.csv");
+    std::fs::copy(&traj, &fresh).unwrap();
+    std::fs::create_dir(dir.path().join("again-force-map-prey-prey.png")).unwrap();
+    let before = std::fs::read_dir(dir.path()).unwrap().count();
+    let o = coevo(&["--force-map", fresh.to_str().unwrap(), "--scene", scene]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && stderr.lines().count() == 1 && stderr.contains("not a regular file"), "{stderr}");
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), before, "a file was written before the refusal");
+    // Rows that mix agents up are refused, naming the line: an id twice in a step, an id that changes species.
+    let text = std::fs::read_to_string(&traj).unwrap();
+    let mut lines: Vec<String> = text.lines().map(String::from).collect();
+    let twice = [lines.clone(), vec![lines[1].clone()]].concat().join("\n");
+    let first_step_end = lines.iter().skip(1).take_while(|l| l.starts_with("0,")).count() + 1;
+    let bad = dir.path().join("bad.csv");
+    let mut dup = lines.clone();
+    dup.insert(2, lines[1].clone());
+    for (rows, says) in [(dup.join("\n"), "appears twice at step 0"), (twice, "steps must follow")] {
+        std::fs::write(&bad, rows).unwrap();
+        let o = coevo(&["--force-map", bad.to_str().unwrap(), "--scene", scene]);
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success() && stderr.lines().count() == 1 && stderr.contains(says), "{says}: {stderr}");
+    }
+    let cells: Vec<&str> = lines[first_step_end + 1].split(',').collect();
+    let other = if cells[2] == "prey" { "predator" } else { "prey" };
+    lines[first_step_end + 1] = [&cells[..2], &[other], &cells[3..]].concat().join(",");
+    std::fs::write(&bad, lines.join("\n")).unwrap();
+    let o = coevo(&["--force-map", bad.to_str().unwrap(), "--scene", scene]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && stderr.contains("earlier and is a"), "{stderr}");
+}
+
+#[test]
 fn a_response_of_no_run_is_one_line_and_makes_nothing() {
     let dir = tempfile::tempdir().unwrap();
     let missing = dir.path().join("no-run");
