@@ -416,6 +416,63 @@ impl Experiment {
                         }
                     }
                 }
+                // What `distill:` will fit on this variant's runs: every species, form and number that an
+                // evaluation deploys or a claim reads must be one of them, else it would be judged never.
+                if let Some(d) = &spec.distill {
+                    let mut fitted_on = scene.clone();
+                    d.overrides()
+                        .apply(&mut fitted_on, Path::new("distill"))
+                        .map_err(|m| err("distill", format!("variant {}: {m}", v.name)))?;
+                    let rules = super::distill::rules(&fitted_on);
+                    let fitted: Vec<&str> = rules.iter().map(|(s, _, _)| s.as_str()).collect();
+                    let listed = if fitted.is_empty() { "none".to_string() } else { fitted.join(", ") };
+                    for e in &spec.evaluations {
+                        for (k, u) in e.distilled.iter().enumerate() {
+                            let at = format!("evaluations[{}].distilled", e.name);
+                            if !fitted.contains(&u.species.as_str()) {
+                                return Err(err(
+                                    &at,
+                                    format!(
+                                        "variant {}: no rule is fitted to {:?} (a learned species with prey or predators; here: {listed})",
+                                        v.name, u.species
+                                    ),
+                                ));
+                            }
+                            if e.distilled[..k].iter().any(|o| o.species == u.species) {
+                                return Err(err(
+                                    &at,
+                                    format!("{:?} is listed twice: which rule is deployed is ambiguous", u.species),
+                                ));
+                            }
+                            if let Some((_, t)) =
+                                u.without.iter().enumerate().find(|&(j, t)| u.without[..j].contains(t))
+                            {
+                                return Err(err(&at, format!("{:?}: without: lists {t:?} twice", u.species)));
+                            }
+                        }
+                    }
+                    for c in &spec.claims {
+                        let Quantity::Distilled(species, form, name) = &c.quantity else { continue };
+                        let Some((_, _, names)) = rules.iter().find(|(s, f, _)| s == species && f == form) else {
+                            return Err(err(
+                                "claims",
+                                format!(
+                                    "Distilled({species:?}, {form:?}, ..): variant {}: no rule is fitted to {species:?} (here: {listed})",
+                                    v.name
+                                ),
+                            ));
+                        };
+                        if !names.contains(&name.as_str()) {
+                            return Err(err(
+                                "claims",
+                                format!(
+                                    "Distilled({species:?}, {form:?}, {name:?}): the rule fitted to {species:?} has no such number (one of {})",
+                                    names.join(", ")
+                                ),
+                            ));
+                        }
+                    }
+                }
                 let field = |name: &str| format!("variants[{}].{name}", v.name);
                 if v.shared_from.is_some() && v.same_training_as.is_some() {
                     return Err(err(

@@ -62,10 +62,17 @@ impl Pin {
         }
         let text = crate::io::read_text(&path, crate::io::MAX_TEXT_BYTES)?;
         let pin: Pin = crate::scene::parse_ron(&text, &path.display().to_string())?;
-        if pin.commit.is_empty() || pin.commit.starts_with('-') || !pin.commit.chars().all(|c| c.is_ascii_hexdigit()) {
-            return Err(
-                format!("{}: commit {:?} is not a commit's hexadecimal name", path.display(), pin.commit).into()
-            );
+        // A full name only: an abbreviation may name another commit once the history grows, and a prefix
+        // test against it would accept any build whose name begins alike.
+        if !matches!(pin.commit.len(), 40 | 64)
+            || !pin.commit.chars().all(|c| c.is_ascii_digit() || ('a'..='f').contains(&c))
+        {
+            return Err(format!(
+                "{}: commit {:?} is not a commit's full name (40 lowercase hexadecimal digits, as `git rev-parse COMMIT` prints it)",
+                path.display(),
+                pin.commit
+            )
+            .into());
         }
         Ok(Some(pin))
     }
@@ -114,6 +121,8 @@ pub(crate) fn executable(exp: &super::Experiment, given: Option<&Path>) -> Resul
     if given.is_none() && pin.accepts(&this) {
         return Ok(Executable { path: me, blake3: this, kernels: pin.kernels.clone(), pin: Some(pin.clone()) });
     }
+    // The pinned commit must be one of this repository before any build of it is trusted or made.
+    resolve(exp, pin)?;
     let pinned = std::path::absolute(PINNED).map_err(|e| format!("{PINNED}: {e}"))?;
     let (path, blake3) = match given {
         Some(path) => {
@@ -139,12 +148,76 @@ pub(crate) fn executable(exp: &super::Experiment, given: Option<&Path>) -> Resul
     Ok(Executable { path, blake3, kernels: pin.kernels.clone(), pin: Some(pin) })
 }
 
+/// Refuses a pin whose commit is not a commit of this repository (`git rev-parse --verify COMMIT^{commit}`
+/// must name that same commit), before anything is built or run for it.
+fn resolve(exp: &super::Experiment, pin: &Pin) -> Result<()> {
+    let found = run(
+        "git rev-parse",
+        Command::new("git").args([
+            "rev-parse",
+            "--verify",
+            "--quiet",
+            "--end-of-options",
+            &format!("{}^{{commit}}", pin.commit),
+        ]),
+    );
+    match found {
+        Ok(full) if full.trim() == pin.commit => Ok(()),
+        _ => Err(format!(
+            "{}: commit {} is not a commit of this repository (git rev-parse --verify finds none); nothing built or run",
+            Pin::path(&exp.root).display(),
+            pin.commit
+        )
+        .into()),
+    }
+}
+
+/// Opens a binary offered as the pinned one (`--pinned-binary`, or a kept build) for reading, refusing
+/// anything but a regular executable file holding a program: a link (not followed), a FIFO (opened without
+/// waiting for a writer, then refused), a device, a folder, or a script.
+fn open_executable(exe: &Path) -> Result<std::fs::File> {
+    use std::io::Read;
+    use std::os::unix::fs::{OpenOptionsExt, PermissionsExt};
+    let refuse = |why: &str| -> crate::error::Error { format!("{}: {why}", exe.display()).into() };
+    let mut file =
+        std::fs::File::options().read(true).custom_flags(libc::O_NONBLOCK | libc::O_NOFOLLOW).open(exe).map_err(
+            |e| match e.raw_os_error() {
+                Some(libc::ELOOP) => refuse("is a symbolic link; name the executable itself"),
+                _ => refuse(&format!("cannot open: {e}")),
+            },
+        )?;
+    let meta = file.metadata().map_err(|e| refuse(&format!("cannot read: {e}")))?;
+    if !meta.is_file() {
+        return Err(refuse("is not a regular file (a folder, FIFO or device); name a built coevo executable"));
+    }
+    if meta.permissions().mode() & 0o111 == 0 {
+        return Err(refuse("is not executable"));
+    }
+    let mut magic = [0u8; 4];
+    if file.read_exact(&mut magic).is_err() || magic != *b"\x7fELF" {
+        return Err(refuse("is not a compiled program (no ELF header): a script or another file is not a coevo build"));
+    }
+    Ok(file)
+}
+
 /// Copies `exe` to `target/pinned/coevo-COMMIT-HASH` and checks that copy (unless the pin already lists
-/// its hash): its path and hash.
+/// its hash): its path and hash. A copy that fails the check is removed.
 fn checked(exp: &super::Experiment, pin: &Pin, pinned: &Path, exe: &Path) -> Result<(PathBuf, String)> {
+    let mut source = open_executable(exe)?;
     std::fs::create_dir_all(pinned).map_err(|e| format!("{}: {e}", pinned.display()))?;
     let copy = pinned.join(format!(".coevo-{}.{}.tmp", pin.commit, unique()));
-    std::fs::copy(exe, &copy).map_err(|e| format!("{}: cannot copy to {}: {e}", exe.display(), copy.display()))?;
+    let copied = (|| {
+        use std::io::Seek;
+        use std::os::unix::fs::OpenOptionsExt;
+        source.rewind()?;
+        let mut to = std::fs::File::options().write(true).create_new(true).mode(0o755).open(&copy)?;
+        std::io::copy(&mut source, &mut to)?;
+        to.sync_all()
+    })();
+    if let Err(e) = copied {
+        let _ = std::fs::remove_file(&copy);
+        return Err(format!("{}: cannot copy to {}: {e}", exe.display(), copy.display()).into());
+    }
     let kept = blake3_prefix(&copy).and_then(|blake3| {
         let kept = pinned.join(format!("coevo-{}-{blake3}", pin.commit));
         std::fs::rename(&copy, &kept)
@@ -222,9 +295,8 @@ fn rebuild(exp: &super::Experiment, pin: &Pin) -> Result<PathBuf> {
         }
         run(&format!("git {}", args.join(" ")), command.args(args))
     };
-    let commit = git(None, &["rev-parse", "--verify", &format!("{}^{{commit}}", pin.commit)])
-        .map_err(|e| format!("{}: commit {} is not in this clone ({e})", Pin::path(&exp.root).display(), pin.commit))?;
-    let commit = commit.trim();
+    // A commit of this repository ([`resolve`], before any build).
+    let commit = pin.commit.as_str();
     let intact = source.join("Cargo.toml").is_file()
         && git(Some(&source), &["rev-parse", "HEAD"]).is_ok_and(|head| head.trim() == commit)
         && git(Some(&source), &["status", "--porcelain"]).is_ok_and(|changes| changes.trim().is_empty());
@@ -305,7 +377,8 @@ fn verify(pin: &Pin, exe: &Path) -> Result<()> {
     let _ = std::fs::remove_dir_all(&scratch);
     let (commit, fingerprint) = result?;
     let (a, b) = (commit.as_str(), pin.commit.as_str());
-    if commit.ends_with("-dirty") || a.len() < 7 || !(a.starts_with(b) || b.starts_with(a)) {
+    // The build names its commit abbreviated (build.rs); the pin names it in full (Pin::read).
+    if commit.ends_with("-dirty") || a.len() < 7 || !b.starts_with(a) {
         return Err(format!(
             "it is a build of {commit}, not a clean build of the pinned commit {}; refusing to continue the experiment with it",
             pin.commit
@@ -328,7 +401,7 @@ mod tests {
 
     fn pin() -> Pin {
         Pin {
-            commit: "d0d37db".into(),
+            commit: "d0d37dbf394b1d02e9ecf17a13db44e974727c70".into(),
             blake3: "9c75d3d457b4067d".into(),
             toolchain: "rustc 1.95.0".into(),
             cargo_lock: "0".into(),
@@ -354,9 +427,15 @@ mod tests {
         std::fs::create_dir_all(path.parent().unwrap()).unwrap();
         std::fs::write(&path, pin().to_ron()).unwrap();
         assert_eq!(Pin::read(dir.path()).unwrap(), Some(pin()));
-        std::fs::write(&path, pin().to_ron().replace("d0d37db", "--help")).unwrap();
+        std::fs::write(&path, pin().to_ron().replace("d0d37dbf394b1d02e9ecf17a13db44e974727c70", "--help")).unwrap();
         let err = Pin::read(dir.path()).unwrap_err().to_string();
         assert!(err.contains("pin.ron") && err.contains("is not a commit"), "{err}");
+        // Abbreviated, or in capitals: not the full name git prints.
+        for commit in ["d0d37db", "D0D37DBF394B1D02E9ECF17A13DB44E974727C70", "0"] {
+            std::fs::write(&path, pin().to_ron().replace("d0d37dbf394b1d02e9ecf17a13db44e974727c70", commit)).unwrap();
+            let err = Pin::read(dir.path()).unwrap_err().to_string();
+            assert!(err.contains("is not a commit's full name"), "{err}");
+        }
         assert_eq!(Pin::read(&dir.path().join("elsewhere")).unwrap(), None);
     }
 }

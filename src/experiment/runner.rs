@@ -133,6 +133,18 @@ pub(crate) fn complete_run(exp: &Experiment, run: &Run, exe: &Executable, thread
     }
     drop_replay(exp, run)?;
     let distilled = crate::run::RunDir::new(&run.dir).distilled();
+    // Rules fitted as an earlier `distill:` asked (an edited file) are fitted again, as an edited
+    // evaluation is run again: the evaluations that deployed them go first, then the rules, so a kill in
+    // between leaves nothing that passes for current.
+    if exp.spec.distill.as_ref().is_some_and(|d| distill_stale(run, d).is_some()) {
+        for e in exp.spec.evaluations.iter().filter(|e| !e.distilled.is_empty()) {
+            let out = eval_file(&run.dir, &e.name);
+            if out.exists() {
+                std::fs::remove_file(&out).map_err(|err| format!("{}: {err}", out.display()))?;
+            }
+        }
+        std::fs::remove_file(&distilled).map_err(|err| format!("{}: {err}", distilled.display()))?;
+    }
     let needs_rules = exp.spec.evaluations.iter().any(|e| !e.distilled.is_empty() && !evaluated_as(run, e));
     if let (Some(d), true) = (&exp.spec.distill, needs_rules && !distilled.exists()) {
         let mut argv = vec!["--distill".into(), dir.clone(), "--episodes".into(), d.episodes.to_string()];
@@ -226,10 +238,12 @@ fn crossplayed(run: &Run) -> bool {
     crate::run::RunDir::new(&run.dir).crossplay(crate::run::CROSSPLAY_READOUTS).exists()
 }
 
-/// Whether a run is trained and has every evaluation (and its cross-play, when asked).
+/// Whether a run is trained and has every evaluation (and its cross-play, when asked), with its rules fitted as
+/// the file's `distill:` asks now.
 pub(crate) fn finished(exp: &Experiment, run: &Run) -> bool {
     stage(run) == Ok(Stage::Trained)
         && exp.spec.evaluations.iter().all(|e| evaluated_as(run, e))
+        && exp.spec.distill.as_ref().is_none_or(|d| distill_stale(run, d).is_none())
         && (exp.spec.crossplay.is_none() || crossplayed(run))
 }
 
@@ -248,13 +262,42 @@ fn evaluated_as(run: &Run, e: &super::file::Evaluation) -> bool {
         && stale(run, e).is_none()
 }
 
-/// The first evaluation of the experiment's trained runs that is stale ([`stale`]), if any.
+/// The first evaluation or fit of the experiment's trained runs that is stale ([`stale`],
+/// [`distill_stale`]), if any.
 pub(crate) fn first_stale(exp: &Experiment) -> Option<String> {
-    exp.runs
-        .iter()
-        .filter(|r| stage(r) == Ok(Stage::Trained))
-        .flat_map(|r| exp.spec.evaluations.iter().map(move |e| (r, e)))
-        .find_map(|(r, e)| stale(r, e))
+    let trained = || exp.runs.iter().filter(|r| stage(r) == Ok(Stage::Trained));
+    let refit = exp.spec.distill.as_ref().and_then(|d| trained().find_map(|r| distill_stale(r, d)));
+    refit.or_else(|| {
+        trained().flat_map(|r| exp.spec.evaluations.iter().map(move |e| (r, e))).find_map(|(r, e)| stale(r, e))
+    })
+}
+
+/// How the rules fitted to a run (`distilled.ron`) differ from what the file's `distill:` asks for now
+/// (an edited file: other counts, episodes or steps); None when they match or none are fitted yet.
+pub(crate) fn distill_stale(run: &Run, d: &super::file::DistillSpec) -> Option<String> {
+    let path = crate::run::RunDir::new(&run.dir).distilled();
+    if !path.exists() {
+        return None;
+    }
+    let Ok(file) = super::distill::DistilledFile::read(&path) else {
+        return Some(format!("{}: unreadable, fitted again", path.display()));
+    };
+    let mut scene = run.scene.clone();
+    d.overrides().apply(&mut scene, &path).ok()?;
+    let counts: Vec<(String, usize)> = scene.species.iter().map(|s| (s.name.clone(), s.count)).collect();
+    let asked = (&counts, d.episodes, scene.episode_steps);
+    (asked != (&file.counts, file.episodes, file.steps)).then(|| {
+        format!(
+            "{}: fitted on {} episodes of {} steps with {:?}, distill: asks for {} of {} with {:?}",
+            path.display(),
+            file.episodes,
+            file.steps,
+            file.counts,
+            asked.1,
+            asked.2,
+            asked.0
+        )
+    })
 }
 
 /// How an existing evaluation differs from what the experiment file asks for now (an edited file: its

@@ -1302,12 +1302,51 @@ fn an_experiment_distills_its_runs_and_deploys_the_rules_with_their_ablations() 
     let md = std::fs::read_to_string(dir.path().join("results/tiny/REPORT.md")).unwrap();
     assert!(md.contains("doa in evaluation \"50 prey, distilled prey\" minus in \"50 prey\""), "{md}");
     assert!(md.contains("turn.alignment of the Memoryless rule fitted to the prey"), "{md}");
+    // An edited distill: fits the rules again and runs again the evaluations that deploy them, as an
+    // edited evaluation is run again; the other evaluations stay as they were.
+    let learned = std::fs::read(run.join("eval-50-prey.csv")).unwrap();
+    let edited = text.replace(
+        "distill: (counts: [(\"prey\", 20)], episodes: 2, steps: 20)",
+        "distill: (counts: [(\"prey\", 20)], episodes: 2, steps: 16)",
+    );
+    assert_ne!(edited, text);
+    std::fs::write(dir.path().join("experiments/tiny.ron"), &edited).unwrap();
+    let out = coevo(dir.path(), &["--experiment", "experiments/tiny.ron", "--jobs", "2"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let fitted = coevo::experiment::distill::DistilledFile::read(&run.join("distilled.ron")).unwrap();
+    assert_eq!(fitted.steps, 16, "fitted again on the edited distill:");
+    assert_eq!(
+        std::fs::read(run.join("eval-50-prey.csv")).unwrap(),
+        learned,
+        "an evaluation without fitted rules is kept"
+    );
+    std::fs::write(dir.path().join("experiments/tiny.ron"), &text).unwrap();
+    let out = coevo(dir.path(), &["--experiment", "experiments/tiny.ron", "--jobs", "2"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     redrawn_without_run_folders(dir.path());
-    // Deploying fitted rules needs the fit; an ablation needs a zonal rule; a number must be one a rule has.
+    // Deploying fitted rules needs the fit; an ablation needs a zonal rule; a number must be one a rule has,
+    // of a species a rule is fitted to; an evaluation deploys one rule per species.
     for (from, to, says) in [
         ("    distill: (counts: [(\"prey\", 20)], episodes: 2, steps: 20),\n", "", "needs distill:"),
         ("(species: \"prey\", without: [Alignment])", "(species: \"predator\", without: [Alignment])", "has none"),
         ("\"turn.alignment\"", "\"turn.nope\"", "no number named \"turn.nope\""),
+        (
+            "Distilled(\"prey\", Memoryless, \"turn.alignment\")",
+            "Distilled(\"wolf\", Memoryless, \"turn.alignment\")",
+            "no rule is fitted to \"wolf\"",
+        ),
+        (
+            "Distilled(\"prey\", Memoryless, \"turn.alignment\")",
+            "Distilled(\"predator\", Memoryless, \"turn.alignment\")",
+            "has no such number",
+        ),
+        ("distilled: [(species: \"prey\")]", "distilled: [(species: \"wolf\")]", "no species named \"wolf\""),
+        (
+            "distilled: [(species: \"prey\")]",
+            "distilled: [(species: \"prey\"), (species: \"prey\", form: Inertial)]",
+            "listed twice",
+        ),
+        ("without: [Alignment]", "without: [Alignment, Alignment]", "lists Alignment twice"),
     ] {
         let bad = text.replace(from, to);
         assert_ne!(bad, text);
@@ -1339,12 +1378,20 @@ fn a_pinned_experiment_runs_only_with_a_build_that_reproduces_its_fingerprint() 
 )"#;
     let dir = workspace_with("tiny", one_run);
     let root = dir.path();
-    // Pinned to the commit this test's coevo was built from.
-    let commit = coevo::GIT_COMMIT.trim_end_matches("-dirty");
-    if !commit.chars().all(|c| c.is_ascii_hexdigit()) {
-        eprintln!("skipped: this coevo was not built from a git checkout ({commit})");
+    // Pinned to the commit this test's coevo was built from, named in full as a pin names it; the
+    // workspace is made part of this clone (a `.git` file pointing at its repository), as an experiment
+    // is run inside one.
+    let built = coevo::GIT_COMMIT.trim_end_matches("-dirty");
+    let repo = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let git = |args: &[&str]| Command::new("git").arg("-C").arg(repo).args(args).output().unwrap();
+    let commit = String::from_utf8(git(&["rev-parse", "--verify", &format!("{built}^{{commit}}")]).stdout).unwrap();
+    let commit = commit.trim();
+    if commit.len() != 40 {
+        eprintln!("skipped: this coevo was not built from a git checkout ({built})");
         return;
     }
+    let git_dir = String::from_utf8(git(&["rev-parse", "--absolute-git-dir"]).stdout).unwrap();
+    std::fs::write(root.join(".git"), format!("gitdir: {}\n", git_dir.trim())).unwrap();
     let pin = |fingerprint: &str| {
         format!(
             "(commit: \"{commit}\", blake3: \"0000000000000000\", toolchain: \"rustc\", cargo_lock: \"0\", kernels: \"avx2-fma\", fingerprint: \"{fingerprint}\")"
@@ -1357,6 +1404,30 @@ fn a_pinned_experiment_runs_only_with_a_build_that_reproduces_its_fingerprint() 
     // An experiment without a pin takes no pinned binary.
     let err = refused(root, &args);
     assert!(err.contains("--pinned-binary: experiments/tiny.ron is not pinned"), "{err}");
+
+    // A pin whose commit is abbreviated, or is no commit of this repository, is refused before anything
+    // is built or copied; so is a pinned binary that is not a regular executable program.
+    std::fs::write(&pin_file, pin("2eee7e2b9b23e15b").replace(commit, &commit[..12])).unwrap();
+    let err = refused(root, &args);
+    assert!(err.contains("pin.ron") && err.contains("is not a commit's full name"), "{err}");
+    std::fs::write(&pin_file, pin("2eee7e2b9b23e15b").replace(commit, &"0123456789".repeat(4))).unwrap();
+    let err = refused(root, &args);
+    assert!(err.contains("pin.ron") && err.contains("is not a commit of this repository"), "{err}");
+    assert!(!root.join("target/pinned").exists(), "something was built or copied for a pin of no commit");
+    std::fs::write(&pin_file, pin("2eee7e2b9b23e15b")).unwrap();
+    let fifo = root.join("fifo");
+    assert!(Command::new("mkfifo").arg(&fifo).status().unwrap().success());
+    let script = root.join("script");
+    std::fs::write(&script, "#!/bin/sh\necho coevo\n").unwrap();
+    std::fs::set_permissions(&script, std::os::unix::fs::PermissionsExt::from_mode(0o755)).unwrap();
+    let link = root.join("link");
+    std::os::unix::fs::symlink(me, &link).unwrap();
+    for (given, says) in [(&fifo, "is not a regular file"), (&script, "no ELF header"), (&link, "is a symbolic link")] {
+        let given = given.to_str().unwrap();
+        let err = refused(root, &["--experiment", "experiments/tiny.ron", "--pinned-binary", given, "--quiet"]);
+        assert!(err.contains(given) && err.contains(says), "{err}");
+    }
+    assert!(std::fs::read_dir(root.join("target/pinned")).map_or(true, |mut d| d.next().is_none()), "a copy was left");
 
     // A build that computes other numbers than the pinned binary is refused, before any run; so is a build
     // of uncommitted changes (when this test's coevo is one, nothing else can be checked here).
