@@ -160,8 +160,40 @@ pub fn help() -> String {
 /// Runs the command line with `species` registered (none for plain `coevo`): one line on stderr and a
 /// non-zero exit on any error.
 pub fn main(species: SpeciesPlugins) -> ExitCode {
+    // A file that outgrows `ulimit -f` is a write error (EFBIG) that the mode reports and cleans up after,
+    // not a SIGXFSZ that would kill the process with its temporary files and lock left behind.
+    // SAFETY: sets the action of one signal before any thread is started.
+    unsafe { libc::signal(libc::SIGXFSZ, libc::SIG_IGN) };
+    // The command line is read and run on a thread whose stack coevo sizes: the main thread's is whatever
+    // `ulimit -s` says (16 KiB under `ulimit -s 16`, where reading the arguments or a scene overflowed it),
+    // a spawned thread's is not. Only the viewer comes back: winit opens its window on the main thread.
+    let worker =
+        std::thread::Builder::new().name("coevo".into()).stack_size(MAIN_STACK).spawn(move || headless(species));
+    let outcome = match worker {
+        Ok(worker) => worker.join().unwrap_or_else(|panic| std::panic::resume_unwind(panic)),
+        Err(e) => {
+            return fail(&format!("cannot start a thread ({e}): the system's limits on threads or memory were reached"))
+        }
+    };
+    match outcome {
+        Ran::Done(code) => code,
+        Ran::Viewer(cli) => match run(*cli) {
+            Ok(()) => ExitCode::SUCCESS,
+            Err(e) => fail(&e.to_string()),
+        },
+    }
+}
+
+/// What [`headless`] did: ran the command to its end, or read a viewer's command line for the main thread.
+enum Ran {
+    Done(ExitCode),
+    Viewer(Box<Cli>),
+}
+
+/// Reads the command line and runs it, unless it opens the viewer.
+fn headless(species: SpeciesPlugins) -> Ran {
     if let Err(e) = species.register() {
-        return fail(&e.to_string());
+        return Ran::Done(fail(&e.to_string()));
     }
     // Arguments as the system gives them: one that is not UTF-8 (a path, most often) is refused in one
     // line, where std::env::args would panic.
@@ -170,33 +202,34 @@ pub fn main(species: SpeciesPlugins) -> ExitCode {
         match arg.into_string() {
             Ok(text) => args.push(text),
             Err(raw) => {
-                return fail(&format!(
+                return Ran::Done(fail(&format!(
                     "argument {i} ({:?}) is not valid UTF-8: coevo takes paths and values in UTF-8",
                     raw.to_string_lossy()
-                ))
+                )))
             }
         }
     }
-    // A file that outgrows `ulimit -f` is a write error (EFBIG) that the mode reports and cleans up after,
-    // not a SIGXFSZ that would kill the process with its temporary files and lock left behind.
-    // SAFETY: sets the action of one signal before any thread is started.
-    unsafe { libc::signal(libc::SIGXFSZ, libc::SIG_IGN) };
     let (cli, viewer) = match parse(args) {
         Ok(parsed) => parsed,
         Err(e) if matches!(e.kind(), ErrorKind::DisplayHelp | ErrorKind::DisplayVersion) => e.exit(),
-        Err(e) => return fail(&one_line(&e)),
+        Err(e) => return Ran::Done(fail(&one_line(&e))),
     };
-    if !viewer {
-        crate::io::install_signal_cleanup();
-        // Output piped into `head` ends quietly, as a Unix tool's does, instead of panicking on EPIPE.
-        // SAFETY: restores the default action of one signal before any thread is started.
-        unsafe { libc::signal(libc::SIGPIPE, libc::SIG_DFL) };
+    if viewer {
+        return Ran::Viewer(Box::new(cli));
     }
-    match run(cli) {
+    crate::io::install_signal_cleanup();
+    // Output piped into `head` ends quietly, as a Unix tool's does, instead of panicking on EPIPE.
+    // SAFETY: sets the process's action for one signal; no thread of coevo's has one of its own.
+    unsafe { libc::signal(libc::SIGPIPE, libc::SIG_DFL) };
+    Ran::Done(match run(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => fail(&e.to_string()),
-    }
+    })
 }
+
+/// The stack of the thread the command line runs on: far beyond any call chain of coevo's (a scene's
+/// parse, a model's forward pass), and only address space until used.
+const MAIN_STACK: usize = 64 << 20;
 
 /// One line on stderr and a failure; a stderr that cannot take it (closed, full) still fails, quietly.
 /// Control characters (a newline in a file's name) are shown escaped, so the message stays one line; a

@@ -199,16 +199,27 @@ macro_rules! errln {
     ($($arg:tt)*) => { $crate::io::err_text(format_args!("{}\n", format_args!($($arg)*))) };
 }
 
-/// Whether a process with this PID exists (a PID that is ours is alive; `kill(pid, 0)` asks without
-/// sending anything, EPERM means it exists under another user).
+/// Whether a process with this PID is alive (a PID that is ours is alive; `kill(pid, 0)` asks without
+/// sending anything, EPERM means it exists under another user). A zombie, a process that has ended but
+/// that its parent has not reaped yet (a runner's child killed with SIGKILL, for about a second), exists
+/// for `kill` but holds nothing: `/proc/PID/stat` names its state, and Z or X is no owner.
 pub(crate) fn process_alive(pid: u32) -> bool {
     if pid == std::process::id() {
         return true;
     }
-    let Ok(pid) = libc::pid_t::try_from(pid) else { return false };
+    let Ok(id) = libc::pid_t::try_from(pid) else { return false };
     // SAFETY: signal 0 only checks that the process exists.
-    let r = unsafe { libc::kill(pid, 0) };
-    r == 0 || io::Error::last_os_error().raw_os_error() == Some(libc::EPERM)
+    let r = unsafe { libc::kill(id, 0) };
+    let exists = r == 0 || io::Error::last_os_error().raw_os_error() == Some(libc::EPERM);
+    exists && !process_ended(pid)
+}
+
+/// Whether `/proc` says the process has ended (a zombie or dead). Without `/proc` (another system), no.
+fn process_ended(pid: u32) -> bool {
+    let Ok(stat) = std::fs::read_to_string(format!("/proc/{pid}/stat")) else { return false };
+    // "PID (COMMAND) STATE ...": the command may hold spaces and parentheses, so the state follows the last ')'.
+    let state = stat.rfind(')').and_then(|end| stat[end + 1..].split_whitespace().next());
+    matches!(state, Some("Z" | "X" | "x"))
 }
 
 /// The PID in a temporary's name `.NAME.PID.tmp` ([`temporary_beside`]), with NAME.
@@ -406,7 +417,6 @@ pub(crate) fn write_atomically(
     file.commit()
 }
 
-/// [`write_atomically`] of whole bytes, with the error as one line naming the file.
 /// The file written beside `path` under the same stem: `OUT.csv` → `OUT-{what}.csv` (an evaluation's
 /// distributions, a record's order parameters).
 pub(crate) fn beside(path: &Path, what: &str) -> PathBuf {
@@ -414,6 +424,7 @@ pub(crate) fn beside(path: &Path, what: &str) -> PathBuf {
     path.with_file_name(format!("{stem}-{what}.csv"))
 }
 
+/// [`write_atomically`] of whole bytes, with the error as one line naming the file.
 pub fn write_file(path: &Path, existing: Existing, bytes: &[u8]) -> crate::error::Result<()> {
     write_atomically(path, existing, |w| w.write_all(bytes))
         .map_err(|e| format!("{}: {e}", path.display()))
@@ -527,6 +538,24 @@ fn address_space_left() -> Option<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_zombie_is_not_alive() {
+        // A child that has exited and is not reaped yet: `kill` still finds it, the lock must not.
+        let mut child = std::process::Command::new("true").spawn().unwrap();
+        let pid = child.id();
+        let deadline = std::time::Instant::now() + std::time::Duration::from_secs(10);
+        while !process_ended(pid) {
+            assert!(std::time::Instant::now() < deadline, "the child never became a zombie");
+            std::thread::sleep(std::time::Duration::from_millis(5));
+        }
+        assert!(!process_alive(pid));
+        child.wait().unwrap();
+        let mut running = std::process::Command::new("sleep").arg("5").spawn().unwrap();
+        assert!(process_alive(running.id()));
+        running.kill().unwrap();
+        running.wait().unwrap();
+    }
 
     #[test]
     fn an_uncommitted_file_leaves_the_target_untouched() {

@@ -26,6 +26,7 @@ from pettingzoo import ParallelEnv as _ParallelEnv
 
 from ._coevo import Env as _Env
 from ._coevo import VecEnv as _VecEnv
+from ._coevo import scene_text as _read_scene_text
 from ._coevo import RunFolder, __version__, compare_curves, force_maps, git_commit, response_fields, t_estimate, welch, world_seed
 from ._coevo import (  # one exception class per kind of error, all subclasses of CoevoError (a ValueError)
     CheckpointError,
@@ -100,7 +101,8 @@ class CoevoParallelEnv(_ParallelEnv):
 
     Pickling or copying it (``copy.deepcopy``, ``pickle``, the process pools of SuperSuit's
     ``concat_vec_envs_v1`` and Stable-Baselines3) gives the same environment made again from the same
-    arguments: it starts from the same seed, and an episode in progress is not carried over."""
+    arguments and the same scene (its text, as read when the env was made, whatever the file holds by
+    then): it starts from the same seed, and an episode in progress is not carried over."""
 
     def __reduce__(self):
         return (_made_again, (CoevoParallelEnv, self._made_with))
@@ -111,23 +113,27 @@ class CoevoParallelEnv(_ParallelEnv):
     def __init__(self, scene: str = "scenes/standard.ron", seed: int | None = None,
                  counts: dict[str, int] | None = None, episode_steps: int | None = None,
                  render_mode: str | None = None, render_size: int = 480,
-                 control: str | list[str] | None = None, max_cycles: int | None = None):
+                 control: str | list[str] | None = None, max_cycles: int | None = None,
+                 _scene_text: str | None = None):
         if render_mode not in (None, "rgb_array", "human"):
             raise ValueError(f"render_mode: {render_mode!r} is not one of None, 'rgb_array', 'human'")
         # PettingZoo's name for the episode length (its max_cycles_test), the same as episode_steps.
         if max_cycles is not None and episode_steps is not None and max_cycles != episode_steps:
             raise ValueError(f"max_cycles: {max_cycles} differs from episode_steps: {episode_steps}; give one")
         episode_steps = max_cycles if max_cycles is not None else episode_steps
-        # What made it: a pickled or copied env is this one made again ([`__reduce__`]).
+        # What made it: a pickled or copied env is this one made again ([`__reduce__`]), from the scene's
+        # text as read now, not from the file again.
+        text = _read_scene_text(scene) if _scene_text is None else _scene_text
         self._made_with = dict(scene=scene, seed=seed, counts=counts, episode_steps=episode_steps,
-                               render_mode=render_mode, render_size=render_size, control=control)
+                               render_mode=render_mode, render_size=render_size, control=control,
+                               _scene_text=text)
         self._window = None
         if render_mode == "human":
             try:
                 import matplotlib.pyplot  # noqa: F401 (the window of render_mode="human")
             except ImportError as e:
                 raise ImportError("render_mode='human' shows frames with matplotlib: pip install matplotlib") from e
-        self._env = _Env(scene, seed, _counts(counts), episode_steps, _control(control))
+        self._env = _Env(scene, seed, _counts(counts), episode_steps, _control(control), text)
         self.possible_agents = list(self._env.agents())
         # One space object for every agent (all observe the same layout), held by this env only: a
         # method cache would keep every env ever made alive.
@@ -275,14 +281,15 @@ class VecEnv:
     def __init__(self, scene: str = "scenes/standard.ron", num_envs: int = 64, seed: int = 0,
                  counts: dict[str, int] | None = None, episode_steps: int | None = None,
                  control: str | list[str] | None = None, world_seeds: str = "independent",
-                 threads: int | None = None):
+                 threads: int | None = None, _scene_text: str | None = None):
         """``threads``: step the worlds on at most this many threads (None: every core, or
         ``COEVO_THREADS``); it changes only the speed, never a number."""
+        text = _read_scene_text(scene) if _scene_text is None else _scene_text
         self._made_with = dict(scene=scene, num_envs=num_envs, seed=seed, counts=counts,
                                episode_steps=episode_steps, control=control, world_seeds=world_seeds,
-                               threads=threads)
+                               threads=threads, _scene_text=text)
         self._env = _VecEnv(scene, num_envs, seed, _counts(counts), episode_steps, _control(control),
-                            world_seeds, threads)
+                            world_seeds, threads, text)
         # World i's seed: `seed` for world 0, `world_seed(seed, i)` for the others (independent of the
         # worlds of neighbouring seeds); seed + i with world_seeds="consecutive", as VecEnvs seeded
         # them before (runs with seeds 1 and 2 then shared 31 of 32 worlds' episode starts).
@@ -389,16 +396,18 @@ class CoevoVectorEnv(_VectorEnv):
     def __init__(self, scene: str = "scenes/standard.ron", num_worlds: int = 8, seed: int = 0,
                  counts: dict[str, int] | None = None, episode_steps: int | None = None,
                  control: str | list[str] | None = None, threads: int | None = None,
-                 autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP):
+                 autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP, _scene_text: str | None = None):
         try:
             mode = AutoresetMode(autoreset_mode)
         except ValueError:
             mode = None
         if mode not in (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP):
             raise InputError(f"autoreset_mode: NEXT_STEP or SAME_STEP (got {autoreset_mode!r})")
+        # The scene's text as read now: a reset with a seed, a copy or a pickle makes its worlds from it.
+        text = _read_scene_text(scene) if _scene_text is None else _scene_text
         self._made_with = dict(scene=scene, num_worlds=num_worlds, seed=seed, counts=counts,
                                episode_steps=episode_steps, control=control, threads=threads,
-                               autoreset_mode=mode)
+                               autoreset_mode=mode, _scene_text=text)
         self.metadata = dict(type(self).metadata, autoreset_mode=mode)
         self._worlds = self._make(seed)
         self.num_worlds = num_worlds
@@ -417,7 +426,7 @@ class CoevoVectorEnv(_VectorEnv):
     def _make(self, seed: int) -> VecEnv:
         made = self._made_with
         return VecEnv(made["scene"], made["num_worlds"], seed, made["counts"], made["episode_steps"],
-                      made["control"], threads=made["threads"])
+                      made["control"], threads=made["threads"], _scene_text=made["_scene_text"])
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         if self.closed:

@@ -62,11 +62,31 @@ fn err(e: coevo::error::Error) -> PyErr {
     }
 }
 
-/// A scene file with the counts, seed and episode length given from Python, validated.
-fn scene(path: &str, seed: Option<u64>, counts: Option<Vec<(String, usize)>>, steps: Option<usize>) -> PyResult<Scene> {
+/// A scene file with the counts, seed and episode length given from Python, validated. With `text`, the
+/// scene is that text (what `path` held when the env was first made, [`scene_text`]): a pickled env is
+/// made again from the scene it was made from, whatever the file says now.
+fn scene(
+    path: &str,
+    text: Option<&str>,
+    seed: Option<u64>,
+    counts: Option<Vec<(String, usize)>>,
+    steps: Option<usize>,
+) -> PyResult<Scene> {
     let overrides = Overrides { counts: counts.unwrap_or_default(), seed, episode_steps: steps, ..Default::default() };
-    // The shipped scenes (`scenes/standard.ron`, …) are built in: an installed wheel runs them anywhere.
-    coevo::run::args::load_scene(Path::new(path), &overrides).map_err(err)
+    let Some(text) = text else {
+        // The shipped scenes (`scenes/standard.ron`, …) are built in: an installed wheel runs them anywhere.
+        return coevo::run::args::load_scene(Path::new(path), &overrides).map_err(err);
+    };
+    let mut scene = Scene::parse(text, &format!("{path} (as the env was made)")).map_err(err)?;
+    overrides.apply(&mut scene, Path::new(path)).map_err(|e| err(e.of_kind(coevo::error::Kind::Scene)))?;
+    Ok(scene)
+}
+
+/// The scene file at `path` as a loadable scene text (the built-in copy of a shipped scene), which an env
+/// keeps so that a copy or a pickle of it is made from the same scene.
+#[pyfunction]
+fn scene_text(path: &str) -> PyResult<String> {
+    Ok(coevo::run::args::load_scene(Path::new(path), &Overrides::default()).map_err(err)?.to_ron())
 }
 
 /// A matrix of f64 rows as a 2-D array.
@@ -111,7 +131,7 @@ fn response_fields<'py>(py: Python<'py>, run: &str, swarm: bool) -> PyResult<Bou
 #[pyo3(signature = (trajectory, scene_path="scenes/standard.ron"))]
 fn force_maps<'py>(py: Python<'py>, trajectory: &str, scene_path: &str) -> PyResult<Bound<'py, PyList>> {
     use coevo::experiment::force_map;
-    let scene = scene(scene_path, None, None, None)?;
+    let scene = scene(scene_path, None, None, None, None)?;
     let names: Vec<String> = scene.species.iter().map(|d| d.name.clone()).collect();
     let steps = force_map::read(Path::new(trajectory), &names).map_err(err)?;
     let arena = coevo::sim::space::Arena { edge: scene.world.arena_edge, boundary: scene.world.boundary };
@@ -144,15 +164,16 @@ struct Env {
 #[pymethods]
 impl Env {
     #[new]
-    #[pyo3(signature = (scene_path, seed=None, counts=None, episode_steps=None, control=None))]
+    #[pyo3(signature = (scene_path, seed=None, counts=None, episode_steps=None, control=None, scene_text=None))]
     fn new(
         scene_path: &str,
         seed: Option<u64>,
         counts: Option<Vec<(String, usize)>>,
         episode_steps: Option<usize>,
         control: Option<Vec<String>>,
+        scene_text: Option<&str>,
     ) -> PyResult<Self> {
-        let scene = scene(scene_path, seed, counts, episode_steps)?;
+        let scene = scene(scene_path, scene_text, seed, counts, episode_steps)?;
         Ok(Env { inner: coevo::run::env::Env::with_control(scene, self::control(control)?).map_err(err)? })
     }
 
@@ -246,7 +267,7 @@ struct VecEnv {
 #[pymethods]
 impl VecEnv {
     #[new]
-    #[pyo3(signature = (scene_path, num_envs, seed=0, counts=None, episode_steps=None, control=None, world_seeds="independent", threads=None))]
+    #[pyo3(signature = (scene_path, num_envs, seed=0, counts=None, episode_steps=None, control=None, world_seeds="independent", threads=None, scene_text=None))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         scene_path: &str,
@@ -257,12 +278,13 @@ impl VecEnv {
         control: Option<Vec<String>>,
         world_seeds: &str,
         threads: Option<usize>,
+        scene_text: Option<&str>,
     ) -> PyResult<Self> {
         if threads == Some(0) {
             return Err(InputError::new_err("threads: must be ≥ 1 (None: every core, or COEVO_THREADS)"));
         }
         use coevo::run::env::WorldSeeds;
-        let scene = scene(scene_path, None, counts, episode_steps)?;
+        let scene = scene(scene_path, scene_text, None, counts, episode_steps)?;
         let control = self::control(control)?;
         let seeds = match world_seeds {
             "independent" => WorldSeeds::Independent,
@@ -559,6 +581,7 @@ fn _coevo(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<VecEnv>()?;
     m.add_class::<RunFolder>()?;
     m.add_function(wrap_pyfunction!(world_seed, m)?)?;
+    m.add_function(wrap_pyfunction!(scene_text, m)?)?;
     m.add_function(wrap_pyfunction!(response_fields, m)?)?;
     m.add_function(wrap_pyfunction!(force_maps, m)?)?;
     m.add_function(wrap_pyfunction!(t_estimate, m)?)?;

@@ -551,6 +551,24 @@ def test_envs_pickle_and_copy_as_made_again():
     assert again.world_seeds == vec.world_seeds and np.array_equal(again.reset(), vec.reset())
 
 
+def test_a_pickled_env_comes_back_with_its_scene_even_after_the_file_changed(tmp_path):
+    # The scene's text travels with the pickle: a file edited (or gone) in between changes nothing.
+    import pickle
+
+    path = tmp_path / "mine.ron"
+    path.write_text(coevo.parallel_env(STANDARD, counts={"prey": 10}).scene_ron())
+    made = [coevo.parallel_env(str(path)), coevo.VecEnv(str(path), num_envs=2),
+            coevo.vector_env(str(path), num_worlds=2)]
+    pickled = [pickle.dumps(e) for e in made]
+    path.write_text(coevo.parallel_env(STANDARD, counts={"prey": 4}).scene_ron())
+    par, vec, vector = [pickle.loads(p) for p in pickled]
+    assert len(par.possible_agents) == len(made[0].possible_agents) == 13
+    assert vec.reset().shape == made[1].reset().shape
+    assert vector.reset(seed=1)[0].shape == made[2].reset(seed=1)[0].shape
+    path.unlink()
+    assert len(pickle.loads(pickled[0]).possible_agents) == 13
+
+
 def test_supersuit_vectorises_it_for_stable_baselines3():
     # PettingZoo's SB3 route: every agent a sub-env (pettingzoo_env_to_vec_env_v1), copies concatenated
     # (concat_vec_envs_v1, which copies the env); runs where SuperSuit is installed.

@@ -686,8 +686,6 @@ fn what_may_be_written_is_written_and_nothing_else() {
     assert!(root.join("empty/checkpoint/state.ron").exists());
 }
 
-/// Every file under `dir` whose name says it was left half-done: a temporary, a lock, a checkpoint being
-/// written or swapped.
 /// coevo with `args` (split by the shell) in `root`, under `ulimit LIMIT` (e.g. "-f 256").
 fn under_limit(root: &Path, limit: &str, args: &str) -> std::process::Output {
     Command::new("sh")
@@ -698,6 +696,8 @@ fn under_limit(root: &Path, limit: &str, args: &str) -> std::process::Output {
         .unwrap()
 }
 
+/// Every file under `dir` whose name says it was left half-done: a temporary, a lock, a checkpoint being
+/// written or swapped.
 fn leftovers(dir: &Path) -> Vec<PathBuf> {
     snapshot(dir)
         .into_keys()
@@ -794,6 +794,15 @@ fn arguments_environment_and_resource_limits_end_in_one_line_and_leave_nothing()
 
     // An open-file limit (ulimit -n) too low to save a checkpoint: one line naming the limit, no lock or
     // half-written checkpoint left. (A process limit, ulimit -u, binds no root process: not tested here.)
+    // A stack limit far below any program's (ulimit -s 16, in KiB): the command line is read and run on a
+    // thread whose stack coevo sizes, so the main thread's 16 KiB bind nothing.
+    let out = under_limit(root, "-s 16", "--describe-scene scenes/paper.ron");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success() && stdout.contains("resolved scene:"),
+        "ulimit -s: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let out = under_limit(root, "-n 5", "--train --out few-files --episodes 1 --quiet");
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && stderr.lines().count() == 1, "ulimit -n: {stderr}");
