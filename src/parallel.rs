@@ -420,3 +420,15 @@ mod tests {
         });
     }
 }
+
+/// Runs `step` repeatedly for about `budget` (at least `min_iters` times) and returns calls per second: the
+/// one timing loop of `--bench` and of the kernels' peak measurement.
+pub(crate) fn per_second(budget: std::time::Duration, min_iters: usize, mut step: impl FnMut()) -> f64 {
+    let start = std::time::Instant::now();
+    let mut iters = 0usize;
+    while iters < min_iters || start.elapsed() < budget {
+        step();
+        iters += 1;
+    }
+    iters as f64 / start.elapsed().as_secs_f64()
+}

@@ -240,7 +240,7 @@ pub(crate) fn fma_peak(budget: std::time::Duration) -> Option<f64> {
             return None;
         };
         // SAFETY: the chosen function's features were detected just above.
-        let rounds = crate::run::bench::per_second(budget, 3, || {
+        let rounds = crate::parallel::per_second(budget, 3, || {
             std::hint::black_box(unsafe { run(1_000_000) });
         });
         Some(rounds * 1e6 * 12.0 * lanes * 2.0)

@@ -6,7 +6,7 @@
 
 use crate::scene::{Policy, Scene};
 use crate::sim::Simulation;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 /// `--bench` and its own flag.
 #[derive(clap::Args, Debug, Clone, Default)]
@@ -96,17 +96,6 @@ pub fn bench_scene(predators: usize, prey: usize, keep_density: bool) -> Scene {
     scene
 }
 
-/// Runs `step` repeatedly for about `budget` (at least `min_iters` times) and returns calls per second.
-pub(crate) fn per_second(budget: Duration, min_iters: usize, mut step: impl FnMut()) -> f64 {
-    let start = Instant::now();
-    let mut iters = 0usize;
-    while iters < min_iters || start.elapsed() < budget {
-        step();
-        iters += 1;
-    }
-    iters as f64 / start.elapsed().as_secs_f64()
-}
-
 /// Environment steps per second for the four populations.
 pub(crate) fn environment(budget: Duration) -> Vec<Figure> {
     [(3, 10, false), (3, 50, false), (3, 1_000, true), (3, 10_000, true)]
@@ -119,7 +108,7 @@ pub(crate) fn environment(budget: Duration) -> Vec<Figure> {
             let edge = sim.world().resource::<crate::sim::ActiveScene>().0.world.arena_edge;
             Figure {
                 label: format!("environment step, {p}+{e} agents, arena {edge:.1} m, random actions"),
-                per_second: per_second(budget, 20, || sim.step()),
+                per_second: crate::parallel::per_second(budget, 20, || sim.step()),
                 unit: "steps/s",
             }
         })
@@ -142,7 +131,7 @@ pub(crate) fn external(budget: Duration) -> Vec<Figure> {
         let actions = vec![0.5; env.agents().len() * 2];
         figures.push(Figure {
             label: "external env step, 3+10 agents (run::env::Env)".into(),
-            per_second: per_second(budget, 20, || {
+            per_second: crate::parallel::per_second(budget, 20, || {
                 if env.step(&actions).is_ok_and(|r| r.truncated) {
                     let _ = env.reset(None);
                 }
@@ -159,7 +148,7 @@ pub(crate) fn external(budget: Duration) -> Vec<Figure> {
             let actions = vec![0.5; worlds.worlds() * worlds.agents() * 2];
             crate::parallel::set_threads(threads);
             let rate = n as f64
-                * per_second(budget, 5, || {
+                * crate::parallel::per_second(budget, 5, || {
                     let _ = worlds.step(&actions);
                 });
             crate::parallel::set_threads(all);
@@ -193,7 +182,7 @@ fn products(budget: Duration) -> Vec<Figure> {
     let mut figures = vec![Figure {
         label: format!("matrix product {m} × {k} · {k} × {n} ({} kernels)", crate::learning::nets::kernels()),
         per_second: flop
-            * per_second(budget, 20, || {
+            * crate::parallel::per_second(budget, 20, || {
                 // SAFETY: z is m × n, x m × k, w k × n, all row-major.
                 unsafe {
                     crate::learning::fused::product(
@@ -237,7 +226,7 @@ pub(crate) fn learning(budget: Duration) -> Vec<Figure> {
     let mut figures = products(budget);
     figures.push(Figure {
         label: "DDPG update (critic + actor + soft update), batch 256, d_o 54".into(),
-        per_second: per_second(budget, 20, || {
+        per_second: crate::parallel::per_second(budget, 20, || {
             ddpg.update(&batch);
         }),
         unit: "updates/s",
@@ -246,7 +235,7 @@ pub(crate) fn learning(budget: Duration) -> Vec<Figure> {
         let (obs, mut actions) = (draw(n * 54), vec![0.0; n * 2]);
         figures.push(Figure {
             label: format!("batched actor inference, {n} agents"),
-            per_second: per_second(budget, 20, || ddpg.act_into(&dev, &obs, &mut actions)),
+            per_second: crate::parallel::per_second(budget, 20, || ddpg.act_into(&dev, &obs, &mut actions)),
             unit: "passes/s",
         });
     }
@@ -257,7 +246,7 @@ pub(crate) fn learning(budget: Duration) -> Vec<Figure> {
     let mut sim = crate::learning::simulation(scene, Mode::Evaluate, None).expect("no checkpoint needed");
     figures.push(Figure {
         label: "policy-driven step, 3+10000 agents (untrained weights)".into(),
-        per_second: per_second(budget, 5, || sim.step()),
+        per_second: crate::parallel::per_second(budget, 5, || sim.step()),
         unit: "steps/s",
     });
     figures
