@@ -45,6 +45,8 @@ impl SpeciesPlugin for HawkPlugin {
                 blind_to: vec![],
                 perception_of: vec![],
                 topological_limit_of: vec![],
+                field_of_view: coevo::scene::FULL_VIEW,
+                field_of_view_of: vec![],
             },
             // Nobody catches hawks.
             caught_by: vec![],

@@ -129,6 +129,8 @@ mod owl {
                     blind_to: vec![],
                     perception_of: vec![],
                     topological_limit_of: vec![],
+                    field_of_view: coevo::scene::FULL_VIEW,
+                    field_of_view_of: vec![],
                 },
                 caught_by: vec![],
                 contact_rewards: vec![ContactReward {

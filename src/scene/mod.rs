@@ -9,6 +9,7 @@
 //! Every error is one line naming the file, the line when it is known, and the field.
 
 pub(crate) mod catalog;
+mod classic;
 mod diagnostics;
 pub(crate) mod layout;
 mod presets;

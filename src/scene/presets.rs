@@ -19,6 +19,8 @@ pub(super) fn paper() -> Scene {
         catches: catches.iter().map(|s| s.to_string()).collect(),
         policy,
         blind_to: vec![],
+        field_of_view: super::schema::FULL_VIEW,
+        field_of_view_of: vec![],
         perception_of: vec![],
         topological_limit_of: vec![],
     };

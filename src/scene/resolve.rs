@@ -231,6 +231,8 @@ impl SpeciesDef {
             catches: vec![],
             policy: Policy::Still,
             blind_to: vec![],
+            field_of_view: super::schema::FULL_VIEW,
+            field_of_view_of: vec![],
             perception_of: vec![],
             topological_limit_of: vec![],
         }

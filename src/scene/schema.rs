@@ -2,6 +2,7 @@
 //! with the defaults and the few questions a scene answers about itself. Read, resolved and validated by
 //! the sibling modules.
 
+pub use super::classic::{CouzinRule, VicsekRule};
 pub use super::rules::{PursuitRule, ZonalRule};
 use serde::{Deserialize, Serialize};
 
@@ -99,6 +100,12 @@ pub enum Policy {
     /// A predator's pursuit of the nearest prey, the centre of the prey in view and the most isolated one
     /// ([`PursuitRule`], `sim::rules`).
     Pursuit(PursuitRule),
+    /// Vicsek et al.'s model (PRL 1995): the mean heading within a radius, plus uniform noise
+    /// ([`VicsekRule`], `sim::classic`).
+    Vicsek(VicsekRule),
+    /// Couzin et al.'s model (J. Theor. Biol. 2002): repulsion, orientation and attraction zones, plus
+    /// Gaussian noise ([`CouzinRule`], `sim::classic`).
+    Couzin(CouzinRule),
     /// Trained by the learning plugin (Algorithm 1).
     Learned,
     /// A trained actor loaded from a checkpoint folder, no updates.
@@ -288,7 +295,31 @@ patchable! {
         /// difference 4 of the authors' code (docs/src/results/authors-code.md)).
         #[serde(default, skip_serializing_if = "Vec::is_empty")]
         pub topological_limit_of: Vec<(String, usize)>,
+        /// Field of view in degrees, in (0, 360] (not in the paper, whose agents see all around: 360). An
+        /// agent in the blind sector behind, the 360 − `field_of_view` degrees centred on the direction
+        /// opposite the heading, is not perceived: its slot goes to the next nearest agent in view, and the
+        /// slots left over stay zero as for absent agents. Couzin et al. (J. Theor. Biol. 2002) call the
+        /// field of perception α and use 270°. The boundary of the sector is in view.
+        #[serde(default = "full_view", skip_serializing_if = "is_full_view")]
+        pub field_of_view: f64,
+        /// Field of view per observed species (not in the paper): `[("predator", 360.0)]` sees predators all
+        /// around and every other species within `field_of_view`.
+        #[serde(default, skip_serializing_if = "Vec::is_empty")]
+        pub field_of_view_of: Vec<(String, f64)>,
     }
+}
+
+/// The paper's field of view: all around.
+pub const FULL_VIEW: f64 = 360.0;
+
+fn full_view() -> f64 {
+    FULL_VIEW
+}
+
+/// A field of view left out of scene files: all around, so scenes and runs written before the field
+/// existed read and write as they did (and their checkpoints' scene identity stays the same).
+fn is_full_view(degrees: &f64) -> bool {
+    *degrees == FULL_VIEW
 }
 
 patchable! {

@@ -102,6 +102,13 @@ impl Scene {
                     &rule.numbers()
                 }
                 Policy::Pursuit(rule) => &rule.numbers(),
+                Policy::Vicsek(rule) => {
+                    check((0.0..=std::f64::consts::TAU).contains(&rule.noise), &f("policy.noise"), || {
+                        format!("Vicsek: η in radians, in [0, 2π] (got {})", rule.noise)
+                    })?;
+                    &rule.numbers()
+                }
+                Policy::Couzin(rule) => &rule.numbers(),
                 _ => &[],
             };
             for (name, v) in rule {
@@ -150,6 +157,18 @@ impl Scene {
             let names: Vec<&String> = s.topological_limit_of.iter().map(|(t, _)| t).collect();
             for i in 0..names.len() {
                 once("topological_limit_of", &names, i)?;
+            }
+            // Degrees of a field of view: more than none, at most all around.
+            let field_of_view = |degrees: f64, field: &str| {
+                check(degrees > 0.0 && degrees <= super::schema::FULL_VIEW, &f(field), || {
+                    format!("degrees in (0, 360] (360: all around, the paper; got {degrees})")
+                })
+            };
+            field_of_view(s.field_of_view, "field_of_view")?;
+            let names: Vec<&String> = s.field_of_view_of.iter().map(|(t, _)| t).collect();
+            for (i, (_, degrees)) in s.field_of_view_of.iter().enumerate() {
+                once("field_of_view_of", &names, i)?;
+                field_of_view(*degrees, "field_of_view_of")?;
             }
         }
         for (i, r) in self.contact_rewards.iter().enumerate() {

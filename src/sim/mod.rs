@@ -15,6 +15,7 @@
 //! | `Learn`    | Algorithm 1: replay buffers and DDPG updates                       | `learning/`       |
 //! | `Episode`  | end of episode: summary, respawn                                  | `episode.rs`      |
 
+pub(crate) mod classic;
 pub(crate) mod clock;
 pub(crate) mod collective;
 pub mod components;

@@ -202,6 +202,14 @@ pub(crate) fn rule_action(
             let prey = observed_of(obs, registry, s, registry.prey_of(s), frame);
             pursuit_action(rule, &PursuitFeatures::of(Own::of(obs, registry, s, frame), &prey))
         }
+        Policy::Vicsek(rule) => {
+            let kin = super::rules::observed(obs, registry, s, s, scene.observation_frame);
+            super::classic::steer(super::classic::vicsek_direction(rule, &kin, rng), max_turn, dt)
+        }
+        Policy::Couzin(rule) => {
+            let kin = super::rules::observed(obs, registry, s, s, scene.observation_frame);
+            super::classic::steer(super::classic::couzin_direction(rule, &kin, rng), max_turn, dt)
+        }
         Policy::Learned | Policy::Frozen(_) | Policy::Plugin(_) => return None,
     })
 }

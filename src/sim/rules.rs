@@ -8,12 +8,13 @@ use crate::sim::perception::neighbour_slot;
 use crate::sim::species::{SpeciesRegistry, ACTION_DIM};
 
 /// One observed agent in the focal agent's body frame: where it is (metres ahead, to the left) and the
-/// sine of its heading relative to the focal agent's (+ when it heads to the left of it).
+/// sine and cosine of its heading relative to the focal agent's (sine + when it heads to the left of it).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct Seen {
     pub(crate) ahead: f64,
     pub(crate) left: f64,
     pub(crate) sin_heading: f64,
+    pub(crate) cos_heading: f64,
 }
 
 impl Seen {
@@ -54,10 +55,15 @@ pub(crate) fn observed(
             let [dx, dy, dhx, dhy] = slot.map(|c| c as f64);
             match heading {
                 // Body frame: the observer faces [1, 0], so the other's heading is [1 + Δh_x, Δh_y].
-                None => Seen { ahead: dx, left: dy, sin_heading: dhy },
+                None => Seen { ahead: dx, left: dy, sin_heading: dhy, cos_heading: 1.0 + dhx },
                 Some([hx, hy]) => {
                     let (jx, jy) = (hx + dhx, hy + dhy);
-                    Seen { ahead: dx * hx + dy * hy, left: hx * dy - hy * dx, sin_heading: hx * jy - hy * jx }
+                    Seen {
+                        ahead: dx * hx + dy * hy,
+                        left: hx * dy - hy * dx,
+                        sin_heading: hx * jy - hy * jx,
+                        cos_heading: hx * jx + hy * jy,
+                    }
                 }
             }
         })
@@ -156,6 +162,7 @@ impl PursuitFeatures {
             ahead: prey.iter().map(|p| p.ahead).sum::<f64>() / n,
             left: prey.iter().map(|p| p.left).sum::<f64>() / n,
             sin_heading: 0.0,
+            cos_heading: 1.0,
         };
         // The most isolated: farthest from its nearest fellow in view (the only one, alone in view).
         let gap = |i: usize| {
@@ -195,7 +202,7 @@ mod tests {
     use crate::scene::{PursuitRule, ZonalThrust, ZonalTurn};
 
     fn seen(ahead: f64, left: f64, sin_heading: f64) -> Seen {
-        Seen { ahead, left, sin_heading }
+        Seen { ahead, left, sin_heading, cos_heading: (1.0 - sin_heading * sin_heading).sqrt() }
     }
 
     fn couzin() -> ZonalRule {

@@ -306,6 +306,38 @@ impl CellGrid {
         }
     }
 
+    /// [`CellGrid::k_nearest`] among the members `keep` accepts (by index): the nearest few are asked
+    /// for, and twice as many again while fewer than `k` of them are kept and more lie within `radius`.
+    /// The first `k` kept of the nearest `m` are the `k` nearest kept whenever `m` members were found, as
+    /// a kept member nearer than those would have been among them.
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn k_nearest_where(
+        &self,
+        arena: &Arena,
+        p: DVec2,
+        k: usize,
+        radius: f64,
+        exclude: u32,
+        keep: impl Fn(u32) -> bool,
+        out: &mut Vec<(f64, u32)>,
+    ) {
+        out.clear();
+        if k == 0 {
+            return;
+        }
+        let mut asked = k;
+        let mut found = Vec::with_capacity(k);
+        loop {
+            self.k_nearest(arena, p, asked, radius, exclude, &mut found);
+            out.clear();
+            out.extend(found.iter().copied().filter(|&(_, j)| keep(j)).take(k));
+            if out.len() == k || found.len() < asked {
+                return;
+            }
+            asked *= 2;
+        }
+    }
+
     /// The item ranges of the 3 × 3 block of cells around cell (cx, cy): a run of consecutive cells per
     /// row, split in two where it wraps across the torus' seam, clipped at walls. Needs ≥ 3 cells per
     /// side, so that the block's cells are distinct.

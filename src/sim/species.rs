@@ -28,6 +28,10 @@ pub struct SpeciesRegistry {
     pub(crate) perception_radii: Vec<Vec<f64>>,
     /// `blind[a][b]`: species a never sees species b (`blind_to`): its block of b stays zero.
     pub(crate) blind: Vec<Vec<bool>>,
+    /// `view[a][b]`: the cosine of half of a's field of view of species b (`field_of_view`,
+    /// `field_of_view_of`), None when a sees b all around (the paper): b is perceived only where the
+    /// angle between a's heading and the direction to it is at most half the field of view.
+    pub(crate) view: Vec<Vec<Option<f64>>>,
     /// `contact_reward[a][b]`: (to the catcher, to the caught) per contact where a catches b; ±contact
     /// unless the scene's `contact_rewards` sets the pair.
     pub(crate) contact_reward: Vec<Vec<(f64, f64)>>,
@@ -68,6 +72,21 @@ impl SpeciesRegistry {
             })
             .collect();
         let blind = defs.iter().map(|a| defs.iter().map(|b| a.blind_to.contains(&b.name)).collect()).collect();
+        let view = defs
+            .iter()
+            .map(|a| {
+                defs.iter()
+                    .map(|b| {
+                        let degrees = a
+                            .field_of_view_of
+                            .iter()
+                            .find(|(name, _)| *name == b.name)
+                            .map_or(a.field_of_view, |(_, f)| *f);
+                        (degrees < crate::scene::FULL_VIEW).then(|| (degrees.to_radians() / 2.0).cos())
+                    })
+                    .collect()
+            })
+            .collect();
         let contact = scene.rewards.contact;
         let contact_reward = defs
             .iter()
@@ -84,7 +103,7 @@ impl SpeciesRegistry {
             })
             .collect();
         let layouts = (0..defs.len()).map(|s| scene.layout(s)).collect();
-        SpeciesRegistry { defs, catches, perception_radius, perception_radii, blind, contact_reward, layouts }
+        SpeciesRegistry { defs, catches, perception_radius, perception_radii, blind, view, contact_reward, layouts }
     }
 
     pub fn len(&self) -> usize {
@@ -309,9 +328,16 @@ pub fn describe(scene: &Scene, source: &str) -> String {
             } else {
                 String::new()
             };
+            let view = match r.view[s][t] {
+                Some(cos_half) if !r.blind[s][t] => {
+                    let degrees = 2.0 * cos_half.acos().to_degrees();
+                    format!(" in a {degrees:.0}° field of view (blind {:.0}° behind)", 360.0 - degrees)
+                }
+                _ => String::new(),
+            };
             let _ = writeln!(
                 out,
-                "  [{from}, {}) {}: {slots} slots × {NEIGHBOUR_DIM}{seen}",
+                "  [{from}, {}) {}: {slots} slots × {NEIGHBOUR_DIM}{seen}{view}",
                 from + slots * NEIGHBOUR_DIM,
                 r.defs[t].name
             );

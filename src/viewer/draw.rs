@@ -479,6 +479,22 @@ fn draw_overlays(
         if r < arena.edge * std::f64::consts::SQRT_2 / 2.0 {
             wrapped_circle(&mut gizmos, &arena, x.0, r, SELECTED.with_alpha(0.6));
         }
+        // The blind sector behind (`field_of_view`), the widest over the observed species: its two edges
+        // and its arc, out to the perception radius or a quarter of the arena, whichever is nearer.
+        if let Some(cos_half) = registry.view[s.0].iter().flatten().copied().reduce(f64::max) {
+            let (half, reach) = (cos_half.acos(), r.min(arena.edge / 4.0));
+            let theta = heading.0;
+            let ray = |a: f64| x.0 + reach * DVec2::from_angle(a);
+            let colour = SELECTED.with_alpha(0.45);
+            wrapped_line(&mut gizmos, &arena, x.0, ray(theta + half), (colour, colour));
+            wrapped_line(&mut gizmos, &arena, x.0, ray(theta - half), (colour, colour));
+            const SEGMENTS: usize = 24;
+            let blind = std::f64::consts::TAU - 2.0 * half;
+            let arc = |k: usize| ray(theta + half + blind * k as f64 / SEGMENTS as f64);
+            for k in 0..SEGMENTS {
+                wrapped_line(&mut gizmos, &arena, arc(k), arc(k + 1), (colour, colour));
+            }
+        }
         // Lines to the neighbours exactly as the observation holds them (Δx, Δy of each filled slot).
         let batch = &batches.species[s.0];
         if (slot.row as usize) < batch.n {

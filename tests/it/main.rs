@@ -9,6 +9,7 @@ mod common;
 
 mod animate;
 mod bad_inputs;
+mod classic;
 mod crossplay;
 mod docs;
 mod env;

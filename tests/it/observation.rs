@@ -127,6 +127,48 @@ fn perception_of_sets_the_radius_per_observed_species() {
 }
 
 #[test]
+fn a_field_of_view_hides_the_blind_sector_behind_and_nothing_else() {
+    // The observer faces +x: predator 1 is straight behind, predator 0 90° to its left; prey k sit at
+    // 0.7·k rad, so prey 4 (160°) and 5 (−159°) lie in the 60° blind sector of a 300° field of view.
+    let (all, _) = configured(Perception::Full);
+    let (blind, offsets) = configured_with(|s| s.species[1].field_of_view = 300.0);
+    let (a, b) = (observation_of_prey_observer(&all), observation_of_prey_observer(&blind));
+    assert!(close(&a[10..14], &[-0.9, 0.0, -1.0, 1.0]), "360°: the predator behind is seen");
+    assert!(close(&b[6..10], &[0.0, 0.3, -1.0, 1.0]), "{:?}", &b[6..10]);
+    assert!(b[10..30].iter().all(|&x| x == 0.0), "300°: the predator behind is absent, its slot zero");
+    // The six prey in view fill the six slots, nearest first: the two behind are skipped, not zeroed.
+    for (n, k) in [1, 2, 3, 6, 7, 8].into_iter().enumerate() {
+        let d = offsets[k - 1];
+        let at = 30 + 4 * n;
+        assert!(close(&b[at..at + 2], &[d.x, d.y]), "slot {n}: prey {k} {:?}", &b[at..at + 4]);
+    }
+    // Per observed species: predators all around, prey within 300°.
+    let (mixed, _) = configured_with(|s| {
+        s.species[1].field_of_view = 300.0;
+        s.species[1].field_of_view_of = vec![("predator".into(), 360.0)];
+    });
+    let m = observation_of_prey_observer(&mixed);
+    assert_eq!(&m[6..30], &a[6..30]);
+    assert_eq!(&m[30..], &b[30..]);
+    // The edges of the sector, on each side: 150° from the heading is in view, a thousandth of a radian
+    // further is not.
+    let edge = 150f64.to_radians();
+    for (side, angle, seen) in
+        [(1.0, edge - 1e-9, true), (-1.0, edge - 1e-9, true), (1.0, edge + 1e-3, false), (-1.0, edge + 1e-3, false)]
+    {
+        let (mut sim, _) = configured_with(|s| s.species[1].field_of_view = 300.0);
+        let me = DVec2::new(0.95, 0.0);
+        let at = me + 0.5 * DVec2::from_angle(side * angle);
+        place(&mut sim, 1, DVec2::new(min_image(at.x, 2.0), min_image(at.y, 2.0)), DVec2::ZERO, FRAC_PI_2);
+        let obs = observation_of_prey_observer(&sim);
+        let behind = obs[6..14]
+            .chunks(4)
+            .any(|c| (c[0] as f64 - (at - me).x).abs() < 1e-5 && (c[1] as f64 - (at - me).y).abs() < 1e-5);
+        assert_eq!(behind, seen, "{side:+} · {angle} rad");
+    }
+}
+
+#[test]
 fn predators_see_the_same_layout() {
     let (sim, _) = configured(Perception::Full);
     let batches = sim.world().resource::<Batches>();
