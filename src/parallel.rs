@@ -326,6 +326,18 @@ pub(crate) fn map_ranges<T: Send>(n: usize, f: impl Fn(std::ops::Range<usize>) -
     work.into_iter().map(|(_, out)| out.expect("every range is computed")).collect()
 }
 
+/// Runs `step` repeatedly for about `budget` (at least `min_iters` times) and returns calls per second: the
+/// one timing loop of `--bench` and of the kernels' peak measurement.
+pub(crate) fn per_second(budget: std::time::Duration, min_iters: usize, mut step: impl FnMut()) -> f64 {
+    let start = std::time::Instant::now();
+    let mut iters = 0usize;
+    while iters < min_iters || start.elapsed() < budget {
+        step();
+        iters += 1;
+    }
+    iters as f64 / start.elapsed().as_secs_f64()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -419,16 +431,4 @@ mod tests {
             }
         });
     }
-}
-
-/// Runs `step` repeatedly for about `budget` (at least `min_iters` times) and returns calls per second: the
-/// one timing loop of `--bench` and of the kernels' peak measurement.
-pub(crate) fn per_second(budget: std::time::Duration, min_iters: usize, mut step: impl FnMut()) -> f64 {
-    let start = std::time::Instant::now();
-    let mut iters = 0usize;
-    while iters < min_iters || start.elapsed() < budget {
-        step();
-        iters += 1;
-    }
-    iters as f64 / start.elapsed().as_secs_f64()
 }

@@ -372,7 +372,7 @@ mod tests {
             let mut rng = rand::rngs::StdRng::seed_from_u64(7);
             let mut agent = |id: u64| {
                 let theta: f64 = rng.gen_range(-3.0..3.0);
-                state(id, (id % 5 == 0) as usize, rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0), theta, 0.3)
+                state(id, id.is_multiple_of(5) as usize, rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0), theta, 0.3)
             };
             let steps: Vec<Vec<State>> = (0..30).map(|_| (0..200).map(&mut agent).collect()).collect();
             let mut sums = vec![vec![vec![0usize; GRID * GRID]; 2]; 2];
