@@ -77,9 +77,7 @@ fn scene(
         // The shipped scenes (`scenes/standard.ron`, …) are built in: an installed wheel runs them anywhere.
         return coevo::run::args::load_scene(Path::new(path), &overrides).map_err(err);
     };
-    let mut scene = Scene::parse(text, &format!("{path} (as the env was made)")).map_err(err)?;
-    overrides.apply(&mut scene, Path::new(path)).map_err(|e| err(e.of_kind(coevo::error::Kind::Scene)))?;
-    Ok(scene)
+    coevo::run::args::scene_from_text(text, Path::new(path), &overrides).map_err(err)
 }
 
 /// The scene file at `path` as a loadable scene text (the built-in copy of a shipped scene), which an env

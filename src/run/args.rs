@@ -277,6 +277,14 @@ const SHIPPED_SCENES: [(&str, &str); 8] = [
     ("scenes/distilled.ron", include_str!("../../scenes/distilled.ron")),
 ];
 
+/// A scene's text (as [`load_scene`] read it from `path`, which errors name) with `overrides` applied and
+/// validated: what an environment made again from a pickle runs, whatever the file holds by then.
+pub fn scene_from_text(text: &str, path: &Path, overrides: &Overrides) -> crate::error::Result<Scene> {
+    let mut scene = Scene::parse(text, &format!("{} (as first read)", path.display()))?;
+    overrides.apply(&mut scene, path)?;
+    Ok(scene)
+}
+
 /// A scene file with `overrides` applied and validated: the file at `path` when there is one, else, when
 /// `path` names a shipped scene (`scenes/paper.ron`), its built-in copy (a file of that name in the working
 /// folder always wins).
