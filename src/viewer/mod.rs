@@ -106,6 +106,7 @@ impl Plugin for ViewerPlugin {
             Last,
             (unsaved_on_exit, end_on_exit).chain().after(capture::one_shot).after(bevy::window::ExitSystems),
         );
+        app.add_systems(First, log_close_requests);
         app.add_plugins((
             draw::DrawPlugin { trails: o.trails, select: o.select, rule_of: o.rule_of },
             plots::PlotsPlugin,
@@ -172,6 +173,21 @@ fn end(exit: &AppExit, reason: Option<String>) -> crate::error::Result<()> {
             std::process::exit(INTERRUPTED.into())
         }
         AppExit::Error(code) => Err(format!("viewer exited with code {code}").into()),
+    }
+}
+
+/// Says at debug level (`RUST_LOG=coevo::viewer=debug`) each request to close a window as winit reported
+/// it and as Bevy passed it on: what `tests/stress/viewer-close.sh` reads when a close seems ignored.
+fn log_close_requests(
+    mut raw: MessageReader<bevy::winit::RawWinitWindowEvent>,
+    mut closes: MessageReader<bevy::window::WindowCloseRequested>,
+) {
+    // winit's event by its name: bevy_winit does not re-export winit's types.
+    for e in raw.read().filter(|e| format!("{:?}", e.event) == "CloseRequested") {
+        debug!("winit: close requested for window {:?}", e.window_id);
+    }
+    for e in closes.read() {
+        debug!("bevy: close requested for window {}", e.window);
     }
 }
 

@@ -502,8 +502,14 @@ fn agent_details(
         reward.0, contacts.now.catching, contacts.now.caught, contacts.now.walls
     ));
     let r = registry.perception_radius[s.0];
-    let slots: Vec<String> =
-        (0..registry.len()).map(|t| format!("{} {}", registry.slots(s.0, t), registry.defs[t].name)).collect();
+    // Each observed species' slots, and its field of view where it is less than all around.
+    let slots: Vec<String> = (0..registry.len())
+        .map(|t| {
+            let view = registry.view[s.0][t]
+                .map_or(String::new(), |cos_half| format!(" (in {:.0}°)", 2.0 * cos_half.acos().to_degrees()));
+            format!("{} {}{view}", registry.slots(s.0, t), registry.defs[t].name)
+        })
+        .collect();
     ui.label(format!("perception radius R = {r:.3} m, observes at most {}", slots.join(", ")));
     let Some(batch) = batches.species.get(s.0).filter(|b| (slot.row as usize) < b.n) else { return };
     let obs = batch.observation(slot.row as usize);

@@ -51,7 +51,7 @@ for i in $(seq 1 "$closes"); do
     mkdir -p "$dir"
     # The close, then up to 60 s for the exit; a viewer still alive has its threads' stacks taken and is killed.
     xvfb-run -a -s "-screen 0 1280x720x24" sh -c "
-        RUST_LOG=warn,coevo=info,bevy_winit=info,bevy_window=info,wgpu=error,naga=error XDG_RUNTIME_DIR=$dir \\
+        RUST_LOG=warn,coevo=info,coevo::viewer=debug,bevy_winit=info,bevy_window=info,wgpu=error,naga=error XDG_RUNTIME_DIR=$dir \\
             $bin --scene $work/short.ron --steps-per-frame 25 --save-run $dir/saved > $dir/out.txt 2> $dir/err.txt & pid=\$!
         /usr/bin/python3 tests/close_window.py $delay > $dir/closer.txt 2>&1; echo \$? > $dir/closer-status
         for k in \$(seq 300); do kill -0 \$pid 2>/dev/null || break; sleep 0.2; done
