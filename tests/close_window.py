@@ -27,6 +27,11 @@ while not named():
     time.sleep(0.2)
 time.sleep(after)
 protocols, delete = d.intern_atom('WM_PROTOCOLS'), d.intern_atom('WM_DELETE_WINDOW')
-for w in named():
+targets = named()
+if not targets:
+    sys.exit("no coevo window to close at the moment of the close")
+for w in targets:
     w.send_event(protocol.event.ClientMessage(window=w, client_type=protocols, data=(32, [delete, X.CurrentTime, 0, 0, 0])))
-d.flush()
+# A round trip, so that an error of the request (a window gone meanwhile) is reported before this exits.
+d.sync()
+print("sent WM_DELETE_WINDOW to", ", ".join(f"{w.id:#x} {w.get_wm_name()!r}" for w in targets))
