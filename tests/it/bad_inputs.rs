@@ -794,9 +794,19 @@ fn arguments_environment_and_resource_limits_end_in_one_line_and_leave_nothing()
 
     // An open-file limit (ulimit -n) too low to save a checkpoint: one line naming the limit, no lock or
     // half-written checkpoint left. (A process limit, ulimit -u, binds no root process: not tested here.)
-    // A stack limit far below any program's (ulimit -s 16, in KiB): the command line is read and run on a
-    // thread whose stack coevo sizes, so the main thread's 16 KiB bind nothing.
-    let out = under_limit(root, "-s 16", "--describe-scene scenes/paper.ron");
+    // A stack limit far below any program's (ulimit -s 32, in KiB): the command line is read and run on a
+    // thread whose stack coevo sizes, so the main thread's limit binds nothing of coevo's. (The kernel puts
+    // the arguments and the environment on that stack, and the C and Rust start-up use most of the rest:
+    // under 16 KiB whether a process starts at all depends on the size of its environment, a harness's
+    // included, so the limit here is 32 KiB and the environment only PATH.)
+    let out = Command::new("sh")
+        .args(["-c", "ulimit -s 32; exec \"$COEVO\" --describe-scene scenes/paper.ron"])
+        .env_clear()
+        .env("PATH", "/usr/bin:/bin")
+        .env("COEVO", env!("CARGO_BIN_EXE_coevo"))
+        .current_dir(root)
+        .output()
+        .unwrap();
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(
         out.status.success() && stdout.contains("resolved scene:"),
