@@ -8,6 +8,7 @@
 //! the options write themselves back as argv (`to_argv`) for the experiment runner's children, so no
 //! flag is spelled outside its owner.
 
+use crate::error::ResultExt;
 use crate::scene::{Overrides, Scene};
 use clap::Args;
 use std::path::{Path, PathBuf};
@@ -281,7 +282,7 @@ const SHIPPED_SCENES: [(&str, &str); 8] = [
 /// validated: what an environment made again from a pickle runs, whatever the file holds by then.
 pub fn scene_from_text(text: &str, path: &Path, overrides: &Overrides) -> crate::error::Result<Scene> {
     let mut scene = Scene::parse(text, &format!("{} (as first read)", path.display()))?;
-    overrides.apply(&mut scene, path)?;
+    overrides.apply(&mut scene, path).kind(crate::error::Kind::Scene)?;
     Ok(scene)
 }
 
@@ -292,7 +293,8 @@ pub fn load_scene(path: &Path, overrides: &Overrides) -> crate::error::Result<Sc
     if !path.exists() {
         if let Some((name, text)) = SHIPPED_SCENES.iter().find(|(name, _)| path == Path::new(name)) {
             let mut scene = Scene::parse(text, &format!("{name} (built in)"))?;
-            overrides.apply(&mut scene, path)?;
+            // A scene's error, as `Overrides::load` says it of a file on disk.
+            overrides.apply(&mut scene, path).kind(crate::error::Kind::Scene)?;
             return Ok(scene);
         }
     }
