@@ -375,26 +375,29 @@ fn observe_rows(
         layout.place_own(obs, own.map(|c| c as f32), (2.0 / FULL_ENERGY * pop.energy[i] - 1.0) as f32);
         let own_heading = seen(h);
         for (t, grid) in pop.grids.iter().enumerate() {
-            match registry.view[s][t] {
+            let view = registry.view[s][t];
+            match view {
                 None => grid.k_nearest(arena, x, layout.slots[t], radii[t], i as u32, &mut nearest),
+                // A blind sector behind (`field_of_view`): the nearest agents in view.
                 Some(cos_half) => {
-                    // A blind sector behind (`field_of_view`): the nearest agents in view.
                     let in_view = |j: u32| {
                         let d = arena.delta(x, pop.position[j as usize]);
                         d.dot(h) >= cos_half * d.length()
                     };
-                    grid.k_nearest_where(arena, x, layout.slots[t], radii[t], i as u32, in_view, &mut nearest);
-                    if t == s {
-                        // The nearest kin is measured (C_nn) all around, whatever the species sees.
-                        let mut all = Vec::with_capacity(1);
-                        grid.k_nearest(arena, x, 1, radii[t], i as u32, &mut all);
-                        *kin = all.first().map(|&(_, j)| j);
-                    }
+                    grid.k_nearest_where(arena, x, layout.slots[t], radii[t], i as u32, in_view, &mut nearest)
                 }
             }
-            if t == s && registry.view[s][t].is_none() {
-                // The nearest kin is measured (C_nn), whatever the species is allowed to see.
-                *kin = nearest.first().map(|&(_, j)| j);
+            if t == s {
+                // The nearest kin is measured (C_nn) all around, whatever the species is allowed to see:
+                // the first of the nearest found, or, behind a blind sector, the nearest found anew.
+                *kin = match view {
+                    None => nearest.first().map(|&(_, j)| j),
+                    Some(_) => {
+                        let mut all = Vec::with_capacity(1);
+                        grid.k_nearest(arena, x, 1, radii[t], i as u32, &mut all);
+                        all.first().map(|&(_, j)| j)
+                    }
+                };
             }
             if blind[t] {
                 // `blind_to`: the block stays zero.

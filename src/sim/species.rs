@@ -110,6 +110,11 @@ impl SpeciesRegistry {
         self.defs.len()
     }
 
+    /// Species a's field of view of species b in degrees, None when it sees b all around ([`Self::view`]).
+    pub(crate) fn field_of_view(&self, a: usize, b: usize) -> Option<f64> {
+        self.view[a][b].map(|cos_half| 2.0 * cos_half.acos().to_degrees())
+    }
+
     pub fn is_empty(&self) -> bool {
         self.defs.is_empty()
     }
@@ -328,9 +333,8 @@ pub fn describe(scene: &Scene, source: &str) -> String {
             } else {
                 String::new()
             };
-            let view = match r.view[s][t] {
-                Some(cos_half) if !r.blind[s][t] => {
-                    let degrees = 2.0 * cos_half.acos().to_degrees();
+            let view = match r.field_of_view(s, t) {
+                Some(degrees) if !r.blind[s][t] => {
                     format!(" in a {degrees:.0}° field of view (blind {:.0}° behind)", 360.0 - degrees)
                 }
                 _ => String::new(),

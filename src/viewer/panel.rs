@@ -505,8 +505,7 @@ fn agent_details(
     // Each observed species' slots, and its field of view where it is less than all around.
     let slots: Vec<String> = (0..registry.len())
         .map(|t| {
-            let view = registry.view[s.0][t]
-                .map_or(String::new(), |cos_half| format!(" (in {:.0}°)", 2.0 * cos_half.acos().to_degrees()));
+            let view = registry.field_of_view(s.0, t).map_or(String::new(), |degrees| format!(" (in {degrees:.0}°)"));
             format!("{} {}{view}", registry.slots(s.0, t), registry.defs[t].name)
         })
         .collect();
