@@ -108,7 +108,13 @@ impl Scene {
                     })?;
                     &rule.numbers()
                 }
-                Policy::Couzin(rule) => &rule.numbers(),
+                Policy::Couzin(rule) => {
+                    // Widths and σ as well as radii: a negative one would silently empty a zone or the noise.
+                    for (name, v) in rule.numbers() {
+                        non_negative(v, &f(&format!("policy.{name}")))?;
+                    }
+                    &rule.numbers()
+                }
                 _ => &[],
             };
             for (name, v) in rule {

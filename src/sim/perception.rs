@@ -394,7 +394,8 @@ fn observe_rows(
                     None => nearest.first().map(|&(_, j)| j),
                     Some(_) => {
                         let mut all = Vec::with_capacity(1);
-                        grid.k_nearest(arena, x, 1, radii[t], i as u32, &mut all);
+                        // None when the species keeps no slot of its own kind, as all around.
+                        grid.k_nearest(arena, x, layout.slots[t].min(1), radii[t], i as u32, &mut all);
                         all.first().map(|&(_, j)| j)
                     }
                 };

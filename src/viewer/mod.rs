@@ -198,7 +198,9 @@ fn log_close_requests(
 /// Mesa's software Vulkan it sometimes crashed (SIGSEGV after "Closing window", found by
 /// tests/stress/viewer-close.sh), turning a complete, resumable run into a failed exit.
 fn end_on_exit(mut exits: MessageReader<AppExit>, reason: Res<ExitReason>) {
-    let Some(exit) = exits.read().next().cloned() else { return };
+    // An error exit wins over an ordinary one asked for in the same frame (as `App::should_exit` decides).
+    let asked: Vec<AppExit> = exits.read().cloned().collect();
+    let Some(exit) = asked.iter().find(|e| e.is_error()).or(asked.first()).cloned() else { return };
     let reason = reason.0.lock().unwrap_or_else(|e| e.into_inner()).take();
     let code = match end(&exit, reason) {
         Ok(()) => 0,
