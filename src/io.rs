@@ -102,6 +102,18 @@ fn out_of_memory(bytes: usize) -> ! {
     unsafe { libc::_exit(1) }
 }
 
+/// Ends the process at once with `code`, after flushing standard output and error. No exit handlers and no
+/// C++ static destructors run: the viewer's renderer threads (Mesa's llvmpipe) may still be compiling or
+/// drawing, and `exit`'s destructors pulling LLVM from under them aborted the process ("LLVM ERROR: Do not
+/// know how to split the result of this operator!", exit 134) after its work was finished and written.
+pub(crate) fn end_process(code: i32) -> ! {
+    let _ = io::stdout().flush();
+    let _ = io::stderr().flush();
+    // SAFETY: _exit takes no pointers and does not return; every file coevo wrote is already closed or
+    // synced by its writer, and the kernel keeps what was written.
+    unsafe { libc::_exit(code) }
+}
+
 /// Set by the signal handler: no new step of file writing starts ([`Writing::begin`] waits for the exit).
 static EXITING: AtomicBool = AtomicBool::new(false);
 /// Steps of file writing under way ([`Writing`]), which the signal handler lets finish.

@@ -170,7 +170,7 @@ fn end(exit: &AppExit, reason: Option<String>) -> crate::error::Result<()> {
         // ordinary way to stop, said as the headless modes say it, never as an error.
         AppExit::Error(code) if code.get() == INTERRUPTED => {
             eprintln!("coevo: interrupted; finished work kept");
-            std::process::exit(INTERRUPTED.into())
+            crate::io::end_process(INTERRUPTED.into())
         }
         AppExit::Error(code) => Err(format!("viewer exited with code {code}").into()),
     }
@@ -209,10 +209,7 @@ fn end_on_exit(mut exits: MessageReader<AppExit>, reason: Res<ExitReason>) {
             1
         }
     };
-    use std::io::Write;
-    let _ = std::io::stdout().flush();
-    let _ = std::io::stderr().flush();
-    std::process::exit(code)
+    crate::io::end_process(code)
 }
 
 /// Applies what the panel asked for, before this frame's steps.
