@@ -106,6 +106,7 @@ fn out_of_memory(bytes: usize) -> ! {
 /// C++ static destructors run: the viewer's renderer threads (Mesa's llvmpipe) may still be compiling or
 /// drawing, and `exit`'s destructors pulling LLVM from under them aborted the process ("LLVM ERROR: Do not
 /// know how to split the result of this operator!", exit 134) after its work was finished and written.
+#[cfg_attr(not(feature = "viewer"), allow(dead_code))]
 pub(crate) fn end_process(code: i32) -> ! {
     let _ = io::stdout().flush();
     let _ = io::stderr().flush();

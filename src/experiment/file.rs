@@ -21,7 +21,13 @@ pub struct ExperimentFile {
     pub(crate) seeds: Vec<u64>,
     #[serde(default)]
     pub(crate) episodes: Option<usize>,
+    #[serde(default)]
     pub(crate) variants: Vec<VariantFile>,
+    /// A grid of variants over one or two axes (`grid.rs`): every combination of levels is a variant,
+    /// after those listed in `variants`, named by its levels' labels joined by ", " ("D/12, 3:5"), trained
+    /// at the file's seeds, evaluated and controlled like any other. Claims read it with `grid:`.
+    #[serde(default)]
+    pub(crate) grid: Vec<Axis>,
     #[serde(default)]
     pub(crate) evaluations: Vec<Evaluation>,
     #[serde(default)]
@@ -132,8 +138,73 @@ pub(crate) struct VariantFile {
     /// (body-frame's); a new file shares the runs instead.
     #[serde(default)]
     pub(crate) same_training_as: Option<String>,
+    /// A grid's cell (`grid.rs`): its level on each axis, by index into the axis's levels, in the file's
+    /// order of axes; empty for a listed variant.
+    #[serde(skip)]
+    pub(crate) cell: Vec<usize>,
+    /// A grid's cell: its levels' patches, applied after `patch` in the order of the axes.
+    #[serde(skip)]
+    pub(crate) then: Vec<ScenePatch>,
 }
 
+/// One axis of an experiment's grid: a scene number and its values (`path`, `values`), or levels each
+/// with its own patch (`levels`), for what one number of one field does not say (the prey's perception
+/// of predators as a fraction of D, a speed ratio made by slowing the slower species).
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct Axis {
+    /// The axis in claims and figures, e.g. "speed ratio predator:prey".
+    pub(crate) name: String,
+    /// A number of the scene by its path as a scene file writes it: `"episode_steps"`, `"world.dt"`,
+    /// `"species.prey.max_speed"` (a species by its name).
+    #[serde(default)]
+    pub(crate) path: Option<String>,
+    /// The values `path` takes, one level each, labelled by the value as written.
+    #[serde(default)]
+    pub(crate) values: Vec<f64>,
+    /// Levels each with a label and a patch (instead of `path` and `values`). After loading, every axis
+    /// holds its levels here.
+    #[serde(default)]
+    pub(crate) levels: Vec<Level>,
+}
+
+/// One level of a grid's axis.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct Level {
+    /// Names the level in the cell's variant name, in claims (`at:`) and on the figures' axes.
+    pub(crate) label: String,
+    /// Its position on the axis: the x of trends and boundaries, on the scale the file chooses (e.g.
+    /// log2 of a ratio, so that 3:5 and 5:3 lie as far from 1:1). Levels are listed in increasing value.
+    pub(crate) value: f64,
+    #[serde(default)]
+    pub(crate) patch: ScenePatch,
+}
+
+/// A claim over a grid (`grid.rs` tests it): its quantity read on every run of the cells along `axis`,
+/// the other axis (when the grid has two) held at the level labelled `at`.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+pub(crate) enum GridTest {
+    /// The trend along `axis`: the least-squares slope of the runs' values on the levels' values, each run
+    /// one observation (seeds are the replicates), with HC3 standard errors and n − 2 degrees of freedom,
+    /// tested as any effect (two-sided, for a direction, or for equivalence within `margin`).
+    Trend {
+        axis: String,
+        #[serde(default)]
+        at: Option<String>,
+    },
+    /// Where along `axis` the mean over seeds first crosses `crosses` (linear between neighbouring
+    /// levels), with a bootstrap interval over seeds; tested against "no crossing within the axis".
+    Boundary {
+        axis: String,
+        crosses: f64,
+        #[serde(default)]
+        at: Option<String>,
+    },
+    /// How that boundary moves with the other axis: the least-squares slope of its position on the other
+    /// axis's values, with a bootstrap interval over seeds; tested two-sided (or for equivalence).
+    BoundaryShift { axis: String, crosses: f64 },
+}
 /// How the trained policies of every run are deployed (`coevo --eval`): species counts, episodes and
 /// steps; its per-step DoS/DoA land in `eval-<name>.csv`.
 #[derive(Clone, Debug, Deserialize, PartialEq)]
@@ -198,6 +269,8 @@ fn three() -> usize {
 pub struct Claim {
     /// The paper's words.
     pub text: String,
+    /// The variant the claim reads; empty for a claim over the grid (`grid`).
+    #[serde(default)]
     pub(crate) variant: String,
     pub quantity: Quantity,
     /// The paper's number, when it gives one.
@@ -241,6 +314,9 @@ pub struct Claim {
     /// effects; the paper's value, when given, is on the same scale.
     #[serde(default, skip_serializing_if = "crate::scene::is_default")]
     pub(crate) scale: Scale,
+    /// A claim over the file's grid rather than one variant: a trend, a boundary or its shift.
+    #[serde(default)]
+    pub(crate) grid: Option<GridTest>,
 }
 
 impl Claim {
@@ -259,6 +335,7 @@ impl Claim {
             ours: false,
             family: None,
             scale: Scale::Linear,
+            grid: None,
         }
     }
 }

@@ -144,8 +144,9 @@ impl Experiment {
         if spec.episodes == Some(0) {
             return Err(err("episodes", "must be ≥ 1".into()));
         }
+        super::grid::expand(&mut spec).map_err(|(field, message)| err(&field, message))?;
         if spec.variants.is_empty() {
-            return Err(err("variants", "an experiment needs at least one variant".into()));
+            return Err(err("variants", "an experiment needs at least one variant (listed, or a grid's cells)".into()));
         }
         // Checked here, before anything is trained: a run would fail only at its cross-play.
         if let Some(c) = spec.crossplay.as_ref().filter(|c| c.episodes == 0) {
@@ -246,7 +247,17 @@ impl Experiment {
             if let Some(v) = c.paper.filter(|v| !v.is_finite()) {
                 return Err(err("claims", format!("{:?}: paper must be a finite number (got {v})", c.text)));
             }
-            for v in std::iter::once(&c.variant).chain(&c.versus) {
+            if let Some(test) = &c.grid {
+                let what = "a claim over the grid reads its cells: no variant, versus or baseline";
+                if !c.variant.is_empty() || c.versus.is_some() || c.baseline.is_some() {
+                    return Err(err("claims", format!("{:?}: {what}", c.text)));
+                }
+                super::grid::along(&spec, test).map_err(|m| err("claims", format!("{:?}: grid: {m}", c.text)))?;
+                if matches!(test, GridTest::Boundary { .. }) && (c.margin.is_some() || c.scale != Scale::Linear) {
+                    return Err(err("claims", format!("{:?}: a boundary takes no margin or scale (a margin tests a slope for equivalence: a trend's or a shift's)", c.text)));
+                }
+            }
+            for v in std::iter::once(&c.variant).chain(&c.versus).filter(|_| c.grid.is_none()) {
                 if !variants.contains_key(v) {
                     return Err(err("claims", format!("no variant named {v:?}")));
                 }
@@ -383,6 +394,11 @@ impl Experiment {
             for v in &spec.variants {
                 let mut scene =
                     base.patched(v.patch.clone()).map_err(|e| err(&format!("variants[{}]", v.name), e.to_string()))?;
+                // A grid's cell: its levels' patches, axis by axis.
+                for patch in &v.then {
+                    scene =
+                        scene.patched(patch.clone()).map_err(|e| err(&format!("grid[{}]", v.name), e.to_string()))?;
+                }
                 if let Some(episodes) = spec.episodes {
                     scene.episodes = episodes;
                 }

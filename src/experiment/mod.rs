@@ -38,6 +38,7 @@ pub(crate) mod figure_data;
 pub(crate) mod figures;
 pub(crate) mod file;
 pub mod force_map;
+pub(crate) mod grid;
 mod load;
 pub mod paper_table;
 pub mod pin;

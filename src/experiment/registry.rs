@@ -31,6 +31,11 @@ pub(crate) fn fingerprint(claim: &Claim) -> String {
         super::file::Scale::Linear => canonical,
         scale => format!("{canonical}\u{1f}{scale:?}"),
     };
+    // Likewise a grid's test (its axis, level and crossing value), which claims before grids lack.
+    let canonical = match &claim.grid {
+        None => canonical,
+        Some(test) => format!("{canonical}\u{1f}{test:?}"),
+    };
     blake3::hash(canonical.as_bytes()).to_hex()[..16].to_string()
 }
 

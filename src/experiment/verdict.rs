@@ -12,6 +12,7 @@ pub(crate) const ALPHA: f64 = 0.05;
 /// of two variants) rather than a level.
 pub(crate) fn is_effect(claim: &Claim) -> bool {
     claim.versus.is_some()
+        || claim.grid.is_some()
         || matches!(
             claim.quantity,
             Quantity::DosChange
