@@ -201,6 +201,18 @@ pub(crate) fn tests(exp: &Experiment, table: &Summary) -> Vec<ClaimResult> {
                 let values = table.values(exp, preset, variant, &claim.quantity).into_iter();
                 values.map(|x| claim.scale.of(x)).filter(|x| x.is_finite()).collect()
             };
+            if let Some(test) = &claim.grid {
+                let t = super::grid::test(&exp.spec, claim, test, &samples);
+                let same_test = t.p.map(|_| super::grid::reads(test, &samples, &exp.spec, claim.margin));
+                results.push(ClaimResult {
+                    estimate: t.estimate,
+                    p: t.p,
+                    same_test,
+                    resamples: t.resamples,
+                    ..untested(preset, claim)
+                });
+                continue;
+            }
             let (ours, theirs) = (samples(&claim.variant), claim.versus.as_deref().map(samples));
             // Two variants whose runs are identical (a deterministic re-run, e.g. a switch that never acts)
             // are one sample, not two: no comparison, no p-value.
@@ -274,7 +286,12 @@ pub(crate) fn adjust(results: &mut [ClaimResult]) {
     }
     // A verdict given before the tests (identical runs, overlapping windows, in progress) stands.
     for r in results.iter_mut().filter(|r| r.verdict.is_none()) {
-        let mut judged = verdict(&r.claim, r.estimate, r.p_holm, r.level, r.baseline);
+        let mut judged = match (&r.claim.grid, &r.resamples) {
+            (Some(_), Some(resamples)) => {
+                super::grid::bootstrap_verdict(&r.claim, r.estimate, resamples, r.p_holm, r.level)
+            }
+            _ => verdict(&r.claim, r.estimate, r.p_holm, r.level, r.baseline),
+        };
         if let Some(first) = &r.same_as {
             judged.note(&format!("; the same test as {first}, counted once in its family"));
         }

@@ -93,6 +93,9 @@ pub struct ClaimResult {
     /// None until it is judged ([`super::aggregate::adjust`]), or given before its test (in progress,
     /// identical runs, windows that overlap).
     pub(crate) verdict: Option<super::verdict::Verdict>,
+    /// A grid's boundary or its shift: its bootstrap resamples, sorted (`grid::Tested`), whose
+    /// percentiles are its interval at its family-adjusted level.
+    pub(crate) resamples: Option<Vec<f64>>,
 }
 
 impl ClaimResult {
@@ -118,6 +121,7 @@ impl ClaimResult {
             stated: super::registry::Stated::Unknown,
             baseline,
             verdict: None,
+            resamples: None,
         }
     }
 }
@@ -332,6 +336,7 @@ pub(crate) mod tests {
             stated: crate::experiment::registry::Stated::Unknown,
             baseline: None,
             verdict: None,
+            resamples: None,
         }
     }
 

@@ -269,6 +269,8 @@ pub(crate) fn heatmaps(m: &Matrix, what: &str) -> Vec<plot::Heatmap> {
         values,
         log,
         diverging: false,
+        marked: Vec::new(),
+        annotate: false,
     };
     vec![
         map(format!("{what}catches per episode"), grid(|c| c.catches), true),

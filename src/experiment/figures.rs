@@ -75,6 +75,7 @@ pub(crate) fn draw(
         crossplay_figures(exp, preset, drawn, saved)?;
     }
     perturbation_figures(exp, preset, &of_variant, saved)?;
+    super::grid::figures(exp, preset, table, saved)?;
     Ok(())
 }
 

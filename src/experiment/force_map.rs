@@ -269,12 +269,20 @@ pub(crate) fn main(trajectory: &Path, scene: &Scene, overwrite: bool) -> crate::
         return Err(format!("{}: fewer than two steps, so no change to measure", trajectory.display()).into());
     }
     let arena = Arena { edge: scene.world.arena_edge, boundary: scene.world.boundary };
-    // A position farther out than an edge is no agent of this arena (a wall presses bodies back within a
-    // body's depth): another scene's trajectory, or a corrupt one.
+    // Positions lie within half the edge of the centre; a body pressed into a wall sinks at most its
+    // radius and two steps' travel beyond it (as `perception::observation_high` bounds it). A position
+    // farther out is no agent of this arena: another scene's trajectory, or a corrupt one.
+    let sink = match scene.world.boundary {
+        crate::scene::Boundary::Walls => {
+            scene.species.iter().map(|s| s.radius + s.max_speed * scene.world.dt * 2.0).fold(0.0, f64::max)
+        }
+        crate::scene::Boundary::Periodic => 0.0,
+    };
+    let limit = arena.half() + sink;
     if let Some((t, a)) = steps
         .iter()
         .enumerate()
-        .find_map(|(t, s)| s.iter().find(|a| a.position.abs().max_element() > arena.edge).map(|a| (t, a)))
+        .find_map(|(t, s)| s.iter().find(|a| a.position.abs().max_element() > limit).map(|a| (t, a)))
     {
         return Err(format!(
             "{}: agent {} at step {t} of the file is at ({}, {}), outside the scene's {} m arena: pass the scene it was recorded in (--scene or --run)",

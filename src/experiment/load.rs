@@ -253,8 +253,8 @@ impl Experiment {
                     return Err(err("claims", format!("{:?}: {what}", c.text)));
                 }
                 super::grid::along(&spec, test).map_err(|m| err("claims", format!("{:?}: grid: {m}", c.text)))?;
-                if matches!(test, GridTest::Boundary { .. }) && (c.margin.is_some() || c.scale != Scale::Linear) {
-                    return Err(err("claims", format!("{:?}: a boundary takes no margin or scale (a margin tests a slope for equivalence: a trend's or a shift's)", c.text)));
+                if !matches!(test, GridTest::Trend { .. }) && (c.margin.is_some() || c.scale != Scale::Linear) {
+                    return Err(err("claims", format!("{:?}: a boundary and its shift are bootstrap tests: no margin or scale (a trend takes them)", c.text)));
                 }
             }
             for v in std::iter::once(&c.variant).chain(&c.versus).filter(|_| c.grid.is_none()) {

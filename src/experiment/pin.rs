@@ -151,9 +151,11 @@ pub(crate) fn executable(exp: &super::Experiment, given: Option<&Path>) -> Resul
 /// Refuses a pin whose commit is not a commit of this repository (`git rev-parse --verify COMMIT^{commit}`
 /// must name that same commit), before anything is built or run for it.
 fn resolve(exp: &super::Experiment, pin: &Pin) -> Result<()> {
+    // In the clone that holds the experiment file, wherever coevo is started from.
+    let clone = exp.file.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
     let found = run(
         "git rev-parse",
-        Command::new("git").args([
+        Command::new("git").arg("-C").arg(clone).args([
             "rev-parse",
             "--verify",
             "--quiet",
@@ -161,11 +163,19 @@ fn resolve(exp: &super::Experiment, pin: &Pin) -> Result<()> {
             &format!("{}^{{commit}}", pin.commit),
         ]),
     );
+    let shown = Pin::path(&exp.root).display().to_string();
     match found {
         Ok(full) if full.trim() == pin.commit => Ok(()),
+        // --quiet: a name that is no commit fails without a word; any other failure is git's to say.
+        Err(e) if !e.message.ends_with(SILENT) => Err(format!(
+            "{shown}: commit {} cannot be looked up in {}: {}; nothing built or run",
+            pin.commit,
+            clone.display(),
+            e.message
+        )
+        .into()),
         _ => Err(format!(
-            "{}: commit {} is not a commit of this repository (git rev-parse --verify finds none); nothing built or run",
-            Pin::path(&exp.root).display(),
+            "{shown}: commit {} is not a commit of this repository (git rev-parse --verify finds none); nothing built or run",
             pin.commit
         )
         .into()),
@@ -272,11 +282,14 @@ fn blake3_prefix(path: &Path) -> Result<String> {
 }
 
 /// Runs a command to its end; Err is `what` with the last line it wrote.
+/// What [`run`] says of a command that failed without a message.
+const SILENT: &str = "failed without a message";
+
 fn run(what: &str, command: &mut Command) -> Result<String> {
     let out = command.stdin(Stdio::null()).output().map_err(|e| format!("{what}: cannot start: {e}"))?;
     if !out.status.success() {
         let said = String::from_utf8_lossy(&out.stderr);
-        let last = said.lines().rev().find(|l| !l.trim().is_empty()).unwrap_or("failed without a message");
+        let last = said.lines().rev().find(|l| !l.trim().is_empty()).unwrap_or(SILENT);
         return Err(format!("{what}: {last}").into());
     }
     Ok(String::from_utf8_lossy(&out.stdout).into_owned())

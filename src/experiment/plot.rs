@@ -69,6 +69,11 @@ pub(crate) struct Heatmap {
     /// Colour a signed value: blue below zero, white at zero, red above, on a scale symmetric about zero
     /// (a turn to the right or to the left), instead of viridis from the smallest value to the largest.
     pub(crate) diverging: bool,
+    /// Cells drawn crossed out (`marked[row][column]`; empty for none): a grid's cells whose interval
+    /// does not decide (`grid_figures`).
+    pub(crate) marked: Vec<Vec<bool>>,
+    /// Each cell's value written in it (two decimals): small maps, as a grid's.
+    pub(crate) annotate: bool,
 }
 
 impl Heatmap {
@@ -85,6 +90,8 @@ impl Heatmap {
             values: values.to_vec(),
             log: false,
             diverging,
+            marked: Vec::new(),
+            annotate: false,
         }
     }
 }
@@ -319,12 +326,45 @@ fn draw_heatmap(map: &Heatmap, area: &Area) -> crate::error::Result<()> {
         })
     });
     chart.draw_series(cells).map_err(draw_err)?;
+    let marked = |i: usize, j: usize| map.marked.get(i).and_then(|r| r.get(j)).copied().unwrap_or(false);
+    for (i, row) in map.values.iter().enumerate() {
+        for (j, &v) in row.iter().enumerate() {
+            if marked(i, j) {
+                let (a, b) = ((edge(j, columns), edge(i, rows)), (edge(j + 1, columns), edge(i + 1, rows)));
+                let (c, d) = ((edge(j, columns), edge(i + 1, rows)), (edge(j + 1, columns), edge(i, rows)));
+                let style = WHITE.mix(0.8).stroke_width(2);
+                chart
+                    .draw_series([PathElement::new(vec![a, b], style), PathElement::new(vec![c, d], style)])
+                    .map_err(draw_err)?;
+            }
+            if map.annotate && v.is_finite() {
+                let at = (SegmentValue::CenterOf(j as i32), SegmentValue::CenterOf(i as i32));
+                let text = format!("{v:.2}");
+                // White on viridis' dark half and on the diverging scale's strong ends, black elsewhere.
+                let dark = match map.diverging {
+                    false => hi > lo && (shade(v) - lo) / (hi - lo) < 0.55,
+                    true => reach > 0.0 && (v / reach).abs() > 0.6,
+                };
+                let ink = if dark { WHITE } else { BLACK };
+                let style = ("sans-serif", 13).into_font().color(&ink).pos(plotters::style::text_anchor::Pos::new(
+                    plotters::style::text_anchor::HPos::Center,
+                    plotters::style::text_anchor::VPos::Center,
+                ));
+                chart.draw_series([Text::new(text, at, style)]).map_err(draw_err)?;
+            }
+        }
+    }
     Ok(())
 }
 
 /// Writes heat maps side by side as `stem.svg` and `stem.png` (atomically, replacing earlier figures).
 pub(crate) fn save_heatmaps(stem: &Path, maps: &[Heatmap]) -> crate::error::Result<()> {
-    write(stem, figure(maps, maps.len(), HEATMAP_SIZE, &draw_heatmap)?)
+    save_heatmaps_in(stem, maps, maps.len())
+}
+
+/// [`save_heatmaps`], `columns` to a row.
+pub(crate) fn save_heatmaps_in(stem: &Path, maps: &[Heatmap], columns: usize) -> crate::error::Result<()> {
+    write(stem, figure(maps, columns, HEATMAP_SIZE, &draw_heatmap)?)
 }
 
 /// A tick value as plotters would print it, without the "-0.0" of a rounding error.
@@ -367,7 +407,8 @@ fn draw_panel(panel: &Panel, area: &Area) -> crate::error::Result<()> {
         .x_desc(&panel.x_label)
         .y_desc(&panel.y_label)
         .label_style(("sans-serif", 15))
-        .x_label_formatter(&|x| format!("{x:.0}"))
+        // Episodes and steps as integers; an axis spanning a few units (a grid's positions) with decimals.
+        .x_label_formatter(&|x| if x1 - x0 < 5.0 { format!("{x:.2}") } else { format!("{x:.0}") })
         .light_line_style(WHITE.mix(0.0))
         .draw()
         .map_err(draw_err)?;
@@ -452,6 +493,11 @@ pub(crate) fn save(stem: &Path, panels: &[Panel]) -> crate::error::Result<()> {
     write(stem, svg(panels)?)
 }
 
+/// [`save`], `columns` panels to a row.
+pub(crate) fn save_in(stem: &Path, panels: &[Panel], columns: usize) -> crate::error::Result<()> {
+    write(stem, figure(panels, columns, PANEL_SIZE, &draw_panel)?)
+}
+
 /// Writes a figure of estimates as `stem.svg` and `stem.png` (atomically, replacing earlier figures).
 pub(crate) fn save_estimates(stem: &Path, panels: &[EstimatePanel]) -> crate::error::Result<()> {
     write(stem, estimates_svg(panels)?)
@@ -513,6 +559,8 @@ mod tests {
             values: (0..rows).map(|i| (0..columns).map(|j| (i * columns + j) as f64).collect()).collect(),
             log: false,
             diverging: false,
+            marked: Vec::new(),
+            annotate: false,
         };
         let dir = tempfile::tempdir().unwrap();
         let stem = dir.path().join("map");

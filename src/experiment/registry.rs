@@ -126,7 +126,12 @@ pub(crate) fn record(exp: &Experiment, unfinished: &dyn Fn(&str) -> bool) -> cra
     let mut recorded = old.clone().unwrap_or_default();
     for claim in &exp.spec.claims {
         let known = recorded.iter().any(|(text, _)| *text == claim.text);
-        let to_come = unfinished(&claim.variant) || claim.versus.as_deref().is_some_and(unfinished);
+        // A claim over the grid reads every cell.
+        let cells = || exp.spec.variants.iter().filter(|v| !v.cell.is_empty()).any(|v| unfinished(&v.name));
+        let to_come = match claim.grid {
+            Some(_) => cells(),
+            None => unfinished(&claim.variant) || claim.versus.as_deref().is_some_and(unfinished),
+        };
         if !known && (old.is_none() || to_come) {
             recorded.push((
                 claim.text.clone(),

@@ -306,9 +306,10 @@ fn section(md: &mut String, Reported { exp, results, finished, summary, .. }: &R
             _ => "–".into(),
         };
         let paper = r.claim.paper.filter(|_| !r.claim.ours).map_or("–".into(), |p| format!("{p:.3}"));
-        let of = match &r.claim.versus {
-            Some(base) => format!("`{}` minus `{base}` (Welch)", r.claim.variant),
-            None => format!("`{}`", r.claim.variant),
+        let of = match (&r.claim.grid, &r.claim.versus) {
+            (Some(test), _) => super::grid::describe(test),
+            (None, Some(base)) => format!("`{}` minus `{base}` (Welch)", r.claim.variant),
+            (None, None) => format!("`{}`", r.claim.variant),
         };
         let p = r.p_holm.map_or("–".into(), p_shown);
         writeln!(

@@ -219,6 +219,14 @@ pub(crate) fn actions(
     match learners.species.get(s).and_then(Option::as_ref) {
         Some(l) => l.ddpg.act(dev, batch, rows),
         None => {
+            // A rule with noise (Vicsek's, Couzin's) answers with its noise-free turn: the field is its
+            // response to a neighbour, not one draw of zero-mean noise (a still stream would give every
+            // draw the same end of its range).
+            let quiet = without_noise(scene, s);
+            let (scene, registry) = match &quiet {
+                Some(q) => (q, &SpeciesRegistry::from_scene(q)),
+                None => (scene, registry),
+            };
             let mut rng = rand::rngs::mock::StepRng::new(0, 0);
             batch
                 .chunks_exact(registry.observation_dim(s))
@@ -228,6 +236,17 @@ pub(crate) fn actions(
                 .collect()
         }
     }
+}
+
+/// The scene with species `s`'s noisy rule (Vicsek's, Couzin's) at zero noise; None when its rule has none.
+fn without_noise(scene: &Scene, s: usize) -> Option<Scene> {
+    let mut quiet = scene.clone();
+    match &mut quiet.species.get_mut(s)?.policy {
+        Policy::Vicsek(rule) if rule.noise != 0.0 => rule.noise = 0.0,
+        Policy::Couzin(rule) if rule.noise != 0.0 => rule.noise = 0.0,
+        _ => return None,
+    }
+    Some(quiet)
 }
 
 /// The field of species `s` for one more agent of species `t`, parallel to it, amid the observation `obs`
@@ -386,6 +405,29 @@ mod tests {
                 .flat_map(|o| crate::sim::policy::rule_action(o, registry, s, scene, &mut rng).unwrap())
                 .collect()
         }
+    }
+
+    #[test]
+    fn a_noisy_rule_answers_with_its_noise_free_turn() {
+        // Vicsek prey at η = 1 rad and at η = 0: the same actions, not the low end of η's range.
+        let with = |noise: f64| {
+            let mut scene = rules();
+            for def in scene.species.iter_mut().filter(|d| d.name == "prey") {
+                def.policy = Policy::Vicsek(crate::scene::VicsekRule { radius: 0.3, noise });
+            }
+            scene
+        };
+        let (noisy, quiet) = (with(1.0), with(0.0));
+        let registry = SpeciesRegistry::from_scene(&noisy);
+        let prey = registry.defs.iter().position(|d| d.name == "prey").unwrap();
+        let learners = crate::learning::Learners::new(&noisy, crate::learning::Mode::Evaluate);
+        let dev = crate::learning::nets::Dev::default();
+        let rows = 8;
+        let batch: Vec<f32> =
+            (0..rows * registry.observation_dim(prey)).map(|i| ((i * 37 % 11) as f32 - 5.0) / 10.0).collect();
+        let act =
+            |scene: &Scene| actions(&learners, &SpeciesRegistry::from_scene(scene), scene, &dev, prey, &batch, rows);
+        assert_eq!(act(&noisy), act(&quiet));
     }
 
     fn rule_fields(scene: &Scene) -> Vec<Field> {

@@ -145,7 +145,9 @@ pub(crate) fn complete_run(exp: &Experiment, run: &Run, exe: &Executable, thread
         }
         std::fs::remove_file(&distilled).map_err(|err| format!("{}: {err}", distilled.display()))?;
     }
-    let needs_rules = exp.spec.evaluations.iter().any(|e| !e.distilled.is_empty() && !evaluated_as(run, e));
+    // Rules are fitted for the evaluations that deploy them and for the claims that read their numbers.
+    let needs_rules = exp.spec.evaluations.iter().any(|e| !e.distilled.is_empty() && !evaluated_as(run, e))
+        || (claims_read_rules(exp) && !distilled.exists());
     if let (Some(d), true) = (&exp.spec.distill, needs_rules && !distilled.exists()) {
         let mut argv = vec!["--distill".into(), dir.clone(), "--episodes".into(), d.episodes.to_string()];
         argv.extend(crate::run::args::overrides_argv(&d.overrides(), &[]));
@@ -244,7 +246,15 @@ pub(crate) fn finished(exp: &Experiment, run: &Run) -> bool {
     stage(run) == Ok(Stage::Trained)
         && exp.spec.evaluations.iter().all(|e| evaluated_as(run, e))
         && exp.spec.distill.as_ref().is_none_or(|d| distill_stale(run, d).is_none())
+        && (!claims_read_rules(exp) || crate::run::RunDir::new(&run.dir).distilled().exists())
         && (exp.spec.crossplay.is_none() || crossplayed(run))
+}
+
+/// Whether a claim reads a number of the fitted rules (`Distilled(...)`): then every run needs its
+/// `distilled.ron`, whether or not an evaluation deploys the rules.
+fn claims_read_rules(exp: &Experiment) -> bool {
+    exp.spec.distill.is_some()
+        && exp.spec.claims.iter().any(|c| matches!(c.quantity, super::file::Quantity::Distilled(..)))
 }
 
 /// Whether an evaluation's files are complete: its per-step CSV and, written last, its confusion curve

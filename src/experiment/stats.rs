@@ -35,8 +35,22 @@ pub struct Estimate {
     /// Standard error of the mean (or of the difference) and its degrees of freedom.
     pub(crate) se: Option<f64>,
     pub df: Option<f64>,
-    /// Whether this is a difference of two independent groups (Welch) rather than one group's mean.
-    pub(crate) two_groups: bool,
+    /// What was estimated, for the seeds a design would need ([`Estimate::seeds_for`]).
+    pub(crate) design: Design,
+}
+
+/// What an [`Estimate`] estimates.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) enum Design {
+    /// One group's mean (n seeds).
+    Mean,
+    /// A difference of two independent groups (Welch; n the smaller).
+    Difference,
+    /// A least-squares slope over `levels` levels of n seeds each (a grid's trend).
+    Slope { levels: usize },
+    /// A statistic of a bootstrap over n seeds per cell (a grid's boundary), its standard error the
+    /// resamples' spread.
+    Bootstrap,
 }
 
 pub fn estimate(samples: &[f64]) -> Option<Estimate> {
@@ -45,7 +59,7 @@ pub fn estimate(samples: &[f64]) -> Option<Estimate> {
     let se = (n >= 2).then(|| (variance(samples, m) / n as f64).sqrt());
     let df = (n >= 2).then(|| (n - 1) as f64);
     let ci = se.map(|se| t95(n - 1) * se);
-    Some(Estimate { mean: m, ci, n, se, df, two_groups: false })
+    Some(Estimate { mean: m, ci, n, se, df, design: Design::Mean })
 }
 
 /// The sample variance (n − 1 in the denominator) about the samples' mean `m`.
@@ -70,7 +84,7 @@ pub fn difference(a: &[f64], b: &[f64]) -> Option<Estimate> {
         (None, None)
     };
     let ci = se.zip(df).map(|(se, df)| t_quantile(0.975, df) * se);
-    Some(Estimate { mean: ma - mb, ci, n, se, df, two_groups: true })
+    Some(Estimate { mean: ma - mb, ci, n, se, df, design: Design::Difference })
 }
 
 impl Estimate {
@@ -117,13 +131,17 @@ impl Estimate {
     /// SD). None without spread or beyond 10 000.
     pub(crate) fn seeds_for(&self, alpha: f64, effect: f64) -> Option<usize> {
         let se = self.se.filter(|&se| se > 0.0)?;
-        let (sigma, scale) = match self.two_groups {
+        // The standard error with m seeds: σ·√(scale/m), at these degrees of freedom.
+        let (sigma, scale, df): (f64, f64, Box<dyn Fn(usize) -> f64>) = match self.design {
             // se² = (s²_a + s²_b) / n with n per group: the pooled σ² = se²·n/2.
-            true => (se * (self.n as f64 / 2.0).sqrt(), 0.5),
-            false => (se * (self.n as f64).sqrt(), 1.0),
+            Design::Difference => (se * (self.n as f64 / 2.0).sqrt(), 0.5, Box::new(|m| (2 * m - 2) as f64)),
+            Design::Mean => (se * (self.n as f64).sqrt(), 1.0, Box::new(|m| (m - 1) as f64)),
+            // A slope's and a bootstrap statistic's standard error shrink as 1/√seeds per level.
+            Design::Slope { levels } => (se * (self.n as f64).sqrt(), 1.0, Box::new(move |m| (levels * m - 2) as f64)),
+            Design::Bootstrap => (se * (self.n as f64).sqrt(), 1.0, Box::new(|_| 1e6)),
         };
         (2..=10_000).find(|&m| {
-            let df = if self.two_groups { 2 * m - 2 } else { m - 1 } as f64;
+            let df = df(m);
             effect.abs() * (scale * m as f64).sqrt() / sigma >= t_quantile(1.0 - alpha / 2.0, df) + t_quantile(0.80, df)
         })
     }
@@ -229,7 +247,7 @@ mod tests {
     #[test]
     fn holm_levels_agree_with_holm_and_bonferroni() {
         // Textbook Bonferroni: a family of 5 at α = 0.05, 9 degrees of freedom: t at 1 − 0.005 is 3.2498.
-        let e = Estimate { mean: 1.0, ci: None, n: 10, se: Some(0.1), df: Some(9.0), two_groups: false };
+        let e = Estimate { mean: 1.0, ci: None, n: 10, se: Some(0.1), df: Some(9.0), design: Design::Mean };
         assert!((e.half_width(0.05 / 5.0).unwrap() - 0.32498).abs() < 1e-4);
         assert!((e.half_width(0.05).unwrap() - 0.2262).abs() < 1e-4, "the plain 95 % interval");
         // The interval at each test's level excludes zero exactly when Holm rejects it.
@@ -263,7 +281,7 @@ mod tests {
     fn tost_of_a_known_example() {
         // Mean 0.01, se 0.02, 20 df, margin 0.05: t = (0.05 − 0.01)/0.02 = 2 on the upper side (the larger
         // p) and 3 on the lower: p = P(T₂₀ > 2) = 0.02963.
-        let e = Estimate { mean: 0.01, ci: None, n: 11, se: Some(0.02), df: Some(20.0), two_groups: true };
+        let e = Estimate { mean: 0.01, ci: None, n: 11, se: Some(0.02), df: Some(20.0), design: Design::Difference };
         assert!((e.tost_p(0.05).unwrap() - 0.029633).abs() < 1e-5, "{:?}", e.tost_p(0.05));
         // Below α = 0.05 exactly when the 90 % interval lies inside the margin.
         let (lo, hi) = e.tost_interval().unwrap();
@@ -356,7 +374,7 @@ mod tests {
             n,
             se: Some(1.0 / (n as f64).sqrt()),
             df: Some((n - 1) as f64),
-            two_groups: false,
+            design: Design::Mean,
         };
         assert_eq!(sd1(10).seeds_for(0.05, 0.5), Some(34));
         let sd2 = |n: usize| Estimate {
@@ -365,7 +383,7 @@ mod tests {
             n,
             se: Some((2.0 / n as f64).sqrt()),
             df: Some((2 * n - 2) as f64),
-            two_groups: true,
+            design: Design::Difference,
         };
         assert_eq!(sd2(10).seeds_for(0.05, 0.5), Some(64));
         // The detectable effect of 34 seeds at σ = 1 is about 0.5.

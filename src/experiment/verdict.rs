@@ -280,6 +280,9 @@ pub(crate) fn verdict(
 /// direction, any effect (two-sided), equivalence within a margin, or a level against the paper's value at
 /// its precision and against chance.
 pub(crate) fn hypothesis(claim: &Claim, baseline: Option<f64>) -> String {
+    if let Some(super::file::GridTest::Boundary { crosses, .. }) = claim.grid {
+        return format!("a crossing of {crosses} within the axis");
+    }
     if is_effect(claim) {
         let direction = |p: f64| if p < 0.0 { "an effect < 0" } else { "an effect > 0" };
         return match (claim.margin, claim.paper) {
