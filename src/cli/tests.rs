@@ -30,6 +30,7 @@ fn options_written_as_argv_read_back_the_same() {
             seed: Some(7),
             episode_steps: Some(200),
             confusion_radius: Some(0.1 + 0.2),
+            arena_edge: Some(2.0 * 1.1),
         },
         untrained: false,
         snapshots: vec![("prey".into(), 300)],

@@ -40,6 +40,8 @@ pub(crate) struct EvalData {
     pub(crate) per_step: Vec<Vec<f64>>,
     /// Mean edge rank over the evaluation's steps with a ranked catch, each step's own mean (NaN without one).
     pub(crate) edge_rank: f64,
+    /// Catches per prey per episode over the whole evaluation ([`Quantity::EvalCatches`]).
+    pub(crate) catches_per_prey: f64,
     /// The confusion curve of the first predator species in `<eval>-confusion.csv`, per bin of prey in
     /// view: mean |turn command|, mean speed / max speed, catches per predator-step (NaN for empty bins;
     /// empty when the file is absent).

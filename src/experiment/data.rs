@@ -132,7 +132,21 @@ pub(crate) fn load(exp: &Experiment) -> crate::error::Result<BTreeMap<usize, Run
             let edge_rank = mean(&ranks.into_iter().filter(|x| x.is_finite()).collect::<Vec<_>>()).unwrap_or(f64::NAN);
             let confusion = read_confusion(&crate::io::beside(&path, "confusion"))?;
             let response = read_response(&crate::io::beside(&path, crate::run::PERTURBATION))?;
-            d.evals.insert(e.name.clone(), EvalData { per_step, edge_rank, confusion, response });
+            // Every catch of the evaluation per episode and per prey deployed (the evaluation's count).
+            let catches = table.column(schema::CATCHES).unwrap_or_default();
+            let episodes = table
+                .column(schema::EPISODE)
+                .map_or(0, |v| v.iter().map(|e| *e as u64).collect::<std::collections::BTreeSet<_>>().len());
+            let mut deployed = run.scene.clone();
+            let prey_count = match e.overrides().apply(&mut deployed, &path) {
+                Ok(()) => deployed.species.iter().find(|s| s.name == prey).map_or(0, |s| s.count),
+                Err(_) => 0,
+            };
+            let catches_per_prey = match (episodes, prey_count) {
+                (0, _) | (_, 0) => f64::NAN,
+                (k, n) => catches.iter().filter(|c| c.is_finite()).sum::<f64>() / (k * n) as f64,
+            };
+            d.evals.insert(e.name.clone(), EvalData { per_step, edge_rank, catches_per_prey, confusion, response });
         }
         data.insert(i, d);
     }

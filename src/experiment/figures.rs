@@ -76,6 +76,70 @@ pub(crate) fn draw(
     }
     perturbation_figures(exp, preset, &of_variant, saved)?;
     super::grid::figures(exp, preset, table, saved)?;
+    series_figures(exp, preset, table, saved)?;
+    Ok(())
+}
+
+/// A group-size series (the evaluations that set `arena_edge`, a group at one density): DoA, polarization,
+/// milling, C_nn and catches per prey against log10 of the prey deployed, each variant's mean over its
+/// seeds with the 95 % band (`figures/<preset>-group-size`), from `summary.csv`'s values.
+fn series_figures(exp: &Experiment, preset: &str, table: &Summary, saved: &mut usize) -> crate::error::Result<()> {
+    let prey = headline(exp);
+    let mut series: Vec<(usize, &super::file::Evaluation)> = exp
+        .spec
+        .evaluations
+        .iter()
+        .filter(|e| e.arena_edge.is_some() && e.control.is_seeing() && !e.untrained)
+        .filter_map(|e| {
+            let run = exp.runs.iter().find(|r| r.preset == preset)?;
+            let mut scene = run.scene.clone();
+            e.overrides().apply(&mut scene, std::path::Path::new(&e.name)).ok()?;
+            Some((scene.species.iter().find(|s| s.name == prey)?.count, e))
+        })
+        .collect();
+    series.sort_by_key(|(n, _)| *n);
+    if series.len() < 2 {
+        return Ok(());
+    }
+    let quantities = [
+        ("DoA", Quantity::EvalDoa as fn(String) -> Quantity),
+        ("polarization", |e| Quantity::EvalOrder(e, "polarization".into())),
+        ("milling", |e| Quantity::EvalOrder(e, "milling".into())),
+        ("C_nn", |e| Quantity::EvalOrder(e, "nn_correlation".into())),
+        ("catches per prey per episode", Quantity::EvalCatches),
+    ];
+    let mut panels = Vec::new();
+    for (label, quantity) in quantities {
+        let mut curves = Vec::new();
+        for v in &exp.spec.variants {
+            let e: Vec<Option<super::stats::Estimate>> = series
+                .iter()
+                .map(|(_, e)| estimate(&table.values(exp, preset, &v.name, &quantity(e.name.clone()))))
+                .collect();
+            let mean: Vec<f64> = e.iter().map(|e| e.map_or(f64::NAN, |e| e.mean)).collect();
+            let ci: Vec<f64> = e.iter().map(|e| e.and_then(|e| e.ci).unwrap_or(0.0)).collect();
+            let seeds = e.iter().flatten().map(|e| e.n).max().unwrap_or(0);
+            curves.push(Curve {
+                label: format!("{} ({seeds} seeds)", v.name),
+                x: series.iter().map(|(n, _)| (*n as f64).log10()).collect(),
+                band: Some((
+                    mean.iter().zip(&ci).map(|(m, c)| m - c).collect(),
+                    mean.iter().zip(&ci).map(|(m, c)| m + c).collect(),
+                )),
+                mean,
+            });
+        }
+        let counts: Vec<String> = series.iter().map(|(n, _)| n.to_string()).collect();
+        panels.push(Panel {
+            title: format!("{label} against group size, {preset}"),
+            x_label: format!("log10 {prey} ({})", counts.join(", ")),
+            y_label: format!("{label}, mean over seeds, 95 % CI"),
+            curves,
+            levels: vec![],
+        });
+    }
+    plot::save_in(&exp.figures_dir().join(format!("{preset}-group-size")), &panels, 3)?;
+    *saved += 1;
     Ok(())
 }
 

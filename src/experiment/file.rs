@@ -226,6 +226,10 @@ pub(crate) struct Evaluation {
     /// Radius (m) of "prey in view" for the confusion curve (default: the scene's).
     #[serde(default)]
     pub(crate) confusion_radius: Option<f64>,
+    /// The arena's edge (m) for the evaluation (default: the run's): a larger group at the density of a
+    /// smaller one, as a group-size series keeps it.
+    #[serde(default)]
+    pub(crate) arena_edge: Option<f64>,
     /// Deploy the actors as initialised before training (`coevo --eval --untrained`): the start against
     /// which [`Quantity::Learned`] measures what training changed.
     #[serde(default)]
@@ -255,6 +259,7 @@ impl Evaluation {
             seed: None,
             episode_steps: self.steps,
             confusion_radius: self.confusion_radius,
+            arena_edge: self.arena_edge,
         }
     }
 }
@@ -388,6 +393,11 @@ pub enum Quantity {
     /// The same for another order parameter of the evaluation: `polarization`, `milling`, `clusters`,
     /// `largest_cluster`, `nn_correlation`; or `edge_rank`, the mean edge rank of every prey caught in it.
     EvalOrder(String, String),
+    /// Catches per prey (the headline species) per episode in the evaluation, over its whole episodes:
+    /// every predator–prey contact that began, divided by the episodes and the prey deployed (group-size
+    /// series compare groups of different sizes by it). A column of `summary.csv` only in experiments
+    /// whose claims read it.
+    EvalCatches(String),
     /// The interaction-driven part of the alignment: DoA of the seeing evaluation with the same counts,
     /// episodes and steps, minus DoA of this control evaluation (blind or shuffled), per run.
     InteractionDoa(String),
@@ -481,6 +491,7 @@ pub(crate) fn untrained_partner<'a>(evaluations: &'a [Evaluation], name: &str) -
     evaluations.iter().find(|e| {
         e.untrained
             && e.counts == trained.counts
+            && e.arena_edge == trained.arena_edge
             && e.episodes == trained.episodes
             && e.steps == trained.steps
             && e.control == trained.control
@@ -500,6 +511,7 @@ pub(crate) fn seeing_partner<'a>(evaluations: &'a [Evaluation], name: &str) -> O
     evaluations.iter().find(|e| {
         e.control.is_seeing()
             && e.counts == control.counts
+            && e.arena_edge == control.arena_edge
             && e.episodes == control.episodes
             && e.steps == control.steps
             && e.policies == control.policies

@@ -91,8 +91,11 @@ pub(crate) fn expand(spec: &mut ExperimentFile) -> Result<(), (String, String)> 
     Ok(())
 }
 
-/// Every cell of the axes, the first axis slowest (its level indices).
+/// Every cell of the axes, the first axis slowest (its level indices); none without axes.
 fn cells(axes: &[Axis]) -> Vec<Vec<usize>> {
+    if axes.is_empty() {
+        return Vec::new();
+    }
     axes.iter().fold(vec![Vec::new()], |cells, axis| {
         cells
             .into_iter()
@@ -647,6 +650,21 @@ mod tests {
         for bad in ["world.no_such_field", "species.prey.wings", "species", "", "species..x", "world.dt)"] {
             assert!(patch_at(bad, 1.0).is_err(), "{bad:?} was accepted");
         }
+    }
+
+    #[test]
+    fn a_grid_has_one_cell_per_combination_of_levels_and_no_axes_no_cells() {
+        let axis = |n: usize| Axis {
+            name: format!("{n}"),
+            path: None,
+            values: vec![],
+            levels: (0..n)
+                .map(|i| Level { label: i.to_string(), value: i as f64, patch: ScenePatch::default() })
+                .collect(),
+        };
+        assert!(cells(&[]).is_empty());
+        assert_eq!(cells(&[axis(3)]), vec![vec![0], vec![1], vec![2]]);
+        assert_eq!(cells(&[axis(2), axis(2)]), vec![vec![0, 0], vec![0, 1], vec![1, 0], vec![1, 1]]);
     }
 
     #[test]

@@ -276,6 +276,7 @@ impl Experiment {
             }
             if let Quantity::EvalDos(e)
             | Quantity::EvalDoa(e)
+            | Quantity::EvalCatches(e)
             | Quantity::EvalOrder(e, _)
             | Quantity::InteractionDoa(e)
             | Quantity::Interaction(e, _)
@@ -318,10 +319,13 @@ impl Experiment {
                 }
             }
             if let Quantity::Learned(_, q) | Quantity::EvalDifference(_, _, q) = &c.quantity {
-                if !["dos", "doa"].contains(&q.as_str()) && !EVAL_ORDER.contains(&q.as_str()) {
+                if !["dos", "doa", "catches"].contains(&q.as_str()) && !EVAL_ORDER.contains(&q.as_str()) {
                     return Err(err(
                         "claims",
-                        format!("no order parameter named {q:?} (dos, doa or one of {})", EVAL_ORDER.join(", ")),
+                        format!(
+                            "no order parameter named {q:?} (dos, doa, catches or one of {})",
+                            EVAL_ORDER.join(", ")
+                        ),
                     ));
                 }
             }

@@ -35,6 +35,7 @@ pub(super) fn primitive(d: &RunData, q: &Quantity) -> f64 {
         Quantity::EvalDoa(e) => eval(e, "doa"),
         Quantity::EvalOrder(e, name) if name == "edge_rank" => d.evals.get(e).map_or(f64::NAN, |x| x.edge_rank),
         Quantity::EvalOrder(e, name) => eval(e, name),
+        Quantity::EvalCatches(e) => d.evals.get(e).map_or(f64::NAN, |x| x.catches_per_prey),
         Quantity::Reach90(name) => reach90(if name == "dos" { &d.dos } else { &d.doa }),
         Quantity::Start(o)
         | Quantity::Extreme(o)
@@ -93,6 +94,7 @@ pub(crate) fn column(q: &Quantity) -> Option<String> {
         Quantity::EvalDos(e) => format!("eval_{}_dos_settled", super::file::slug(e)),
         Quantity::EvalDoa(e) => format!("eval_{}_doa_settled", super::file::slug(e)),
         Quantity::EvalOrder(e, o) => format!("eval_{}_{o}", super::file::slug(e)),
+        Quantity::EvalCatches(e) => format!("eval_{}_catches_per_prey", super::file::slug(e)),
         Quantity::Crossplay(name) => format!("crossplay_{name}"),
         Quantity::Distilled(species, form, name) => {
             format!("distilled_{species}_{}_{}", format!("{form:?}").to_lowercase(), name.replace('.', "_"))
@@ -124,6 +126,7 @@ pub(crate) fn derive(
     let of_eval = |e: &str, o: &str| match o {
         "dos" => primitive(&Quantity::EvalDos(e.into())),
         "doa" => primitive(&Quantity::EvalDoa(e.into())),
+        "catches" => primitive(&Quantity::EvalCatches(e.into())),
         _ => primitive(&Quantity::EvalOrder(e.into(), o.into())),
     };
     let seeing = |e: &str| super::file::seeing_partner(evaluations, e).map(|s| s.name.clone());
@@ -160,6 +163,7 @@ pub(crate) fn derive(
         | Quantity::EvalDos(_)
         | Quantity::EvalDoa(_)
         | Quantity::EvalOrder(..)
+        | Quantity::EvalCatches(_)
         | Quantity::Reach90(_)
         | Quantity::Start(_)
         | Quantity::Extreme(_)
@@ -249,6 +253,7 @@ pub(crate) fn chance_level(exp: &Experiment, claim: &Claim, scene: Option<&crate
         | Quantity::TrainingFirst(_)
         | Quantity::TrainingLast(_)
         | Quantity::EvalOrder(..)
+        | Quantity::EvalCatches(_)
         | Quantity::InteractionDoa(_)
         | Quantity::Interaction(..)
         | Quantity::Learned(..)
@@ -285,6 +290,7 @@ pub(crate) fn quantity_name(q: &Quantity) -> String {
         Quantity::EvalDos(e) => format!("DoS settled in evaluation \"{e}\""),
         Quantity::EvalDoa(e) => format!("DoA settled in evaluation \"{e}\""),
         Quantity::EvalOrder(e, q) => format!("{q} in evaluation \"{e}\""),
+        Quantity::EvalCatches(e) => format!("catches per prey per episode in evaluation \"{e}\""),
         Quantity::InteractionDoa(e) => format!("DoA seeing minus \"{e}\" (interaction-driven alignment)"),
         Quantity::Interaction(e, q) => format!("{q} seeing minus \"{e}\""),
         Quantity::Learned(e, q) => format!("{q} in evaluation \"{e}\", trained minus untrained actors"),

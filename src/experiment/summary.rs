@@ -66,6 +66,24 @@ pub fn columns(exp: &Experiment) -> Vec<(String, Quantity)> {
             quantities.push(named(claim.quantity.clone()));
         }
     }
+    // Likewise an evaluation's catches per prey: in the experiments whose claims read them (directly or
+    // as a difference of two evaluations), and for every evaluation of a group-size series (evaluations
+    // that set `arena_edge`), whose figure draws them.
+    let series = exp.spec.evaluations.iter().any(|e| e.arena_edge.is_some());
+    let mut caught: Vec<String> = if series { evals.clone() } else { Vec::new() };
+    for claim in &exp.spec.claims {
+        match &claim.quantity {
+            Quantity::EvalCatches(e) => caught.push(e.clone()),
+            Quantity::EvalDifference(a, b, o) if o == "catches" => caught.extend([a.clone(), b.clone()]),
+            _ => {}
+        }
+    }
+    for e in caught {
+        let q = Quantity::EvalCatches(e);
+        if !quantities.iter().any(|(_, have)| *have == q) {
+            quantities.push(named(q));
+        }
+    }
     quantities
 }
 

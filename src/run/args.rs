@@ -169,6 +169,7 @@ impl SceneArgs {
             seed: self.seed,
             episode_steps: if steps { self.steps } else { None },
             confusion_radius: None,
+            arena_edge: None,
         })
     }
 

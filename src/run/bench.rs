@@ -52,6 +52,7 @@ impl BenchArgs {
         )?;
         print(&environment(budget))?;
         print(&learning(budget))?;
+        print(&group_size(budget))?;
         print(&external(budget))
     }
 }
@@ -109,6 +110,37 @@ pub(crate) fn environment(budget: Duration) -> Vec<Figure> {
             Figure {
                 label: format!("environment step, {p}+{e} agents, arena {edge:.1} m, random actions"),
                 per_second: crate::parallel::per_second(budget, 20, || sim.step()),
+                unit: "steps/s",
+            }
+        })
+        .collect()
+}
+
+/// A step of the default scene's learned actors (untrained weights, evaluation mode: one batched forward
+/// pass per species, no learning) against group size at one density, as `experiments/group-size.ron`
+/// deploys them: prey with predators in the share 3 per 50 (at least 1), the arena's edge
+/// 2 √(agents / 53) m (53 agents in 2 m), the metrics every step as an evaluation records them.
+pub(crate) fn group_size(budget: Duration) -> Vec<Figure> {
+    [10usize, 50, 200, 1_000, 2_000, 5_000, 10_000]
+        .into_iter()
+        .map(|prey| {
+            let predators = ((3 * prey) as f64 / 50.0).round().max(1.0) as usize;
+            let overrides = crate::scene::Overrides {
+                counts: vec![("prey".into(), prey), ("predator".into(), predators)],
+                arena_edge: Some(2.0 * ((prey + predators) as f64 / 53.0).sqrt()),
+                ..Default::default()
+            };
+            let mut scene = super::args::load_scene(std::path::Path::new("scenes/standard.ron"), &overrides)
+                .expect("the default scene is built in");
+            scene.episode_steps = usize::MAX;
+            let mut sim = crate::learning::simulation(scene, crate::learning::Mode::Evaluate, None)
+                .expect("no checkpoint needed");
+            for _ in 0..3 {
+                sim.step(); // warm the grids and batches
+            }
+            Figure {
+                label: format!("group size: learned step, {prey} prey + {predators} predators at one density"),
+                per_second: crate::parallel::per_second(budget, 3, || sim.step()),
                 unit: "steps/s",
             }
         })

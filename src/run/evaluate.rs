@@ -79,6 +79,10 @@ pub(crate) struct EvalArgs {
     /// (NAME-confusion.csv) [default: the scene's confusion_radius, else the perception radius].
     #[arg(long, help_heading = "Evaluation", value_name = "M")]
     pub(crate) confusion_radius: Option<f64>,
+    /// --eval: the arena's edge in metres [default: the run's]: a larger group at the density of a smaller
+    /// one (not in the paper).
+    #[arg(long, help_heading = "Evaluation", value_name = "M")]
+    pub(crate) arena_edge: Option<f64>,
     /// --eval: deploy the run's actors as they were before training (initialised from the run's scene and
     /// seed), the baseline of what training changed.
     #[arg(long, help_heading = "Evaluation")]
@@ -107,7 +111,11 @@ impl EvalArgs {
             out: self.eval_out.clone(),
             control: ObservationControl::parse(&self.control).map_err(|e| format!("--control: {e}"))?,
             episodes: common.episodes.unwrap_or(1),
-            overrides: Overrides { confusion_radius: self.confusion_radius, ..scene.overrides(true)? },
+            overrides: Overrides {
+                confusion_radius: self.confusion_radius,
+                arena_edge: self.arena_edge,
+                ..scene.overrides(true)?
+            },
             untrained: self.untrained,
             snapshots,
             perturb: self.perturb,
@@ -130,6 +138,7 @@ impl EvalOptions {
         flag("--perturb", self.perturb.map(|a| a.to_string()));
         flag("--perturb-step", self.perturb_step.map(|s| s.to_string()));
         flag("--confusion-radius", self.overrides.confusion_radius.map(|r| r.to_string()));
+        flag("--arena-edge", self.overrides.arena_edge.map(|r| r.to_string()));
         flag("--eval-out", self.out.clone());
         if self.untrained {
             argv.push("--untrained".into());

@@ -183,6 +183,8 @@ pub struct Overrides {
     pub seed: Option<u64>,
     pub episode_steps: Option<usize>,
     pub confusion_radius: Option<f64>,
+    /// The arena's edge (m): a larger group at the density of a smaller one (`world.arena_edge`).
+    pub arena_edge: Option<f64>,
 }
 
 impl Overrides {
@@ -209,6 +211,9 @@ impl Overrides {
         }
         if let Some(r) = self.confusion_radius {
             scene.confusion_radius = Some(r);
+        }
+        if let Some(edge) = self.arena_edge {
+            scene.world.arena_edge = edge;
         }
         scene.validate().map_err(|e| e.in_file(source))
     }

@@ -1482,6 +1482,8 @@ const GRID: &str = r#"(
     evaluations: [
         (name: "50 prey", counts: [("prey", 50)], episodes: 2, steps: 20),
         (name: "50 prey, blind", counts: [("prey", 50)], episodes: 2, steps: 20, control: Blind),
+        (name: "20 prey, one density", counts: [("prey", 20)], arena_edge: 1.5, episodes: 2, steps: 20),
+        (name: "40 prey, one density", counts: [("prey", 40)], arena_edge: 2.5, episodes: 2, steps: 20),
     ],
     claims: [
         (text: "trend of DoA along prey speed", quantity: EvalDoa("50 prey"), grid: Trend(axis: "prey speed", at: "three")),
@@ -1512,7 +1514,21 @@ fn a_grid_experiment_runs_its_cells_judges_a_trend_and_a_boundary_and_draws_its_
     assert!(trend.contains("least-squares slope") && trend.contains("α = 0.05/"), "{trend}");
     let boundary = md.lines().find(|l| l.contains("where seeing minus blind crosses 0")).unwrap();
     assert!(boundary.contains("a crossing of 0 within the axis") && boundary.contains("bootstrap"), "{boundary}");
-    for figure in ["paper-grid-map", "paper-grid-curves"] {
+    // A group-size series (evaluations that set arena_edge): catches per prey for each, and its figure.
+    let header: Vec<&str> = summary.lines().next().unwrap().split(',').collect();
+    let at = header.iter().position(|h| *h == "eval_40-prey-one-density_catches_per_prey").expect("a catches column");
+    let row = summary.lines().find(|l| l.starts_with("paper,slow prey,1,")).unwrap();
+    let eval = std::fs::read_to_string(results.join("paper/slow-prey/seed1/eval-40-prey-one-density.csv")).unwrap();
+    let column = eval.lines().next().unwrap().split(',').position(|h| h == "catches").unwrap();
+    let caught: f64 = eval.lines().skip(1).map(|l| l.split(',').nth(column).unwrap().parse::<f64>().unwrap()).sum();
+    let shown: f64 = row.split(',').nth(at).unwrap().parse().unwrap();
+    assert!(
+        (shown - caught / (2.0 * 40.0)).abs() < 1e-9,
+        "{shown} against {caught} catches over 2 episodes of 40 prey"
+    );
+    let scene = std::fs::read_to_string(results.join("paper/slow-prey/seed1/scene.ron")).unwrap();
+    assert!(scene.contains("arena_edge: 2.0"), "the run keeps its own arena: {scene}");
+    for figure in ["paper-grid-map", "paper-grid-curves", "paper-group-size"] {
         assert!(results.join(format!("figures/{figure}.svg")).exists(), "{figure}");
     }
     // Judged again from the CSV files alone: the same report, to the byte.
