@@ -292,7 +292,14 @@ fn run(cli: Cli) -> crate::error::Result<()> {
         return crate::outln!("{}", crate::run::provenance::fingerprint(run)?);
     }
     if cli.bench.bench {
-        return cli.bench.main();
+        if let Some(stem) = &cli.bench.bench_figure {
+            crate::experiment::figures::check_new_figure(stem, "--bench-figure")?;
+        }
+        cli.bench.main()?;
+        return match &cli.bench.bench_figure {
+            Some(stem) => crate::experiment::figures::group_size_cost(stem, cli.bench.budget()?),
+            None => Ok(()),
+        };
     }
     if let Some(which) = &cli.experiment.experiment {
         return command::experiment(&cli.experiment.request(which, &shared));

@@ -80,6 +80,61 @@ pub(crate) fn draw(
     Ok(())
 }
 
+/// Refuses a figure `stem` whose SVG or PNG exists already (a user's file, never overwritten), before
+/// any work: one line naming the flag and the file.
+pub(crate) fn check_new_figure(stem: &std::path::Path, flag: &str) -> crate::error::Result<()> {
+    match plot::files(stem).into_iter().find(|f| f.exists()) {
+        Some(f) => {
+            Err(format!("{flag} {}: {} exists; name another file or move it away", stem.display(), f.display()).into())
+        }
+        None => Ok(()),
+    }
+}
+
+/// `coevo --bench --bench-figure FILE`: the cost of a learned step of the default scene against group size
+/// at one density (`run::bench::group_size`), as FILE.svg and FILE.png: log10 of the time per step and
+/// per agent-step against log10 of the prey, with the least-squares exponent of the time per step over
+/// the groups of 200 prey and more printed (how it grows).
+pub(crate) fn group_size_cost(stem: &std::path::Path, budget: std::time::Duration) -> crate::error::Result<()> {
+    let steps = crate::run::bench::group_size_steps(budget);
+    let n: Vec<f64> = steps.iter().map(|(prey, _)| (*prey as f64).log10()).collect();
+    let per_step: Vec<f64> = steps.iter().map(|(_, f)| (1e6 / f.per_second).log10()).collect();
+    // Agents: the prey and their predators (3 per 50, at least 1).
+    let agents = |prey: usize| prey + ((3 * prey) as f64 / 50.0).round().max(1.0) as usize;
+    let per_agent: Vec<f64> =
+        steps.iter().map(|(prey, f)| (1e6 / f.per_second / agents(*prey) as f64).log10()).collect();
+    let large: Vec<usize> = (0..steps.len()).filter(|&i| steps[i].0 >= 200).collect();
+    let exponent = {
+        let (x, y): (Vec<f64>, Vec<f64>) = large.iter().map(|&i| (n[i], per_step[i])).unzip();
+        let (mx, my) = (super::stats::mean(&x).unwrap_or(0.0), super::stats::mean(&y).unwrap_or(0.0));
+        let sxx: f64 = x.iter().map(|a| (a - mx).powi(2)).sum();
+        x.iter().zip(&y).map(|(a, b)| (a - mx) * (b - my)).sum::<f64>() / sxx
+    };
+    let curve = |label: &str, y: Vec<f64>| Curve { label: label.into(), x: n.clone(), mean: y, band: None };
+    let panels = [
+        Panel {
+            title: format!("time per step against group size (exponent {exponent:.2} from 200 prey on)"),
+            x_label: "log10 prey (predators 3 per 50, one density)".into(),
+            y_label: "log10 µs per step".into(),
+            curves: vec![curve("learned step", per_step)],
+            levels: vec![],
+        },
+        Panel {
+            title: "time per agent-step against group size".into(),
+            x_label: "log10 prey (predators 3 per 50, one density)".into(),
+            y_label: "log10 µs per agent-step".into(),
+            curves: vec![curve("learned step", per_agent)],
+            levels: vec![],
+        },
+    ];
+    plot::save_in(stem, &panels, 2)?;
+    crate::outln!(
+        "group size: time per step grows as N^{exponent:.2} over 200 to {} prey; figure in {}.svg and .png",
+        steps.last().map_or(0, |(p, _)| *p),
+        stem.display()
+    )
+}
+
 /// A group-size series (the evaluations that set `arena_edge`, a group at one density): DoA, polarization,
 /// milling, C_nn and catches per prey against log10 of the prey deployed, each variant's mean over its
 /// seeds with the 95 % band (`figures/<preset>-group-size`), from `summary.csv`'s values.

@@ -17,6 +17,10 @@ pub(crate) struct BenchArgs {
     /// Seconds per benchmark figure (--bench), in (0, 3600].
     #[arg(long, help_heading = "Modes", value_name = "SECONDS")]
     pub(crate) bench_seconds: Option<f64>,
+    /// --bench: also draw the cost of a learned step against group size (its figures, at one density) as
+    /// FILE.svg and FILE.png, log–log.
+    #[arg(long, help_heading = "Modes", value_name = "FILE", requires = "bench")]
+    pub(crate) bench_figure: Option<std::path::PathBuf>,
     /// Instead of the figures, time one short training with this binary and with BINARY (another coevo,
     /// e.g. built from an earlier commit), paired and alternating, and print the CPU-time ratio (--bench)
     #[arg(long, help_heading = "Modes", value_name = "BINARY")]
@@ -29,6 +33,15 @@ impl super::args::Mode for BenchArgs {
 }
 
 impl BenchArgs {
+    /// Seconds per figure (`--bench-seconds`, default 2).
+    pub(crate) fn budget(&self) -> crate::error::Result<Duration> {
+        let seconds = self.bench_seconds.unwrap_or(2.0);
+        if !(seconds > 0.0 && seconds <= 3600.0) {
+            return Err(format!("--bench-seconds: must be a number of seconds in (0, 3600] (got {seconds})").into());
+        }
+        Ok(Duration::from_secs_f64(seconds))
+    }
+
     /// `--bench`: what ran the figures, then the environment, learning and external figures.
     pub(crate) fn main(&self) -> crate::error::Result<()> {
         if let Some(other) = &self.bench_against {
@@ -37,11 +50,7 @@ impl BenchArgs {
             }
             return super::bench_against::main(other);
         }
-        let seconds = self.bench_seconds.unwrap_or(2.0);
-        if !(seconds > 0.0 && seconds <= 3600.0) {
-            return Err(format!("--bench-seconds: must be a number of seconds in (0, 3600] (got {seconds})").into());
-        }
-        let budget = Duration::from_secs_f64(seconds);
+        let budget = self.budget()?;
         crate::outln!(
             "coevo {} ({}), {} matrix-product kernels, {} threads, on {}",
             env!("CARGO_PKG_VERSION"),
@@ -121,7 +130,12 @@ pub(crate) fn environment(budget: Duration) -> Vec<Figure> {
 /// deploys them: prey with predators in the share 3 per 50 (at least 1), the arena's edge
 /// 2 √(agents / 53) m (53 agents in 2 m), the metrics every step as an evaluation records them.
 pub(crate) fn group_size(budget: Duration) -> Vec<Figure> {
-    [10usize, 50, 200, 1_000, 2_000, 5_000, 10_000]
+    group_size_steps(budget).into_iter().map(|(_, figure)| figure).collect()
+}
+
+/// [`group_size`]'s figures with the prey of each.
+pub(crate) fn group_size_steps(budget: Duration) -> Vec<(usize, Figure)> {
+    GROUP_SIZES
         .into_iter()
         .map(|prey| {
             let predators = ((3 * prey) as f64 / 50.0).round().max(1.0) as usize;
@@ -138,14 +152,18 @@ pub(crate) fn group_size(budget: Duration) -> Vec<Figure> {
             for _ in 0..3 {
                 sim.step(); // warm the grids and batches
             }
-            Figure {
+            let figure = Figure {
                 label: format!("group size: learned step, {prey} prey + {predators} predators at one density"),
                 per_second: crate::parallel::per_second(budget, 3, || sim.step()),
                 unit: "steps/s",
-            }
+            };
+            (prey, figure)
         })
         .collect()
 }
+
+/// The prey of [`group_size`]'s figures.
+pub const GROUP_SIZES: [usize; 7] = [10, 50, 200, 1_000, 2_000, 5_000, 10_000];
 
 /// Stepping from outside (`run::env`, what the Python package drives): one world of the standard scene,
 /// and 64 worlds stepped together, constant actions; world steps per second summed over worlds.
