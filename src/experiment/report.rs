@@ -53,8 +53,14 @@ const METHOD: &str = "Each number is the mean over seeds of the prey's 100-episo
      episodes of training; measured with exploration noise on) or of an evaluation's last 50 steps, ± the half-width of its \
      95 % confidence interval (Student t over seeds). A quantity *of `X` minus `Y` (Welch)* is the difference of two \
      variants' means with Welch's 95 % interval (seeds: the smaller count). *Seeing minus* a control is the part of the \
-     trained actors' alignment that the control removes, computed run by run. Nothing in the metrics, rewards or physics \
-     was tuned toward a claim.\n\n\
+     trained actors' alignment that the control removes, computed run by run. Over a grid of variants (one or two \
+     parameters, each at several levels), a *trend* is the least-squares slope of every run's value on its level's \
+     position along an axis (seeds are the replicates; HC3 standard errors, n − 2 degrees of freedom), tested as an \
+     effect; a *boundary* is where the mean over seeds first crosses a stated value along an axis (linear between \
+     levels), with a bootstrap over seeds within each cell (2000 resamples): it is **located** when the test of no \
+     crossing within the axis (p: the share of resamples that do not cross) is detected after Holm, its interval the \
+     resamples' percentiles at that level; its *shift* is the least-squares slope of the boundary on the other axis, \
+     by the same bootstrap. Nothing in the metrics, rewards or physics was tuned toward a claim.\n\n\
      **Verdicts.** An *effect* (a change over training, what a control removes, a difference of two variants) is \
      *detected* when its two-sided t test gives p < 0.05 after Holm's adjustment over its family (the column *p (Holm)*). \
      A family is named by its hypotheses, not by its file, and spans every experiment file that names it (column \
@@ -319,6 +325,7 @@ fn section(md: &mut String, Reported { exp, results, finished, summary, .. }: &R
             cell(&r.claim.text),
             cell(&match r.claim.scale {
                 super::file::Scale::Linear => quantity_name(&r.claim.quantity),
+                super::file::Scale::Log1p if r.claim.grid.is_some() => format!("ln(1 + {})", quantity_name(&r.claim.quantity)),
                 super::file::Scale::Log1p =>
                     format!("ln(1 + {}), Welch on the log scale", quantity_name(&r.claim.quantity)),
             }),
