@@ -5,11 +5,11 @@
 //! Each mode owns its flags (a clap struct beside the mode, see [`crate::run::args`]); this file puts
 //! them into one command, refuses a flag the chosen mode does not take, and hands the call to its mode.
 
+use crate::analysis::crossplay::{self, CrossplayArgs};
+use crate::analysis::distill::{self, DistillArgs};
+use crate::analysis::force_map::{self, ForceMapArgs};
+use crate::analysis::response::{self, ResponseArgs};
 use crate::experiment::command::{self, ExperimentArgs, PlotArgs};
-use crate::experiment::crossplay::{self, CrossplayArgs};
-use crate::experiment::distill::{self, DistillArgs};
-use crate::experiment::force_map::{self, ForceMapArgs};
-use crate::experiment::response::{self, ResponseArgs};
 use crate::run::animate::{self, AnimateArgs};
 use crate::run::args::{self, CommonArgs, DescribeArgs, FingerprintArgs, Mode, SceneArgs, Shared};
 use crate::run::bench::BenchArgs;

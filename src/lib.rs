@@ -8,7 +8,8 @@
 //! | `sim/` | the simulation core (components, space, physics, perception, reward, metrics, collective measures, episodes, species, policies) and [`sim::Simulation`]; one fixed step is the chain of [`sim::SimSet`]s (see [`sim`]) |
 //! | `learning/` | Algorithm 1 (DDPG) as a plugin on dfdx, checkpoints |
 //! | `run/` | a run folder (names, reserved outputs, lock, provenance, CSV schemas) and the run modes: train, evaluate, record, animate, bench |
-//! | `experiment/` | experiment files, the runner, aggregation, claims and verdicts, reports |
+//! | `analysis/` | single-run analyses: read-outs of one run's trained actors (response fields, force maps, distilled rules, cross-play), with the statistics and drawing they share |
+//! | `experiment/` | the lab: experiment files, the runner, aggregation, claims and verdicts, reports |
 //! | `viewer/` | the window (`--features viewer`) |
 //! | `cli.rs` | the command line (`main.rs` and examples call [`cli::main`]) |
 //! | `error.rs`, `io.rs`, `parallel.rs`, `svg.rs` | the one error type, files written safely, threads that never change a result, SVG to pixels |
@@ -24,8 +25,8 @@
 //!   [`sim::SimSet`] and [`sim::Simulation`], the scene types of [`scene`], and [`cli::main`] to run it all.
 //! - **A binding or driver** (the Python package, `python/src/lib.rs`): [`run::env`] (`Env`, `VecEnv`),
 //!   [`run::RunDir`] and [`run::schema::Table`] to read run folders, [`run::args::load_scene`],
-//!   [`learning::control::ObservationControl`], [`experiment::stats`], [`experiment::response`],
-//!   [`experiment::force_map`], [`experiment::external`], [`error`] (`Error`, `Kind`) and [`io`]'s safe
+//!   [`learning::control::ObservationControl`], [`analysis::stats`], [`analysis::response`],
+//!   [`analysis::force_map`], [`experiment::external`], [`error`] (`Error`, `Kind`) and [`io`]'s safe
 //!   writes.
 //! - **A downstream crate** training and evaluating: [`run::train`] (`train`, `resume`, `TrainOptions`),
 //!   [`run::evaluate`], [`run::animate`], [`learning`] (`Learners`, `Mode`, `simulation`), [`sim::metrics`]
@@ -43,6 +44,7 @@ pub const VERSION: &str = env!("CARGO_PKG_VERSION");
 /// The commit this build was made from (`git describe --always --dirty`, `build.rs`).
 pub const GIT_COMMIT: &str = env!("COEVO_GIT_COMMIT");
 
+pub mod analysis;
 pub mod cli;
 pub mod error;
 pub mod experiment;

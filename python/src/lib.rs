@@ -2,7 +2,7 @@
 //! PettingZoo `ParallelEnv`). Nothing is simulated here: `Env` and `VecEnv` hold coevo's own
 //! [`coevo::run::env`] worlds, which step the very schedule `coevo --train` steps.
 
-use coevo::experiment::stats::{self, Estimate};
+use coevo::analysis::stats::{self, Estimate};
 use coevo::learning::control::ObservationControl;
 use coevo::run::schema::Table;
 use coevo::run::RunDir;
@@ -103,10 +103,10 @@ fn grid<'py>(py: Python<'py>, rows: &[Vec<f64>]) -> PyResult<Bound<'py, PyArray2
 #[pyo3(signature = (run, swarm = false))]
 fn response_fields<'py>(py: Python<'py>, run: &str, swarm: bool) -> PyResult<Bound<'py, PyList>> {
     let background = match swarm {
-        false => coevo::experiment::response::Background::Empty,
-        true => coevo::experiment::response::Background::Swarm,
+        false => coevo::analysis::response::Background::Empty,
+        true => coevo::analysis::response::Background::Swarm,
     };
-    let (_, fields) = coevo::experiment::response::of_run(Path::new(run), background).map_err(err)?;
+    let (_, fields) = coevo::analysis::response::of_run(Path::new(run), background).map_err(err)?;
     let out = PyList::empty(py);
     for f in fields {
         let d = PyDict::new(py);
@@ -128,7 +128,7 @@ fn response_fields<'py>(py: Python<'py>, run: &str, swarm: bool) -> PyResult<Bou
 #[pyfunction]
 #[pyo3(signature = (trajectory, scene_path="scenes/standard.ron"))]
 fn force_maps<'py>(py: Python<'py>, trajectory: &str, scene_path: &str) -> PyResult<Bound<'py, PyList>> {
-    use coevo::experiment::force_map;
+    use coevo::analysis::force_map;
     let scene = scene(scene_path, None, None, None, None)?;
     let names: Vec<String> = scene.species.iter().map(|d| d.name.clone()).collect();
     let steps = force_map::read(Path::new(trajectory), &names).map_err(err)?;
@@ -487,7 +487,7 @@ fn estimate_dict(py: Python<'_>, e: Option<Estimate>) -> PyResult<Option<Py<PyDi
 }
 
 /// The mean of independent samples with its Student-t 95 % interval and the two-sided t test of zero,
-/// exactly as coevo's experiment reports compute them (`coevo::experiment::stats::estimate`); None
+/// exactly as coevo's experiment reports compute them (`coevo::analysis::stats::estimate`); None
 /// without samples.
 #[pyfunction]
 fn t_estimate(py: Python<'_>, samples: Vec<f64>) -> PyResult<Option<Py<PyDict>>> {
@@ -509,7 +509,7 @@ fn finite(name: &str, samples: &[f64]) -> PyResult<()> {
 }
 
 /// Mean of `a` minus mean of `b` with Welch's 95 % interval and test, degrees of freedom rounded down, as
-/// coevo's reports compute it (`coevo::experiment::stats::difference`); None without samples.
+/// coevo's reports compute it (`coevo::analysis::stats::difference`); None without samples.
 #[pyfunction]
 fn welch(py: Python<'_>, a: Vec<f64>, b: Vec<f64>) -> PyResult<Option<Py<PyDict>>> {
     finite("a", &a)?;

@@ -23,35 +23,28 @@
 //! evaluations write `eval-<name>.csv` beside it, and [`aggregate`] reads only CSV files to write
 //! `summary.csv`, `summary-mean.csv` and the figures ([`plot`]).
 
+// The single-run analyses the lab runs, aggregates and draws with, from the room below it.
+pub(crate) use crate::analysis::{crossplay, crossplay_matrix, crossplay_readouts, distill, plot, stats};
 pub mod aggregate;
 pub(crate) mod carry;
 pub(crate) mod claims;
 pub(crate) mod command;
-pub mod crossplay;
-pub mod crossplay_matrix;
-pub mod crossplay_readouts;
 pub(crate) mod curves;
 pub(crate) mod data;
-pub mod distill;
 pub mod external;
 pub(crate) mod figure_data;
 pub(crate) mod figures;
 pub(crate) mod file;
-pub mod force_map;
 pub(crate) mod grid;
 mod load;
 pub mod paper_table;
 pub mod pin;
-pub(crate) mod plot;
 pub(crate) mod quantity;
 pub(crate) mod registry;
 pub(crate) mod report;
-pub mod response;
 pub(crate) mod runner;
 pub(crate) mod spread;
-pub mod stats;
 pub mod summary;
-pub(crate) mod swarm;
 pub(crate) mod trainings;
 pub(crate) mod verdict;
 

@@ -325,7 +325,8 @@ fn section(md: &mut String, Reported { exp, results, finished, summary, .. }: &R
             cell(&r.claim.text),
             cell(&match r.claim.scale {
                 super::file::Scale::Linear => quantity_name(&r.claim.quantity),
-                super::file::Scale::Log1p if r.claim.grid.is_some() => format!("ln(1 + {})", quantity_name(&r.claim.quantity)),
+                super::file::Scale::Log1p if r.claim.grid.is_some() =>
+                    format!("ln(1 + {})", quantity_name(&r.claim.quantity)),
                 super::file::Scale::Log1p =>
                     format!("ln(1 + {}), Welch on the log scale", quantity_name(&r.claim.quantity)),
             }),

@@ -46,7 +46,7 @@ pub(crate) const CROSSPLAY_READOUTS: &str = "crossplay-readouts";
 pub(crate) const CROSSPLAY_RATINGS: &str = "crossplay-ratings";
 /// The checkpoint folders are the checkpoint's own (`learning::checkpoint`).
 pub(crate) use crate::learning::files::{CHECKPOINT, CHECKPOINT_OLD, CHECKPOINT_TMP, SNAPSHOTS};
-/// The rules `--distill` fitted to the run's actors (`experiment::distill`).
+/// The rules `--distill` fitted to the run's actors (`analysis::distill`).
 pub(crate) const DISTILLED: &str = "distilled.ron";
 /// The files an evaluation writes beside its per-step CSV (`OUT-nn.csv`, ...); the confusion curve last.
 pub(crate) const EVAL_BESIDE: [&str; 3] = ["nn", "correlation", "confusion"];
@@ -125,7 +125,7 @@ impl RunDir {
         self.path.join(evaluation_file_name(slug))
     }
 
-    /// A cross-play output, `<stem>.csv` (`experiment::crossplay`); stems begin with `crossplay`.
+    /// A cross-play output, `<stem>.csv` (`analysis::crossplay`); stems begin with `crossplay`.
     pub(crate) fn crossplay(&self, stem: &str) -> PathBuf {
         debug_assert!(stem.starts_with(CROSSPLAY));
         self.path.join(format!("{stem}.csv"))

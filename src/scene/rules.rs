@@ -1,6 +1,6 @@
 //! The parameters of the distilled rules: a prey rule in the spirit of Couzin et al.'s zones (J. Theor.
 //! Biol. 2002) with predator evasion, and a predator's pursuit. `coevo --distill RUN` fits them to a
-//! trained run's actors (`experiment::distill`); a scene names them with their parameters, like any
+//! trained run's actors (`analysis::distill`); a scene names them with their parameters, like any
 //! rule-based policy. What they do with an observation is `sim::rules`.
 //!
 //! Both are linear in their gains on the normalized action, clamped to [−1, 1]: every neighbour adds its

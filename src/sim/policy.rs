@@ -142,7 +142,7 @@ fn decide_rule_based(
 
 /// The normalized action a rule-based species `s` takes on one observation `obs`; None for a species its
 /// rule does not decide (`Learned`, `Frozen`, `Plugin`). A function of the observation alone (and of `rng`
-/// for `Random`), so it can also be read off synthetic observations (`experiment::response`).
+/// for `Random`), so it can also be read off synthetic observations (`analysis::response`).
 pub(crate) fn rule_action(
     obs: &[f32],
     registry: &SpeciesRegistry,

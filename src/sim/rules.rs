@@ -1,6 +1,6 @@
 //! What the distilled rules do with an observation ([`crate::scene::ZonalRule`],
 //! [`crate::scene::PursuitRule`]): the observed agents read in the focal agent's body frame, summed into
-//! the rule's features, and the features weighted by its gains. `experiment::distill` fits the gains to
+//! the rule's features, and the features weighted by its gains. `analysis::distill` fits the gains to
 //! a trained actor on the same features, so a fitted rule acts exactly as it was fitted.
 
 use crate::scene::{ObservationFrame, PursuitGains, PursuitRule, ZonalRule};

@@ -519,7 +519,7 @@ fn draw_overlays(
 }
 
 /// The field last drawn: the observation it was computed on, the probed species and the field.
-type DrawnRule = Option<(Vec<f32>, usize, crate::experiment::response::Field)>;
+type DrawnRule = Option<(Vec<f32>, usize, crate::analysis::response::Field)>;
 
 /// The selected agent's response field amid its current observation ([`Overlays::rule`]): a cell per
 /// place of the probe agent, red where the probe would turn the agent more to the left than it turns
@@ -538,7 +538,7 @@ fn draw_rule(
     agents: Query<(&AgentId, &Position, &Heading, &SpeciesId, &Slot)>,
     mut drawn: Local<DrawnRule>,
 ) {
-    use crate::experiment::response::{actions, field_here};
+    use crate::analysis::response::{actions, field_here};
     if !overlays.rule {
         return;
     }

@@ -321,7 +321,7 @@ fn track_live_run(world: &mut World) {
     (history.training, history.ratings, history.trained_count) = match &mode {
         RunMode::Watch(run) => (
             plots::training_curves(run, &prey),
-            crate::experiment::crossplay_readouts::read_ratings(run),
+            crate::analysis::crossplay_readouts::read_ratings(run),
             plots::trained_count(run, &prey),
         ),
         _ => (None, None, None),

@@ -2,9 +2,9 @@
 //! itself with identical snapshots gives identical cells; predators that never move catch only what the
 //! prey's own motion brings them; bad requests are one line.
 
-use coevo::experiment::crossplay::{crossplay, CrossplayOptions};
-use coevo::experiment::crossplay_matrix::Matrix;
-use coevo::experiment::crossplay_readouts::{readouts, READOUTS};
+use coevo::analysis::crossplay::{crossplay, CrossplayOptions};
+use coevo::analysis::crossplay_matrix::Matrix;
+use coevo::analysis::crossplay_readouts::{readouts, READOUTS};
 use coevo::learning::nets::Mlp;
 use coevo::learning::snapshots::{load_snapshot, save_snapshot, snapshot_episodes};
 use coevo::learning::{Learners, Mode};
@@ -94,9 +94,9 @@ fn a_run_against_itself_with_identical_snapshots_gives_identical_cells() {
     let m = play(&run);
     assert_eq!((m.prey_episodes.clone(), m.predator_episodes.clone()), (vec![0, 2, 4, 5], vec![0, 2, 4, 5]));
     // crossplay.csv reads back as the matrix, to the last digit; the mean of two equal matrices is it.
-    let read = coevo::experiment::crossplay_matrix::read_matrix(&run, &m.pair).unwrap().unwrap();
+    let read = coevo::analysis::crossplay_matrix::read_matrix(&run, &m.pair).unwrap().unwrap();
     assert_eq!((&read.prey_episodes, &read.cells), (&m.prey_episodes, &m.cells));
-    let mean = coevo::experiment::crossplay_matrix::mean_matrix(&[read.clone(), read]).unwrap();
+    let mean = coevo::analysis::crossplay_matrix::mean_matrix(&[read.clone(), read]).unwrap();
     assert_eq!(mean.cells, m.cells);
     let first = m.cells[0][0];
     assert!(first.catches > 0.0 && first.doa > 0.0, "{first:?}");
@@ -110,10 +110,10 @@ fn a_run_against_itself_with_identical_snapshots_gives_identical_cells() {
             _ => assert!(r.value.is_none_or(|v| v == 0.0), "{} = {:?}", r.name, r.value),
         }
     }
-    let (prey, predators) = coevo::experiment::crossplay_readouts::ratings(&m);
+    let (prey, predators) = coevo::analysis::crossplay_readouts::ratings(&m);
     assert!(prey.iter().chain(&predators).all(|r| *r == 0.0), "{prey:?} {predators:?}");
     // crossplay-ratings.csv reads back as the ratings, per species (what the viewer plots).
-    let read = coevo::experiment::crossplay_readouts::read_ratings(&run).expect("crossplay-ratings.csv");
+    let read = coevo::analysis::crossplay_readouts::read_ratings(&run).expect("crossplay-ratings.csv");
     let names: Vec<&str> = read.iter().map(|(s, _)| s.as_str()).collect();
     assert_eq!(names, ["prey", "predator"]);
     assert_eq!(read[1].1, [[0.0, 0.0], [2.0, 0.0], [4.0, 0.0], [5.0, 0.0]]);

@@ -1277,7 +1277,7 @@ fn an_experiment_distills_its_runs_and_deploys_the_rules_with_their_ablations() 
     let out = coevo(dir.path(), &["--experiment", "experiments/tiny.ron", "--jobs", "2"]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let run = dir.path().join("results/tiny/paper/5-3/seed1");
-    let fitted = coevo::experiment::distill::DistilledFile::read(&run.join("distilled.ron")).unwrap();
+    let fitted = coevo::analysis::distill::DistilledFile::read(&run.join("distilled.ron")).unwrap();
     assert_eq!(
         (fitted.counts.iter().find(|(s, _)| s == "prey").unwrap().1, fitted.episodes, fitted.steps),
         (20, 2, 20)
@@ -1313,7 +1313,7 @@ fn an_experiment_distills_its_runs_and_deploys_the_rules_with_their_ablations() 
     std::fs::write(dir.path().join("experiments/tiny.ron"), &edited).unwrap();
     let out = coevo(dir.path(), &["--experiment", "experiments/tiny.ron", "--jobs", "2"]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let fitted = coevo::experiment::distill::DistilledFile::read(&run.join("distilled.ron")).unwrap();
+    let fitted = coevo::analysis::distill::DistilledFile::read(&run.join("distilled.ron")).unwrap();
     assert_eq!(fitted.steps, 16, "fitted again on the edited distill:");
     assert_eq!(
         std::fs::read(run.join("eval-50-prey.csv")).unwrap(),

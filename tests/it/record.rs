@@ -327,7 +327,7 @@ fn distilled_rules_are_fitted_to_a_trained_run_and_deployed_as_scene_policies() 
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let stdout = String::from_utf8_lossy(&o.stdout);
     assert!(stdout.contains("prey (Memoryless): variance explained on held-out episodes"), "{stdout}");
-    let fitted = coevo::experiment::distill::DistilledFile::read(&run.join("distilled.ron")).unwrap();
+    let fitted = coevo::analysis::distill::DistilledFile::read(&run.join("distilled.ron")).unwrap();
     let rule = fitted.policy("prey", coevo::scene::RuleForm::Inertial).unwrap();
     assert!(matches!(rule, coevo::scene::Policy::Zonal(_)));
     assert!(matches!(

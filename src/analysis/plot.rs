@@ -77,7 +77,7 @@ pub(crate) struct Heatmap {
 }
 
 impl Heatmap {
-    /// A map over a focal agent's body frame (`experiment::response`, `experiment::force_map`): columns
+    /// A map over a focal agent's body frame (`analysis::response`, `analysis::force_map`): columns
     /// ahead, rows to the left, both at `centres` (metres), `values[row][column]`.
     pub(crate) fn body_frame(title: String, centres: &[f64], values: &[Vec<f64>], diverging: bool) -> Heatmap {
         let ticks: Vec<String> = centres.iter().map(|c| format!("{c:.2}")).collect();

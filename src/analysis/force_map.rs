@@ -305,7 +305,7 @@ pub(crate) fn main(trajectory: &Path, scene: &Scene, overwrite: bool) -> crate::
     let maps = maps(&steps, &names, &arena, scene.world.dt, arena.half());
     let (csv_path, figures) = outputs(trajectory, &maps);
     let mut every = vec![csv_path.clone()];
-    every.extend(figures.iter().flat_map(|f| super::plot::files(f)));
+    every.extend(figures.iter().flat_map(|f| crate::analysis::plot::files(f)));
     let existing = if overwrite { crate::io::Existing::Replace } else { crate::io::Existing::Refuse };
     crate::io::check_targets(&every, existing)?;
     crate::io::write_file(&csv_path, existing, csv(&maps).as_bytes())?;
@@ -430,7 +430,7 @@ mod tests {
         let (csv, figures) = outputs(Path::new("d/exp.v2.csv"), &[m("prey", "prey"), m("prey", "predator")]);
         assert_eq!(csv, Path::new("d/exp.v2-force-map.csv"));
         assert_eq!(figures, [Path::new("d/exp.v2-force-map-prey-prey"), Path::new("d/exp.v2-force-map-prey-predator")]);
-        let files: Vec<PathBuf> = figures.iter().flat_map(|f| crate::experiment::plot::files(f)).collect();
+        let files: Vec<PathBuf> = figures.iter().flat_map(|f| crate::analysis::plot::files(f)).collect();
         assert_eq!(files[3], Path::new("d/exp.v2-force-map-prey-predator.png"));
         assert_eq!(outputs(Path::new("traj"), &[]).0, Path::new("traj-force-map.csv"));
     }

@@ -297,7 +297,7 @@ pub(crate) fn readouts_csv(matrices: &[Matrix]) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::experiment::crossplay_matrix::Pair;
+    use crate::analysis::crossplay_matrix::Pair;
 
     /// A matrix whose catches follow the rating model exactly: exp(μ + a_j − b_i) − the pseudo-count's
     /// share, so the ratings come back as a and b, centred.
