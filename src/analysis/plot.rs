@@ -15,6 +15,18 @@ pub(crate) struct Curve {
 }
 
 /// One panel of a figure.
+impl Curve {
+    /// A curve through estimates at `x`: their means, and their 95 % intervals as its band (none where an
+    /// estimate has no interval; NaN, not drawn, where there is no estimate).
+    pub(crate) fn of_estimates(label: String, x: Vec<f64>, estimates: &[Option<super::stats::Estimate>]) -> Curve {
+        let mean: Vec<f64> = estimates.iter().map(|e| e.map_or(f64::NAN, |e| e.mean)).collect();
+        let ci: Vec<f64> = estimates.iter().map(|e| e.and_then(|e| e.ci).unwrap_or(0.0)).collect();
+        let band =
+            (mean.iter().zip(&ci).map(|(m, c)| m - c).collect(), mean.iter().zip(&ci).map(|(m, c)| m + c).collect());
+        Curve { label, x, mean, band: Some(band) }
+    }
+}
+
 pub(crate) struct Panel {
     pub(crate) title: String,
     pub(crate) x_label: String,

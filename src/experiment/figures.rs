@@ -171,18 +171,9 @@ fn series_figures(exp: &Experiment, preset: &str, table: &Summary, saved: &mut u
                 .iter()
                 .map(|(_, e)| estimate(&table.values(exp, preset, &v.name, &quantity(e.name.clone()))))
                 .collect();
-            let mean: Vec<f64> = e.iter().map(|e| e.map_or(f64::NAN, |e| e.mean)).collect();
-            let ci: Vec<f64> = e.iter().map(|e| e.and_then(|e| e.ci).unwrap_or(0.0)).collect();
             let seeds = e.iter().flatten().map(|e| e.n).max().unwrap_or(0);
-            curves.push(Curve {
-                label: format!("{} ({seeds} seeds)", v.name),
-                x: series.iter().map(|(n, _)| (*n as f64).log10()).collect(),
-                band: Some((
-                    mean.iter().zip(&ci).map(|(m, c)| m - c).collect(),
-                    mean.iter().zip(&ci).map(|(m, c)| m + c).collect(),
-                )),
-                mean,
-            });
+            let x = series.iter().map(|(n, _)| (*n as f64).log10()).collect();
+            curves.push(Curve::of_estimates(format!("{} ({seeds} seeds)", v.name), x, &e));
         }
         let counts: Vec<String> = series.iter().map(|(n, _)| n.to_string()).collect();
         panels.push(Panel {

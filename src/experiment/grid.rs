@@ -598,21 +598,11 @@ pub(crate) fn figures(
                 };
                 let e: Vec<Option<super::stats::Estimate>> =
                     (0..axis.levels.len()).map(|k| at(k).and_then(|v| estimate(v, q))).collect();
-                let mean: Vec<f64> = e.iter().map(|e| e.map_or(f64::NAN, |e| e.mean)).collect();
-                let ci: Vec<f64> = e.iter().map(|e| e.and_then(|e| e.ci).unwrap_or(0.0)).collect();
                 let label = match (other, line) {
                     (Some(o), Some(l)) => format!("{} {}", spec.grid[o].name, spec.grid[o].levels[l].label),
                     _ => exp.name.clone(),
                 };
-                curves.push(Curve {
-                    label,
-                    x: axis.levels.iter().map(|l| l.value).collect(),
-                    band: Some((
-                        mean.iter().zip(&ci).map(|(m, c)| m - c).collect(),
-                        mean.iter().zip(&ci).map(|(m, c)| m + c).collect(),
-                    )),
-                    mean,
-                });
+                curves.push(Curve::of_estimates(label, axis.levels.iter().map(|l| l.value).collect(), &e));
             }
             let levels = reference(q)
                 .filter(|_| spec.claims.iter().any(|c| &c.quantity == *q && matches!(&c.grid, Some(GridTest::Boundary { axis: n, .. } | GridTest::BoundaryShift { axis: n, .. }) if n == &axis.name)))
