@@ -226,6 +226,8 @@ fn cell(s: &Statement, preset: &str, results: &[ClaimResult], link: &dyn Fn(&str
 pub(crate) fn table(results: &[ClaimResult], link: &dyn Fn(&str) -> String) -> crate::error::Result<Option<String>> {
     let Some(statements) = statements(results)? else { return Ok(None) };
     let mut md = answer(&statements, results);
+    // How to read it, before it.
+    writeln!(md, "{LEGEND}\n").unwrap();
     md.push_str(
         "| the paper says | setting | paper | coevo, the paper's values (`paper`) | coevo, the authors' code's values (`gym-pps`) |\n\
          |---|---|---|---|---|\n",
@@ -239,10 +241,10 @@ pub(crate) fn table(results: &[ClaimResult], link: &dyn Fn(&str) -> String) -> c
         writeln!(md, "| {} | {} | {} | {} | {} |", says.replace('|', "\\|"), s.setting, s.value, cells[0], cells[1])
             .unwrap();
     }
-    Ok(Some(format!("{md}\n{LEGEND}\n")))
+    Ok(Some(md))
 }
 
-/// How to read the table, under it.
+/// How to read the table, above it.
 const LEGEND: &str = "Each cell: coevo's mean over seeds ± the interval its verdict reads (for a change or a \
      difference, the Holm-adjusted interval of its family; for a level, the plain 95 % interval), the verdict, and the \
      experiment it comes from with its seeds. ✓ reproduced (an effect detected in the paper's direction with the paper's \
@@ -280,8 +282,9 @@ pub(crate) fn book_page(table: &str) -> String {
 const FIGURE: &str = "![The standard experiment's training curves with the authors' code's values: DoS and DoA of the \
      prey, 100-episode running means over ten seeds with 95 % bands, the paper's start and end levels dashed in colour \
      and chance dashed in grey](../../../results/standard/figures/gym-pps-training.svg)\n\n*The standard experiment \
-     with the authors' code's values (`gym-pps`, ten seeds): from near chance (grey), DoS falls and DoA rises to the \
-     paper's end levels (dashed) and past them. The same with the paper's values: `results/standard/figures/paper-training.svg`.*";
+     with the authors' code's values (`gym-pps`, ten seeds): the prey's DoS and DoA over training, the paper's start and \
+     end levels dashed in colour, chance in grey; the rows below judge each level and change. The same with the paper's \
+     values: `results/standard/figures/paper-training.svg`.*";
 
 #[cfg(test)]
 mod tests {
