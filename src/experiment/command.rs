@@ -259,6 +259,16 @@ pub(crate) fn write_reproduction(partial: bool) -> crate::error::Result<()> {
         crate::io::write_file(page, Existing::Replace, paper_table::book_page(&book).as_bytes())?;
         crate::errln!("coevo: wrote {}", page.display())?;
     }
+    // The book's pages that show a report's table, where the book is.
+    for page in paper_table::INLINING_PAGES.map(Path::new).into_iter().filter(|p| p.is_file()) {
+        let text = crate::io::read_text(page, crate::io::MAX_TEXT_BYTES)?;
+        let read = |report: &str| crate::io::read_text(Path::new(report), crate::io::MAX_TEXT_BYTES).ok();
+        let inlined = paper_table::inline_tables(&text, &read).map_err(|m| format!("{}: {m}", page.display()))?;
+        if inlined != text {
+            crate::io::write_file(page, Existing::Replace, inlined.as_bytes())?;
+            crate::errln!("coevo: wrote {}", page.display())?;
+        }
+    }
     Ok(())
 }
 

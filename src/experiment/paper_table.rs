@@ -264,6 +264,46 @@ const LEGEND: &str = "Each cell: coevo's mean over seeds ± the interval its ver
      `gym-pps`: the authors' published code's values wherever they differ from the paper's (the book's \"Scenes and \
      presets\").";
 
+/// Where a book page takes a table from a report: the opening marker names the report (relative to the
+/// repository) and its anchor; `coevo --plot all` writes the table between it and [`INLINED_END`] (mdbook's
+/// `{{#include}}` would not show on GitHub, where the book is also read).
+pub(crate) const INLINED: &str = "<!-- inlined by coevo --plot all from ";
+pub(crate) const INLINED_END: &str = "<!-- end of inlined -->";
+
+/// `page` with every inlined table refreshed from its report (`read`, the report's text by its path), or
+/// Err naming the marker that names no report or anchor. The text between `<!-- ANCHOR: NAME -->` and
+/// `<!-- ANCHOR_END: NAME -->` is the table.
+pub fn inline_tables(page: &str, read: &dyn Fn(&str) -> Option<String>) -> std::result::Result<String, String> {
+    let mut out = String::new();
+    let mut rest = page;
+    while let Some(at) = rest.find(INLINED) {
+        let head = &rest[at..];
+        let line_end = head.find("-->").ok_or("an inlined marker without its -->")? + 3;
+        let (report, anchor) = head[INLINED.len()..line_end - 3]
+            .trim()
+            .rsplit_once(':')
+            .ok_or_else(|| format!("{}: not REPORT:ANCHOR", &head[..line_end]))?;
+        let end = head.find(INLINED_END).ok_or_else(|| format!("{report}:{anchor}: no {INLINED_END}"))?;
+        let text = read(report).ok_or_else(|| format!("{report}: no such report"))?;
+        let open = format!("<!-- ANCHOR: {anchor} -->\n");
+        let close = format!("<!-- ANCHOR_END: {anchor} -->");
+        let from = text.find(&open).ok_or_else(|| format!("{report}: no anchor {anchor:?}"))? + open.len();
+        let to = text[from..].find(&close).ok_or_else(|| format!("{report}: {anchor:?} not closed"))? + from;
+        out.push_str(&rest[..at]);
+        out.push_str(&head[..line_end]);
+        out.push_str("\n\n");
+        out.push_str(text[from..to].trim_end());
+        out.push_str("\n\n");
+        out.push_str(INLINED_END);
+        rest = &head[end + INLINED_END.len()..];
+    }
+    out.push_str(rest);
+    Ok(out)
+}
+
+/// The book's pages that inline a report's table (`inline_tables`).
+pub const INLINING_PAGES: [&str; 2] = ["docs/src/results/collective.md", "docs/src/results/observation-frames.md"];
+
 /// The book's page of the table (`table`, linked from the book).
 pub(crate) fn book_page(table: &str) -> String {
     // The answer, then the training curves against the paper's levels, then the rows.
