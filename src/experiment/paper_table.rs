@@ -329,6 +329,22 @@ const FIGURE: &str = "![The standard experiment's training curves with the autho
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_marked_table_is_written_from_its_reports_anchor_and_a_missing_one_refused() {
+        let report = "# r\n<!-- ANCHOR: collective -->\n| a |\n|---|\n| 1 |\n<!-- ANCHOR_END: collective -->\n";
+        let read = |path: &str| (path == "results/x/REPORT.md").then(|| report.to_string());
+        let page = format!("before\n\n{INLINED}results/x/REPORT.md:collective -->\nstale\n{INLINED_END}\n\nafter\n");
+        let inlined = inline_tables(&page, &read).unwrap();
+        assert_eq!(
+            inlined,
+            format!("before\n\n{INLINED}results/x/REPORT.md:collective -->\n\n| a |\n|---|\n| 1 |\n\n{INLINED_END}\n\nafter\n")
+        );
+        assert_eq!(inline_tables(&inlined, &read).unwrap(), inlined, "written again, the same");
+        let other = page.replace(":collective", ":missing");
+        assert!(inline_tables(&other, &read).unwrap_err().contains("no anchor"));
+        assert!(inline_tables(&page.replace("results/x", "results/y"), &read).unwrap_err().contains("no such report"));
+    }
     use crate::experiment::file::Claim;
     use crate::experiment::stats::estimate;
     use crate::experiment::verdict::Verdict;

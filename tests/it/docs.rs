@@ -639,3 +639,22 @@ fn every_ippo_number_shown_is_in_the_committed_controls_output() {
     assert_eq!(earlier, ["0.960", "0.972", "0.998", "0.052"]);
     assert!(earlier.iter().all(|n| !committed.contains(n)));
 }
+
+#[test]
+fn the_books_tables_from_reports_are_inlined_and_current() {
+    // GitHub shows no mdbook include: every table a page takes from a report is written into it, and is the
+    // committed report's as `coevo --plot all` writes it.
+    for page in markdown_files() {
+        let text = std::fs::read_to_string(&page).unwrap();
+        assert!(!text.contains("{{#include"), "{}: an mdbook include, which GitHub does not show", page.display());
+    }
+    use coevo::experiment::paper_table::{inline_tables, INLINING_PAGES};
+    for page in INLINING_PAGES {
+        let text = std::fs::read_to_string(page).unwrap();
+        let inlined = inline_tables(&text, &|report: &str| std::fs::read_to_string(report).ok()).unwrap();
+        assert!(
+            inlined == text,
+            "{page} is not what `coevo --plot all` makes of the committed reports: run it and commit"
+        );
+    }
+}
