@@ -15,6 +15,7 @@ mod docs;
 mod env;
 mod errors;
 mod experiment;
+mod layers;
 mod learning;
 mod metrics;
 mod observation;
