@@ -202,11 +202,18 @@ pub(crate) fn verdict(
                 Verdict::new(NotReproduced, format!("not reproduced: detected the other way ({p_text})"))
             }
             // The seeds that would decide it: for a direction the paper gives no size of, those that would
-            // detect the difference measured here if it were the true one (none when it points the other way).
+            // detect the difference measured here if it were the true one (none when it points the other way),
+            // and how far that answer moves over the interval: from its far end in the hypothesised direction
+            // to its near end, which holds 0 (never) since the effect was not detected.
             Some(paper) if claim.direction_only => {
+                let far = e.mean + paper.signum() * h;
                 let seeds = match e.mean.signum() == paper.signum() {
                     true => e.seeds_for(level, e.mean).map_or(MORE_SEEDS.into(), |n| {
-                        format!("; about {n} seeds per variant would detect a difference of the size measured here ({:+.3}) with 80 % power", e.mean)
+                        let range = match e.seeds_for(level, far) {
+                            Some(at_far) => format!("; over its adjusted interval the answer runs from about {at_far} (at {far:+.3}) to never (at 0, inside it)"),
+                            None => String::new(),
+                        };
+                        format!("; about {n} seeds per variant would detect a difference of the size measured here ({:+.3}) with 80 % power{range}", e.mean)
                     }),
                     false => "; the estimate points away from the paper's direction, so more seeds are not expected to show it".into(),
                 };
@@ -356,5 +363,21 @@ mod tests {
         let one = verdict(&claim(None, false), estimate(&[0.8]), None, None, None);
         assert_eq!((one.outcome, one.word()), (Outcome::OneSeed, "one seed"));
         assert!(Outcome::Equivalent.reproduced() && !Outcome::Inconclusive { paper_size_excluded: true }.reproduced());
+    }
+
+    #[test]
+    fn an_undecided_direction_says_how_many_seeds_over_its_interval() {
+        // A difference measured at +0.02 between two arms of 5 seeds, not detected: the seeds that would
+        // detect it, and the range from the interval's far end (fewer) to its near end, which holds 0.
+        let e = crate::experiment::stats::difference(&[0.80, 0.86, 0.83, 0.79, 0.85], &[0.81, 0.82, 0.80, 0.78, 0.82]);
+        let c = Claim { direction_only: true, ..claim(Some(1.0), true) };
+        let text = verdict(&c, e, Some(0.4), Some(ALPHA), None).text;
+        let number = |after: &str| -> usize {
+            let at = text.find(after).unwrap_or_else(|| panic!("{after:?} in {text}")) + after.len();
+            text[at..].split_whitespace().next().unwrap().parse().unwrap()
+        };
+        let (measured, far) = (number("; about "), number("runs from about "));
+        assert!(far < measured, "{text}");
+        assert!(text.contains("to never (at 0, inside it)"), "{text}");
     }
 }
