@@ -193,17 +193,37 @@ pub(crate) enum GridTest {
         #[serde(default)]
         at: Option<String>,
     },
-    /// Where along `axis` the mean over seeds first crosses `crosses` (linear between neighbouring
-    /// levels), with a bootstrap interval over seeds; tested against "no crossing within the axis".
+    /// Where along `axis` the mean over seeds first falls through `crosses` (or rises through it, or
+    /// either, as `direction` says; linear between neighbouring levels), with a bootstrap interval over
+    /// seeds; tested against "no such crossing within the axis".
     Boundary {
         axis: String,
         crosses: f64,
         #[serde(default)]
         at: Option<String>,
+        #[serde(default)]
+        direction: Crossing,
     },
     /// How that boundary moves with the other axis: the least-squares slope of its position on the other
-    /// axis's values, with a bootstrap interval over seeds; tested two-sided (or for equivalence).
-    BoundaryShift { axis: String, crosses: f64 },
+    /// axis's values, with a bootstrap interval over seeds; tested two-sided.
+    BoundaryShift {
+        axis: String,
+        crosses: f64,
+        #[serde(default)]
+        direction: Crossing,
+    },
+}
+
+/// Which way a boundary's quantity passes its value, going along the axis (up its values).
+#[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq, Eq)]
+pub(crate) enum Crossing {
+    /// From at or above the value to below it (a share that falls away), the default.
+    #[default]
+    Falls,
+    /// From at or below it to above it.
+    Rises,
+    /// Either way.
+    Either,
 }
 /// How the trained policies of every run are deployed (`coevo --eval`): species counts, episodes and
 /// steps; its per-step DoS/DoA land in `eval-<name>.csv`.

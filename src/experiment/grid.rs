@@ -123,11 +123,11 @@ pub(crate) struct Along<'a> {
 pub(crate) fn along<'a>(spec: &'a ExperimentFile, test: &GridTest) -> Result<Along<'a>, String> {
     let (name, at, shift) = match test {
         GridTest::Trend { axis, at } => (axis, at.as_deref(), false),
-        GridTest::Boundary { axis, at, crosses } => {
+        GridTest::Boundary { axis, at, crosses, .. } => {
             finite(*crosses)?;
             (axis, at.as_deref(), false)
         }
-        GridTest::BoundaryShift { axis, crosses } => {
+        GridTest::BoundaryShift { axis, crosses, .. } => {
             finite(*crosses)?;
             (axis, None, true)
         }
@@ -173,12 +173,41 @@ pub(crate) fn describe(test: &GridTest) -> String {
         GridTest::Trend { axis, at: level } => {
             format!("the runs along `{axis}`{}: least-squares slope per unit of the axis (HC3, n − 2 df)", at(level))
         }
-        GridTest::Boundary { axis, crosses, at: level } => {
-            format!("the runs along `{axis}`{}: where the mean first crosses {crosses}, on the axis (bootstrap)", at(level))
-        }
-        GridTest::BoundaryShift { axis, crosses } => format!(
-            "the runs along `{axis}` at every level of the other axis: slope of where the mean first crosses {crosses} on the other axis (bootstrap)"
+        GridTest::Boundary { axis, crosses, at: level, direction } => format!(
+            "the runs along `{axis}`{}: where the mean first {} {crosses}, on the axis (bootstrap)",
+            at(level),
+            passes(*direction)
         ),
+        GridTest::BoundaryShift { axis, crosses, direction } => format!(
+            "the runs along `{axis}` at every level of the other axis: slope of where the mean first {} {crosses} on the other axis (bootstrap)",
+            passes(*direction)
+        ),
+    }
+}
+
+/// How a boundary's quantity passes its value, in words.
+fn passes(direction: super::file::Crossing) -> &'static str {
+    match direction {
+        super::file::Crossing::Falls => "falls through",
+        super::file::Crossing::Rises => "rises through",
+        super::file::Crossing::Either => "crosses",
+    }
+}
+
+/// A grid test as its claim's fingerprint states it (`registry.rs`): as written before a boundary's
+/// direction could be named, with the direction added only when it is not the default fall.
+pub(crate) fn stated(test: &GridTest) -> String {
+    use super::file::Crossing::Falls;
+    match test {
+        GridTest::Trend { .. } => format!("{test:?}"),
+        GridTest::Boundary { axis, crosses, at, direction } => {
+            let named = if *direction == Falls { String::new() } else { format!(", direction: {direction:?}") };
+            format!("Boundary {{ axis: {axis:?}, crosses: {crosses:?}, at: {at:?}{named} }}")
+        }
+        GridTest::BoundaryShift { axis, crosses, direction } => {
+            let named = if *direction == Falls { String::new() } else { format!(", direction: {direction:?}") };
+            format!("BoundaryShift {{ axis: {axis:?}, crosses: {crosses:?}{named} }}")
+        }
     }
 }
 
@@ -256,11 +285,12 @@ pub(crate) fn test(
             let p = estimate.and_then(|e| e.test_p(claim.margin));
             Tested { estimate, p, resamples: None }
         }
-        GridTest::Boundary { crosses, .. } => {
-            let point = crossing(&x, &means(&samples[0]), *crosses);
+        GridTest::Boundary { crosses, direction, .. } => {
+            let point = crossing(&x, &means(&samples[0]), *crosses, *direction);
             let mut rng = resampler(claim);
-            let mut resamples: Vec<f64> =
-                (0..RESAMPLES).map(|_| crossing(&x, &resample_means(&samples[0], &mut rng), *crosses)).collect();
+            let mut resamples: Vec<f64> = (0..RESAMPLES)
+                .map(|_| crossing(&x, &resample_means(&samples[0], &mut rng), *crosses, *direction))
+                .collect();
             resamples.sort_by(f64::total_cmp);
             // H0: the mean does not cross within the axis; a resample beyond either end is one against.
             let beyond = resamples.iter().filter(|r| !r.is_finite()).count();
@@ -268,11 +298,11 @@ pub(crate) fn test(
             let estimate = bootstrap_estimate(point, &resamples, samples[0].iter().map(Vec::len).min().unwrap_or(0));
             Tested { estimate, p: Some(p), resamples: Some(resamples) }
         }
-        GridTest::BoundaryShift { crosses, .. } => {
+        GridTest::BoundaryShift { crosses, direction, .. } => {
             let other = 1 - along.axis;
             let y: Vec<f64> = spec.grid[other].levels.iter().map(|l| l.value).collect();
             let shift = |rows: &[Vec<f64>]| {
-                let at: Vec<f64> = rows.iter().map(|m| crossing(&x, m, *crosses)).collect();
+                let at: Vec<f64> = rows.iter().map(|m| crossing(&x, m, *crosses, *direction)).collect();
                 match at.iter().all(|b| b.is_finite()) {
                     true => least_squares(&y, &at),
                     false => f64::NAN,
@@ -315,19 +345,25 @@ fn resampler(claim: &super::file::Claim) -> rand_chacha::ChaCha8Rng {
     rand_chacha::ChaCha8Rng::from_seed(*hash.as_bytes())
 }
 
-/// Where the means `m` at positions `x` first cross `value` along the axis, linear between the two levels
-/// that bracket it (a level exactly at `value` is the crossing); +∞ when no two neighbouring levels
-/// bracket it (every mean on one side: a boundary, if any, beyond the axis).
-pub(crate) fn crossing(x: &[f64], m: &[f64], value: f64) -> f64 {
+/// Where the means `m` at positions `x` first pass `value` along the axis the way `direction` says: the
+/// first two neighbouring levels with the first at or above the value and the next below it (a fall), or
+/// the reverse (a rise), linear between them; +∞ when no two neighbouring levels do (a boundary, if any,
+/// beyond the axis).
+pub(crate) fn crossing(x: &[f64], m: &[f64], value: f64, direction: super::file::Crossing) -> f64 {
+    use super::file::Crossing;
     if m.iter().any(|v| !v.is_finite()) {
         return f64::NAN;
     }
-    if let Some(i) = m.iter().position(|&v| v == value) {
-        return x[i];
-    }
     for i in 1..m.len() {
         let (a, b) = (m[i - 1] - value, m[i] - value);
-        if a.signum() != b.signum() {
+        let falls = a >= 0.0 && b < 0.0;
+        let rises = a <= 0.0 && b > 0.0;
+        let passes = match direction {
+            Crossing::Falls => falls,
+            Crossing::Rises => rises,
+            Crossing::Either => falls || rises,
+        };
+        if passes {
             return x[i - 1] + (x[i] - x[i - 1]) * a / (a - b);
         }
     }
@@ -447,14 +483,17 @@ pub(crate) fn bootstrap_verdict(
                 ),
                 (_, e) => Verdict::new(
                     Outcome::NoEffectDetected,
-                    format!(
-                        "not located (inconclusive): the mean {} {crosses} within the axis; {:.0} % of resamples cross it there; adjusted interval {range}",
-                        match e {
-                            Some(e) => format!("crosses at {:.3}, but not in enough resamples:", e.mean),
-                            None => "does not cross".into(),
-                        },
-                        100.0 * share
-                    ),
+                    match e {
+                        Some(e) => format!(
+                            "not located (inconclusive): the mean over seeds crosses {crosses} at {:.3}, but only {:.0} % of resamples cross it within the axis; adjusted interval {range}",
+                            e.mean,
+                            100.0 * share
+                        ),
+                        None => format!(
+                            "not located (inconclusive): the mean over seeds does not cross {crosses} within the axis, and {:.0} % of resamples do; adjusted interval {range}",
+                            100.0 * share
+                        ),
+                    },
                 ),
             }
         }
@@ -660,10 +699,16 @@ mod tests {
     #[test]
     fn a_crossing_is_found_between_the_levels_that_bracket_it() {
         let x = [0.0, 1.0, 2.0, 3.0];
-        assert_eq!(crossing(&x, &[0.4, 0.3, 0.1, 0.0], 0.2), 1.5);
-        assert_eq!(crossing(&x, &[0.4, 0.2, 0.1, 0.0], 0.2), 1.0, "a level exactly at the value");
-        assert_eq!(crossing(&x, &[0.0, 0.1, 0.3, 0.4], 0.2), 1.5, "rising through it too");
-        assert_eq!(crossing(&x, &[0.4, 0.3, 0.3, 0.3], 0.2), f64::INFINITY, "no crossing within the axis");
+        use crate::experiment::file::Crossing::{Either, Falls, Rises};
+        assert_eq!(crossing(&x, &[0.4, 0.3, 0.1, 0.0], 0.2, Falls), 1.5);
+        assert_eq!(crossing(&x, &[0.4, 0.2, 0.1, 0.0], 0.2, Falls), 1.0, "a level exactly at the value");
+        assert_eq!(crossing(&x, &[0.0, 0.1, 0.3, 0.4], 0.2, Rises), 1.5, "rising through it");
+        assert_eq!(crossing(&x, &[0.0, 0.1, 0.3, 0.4], 0.2, Falls), f64::INFINITY, "a rise is no fall");
+        assert_eq!(crossing(&x, &[0.4, 0.3, 0.3, 0.3], 0.2, Either), f64::INFINITY, "no crossing within the axis");
+        // Up and then down: a fall is the second crossing, either way the first.
+        let (up_down, five) = ([0.0, 0.3, 0.3, 0.3, 0.0], [0.0, 1.0, 2.0, 3.0, 4.0]);
+        assert!((crossing(&five, &up_down, 0.2, Falls) - 10.0 / 3.0).abs() < 1e-12);
+        assert!((crossing(&five, &up_down, 0.2, Either) - 2.0 / 3.0).abs() < 1e-12);
     }
 
     /// Runs at `x` with means `mean(x)` and normal noise of SD `sd`, `seeds` per level.
@@ -704,16 +749,16 @@ mod tests {
 
     #[test]
     fn a_boundary_is_located_where_the_means_cross_and_not_where_they_do_not() {
-        use crate::experiment::file::Claim;
+        use crate::experiment::file::{Claim, Crossing::Falls};
         let x = [-3.58, -2.58, -1.58, -1.0, 0.0];
         let claim = Claim::of("known boundary", "", crate::experiment::file::Quantity::DoaLast);
         let crossing_at = |levels: &[Vec<f64>]| {
             let mut rng = resampler(&claim);
             let mut r: Vec<f64> =
-                (0..RESAMPLES).map(|_| crossing(&x, &resample_means(levels, &mut rng), 0.1)).collect();
+                (0..RESAMPLES).map(|_| crossing(&x, &resample_means(levels, &mut rng), 0.1, Falls)).collect();
             r.sort_by(f64::total_cmp);
             let beyond = r.iter().filter(|v| !v.is_finite()).count();
-            (crossing(&x, &means(levels), 0.1), interval(&r, 0.05), beyond)
+            (crossing(&x, &means(levels), 0.1, Falls), interval(&r, 0.05), beyond)
         };
         // The flocking share falling linearly from 0.3 to −0.03: it crosses 0.1 at x ≈ −1.41.
         let truth = -3.58 + (0.3 - 0.1) / (0.33 / 3.58);

@@ -31,10 +31,12 @@ pub(crate) fn fingerprint(claim: &Claim) -> String {
         super::file::Scale::Linear => canonical,
         scale => format!("{canonical}\u{1f}{scale:?}"),
     };
-    // Likewise a grid's test (its axis, level and crossing value), which claims before grids lack.
+    // Likewise a grid's test (its axis, level and crossing value), which claims before grids lack; a
+    // boundary's direction only when not the default (a fall), so a test stated before directions could be
+    // named keeps the fingerprint it was recorded with.
     let canonical = match &claim.grid {
         None => canonical,
-        Some(test) => format!("{canonical}\u{1f}{test:?}"),
+        Some(test) => format!("{canonical}\u{1f}{}", super::grid::stated(test)),
     };
     blake3::hash(canonical.as_bytes()).to_hex()[..16].to_string()
 }

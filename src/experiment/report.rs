@@ -56,8 +56,8 @@ const METHOD: &str = "Each number is the mean over seeds of the prey's 100-episo
      trained actors' alignment that the control removes, computed run by run. Over a grid of variants (one or two \
      parameters, each at several levels), a *trend* is the least-squares slope of every run's value on its level's \
      position along an axis (seeds are the replicates; HC3 standard errors, n − 2 degrees of freedom), tested as an \
-     effect; a *boundary* is where the mean over seeds first crosses a stated value along an axis (linear between \
-     levels), with a bootstrap over seeds within each cell (2000 resamples): it is **located** when the test of no \
+     effect; a *boundary* is where the mean over seeds first falls (or, as stated, rises) through a stated value \
+     along an axis (linear between levels), with a bootstrap over seeds within each cell (2000 resamples): it is **located** when the test of no \
      crossing within the axis (p: the share of resamples that do not cross) is detected after Holm, its interval the \
      resamples' percentiles at that level; its *shift* is the least-squares slope of the boundary on the other axis, \
      by the same bootstrap. Nothing in the metrics, rewards or physics was tuned toward a claim.\n\n\
