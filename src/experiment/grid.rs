@@ -194,23 +194,6 @@ fn passes(direction: super::file::Crossing) -> &'static str {
     }
 }
 
-/// A grid test as its claim's fingerprint states it (`registry.rs`): as written before a boundary's
-/// direction could be named, with the direction added only when it is not the default fall.
-pub(crate) fn stated(test: &GridTest) -> String {
-    use super::file::Crossing::Falls;
-    match test {
-        GridTest::Trend { .. } => format!("{test:?}"),
-        GridTest::Boundary { axis, crosses, at, direction } => {
-            let named = if *direction == Falls { String::new() } else { format!(", direction: {direction:?}") };
-            format!("Boundary {{ axis: {axis:?}, crosses: {crosses:?}, at: {at:?}{named} }}")
-        }
-        GridTest::BoundaryShift { axis, crosses, direction } => {
-            let named = if *direction == Falls { String::new() } else { format!(", direction: {direction:?}") };
-            format!("BoundaryShift {{ axis: {axis:?}, crosses: {crosses:?}{named} }}")
-        }
-    }
-}
-
 /// A quantity's name short enough for a figure's title (the reports name it in full).
 fn short_name(q: &super::file::Quantity) -> String {
     use super::file::Quantity as Q;

@@ -36,9 +36,26 @@ pub(crate) fn fingerprint(claim: &Claim) -> String {
     // named keeps the fingerprint it was recorded with.
     let canonical = match &claim.grid {
         None => canonical,
-        Some(test) => format!("{canonical}\u{1f}{}", super::grid::stated(test)),
+        Some(test) => format!("{canonical}\u{1f}{}", grid_statement(test)),
     };
     blake3::hash(canonical.as_bytes()).to_hex()[..16].to_string()
+}
+
+/// A grid test as a claim's fingerprint states it ([`fingerprint`]): as written before a boundary's
+/// direction could be named, with the direction added only when it is not the default fall.
+fn grid_statement(test: &super::file::GridTest) -> String {
+    use super::file::{Crossing::Falls, GridTest};
+    match test {
+        GridTest::Trend { .. } => format!("{test:?}"),
+        GridTest::Boundary { axis, crosses, at, direction } => {
+            let named = if *direction == Falls { String::new() } else { format!(", direction: {direction:?}") };
+            format!("Boundary {{ axis: {axis:?}, crosses: {crosses:?}, at: {at:?}{named} }}")
+        }
+        GridTest::BoundaryShift { axis, crosses, direction } => {
+            let named = if *direction == Falls { String::new() } else { format!(", direction: {direction:?}") };
+            format!("BoundaryShift {{ axis: {axis:?}, crosses: {crosses:?}{named} }}")
+        }
+    }
 }
 
 /// How a claim stands against the fingerprints recorded with its experiment's results.
