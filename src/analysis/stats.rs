@@ -12,6 +12,13 @@ pub(crate) fn mean(values: &[f64]) -> Option<f64> {
     (!values.is_empty()).then(|| values.iter().sum::<f64>() / values.len() as f64)
 }
 
+/// The least-squares slope of `y` on `x` (NaN when `x` does not vary).
+pub(crate) fn least_squares(x: &[f64], y: &[f64]) -> f64 {
+    let (mx, my) = (mean(x).unwrap_or(f64::NAN), mean(y).unwrap_or(f64::NAN));
+    let sxx: f64 = x.iter().map(|a| (a - mx).powi(2)).sum();
+    x.iter().zip(y).map(|(a, b)| (a - mx) * (b - my)).sum::<f64>() / sxx
+}
+
 /// The `p` quantile of Student's t with `df` degrees of freedom (NaN for df ≤ 0).
 pub(crate) fn t_quantile(p: f64, df: f64) -> f64 {
     use statrs::distribution::{ContinuousCDF, StudentsT};

@@ -203,11 +203,10 @@ pub(crate) fn tests(exp: &Experiment, table: &Summary) -> Vec<ClaimResult> {
             };
             if let Some(test) = &claim.grid {
                 let t = super::grid::test(&exp.spec, claim, test, &samples);
-                let same_test = t.p.map(|_| super::grid::reads(test, &samples, &exp.spec, claim.margin));
                 results.push(ClaimResult {
                     estimate: t.estimate,
                     p: t.p,
-                    same_test,
+                    same_test: t.reads,
                     resamples: t.resamples,
                     ..untested(preset, claim)
                 });

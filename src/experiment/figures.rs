@@ -97,18 +97,14 @@ pub(crate) fn check_new_figure(stem: &std::path::Path, flag: &str) -> crate::err
 /// the groups of 200 prey and more printed (how it grows).
 pub(crate) fn group_size_cost(stem: &std::path::Path, budget: std::time::Duration) -> crate::error::Result<()> {
     let steps = crate::run::bench::group_size_steps(budget);
-    let n: Vec<f64> = steps.iter().map(|(prey, _)| (*prey as f64).log10()).collect();
-    let per_step: Vec<f64> = steps.iter().map(|(_, f)| (1e6 / f.per_second).log10()).collect();
-    // Agents: the prey and their predators (3 per 50, at least 1).
-    let agents = |prey: usize| prey + ((3 * prey) as f64 / 50.0).round().max(1.0) as usize;
+    let n: Vec<f64> = steps.iter().map(|(prey, ..)| (*prey as f64).log10()).collect();
+    let per_step: Vec<f64> = steps.iter().map(|(_, _, f)| (1e6 / f.per_second).log10()).collect();
     let per_agent: Vec<f64> =
-        steps.iter().map(|(prey, f)| (1e6 / f.per_second / agents(*prey) as f64).log10()).collect();
+        steps.iter().map(|(prey, predators, f)| (1e6 / f.per_second / (prey + predators) as f64).log10()).collect();
     let large: Vec<usize> = (0..steps.len()).filter(|&i| steps[i].0 >= 200).collect();
     let exponent = {
         let (x, y): (Vec<f64>, Vec<f64>) = large.iter().map(|&i| (n[i], per_step[i])).unzip();
-        let (mx, my) = (super::stats::mean(&x).unwrap_or(0.0), super::stats::mean(&y).unwrap_or(0.0));
-        let sxx: f64 = x.iter().map(|a| (a - mx).powi(2)).sum();
-        x.iter().zip(&y).map(|(a, b)| (a - mx) * (b - my)).sum::<f64>() / sxx
+        super::stats::least_squares(&x, &y)
     };
     let curve = |label: &str, y: Vec<f64>| Curve { label: label.into(), x: n.clone(), mean: y, band: None };
     let panels = [
@@ -130,7 +126,7 @@ pub(crate) fn group_size_cost(stem: &std::path::Path, budget: std::time::Duratio
     plot::save_in(stem, &panels, 2)?;
     crate::outln!(
         "group size: time per step grows as N^{exponent:.2} over 200 to {} prey; figure in {}.svg and .png",
-        steps.last().map_or(0, |(p, _)| *p),
+        steps.last().map_or(0, |(p, ..)| *p),
         stem.display()
     )
 }

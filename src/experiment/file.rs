@@ -139,12 +139,9 @@ pub(crate) struct VariantFile {
     #[serde(default)]
     pub(crate) same_training_as: Option<String>,
     /// A grid's cell (`grid.rs`): its level on each axis, by index into the axis's levels, in the file's
-    /// order of axes; empty for a listed variant.
+    /// order of axes (their patches apply after `patch`); empty for a listed variant.
     #[serde(skip)]
     pub(crate) cell: Vec<usize>,
-    /// A grid's cell: its levels' patches, applied after `patch` in the order of the axes.
-    #[serde(skip)]
-    pub(crate) then: Vec<ScenePatch>,
 }
 
 /// One axis of an experiment's grid: a scene number and its values (`path`, `values`), or levels each

@@ -78,17 +78,36 @@ pub(crate) fn expand(spec: &mut ExperimentFile) -> Result<(), (String, String)> 
         }
     }
     for cell in cells(&spec.grid) {
-        let levels: Vec<&Level> = cell.iter().zip(&spec.grid).map(|(&i, axis)| &axis.levels[i]).collect();
+        let levels: Vec<&Level> = levels_of(&spec.grid, &cell).collect();
         spec.variants.push(VariantFile {
             name: levels.iter().map(|l| l.label.as_str()).collect::<Vec<_>>().join(", "),
             patch: ScenePatch::default(),
             shared_from: None,
             same_training_as: None,
-            then: levels.iter().map(|l| l.patch.clone()).collect(),
             cell,
         });
     }
     Ok(())
+}
+
+/// The levels of a cell, axis by axis (none for a listed variant).
+pub(crate) fn levels_of<'a>(grid: &'a [Axis], cell: &'a [usize]) -> impl Iterator<Item = &'a Level> {
+    cell.iter().zip(grid).map(|(&i, axis)| &axis.levels[i])
+}
+
+/// The cell at level `i` of `axis` and, on a grid of two, the other axis at its level (`other`).
+fn cell_at(axes: usize, axis: usize, i: usize, other: Option<(usize, usize)>) -> Vec<usize> {
+    let mut cell = vec![0; axes];
+    cell[axis] = i;
+    if let Some((o, level)) = other {
+        cell[o] = level;
+    }
+    cell
+}
+
+/// The variant of a grid's cell (its level indices).
+pub(crate) fn variant_at<'a>(spec: &'a ExperimentFile, cell: &[usize]) -> Option<&'a VariantFile> {
+    spec.variants.iter().find(|v| !v.cell.is_empty() && v.cell == cell)
 }
 
 /// Every cell of the axes, the first axis slowest (its level indices); none without axes.
@@ -143,9 +162,7 @@ pub(crate) fn along<'a>(spec: &'a ExperimentFile, test: &GridTest) -> Result<Alo
     let row = |level: Option<usize>| -> Vec<&'a VariantFile> {
         (0..spec.grid[axis].levels.len())
             .map(|i| {
-                spec.variants
-                    .iter()
-                    .find(|v| v.cell.get(axis) == Some(&i) && other.is_none_or(|o| v.cell.get(o) == level.as_ref()))
+                variant_at(spec, &cell_at(spec.grid.len(), axis, i, other.zip(level)))
                     .expect("every cell of the grid is a variant")
             })
             .collect()
@@ -229,22 +246,9 @@ pub(crate) struct Tested {
     pub(crate) estimate: Option<super::stats::Estimate>,
     pub(crate) p: Option<f64>,
     pub(crate) resamples: Option<Vec<f64>>,
-}
-
-/// What a grid claim's test reads, to the bit, as `aggregate::adjust` compares tests (two claims of one
-/// family that read the same runs the same way are one test): every value along its cells, and its test.
-pub(crate) fn reads(
-    test: &GridTest,
-    values: &dyn Fn(&str) -> Vec<f64>,
-    spec: &ExperimentFile,
-    margin: Option<f64>,
-) -> super::claims::SameTest {
-    let read: Vec<u64> = along(spec, test)
-        .map(|a| a.rows.iter().flatten().flat_map(|v| values(&v.name)).map(f64::to_bits).collect())
-        .unwrap_or_default();
-    let what =
-        u64::from_le_bytes(blake3::hash(format!("{test:?}").as_bytes()).as_bytes()[..8].try_into().unwrap_or_default());
-    (read, Some(vec![what]), margin.map(f64::to_bits))
+    /// What the test read, to the bit, as `aggregate::adjust` compares tests (two claims of one family
+    /// that read the same runs the same way are one test): every value along its cells, and its test.
+    pub(crate) reads: Option<super::claims::SameTest>,
 }
 
 /// Tests a grid claim on the per-run values `values(variant)` (on the claim's scale).
@@ -254,7 +258,7 @@ pub(crate) fn test(
     test: &GridTest,
     values: &dyn Fn(&str) -> Vec<f64>,
 ) -> Tested {
-    let none = Tested { estimate: None, p: None, resamples: None };
+    let none = Tested { estimate: None, p: None, resamples: None, reads: None };
     let Ok(along) = along(spec, test) else { return none };
     let x: Vec<f64> = spec.grid[along.axis].levels.iter().map(|l| l.value).collect();
     let samples: Vec<Vec<Vec<f64>>> =
@@ -262,11 +266,14 @@ pub(crate) fn test(
     if samples.iter().flatten().any(Vec::is_empty) {
         return none;
     }
-    match test {
+    let read = samples.iter().flatten().flatten().map(|x| x.to_bits()).collect();
+    let what =
+        u64::from_le_bytes(blake3::hash(format!("{test:?}").as_bytes()).as_bytes()[..8].try_into().unwrap_or_default());
+    let tested = match test {
         GridTest::Trend { .. } => {
             let estimate = slope(&x, &samples[0]);
             let p = estimate.and_then(|e| e.test_p(claim.margin));
-            Tested { estimate, p, resamples: None }
+            Tested { estimate, p, resamples: None, reads: None }
         }
         GridTest::Boundary { crosses, direction, .. } => {
             let point = crossing(&x, &means(&samples[0]), *crosses, *direction);
@@ -279,7 +286,7 @@ pub(crate) fn test(
             let beyond = resamples.iter().filter(|r| !r.is_finite()).count();
             let p = (1 + beyond) as f64 / (RESAMPLES + 1) as f64;
             let estimate = bootstrap_estimate(point, &resamples, samples[0].iter().map(Vec::len).min().unwrap_or(0));
-            Tested { estimate, p: Some(p), resamples: Some(resamples) }
+            Tested { estimate, p: Some(p), resamples: Some(resamples), reads: None }
         }
         GridTest::BoundaryShift { crosses, direction, .. } => {
             let other = 1 - along.axis;
@@ -287,7 +294,7 @@ pub(crate) fn test(
             let shift = |rows: &[Vec<f64>]| {
                 let at: Vec<f64> = rows.iter().map(|m| crossing(&x, m, *crosses, *direction)).collect();
                 match at.iter().all(|b| b.is_finite()) {
-                    true => least_squares(&y, &at),
+                    true => super::stats::least_squares(&y, &at),
                     false => f64::NAN,
                 }
             };
@@ -304,14 +311,16 @@ pub(crate) fn test(
             let p = (2.0 * (1 + below.min(above)) as f64 / (RESAMPLES + 1) as f64).min(1.0);
             let seeds = samples.iter().flatten().map(Vec::len).min().unwrap_or(0);
             let estimate = bootstrap_estimate(point, &resamples, seeds);
-            Tested { estimate, p: Some(p), resamples: Some(resamples) }
+            Tested { estimate, p: Some(p), resamples: Some(resamples), reads: None }
         }
-    }
+    };
+    let reads = tested.p.map(|_| (read, Some(vec![what]), claim.margin.map(f64::to_bits)));
+    Tested { reads, ..tested }
 }
 
 /// The mean of each level's runs.
 fn means(levels: &[Vec<f64>]) -> Vec<f64> {
-    levels.iter().map(|s| s.iter().sum::<f64>() / s.len() as f64).collect()
+    levels.iter().map(|s| super::stats::mean(s).unwrap_or(f64::NAN)).collect()
 }
 
 /// The means of one bootstrap resample: each level's runs drawn with replacement, as many as it has (seeds
@@ -353,15 +362,6 @@ pub(crate) fn crossing(x: &[f64], m: &[f64], value: f64, direction: super::file:
     f64::INFINITY
 }
 
-/// The least-squares slope of `y` on `x`.
-fn least_squares(x: &[f64], y: &[f64]) -> f64 {
-    let n = x.len() as f64;
-    let (mx, my) = (x.iter().sum::<f64>() / n, y.iter().sum::<f64>() / n);
-    let sxx: f64 = x.iter().map(|a| (a - mx).powi(2)).sum();
-    let sxy: f64 = x.iter().zip(y).map(|(a, b)| (a - mx) * (b - my)).sum();
-    sxy / sxx
-}
-
 /// The trend along an axis: the least-squares slope of every run's value on its level's position, each run
 /// one observation, with the HC3 standard error (MacKinnon & White 1985; recommended for small samples by
 /// Long & Ervin 2000), which holds when the spread differs between levels, as catches' does, and n − 2
@@ -375,7 +375,8 @@ pub(crate) fn slope(x: &[f64], levels: &[Vec<f64>]) -> Option<super::stats::Esti
     if n < 3 || sxx <= 0.0 {
         return None;
     }
-    let b = points.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum::<f64>() / sxx;
+    let (xs, ys): (Vec<f64>, Vec<f64>) = points.iter().copied().unzip();
+    let b = super::stats::least_squares(&xs, &ys);
     let a = my - b * mx;
     let meat: f64 = points
         .iter()
@@ -544,8 +545,9 @@ pub(crate) fn figures(
             quantities.push(&c.quantity);
         }
     }
-    let cell = |rows: usize, columns: usize| -> Option<&VariantFile> {
-        spec.variants.iter().find(|v| v.cell == [rows, columns] || (spec.grid.len() == 1 && v.cell == [columns]))
+    let cell = |row: usize, column: usize| match spec.grid.len() {
+        1 => variant_at(spec, &[column]),
+        _ => variant_at(spec, &[row, column]),
     };
     let (first, second) = (&spec.grid[0], spec.grid.get(1));
     let (rows, columns) = match second {
@@ -610,14 +612,7 @@ pub(crate) fn figures(
             };
             let mut curves = Vec::new();
             for line in lines {
-                let at = |k: usize| -> Option<&VariantFile> {
-                    let mut index = vec![0; spec.grid.len()];
-                    index[a] = k;
-                    if let (Some(o), Some(l)) = (other, line) {
-                        index[o] = l;
-                    }
-                    spec.variants.iter().find(|v| v.cell == index)
-                };
+                let at = |k: usize| variant_at(spec, &cell_at(spec.grid.len(), a, k, other.zip(line)));
                 let e: Vec<Option<super::stats::Estimate>> =
                     (0..axis.levels.len()).map(|k| at(k).and_then(|v| estimate(v, q))).collect();
                 let label = match (other, line) {

@@ -399,9 +399,10 @@ impl Experiment {
                 let mut scene =
                     base.patched(v.patch.clone()).map_err(|e| err(&format!("variants[{}]", v.name), e.to_string()))?;
                 // A grid's cell: its levels' patches, axis by axis.
-                for patch in &v.then {
-                    scene =
-                        scene.patched(patch.clone()).map_err(|e| err(&format!("grid[{}]", v.name), e.to_string()))?;
+                for level in super::grid::levels_of(&spec.grid, &v.cell) {
+                    scene = scene
+                        .patched(level.patch.clone())
+                        .map_err(|e| err(&format!("grid[{}]", v.name), e.to_string()))?;
                 }
                 if let Some(episodes) = spec.episodes {
                     scene.episodes = episodes;

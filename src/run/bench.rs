@@ -130,11 +130,11 @@ pub(crate) fn environment(budget: Duration) -> Vec<Figure> {
 /// deploys them: prey with predators in the share 3 per 50 (at least 1), the arena's edge
 /// 2 √(agents / 53) m (53 agents in 2 m), the metrics every step as an evaluation records them.
 pub(crate) fn group_size(budget: Duration) -> Vec<Figure> {
-    group_size_steps(budget).into_iter().map(|(_, figure)| figure).collect()
+    group_size_steps(budget).into_iter().map(|(.., figure)| figure).collect()
 }
 
-/// [`group_size`]'s figures with the prey of each.
-pub(crate) fn group_size_steps(budget: Duration) -> Vec<(usize, Figure)> {
+/// [`group_size`]'s figures with the prey and the predators of each.
+pub(crate) fn group_size_steps(budget: Duration) -> Vec<(usize, usize, Figure)> {
     GROUP_SIZES
         .into_iter()
         .map(|prey| {
@@ -157,7 +157,7 @@ pub(crate) fn group_size_steps(budget: Duration) -> Vec<(usize, Figure)> {
                 per_second: crate::parallel::per_second(budget, 3, || sim.step()),
                 unit: "steps/s",
             };
-            (prey, figure)
+            (prey, predators, figure)
         })
         .collect()
 }
