@@ -1,19 +1,23 @@
-//! Distilled rules: the trained actors of a run replaced by rules a collective-behaviour researcher can
-//! read, fitted to what the actors do. Prey get a zonal rule (Couzin et al., J. Theor. Biol. 2002:
-//! repulsion, alignment, attraction; plus evasion of predators), predators a pursuit rule (the nearest
-//! prey, the centre of the prey in view, the most isolated one), both [`crate::scene`] policies that run
-//! everywhere a rule-based policy runs.
+//! Distilled rules: the actors of a run replaced by rules a collective-behaviour researcher can read,
+//! fitted to what the agents do. Prey get a zonal rule (Couzin et al., J. Theor. Biol. 2002: repulsion,
+//! alignment, attraction; plus evasion of predators), predators a pursuit rule (the nearest prey, the
+//! centre of the prey in view, the most isolated one), both [`crate::scene`] policies that run everywhere a
+//! rule-based policy runs.
 //!
-//! The data: the trained swarm at the counts asked for ([`super::swarm::record`]), every learned agent's
-//! observation and the action its actor took on it, step by step. The first half of the episodes fits,
-//! the second half is held out.
+//! The data: the swarm at the counts asked for ([`super::swarm::record`]), every agent's observation and
+//! the action it took on it, step by step, for every species that acts by an actor or a rule (so a swarm
+//! whose rule is known can be read as a trained one is: `tests/it/distill.rs`). The first half of the
+//! episodes fits, the second half is held out.
 //!
-//! The loss: least squares on the two normalized actions together (thrust and turn in [−1, 1]), the rule
-//! linear in its gains. The zones' radii are chosen from [`RADII`] (fractions of the arena's edge) by
-//! exhaustive search, each choice with its least-squares gains; a small ridge keeps the gain of an empty
-//! zone at zero. How well a rule fits is the fraction of each action's variance it explains, as the rule
-//! acts (clamped to [−1, 1]), on the held-out episodes and on the fitted ones.
+//! The fit ([`rule_fit`]): least squares per action (thrust and turn in [−1, 1]), the rule linear in its
+//! gains. The zones' radii are chosen from [`RADII`] (fractions of the arena's edge) among choices in
+//! which every zone holds at least one bin, by how well each predicts out of sample within the fitted
+//! episodes (two folds of agents), so no gain is zero because its zone was left empty. Each term is
+//! reported per standard deviation of its feature with a cluster-bootstrap interval, and with its held-out
+//! value (ΔR² of leaving it out). How well a rule fits as a whole is the fraction of each action's variance
+//! it explains, as the rule acts (clamped to [−1, 1]), on the held-out episodes and on the fitted ones.
 
+use super::rule_fit::{self, Design, Term, TermFit};
 use crate::scene::{Overrides, Policy, PursuitGains, PursuitRule, RuleForm, Scene, ZonalRule, ZonalThrust, ZonalTurn};
 use crate::sim::rules::{observed, observed_of, Own, PursuitFeatures, Seen};
 use crate::sim::species::{SpeciesRegistry, ACTION_DIM};
@@ -24,16 +28,12 @@ use std::path::{Path, PathBuf};
 /// every agent (the torus's farthest is 0.71 edges away, a box's 1.41).
 pub(crate) const RADII: [f64; 12] = [0.0, 0.025, 0.05, 0.075, 0.1, 0.15, 0.2, 0.3, 0.4, 0.5, 0.75, 1.5];
 
-/// The ridge added to every diagonal of the normal equations, per row: small enough not to shrink a
-/// gain that has data (1e-9 of a unit feature's sum of squares), large enough to zero one that has none.
-const RIDGE: f64 = 1e-9;
-
 /// What `--distill` wrote for one species.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Distilled {
-    pub(crate) species: String,
-    pub(crate) form: RuleForm,
+    pub species: String,
+    pub form: RuleForm,
     /// `Zonal(..)` for a species that has predators, `Pursuit(..)` for one that only has prey.
     pub(crate) policy: Policy,
     /// Rows (agent-steps) fitted, and held out.
@@ -44,6 +44,10 @@ pub struct Distilled {
     pub(crate) explained_held_out: [Option<f64>; ACTION_DIM],
     /// The same on the fitted episodes.
     pub(crate) explained_fitted: [Option<f64>; ACTION_DIM],
+    /// Every term but the constants: its gain per standard deviation and its held-out value, each with
+    /// its interval.
+    #[serde(default)]
+    pub(crate) terms: Vec<TermFit>,
 }
 
 /// `distilled.ron`: the rules fitted to a run, and the evaluation they were fitted on.
@@ -81,8 +85,27 @@ pub(crate) fn rule_for(registry: &SpeciesRegistry, s: usize) -> Option<Policy> {
     }
 }
 
+/// Whether `--distill` fits a rule to species `s` of `scene`: one with prey or predators ([`rule_for`])
+/// whose actions coevo decides, by an actor or a rule (not a plugin's system).
+pub(crate) fn fitted_species(scene: &Scene, registry: &SpeciesRegistry, s: usize) -> bool {
+    !matches!(scene.species[s].policy, Policy::Plugin(_)) && rule_for(registry, s).is_some()
+}
+
 /// The names of how much a rule explains on the held-out episodes, [thrust, turn].
 pub(crate) const EXPLAINED: [&str; ACTION_DIM] = ["explained_thrust", "explained_turn"];
+
+/// What is reported of each term ([`TermFit`]), as suffixes of its name: the gain per SD and its
+/// interval, the held-out ΔR² and its interval.
+pub(crate) const STATISTICS: [&str; 6] =
+    ["per_sd", "per_sd.low", "per_sd.high", "held_out", "held_out.low", "held_out.high"];
+
+/// A term's numbers by [`STATISTICS`] (NaN for one that could not be had).
+fn statistics(t: &TermFit) -> [f64; 6] {
+    let (sd, ho) = (t.per_sd_interval.map(|i| i.map(Some)), t.held_out_gain_interval.map(|i| i.map(Some)));
+    let [sd_low, sd_high] = sd.unwrap_or([None; 2]);
+    let [ho_low, ho_high] = ho.unwrap_or([None; 2]);
+    [t.per_sd, sd_low, sd_high, t.held_out_gain, ho_low, ho_high].map(|v| v.unwrap_or(f64::NAN))
+}
 
 /// A rule's parameters by name ([`ZonalRule::numbers`], [`PursuitRule::numbers`]); none for another policy.
 fn parameters(policy: &Policy) -> Vec<(&'static str, f64)> {
@@ -93,22 +116,57 @@ fn parameters(policy: &Policy) -> Vec<(&'static str, f64)> {
     }
 }
 
-/// The numbers of a fitted rule, by name: its policy's parameters and how much it explains on the
-/// held-out episodes ([`EXPLAINED`]; NaN for an action that never varied).
-pub(crate) fn numbers(d: &Distilled) -> Vec<(String, f64)> {
-    let explained = EXPLAINED.into_iter().zip(d.explained_held_out.map(|v| v.unwrap_or(f64::NAN)));
-    // A gain the ridge held at zero may be −0: the same number, shown as 0.
-    parameters(&d.policy).into_iter().chain(explained).map(|(name, v)| (name.to_string(), v + 0.0)).collect()
+/// The names of the terms reported of `kind`'s rule in `form` (the constants left out).
+fn term_names(kind: &Policy, form: RuleForm) -> Vec<&'static str> {
+    let terms = match kind {
+        Policy::Zonal(_) => zonal_terms(form, [1, 2, 3, 1], RADII.len() - 1),
+        _ => pursuit_terms(form),
+    };
+    terms.iter().map(|t| t.name).filter(|n| !n.ends_with("bias")).collect()
 }
 
-/// Every name [`numbers`] gives, of either rule.
-pub(crate) fn names() -> Vec<&'static str> {
-    let mut names: Vec<&str> = vec![];
-    for policy in [Policy::Zonal(ZonalRule::default()), Policy::Pursuit(PursuitRule::default())] {
-        names
-            .extend(parameters(&policy).into_iter().map(|(n, _)| n).filter(|n| !names.contains(n)).collect::<Vec<_>>());
+/// The names of a rule's numbers: its parameters, how much it explains, and each term's [`STATISTICS`].
+fn number_names(kind: &Policy, form: RuleForm) -> Vec<String> {
+    let statistics = term_names(kind, form).into_iter().flat_map(|t| STATISTICS.map(|s| format!("{t}.{s}")));
+    parameters(kind)
+        .into_iter()
+        .map(|(n, _)| n.to_string())
+        .chain(EXPLAINED.map(String::from))
+        .chain(statistics)
+        .collect()
+}
+
+/// The numbers of a fitted rule, by name ([`number_names`]; NaN for what could not be had: an action
+/// that never varied, a term that never did).
+pub(crate) fn numbers(d: &Distilled) -> Vec<(String, f64)> {
+    let explained = EXPLAINED.into_iter().zip(d.explained_held_out.map(|v| v.unwrap_or(f64::NAN)));
+    let fixed = parameters(&d.policy).into_iter().chain(explained).map(|(name, v)| (name.to_string(), v));
+    let terms =
+        d.terms.iter().flat_map(|t| STATISTICS.iter().zip(statistics(t)).map(|(s, v)| (format!("{}.{s}", t.name), v)));
+    // A gain held at zero may be −0: the same number, shown as 0.
+    fixed.chain(terms).map(|(name, v)| (name, v + 0.0)).collect()
+}
+
+/// Each term of a fitted rule (the constants left out) with the 95 % intervals of its gain per SD and of
+/// its held-out ΔR² (NaN where there is none), for reading a fit as a whole.
+pub fn term_intervals(d: &Distilled) -> Vec<(String, [f64; 2], [f64; 2])> {
+    let nan = [f64::NAN; 2];
+    d.terms
+        .iter()
+        .map(|t| (t.name.clone(), t.per_sd_interval.unwrap_or(nan), t.held_out_gain_interval.unwrap_or(nan)))
+        .collect()
+}
+
+/// Every name [`numbers`] gives, of either rule in either form.
+pub(crate) fn names() -> Vec<String> {
+    let mut names: Vec<String> = vec![];
+    for kind in [Policy::Zonal(ZonalRule::default()), Policy::Pursuit(PursuitRule::default())] {
+        for name in number_names(&kind, RuleForm::Inertial) {
+            if !names.contains(&name) {
+                names.push(name);
+            }
+        }
     }
-    names.extend(EXPLAINED);
     names
 }
 
@@ -128,15 +186,14 @@ pub(crate) fn read_numbers(
 }
 
 /// The rules `--distill` fits on runs of `scene`, each with the names of its numbers ([`numbers`]): for
-/// every learned species ([`rule_for`]), in both forms.
-pub(crate) fn rules(scene: &Scene) -> Vec<(String, RuleForm, Vec<&'static str>)> {
+/// every species it reads ([`fitted_species`]), in both forms.
+pub(crate) fn rules(scene: &Scene) -> Vec<(String, RuleForm, Vec<String>)> {
     let registry = SpeciesRegistry::from_scene(scene);
     let mut out = vec![];
-    for (s, def) in scene.species.iter().enumerate().filter(|(_, d)| d.policy == Policy::Learned) {
-        let Some(policy) = rule_for(&registry, s) else { continue };
-        let names: Vec<&str> = parameters(&policy).into_iter().map(|(n, _)| n).chain(EXPLAINED).collect();
+    for (s, def) in scene.species.iter().enumerate().filter(|&(s, _)| fitted_species(scene, &registry, s)) {
+        let Some(kind) = rule_for(&registry, s) else { continue };
         for form in [RuleForm::Memoryless, RuleForm::Inertial] {
-            out.push((def.name.clone(), form, names.clone()));
+            out.push((def.name.clone(), form, number_names(&kind, form)));
         }
     }
     out
@@ -146,91 +203,8 @@ pub(crate) fn rules(scene: &Scene) -> Vec<(String, RuleForm, Vec<&'static str>)>
 pub(crate) fn columns(scene: &Scene) -> Vec<(String, RuleForm, String)> {
     rules(scene)
         .into_iter()
-        .flat_map(|(species, form, names)| names.into_iter().map(move |n| (species.clone(), form, n.to_string())))
+        .flat_map(|(species, form, names)| names.into_iter().map(move |n| (species.clone(), form, n)))
         .collect()
-}
-
-/// Least squares with [`RIDGE`]: the gains β minimising |y − Xβ|² given XᵀX (`gram`, k×k, row-major),
-/// Xᵀy (`cross`) and the number of rows; also the sum of squared errors given yᵀy.
-fn least_squares(gram: &[f64], cross: &[f64], yy: f64, rows: usize) -> (Vec<f64>, f64) {
-    let k = cross.len();
-    let mut a = gram.to_vec();
-    for i in 0..k {
-        a[i * k + i] += RIDGE * rows.max(1) as f64;
-    }
-    // Cholesky: a = L Lᵀ (a is symmetric positive definite with the ridge).
-    let mut l = vec![0.0; k * k];
-    for i in 0..k {
-        for j in 0..=i {
-            let sum: f64 = (0..j).map(|m| l[i * k + m] * l[j * k + m]).sum();
-            l[i * k + j] = if i == j {
-                (a[i * k + i] - sum).max(f64::MIN_POSITIVE).sqrt()
-            } else {
-                (a[i * k + j] - sum) / l[j * k + j]
-            };
-        }
-    }
-    let mut z = vec![0.0; k];
-    for i in 0..k {
-        z[i] = (cross[i] - (0..i).map(|m| l[i * k + m] * z[m]).sum::<f64>()) / l[i * k + i];
-    }
-    let mut beta = vec![0.0; k];
-    for i in (0..k).rev() {
-        beta[i] = (z[i] - (i + 1..k).map(|m| l[m * k + i] * beta[m]).sum::<f64>()) / l[i * k + i];
-    }
-    let fitted: f64 = (0..k).map(|i| beta[i] * cross[i]).sum();
-    let quad: f64 = (0..k).map(|i| (0..k).map(|j| beta[i] * gram[i * k + j] * beta[j]).sum::<f64>()).sum();
-    (beta, (yy - 2.0 * fitted + quad).max(0.0))
-}
-
-/// Sums over rows of f fᵀ and of f·y per action, for features f of each row.
-struct Normal {
-    k: usize,
-    rows: usize,
-    gram: Vec<f64>,
-    cross: [Vec<f64>; ACTION_DIM],
-    yy: [f64; ACTION_DIM],
-}
-
-impl Normal {
-    fn new(k: usize) -> Normal {
-        Normal { k, rows: 0, gram: vec![0.0; k * k], cross: [vec![0.0; k], vec![0.0; k]], yy: [0.0; ACTION_DIM] }
-    }
-
-    fn add(&mut self, f: &[f64], action: &[f32]) {
-        self.rows += 1;
-        for i in 0..self.k {
-            if f[i] == 0.0 {
-                continue;
-            }
-            for j in 0..self.k {
-                self.gram[i * self.k + j] += f[i] * f[j];
-            }
-            for (a, &y) in action.iter().enumerate() {
-                self.cross[a][i] += f[i] * y as f64;
-            }
-        }
-        for (a, &y) in action.iter().enumerate() {
-            self.yy[a] += y as f64 * y as f64;
-        }
-    }
-
-    /// The normal equations of the features that sum `columns[c]` of this one's, for action `a`.
-    fn combined(&self, columns: &[Vec<usize>], a: usize) -> (Vec<f64>, Vec<f64>) {
-        let k = columns.len();
-        let mut gram = vec![0.0; k * k];
-        for (i, ci) in columns.iter().enumerate() {
-            for (j, cj) in columns.iter().enumerate() {
-                gram[i * k + j] = ci
-                    .iter()
-                    .flat_map(|&p| cj.iter().map(move |&q| (p, q)))
-                    .map(|(p, q)| self.gram[p * self.k + q])
-                    .sum();
-            }
-        }
-        let cross = columns.iter().map(|c| c.iter().map(|&p| self.cross[a][p]).sum()).collect();
-        (gram, cross)
-    }
 }
 
 /// The zone bins of [`RADII`] in metres: bin b holds distances in [edges[b], edges[b + 1]).
@@ -266,115 +240,129 @@ fn binned(own: Own, kin: &[Seen], predators: &[Seen], edges: &[f64]) -> Vec<f64>
     f
 }
 
-/// The normal equations of a zonal rule's binned features ([`binned`]) over species `s`'s observations
-/// and actions, which every form and choice of radii is fitted from.
-fn zonal_normal(scene: &Scene, registry: &SpeciesRegistry, s: usize, data: (&[f32], &[f32], usize)) -> Normal {
-    let (obs, actions, dim) = data;
-    let edges = edges(scene);
-    let frame = scene.observation_frame;
-    let mut normal = Normal::new(LEADING + 5 * (edges.len() - 1));
-    for (o, a) in obs.chunks_exact(dim).zip(actions.chunks_exact(ACTION_DIM)) {
+/// Species `s`'s rows (observations, actions, clusters) as a design of `features`' columns.
+fn design(data: (&[f32], &[f32], &[usize]), dim: usize, k: usize, features: impl Fn(&[f32]) -> Vec<f64>) -> Design {
+    let (obs, actions, clusters) = data;
+    let mut d = Design::new(k);
+    for ((o, a), &c) in obs.chunks_exact(dim).zip(actions.chunks_exact(ACTION_DIM)).zip(clusters) {
+        d.push(&features(o), [a[0] as f64, a[1] as f64], c);
+    }
+    d
+}
+
+/// A prey's rows as [`binned`] features.
+fn zonal_design(scene: &Scene, registry: &SpeciesRegistry, s: usize, data: (&[f32], &[f32], &[usize])) -> Design {
+    let (edges, frame) = (edges(scene), scene.observation_frame);
+    design(data, registry.observation_dim(s), LEADING + 5 * (edges.len() - 1), |o| {
         let kin = observed(o, registry, s, s, frame);
         let predators = observed_of(o, registry, s, registry.predators_of(s), frame);
-        normal.add(&binned(Own::of(o, registry, s, frame), &kin, &predators, &edges), a);
-    }
-    normal
+        binned(Own::of(o, registry, s, frame), &kin, &predators, &edges)
+    })
 }
 
-/// Fits a [`ZonalRule`] in `form` from its normal equations ([`zonal_normal`]).
-fn fit_zonal(scene: &Scene, normal: &Normal, form: RuleForm) -> ZonalRule {
-    // A memoryless rule's own-state columns are empty: the ridge holds their gains at zero.
-    let own = |column: usize| if form == RuleForm::Inertial { vec![column] } else { vec![] };
-    let edges = edges(scene);
+/// The terms of a zonal rule in `form` whose zones end at bins `r` (repulsion from 0), `o` (alignment
+/// from `r`), `at` (attraction from `o`) and `p` (evasion from 0), of `bins` bins.
+fn zonal_terms(form: RuleForm, [r, o, at, p]: [usize; 4], bins: usize) -> Vec<Term> {
+    let zone = |from: usize, to: usize, column: &dyn Fn(usize) -> usize| (from..to).map(column).collect::<Vec<_>>();
+    let (ahead, left, sin) = (|b| LEADING + 3 * b, |b| LEADING + 1 + 3 * b, |b| LEADING + 2 + 3 * b);
+    let (p_ahead, p_left) = (|b| LEADING + 3 * bins + 2 * b, |b| LEADING + 1 + 3 * bins + 2 * b);
+    let term = |action, name, columns| Term { action, name, columns };
+    let inertial = form == RuleForm::Inertial;
+    let mut terms = vec![term(1, "turn.bias", vec![0])];
+    terms.extend(inertial.then(|| term(1, "turn.persistence", vec![1])));
+    terms.extend([
+        term(1, "turn.repulsion", zone(0, r, &left)),
+        term(1, "turn.alignment", zone(r, o, &sin)),
+        term(1, "turn.attraction", zone(o, at, &left)),
+        term(1, "turn.evasion", zone(0, p, &p_left)),
+        term(0, "thrust.bias", vec![0]),
+    ]);
+    terms.extend(inertial.then(|| term(0, "thrust.speed", vec![2])));
+    terms.extend([
+        term(0, "thrust.repulsion", zone(0, r, &ahead)),
+        term(0, "thrust.attraction", zone(o, at, &ahead)),
+        term(0, "thrust.evasion", zone(0, p, &p_ahead)),
+    ]);
+    terms
+}
+
+/// Every choice of zones a zonal rule is chosen from: each zone holds at least one bin of [`RADII`], so
+/// every gain is fitted from data and none is zero because its zone was left empty.
+fn zonal_candidates(form: RuleForm, bins: usize) -> impl Iterator<Item = Vec<Term>> {
+    (1..=bins).flat_map(move |r| {
+        (r + 1..=bins).flat_map(move |o| {
+            (o + 1..=bins).flat_map(move |at| (1..=bins).map(move |p| zonal_terms(form, [r, o, at, p], bins)))
+        })
+    })
+}
+
+/// The zonal rule of `terms` ([`zonal_terms`]) with their `gains`: a zone's radius is where its last bin ends.
+fn zonal_rule(edges: &[f64], terms: &[Term], gains: &[f64]) -> ZonalRule {
+    let gain = |name: &str| terms.iter().zip(gains).find(|(t, _)| t.name == name).map_or(0.0, |(_, &g)| g);
+    let outer = |name: &str, first: usize, per_bin: usize| {
+        let last = terms.iter().find(|t| t.name == name).and_then(|t| t.columns.last()).copied();
+        last.map_or(0.0, |c| edges[(c - first) / per_bin + 1])
+    };
     let bins = edges.len() - 1;
-    let (ahead, left, sin) =
-        (|b: usize| LEADING + 3 * b, |b: usize| LEADING + 1 + 3 * b, |b: usize| LEADING + 2 + 3 * b);
-    let (p_ahead, p_left) = (|b: usize| LEADING + 3 * bins + 2 * b, |b: usize| LEADING + 1 + 3 * bins + 2 * b);
-    let mut best: Option<(f64, ZonalRule)> = None;
-    for r in 0..RADII.len() {
-        for o in r..RADII.len() {
-            for at in o..RADII.len() {
-                for p in 0..RADII.len() {
-                    let zone = |from: usize, to: usize, column: &dyn Fn(usize) -> usize| {
-                        (from..to).map(column).collect::<Vec<_>>()
-                    };
-                    let turn =
-                        [vec![0], own(1), zone(0, r, &left), zone(r, o, &sin), zone(o, at, &left), zone(0, p, &p_left)];
-                    let thrust = [vec![0], own(2), zone(0, r, &ahead), zone(o, at, &ahead), zone(0, p, &p_ahead)];
-                    let (gram, cross) = normal.combined(&thrust, 0);
-                    let (bf, ef) = least_squares(&gram, &cross, normal.yy[0], normal.rows);
-                    let (gram, cross) = normal.combined(&turn, 1);
-                    let (bt, et) = least_squares(&gram, &cross, normal.yy[1], normal.rows);
-                    if best.as_ref().is_some_and(|(e, _)| *e <= ef + et) {
-                        continue;
-                    }
-                    let rule = ZonalRule {
-                        repulsion_radius: edges[r],
-                        alignment_radius: edges[o],
-                        attraction_radius: edges[at],
-                        evasion_radius: edges[p],
-                        turn: ZonalTurn {
-                            bias: bt[0],
-                            persistence: bt[1],
-                            repulsion: bt[2],
-                            alignment: bt[3],
-                            attraction: bt[4],
-                            evasion: bt[5],
-                        },
-                        thrust: ZonalThrust {
-                            bias: bf[0],
-                            speed: bf[1],
-                            repulsion: bf[2],
-                            attraction: bf[3],
-                            evasion: bf[4],
-                        },
-                    };
-                    best = Some((ef + et, rule));
-                }
-            }
-        }
+    ZonalRule {
+        repulsion_radius: outer("turn.repulsion", LEADING + 1, 3),
+        alignment_radius: outer("turn.alignment", LEADING + 2, 3),
+        attraction_radius: outer("turn.attraction", LEADING + 1, 3),
+        evasion_radius: outer("turn.evasion", LEADING + 1 + 3 * bins, 2),
+        turn: ZonalTurn {
+            bias: gain("turn.bias"),
+            persistence: gain("turn.persistence"),
+            repulsion: gain("turn.repulsion"),
+            alignment: gain("turn.alignment"),
+            attraction: gain("turn.attraction"),
+            evasion: gain("turn.evasion"),
+        },
+        thrust: ZonalThrust {
+            bias: gain("thrust.bias"),
+            speed: gain("thrust.speed"),
+            repulsion: gain("thrust.repulsion"),
+            attraction: gain("thrust.attraction"),
+            evasion: gain("thrust.evasion"),
+        },
     }
-    best.expect("at least one choice of radii").1
 }
 
-/// The normal equations of a pursuit rule's features over species `s`'s observations and actions.
-fn pursuit_normal(scene: &Scene, registry: &SpeciesRegistry, s: usize, data: (&[f32], &[f32], usize)) -> Normal {
-    let (obs, actions, dim) = data;
-    // Per row: a constant, the previous turn, the speed, then the nearest's, the centre's and the most
-    // isolated's [ahead, left].
+/// A predator's rows: a constant, the previous turn, the speed, then the nearest's, the centre's and the
+/// most isolated's [ahead, left].
+fn pursuit_design(scene: &Scene, registry: &SpeciesRegistry, s: usize, data: (&[f32], &[f32], &[usize])) -> Design {
     let frame = scene.observation_frame;
-    let mut normal = Normal::new(9);
-    for (o, a) in obs.chunks_exact(dim).zip(actions.chunks_exact(ACTION_DIM)) {
+    design(data, registry.observation_dim(s), 9, |o| {
         let own = Own::of(o, registry, s, frame);
         let f = PursuitFeatures::of(own, &observed_of(o, registry, s, registry.prey_of(s), frame));
-        let row = [
-            1.0,
-            own.turn,
-            own.speed,
-            f.nearest[0],
-            f.nearest[1],
-            f.centre[0],
-            f.centre[1],
-            f.isolated[0],
-            f.isolated[1],
-        ];
-        normal.add(&row, a);
-    }
-    normal
+        let [n, c, i] = [f.nearest, f.centre, f.isolated];
+        vec![1.0, own.turn, own.speed, n[0], n[1], c[0], c[1], i[0], i[1]]
+    })
 }
 
-/// Fits a [`PursuitRule`] in `form` from its normal equations ([`pursuit_normal`]).
-fn fit_pursuit(normal: &Normal, form: RuleForm) -> PursuitRule {
-    // The thrust reads the speed and the ahead parts, the turn the previous turn and the left parts.
-    let gains = |a: usize, own: usize, component: usize| {
-        let own = if form == RuleForm::Inertial { vec![own] } else { vec![] };
-        let columns = [vec![0], own, vec![3 + component], vec![5 + component], vec![7 + component]];
-        let (gram, cross) = normal.combined(&columns, a);
-        let (b, _) = least_squares(&gram, &cross, normal.yy[a], normal.rows);
-        (PursuitGains { bias: b[0], nearest: b[2], centre: b[3], isolated: b[4] }, b[1])
+/// The terms of a pursuit rule in `form` ([`pursuit_design`]'s columns): the thrust reads the speed and
+/// the ahead parts, the turn the previous turn and the left parts.
+fn pursuit_terms(form: RuleForm) -> Vec<Term> {
+    let inertial = form == RuleForm::Inertial;
+    let term = |action, name, column| Term { action, name, columns: vec![column] };
+    let mut terms = vec![term(1, "turn.bias", 0)];
+    terms.extend(inertial.then(|| term(1, "persistence", 1)));
+    terms.extend([term(1, "turn.nearest", 4), term(1, "turn.centre", 6), term(1, "turn.isolated", 8)]);
+    terms.push(term(0, "thrust.bias", 0));
+    terms.extend(inertial.then(|| term(0, "speed", 2)));
+    terms.extend([term(0, "thrust.nearest", 3), term(0, "thrust.centre", 5), term(0, "thrust.isolated", 7)]);
+    terms
+}
+
+/// The pursuit rule of `terms` ([`pursuit_terms`]) with their `gains`.
+fn pursuit_rule(terms: &[Term], gains: &[f64]) -> PursuitRule {
+    let gain = |name: &str| terms.iter().zip(gains).find(|(t, _)| t.name == name).map_or(0.0, |(_, &g)| g);
+    let part = |p: &str| PursuitGains {
+        bias: gain(&format!("{p}.bias")),
+        nearest: gain(&format!("{p}.nearest")),
+        centre: gain(&format!("{p}.centre")),
+        isolated: gain(&format!("{p}.isolated")),
     };
-    let ((thrust, speed), (turn, persistence)) = (gains(0, 2, 0), gains(1, 1, 1));
-    PursuitRule { turn, thrust, persistence, speed }
+    PursuitRule { turn: part("turn"), thrust: part("thrust"), persistence: gain("persistence"), speed: gain("speed") }
 }
 
 /// The fraction of each action's variance that `policy` explains on these rows, as it acts.
@@ -418,38 +406,49 @@ pub(crate) fn distill(run: &Path, overrides: &Overrides, episodes: usize) -> cra
     let dir = crate::run::RunDir::new(run);
     let scene = overrides.load(&dir.scene())?;
     let registry = SpeciesRegistry::from_scene(&scene);
-    let recorded = super::swarm::record(&scene, run, episodes, 1)?;
+    let read: Vec<bool> = (0..registry.len()).map(|s| fitted_species(&scene, &registry, s)).collect();
+    let recorded = super::swarm::record(&scene, run, episodes, 1, &read)?;
     let mut species = vec![];
     for (s, r) in recorded.iter().enumerate() {
         let (Some(r), Some(kind)) = (r, rule_for(&registry, s)) else { continue };
         // The first half of the episodes fits, the rest is held out.
-        let (dim, [fit, held_out]) = (&r.dim, r.split(episodes.div_ceil(2)));
-        let data = (fit.0, fit.1, *dim);
-        // One pass over the rows for both forms.
-        let normal = match kind {
-            Policy::Zonal(_) => zonal_normal(&scene, &registry, s, data),
-            _ => pursuit_normal(&scene, &registry, s, data),
+        let (dim, [fit, held_out]) = (r.dim, r.split(episodes.div_ceil(2)));
+        let zonal = matches!(kind, Policy::Zonal(_));
+        let rows = |data| match zonal {
+            true => zonal_design(&scene, &registry, s, data),
+            false => pursuit_design(&scene, &registry, s, data),
         };
+        let (fit_rows, held_rows) = (rows(fit), rows(held_out));
         for form in [RuleForm::Memoryless, RuleForm::Inertial] {
-            let policy = match kind {
-                Policy::Zonal(_) => Policy::Zonal(fit_zonal(&scene, &normal, form)),
-                _ => Policy::Pursuit(fit_pursuit(&normal, form)),
+            let terms = match zonal {
+                true => rule_fit::choose(&fit_rows, zonal_candidates(form, RADII.len() - 1)),
+                false => pursuit_terms(form),
             };
+            let gains = rule_fit::gains(&terms, &fit_rows);
+            let policy = match zonal {
+                true => Policy::Zonal(zonal_rule(&edges(&scene), &terms, &gains)),
+                false => Policy::Pursuit(pursuit_rule(&terms, &gains)),
+            };
+            // The intervals' resamples are drawn from the scene's seed, per species and form.
+            let draws = scene.seed ^ ((s as u64) << 32) ^ form as u64;
             species.push(Distilled {
                 species: registry.defs[s].name.clone(),
                 form,
-                explained_held_out: explained(&scene, s, &policy, held_out.0, held_out.1, *dim),
-                explained_fitted: explained(&scene, s, &policy, fit.0, fit.1, *dim),
-                rows_fitted: fit.1.len() / ACTION_DIM,
-                rows_held_out: held_out.1.len() / ACTION_DIM,
+                explained_held_out: explained(&scene, s, &policy, held_out.0, held_out.1, dim),
+                explained_fitted: explained(&scene, s, &policy, fit.0, fit.1, dim),
+                rows_fitted: fit_rows.rows(),
+                rows_held_out: held_rows.rows(),
+                terms: rule_fit::term_fits(&terms, &fit_rows, &held_rows, draws),
                 policy,
             });
         }
     }
     if species.is_empty() {
-        return Err(
-            format!("--distill {}: no learned species with prey or predators to fit a rule to", run.display()).into()
-        );
+        return Err(format!(
+            "--distill {}: no species with prey or predators acting by an actor or a rule to fit a rule to",
+            run.display()
+        )
+        .into());
     }
     let counts = scene.species.iter().map(|d| (d.name.clone(), d.count)).collect();
     Ok(DistilledFile { counts, episodes, steps: scene.episode_steps, seed: scene.seed, species })
@@ -508,20 +507,6 @@ pub(crate) fn main(run: &Path, overrides: &Overrides, episodes: Option<usize>) -
 mod tests {
     use super::*;
     use crate::scene::{ObservationFrame, ZonalTerm};
-
-    #[test]
-    fn least_squares_recovers_known_gains_and_zeroes_an_empty_column() {
-        // y = 0.5 + 2 x on x = 0..9, and a column that is always zero.
-        let mut normal = Normal::new(3);
-        for x in 0..10 {
-            let y = 0.5 + 2.0 * x as f64;
-            normal.add(&[1.0, x as f64, 0.0], &[y as f32, 0.0]);
-        }
-        let (gram, cross) = normal.combined(&[vec![0], vec![1], vec![2]], 0);
-        let (b, sse) = least_squares(&gram, &cross, normal.yy[0], normal.rows);
-        assert!((b[0] - 0.5).abs() < 1e-6 && (b[1] - 2.0).abs() < 1e-6 && b[2] == 0.0, "{b:?}");
-        assert!(sse < 1e-6, "{sse}");
-    }
 
     /// Observations of a prey in the standard scene's layout, with its actions from `rule` itself.
     fn rule_data(scene: &Scene, rule: &ZonalRule, rows: usize) -> (Vec<f32>, Vec<f32>) {
@@ -582,8 +567,14 @@ mod tests {
         let s = registry.defs.iter().position(|d| d.name == "prey").unwrap();
         let (obs, actions) = rule_data(&scene, &rule, 4000);
         let dim = registry.observation_dim(s);
-        let normal = zonal_normal(&scene, &registry, s, (&obs, &actions, dim));
-        let fitted = fit_zonal(&scene, &normal, RuleForm::Inertial);
+        // Clusters of 20 rows, as agents in an episode would be.
+        let clusters: Vec<usize> = (0..4000).map(|row| row / 20).collect();
+        let rows = zonal_design(&scene, &registry, s, (&obs, &actions, &clusters));
+        let fit = |form| {
+            let terms = rule_fit::choose(&rows, zonal_candidates(form, RADII.len() - 1));
+            zonal_rule(&edges(&scene), &terms, &rule_fit::gains(&terms, &rows))
+        };
+        let fitted = fit(RuleForm::Inertial);
         assert_eq!(
             [fitted.repulsion_radius, fitted.alignment_radius, fitted.attraction_radius, fitted.evasion_radius],
             [rule.repulsion_radius, rule.alignment_radius, rule.attraction_radius, rule.evasion_radius]
@@ -597,7 +588,7 @@ mod tests {
         let ablated = Policy::Zonal(fitted.without(&[ZonalTerm::Alignment]));
         assert!(explained(&scene, s, &ablated, &obs, &actions, dim)[1].unwrap() < 0.95);
         // Fitted without its own state, the rule holds persistence and speed at zero.
-        let memoryless = fit_zonal(&scene, &normal, RuleForm::Memoryless);
+        let memoryless = fit(RuleForm::Memoryless);
         assert_eq!((memoryless.turn.persistence, memoryless.thrust.speed), (0.0, 0.0));
     }
 }

@@ -12,5 +12,6 @@ pub mod distill;
 pub mod force_map;
 pub(crate) mod plot;
 pub mod response;
+pub(crate) mod rule_fit;
 pub mod stats;
 pub(crate) mod swarm;

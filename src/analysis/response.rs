@@ -264,7 +264,7 @@ pub(crate) fn field_here(scene: &Scene, act: &Actor, s: usize, t: usize, obs: &[
 /// Observations of the trained swarm per species, at most [`SWARM_BACKGROUNDS`] each, evenly spread over
 /// one episode of the run's scene sampled every [`SWARM_EVERY`] steps.
 fn swarm(scene: &Scene, run: &Path) -> crate::error::Result<Vec<Vec<Vec<f32>>>> {
-    let recorded = super::swarm::record(scene, run, 1, SWARM_EVERY)?;
+    let recorded = super::swarm::record(scene, run, 1, SWARM_EVERY, &super::swarm::with_actors(scene))?;
     Ok(recorded
         .into_iter()
         .map(|r| {

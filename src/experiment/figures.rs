@@ -313,20 +313,44 @@ fn distilled_figures(
     let mut explained = vec![];
     for (species, form, numbers) in rules {
         let q = |n: &str| Quantity::Distilled(species.clone(), form, n.to_string());
+        // A term's statistics are named after it ("turn.alignment.per_sd"): not gains themselves.
+        let (gains, statistics): (Vec<&String>, Vec<&String>) =
+            numbers.iter().partition(|n| !super::distill::STATISTICS.iter().any(|s| n.ends_with(&format!(".{s}"))));
         // A gain belongs to the turn or the thrust by its prefix, or (a pursuit rule's own-state terms) by name.
         for (part, own, shown) in [("turn.", "persistence", "turn"), ("thrust.", "speed", "thrust")] {
-            // A memoryless rule's own-state terms are zero by construction: not shown.
+            // A memoryless rule's own-state terms are not fitted: not shown.
             let own_term = |n: &str| n == own || n.ends_with(&format!(".{own}"));
-            let gain = |n: &&&str| {
-                ((n.starts_with(part) && !n.ends_with("bias")) || **n == own)
+            let gain = |n: &&&String| {
+                ((n.starts_with(part) && !n.ends_with("bias")) || n.as_str() == own)
                     && !(form == RuleForm::Memoryless && own_term(n))
             };
-            let rows: Vec<Row> = numbers.iter().filter(gain).map(|n| row(n.trim_start_matches(part), q(n))).collect();
+            let rows: Vec<Row> = gains.iter().filter(gain).map(|n| row(n.trim_start_matches(part), q(n))).collect();
             panels.push(EstimatePanel {
                 title: title(&format!("{species}, {form:?}: {shown} gains")),
                 x_label: format!("gain on the normalized {shown}"),
                 rows,
             });
+        }
+        // Every term in one unit (per SD of its feature), and what it adds out of sample; runs fitted
+        // before these were reported have none, and no panel.
+        for (statistic, x_label) in [
+            ("per_sd", "gain per standard deviation of the term"),
+            ("held_out", "held-out variance explained, less the rule's without the term (ΔR²)"),
+        ] {
+            let suffix = format!(".{statistic}");
+            let rows: Vec<Row> = statistics
+                .iter()
+                .filter(|n| n.ends_with(&suffix))
+                .map(|n| row(n.trim_end_matches(&suffix), q(n)))
+                .filter(|r| r.mean.is_finite())
+                .collect();
+            if !rows.is_empty() {
+                panels.push(EstimatePanel {
+                    title: title(&format!("{species}, {form:?}: {x_label}")),
+                    x_label: x_label.into(),
+                    rows,
+                });
+            }
         }
         explained.extend(
             super::distill::EXPLAINED

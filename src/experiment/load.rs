@@ -351,7 +351,7 @@ impl Experiment {
                     ));
                 }
                 let known = super::distill::names();
-                if !known.contains(&name.as_str()) {
+                if !known.contains(name) {
                     return Err(err(
                         "claims",
                         format!("Distilled: no number named {name:?} (one of {})", known.join(", ")),
@@ -483,7 +483,7 @@ impl Experiment {
                                 ),
                             ));
                         };
-                        if !names.contains(&name.as_str()) {
+                        if !names.contains(name) {
                             return Err(err(
                                 "claims",
                                 format!(

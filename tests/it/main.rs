@@ -11,6 +11,7 @@ mod animate;
 mod bad_inputs;
 mod classic;
 mod crossplay;
+mod distill;
 mod docs;
 mod env;
 mod errors;
