@@ -61,7 +61,7 @@ const METHOD: &str = "Each number is the mean over seeds of the prey's 100-episo
      crossing within the axis (p: the share of resamples that do not cross) is detected after Holm, its interval the \
      resamples' percentiles at that level; its *shift* is the least-squares slope of the boundary on the other axis, \
      by the same bootstrap. Nothing in the metrics, rewards or physics was tuned toward a claim.\n\n\
-     **Verdicts.** An *effect* (a change over training, what a control removes, a difference of two variants) is \
+     **Verdicts.** An *effect* (a change over training, what a control removes, a difference of two variants, or a number tested against zero: a claim that states only its direction, or none within a margin) is \
      *detected* when its two-sided t test gives p < 0.05 after Holm's adjustment over its family (the column *p (Holm)*). \
      A family is named by its hypotheses, not by its file, and spans every experiment file that names it (column \
      *family*, with how many tests it holds): **the paper's claims** (the paper's own statements, in its setting), \

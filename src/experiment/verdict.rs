@@ -9,10 +9,13 @@ use super::stats::Estimate;
 pub(crate) const ALPHA: f64 = 0.05;
 
 /// Whether a claim is about an effect (a change over training, what a control removes, or a difference
-/// of two variants) rather than a level.
+/// of two variants) rather than a level. A claim that states only a direction, or no effect within a
+/// margin, tests its quantity against zero whatever it is (e.g. a fitted gain: `known-rules.ron`).
 pub(crate) fn is_effect(claim: &Claim) -> bool {
     claim.versus.is_some()
         || claim.grid.is_some()
+        || claim.direction_only
+        || claim.margin.is_some()
         || matches!(
             claim.quantity,
             Quantity::DosChange
