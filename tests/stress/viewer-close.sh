@@ -13,8 +13,9 @@
 # Each close must end the process within 60 s with status 0 and a line saying how many episodes the kept
 # folder holds, or status 1 and "not saved" (closed before the first episode ended: no folder). A kept
 # folder must hold exactly that many metrics.csv rows and `--resume` must continue it by one episode. A
-# viewer still running 60 s after its close has every thread's stack written (gdb) into the log folder
-# and is killed. Prints one line per close and a closing count; exits non-zero on any failure.
+# viewer still running 60 s after its close has every thread's stack written (gdb) into the log folder,
+# is sent a second close (which tells a close that never arrived, "ended", from a viewer that no longer
+# answers one, "stuck"), and is killed. Prints one line per close and a closing count; exits non-zero on any failure.
 set -uo pipefail
 cd "$(dirname "$0")/../.."
 closes="${1:-200}"
@@ -57,13 +58,20 @@ for i in $(seq 1 "$closes"); do
         for k in \$(seq 300); do kill -0 \$pid 2>/dev/null || break; sleep 0.2; done
         if kill -0 \$pid 2>/dev/null; then
             gdb -p \$pid -batch -ex 'thread apply all bt' > $dir/stacks.txt 2>&1
-            kill -9 \$pid
+            # A second close: a viewer that ends on it was never sent the first; one that does not is stuck.
+            /usr/bin/python3 tests/close_window.py 0 > $dir/second-closer.txt 2>&1
+            for k in \$(seq 50); do kill -0 \$pid 2>/dev/null || break; sleep 0.2; done
+            if kill -0 \$pid 2>/dev/null; then echo stuck > $dir/second-close; else echo ended > $dir/second-close; fi
+            kill -9 \$pid 2>/dev/null
         fi
         wait \$pid; echo \$? > $dir/status" >/dev/null 2>&1
     status="$(cat "$dir/status" 2>/dev/null || echo none)"
     line="$(grep -h "holds the live run's" "$dir/out.txt" 2>/dev/null)"
     verdict=""
-    if [ "$status" = 0 ] && [ -n "$line" ]; then
+    if [ -s "$dir/stacks.txt" ]; then
+        second="$(cat "$dir/second-close" 2>/dev/null)"
+        verdict="FAILED: still running 60 s after the close; a second close: ${second:-not sent} (stacks in $dir/stacks.txt)"
+    elif [ "$status" = 0 ] && [ -n "$line" ]; then
         held="$(echo "$line" | sed "s/.*holds the live run's \([0-9]*\) episodes.*/\1/")"
         rows=$(($(wc -l < "$dir/saved/metrics.csv") - 1))
         if [ "$rows" != "$held" ]; then
@@ -79,8 +87,6 @@ for i in $(seq 1 "$closes"); do
         unsaved=$((unsaved + 1))
     elif [ "$(cat "$dir/closer-status" 2>/dev/null)" != 0 ]; then
         verdict="FAILED: the close was never sent: $(tail -1 "$dir/closer.txt")"
-    elif [ -s "$dir/stacks.txt" ]; then
-        verdict="FAILED: still running 60 s after the close (stacks in $dir/stacks.txt)"
     else
         verdict="FAILED: status $status: $(tail -1 "$dir/err.txt" 2>/dev/null)"
     fi
