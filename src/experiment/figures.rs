@@ -333,9 +333,9 @@ fn distilled_figures(
         }
         // Every term in one unit (per SD of its feature), and what it adds out of sample; runs fitted
         // before these were reported have none, and no panel.
-        for (statistic, x_label) in [
-            ("per_sd", "gain per standard deviation of the term"),
-            ("held_out", "held-out variance explained, less the rule's without the term (ΔR²)"),
+        for (statistic, shown, x_label) in [
+            ("per_sd", "gain per SD of each term", "gain per standard deviation of the term"),
+            ("held_out", "held-out ΔR² of each term", "held-out variance explained, less the rule's without the term"),
         ] {
             let suffix = format!(".{statistic}");
             let rows: Vec<Row> = statistics
@@ -346,7 +346,7 @@ fn distilled_figures(
                 .collect();
             if !rows.is_empty() {
                 panels.push(EstimatePanel {
-                    title: title(&format!("{species}, {form:?}: {x_label}")),
+                    title: title(&format!("{species}, {form:?}: {shown}")),
                     x_label: x_label.into(),
                     rows,
                 });
