@@ -110,12 +110,12 @@ impl Normal {
             for j in 0..self.k {
                 self.gram[i * self.k + j] += f[i] * f[j];
             }
-            for a in 0..2 {
-                self.cross[a][i] += f[i] * y[a];
+            for (cross, y) in self.cross.iter_mut().zip(y) {
+                cross[i] += f[i] * y;
             }
         }
-        for a in 0..2 {
-            self.yy[a] += y[a] * y[a];
+        for (yy, y) in self.yy.iter_mut().zip(y) {
+            *yy += y * y;
         }
     }
 
@@ -263,7 +263,7 @@ fn out_of_sample(terms: &[Term], fit: &Normal, test: &Normal) -> f64 {
 /// two folds by cluster (even and odd), each fitted on one and scored on the other, the errors summed.
 /// Ties go to the first.
 pub(crate) fn choose(fit: &Design, candidates: impl Iterator<Item = Vec<Term>>) -> Vec<Term> {
-    let folds = [fit.normal(|i| fit.cluster[i] % 2 == 0), fit.normal(|i| fit.cluster[i] % 2 == 1)];
+    let folds = [fit.normal(|i| fit.cluster[i].is_multiple_of(2)), fit.normal(|i| !fit.cluster[i].is_multiple_of(2))];
     let mut best: Option<(f64, Vec<Term>)> = None;
     for terms in candidates {
         let error = out_of_sample(&terms, &folds[0], &folds[1]) + out_of_sample(&terms, &folds[1], &folds[0]);
@@ -348,8 +348,8 @@ pub(crate) fn term_fits(terms: &[Term], fit: &Design, held: &Design, seed: u64) 
             let (f, h) = (draw(&fit_parts, &mut rng), draw(&held_parts, &mut rng));
             let (s, d) = term_values(&f, &h);
             for j in 0..m {
-                s[j].map(|v| sd_draws[j].push(v));
-                d[j].map(|v| delta_draws[j].push(v));
+                sd_draws[j].extend(s[j]);
+                delta_draws[j].extend(d[j]);
             }
         }
         // The constant (the first term) has neither a spread nor a held-out value of its own.
