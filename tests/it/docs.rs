@@ -658,3 +658,33 @@ fn the_books_tables_from_reports_are_inlined_and_current() {
         );
     }
 }
+
+/// Words that say a result is still being made: a page says what came out, and work under way is no result.
+const IN_PROGRESS: [&str; 7] = [
+    "being re-tested",
+    "being re-run",
+    "are being tested",
+    "is being tested",
+    "not yet run",
+    "still running",
+    "will be re-tested",
+];
+
+/// Each sentence of `text` that says a result is still being made ([`IN_PROGRESS`]).
+fn in_progress_statements(text: &str) -> Vec<String> {
+    let lower = text.to_lowercase();
+    IN_PROGRESS.iter().filter_map(|w| lower.find(w).map(|at| format!("{w:?} at byte {at}"))).collect()
+}
+
+#[test]
+fn no_page_says_a_result_is_still_being_made() {
+    let mut stale = vec![];
+    for page in markdown_files() {
+        let text = std::fs::read_to_string(&page).unwrap();
+        stale.extend(in_progress_statements(&text).into_iter().map(|s| format!("{}: {s}", page.display())));
+    }
+    assert!(stale.is_empty(), "statements of work in progress, stale once it is done:\n{}", stale.join("\n"));
+    // The check itself.
+    assert_eq!(in_progress_statements("contrasts are inconclusive and are being re-tested at thirty").len(), 1);
+    assert!(in_progress_statements("contrasts are inconclusive at thirty seeds").is_empty());
+}
