@@ -31,6 +31,7 @@ pub(crate) mod claims;
 pub(crate) mod command;
 pub(crate) mod curves;
 pub(crate) mod data;
+pub(crate) mod estimate;
 pub mod external;
 pub(crate) mod figure_data;
 pub(crate) mod figures;

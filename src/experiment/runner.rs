@@ -36,7 +36,7 @@ pub(crate) enum Stage {
 }
 
 /// The variant's resolved scene file, which fresh runs are trained from.
-fn variant_scene(run: &Run) -> PathBuf {
+pub(crate) fn variant_scene(run: &Run) -> PathBuf {
     run.dir.parent().expect("runs live in a variant folder").join(crate::run::SCENE)
 }
 
@@ -63,7 +63,7 @@ pub(crate) fn stage(run: &Run) -> crate::error::Result<Stage> {
 }
 
 /// Runs one child process; Err is its one-line error.
-fn child(exe: &Executable, args: &[String]) -> crate::error::Result<()> {
+pub(crate) fn child(exe: &Executable, args: &[String]) -> crate::error::Result<()> {
     let mut command = Command::new(&exe.path);
     command.args(args);
     // Every run of an experiment on one kernel family: the pinned one, or the parent's, whatever pinned it.
@@ -435,6 +435,13 @@ pub(crate) fn run(exp: &Experiment, opts: &RunnerOptions, only: Option<usize>) -
             all
         }
     };
+    // How long the trainings left will take here, said before they start (a Slurm task's is its own).
+    if let (Some(exe), None) = (exe.as_ref(), only) {
+        let threads = (crate::parallel::threads() / opts.jobs.max(1)).max(1);
+        if let Some(line) = super::estimate::say(exp, &runs, exe, opts.jobs, threads)? {
+            crate::errln!("{line}")?;
+        }
+    }
     let bar = if opts.progress { ProgressBar::new(runs.len() as u64) } else { ProgressBar::hidden() };
     bar.set_style(
         ProgressStyle::with_template("{bar:30} {pos}/{len} runs  {elapsed} elapsed, ETA {eta}  {msg}")

@@ -186,6 +186,16 @@ fn a_tiny_experiment_runs_resumes_and_gives_the_same_summary_at_one_or_two_jobs(
     let out = coevo(two.path(), &["--experiment", "experiments/tiny.ron", "--jobs", "2"]);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{stderr}");
+    // Before its runs it says how long their training will take here, measured by a probe (no run had
+    // an episode yet), and leaves nothing of the probe behind.
+    let estimate = stderr.lines().find(|l| l.contains("trainings left")).unwrap_or_else(|| panic!("{stderr}"));
+    assert!(
+        estimate.starts_with("coevo: experiments/tiny.ron: 4 trainings left, 12 episodes at ")
+            && estimate.contains("measured here by a 3-episode probe of")
+            && estimate.contains("with 2 at a time"),
+        "{estimate}"
+    );
+    assert!(!two.path().join("results/tiny/.probe").exists());
     // One experiment writes only under its own results folder (REPRODUCTION.md is written when asked for,
     // by `all`), and says exactly what it wrote.
     let outside: Vec<_> = files_under(two.path())
