@@ -12,7 +12,7 @@
 //! | `experiment/` | the lab: experiment files, the runner, aggregation, claims and verdicts, reports |
 //! | `viewer/` | the window (`--features viewer`) |
 //! | `cli.rs` | the command line (`main.rs` and examples call [`cli::main`]) |
-//! | `error.rs`, `io.rs`, `parallel.rs`, `svg.rs` | the one error type, files written safely, threads that never change a result, SVG to pixels |
+//! | `error.rs`, `io/`, `parallel.rs`, `svg.rs` | the one error type, files written safely (and what a process must not leave behind, its memory, printing that never panics), threads that never change a result, SVG to pixels |
 //!
 //! # The public API
 //!
