@@ -36,7 +36,7 @@ pub(crate) enum Stage {
 }
 
 /// The variant's resolved scene file, which fresh runs are trained from.
-pub(crate) fn variant_scene(run: &Run) -> PathBuf {
+fn variant_scene(run: &Run) -> PathBuf {
     run.dir.parent().expect("runs live in a variant folder").join(crate::run::SCENE)
 }
 
@@ -62,8 +62,42 @@ pub(crate) fn stage(run: &Run) -> crate::error::Result<Stage> {
     Ok(if state.episodes_done >= run.scene.episodes { Stage::Trained } else { Stage::Partial(state.episodes_done) })
 }
 
+/// Episodes `run` has left to train: its scene's, less those its checkpoint holds.
+fn episodes_left(run: &Run) -> crate::error::Result<usize> {
+    Ok(match stage(run)? {
+        Stage::Trained => 0,
+        Stage::Partial(done) => run.scene.episodes.saturating_sub(done),
+        Stage::Fresh | Stage::Unsaved => run.scene.episodes,
+    })
+}
+
+/// Episodes a probe trains, at most (fewer when the runs are shorter).
+const PROBE_EPISODES: usize = 10;
+
+/// Seconds per episode of `run`'s scene trained by `exe` on `threads` threads for a few episodes, and how
+/// many: in a folder of the experiment's, removed after ([`super::estimate`]).
+fn probe(exp: &Experiment, run: &Run, exe: &Executable, threads: usize) -> crate::error::Result<(f64, usize)> {
+    let episodes = PROBE_EPISODES.min(run.scene.episodes).max(1);
+    let dir = exp.root.join(".probe");
+    let _ = std::fs::remove_dir_all(&dir);
+    let opts = crate::run::train::TrainOptions {
+        run: dir.clone(),
+        resume: false,
+        overwrite: false,
+        episodes: Some(episodes),
+        progress: false,
+    };
+    let args = [opts.to_argv(&variant_scene(run), run.seed), crate::run::args::threads_argv(threads)].concat();
+    let started = std::time::Instant::now();
+    let made = child(exe, &args);
+    let seconds = started.elapsed().as_secs_f64();
+    let _ = std::fs::remove_dir_all(&dir);
+    made.map_err(|e| format!("{}: timing a probe of {episodes} episodes: {e}", exp.file.display()))?;
+    Ok((seconds / episodes as f64, episodes))
+}
+
 /// Runs one child process; Err is its one-line error.
-pub(crate) fn child(exe: &Executable, args: &[String]) -> crate::error::Result<()> {
+fn child(exe: &Executable, args: &[String]) -> crate::error::Result<()> {
     let mut command = Command::new(&exe.path);
     command.args(args);
     // Every run of an experiment on one kernel family: the pinned one, or the parent's, whatever pinned it.
@@ -438,7 +472,12 @@ pub(crate) fn run(exp: &Experiment, opts: &RunnerOptions, only: Option<usize>) -
     // How long the trainings left will take here, said before they start (a Slurm task's is its own).
     if let (Some(exe), None) = (exe.as_ref(), only) {
         let threads = (crate::parallel::threads() / opts.jobs.max(1)).max(1);
-        if let Some(line) = super::estimate::say(exp, &runs, exe, opts.jobs, threads)? {
+        let mut left = vec![];
+        for &i in &runs {
+            left.push((i, episodes_left(&exp.runs[i])?));
+        }
+        left.retain(|&(_, episodes)| episodes > 0);
+        if let Some(line) = super::estimate::say(exp, &left, opts.jobs, |run| probe(exp, run, exe, threads))? {
             crate::errln!("{line}")?;
         }
     }

@@ -23,9 +23,10 @@ mod files;
 mod memory;
 mod print;
 
+#[cfg(feature = "viewer")]
+pub(crate) use cleanup::end_process;
 pub(crate) use cleanup::{
-    end_process, install_signal_cleanup, process_alive, register_temporary, remove_stale_temporaries,
-    unregister_temporary, Writing,
+    install_signal_cleanup, process_alive, register_temporary, remove_stale_temporaries, unregister_temporary, Writing,
 };
 pub(crate) use files::{
     beside, check_own_dir, check_target, check_targets, open_input, own_dir, write_atomically, AtomicFile,
