@@ -237,6 +237,11 @@ pub(crate) fn write_reproduction(partial: bool) -> crate::error::Result<()> {
         let a = aggregate::aggregate(&exp, &data, carried)?;
         aggregated.push((exp, a));
     }
+    // Now that every training is summarized, a declared re-training by another binary is checked number by
+    // number (before aggregation a run folder's numbers are not at hand), before any report is written.
+    let summarized: Vec<_> =
+        aggregated.iter().flat_map(|(exp, a)| super::trainings::from_summary(exp, &a.summary)).collect();
+    super::trainings::check_once(&summarized)?;
     // The families span the files: every experiment's tests adjusted together, then each reported.
     let counts: Vec<usize> = aggregated.iter().map(|(_, a)| a.results.len()).collect();
     let mut results: Vec<_> = aggregated.iter_mut().flat_map(|(_, a)| std::mem::take(&mut a.results)).collect();

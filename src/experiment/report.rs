@@ -136,8 +136,10 @@ pub(crate) fn reproduction(experiments: &[Reported], the_paper: Option<&str>) ->
         "\n## The whole suite\n\n`coevo --experiment all --jobs 2`: {finished} of {runs} trainings finished, of which {distinct} \
          distinct, {:.1} h of training summed over the distinct ones, each timed by its own `metrics.csv` (`wall_seconds`, \
          the run's own wall clock). A run shared between experiments (`shared_from`) is one training, counted and timed \
-         once; so is a run trained again, from the same resolved scene and seed by the same binary (a deterministic \
-         re-training: {}), which its file declares (`same_training_as`; an undeclared one is refused).",
+         once; so is a run trained again, from the same resolved scene and seed by the same binary or by another \
+         that gives every training number of it to the bit (a deterministic re-training: {}), which its file \
+         declares (`same_training_as`; an undeclared one by the same binary is refused, a declared one that \
+         differs too).",
         seconds / 3600.0,
         match finished - distinct {
             0 => "none".to_string(),

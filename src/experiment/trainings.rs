@@ -67,8 +67,11 @@ pub(crate) fn from_summary(exp: &Experiment, summary: &Summary) -> Vec<Training>
         .into_iter()
         .filter(|(i, row)| exp.runs[*i].shared_from.is_none() && row.shared_from.is_empty() && seen.insert(*i))
         .map(|(i, row)| {
+            // The numbers of the training itself: not its evaluations, cross-play or fitted rules (read-outs
+            // made after it), nor its wall clock.
             let training = |c: &str| {
-                !c.starts_with("eval_") && !c.starts_with("crossplay_") && c != crate::run::schema::WALL_SECONDS
+                !["eval_", "crossplay_", "distilled_"].iter().any(|p| c.starts_with(p))
+                    && c != crate::run::schema::WALL_SECONDS
             };
             let bits = summary.columns.iter().zip(&row.values).filter(|(c, _)| training(c));
             Training {
@@ -96,14 +99,31 @@ pub(crate) fn before_aggregation(
     Ok(trainings)
 }
 
+/// The first training number in which two trainings' outcomes differ (of the columns both hold), or
+/// None when every one is equal to the bit; None too when either outcome is unknown (a run folder not yet
+/// summarized).
+fn outcome_difference(a: &Training, b: &Training) -> Option<String> {
+    let (Some(a), Some(b)) = (&a.outcome, &b.outcome) else { return None };
+    a.iter().find(|(c, v)| b.get(*c).is_some_and(|w| w != *v)).map(|(c, _)| c.clone())
+}
+
 /// Refuses a training found twice (the same scene and seed by the same binary) unless all but one of its
 /// holders declare that one (`same_training_as`), and a declaration that is not true (the run it names,
-/// when finished, is another training): one line naming both runs and the ways out.
+/// when finished, is another training): one line naming both runs and the ways out. A declared
+/// re-training by another binary is the same training when every training number of the two equals the
+/// other's to the bit (checked where both are summarized: a re-training is not a second sample).
 pub(crate) fn check_once(trainings: &[Training]) -> crate::error::Result<()> {
     for t in trainings {
-        if let Some(o) = trainings.iter().find(|o| t.declares(o)).filter(|o| o.key != t.key) {
+        let other_training =
+            |o: &&Training| o.key.0 != t.key.0 || (o.key.1 != t.key.1 && outcome_difference(o, t).is_some());
+        if let Some(o) = trainings.iter().find(|o| t.declares(o)).filter(other_training) {
             let why = match o.key.0 == t.key.0 {
-                true => format!("binaries {} and {}", o.key.1, t.key.1),
+                true => format!(
+                    "binaries {} and {}, whose {} differs",
+                    o.key.1,
+                    t.key.1,
+                    outcome_difference(o, t).unwrap_or_default()
+                ),
                 false => "another scene".to_string(),
             };
             return Err(format!(
@@ -149,11 +169,12 @@ pub(crate) fn check_once(trainings: &[Training]) -> crate::error::Result<()> {
 }
 
 /// How many trainings are finished, how many distinct, and the wall-clock seconds of the distinct ones
-/// (the first of each kept).
+/// (the first of each kept). A declared re-training ([`check_once`]) is its owner's training.
 pub(crate) fn count(trainings: &[Training]) -> (usize, usize, f64) {
     let mut distinct: BTreeMap<&(String, String), f64> = BTreeMap::new();
     for t in trainings {
-        distinct.entry(&t.key).or_insert(t.seconds);
+        let owner = trainings.iter().find(|o| t.declares(o)).map_or(&t.key, |o| &o.key);
+        distinct.entry(owner).or_insert(t.seconds);
     }
     // + 0.0: an empty f64 sum is −0.0, which would print as "-0.0 h".
     (trainings.len(), distinct.len(), distinct.values().sum::<f64>() + 0.0)
@@ -219,14 +240,22 @@ mod tests {
         // Two that declare nothing: refused, naming those two.
         let e = check_once(&[declared.clone(), owner.clone(), training("c", "once more", 1, "s", None)]).unwrap_err();
         assert!(e.to_string().starts_with("a/paper/seeing/seed1 and c/paper/once more/seed1"), "{e}");
-        // A declaration that is not true: the named run is another training (another binary here).
+        // Another binary that gives every training number to the bit: the same training, counted once.
         let mut rebuilt = owner.clone();
         rebuilt.key.1 = "other".into();
+        check_once(&[rebuilt.clone(), declared.clone()]).unwrap();
+        assert_eq!(count(&[rebuilt.clone(), declared.clone()]), (2, 1, 100.0));
+        // A declaration that is not true: another binary whose training numbers differ.
+        rebuilt.outcome.as_mut().unwrap().insert("dos_last100".into(), 8);
         let e = check_once(&[rebuilt.clone(), declared.clone()]).unwrap_err().to_string();
         assert!(
-            e.starts_with("b/paper/again/seed1 declares same_training_as \"a/seeing\", but a/paper/seeing/seed1 is not the same training (binaries other and b)"),
+            e.starts_with("b/paper/again/seed1 declares same_training_as \"a/seeing\", but a/paper/seeing/seed1 is not the same training (binaries other and b, whose dos_last100 differs)"),
             "{e}"
         );
+        // Numbers not yet at hand (a run folder before it is summarized): judged once they are.
+        let mut unsummarized = rebuilt.clone();
+        unsummarized.outcome = None;
+        check_once(&[unsummarized, declared.clone()]).unwrap();
         assert_eq!(count(&[owner.clone(), declared, other_seed]), (3, 2, 200.0));
         assert_eq!(count(&[]), (0, 0, 0.0));
         // Another scene with the same training numbers: a switch that never acted, named with its twin.
@@ -237,6 +266,7 @@ mod tests {
         moved.outcome.as_mut().unwrap().insert("dos_last100".into(), 8);
         assert!(same_outcomes(&[owner.clone(), moved]).is_empty());
         // The same scene by another binary is not "a switch that never acted".
+        rebuilt.outcome = owner.outcome.clone();
         assert!(same_outcomes(&[owner, rebuilt]).is_empty());
     }
 }
