@@ -688,3 +688,92 @@ fn no_page_says_a_result_is_still_being_made() {
     assert_eq!(in_progress_statements("contrasts are inconclusive and are being re-tested at thirty").len(), 1);
     assert!(in_progress_statements("contrasts are inconclusive at thirty seeds").is_empty());
 }
+
+/// A verdict's kind, from REPRODUCTION.md's verdict cell: what it says before its reasons.
+fn verdict_kind(verdict: &str) -> &str {
+    ["not reproduced", "direction reproduced", "reproduced", "equivalent", "inconclusive", "detected", "measured"]
+        .into_iter()
+        .find(|k| verdict.starts_with(k))
+        .unwrap_or(verdict)
+}
+
+/// The sources of the paper's statements that do not answer them (`experiments/the-paper/statements.ron`:
+/// a statement's answer is its first source judged on a preset) and whose verdict is of another kind than
+/// the answer's, as `EXPERIMENT / PRESET / CLAIM`, each with the answer's.
+fn overruled_sources(
+    rows: &std::collections::BTreeMap<(String, String, String), Vec<ClaimRow>>,
+) -> Vec<(String, String)> {
+    let text = std::fs::read_to_string("experiments/the-paper/statements.ron").unwrap();
+    let file: ron::Value = ron::from_str(&text).unwrap();
+    let field = |v: &ron::Value, name: &str| match v {
+        ron::Value::Map(m) => m.get(&ron::Value::String(name.into())).cloned(),
+        _ => None,
+    };
+    let Some(ron::Value::Seq(statements)) = field(&file, "statements") else { panic!("statements.ron: no statements") };
+    let mut overruled = vec![];
+    for s in &statements {
+        let Some(ron::Value::Seq(from)) = field(s, "from") else { continue };
+        let sources: Vec<String> = from.iter().filter_map(|f| f.clone().into_rust::<String>().ok()).collect();
+        for preset in ["paper", "gym-pps"] {
+            let judged: Vec<(String, &str)> = sources
+                .iter()
+                .filter_map(|src| {
+                    let (e, c) = src.split_once(" / ")?;
+                    let cited = format!("{e} / {preset} / {c}");
+                    let row = cited_rows(&cited, rows)?.first()?;
+                    Some((cited, verdict_kind(&row.verdict)))
+                })
+                .collect();
+            let Some((answer, kind)) = judged.first().cloned() else { continue };
+            overruled.extend(judged[1..].iter().filter(|(_, k)| *k != kind).map(|(c, _)| (c.clone(), answer.clone())));
+        }
+    }
+    overruled
+}
+
+/// Each citation in `text` of an overruled source ([`overruled_sources`]) followed, before the next
+/// citation or the end of its sentence, by a verdict word: a second verdict for one statement of the paper.
+fn second_verdicts(text: &str, overruled: &[(String, String)]) -> Vec<String> {
+    const OPEN: &str = "<!-- claim: ";
+    let mut found = vec![];
+    let starts: Vec<usize> = text.match_indices(OPEN).map(|(at, _)| at).collect();
+    for (k, &at) in starts.iter().enumerate() {
+        let rest = &text[at + OPEN.len()..];
+        let Some(close) = rest.find("-->") else { continue };
+        let cited = rest[..close].trim();
+        let Some((_, answer)) = overruled.iter().find(|(c, _)| c == cited) else { continue };
+        // What is said of it: its sentence, between the citations before and after it.
+        let before_from = [
+            k.checked_sub(1).and_then(|j| text[starts[j]..at].find("-->").map(|c| starts[j] + c + 3)),
+            text[..at].rfind(". ").map(|d| d + 2),
+            text[..at].rfind(".\n").map(|d| d + 2),
+        ]
+        .into_iter()
+        .flatten()
+        .max()
+        .unwrap_or(0);
+        let after = &rest[close + 3..];
+        let end = [after.find(OPEN), after.find(". "), after.find(".\n")].into_iter().flatten().min();
+        let said = format!("{} {}", &text[before_from..at], &after[..end.unwrap_or(after.len())]);
+        if ["reproduced", "inconclusive", "detected", "equivalent"].iter().any(|w| said.contains(w)) {
+            found.push(format!("{cited:?} is given a verdict, but the statement's is {answer:?}'s"));
+        }
+    }
+    found
+}
+
+#[test]
+fn no_page_gives_a_statement_of_the_paper_a_second_verdict() {
+    let rows = claim_rows(&std::fs::read_to_string("REPRODUCTION.md").unwrap());
+    let overruled = overruled_sources(&rows);
+    let mut wrong = vec![];
+    for page in markdown_files() {
+        let text = std::fs::read_to_string(&page).unwrap();
+        wrong.extend(second_verdicts(&text, &overruled).into_iter().map(|w| format!("{}: {w}", page.display())));
+    }
+    assert!(wrong.is_empty(), "a statement of the paper with two verdicts:\n{}", wrong.join("\n"));
+    // The check itself: an overruled source's number alone passes; with a verdict beside it, not.
+    let one = [("e / paper / a".to_string(), "f / paper / b".to_string())];
+    assert!(second_verdicts("0.68 ± 0.03<!-- claim: e / paper / a --> with paper.", &one).is_empty());
+    assert_eq!(second_verdicts("0.68 ± 0.03<!-- claim: e / paper / a --> (reproduced).", &one).len(), 1);
+}
