@@ -122,9 +122,24 @@ pub(crate) fn paper_precision(paper: f64) -> f64 {
     0.5 * 10f64.powi(-(decimals as i32))
 }
 
+/// How the seeds an effect needs are counted: per variant for a difference of two variants, per level or
+/// cell over a grid, and for a number read within each run (a change over its training, its own
+/// evaluations compared, a control, a fitted gain) as runs of the one variant.
+fn seeds_counted(e: &Estimate) -> &'static str {
+    use super::stats::Design;
+    match e.design {
+        Design::Difference => "seeds per variant",
+        Design::Mean => "seeds (each run's value read within the run)",
+        Design::Slope { .. } => "seeds per level",
+        Design::Bootstrap => "seeds per cell",
+    }
+}
+
 /// What an inconclusive verdict says when no number of seeds up to [`super::stats::Estimate::seeds_for`]'s
 /// bound would decide it.
-const MORE_SEEDS: &str = "; more than 10 000 seeds per variant would be needed to detect it";
+fn more_seeds(e: &Estimate) -> String {
+    format!("; more than 10 000 {} would be needed to detect it", seeds_counted(&e))
+}
 
 /// The verdict on a claim, defined in REPRODUCTION.md's preamble. An effect is *detected* when its
 /// Holm-adjusted p-value is below [`ALPHA`], which is exactly when its interval at `level` (the family's
@@ -211,12 +226,12 @@ pub(crate) fn verdict(
             Some(paper) if claim.direction_only => {
                 let far = e.mean + paper.signum() * h;
                 let seeds = match e.mean.signum() == paper.signum() {
-                    true => e.seeds_for(level, e.mean).map_or(MORE_SEEDS.into(), |n| {
+                    true => e.seeds_for(level, e.mean).map_or(more_seeds(&e), |n| {
                         let range = match e.seeds_for(level, far) {
                             Some(at_far) => format!("; over its adjusted interval the answer runs from about {at_far} (at {far:+.3}) to never (at 0, inside it)"),
                             None => String::new(),
                         };
-                        format!("; about {n} seeds per variant would detect a difference of the size measured here ({:+.3}) with 80 % power{range}", e.mean)
+                        format!("; about {n} {} would detect a difference of the size measured here ({:+.3}) with 80 % power{range}", seeds_counted(&e), e.mean)
                     }),
                     false => "; the estimate points away from the paper's direction, so more seeds are not expected to show it".into(),
                 };
@@ -232,9 +247,9 @@ pub(crate) fn verdict(
                 ),
             ),
             Some(paper) => {
-                let seeds = e.seeds_for(level, paper).map_or(MORE_SEEDS.into(), |n| match n <= e.n {
+                let seeds = e.seeds_for(level, paper).map_or(more_seeds(&e), |n| match n <= e.n {
                     true => format!("; its {} seeds had 80 % power for the paper's {paper:+.3} (about {n} would): an effect of that size would likely have been detected", e.n),
-                    false => format!("; about {n} seeds per variant would detect the paper's {paper:+.3} with 80 % power"),
+                    false => format!("; about {n} {} would detect the paper's {paper:+.3} with 80 % power", seeds_counted(&e)),
                 });
                 Verdict::new(
                     Inconclusive { paper_size_excluded: false },
