@@ -1,7 +1,7 @@
 //! How long an experiment's trainings will take here, said before they start: the seconds an episode
 //! takes on this machine, measured (on the experiment's own runs when some have episodes, else by a probe
-//! of a few episodes of its first run left to make, which the runner times), times the episodes left, over
-//! the runs made at a time. Only training is counted: read-outs and evaluations come on top.
+//! of a few episodes of its first run left to make, as many side by side as runs will be, which the runner
+//! times), times the episodes left, over the runs made at a time. Only training is counted: read-outs and evaluations come on top.
 
 use super::file::{Experiment, Run};
 
@@ -33,24 +33,33 @@ pub(crate) fn say(
 ) -> crate::error::Result<Option<String>> {
     let Some(&(first, _)) = left.first() else { return Ok(None) };
     let episodes: usize = left.iter().map(|(_, e)| e).sum();
+    let probed = measured(exp).is_none();
     let (rate, basis) = match measured(exp) {
         Some((rate, n)) => (rate, format!("measured on {n} of its runs here")),
         None => {
             let run = &exp.runs[first];
             let (rate, probed) = probe(run)?;
-            (rate, format!("measured here by a {probed}-episode probe of {}/{}", run.preset, run.variant))
+            let side_by_side = match jobs.clamp(1, left.len()) {
+                1 => String::new(),
+                n => format!(", {n} side by side"),
+            };
+            (rate, format!("measured here by {probed}-episode probes of {}/{}{side_by_side}", run.preset, run.variant))
         }
     };
     let hours = episodes as f64 * rate / 3600.0;
     let at_once = jobs.clamp(1, left.len());
     Ok(Some(format!(
         "coevo: {}: {} training{} left, {episodes} episodes at {rate:.3} s each ({basis}): about {} of training, \
-         {} with {at_once} at a time (read-outs and evaluations come on top)",
+         {} with {at_once} at a time (read-outs and evaluations come on top{})",
         exp.file.display(),
         left.len(),
         if left.len() == 1 { "" } else { "s" },
         duration(hours),
-        duration(hours / at_once as f64)
+        duration(hours / at_once as f64),
+        match probed {
+            true => "; a probe times the first episodes, and later ones, with fuller replay buffers, take longer",
+            false => "",
+        }
     )))
 }
 

@@ -74,26 +74,46 @@ fn episodes_left(run: &Run) -> crate::error::Result<usize> {
 /// Episodes a probe trains, at most (fewer when the runs are shorter).
 const PROBE_EPISODES: usize = 10;
 
-/// Seconds per episode of `run`'s scene trained by `exe` on `threads` threads for a few episodes, and how
-/// many: in a folder of the experiment's, removed after ([`super::estimate`]).
-fn probe(exp: &Experiment, run: &Run, exe: &Executable, threads: usize) -> crate::error::Result<(f64, usize)> {
+/// Seconds per episode of `run`'s scene trained by `exe` for a few episodes, and how many: `copies` of it
+/// side by side on `threads` threads each, as the runs will be made (runs side by side share the cores'
+/// memory and are slower than one alone), in folders of the experiment's removed after
+/// ([`super::estimate`]).
+fn probe(
+    exp: &Experiment,
+    run: &Run,
+    exe: &Executable,
+    threads: usize,
+    copies: usize,
+) -> crate::error::Result<(f64, usize)> {
     let episodes = PROBE_EPISODES.min(run.scene.episodes).max(1);
-    let dir = exp.root.join(".probe");
-    let _ = std::fs::remove_dir_all(&dir);
-    let opts = crate::run::train::TrainOptions {
-        run: dir.clone(),
-        resume: false,
-        overwrite: false,
-        episodes: Some(episodes),
-        progress: false,
+    let timed = |k: usize| -> crate::error::Result<f64> {
+        let dir = exp.root.join(format!(".probe-{k}"));
+        let _ = std::fs::remove_dir_all(&dir);
+        let opts = crate::run::train::TrainOptions {
+            run: dir.clone(),
+            resume: false,
+            overwrite: false,
+            episodes: Some(episodes),
+            progress: false,
+        };
+        let args = [opts.to_argv(&variant_scene(run), run.seed), crate::run::args::threads_argv(threads)].concat();
+        let started = std::time::Instant::now();
+        let made = child(exe, &args);
+        let seconds = started.elapsed().as_secs_f64();
+        let _ = std::fs::remove_dir_all(&dir);
+        made.map_err(|e| format!("{}: timing a probe of {episodes} episodes: {e}", exp.file.display()))?;
+        Ok(seconds)
     };
-    let args = [opts.to_argv(&variant_scene(run), run.seed), crate::run::args::threads_argv(threads)].concat();
-    let started = std::time::Instant::now();
-    let made = child(exe, &args);
-    let seconds = started.elapsed().as_secs_f64();
-    let _ = std::fs::remove_dir_all(&dir);
-    made.map_err(|e| format!("{}: timing a probe of {episodes} episodes: {e}", exp.file.display()))?;
-    Ok((seconds / episodes as f64, episodes))
+    let copies = copies.max(1);
+    let seconds: Vec<crate::error::Result<f64>> = std::thread::scope(|scope| {
+        let handles: Vec<_> = (0..copies).map(|k| scope.spawn(move || timed(k))).collect();
+        handles.into_iter().map(|h| h.join().unwrap_or_else(|_| Err("a probe's thread panicked".into()))).collect()
+    });
+    let mut total = 0.0;
+    for s in seconds {
+        total += s?;
+    }
+    Ok((total / copies as f64 / episodes as f64, episodes))
 }
 
 /// Runs one child process; Err is its one-line error.
@@ -477,7 +497,8 @@ pub(crate) fn run(exp: &Experiment, opts: &RunnerOptions, only: Option<usize>) -
             left.push((i, episodes_left(&exp.runs[i])?));
         }
         left.retain(|&(_, episodes)| episodes > 0);
-        if let Some(line) = super::estimate::say(exp, &left, opts.jobs, |run| probe(exp, run, exe, threads))? {
+        let at_once = opts.jobs.clamp(1, left.len().max(1));
+        if let Some(line) = super::estimate::say(exp, &left, opts.jobs, |run| probe(exp, run, exe, threads, at_once))? {
             crate::errln!("{line}")?;
         }
     }

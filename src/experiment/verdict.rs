@@ -138,7 +138,7 @@ fn seeds_counted(e: &Estimate) -> &'static str {
 /// What an inconclusive verdict says when no number of seeds up to [`super::stats::Estimate::seeds_for`]'s
 /// bound would decide it.
 fn more_seeds(e: &Estimate) -> String {
-    format!("; more than 10 000 {} would be needed to detect it", seeds_counted(&e))
+    format!("; more than 10 000 {} would be needed to detect it", seeds_counted(e))
 }
 
 /// The verdict on a claim, defined in REPRODUCTION.md's preamble. An effect is *detected* when its

@@ -191,11 +191,11 @@ fn a_tiny_experiment_runs_resumes_and_gives_the_same_summary_at_one_or_two_jobs(
     let estimate = stderr.lines().find(|l| l.contains("trainings left")).unwrap_or_else(|| panic!("{stderr}"));
     assert!(
         estimate.starts_with("coevo: experiments/tiny.ron: 4 trainings left, 12 episodes at ")
-            && estimate.contains("measured here by a 3-episode probe of")
+            && estimate.contains("measured here by 3-episode probes of paper/1:1, 2 side by side")
             && estimate.contains("with 2 at a time"),
         "{estimate}"
     );
-    assert!(!two.path().join("results/tiny/.probe").exists());
+    assert!(!two.path().join("results/tiny/.probe-0").exists() && !two.path().join("results/tiny/.probe-1").exists());
     // One experiment writes only under its own results folder (REPRODUCTION.md is written when asked for,
     // by `all`), and says exactly what it wrote.
     let outside: Vec<_> = files_under(two.path())
