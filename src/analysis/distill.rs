@@ -378,11 +378,16 @@ fn explained(
     scene.species[s].policy = policy.clone();
     let registry = SpeciesRegistry::from_scene(&scene);
     let mut rng = rand::rngs::mock::StepRng::new(0, 0);
-    let rows = actions.len() / ACTION_DIM;
-    let mut mean = [0.0; ACTION_DIM];
+    let rows = (actions.len() / ACTION_DIM).max(1) as f64;
+    // Summed, then divided: a constant action's mean is then that constant to the last bit or two.
+    let (mut mean, mut squares) = ([0.0; ACTION_DIM], [0.0; ACTION_DIM]);
     for a in actions.chunks_exact(ACTION_DIM) {
-        (0..ACTION_DIM).for_each(|k| mean[k] += a[k] as f64 / rows.max(1) as f64);
+        for k in 0..ACTION_DIM {
+            mean[k] += a[k] as f64;
+            squares[k] += a[k] as f64 * a[k] as f64;
+        }
     }
+    mean.iter_mut().for_each(|m| *m /= rows);
     let (mut residual, mut total) = ([0.0; ACTION_DIM], [0.0; ACTION_DIM]);
     for (o, a) in obs.chunks_exact(dim).zip(actions.chunks_exact(ACTION_DIM)) {
         let predicted = crate::sim::policy::rule_action(o, &registry, s, &scene, &mut rng).expect("a rule");
@@ -391,8 +396,9 @@ fn explained(
             total[k] += (a[k] as f64 - mean[k]).powi(2);
         }
     }
-    // An action that never varied has no variance to explain.
-    std::array::from_fn(|k| (total[k] > 0.0).then(|| 1.0 - residual[k] / total[k]))
+    // An action that never varied (its spread no more than rounding's, relative to its size) has no
+    // variance to explain.
+    std::array::from_fn(|k| (total[k] > 1e-12 * squares[k]).then(|| 1.0 - residual[k] / total[k]))
 }
 
 /// Fits the rules of every learned species of `run`, deployed on its scene with `overrides`, over
@@ -587,6 +593,11 @@ mod tests {
         // Without its alignment the rule explains less of the turn.
         let ablated = Policy::Zonal(fitted.without(&[ZonalTerm::Alignment]));
         assert!(explained(&scene, s, &ablated, &obs, &actions, dim)[1].unwrap() < 0.95);
+        // An action held constant (a thrust of 0.7 in every row, which f32 cannot hold exactly) has no
+        // variance to explain: none, never a huge negative fraction from rounding.
+        let constant: Vec<f32> = actions.chunks_exact(ACTION_DIM).flat_map(|a| [0.7, a[1]]).collect();
+        let [thrust, turn] = explained(&scene, s, &Policy::Zonal(fitted.clone()), &obs, &constant, dim);
+        assert!(thrust.is_none() && turn.is_some(), "{thrust:?} {turn:?}");
         // Fitted without its own state, the rule holds persistence and speed at zero.
         let memoryless = fit(RuleForm::Memoryless);
         assert_eq!((memoryless.turn.persistence, memoryless.thrust.speed), (0.0, 0.0));

@@ -3,7 +3,11 @@
 //! Each action (thrust, turn) is fitted by least squares on its terms, a term being the sum of some
 //! feature columns (a zone's members, say) and the first term of each action a constant. Rows come in
 //! clusters, one agent in one episode, whose rows depend on each other; the intervals resample whole
-//! clusters (a cluster bootstrap, [`BOOTSTRAP`] resamples, 95 % percentile intervals).
+//! clusters (a cluster bootstrap, [`BOOTSTRAP`] resamples, 95 % percentile intervals). They describe one
+//! run and are narrower than a full account: the agents of one episode share their swarm, yet are
+//! resampled as independent, and the zones chosen are held fixed. A resample in which a term never varied
+//! gives it no value, and an interval needs at least half the resamples. Inference across runs is over
+//! seeds, on each run's point values (the experiments' claims).
 //!
 //! What is reported of each term, so that no gain is zero because of how it was fitted and gains of
 //! features in different units can be compared:
@@ -307,26 +311,30 @@ fn term_values(fit: &Sums, held: &Sums) -> (Vec<Option<f64>>, Vec<Option<f64>>) 
     let m = fit.m;
     let all = vec![true; m];
     let beta = fit.solve(&all);
-    let per_sd = (0..m).map(|j| Some(fit.sd(j)).filter(|&sd| sd > 0.0).map(|sd| beta[j] * sd)).collect();
+    let varied = |j: usize| fit.sd(j) > 0.0;
+    let per_sd = (0..m).map(|j| varied(j).then(|| beta[j] * fit.sd(j))).collect();
     let (sst, full) = (held.sst(), held.sse(&beta));
+    // A term that never varied where it was fitted adds nothing by construction: no held-out value, as no
+    // gain (never an equivalence to zero for free).
     let delta = (0..m)
         .map(|j| {
             let mut without = all.clone();
             without[j] = false;
-            (sst > 0.0).then(|| (held.sse(&fit.solve(&without)) - full) / sst)
+            (sst > 0.0 && varied(j)).then(|| (held.sse(&fit.solve(&without)) - full) / sst)
         })
         .collect();
     (per_sd, delta)
 }
 
-/// The 95 % percentile interval of `values` (None when fewer than half the resamples gave one).
+/// The 95 % percentile interval of `values` (None when fewer than half the resamples gave one): as many
+/// draws left out below as above (5 each of 200).
 fn percentile_interval(values: &mut [f64], resamples: usize) -> Option<[f64; 2]> {
     if values.len() * 2 < resamples {
         return None;
     }
     values.sort_by(f64::total_cmp);
-    let at = |p: f64| values[((p * values.len() as f64).floor() as usize).min(values.len() - 1)];
-    Some([at(0.025), at(0.975)])
+    let out = (0.025 * values.len() as f64).floor() as usize;
+    Some([values[out.min(values.len() - 1)], values[values.len() - 1 - out.min(values.len() - 1)]])
 }
 
 /// The per-term report of `terms` (the constants left out) fitted on `fit` and judged on `held`, with

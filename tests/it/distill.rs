@@ -60,9 +60,11 @@ fn the_read_out_finds_alignment_where_the_rule_has_it_and_not_where_it_has_none(
     // With alignment: its per-SD gain's interval lies above zero, and it adds held-out variance explained.
     let (_, gain, held_out) = term(&with, "turn.alignment");
     assert!(gain[0] > 0.0 && held_out[0] > 0.0, "with alignment: {with:?}");
-    // Without: the interval holds zero and the term adds nothing out of sample (at most 0.005 of ΔR²).
+    // Without: the gain's interval lies within ±0.02 per SD and the term adds nothing out of sample (at
+    // most 0.005 of ΔR²): the margins `experiments/known-rules.ron` judges rules without alignment by (the
+    // clamped actions can leave a gain of the order of 1e-5, whose interval need not hold zero exactly).
     let (_, gain, held_out) = term(&without, "turn.alignment");
-    assert!(gain[0] < 0.0 && gain[1] > 0.0 && held_out[1] < 0.005, "without alignment: {without:?}");
+    assert!(gain[0] > -0.02 && gain[1] < 0.02 && held_out[1] < 0.005, "without alignment: {without:?}");
     // Evasion is in both rules, and found in both.
     for terms in [&with, &without] {
         let (_, gain, held_out) = term(terms, "turn.evasion");
