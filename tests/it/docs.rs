@@ -777,3 +777,22 @@ fn no_page_gives_a_statement_of_the_paper_a_second_verdict() {
     assert!(second_verdicts("0.68 ± 0.03<!-- claim: e / paper / a --> with paper.", &one).is_empty());
     assert_eq!(second_verdicts("0.68 ± 0.03<!-- claim: e / paper / a --> (reproduced).", &one).len(), 1);
 }
+
+#[test]
+fn every_results_page_and_the_readme_point_to_the_definitions() {
+    // A reader who meets DoS, DoA, C_nn or a verdict mark on any results page finds its definition from
+    // that page (the-paper.md is generated and says it too).
+    let mut pages: Vec<PathBuf> = std::fs::read_dir("docs/src/results")
+        .unwrap()
+        .flatten()
+        .map(|e| e.path())
+        .filter(|p| p.extension().is_some_and(|x| x == "md"))
+        .collect();
+    pages.extend([PathBuf::from("README.md"), PathBuf::from("docs/src/introduction.md")]);
+    let missing: Vec<_> = pages
+        .iter()
+        .filter(|p| !std::fs::read_to_string(p).unwrap().contains("reference/definitions.md"))
+        .map(|p| p.display().to_string())
+        .collect();
+    assert!(missing.is_empty(), "pages that do not link the terms' definitions: {missing:?}");
+}
