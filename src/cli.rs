@@ -21,7 +21,7 @@ use crate::sim::species::SpeciesPlugins;
 use crate::viewer::args::ViewerArgs;
 use clap::parser::ValueSource;
 use clap::{error::ErrorKind, ArgGroup, CommandFactory, FromArgMatches, Parser};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 /// Predators and prey that learn together: a simulator of Li, Li & Zhao (New J. Phys. 2023).
@@ -247,67 +247,96 @@ fn fail(message: &str) -> ExitCode {
     ExitCode::FAILURE
 }
 
+/// The one mode a command line asks for (clap refuses two at once, [`MODES`]), with what names it.
+enum Called<'a> {
+    Train,
+    Resume(&'a Path),
+    Eval(&'a Path),
+    Crossplay(&'a Path),
+    Response(&'a Path),
+    Distill(&'a Path),
+    ForceMap(&'a Path),
+    Record(&'a Path),
+    Animate(&'a Path),
+    Describe(&'a Path),
+    Fingerprint(&'a Path),
+    Bench,
+    Experiment(&'a str),
+    Plot(&'a Path),
+    /// No mode's flag: the window.
+    Viewer,
+}
+
+impl Cli {
+    /// Which mode this command line calls.
+    fn called(&self) -> Called<'_> {
+        let modes = [
+            self.train.train.then_some(Called::Train),
+            self.resume.resume.as_deref().map(Called::Resume),
+            self.eval.eval.as_deref().map(Called::Eval),
+            self.crossplay.crossplay.as_deref().map(Called::Crossplay),
+            self.response.response.as_deref().map(Called::Response),
+            self.distill.distill.as_deref().map(Called::Distill),
+            self.force_map.force_map.as_deref().map(Called::ForceMap),
+            self.record.record.as_deref().map(Called::Record),
+            self.animate.animate.as_deref().map(Called::Animate),
+            self.describe.describe_scene.as_deref().map(Called::Describe),
+            self.fingerprint.fingerprint.as_deref().map(Called::Fingerprint),
+            self.bench.bench.then_some(Called::Bench),
+            self.experiment.experiment.as_deref().map(Called::Experiment),
+            self.plot.plot.as_deref().map(Called::Plot),
+        ];
+        modes.into_iter().flatten().next().unwrap_or(Called::Viewer)
+    }
+}
+
 /// Hands the call to its mode.
 fn run(cli: Cli) -> crate::error::Result<()> {
     cli.common.apply_to_process()?;
-    let shared = Shared { scene: cli.scene, common: cli.common };
-    if cli.train.train {
-        let (scene, opts) = cli.train.options(&shared)?;
-        // One run is one sample: beside it, how far the seeds of its scene differ in the committed results.
-        let spread = opts.progress.then(|| crate::experiment::spread::seeds_like(&scene)).flatten();
-        return train::main(Some(scene), &opts, spread.as_deref());
-    }
-    if let Some(run) = &cli.resume.resume {
-        return train::main(None, &cli.resume.options(run, &shared), None);
-    }
-    if let Some(run) = &cli.eval.eval {
-        let report = crate::run::evaluate::evaluate(&cli.eval.options(run, &shared)?)?;
-        return crate::outln!("{report}");
-    }
-    if let Some(run) = &cli.crossplay.crossplay {
-        return crossplay::main(&cli.crossplay.options(run, &shared)?);
-    }
-    if let Some(run) = &cli.response.response {
-        return response::main(run);
-    }
-    if let Some(run) = &cli.distill.distill {
-        return distill::main(run, &shared.scene.overrides(true)?, shared.common.episodes);
-    }
-    if let Some(trajectory) = &cli.force_map.force_map {
-        let default =
-            cli.deploy.run.as_ref().map_or(PathBuf::from(args::STANDARD_SCENE), |r| r.join(crate::run::folder::SCENE));
-        let (scene, _) = shared.scene.load(&default, &Default::default())?;
-        return force_map::main(trajectory, &scene, shared.common.overwrite);
-    }
-    if let Some(out) = &cli.record.record {
-        return record::main(out, &cli.deploy, &shared);
-    }
-    if let Some(out) = &cli.animate.animate {
-        return animate::main(out, &cli.animate, &cli.deploy, &shared);
-    }
-    if let Some(path) = &cli.describe.describe_scene {
-        return args::describe(path, &shared);
-    }
-    if let Some(run) = &cli.fingerprint.fingerprint {
-        return crate::outln!("{}", crate::run::provenance::fingerprint(run)?);
-    }
-    if cli.bench.bench {
-        if let Some(stem) = &cli.bench.bench_figure {
-            crate::experiment::figures::check_new_figure(stem, "--bench-figure")?;
+    let called = cli.called();
+    let shared = Shared { scene: cli.scene.clone(), common: cli.common.clone() };
+    match called {
+        Called::Train => {
+            let (scene, opts) = cli.train.options(&shared)?;
+            // One run is one sample: beside it, how far the seeds of its scene differ in the committed results.
+            let spread = opts.progress.then(|| crate::experiment::spread::seeds_like(&scene)).flatten();
+            train::main(Some(scene), &opts, spread.as_deref())
         }
-        cli.bench.main()?;
-        return match &cli.bench.bench_figure {
-            Some(stem) => crate::experiment::figures::group_size_cost(stem, cli.bench.budget()?),
-            None => Ok(()),
-        };
+        Called::Resume(run) => train::main(None, &cli.resume.options(run, &shared), None),
+        Called::Eval(run) => {
+            let report = crate::run::evaluate::evaluate(&cli.eval.options(run, &shared)?)?;
+            crate::outln!("{report}")
+        }
+        Called::Crossplay(run) => crossplay::main(&cli.crossplay.options(run, &shared)?),
+        Called::Response(run) => response::main(run),
+        Called::Distill(run) => distill::main(run, &shared.scene.overrides(true)?, shared.common.episodes),
+        Called::ForceMap(trajectory) => {
+            let default = cli
+                .deploy
+                .run
+                .as_ref()
+                .map_or(PathBuf::from(args::STANDARD_SCENE), |r| r.join(crate::run::folder::SCENE));
+            let (scene, _) = shared.scene.load(&default, &Default::default())?;
+            force_map::main(trajectory, &scene, shared.common.overwrite)
+        }
+        Called::Record(out) => record::main(out, &cli.deploy, &shared),
+        Called::Animate(out) => animate::main(out, &cli.animate, &cli.deploy, &shared),
+        Called::Describe(path) => args::describe(path, &shared),
+        Called::Fingerprint(run) => crate::outln!("{}", crate::run::provenance::fingerprint(run)?),
+        Called::Bench => {
+            if let Some(stem) = &cli.bench.bench_figure {
+                crate::experiment::figures::check_new_figure(stem, "--bench-figure")?;
+            }
+            cli.bench.main()?;
+            match &cli.bench.bench_figure {
+                Some(stem) => crate::experiment::figures::group_size_cost(stem, cli.bench.budget()?),
+                None => Ok(()),
+            }
+        }
+        Called::Experiment(which) => command::experiment(&cli.experiment.request(which, &shared)),
+        Called::Plot(dir) => command::plot(dir, cli.plot.partial),
+        Called::Viewer => cli.viewer.main(&cli.animate, &shared),
     }
-    if let Some(which) = &cli.experiment.experiment {
-        return command::experiment(&cli.experiment.request(which, &shared));
-    }
-    if let Some(dir) = &cli.plot.plot {
-        return command::plot(dir, cli.plot.partial);
-    }
-    cli.viewer.main(&cli.animate, &shared)
 }
 
 #[cfg(test)]
