@@ -96,6 +96,15 @@ def _action_space() -> spaces.Box:
 STATE_DIM = 6
 
 
+
+def _no_partial_reset(options: dict | None) -> None:
+    """Refuses Gymnasium's partial reset (``options={"reset_mask": ...}``), which coevo's vector env does not
+    support: ignored, it would reset every world while the caller believes some kept going. Other options
+    are ignored, as Gymnasium and PettingZoo expect of an env that takes none."""
+    if options and "reset_mask" in options:
+        raise InputError("options: reset_mask: a partial reset is not supported (a reset resets every world); "
+                         "nothing was reset")
+
 class CoevoParallelEnv(_ParallelEnv):
     """A coevo scene as a PettingZoo ``ParallelEnv`` (see the module's docstring).
 
@@ -431,6 +440,7 @@ class CoevoVectorEnv(_VectorEnv):
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         if self.closed:
             raise InputError("reset: the env is closed; make a new one")
+        _no_partial_reset(options)
         if seed is not None:
             if not isinstance(seed, (int, np.integer)) or isinstance(seed, bool):
                 raise InputError(f"seed: one integer seeds every world (world i from world_seed(seed, i)); "

@@ -729,3 +729,16 @@ def test_closed_envs_and_integer_actions_are_refused():
     vec.close()
     with pytest.raises(coevo.InputError, match="closed"):
         vec.reset()
+
+
+def test_a_partial_reset_is_refused_not_ignored():
+    # Gymnasium's partial reset (options={"reset_mask": ...}) is not supported by the vector env: said, and
+    # nothing is reset. Other options are ignored, as PettingZoo's and Gymnasium's checks expect.
+    env = coevo.vector_env(STANDARD, num_worlds=2, episode_steps=3)
+    first, _ = env.reset(seed=1)
+    with pytest.raises(coevo.InputError, match="reset_mask: a partial reset is not supported"):
+        env.reset(options={"reset_mask": np.array([True, False])})
+    again, _ = env.reset(seed=1, options={"other": 1})
+    assert np.array_equal(first, again)
+    par = coevo.parallel_env(STANDARD, episode_steps=3)
+    par.reset(seed=0, options={"options": 1})
