@@ -326,15 +326,10 @@ fn term_values(fit: &Sums, held: &Sums) -> (Vec<Option<f64>>, Vec<Option<f64>>) 
     (per_sd, delta)
 }
 
-/// The 95 % percentile interval of `values` (None when fewer than half the resamples gave one): as many
-/// draws left out below as above (5 each of 200).
-fn percentile_interval(values: &mut [f64], resamples: usize) -> Option<[f64; 2]> {
-    if values.len() * 2 < resamples {
-        return None;
-    }
-    values.sort_by(f64::total_cmp);
-    let out = (0.025 * values.len() as f64).floor() as usize;
-    Some([values[out.min(values.len() - 1)], values[values.len() - 1 - out.min(values.len() - 1)]])
+/// The 95 % percentile interval of the resamples that gave a value ([`super::stats::percentile_interval`]);
+/// None when fewer than half of the [`BOOTSTRAP`] resamples did.
+fn interval_of(values: &[f64]) -> Option<[f64; 2]> {
+    (values.len() * 2 >= BOOTSTRAP).then(|| super::stats::percentile_interval(values, 0.05).into())
 }
 
 /// The per-term report of `terms` (the constants left out) fitted on `fit` and judged on `held`, with
@@ -349,10 +344,10 @@ pub(crate) fn term_fits(terms: &[Term], fit: &Design, held: &Design, seed: u64) 
         let whole = |parts: &[Sums]| Sums::total(parts, 0..parts.len(), m);
         let (per_sd, delta) = term_values(&whole(&fit_parts), &whole(&held_parts));
         let (mut sd_draws, mut delta_draws) = (vec![vec![]; m], vec![vec![]; m]);
+        let draw = |parts: &[Sums], rng: &mut rand_chacha::ChaCha8Rng| {
+            Sums::total(parts, (0..parts.len()).map(|_| rng.gen_range(0..parts.len())), m)
+        };
         for _ in 0..BOOTSTRAP {
-            let draw = |parts: &[Sums], rng: &mut rand_chacha::ChaCha8Rng| {
-                Sums::total(parts, (0..parts.len()).map(|_| rng.gen_range(0..parts.len())), m)
-            };
             let (f, h) = (draw(&fit_parts, &mut rng), draw(&held_parts, &mut rng));
             let (s, d) = term_values(&f, &h);
             for j in 0..m {
@@ -365,9 +360,9 @@ pub(crate) fn term_fits(terms: &[Term], fit: &Design, held: &Design, seed: u64) 
             out.push(TermFit {
                 name: t[j].name.to_string(),
                 per_sd: per_sd[j],
-                per_sd_interval: per_sd[j].and(percentile_interval(&mut sd_draws[j], BOOTSTRAP)),
+                per_sd_interval: per_sd[j].and(interval_of(&sd_draws[j])),
                 held_out_gain: delta[j],
-                held_out_gain_interval: delta[j].and(percentile_interval(&mut delta_draws[j], BOOTSTRAP)),
+                held_out_gain_interval: delta[j].and(interval_of(&delta_draws[j])),
             });
         }
     }

@@ -12,6 +12,18 @@ pub(crate) fn mean(values: &[f64]) -> Option<f64> {
     (!values.is_empty()).then(|| values.iter().sum::<f64>() / values.len() as f64)
 }
 
+/// The percentile interval of bootstrap `resamples` at `level` (two-sided; as many resamples left out below
+/// as above): a NaN resample counts at both ends, as −∞ for the lower bound and +∞ for the upper.
+pub(crate) fn percentile_interval(resamples: &[f64], level: f64) -> (f64, f64) {
+    let b = resamples.len();
+    let mut low: Vec<f64> = resamples.iter().map(|r| if r.is_nan() { f64::NEG_INFINITY } else { *r }).collect();
+    let mut high: Vec<f64> = resamples.iter().map(|r| if r.is_nan() { f64::INFINITY } else { *r }).collect();
+    low.sort_by(f64::total_cmp);
+    high.sort_by(f64::total_cmp);
+    let k = ((level / 2.0) * b as f64).floor() as usize;
+    (low[k.min(b - 1)], high[(b - 1).saturating_sub(k)])
+}
+
 /// The least-squares slope of `y` on `x` (NaN when `x` does not vary).
 pub(crate) fn least_squares(x: &[f64], y: &[f64]) -> f64 {
     let (mx, my) = (mean(x).unwrap_or(f64::NAN), mean(y).unwrap_or(f64::NAN));

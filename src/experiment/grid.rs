@@ -401,7 +401,7 @@ pub(crate) fn slope(x: &[f64], levels: &[Vec<f64>]) -> Option<super::stats::Esti
 
 /// A bootstrap test's estimate: the point estimate, the standard deviation of its finite resamples as
 /// its standard error (for the seeds that would decide it), no t interval (its interval is the resamples'
-/// percentiles, [`interval`]); None when the means do not cross within the axis (at every level).
+/// percentiles, [`super::stats::percentile_interval`]); None when the means do not cross within the axis (at every level).
 fn bootstrap_estimate(point: f64, resamples: &[f64], seeds: usize) -> Option<super::stats::Estimate> {
     // No boundary (or none at some level): nothing to estimate, never ±∞ or NaN written as a result.
     if !point.is_finite() {
@@ -422,18 +422,6 @@ fn bootstrap_estimate(point: f64, resamples: &[f64], seeds: usize) -> Option<sup
     })
 }
 
-/// The percentile interval of sorted `resamples` at `level` (two-sided): a NaN resample (no boundary at
-/// some level) counts at both ends, as −∞ for the lower bound and +∞ for the upper.
-pub(crate) fn interval(resamples: &[f64], level: f64) -> (f64, f64) {
-    let b = resamples.len();
-    let mut low: Vec<f64> = resamples.iter().map(|r| if r.is_nan() { f64::NEG_INFINITY } else { *r }).collect();
-    let mut high: Vec<f64> = resamples.iter().map(|r| if r.is_nan() { f64::INFINITY } else { *r }).collect();
-    low.sort_by(f64::total_cmp);
-    high.sort_by(f64::total_cmp);
-    let k = ((level / 2.0) * b as f64).floor() as usize;
-    (low[k.min(b - 1)], high[(b - 1).saturating_sub(k)])
-}
-
 /// The verdict on a boundary or its shift, at the level Holm's procedure tested it at (`level`,
 /// `p_holm`): located (or a shift detected) when its adjusted percentile interval holds neither an end
 /// of the axis (nor zero).
@@ -449,7 +437,7 @@ pub(crate) fn bootstrap_verdict(
         return Verdict::new(Outcome::NotRunYet, "not run yet");
     };
     let level = level.unwrap_or(super::verdict::ALPHA);
-    let (lo, hi) = interval(resamples, level);
+    let (lo, hi) = super::stats::percentile_interval(resamples, level);
     let shown = |x: f64| match x {
         x if x == f64::INFINITY => "beyond the axis's high end".to_string(),
         x if x == f64::NEG_INFINITY => "beyond the axis's low end".to_string(),
@@ -736,7 +724,7 @@ mod tests {
                 (0..RESAMPLES).map(|_| crossing(&x, &resample_means(levels, &mut rng), 0.1, Falls)).collect();
             r.sort_by(f64::total_cmp);
             let beyond = r.iter().filter(|v| !v.is_finite()).count();
-            (crossing(&x, &means(levels), 0.1, Falls), interval(&r, 0.05), beyond)
+            (crossing(&x, &means(levels), 0.1, Falls), crate::analysis::stats::percentile_interval(&r, 0.05), beyond)
         };
         // The flocking share falling linearly from 0.3 to −0.03: it crosses 0.1 at x ≈ −1.41.
         let truth = -3.58 + (0.3 - 0.1) / (0.33 / 3.58);
@@ -751,9 +739,9 @@ mod tests {
     #[test]
     fn a_nan_resample_widens_both_ends_of_the_interval() {
         let mut r: Vec<f64> = (0..100).map(f64::from).collect();
-        assert_eq!(interval(&r, 0.1), (5.0, 94.0));
+        assert_eq!(crate::analysis::stats::percentile_interval(&r, 0.1), (5.0, 94.0));
         r[..10].fill(f64::NAN);
-        let (lo, hi) = interval(&r, 0.1);
+        let (lo, hi) = crate::analysis::stats::percentile_interval(&r, 0.1);
         assert!(lo == f64::NEG_INFINITY && hi == f64::INFINITY, "{lo} {hi}");
     }
 }
