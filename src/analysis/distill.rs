@@ -150,10 +150,12 @@ pub(crate) fn numbers(d: &Distilled) -> Vec<(String, f64)> {
 /// Each term of a fitted rule (the constants left out) with the 95 % intervals of its gain per SD and of
 /// its held-out ΔR² (NaN where there is none), for reading a fit as a whole.
 pub fn term_intervals(d: &Distilled) -> Vec<(String, [f64; 2], [f64; 2])> {
-    let nan = [f64::NAN; 2];
     d.terms
         .iter()
-        .map(|t| (t.name.clone(), t.per_sd_interval.unwrap_or(nan), t.held_out_gain_interval.unwrap_or(nan)))
+        .map(|t| {
+            let [_, sd_low, sd_high, _, ho_low, ho_high] = statistics(t);
+            (t.name.clone(), [sd_low, sd_high], [ho_low, ho_high])
+        })
         .collect()
 }
 
@@ -425,12 +427,14 @@ pub(crate) fn distill(run: &Path, overrides: &Overrides, episodes: usize) -> cra
             false => pursuit_design(&scene, &registry, s, data),
         };
         let (fit_rows, held_rows) = (rows(fit), rows(held_out));
+        // One pass over the fitted rows for both forms.
+        let normals = fit_rows.normals();
         for form in [RuleForm::Memoryless, RuleForm::Inertial] {
             let terms = match zonal {
-                true => rule_fit::choose(&fit_rows, zonal_candidates(form, RADII.len() - 1)),
+                true => rule_fit::choose(&normals, zonal_candidates(form, RADII.len() - 1)),
                 false => pursuit_terms(form),
             };
-            let gains = rule_fit::gains(&terms, &fit_rows);
+            let gains = rule_fit::gains(&terms, &normals);
             let policy = match zonal {
                 true => Policy::Zonal(zonal_rule(&edges(&scene), &terms, &gains)),
                 false => Policy::Pursuit(pursuit_rule(&terms, &gains)),
@@ -576,9 +580,10 @@ mod tests {
         // Clusters of 20 rows, as agents in an episode would be.
         let clusters: Vec<usize> = (0..4000).map(|row| row / 20).collect();
         let rows = zonal_design(&scene, &registry, s, (&obs, &actions, &clusters));
+        let normals = rows.normals();
         let fit = |form| {
-            let terms = rule_fit::choose(&rows, zonal_candidates(form, RADII.len() - 1));
-            zonal_rule(&edges(&scene), &terms, &rule_fit::gains(&terms, &rows))
+            let terms = rule_fit::choose(&normals, zonal_candidates(form, RADII.len() - 1));
+            zonal_rule(&edges(&scene), &terms, &rule_fit::gains(&terms, &normals))
         };
         let fitted = fit(RuleForm::Inertial);
         assert_eq!(

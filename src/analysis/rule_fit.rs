@@ -65,11 +65,13 @@ impl Design {
         &self.x[i * self.k..(i + 1) * self.k]
     }
 
-    /// The normal equations of every feature column over the rows `keep` accepts.
-    pub(crate) fn normal(&self, keep: impl Fn(usize) -> bool) -> Normal {
-        let mut n = Normal::new(self.k);
-        for i in (0..self.rows()).filter(|&i| keep(i)) {
-            n.add(self.row(i), self.y[i]);
+    /// The normal equations every fit of a rule to these rows reads, made in one pass over them: over
+    /// each of two folds of clusters (even and odd, for choosing the zones out of sample) and over all.
+    pub(crate) fn normals(&self) -> Normals {
+        let mut n = Normals { folds: [Normal::new(self.k), Normal::new(self.k)], whole: Normal::new(self.k) };
+        for i in 0..self.rows() {
+            n.folds[self.cluster[i] % 2].add(self.row(i), self.y[i]);
+            n.whole.add(self.row(i), self.y[i]);
         }
         n
     }
@@ -92,6 +94,12 @@ impl Design {
         }
         out
     }
+}
+
+/// A design's normal equations over two folds of its clusters and over all its rows ([`Design::normals`]).
+pub(crate) struct Normals {
+    folds: [Normal; 2],
+    whole: Normal,
 }
 
 /// Sums over rows of x xᵀ, of x·y per action and of y² per action, for the k feature columns x.
@@ -263,11 +271,11 @@ fn out_of_sample(terms: &[Term], fit: &Normal, test: &Normal) -> f64 {
         .sum()
 }
 
-/// Of `candidates` (each a rule's terms), the one that predicts best out of sample within the fitted rows:
-/// two folds by cluster (even and odd), each fitted on one and scored on the other, the errors summed.
-/// Ties go to the first.
-pub(crate) fn choose(fit: &Design, candidates: impl Iterator<Item = Vec<Term>>) -> Vec<Term> {
-    let folds = [fit.normal(|i| fit.cluster[i].is_multiple_of(2)), fit.normal(|i| !fit.cluster[i].is_multiple_of(2))];
+/// Of `candidates` (each a rule's terms), the one that predicts best out of sample within the fitted rows
+/// (`normals`): two folds by cluster, each fitted on one and scored on the other, the errors summed. Ties
+/// go to the first.
+pub(crate) fn choose(normals: &Normals, candidates: impl Iterator<Item = Vec<Term>>) -> Vec<Term> {
+    let folds = &normals.folds;
     let mut best: Option<(f64, Vec<Term>)> = None;
     for terms in candidates {
         let error = out_of_sample(&terms, &folds[0], &folds[1]) + out_of_sample(&terms, &folds[1], &folds[0]);
@@ -278,9 +286,9 @@ pub(crate) fn choose(fit: &Design, candidates: impl Iterator<Item = Vec<Term>>) 
     best.expect("at least one candidate").1
 }
 
-/// The gains of `terms` fitted on all of `fit`'s rows, by term.
-pub(crate) fn gains(terms: &[Term], fit: &Design) -> Vec<f64> {
-    let normal = fit.normal(|_| true);
+/// The gains of `terms` fitted on all the fitted rows (`normals`), by term.
+pub(crate) fn gains(terms: &[Term], normals: &Normals) -> Vec<f64> {
+    let normal = &normals.whole;
     let mut out = vec![0.0; terms.len()];
     for a in 0..2 {
         let t = of_action(terms, a);
@@ -396,7 +404,7 @@ mod tests {
     #[test]
     fn a_present_term_is_told_from_an_absent_one() {
         let (fit, held) = (data(1), data(2));
-        let g = gains(&terms(), &fit);
+        let g = gains(&terms(), &fit.normals());
         assert!((g[1] - 0.5).abs() < 0.02 && g[2].abs() < 0.02, "{g:?}");
         let fits = term_fits(&terms(), &fit, &held, 3);
         let (x1, x2) = (&fits[0], &fits[1]);
@@ -419,7 +427,7 @@ mod tests {
         let fit = data(4);
         let t = |action, name, c: usize| Term { action, name, columns: vec![c] };
         let with = |c| vec![t(1, "turn.bias", 0), t(1, "turn.x", c), t(0, "thrust.bias", 0)];
-        assert_eq!(choose(&fit, [with(2), with(1)].into_iter()), with(1));
+        assert_eq!(choose(&fit.normals(), [with(2), with(1)].into_iter()), with(1));
     }
 
     #[test]
