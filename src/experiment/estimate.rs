@@ -23,23 +23,26 @@ fn measured(exp: &Experiment) -> Option<(f64, usize)> {
 }
 
 /// The line said before runs are made, `jobs` at a time: `left` holds each run with episodes left to
-/// train (an index into `exp.runs`, the episodes), `probe` times a few episodes of a run when none of the
-/// experiment's runs has any yet (seconds per episode, episodes timed). None when nothing is left.
+/// train (an index into `exp.runs`, the episodes), `probe` times a few episodes of a run, as many copies
+/// side by side as runs will be, when none of the experiment's runs has any yet (seconds per episode,
+/// episodes timed). None when nothing is left.
 pub(crate) fn say(
     exp: &Experiment,
     left: &[(usize, usize)],
     jobs: usize,
-    probe: impl FnOnce(&Run) -> crate::error::Result<(f64, usize)>,
+    probe: impl FnOnce(&Run, usize) -> crate::error::Result<(f64, usize)>,
 ) -> crate::error::Result<Option<String>> {
     let Some(&(first, _)) = left.first() else { return Ok(None) };
     let episodes: usize = left.iter().map(|(_, e)| e).sum();
-    let probed = measured(exp).is_none();
-    let (rate, basis) = match measured(exp) {
+    let at_once = jobs.clamp(1, left.len());
+    let measured = measured(exp);
+    let probed = measured.is_none();
+    let (rate, basis) = match measured {
         Some((rate, n)) => (rate, format!("measured on {n} of its runs here")),
         None => {
             let run = &exp.runs[first];
-            let (rate, probed) = probe(run)?;
-            let side_by_side = match jobs.clamp(1, left.len()) {
+            let (rate, probed) = probe(run, at_once)?;
+            let side_by_side = match at_once {
                 1 => String::new(),
                 n => format!(", {n} side by side"),
             };
@@ -47,7 +50,6 @@ pub(crate) fn say(
         }
     };
     let hours = episodes as f64 * rate / 3600.0;
-    let at_once = jobs.clamp(1, left.len());
     Ok(Some(format!(
         "coevo: {}: {} training{} left, {episodes} episodes at {rate:.3} s each ({basis}): about {} of training, \
          {} with {at_once} at a time (read-outs and evaluations come on top{})",

@@ -497,8 +497,9 @@ pub(crate) fn run(exp: &Experiment, opts: &RunnerOptions, only: Option<usize>) -
             left.push((i, episodes_left(&exp.runs[i])?));
         }
         left.retain(|&(_, episodes)| episodes > 0);
-        let at_once = opts.jobs.clamp(1, left.len().max(1));
-        if let Some(line) = super::estimate::say(exp, &left, opts.jobs, |run| probe(exp, run, exe, threads, at_once))? {
+        if let Some(line) =
+            super::estimate::say(exp, &left, opts.jobs, |run, copies| probe(exp, run, exe, threads, copies))?
+        {
             crate::errln!("{line}")?;
         }
     }

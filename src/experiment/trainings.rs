@@ -52,7 +52,9 @@ impl Training {
 
     /// Whether this training declares itself a re-training of `other` (same preset and seed).
     fn declares(&self, other: &Training) -> bool {
-        self.declared.as_deref() == Some(&format!("{}/{}", other.experiment, other.variant))
+        // "EXPERIMENT/VARIANT": an experiment's name (its file's stem) holds no '/', a variant's may.
+        self.declared.as_deref().and_then(|d| d.split_once('/'))
+            == Some((other.experiment.as_str(), other.variant.as_str()))
             && (self.preset.as_str(), self.seed) == (other.preset.as_str(), other.seed)
     }
 }
@@ -185,15 +187,14 @@ pub(crate) fn count(trainings: &[Training]) -> (usize, usize, f64) {
 /// episodes). They are trained and counted; the report names each pair of variants and how many seeds.
 pub(crate) fn same_outcomes(trainings: &[Training]) -> BTreeMap<(String, String), usize> {
     // The columns both rows have (files differ in evaluations, not in training columns), DoA among them.
-    let same_numbers = |a: &BTreeMap<String, u64>, b: &BTreeMap<String, u64>| {
-        a.contains_key("doa_last100") && a.iter().all(|(c, v)| b.get(c).is_none_or(|w| w == v))
+    let same_numbers = |o: &Training, t: &Training| {
+        matches!((&o.outcome, &t.outcome), (Some(a), Some(_)) if a.contains_key("doa_last100"))
+            && outcome_difference(o, t).is_none()
     };
     let mut same = BTreeMap::new();
     for (k, t) in trainings.iter().enumerate() {
         let earlier = trainings[..k].iter().find(|o| {
-            (o.preset.as_str(), o.seed) == (t.preset.as_str(), t.seed)
-                && o.key.0 != t.key.0
-                && matches!((&o.outcome, &t.outcome), (Some(a), Some(b)) if same_numbers(a, b))
+            (o.preset.as_str(), o.seed) == (t.preset.as_str(), t.seed) && o.key.0 != t.key.0 && same_numbers(o, t)
         });
         if let Some(o) = earlier {
             let name = |t: &Training| format!("{}/{}", t.experiment, t.variant);
