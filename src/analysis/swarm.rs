@@ -31,9 +31,11 @@ impl Recorded {
     }
 }
 
-/// Which species of `scene` act by an actor a run holds (learned or frozen).
+/// Which species of `scene` act by an actor a run holds (learned or frozen: those `Learners::new` makes a
+/// learner for), read off their policies rather than by making the learners.
 pub(crate) fn with_actors(scene: &Scene) -> Vec<bool> {
-    crate::learning::Learners::new(scene, Mode::Evaluate).species.iter().map(|l| l.is_some()).collect()
+    use crate::scene::Policy;
+    scene.species.iter().map(|d| matches!(d.policy, Policy::Learned | Policy::Frozen(_))).collect()
 }
 
 /// Deploys `run`'s actors on `scene` without noise for `episodes` episodes (the other species following
