@@ -1,11 +1,7 @@
 //! Can `--distill` tell which terms a swarm's rule has? Prey that follow a known zonal rule, with and
 //! without its alignment term, chased by the same rule-based predators, read as a trained swarm is read.
 
-use std::process::Command;
-
-fn coevo(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_coevo")).args(args).output().expect("coevo runs")
-}
+use super::record::coevo;
 
 /// A zonal prey rule in the standard scene's metres (a 2 m torus): repulsion within 0.1 m, alignment to
 /// 0.4 m with gain `alignment`, attraction to 1 m, evasion of predators within 0.6 m.

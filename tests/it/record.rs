@@ -2,7 +2,7 @@
 
 use std::process::Command;
 
-fn coevo(args: &[&str]) -> std::process::Output {
+pub(super) fn coevo(args: &[&str]) -> std::process::Output {
     Command::new(env!("CARGO_BIN_EXE_coevo")).args(args).output().expect("coevo runs")
 }
 
