@@ -1,8 +1,9 @@
 //! Distilled rules: the actors of a run replaced by rules a collective-behaviour researcher can read,
 //! fitted to what the agents do. Prey get a zonal rule (Couzin et al., J. Theor. Biol. 2002: repulsion,
-//! alignment, attraction; plus evasion of predators), predators a pursuit rule (the nearest prey, the
-//! centre of the prey in view, the most isolated one), both [`crate::scene`] policies that run everywhere a
-//! rule-based policy runs.
+//! alignment, attraction; plus evasion of predators) and a binned rule (the same kinds of term with a gain
+//! per distance bin: an additive model per neighbour whose pull may change with distance in any way),
+//! predators a pursuit rule (the nearest prey, the centre of the prey in view, the most isolated one), all
+//! [`crate::scene`] policies that run everywhere a rule-based policy runs.
 //!
 //! The data: the swarm at the counts asked for ([`super::swarm::record`]), every agent's observation and
 //! the action it took on it, step by step, for every species that acts by an actor or a rule (so a swarm
@@ -12,13 +13,17 @@
 //! The fit ([`rule_fit`]): least squares per action (thrust and turn in [−1, 1]), the rule linear in its
 //! gains. The zones' radii are chosen from [`RADII`] (fractions of the arena's edge) among choices in
 //! which every zone holds at least one bin, by how well each predicts out of sample within the fitted
-//! episodes (two folds of agents), so no gain is zero because its zone was left empty. Each term is
+//! episodes (two folds of agents), so no gain is zero because its zone was left empty; the binned rule
+//! has a gain for every bin and no zones to choose, its bins of one kind reported as one term. Each term is
 //! reported per standard deviation of its feature with a cluster-bootstrap interval, and with its held-out
 //! value (ΔR² of leaving it out). How well a rule fits as a whole is the fraction of each action's variance
 //! it explains, as the rule acts (clamped to [−1, 1]), on the held-out episodes and on the fitted ones.
 
 use super::rule_fit::{self, Design, Term, TermFit};
-use crate::scene::{Overrides, Policy, PursuitGains, PursuitRule, RuleForm, Scene, ZonalRule, ZonalThrust, ZonalTurn};
+use crate::scene::{
+    BinnedGains, BinnedRule, Overrides, Policy, PursuitGains, PursuitRule, RuleForm, Scene, ZonalRule, ZonalThrust,
+    ZonalTurn,
+};
 use crate::sim::rules::{observed, observed_of, Own, PursuitFeatures, Seen};
 use crate::sim::species::{SpeciesRegistry, ACTION_DIM};
 use serde::{Deserialize, Serialize};
@@ -107,30 +112,61 @@ fn statistics(t: &TermFit) -> [f64; 6] {
     [t.per_sd, sd_low, sd_high, t.held_out_gain, ho_low, ho_high].map(|v| v.unwrap_or(f64::NAN))
 }
 
-/// A rule's parameters by name ([`ZonalRule::numbers`], [`PursuitRule::numbers`]); none for another policy.
-fn parameters(policy: &Policy) -> Vec<(&'static str, f64)> {
+/// A rule's parameters by name ([`ZonalRule::numbers`], [`PursuitRule::numbers`], a binned rule's gains
+/// as [`BinnedRule::numbers`] names them, its edges left out: they are [`RADII`]); none for another policy.
+fn parameters(policy: &Policy) -> Vec<(String, f64)> {
+    let named = |numbers: &[(&str, f64)]| numbers.iter().map(|&(n, v)| (n.to_string(), v)).collect();
     match policy {
-        Policy::Zonal(rule) => rule.numbers().to_vec(),
-        Policy::Pursuit(rule) => rule.numbers().to_vec(),
+        Policy::Zonal(rule) => named(&rule.numbers()),
+        Policy::Pursuit(rule) => named(&rule.numbers()),
+        Policy::Binned(rule) => rule.numbers().into_iter().filter(|(n, _)| !n.starts_with("edges")).collect(),
         _ => vec![],
     }
 }
 
-/// The names of the terms reported of `kind`'s rule in `form` (the constants left out).
+/// The rule `--distill` fits in `form` to a species whose rule is of `kind` ([`rule_for`]), every gain zero.
+fn template(kind: &Policy, form: RuleForm) -> Policy {
+    match (kind, form) {
+        (Policy::Zonal(_), RuleForm::Binned) => {
+            let terms = binned_terms(RADII.len() - 1);
+            Policy::Binned(binned_rule(&RADII, &terms, &vec![0.0; terms.len()]))
+        }
+        _ => kind.clone(),
+    }
+}
+
+/// The names of the terms reported of `kind`'s rule in `form` (the constants left out; a binned rule's
+/// bins of one kind under one name).
 fn term_names(kind: &Policy, form: RuleForm) -> Vec<&'static str> {
-    let terms = match kind {
-        Policy::Zonal(_) => zonal_terms(form, [1, 2, 3, 1], RADII.len() - 1),
+    let terms = match (kind, form) {
+        (Policy::Zonal(_), RuleForm::Binned) => binned_terms(RADII.len() - 1),
+        (Policy::Zonal(_), _) => zonal_terms(form, [1, 2, 3, 1], RADII.len() - 1),
         _ => pursuit_terms(form),
     };
-    terms.iter().map(|t| t.name).filter(|n| !n.ends_with("bias")).collect()
+    let mut names: Vec<&str> = vec![];
+    for name in terms.iter().map(|t| t.name).filter(|n| !n.ends_with("bias")) {
+        if !names.contains(&name) {
+            names.push(name);
+        }
+    }
+    names
+}
+
+/// The forms `--distill` fits to a species of `kind` ([`rule_for`]): both zonal forms and the binned rule
+/// to prey, both pursuit forms to predators.
+pub(crate) fn forms_of(kind: &Policy) -> &'static [RuleForm] {
+    match kind {
+        Policy::Zonal(_) => &[RuleForm::Memoryless, RuleForm::Inertial, RuleForm::Binned],
+        _ => &[RuleForm::Memoryless, RuleForm::Inertial],
+    }
 }
 
 /// The names of a rule's numbers: its parameters, how much it explains, and each term's [`STATISTICS`].
 fn number_names(kind: &Policy, form: RuleForm) -> Vec<String> {
     let statistics = term_names(kind, form).into_iter().flat_map(|t| STATISTICS.map(|s| format!("{t}.{s}")));
-    parameters(kind)
+    parameters(&template(kind, form))
         .into_iter()
-        .map(|(n, _)| n.to_string())
+        .map(|(n, _)| n)
         .chain(EXPLAINED.map(String::from))
         .chain(statistics)
         .collect()
@@ -140,7 +176,7 @@ fn number_names(kind: &Policy, form: RuleForm) -> Vec<String> {
 /// that never varied, a term that never did).
 pub(crate) fn numbers(d: &Distilled) -> Vec<(String, f64)> {
     let explained = EXPLAINED.into_iter().zip(d.explained_held_out.map(|v| v.unwrap_or(f64::NAN)));
-    let fixed = parameters(&d.policy).into_iter().chain(explained).map(|(name, v)| (name.to_string(), v));
+    let fixed = parameters(&d.policy).into_iter().chain(explained.map(|(name, v)| (name.to_string(), v)));
     let terms =
         d.terms.iter().flat_map(|t| STATISTICS.iter().zip(statistics(t)).map(|(s, v)| (format!("{}.{s}", t.name), v)));
     // A gain held at zero may be −0: the same number, shown as 0.
@@ -163,9 +199,11 @@ pub fn term_intervals(d: &Distilled) -> Vec<(String, [f64; 2], [f64; 2])> {
 pub(crate) fn names() -> Vec<String> {
     let mut names: Vec<String> = vec![];
     for kind in [Policy::Zonal(ZonalRule::default()), Policy::Pursuit(PursuitRule::default())] {
-        for name in number_names(&kind, RuleForm::Inertial) {
-            if !names.contains(&name) {
-                names.push(name);
+        for &form in forms_of(&kind) {
+            for name in number_names(&kind, form) {
+                if !names.contains(&name) {
+                    names.push(name);
+                }
             }
         }
     }
@@ -187,23 +225,24 @@ pub(crate) fn read_numbers(
         .collect())
 }
 
-/// The rules `--distill` fits on runs of `scene`, each with the names of its numbers ([`numbers`]): for
-/// every species it reads ([`fitted_species`]), in both forms.
-pub(crate) fn rules(scene: &Scene) -> Vec<(String, RuleForm, Vec<String>)> {
+/// The rules `--distill` fits on runs of `scene` that are read in `forms`, each with the names of its
+/// numbers ([`numbers`]): for every species it reads ([`fitted_species`]), in each of those forms it is
+/// fitted in ([`forms_of`]).
+pub(crate) fn rules(scene: &Scene, forms: &[RuleForm]) -> Vec<(String, RuleForm, Vec<String>)> {
     let registry = SpeciesRegistry::from_scene(scene);
     let mut out = vec![];
     for (s, def) in scene.species.iter().enumerate().filter(|&(s, _)| fitted_species(scene, &registry, s)) {
         let Some(kind) = rule_for(&registry, s) else { continue };
-        for form in [RuleForm::Memoryless, RuleForm::Inertial] {
+        for &form in forms_of(&kind).iter().filter(|f| forms.contains(f)) {
             out.push((def.name.clone(), form, number_names(&kind, form)));
         }
     }
     out
 }
 
-/// The (species, form, name) of every number `--distill` fits on runs of `scene` ([`rules`]).
-pub(crate) fn columns(scene: &Scene) -> Vec<(String, RuleForm, String)> {
-    rules(scene)
+/// The (species, form, name) of every number `--distill` fits on runs of `scene` in `forms` ([`rules`]).
+pub(crate) fn columns(scene: &Scene, forms: &[RuleForm]) -> Vec<(String, RuleForm, String)> {
+    rules(scene, forms)
         .into_iter()
         .flat_map(|(species, form, names)| names.into_iter().map(move |n| (species.clone(), form, n)))
         .collect()
@@ -329,6 +368,53 @@ fn zonal_rule(edges: &[f64], terms: &[Term], gains: &[f64]) -> ZonalRule {
     }
 }
 
+/// The terms of a [`BinnedRule`] on [`binned`]'s columns: the own state's two as the `Inertial` zonal rule
+/// has them, and a gain per bin for each kind of neighbour term, the bins of one kind sharing its name
+/// (the turn: the kin's left parts, their sin Δheading, the predators' left parts; the thrust: the kin's
+/// and the predators' ahead parts).
+fn binned_terms(bins: usize) -> Vec<Term> {
+    let (ahead, left, sin) = (|b| LEADING + 3 * b, |b| LEADING + 1 + 3 * b, |b| LEADING + 2 + 3 * b);
+    let (p_ahead, p_left) = (|b| LEADING + 3 * bins + 2 * b, |b| LEADING + 1 + 3 * bins + 2 * b);
+    let per_bin = |action, name, column: &dyn Fn(usize) -> usize| {
+        (0..bins).map(move |b| Term { action, name, columns: vec![column(b)] }).collect::<Vec<_>>()
+    };
+    let mut terms = vec![
+        Term { action: 1, name: "turn.bias", columns: vec![0] },
+        Term { action: 1, name: "turn.persistence", columns: vec![1] },
+    ];
+    terms.extend(per_bin(1, "turn.kin", &left));
+    terms.extend(per_bin(1, "turn.alignment", &sin));
+    terms.extend(per_bin(1, "turn.evasion", &p_left));
+    terms.push(Term { action: 0, name: "thrust.bias", columns: vec![0] });
+    terms.push(Term { action: 0, name: "thrust.speed", columns: vec![2] });
+    terms.extend(per_bin(0, "thrust.kin", &ahead));
+    terms.extend(per_bin(0, "thrust.evasion", &p_ahead));
+    terms
+}
+
+/// The binned rule of `terms` ([`binned_terms`]) with their `gains`, on the bins of `edges`.
+fn binned_rule(edges: &[f64], terms: &[Term], gains: &[f64]) -> BinnedRule {
+    let of = |name: &str| terms.iter().zip(gains).filter(|(t, _)| t.name == name).map(|(_, &g)| g).collect::<Vec<_>>();
+    let one = |name: &str| of(name).first().copied().unwrap_or(0.0);
+    BinnedRule {
+        edges: edges.to_vec(),
+        turn: BinnedGains {
+            bias: one("turn.bias"),
+            kin: of("turn.kin"),
+            alignment: of("turn.alignment"),
+            evasion: of("turn.evasion"),
+        },
+        thrust: BinnedGains {
+            bias: one("thrust.bias"),
+            kin: of("thrust.kin"),
+            alignment: vec![],
+            evasion: of("thrust.evasion"),
+        },
+        persistence: one("turn.persistence"),
+        speed: one("thrust.speed"),
+    }
+}
+
 /// A predator's rows: a constant, the previous turn, the speed, then the nearest's, the centre's and the
 /// most isolated's [ahead, left].
 fn pursuit_design(scene: &Scene, registry: &SpeciesRegistry, s: usize, data: (&[f32], &[f32], &[usize])) -> Design {
@@ -429,15 +515,17 @@ pub(crate) fn distill(run: &Path, overrides: &Overrides, episodes: usize) -> cra
         let (fit_rows, held_rows) = (rows(fit), rows(held_out));
         // One pass over the fitted rows for both forms.
         let normals = fit_rows.normals();
-        for form in [RuleForm::Memoryless, RuleForm::Inertial] {
-            let terms = match zonal {
-                true => rule_fit::choose(&normals, zonal_candidates(form, RADII.len() - 1)),
-                false => pursuit_terms(form),
+        for &form in forms_of(&kind) {
+            let terms = match (zonal, form) {
+                (true, RuleForm::Binned) => binned_terms(RADII.len() - 1),
+                (true, _) => rule_fit::choose(&normals, zonal_candidates(form, RADII.len() - 1)),
+                (false, _) => pursuit_terms(form),
             };
             let gains = rule_fit::gains(&terms, &normals);
-            let policy = match zonal {
-                true => Policy::Zonal(zonal_rule(&edges(&scene), &terms, &gains)),
-                false => Policy::Pursuit(pursuit_rule(&terms, &gains)),
+            let policy = match (zonal, form) {
+                (true, RuleForm::Binned) => Policy::Binned(binned_rule(&edges(&scene), &terms, &gains)),
+                (true, _) => Policy::Zonal(zonal_rule(&edges(&scene), &terms, &gains)),
+                (false, _) => Policy::Pursuit(pursuit_rule(&terms, &gains)),
             };
             // The intervals' resamples are drawn from the scene's seed, per species and form.
             let draws = scene.seed ^ ((s as u64) << 32) ^ form as u64;
@@ -468,7 +556,8 @@ pub(crate) fn distill(run: &Path, overrides: &Overrides, episodes: usize) -> cra
 #[derive(clap::Args, Debug, Clone, Default)]
 pub(crate) struct DistillArgs {
     /// Fit readable rules to a run's trained actors: a zonal rule (repulsion, alignment, attraction,
-    /// predator evasion) for prey, a pursuit rule for predators, on the actors deployed without noise
+    /// predator evasion) and a binned rule (those terms with a gain per distance bin) for prey, a pursuit
+    /// rule for predators, on the actors deployed without noise
     /// (--episodes, default 4: the first half fits, the rest is held out; --prey, --count, --steps, --seed
     /// as for --eval). Writes DIR/distilled.ron, whose policies a scene or --policy takes as they are.
     #[arg(long, help_heading = "Modes", value_name = "DIR")]
@@ -519,11 +608,13 @@ mod tests {
     use crate::scene::{ObservationFrame, ZonalTerm};
 
     /// Observations of a prey in the standard scene's layout, with its actions from `rule` itself.
-    fn rule_data(scene: &Scene, rule: &ZonalRule, rows: usize) -> (Vec<f32>, Vec<f32>) {
+    fn rule_data(scene: &Scene, rule: &Policy, rows: usize) -> (Vec<f32>, Vec<f32>) {
         use rand::{Rng, SeedableRng};
         use std::f32::consts::PI;
-        let registry = SpeciesRegistry::from_scene(scene);
-        let s = registry.defs.iter().position(|d| d.name == "prey").unwrap();
+        let mut scene = scene.clone();
+        let s = scene.species.iter().position(|d| d.name == "prey").unwrap();
+        scene.species[s].policy = rule.clone();
+        let registry = SpeciesRegistry::from_scene(&scene);
         let (kin, pred) = (registry.block_offset(s, s), registry.block_offset(s, 1 - s));
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
         let (mut obs, mut actions) = (vec![], vec![]);
@@ -540,13 +631,7 @@ mod tests {
             // Own state: speed ahead and the previous turn.
             o[0] = rng.gen_range(0.0..registry.defs[s].max_speed as f32);
             o[2] = rng.gen_range(-1.0..1.0);
-            let f = crate::sim::rules::ZonalFeatures::of(
-                rule,
-                Own::of(&o, &registry, s, ObservationFrame::Body),
-                &observed(&o, &registry, s, s, ObservationFrame::Body),
-                &observed(&o, &registry, s, 1 - s, ObservationFrame::Body),
-            );
-            actions.extend(crate::sim::rules::zonal_action(rule, &f));
+            actions.extend(crate::sim::policy::rule_action(&o, &registry, s, &scene, &mut rng).expect("a rule"));
             obs.extend(o);
         }
         (obs, actions)
@@ -575,7 +660,7 @@ mod tests {
         };
         let registry = SpeciesRegistry::from_scene(&scene);
         let s = registry.defs.iter().position(|d| d.name == "prey").unwrap();
-        let (obs, actions) = rule_data(&scene, &rule, 4000);
+        let (obs, actions) = rule_data(&scene, &Policy::Zonal(rule.clone()), 4000);
         let dim = registry.observation_dim(s);
         // Clusters of 20 rows, as agents in an episode would be.
         let clusters: Vec<usize> = (0..4000).map(|row| row / 20).collect();
@@ -606,5 +691,55 @@ mod tests {
         // Fitted without its own state, the rule holds persistence and speed at zero.
         let memoryless = fit(RuleForm::Memoryless);
         assert_eq!((memoryless.turn.persistence, memoryless.thrust.speed), (0.0, 0.0));
+    }
+
+    #[test]
+    fn a_binned_rule_is_recovered_from_its_own_actions_and_its_absent_alignment_adds_nothing() {
+        let mut scene = Scene::preset("gym-pps").unwrap();
+        scene.observation_frame = ObservationFrame::Body;
+        let registry = SpeciesRegistry::from_scene(&scene);
+        let s = registry.defs.iter().position(|d| d.name == "prey").unwrap();
+        let (edges, bins) = (edges(&scene), RADII.len() - 1);
+        // A pull that changes sign with distance (away close by, toward farther out), no alignment, and an
+        // evasion that fades with distance; gains small enough that the actions rarely saturate.
+        let ramp = |f: &dyn Fn(f64) -> f64| (0..bins).map(|b| f(b as f64 / bins as f64)).collect::<Vec<_>>();
+        let rule = BinnedRule {
+            edges: edges.clone(),
+            turn: BinnedGains {
+                bias: 0.05,
+                kin: ramp(&|x| 0.15 * x - 0.05),
+                alignment: vec![0.0; bins],
+                evasion: ramp(&|x| -0.2 * (1.0 - x)),
+            },
+            thrust: BinnedGains { bias: 0.3, kin: ramp(&|x| 0.1 * x), alignment: vec![], evasion: ramp(&|x| -0.1 * x) },
+            persistence: 0.3,
+            speed: -0.2,
+        };
+        let policy = Policy::Binned(rule.clone());
+        let (fit, held) = (rule_data(&scene, &policy, 4000), rule_data(&scene, &policy, 2000));
+        let clusters: Vec<usize> = (0..4000).map(|row| row / 20).collect();
+        let rows = |(obs, actions): &(Vec<f32>, Vec<f32>)| {
+            zonal_design(&scene, &registry, s, (obs, actions, &clusters[..actions.len() / ACTION_DIM]))
+        };
+        let (fit_rows, held_rows) = (rows(&fit), rows(&held));
+        let terms = binned_terms(bins);
+        let fitted = binned_rule(&edges, &terms, &rule_fit::gains(&terms, &fit_rows.normals()));
+        // The data's neighbours lie within 1 m (`rule_data`): the bins beyond hold none, and their gains
+        // stay at zero.
+        let bin = |name: &str| name.find('[').map(|at| name[at + 1..name.len() - 1].parse::<usize>().unwrap());
+        let seen = |name: &str| name.starts_with("edges") || bin(name).is_none_or(|b| edges[b] < 1.0);
+        for ((name, a), (_, b)) in fitted.numbers().iter().zip(rule.numbers()) {
+            let b = if seen(name) { b } else { 0.0 };
+            assert!((a - b).abs() < 0.02, "{name}: fitted {a}, true {b}");
+        }
+        let dim = registry.observation_dim(s);
+        let [thrust, turn] = explained(&scene, s, &Policy::Binned(fitted), &held.0, &held.1, dim);
+        assert!(thrust.unwrap() > 0.99 && turn.unwrap() > 0.99, "{thrust:?} {turn:?}");
+        // Each kind of term as a group: alignment, absent, adds nothing held out; evasion and the kin do.
+        let fits = rule_fit::term_fits(&terms, &fit_rows, &held_rows, 1);
+        let held_out = |name: &str| fits.iter().find(|t| t.name == name).unwrap().held_out_gain.unwrap();
+        assert!(held_out("turn.alignment").abs() < 0.005, "{fits:?}");
+        assert!(held_out("turn.evasion") > 0.05 && held_out("turn.kin") > 0.02, "{fits:?}");
+        assert_eq!(term_names(&Policy::Zonal(ZonalRule::default()), RuleForm::Binned).len(), 7);
     }
 }

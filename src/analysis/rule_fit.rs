@@ -306,32 +306,35 @@ pub struct TermFit {
     /// The parameter the term estimates, as the rule names it (e.g. `turn.alignment`).
     pub name: String,
     /// Its gain per standard deviation of the term, and the 95 % interval; None when the term never
-    /// varied over the fitted rows.
+    /// varied over the fitted rows, and for a group of terms (a binned rule's bins: no single gain).
     pub per_sd: Option<f64>,
     pub per_sd_interval: Option<[f64; 2]>,
-    /// Its held-out ΔR², and the 95 % interval; None when the action never varied on the held-out rows.
+    /// Its held-out ΔR² (of the whole group), and the 95 % interval; None when the action never varied on
+    /// the held-out rows.
     pub held_out_gain: Option<f64>,
     pub held_out_gain_interval: Option<[f64; 2]>,
 }
 
-/// Per term, the point values of one resample (or of the data itself): per-SD gain and held-out ΔR².
-fn term_values(fit: &Sums, held: &Sums) -> (Vec<Option<f64>>, Vec<Option<f64>>) {
-    let m = fit.m;
-    let all = vec![true; m];
+/// Per group of terms (one term, or every term of one name: a binned rule's bins), the point values of
+/// one resample (or of the data itself): the per-SD gain (of a group of one term only) and the held-out
+/// ΔR² of leaving the whole group out.
+fn term_values(fit: &Sums, held: &Sums, groups: &[Vec<usize>]) -> (Vec<Option<f64>>, Vec<Option<f64>>) {
+    let all = vec![true; fit.m];
     let beta = fit.solve(&all);
     let varied = |j: usize| fit.sd(j) > 0.0;
-    let per_sd = (0..m).map(|j| varied(j).then(|| beta[j] * fit.sd(j))).collect();
+    let per_sd = groups.iter().map(|g| match g[..] {
+        [j] => varied(j).then(|| beta[j] * fit.sd(j)),
+        _ => None,
+    });
     let (sst, full) = (held.sst(), held.sse(&beta));
-    // A term that never varied where it was fitted adds nothing by construction: no held-out value, as no
-    // gain (never an equivalence to zero for free).
-    let delta = (0..m)
-        .map(|j| {
-            let mut without = all.clone();
-            without[j] = false;
-            (sst > 0.0 && varied(j)).then(|| (held.sse(&fit.solve(&without)) - full) / sst)
-        })
-        .collect();
-    (per_sd, delta)
+    // A group none of whose terms varied where it was fitted adds nothing by construction: no held-out
+    // value, as no gain (never an equivalence to zero for free).
+    let delta = groups.iter().map(|g| {
+        let mut without = all.clone();
+        g.iter().for_each(|&j| without[j] = false);
+        (sst > 0.0 && g.iter().any(|&j| varied(j))).then(|| (held.sse(&fit.solve(&without)) - full) / sst)
+    });
+    (per_sd.collect(), delta.collect())
 }
 
 /// The 95 % percentile interval of the resamples that gave a value ([`super::stats::percentile_interval`]);
@@ -341,36 +344,46 @@ fn interval_of(values: &[f64]) -> Option<[f64; 2]> {
 }
 
 /// The per-term report of `terms` (the constants left out) fitted on `fit` and judged on `held`, with
-/// cluster-bootstrap intervals drawn from `seed`.
+/// cluster-bootstrap intervals drawn from `seed`. Terms of one action that share a name are one group,
+/// reported once: a binned rule's bins of one kind.
 pub(crate) fn term_fits(terms: &[Term], fit: &Design, held: &Design, seed: u64) -> Vec<TermFit> {
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
     let mut out = vec![];
     for a in 0..2 {
         let t = of_action(terms, a);
         let m = t.len();
+        // By name in order of first appearance; the constant (the first term) has neither a spread nor a
+        // held-out value of its own.
+        let mut groups: Vec<Vec<usize>> = vec![];
+        for j in 1..m {
+            match groups.iter_mut().find(|g| t[g[0]].name == t[j].name) {
+                Some(g) => g.push(j),
+                None => groups.push(vec![j]),
+            }
+        }
+        let n = groups.len();
         let (fit_parts, held_parts) = (fit.cluster_sums(&t), held.cluster_sums(&t));
         let whole = |parts: &[Sums]| Sums::total(parts, 0..parts.len(), m);
-        let (per_sd, delta) = term_values(&whole(&fit_parts), &whole(&held_parts));
-        let (mut sd_draws, mut delta_draws) = (vec![vec![]; m], vec![vec![]; m]);
+        let (per_sd, delta) = term_values(&whole(&fit_parts), &whole(&held_parts), &groups);
+        let (mut sd_draws, mut delta_draws) = (vec![vec![]; n], vec![vec![]; n]);
         let draw = |parts: &[Sums], rng: &mut rand_chacha::ChaCha8Rng| {
             Sums::total(parts, (0..parts.len()).map(|_| rng.gen_range(0..parts.len())), m)
         };
         for _ in 0..BOOTSTRAP {
             let (f, h) = (draw(&fit_parts, &mut rng), draw(&held_parts, &mut rng));
-            let (s, d) = term_values(&f, &h);
-            for j in 0..m {
-                sd_draws[j].extend(s[j]);
-                delta_draws[j].extend(d[j]);
+            let (s, d) = term_values(&f, &h, &groups);
+            for g in 0..n {
+                sd_draws[g].extend(s[g]);
+                delta_draws[g].extend(d[g]);
             }
         }
-        // The constant (the first term) has neither a spread nor a held-out value of its own.
-        for j in 1..m {
+        for (g, group) in groups.iter().enumerate() {
             out.push(TermFit {
-                name: t[j].name.to_string(),
-                per_sd: per_sd[j],
-                per_sd_interval: per_sd[j].and(interval_of(&sd_draws[j])),
-                held_out_gain: delta[j],
-                held_out_gain_interval: delta[j].and(interval_of(&delta_draws[j])),
+                name: t[group[0]].name.to_string(),
+                per_sd: per_sd[g],
+                per_sd_interval: per_sd[g].and(interval_of(&sd_draws[g])),
+                held_out_gain: delta[g],
+                held_out_gain_interval: delta[g].and(interval_of(&delta_draws[g])),
             });
         }
     }
@@ -420,6 +433,35 @@ mod tests {
         assert!(x2.held_out_gain.unwrap().abs() < 0.005 && lo < 0.001 && hi < 0.005, "{x2:?}");
         // The thrust never varied: its bias alone, no terms reported.
         assert_eq!(fits.len(), 2);
+    }
+
+    #[test]
+    fn terms_of_one_name_are_judged_as_one_group() {
+        // x1 split by its sign into two columns of one name (two bins of one kind), x2 alone.
+        let split = |d: Design| {
+            let mut out = Design::new(4);
+            for i in 0..d.rows() {
+                let r = d.row(i);
+                out.push(&[1.0, r[1].max(0.0), r[1].min(0.0), r[2]], d.y[i], d.cluster[i]);
+            }
+            out
+        };
+        let (fit, held) = (split(data(1)), split(data(2)));
+        let t = |action, name, c: usize| Term { action, name, columns: vec![c] };
+        let terms = vec![
+            t(1, "turn.bias", 0),
+            t(1, "turn.x1", 1),
+            t(1, "turn.x1", 2),
+            t(1, "turn.x2", 3),
+            t(0, "thrust.bias", 0),
+        ];
+        let fits = term_fits(&terms, &fit, &held, 3);
+        let (x1, x2) = (&fits[0], &fits[1]);
+        assert_eq!((fits.len(), x1.name.as_str(), x2.name.as_str()), (2, "turn.x1", "turn.x2"));
+        // The group as a whole: no single gain, the held-out value of leaving both columns out.
+        assert!(x1.per_sd.is_none() && x1.per_sd_interval.is_none(), "{x1:?}");
+        assert!((x1.held_out_gain.unwrap() - 1.0 / 1.09).abs() < 0.03, "{x1:?}");
+        assert!(x2.per_sd.is_some() && x2.held_out_gain.unwrap().abs() < 0.005, "{x2:?}");
     }
 
     #[test]

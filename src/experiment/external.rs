@@ -65,8 +65,19 @@ fn of_training_curves(q: &Quantity) -> bool {
         | AfterExtreme(c) => CURVES.contains(&c.as_str()),
         // Evaluations, other order parameters, cross-play and fitted rules: not in a curve of DoS, DoA and
         // catches.
-        TrainingFirst(_) | TrainingLast(_) | EvalDos(_) | EvalDoa(_) | EvalOrder(..) | EvalCatches(_)
-        | InteractionDoa(_) | Interaction(..) | Learned(..) | EvalDifference(..) | Distilled(..) | Response(..)
+        TrainingFirst(_)
+        | TrainingLast(_)
+        | EvalDos(_)
+        | EvalDoa(_)
+        | EvalOrder(..)
+        | EvalCatches(_)
+        | InteractionDoa(_)
+        | Interaction(..)
+        | Learned(..)
+        | EvalDifference(..)
+        | Distilled(..)
+        | Response(..)
+        | DistilledDifference(..)
         | Crossplay(_) => false,
     }
 }

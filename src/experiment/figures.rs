@@ -308,7 +308,8 @@ fn distilled_figures(
         .collect();
     plot::save_estimates(&dir.join(format!("{preset}-evaluations")), &panels)?;
     // The rules: per species and form, its gains; then how much of each action each explains.
-    let rules = exp.runs.first().map(|r| super::distill::rules(&r.scene)).unwrap_or_default();
+    let forms = exp.spec.distill.as_ref().map(|d| d.forms.clone()).unwrap_or_default();
+    let rules = exp.runs.first().map(|r| super::distill::rules(&r.scene, &forms)).unwrap_or_default();
     let mut panels = vec![];
     let mut explained = vec![];
     for (species, form, numbers) in rules {

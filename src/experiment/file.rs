@@ -75,10 +75,18 @@ pub(crate) struct DistillSpec {
     pub(crate) episodes: usize,
     #[serde(default)]
     pub(crate) steps: Option<usize>,
+    /// The forms whose numbers the experiment reads and reports, and whose rules its evaluations may
+    /// deploy (`--distill` fits every form it can). Default: the zonal rule's two.
+    #[serde(default = "distill_forms")]
+    pub(crate) forms: Vec<crate::scene::RuleForm>,
 }
 
 fn distill_episodes() -> usize {
     crate::experiment::distill::EPISODES
+}
+
+fn distill_forms() -> Vec<crate::scene::RuleForm> {
+    vec![crate::scene::RuleForm::Memoryless, crate::scene::RuleForm::Inertial]
 }
 
 impl DistillSpec {
@@ -434,6 +442,10 @@ pub enum Quantity {
     /// `repulsion_radius`, `persistence`, ...) or how much it explains on the held-out episodes
     /// (`explained_thrust`, `explained_turn`), e.g. `Distilled("prey", Memoryless, "turn.alignment")`.
     Distilled(String, crate::scene::RuleForm, String),
+    /// A number of [`Quantity::Distilled`] in one form minus the same in another, per run (paired): e.g.
+    /// `DistilledDifference("prey", Binned, Memoryless, "explained_turn")`, how much more of the turn's
+    /// held-out variance the binned rule explains than the zonal one.
+    DistilledDifference(String, crate::scene::RuleForm, crate::scene::RuleForm, String),
     /// The episode at which the 100-episode running mean of `dos` or `doa` first completes 90 % of its
     /// change from the first 100 episodes to the last 100 (the paper's time course, Fig. 3).
     Reach90(String),

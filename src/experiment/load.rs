@@ -343,7 +343,15 @@ impl Experiment {
                     ));
                 }
             }
-            if let Quantity::Distilled(_, _, name) = &c.quantity {
+            if let Quantity::DistilledDifference(_, a, b, _) = &c.quantity {
+                if a == b {
+                    return Err(err(
+                        "claims",
+                        format!("DistilledDifference(.., {a:?}, {b:?}, ..) compares a form with itself"),
+                    ));
+                }
+            }
+            if let Quantity::Distilled(_, _, name) | Quantity::DistilledDifference(_, _, _, name) = &c.quantity {
                 if spec.distill.is_none() {
                     return Err(err(
                         "claims",
@@ -444,7 +452,7 @@ impl Experiment {
                     d.overrides()
                         .apply(&mut fitted_on, Path::new("distill"))
                         .map_err(|m| err("distill", format!("variant {}: {m}", v.name)))?;
-                    let rules = super::distill::rules(&fitted_on);
+                    let rules = super::distill::rules(&fitted_on, &d.forms);
                     let fitted: Vec<&str> = rules.iter().map(|(s, _, _)| s.as_str()).collect();
                     let listed = if fitted.is_empty() { "none".to_string() } else { fitted.join(", ") };
                     for e in &spec.evaluations {
@@ -456,6 +464,15 @@ impl Experiment {
                                     format!(
                                         "variant {}: no rule is fitted to {:?} (a learned species with prey or predators; here: {listed})",
                                         v.name, u.species
+                                    ),
+                                ));
+                            }
+                            if !rules.iter().any(|(s, f, _)| *s == u.species && *f == u.form) {
+                                return Err(err(
+                                    &at,
+                                    format!(
+                                        "{:?}: form {:?} is not read: list it in distill's forms (here: {:?})",
+                                        u.species, u.form, d.forms
                                     ),
                                 ));
                             }
@@ -472,14 +489,20 @@ impl Experiment {
                             }
                         }
                     }
-                    for c in &spec.claims {
-                        let Quantity::Distilled(species, form, name) = &c.quantity else { continue };
-                        let Some((_, _, names)) = rules.iter().find(|(s, f, _)| s == species && f == form) else {
+                    let read = spec.claims.iter().flat_map(|c| match &c.quantity {
+                        Quantity::Distilled(species, form, name) => vec![(species, *form, name)],
+                        Quantity::DistilledDifference(species, a, b, name) => {
+                            vec![(species, *a, name), (species, *b, name)]
+                        }
+                        _ => vec![],
+                    });
+                    for (species, form, name) in read {
+                        let Some((_, _, names)) = rules.iter().find(|(s, f, _)| s == species && *f == form) else {
                             return Err(err(
                                 "claims",
                                 format!(
-                                    "Distilled({species:?}, {form:?}, ..): variant {}: no rule is fitted to {species:?} (here: {listed})",
-                                    v.name
+                                    "Distilled({species:?}, {form:?}, ..): variant {}: no {form:?} rule is read of {species:?} (rules are fitted to: {listed}; forms read: {:?})",
+                                    v.name, d.forms
                                 ),
                             ));
                         };

@@ -68,7 +68,8 @@ pub(super) fn primitive(d: &RunData, q: &Quantity) -> f64 {
         | Quantity::InteractionDoa(_)
         | Quantity::Interaction(..)
         | Quantity::Learned(..)
-        | Quantity::EvalDifference(..) => f64::NAN,
+        | Quantity::EvalDifference(..)
+        | Quantity::DistilledDifference(..) => f64::NAN,
     }
 }
 
@@ -109,7 +110,8 @@ pub(crate) fn column(q: &Quantity) -> Option<String> {
         | Quantity::InteractionDoa(_)
         | Quantity::Interaction(..)
         | Quantity::Learned(..)
-        | Quantity::EvalDifference(..) => return None,
+        | Quantity::EvalDifference(..)
+        | Quantity::DistilledDifference(..) => return None,
     })
 }
 
@@ -150,6 +152,10 @@ pub(crate) fn derive(
             None => f64::NAN,
         },
         Quantity::EvalDifference(a, b, o) => of_eval(a, o) - of_eval(b, o),
+        Quantity::DistilledDifference(species, a, b, name) => {
+            let of = |form| primitive(&Quantity::Distilled(species.clone(), form, name.clone()));
+            of(*a) - of(*b)
+        }
         // Primitive: a run's files or summary.csv hold them. Named, not `_`, so that a new quantity is a
         // compile error here until it is derived or declared primitive.
         Quantity::DosFirst
@@ -258,6 +264,7 @@ pub(crate) fn chance_level(exp: &Experiment, claim: &Claim, scene: Option<&crate
         | Quantity::Interaction(..)
         | Quantity::Learned(..)
         | Quantity::EvalDifference(..)
+        | Quantity::DistilledDifference(..)
         | Quantity::Reach90(_)
         | Quantity::Start(_)
         | Quantity::FromStart(_)
@@ -295,6 +302,9 @@ pub(crate) fn quantity_name(q: &Quantity) -> String {
         Quantity::Interaction(e, q) => format!("{q} seeing minus \"{e}\""),
         Quantity::Learned(e, q) => format!("{q} in evaluation \"{e}\", trained minus untrained actors"),
         Quantity::EvalDifference(a, b, q) => format!("{q} in evaluation \"{a}\" minus in \"{b}\""),
+        Quantity::DistilledDifference(species, a, b, name) => {
+            format!("{name} of the {a:?} rule fitted to the {species} minus of the {b:?} one")
+        }
         Quantity::Reach90(q) => format!("episode at which {q}'s running mean completes 90 % of its change"),
         Quantity::Halfway(q) => format!(
             "episode at which {q}'s {HALFWAY_WINDOW}-episode running mean completes half its change from the first {START} episodes"

@@ -259,6 +259,7 @@ fn with_distilled(e: &super::file::Evaluation, distilled: &Path) -> crate::error
     for u in &e.distilled {
         let policy = match (file.policy(&u.species, u.form), u.without.is_empty()) {
             (Some(Policy::Zonal(rule)), _) => Policy::Zonal(rule.without(&u.without)),
+            (Some(Policy::Binned(rule)), _) => Policy::Binned(rule.without(&u.without)),
             (Some(p), true) => p.clone(),
             (Some(_), false) => {
                 return Err(format!(
@@ -308,7 +309,9 @@ pub(crate) fn finished(exp: &Experiment, run: &Run) -> bool {
 /// `distilled.ron`, whether or not an evaluation deploys the rules.
 fn claims_read_rules(exp: &Experiment) -> bool {
     exp.spec.distill.is_some()
-        && exp.spec.claims.iter().any(|c| matches!(c.quantity, super::file::Quantity::Distilled(..)))
+        && exp.spec.claims.iter().any(|c| {
+            matches!(c.quantity, super::file::Quantity::Distilled(..) | super::file::Quantity::DistilledDifference(..))
+        })
 }
 
 /// Whether an evaluation's files are complete: its per-step CSV and, written last, its confusion curve

@@ -51,12 +51,9 @@ pub fn columns(exp: &Experiment) -> Vec<(String, Quantity)> {
         quantities
             .extend(super::crossplay_readouts::READOUTS.iter().map(|r| named(Quantity::Crossplay(r.to_string()))));
     }
-    if exp.spec.distill.is_some() {
-        if let Some(run) = exp.runs.first() {
-            quantities.extend(
-                super::distill::columns(&run.scene).into_iter().map(|(s, f, n)| named(Quantity::Distilled(s, f, n))),
-            );
-        }
+    if let (Some(d), Some(run)) = (&exp.spec.distill, exp.runs.first()) {
+        let columns = super::distill::columns(&run.scene, &d.forms);
+        quantities.extend(columns.into_iter().map(|(s, f, n)| named(Quantity::Distilled(s, f, n))));
     }
     quantities.extend([named(Quantity::CatchesFirst), named(Quantity::CatchesLast)]);
     // A level some claim times a curve against (`Reaches`): a column only in the experiments that ask for

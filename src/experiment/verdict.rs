@@ -27,6 +27,7 @@ pub(crate) fn is_effect(claim: &Claim) -> bool {
                 | Quantity::Interaction(..)
                 | Quantity::Learned(..)
                 | Quantity::EvalDifference(..)
+                | Quantity::DistilledDifference(..)
         )
         || matches!(&claim.quantity, Quantity::Crossplay(r) if super::crossplay_readouts::chance(r).is_none())
 }

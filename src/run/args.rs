@@ -43,7 +43,7 @@ pub(crate) struct SceneArgs {
     #[arg(long, help_heading = "Scene", value_name = "NAME=N")]
     pub(crate) count: Vec<String>,
     /// A species' policy, as NAME=POLICY with POLICY as a scene file writes it: ChaseNearest, FleeNearest,
-    /// FleeInside, Random, Still, Frozen("RUN"), a rule --distill fitted, Zonal((...)) or Pursuit((...)), or a
+    /// FleeInside, Random, Still, Frozen("RUN"), a rule --distill fitted, Zonal((...)), Binned((...)) or Pursuit((...)), or a
     /// classic model, Vicsek((radius: R, noise: ETA)) or Couzin((repulsion_radius: .., orientation_width: ..,
     /// attraction_width: .., noise: SIGMA))
     /// (repeatable; --eval, --record, --animate, --describe-scene), e.g. --policy predator=ChaseNearest
@@ -159,7 +159,7 @@ impl SceneArgs {
         for p in &self.policy {
             let (name, policy) = p.split_once('=').ok_or_else(|| format!("--policy {p}: expected NAME=POLICY"))?;
             let policy = ron::from_str(policy).map_err(|_| {
-                format!("--policy {p}: {policy} is not a policy (ChaseNearest, FleeNearest, FleeInside, Random, Still, Frozen(\"RUN\"), Zonal((...)), Pursuit((...)), Vicsek((...)), Couzin((...)), Learned)")
+                format!("--policy {p}: {policy} is not a policy (ChaseNearest, FleeNearest, FleeInside, Random, Still, Frozen(\"RUN\"), Zonal((...)), Binned((...)), Pursuit((...)), Vicsek((...)), Couzin((...)), Learned)")
             })?;
             policies.push((name.to_string(), policy));
         }

@@ -19,5 +19,5 @@ mod schema;
 mod validate;
 
 pub use resolve::{parse_ron, Overrides};
-pub use rules::{PursuitGains, RuleForm, ZonalTerm, ZonalThrust, ZonalTurn};
+pub use rules::{BinnedGains, PursuitGains, RuleForm, ZonalTerm, ZonalThrust, ZonalTurn};
 pub use schema::*;

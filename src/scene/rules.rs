@@ -58,14 +58,17 @@ pub struct ZonalThrust {
     pub(crate) evasion: f64,
 }
 
-/// Which terms a fit may use: only the neighbours (`Memoryless`, Couzin et al.'s zones: `persistence`
-/// and `speed` held at zero) or also the agent's own state (`Inertial`). A one-step fit gives the own
-/// state what it can explain first, so the two differ in their neighbour gains, not only by two terms.
+/// Which rule a fit reads: the zonal rule on the neighbours only (`Memoryless`, Couzin et al.'s zones:
+/// `persistence` and `speed` held at zero) or also on the agent's own state (`Inertial`); or, for prey,
+/// the [`BinnedRule`] (`Binned`), in which each neighbour's pull is a step function of its distance. A
+/// one-step fit gives the own state what it can explain first, so `Memoryless` and `Inertial` differ in
+/// their neighbour gains, not only by two terms.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize)]
 pub enum RuleForm {
     #[default]
     Memoryless,
     Inertial,
+    Binned,
 }
 
 /// A term of a [`ZonalRule`], for ablations: [`ZonalRule::without`] zeroes its gains.
@@ -112,6 +115,87 @@ impl ZonalRule {
             ("thrust.attraction", f.attraction),
             ("thrust.evasion", f.evasion),
         ]
+    }
+}
+
+/// A prey's rule additive over its neighbours, each neighbour's pull a step function of its distance: the
+/// zonal rule's terms with a gain per distance bin instead of per zone (no zones to choose, no sign
+/// imposed on any distance), plus the agent's own state as the `Inertial` zonal rule reads it. Bin b holds
+/// distances in [`edges[b]`, `edges[b + 1]`); a neighbour beyond the last edge counts nowhere. The turn is
+/// `bias` + `persistence`·(previous turn) + Σ over kin of `kin[b]`·left + `alignment[b]`·sin Δheading + Σ
+/// over predators of `evasion[b]`·left; the thrust `bias` + `speed`·(speed / top speed) + Σ over kin of
+/// `kin[b]`·ahead + Σ over predators of `evasion[b]`·ahead (b the neighbour's bin, left and ahead the
+/// parts of the unit direction to it). The turn reads what turns with a mirror image (left, sin Δheading), the thrust what
+/// does not (ahead), so a rule fitted to a mirror-symmetric agent is mirror-symmetric too.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BinnedRule {
+    /// The bins' edges in metres, increasing from 0.
+    pub(crate) edges: Vec<f64>,
+    pub(crate) turn: BinnedGains,
+    pub(crate) thrust: BinnedGains,
+    #[serde(default)]
+    pub(crate) persistence: f64,
+    #[serde(default)]
+    pub(crate) speed: f64,
+}
+
+/// One action's gains of a [`BinnedRule`], one per bin in each list (`alignment` is empty for the thrust).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BinnedGains {
+    pub(crate) bias: f64,
+    pub(crate) kin: Vec<f64>,
+    #[serde(default)]
+    pub(crate) alignment: Vec<f64>,
+    pub(crate) evasion: Vec<f64>,
+}
+
+impl BinnedRule {
+    /// The number of bins.
+    pub(crate) fn bins(&self) -> usize {
+        self.edges.len().saturating_sub(1)
+    }
+
+    /// The same rule with the gains of `terms` set to zero (turn and thrust): an ablation. A binned rule
+    /// has no zones, so its kin gains are split by sign: `Repulsion` is every bin whose kin turn gain is
+    /// negative (turning away from the kin there), `Attraction` every other bin.
+    pub(crate) fn without(&self, terms: &[ZonalTerm]) -> BinnedRule {
+        let mut rule = self.clone();
+        for term in terms {
+            match term {
+                ZonalTerm::Alignment => rule.turn.alignment.iter_mut().for_each(|g| *g = 0.0),
+                ZonalTerm::Evasion => {
+                    rule.turn.evasion.iter_mut().chain(&mut rule.thrust.evasion).for_each(|g| *g = 0.0)
+                }
+                ZonalTerm::Repulsion | ZonalTerm::Attraction => {
+                    let repulsion = *term == ZonalTerm::Repulsion;
+                    for b in 0..self.bins() {
+                        if (self.turn.kin[b] < 0.0) == repulsion {
+                            rule.turn.kin[b] = 0.0;
+                            rule.thrust.kin[b] = 0.0;
+                        }
+                    }
+                }
+            }
+        }
+        rule
+    }
+
+    /// Every number of the rule with its name (`turn.kin[3]`), for validation.
+    pub(crate) fn numbers(&self) -> Vec<(String, f64)> {
+        let mut out: Vec<(String, f64)> =
+            self.edges.iter().enumerate().map(|(b, &e)| (format!("edges[{b}]"), e)).collect();
+        for (part, g, own, v) in
+            [("turn", &self.turn, "persistence", self.persistence), ("thrust", &self.thrust, "speed", self.speed)]
+        {
+            out.push((format!("{part}.bias"), g.bias));
+            out.push((format!("{part}.{own}"), v));
+            for (name, list) in [("kin", &g.kin), ("alignment", &g.alignment), ("evasion", &g.evasion)] {
+                out.extend(list.iter().enumerate().map(|(b, &v)| (format!("{part}.{name}[{b}]"), v)));
+            }
+        }
+        out
     }
 }
 

@@ -3,7 +3,7 @@
 //! the sibling modules.
 
 pub use super::classic::{CouzinRule, VicsekRule};
-pub use super::rules::{PursuitRule, ZonalRule};
+pub use super::rules::{BinnedRule, PursuitRule, ZonalRule};
 use serde::{Deserialize, Serialize};
 
 /// Declares a resolved config struct and its patch (every field optional) with `apply` between them,
@@ -97,6 +97,9 @@ pub enum Policy {
     /// A prey's zonal rule (repulsion, alignment, attraction, predator evasion), e.g. as `coevo --distill`
     /// fitted it to a trained run ([`ZonalRule`], `sim::rules`).
     Zonal(ZonalRule),
+    /// A prey's rule additive over its neighbours with a gain per distance bin, as `coevo --distill` fits
+    /// it in the `Binned` form ([`BinnedRule`], `sim::rules`).
+    Binned(BinnedRule),
     /// A predator's pursuit of the nearest prey, the centre of the prey in view and the most isolated one
     /// ([`PursuitRule`], `sim::rules`).
     Pursuit(PursuitRule),

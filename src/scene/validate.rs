@@ -22,6 +22,10 @@ impl Scene {
         fn positive(v: f64, field: &str) -> crate::error::Result<()> {
             check(v.is_finite() && v > 0.0, field, || format!("must be a finite number > 0 (got {v})"))
         }
+        /// A rule's numbers with their names, owned.
+        fn named(numbers: &[(&str, f64)]) -> Vec<(String, f64)> {
+            numbers.iter().map(|&(n, v)| (n.to_string(), v)).collect()
+        }
         fn non_negative(v: f64, field: &str) -> crate::error::Result<()> {
             check(v.is_finite() && v >= 0.0, field, || format!("must be a finite number ≥ 0 (got {v})"))
         }
@@ -93,31 +97,51 @@ impl Scene {
             positive(s.max_speed, &f("max_speed"))?;
             non_negative(s.max_thrust, &f("max_thrust"))?;
             non_negative(s.max_turn_rate, &f("max_turn_rate"))?;
-            let rule: &[(&str, f64)] = match &s.policy {
+            let rule: Vec<(String, f64)> = match &s.policy {
                 Policy::Zonal(rule) => {
                     let radii = [rule.repulsion_radius, rule.alignment_radius, rule.attraction_radius];
                     check(radii.windows(2).all(|w| w[0] <= w[1]), &f("policy"), || {
                         format!("Zonal: the zones are nested: repulsion_radius ≤ alignment_radius ≤ attraction_radius (got {radii:?})")
                     })?;
-                    &rule.numbers()
+                    named(&rule.numbers())
                 }
-                Policy::Pursuit(rule) => &rule.numbers(),
+                Policy::Binned(rule) => {
+                    let (e, bins) = (&rule.edges, rule.bins());
+                    check(bins > 0 && e[0] >= 0.0 && e.windows(2).all(|w| w[0] < w[1]), &f("policy.edges"), || {
+                        format!("Binned: at least two edges, increasing from ≥ 0 (got {e:?})")
+                    })?;
+                    let lists = [
+                        ("turn.kin", rule.turn.kin.len(), bins),
+                        ("turn.alignment", rule.turn.alignment.len(), bins),
+                        ("turn.evasion", rule.turn.evasion.len(), bins),
+                        ("thrust.kin", rule.thrust.kin.len(), bins),
+                        ("thrust.alignment", rule.thrust.alignment.len(), 0),
+                        ("thrust.evasion", rule.thrust.evasion.len(), bins),
+                    ];
+                    for (name, got, want) in lists {
+                        check(got == want, &f(&format!("policy.{name}")), || {
+                            format!("Binned: {want} gains, one per bin between the {} edges (got {got})", e.len())
+                        })?;
+                    }
+                    rule.numbers()
+                }
+                Policy::Pursuit(rule) => named(&rule.numbers()),
                 Policy::Vicsek(rule) => {
                     check((0.0..=std::f64::consts::TAU).contains(&rule.noise), &f("policy.noise"), || {
                         format!("Vicsek: η in radians, in [0, 2π] (got {})", rule.noise)
                     })?;
-                    &rule.numbers()
+                    named(&rule.numbers())
                 }
                 Policy::Couzin(rule) => {
                     // Widths and σ as well as radii: a negative one would silently empty a zone or the noise.
                     for (name, v) in rule.numbers() {
                         non_negative(v, &f(&format!("policy.{name}")))?;
                     }
-                    &rule.numbers()
+                    named(&rule.numbers())
                 }
-                _ => &[],
+                _ => vec![],
             };
-            for (name, v) in rule {
+            for (name, v) in &rule {
                 let field = f(&format!("policy.{name}"));
                 match name.ends_with("radius") {
                     true => non_negative(*v, &field)?,

@@ -196,6 +196,12 @@ pub(crate) fn rule_action(
             let predators = observed_of(obs, registry, s, registry.predators_of(s), frame);
             zonal_action(rule, &ZonalFeatures::of(rule, Own::of(obs, registry, s, frame), &kin, &predators))
         }
+        Policy::Binned(rule) => {
+            use super::rules::{binned_action, observed, observed_of, Own};
+            let frame = scene.observation_frame;
+            let (own, kin) = (Own::of(obs, registry, s, frame), observed(obs, registry, s, s, frame));
+            binned_action(rule, own, &kin, &observed_of(obs, registry, s, registry.predators_of(s), frame))
+        }
         Policy::Pursuit(rule) => {
             use super::rules::{observed_of, pursuit_action, Own, PursuitFeatures};
             let frame = scene.observation_frame;

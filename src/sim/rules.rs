@@ -1,9 +1,9 @@
 //! What the distilled rules do with an observation ([`crate::scene::ZonalRule`],
-//! [`crate::scene::PursuitRule`]): the observed agents read in the focal agent's body frame, summed into
+//! [`crate::scene::BinnedRule`], [`crate::scene::PursuitRule`]): the observed agents read in the focal agent's body frame, summed into
 //! the rule's features, and the features weighted by its gains. `analysis::distill` fits the gains to
 //! a trained actor on the same features, so a fitted rule acts exactly as it was fitted.
 
-use crate::scene::{ObservationFrame, PursuitGains, PursuitRule, ZonalRule};
+use crate::scene::{BinnedRule, ObservationFrame, PursuitGains, PursuitRule, ZonalRule};
 use crate::sim::perception::neighbour_slot;
 use crate::sim::species::{SpeciesRegistry, ACTION_DIM};
 
@@ -143,6 +143,34 @@ pub(crate) fn zonal_action(rule: &ZonalRule, f: &ZonalFeatures) -> [f32; ACTION_
     [thrust.clamp(-1.0, 1.0) as f32, turn.clamp(-1.0, 1.0) as f32]
 }
 
+/// The bin of [`BinnedRule`] `edges` a distance falls in; None beyond the last edge.
+pub(crate) fn bin_of(edges: &[f64], d: f64) -> Option<usize> {
+    (0..edges.len().saturating_sub(1)).find(|&b| d >= edges[b] && d < edges[b + 1])
+}
+
+/// The normalized action [thrust, turn] of a [`BinnedRule`] on the agent's own state and the kin and
+/// predators seen: each neighbour's unit direction (and a kin's Δheading) weighed by the gain of the bin
+/// its distance is in.
+pub(crate) fn binned_action(rule: &BinnedRule, own: Own, kin: &[Seen], predators: &[Seen]) -> [f32; ACTION_DIM] {
+    let (t, u) = (&rule.turn, &rule.thrust);
+    let (mut turn, mut thrust) = (t.bias + rule.persistence * own.turn, u.bias + rule.speed * own.speed);
+    for k in kin {
+        if let Some(b) = bin_of(&rule.edges, k.distance()) {
+            let [ahead, left] = k.unit();
+            turn += t.kin[b] * left + t.alignment[b] * k.sin_heading;
+            thrust += u.kin[b] * ahead;
+        }
+    }
+    for p in predators {
+        if let Some(b) = bin_of(&rule.edges, p.distance()) {
+            let [ahead, left] = p.unit();
+            turn += t.evasion[b] * left;
+            thrust += u.evasion[b] * ahead;
+        }
+    }
+    [thrust.clamp(-1.0, 1.0) as f32, turn.clamp(-1.0, 1.0) as f32]
+}
+
 /// The unit directions [ahead, left] a [`PursuitRule`] weighs; zero without prey in view.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub(crate) struct PursuitFeatures {
@@ -249,6 +277,38 @@ mod tests {
         inert.thrust = ZonalThrust { bias: 1.0, speed: -1.0, ..Default::default() };
         let f = ZonalFeatures::of(&inert, Own { turn: -0.8, speed: 0.75 }, &[], &[]);
         assert_eq!(zonal_action(&inert, &f), [0.25, -0.4]);
+    }
+
+    #[test]
+    fn a_binned_rule_weighs_each_neighbour_by_its_distance_bin() {
+        use crate::scene::{BinnedGains, BinnedRule, ZonalTerm};
+        let rule = BinnedRule {
+            edges: vec![0.0, 0.1, 0.5],
+            turn: BinnedGains { bias: 0.1, kin: vec![-0.5, 0.2], alignment: vec![0.0, 0.4], evasion: vec![-0.3, -0.1] },
+            thrust: BinnedGains { bias: 0.5, kin: vec![-0.2, 0.1], alignment: vec![], evasion: vec![-0.4, 0.0] },
+            persistence: 0.5,
+            speed: -0.4,
+        };
+        // Kin: one close on the left (bin 0), one at 0.2 m ahead heading 30° left (bin 1), one beyond the
+        // last edge; a predator 0.3 m to the right (bin 1).
+        let kin = [seen(0.0, 0.05, 0.0), seen(0.2, 0.0, 0.5), seen(0.7, 0.0, 0.0)];
+        let predators = [seen(0.0, -0.3, 0.0)];
+        // Turn: 0.1 − 0.5 (away from the close one) + 0.4·0.5 (align) + 0.1 (away from the predator) = −0.1.
+        // Thrust: 0.5 + 0.1 (toward the one ahead) = 0.6.
+        let [thrust, turn] = binned_action(&rule, Own::default(), &kin, &predators);
+        assert!((thrust - 0.6).abs() < 1e-6 && (turn + 0.1).abs() < 1e-6, "{thrust} {turn}");
+        // Its own state: 0.5 × the previous turn 0.4, −0.4 × its speed 0.5 of the top.
+        let [thrust, turn] = binned_action(&rule, Own { turn: 0.4, speed: 0.5 }, &kin, &predators);
+        assert!((thrust - 0.4).abs() < 1e-6 && (turn - 0.1).abs() < 1e-6, "{thrust} {turn}");
+        // Repulsion is the bins whose kin turn gain is negative; attraction the others.
+        let ablated = rule.without(&[ZonalTerm::Repulsion, ZonalTerm::Alignment]);
+        assert_eq!((ablated.turn.kin, ablated.thrust.kin), (vec![0.0, 0.2], vec![0.0, 0.1]));
+        assert_eq!(ablated.turn.alignment, vec![0.0, 0.0]);
+        let ablated = rule.without(&[ZonalTerm::Attraction, ZonalTerm::Evasion]);
+        assert_eq!(
+            (ablated.turn.kin, ablated.turn.evasion, ablated.thrust.evasion),
+            (vec![-0.5, 0.0], vec![0.0; 2], vec![0.0; 2])
+        );
     }
 
     #[test]

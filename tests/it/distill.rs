@@ -13,9 +13,11 @@ fn zonal(alignment: f64) -> String {
     )
 }
 
-/// The prey's memoryless terms as `--distill` reports them on a swarm of 50 prey following `rule` among
+/// Per form, the prey's terms as `--distill` reports them on a swarm of 50 prey following `rule` among
 /// 3 chasing predators: (name, per-SD gain interval, held-out ΔR² interval).
-fn read(dir: &std::path::Path, name: &str, rule: &str) -> Vec<(String, [f64; 2], [f64; 2])> {
+type Terms = Vec<(String, [f64; 2], [f64; 2])>;
+
+fn read(dir: &std::path::Path, name: &str, rule: &str) -> [Terms; 2] {
     let text = std::fs::read_to_string("scenes/standard.ron").unwrap();
     let scene = text
         .replace(
@@ -36,12 +38,14 @@ fn read(dir: &std::path::Path, name: &str, rule: &str) -> Vec<(String, [f64; 2],
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let fitted =
         coevo::analysis::distill::DistilledFile::read(&std::path::Path::new(run).join("distilled.ron")).unwrap();
-    let prey = fitted
-        .species
-        .iter()
-        .find(|d| d.species == "prey" && d.form == coevo::scene::RuleForm::Memoryless)
-        .expect("a rule fitted to the rule-driven prey");
-    coevo::analysis::distill::term_intervals(prey)
+    [coevo::scene::RuleForm::Memoryless, coevo::scene::RuleForm::Binned].map(|form| {
+        let prey = fitted
+            .species
+            .iter()
+            .find(|d| d.species == "prey" && d.form == form)
+            .expect("a rule fitted to the rule-driven prey");
+        coevo::analysis::distill::term_intervals(prey)
+    })
 }
 
 fn term<'a>(terms: &'a [(String, [f64; 2], [f64; 2])], name: &str) -> &'a (String, [f64; 2], [f64; 2]) {
@@ -51,8 +55,8 @@ fn term<'a>(terms: &'a [(String, [f64; 2], [f64; 2])], name: &str) -> &'a (Strin
 #[test]
 fn the_read_out_finds_alignment_where_the_rule_has_it_and_not_where_it_has_none() {
     let dir = tempfile::tempdir().unwrap();
-    let with = read(dir.path(), "with", &zonal(0.3));
-    let without = read(dir.path(), "without", &zonal(0.0));
+    let [with, with_binned] = read(dir.path(), "with", &zonal(0.3));
+    let [without, without_binned] = read(dir.path(), "without", &zonal(0.0));
     // With alignment: its per-SD gain's interval lies above zero, and it adds held-out variance explained.
     let (_, gain, held_out) = term(&with, "turn.alignment");
     assert!(gain[0] > 0.0 && held_out[0] > 0.0, "with alignment: {with:?}");
@@ -65,5 +69,15 @@ fn the_read_out_finds_alignment_where_the_rule_has_it_and_not_where_it_has_none(
     for terms in [&with, &without] {
         let (_, gain, held_out) = term(terms, "turn.evasion");
         assert!(gain[1] < 0.0 && held_out[0] > 0.0, "evasion: {terms:?}");
+    }
+    // The binned rule (a gain per distance bin) as a whole group per kind: alignment adds held-out
+    // variance explained where the rule has it and at most 0.005 where it has none; evasion in both.
+    let (_, _, held_out) = term(&with_binned, "turn.alignment");
+    assert!(held_out[0] > 0.0, "binned, with alignment: {with_binned:?}");
+    let (_, _, held_out) = term(&without_binned, "turn.alignment");
+    assert!(held_out[1] < 0.005, "binned, without alignment: {without_binned:?}");
+    for terms in [&with_binned, &without_binned] {
+        let (_, _, held_out) = term(terms, "turn.evasion");
+        assert!(held_out[0] > 0.0, "binned evasion: {terms:?}");
     }
 }

@@ -1274,13 +1274,18 @@ fn an_experiment_distills_its_runs_and_deploys_the_rules_with_their_ablations() 
             "(name: \"50 prey, distilled prey\", counts: [(\"prey\", 50)], episodes: 2, steps: 20, distilled: [(species: \"prey\")]),\n        \
              (name: \"50 prey, distilled prey without alignment\", counts: [(\"prey\", 50)], episodes: 2, steps: 20, distilled: [(species: \"prey\", without: [Alignment])]),\n        \
              (name: \"50 prey, inertial distilled\", counts: [(\"prey\", 50)], episodes: 2, steps: 20, distilled: [(species: \"prey\", form: Inertial), (species: \"predator\", form: Inertial)]),\n        \
+             (name: \"50 prey, binned alignment alone\", counts: [(\"prey\", 50)], episodes: 2, steps: 20, distilled: [(species: \"prey\", form: Binned, without: [Repulsion, Attraction, Evasion])]),\n        \
              (name: \"50 prey, blind\",",
         )
-        .replace("    claims: [", "    distill: (counts: [(\"prey\", 20)], episodes: 2, steps: 20),\n    claims: [")
+        .replace(
+            "    claims: [",
+            "    distill: (counts: [(\"prey\", 20)], episodes: 2, steps: 20, forms: [Memoryless, Inertial, Binned]),\n    claims: [",
+        )
         .replace(
             "(text: \"catches\",",
             "(text: \"distilled minus learned\", variant: \"5:3\", quantity: EvalDifference(\"50 prey, distilled prey\", \"50 prey\", \"doa\"), margin: 0.05),\n        \
              (text: \"the fitted alignment gain\", variant: \"5:3\", quantity: Distilled(\"prey\", Memoryless, \"turn.alignment\")),\n        \
+             (text: \"binned minus zonal\", variant: \"5:3\", quantity: DistilledDifference(\"prey\", Binned, Memoryless, \"explained_turn\"), paper: 1.0, direction_only: true, ours: true),\n        \
              (text: \"catches\",",
         );
     std::fs::write(dir.path().join("experiments/tiny.ron"), &text).unwrap();
@@ -1292,9 +1297,9 @@ fn an_experiment_distills_its_runs_and_deploys_the_rules_with_their_ablations() 
         (fitted.counts.iter().find(|(s, _)| s == "prey").unwrap().1, fitted.episodes, fitted.steps),
         (20, 2, 20)
     );
-    assert_eq!(fitted.species.len(), 4, "prey and predators, memoryless and inertial");
+    assert_eq!(fitted.species.len(), 5, "prey and predators, memoryless and inertial; prey binned");
     // The distilled evaluation ran the fitted rule: its file names it, and it differs from the learned prey.
-    for name in ["distilled-prey", "distilled-prey-without-alignment", "inertial-distilled"] {
+    for name in ["distilled-prey", "distilled-prey-without-alignment", "inertial-distilled", "binned-alignment-alone"] {
         assert!(run.join(format!("eval-50-prey-{name}.csv")).exists(), "{name}");
     }
     let summary = std::fs::read_to_string(dir.path().join("results/tiny/summary.csv")).unwrap();
@@ -1303,6 +1308,8 @@ fn an_experiment_distills_its_runs_and_deploys_the_rules_with_their_ablations() 
         "distilled_prey_memoryless_turn_alignment",
         "distilled_predator_inertial_persistence",
         "distilled_prey_inertial_explained_turn",
+        "distilled_prey_binned_turn_kin[0]",
+        "distilled_prey_binned_turn_alignment_held_out",
     ] {
         let at = header.iter().position(|h| *h == column).unwrap_or_else(|| panic!("a column {column}"));
         for row in summary.lines().skip(1) {
@@ -1312,12 +1319,13 @@ fn an_experiment_distills_its_runs_and_deploys_the_rules_with_their_ablations() 
     let md = std::fs::read_to_string(dir.path().join("results/tiny/REPORT.md")).unwrap();
     assert!(md.contains("doa in evaluation \"50 prey, distilled prey\" minus in \"50 prey\""), "{md}");
     assert!(md.contains("turn.alignment of the Memoryless rule fitted to the prey"), "{md}");
+    assert!(md.contains("explained_turn of the Binned rule fitted to the prey minus of the Memoryless one"), "{md}");
     // An edited distill: fits the rules again and runs again the evaluations that deploy them, as an
     // edited evaluation is run again; the other evaluations stay as they were.
     let learned = std::fs::read(run.join("eval-50-prey.csv")).unwrap();
     let edited = text.replace(
-        "distill: (counts: [(\"prey\", 20)], episodes: 2, steps: 20)",
-        "distill: (counts: [(\"prey\", 20)], episodes: 2, steps: 16)",
+        "distill: (counts: [(\"prey\", 20)], episodes: 2, steps: 20,",
+        "distill: (counts: [(\"prey\", 20)], episodes: 2, steps: 16,",
     );
     assert_ne!(edited, text);
     std::fs::write(dir.path().join("experiments/tiny.ron"), &edited).unwrap();
@@ -1337,13 +1345,19 @@ fn an_experiment_distills_its_runs_and_deploys_the_rules_with_their_ablations() 
     // Deploying fitted rules needs the fit; an ablation needs a zonal rule; a number must be one a rule has,
     // of a species a rule is fitted to; an evaluation deploys one rule per species.
     for (from, to, says) in [
-        ("    distill: (counts: [(\"prey\", 20)], episodes: 2, steps: 20),\n", "", "needs distill:"),
+        (
+            "    distill: (counts: [(\"prey\", 20)], episodes: 2, steps: 20, forms: [Memoryless, Inertial, Binned]),\n",
+            "",
+            "needs distill:",
+        ),
+        ("forms: [Memoryless, Inertial, Binned]", "forms: [Memoryless, Inertial]", "form Binned is not read"),
+        ("Binned, Memoryless, \"explained_turn\"", "Binned, Binned, \"explained_turn\"", "compares a form with itself"),
         ("(species: \"prey\", without: [Alignment])", "(species: \"predator\", without: [Alignment])", "has none"),
         ("\"turn.alignment\"", "\"turn.nope\"", "no number named \"turn.nope\""),
         (
             "Distilled(\"prey\", Memoryless, \"turn.alignment\")",
             "Distilled(\"wolf\", Memoryless, \"turn.alignment\")",
-            "no rule is fitted to \"wolf\"",
+            "no Memoryless rule is read of \"wolf\"",
         ),
         (
             "Distilled(\"prey\", Memoryless, \"turn.alignment\")",
