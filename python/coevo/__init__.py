@@ -67,7 +67,22 @@ __all__ = [
 
 
 def _counts(counts: dict[str, int] | None) -> list[tuple[str, int]] | None:
-    return None if counts is None else [(str(k), int(v)) for k, v in counts.items()]
+    if counts is None:
+        return None
+    for name, n in counts.items():
+        if not isinstance(n, (int, np.integer)) or isinstance(n, bool) or n < 0:
+            raise InputError(f"counts[{name!r}]: a number of agents, an integer ≥ 0 (got {n!r})")
+    return [(str(k), int(v)) for k, v in counts.items()]
+
+
+def _seed(seed, what: str = "seed"):
+    """A seed as coevo takes it, an integer in [0, 2⁶⁴) (None passes), or an InputError naming ``what``:
+    never Python's OverflowError or TypeError from the conversion."""
+    if seed is None:
+        return None
+    if not isinstance(seed, (int, np.integer)) or isinstance(seed, bool) or not 0 <= seed < 2**64:
+        raise InputError(f"{what}: an integer in [0, 2^64) (got {seed!r})")
+    return int(seed)
 
 
 def _control(control: str | list[str] | None) -> list[str] | None:
@@ -125,10 +140,11 @@ class CoevoParallelEnv(_ParallelEnv):
                  control: str | list[str] | None = None, max_cycles: int | None = None,
                  _scene_text: str | None = None):
         if render_mode not in (None, "rgb_array", "human"):
-            raise ValueError(f"render_mode: {render_mode!r} is not one of None, 'rgb_array', 'human'")
+            raise InputError(f"render_mode: {render_mode!r} is not one of None, 'rgb_array', 'human'")
         # PettingZoo's name for the episode length (its max_cycles_test), the same as episode_steps.
         if max_cycles is not None and episode_steps is not None and max_cycles != episode_steps:
-            raise ValueError(f"max_cycles: {max_cycles} differs from episode_steps: {episode_steps}; give one")
+            raise InputError(f"max_cycles: {max_cycles} differs from episode_steps: {episode_steps}; give one")
+        seed = _seed(seed)
         episode_steps = max_cycles if max_cycles is not None else episode_steps
         # What made it: a pickled or copied env is this one made again ([`__reduce__`]), from the scene's
         # text as read now, not from the file again.
@@ -148,8 +164,9 @@ class CoevoParallelEnv(_ParallelEnv):
         # method cache would keep every env ever made alive.
         self._observation_space = _observation_space(self._env.observation_high())
         self._action_space = _action_space()
-        population = len(self._env.positions())
-        self.state_space = spaces.Box(-np.inf, np.inf, (population * STATE_DIM,), np.float32)
+        # Bounded as the state is: positions in the arena, velocities within the top speed, unit headings.
+        state_high = self._env.state_high()
+        self.state_space = spaces.Box(-state_high, state_high, (len(state_high),), np.float32)
         self._closed = False
         self.agents: list[str] = []
         self._seeded = False
@@ -183,6 +200,7 @@ class CoevoParallelEnv(_ParallelEnv):
     def reset(self, seed: int | None = None, options: dict | None = None):
         if self._closed:
             raise InputError("reset: the env is closed; make a new one")
+        seed = _seed(seed)
         # The first reset starts from the scene's seed (as `coevo --train` does); a seed starts afresh.
         if seed is None and not self._seeded:
             seed = self._env.seed
@@ -196,20 +214,20 @@ class CoevoParallelEnv(_ParallelEnv):
         if self._closed:
             raise InputError("step: the env is closed; make a new one")
         if not self.agents:
-            raise ValueError("step: the episode is over; reset first")
+            raise InputError("step: no episode is running (before the first reset, or after one ended); reset first")
         missing = [a for a in self.agents if a not in actions]
         if missing:
-            raise ValueError(f"actions: no action for {missing[0]} ({len(missing)} agents missing)")
+            raise InputError(f"actions: no action for {missing[0]} ({len(missing)} agents missing)")
         unknown = [a for a in actions if a not in self.agents]
         if unknown:
-            raise ValueError(f"actions: no agent named {unknown[0]!r} (agents: {self.agents[0]} … {self.agents[-1]})")
+            raise InputError(f"actions: no agent named {unknown[0]!r} (agents: {self.agents[0]} … {self.agents[-1]})")
         rows = []
         for a in self.agents:
             row = np.asarray(actions[a], dtype=np.float32)
             # One action is exactly two numbers, (thrust, turn): a (1, 2) or (2, 1) array is refused rather
             # than flattened, as it most likely comes from a batch mixed up with one agent's action.
             if row.shape != (2,):
-                raise ValueError(f"actions[{a!r}]: expected shape (2,), got {row.shape}")
+                raise InputError(f"actions[{a!r}]: expected shape (2,), got {row.shape}")
             rows.append(row)
         batch = np.stack(rows)
         obs, rewards, truncated, info = self._env.step(batch)
@@ -228,6 +246,8 @@ class CoevoParallelEnv(_ParallelEnv):
         with ``render_mode="rgb_array"``; with ``"human"``, shown in a matplotlib window (redrawn in place,
         paced at ``metadata["render_fps"]``; off-screen where matplotlib has no display) and None, as
         PettingZoo's convention asks; None without a render mode."""
+        if self._closed:
+            raise InputError("render: the env is closed; make a new one")
         if self.render_mode == "rgb_array":
             return self._env.render(self._render_size)
         if self.render_mode == "human":
@@ -297,7 +317,7 @@ class VecEnv:
         self._made_with = dict(scene=scene, num_envs=num_envs, seed=seed, counts=counts,
                                episode_steps=episode_steps, control=control, world_seeds=world_seeds,
                                threads=threads, _scene_text=text)
-        self._env = _VecEnv(scene, num_envs, seed, _counts(counts), episode_steps, _control(control),
+        self._env = _VecEnv(scene, num_envs, _seed(seed), _counts(counts), episode_steps, _control(control),
                             world_seeds, threads, text)
         # World i's seed: `seed` for world 0, `world_seed(seed, i)` for the others (independent of the
         # worlds of neighbouring seeds); seed + i with world_seeds="consecutive", as VecEnvs seeded
@@ -462,10 +482,15 @@ class CoevoVectorEnv(_VectorEnv):
             raise InputError(f"actions: shape {tuple(actions.shape)}, expected ({self.num_envs}, 2) "
                              f"(num_worlds × agents rows, [thrust, turn]); nothing was stepped")
         if self._next_first is not None:
-            # NEXT_STEP's reset step: the actions are ignored, as Gymnasium's autoreset ignores them.
+            # NEXT_STEP's reset step: the actions are ignored, as Gymnasium's autoreset ignores them. Its
+            # infos have every step's keys, masked out (no step was taken: no dos, doa or catches of one).
             obs, self._next_first = self._next_first, None
             nothing = np.zeros(self.num_envs, dtype=bool)
-            return obs.reshape(self.num_envs, -1), np.zeros(self.num_envs), nothing, nothing.copy(), {}
+            infos = {}
+            for key in ("dos", "doa", "catches"):
+                infos[key] = np.zeros(self.num_envs)
+                infos["_" + key] = nothing.copy()
+            return obs.reshape(self.num_envs, -1), np.zeros(self.num_envs), nothing, nothing.copy(), infos
         per = len(self.agents)
         obs, rewards, truncated, infos = self._worlds.step(actions.reshape(self.num_worlds, per, 2))
         truncated = np.asarray(truncated, dtype=bool)

@@ -195,6 +195,11 @@ impl Env {
         self.inner.observation_high().into_pyarray(py)
     }
 
+    /// The global state (`state`) lies in [−high, high] (`[agents × 6]`, from each agent's species).
+    fn state_high<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f32>> {
+        self.inner.state_high().into_pyarray(py)
+    }
+
     #[getter]
     fn episode_steps(&self) -> usize {
         self.inner.episode_steps()

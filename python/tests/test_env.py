@@ -650,6 +650,8 @@ def test_next_step_autoreset_spends_a_step_on_the_reset():
     assert np.array_equal(n_obs, np.stack(list(s_infos["final_obs"])))
     r_obs, r_rew, r_term, r_trunc, r_infos = nxt.step(np.full((nxt.num_envs, 2), 9.0, np.float32))
     assert np.array_equal(r_obs, s_obs) and not r_rew.any() and not r_trunc.any() and not r_term.any()
+    # Its infos have every step's keys, masked out: no step was taken.
+    assert {"dos", "doa", "catches"} <= set(r_infos) and not any(r_infos["_" + k].any() for k in ("dos", "doa", "catches"))
     assert np.array_equal(nxt.step(actions)[0], same.step(actions)[0])  # the reset step's actions were ignored
     with pytest.raises(coevo.InputError, match="autoreset_mode: NEXT_STEP or SAME_STEP"):
         coevo.vector_env(STANDARD, num_worlds=1, autoreset_mode="disabled")
@@ -693,7 +695,12 @@ def test_the_global_state_for_centralised_critics():
     rows = state.reshape(population, 6)
     assert np.allclose(rows[:, :2], env.positions(), atol=1e-4)
     assert np.allclose(np.hypot(rows[:, 4], rows[:, 5]), 1.0, atol=1e-5)  # unit headings
-    env.step({a: np.ones(2, np.float32) for a in env.agents})
+    # Bounded as the state is (positions in the arena, velocities within the top speed, unit headings),
+    # and within those bounds as it moves.
+    assert np.isfinite(env.state_space.high).all() and env.state_space.contains(state)
+    for _ in range(4):
+        env.step({a: np.ones(2, np.float32) for a in env.agents})
+        assert env.state_space.contains(env.state())
     assert not np.array_equal(env.state(), state)
     vec = coevo.VecEnv(STANDARD, num_envs=2, seed=2, counts={"prey": 4}, episode_steps=5)
     vec.reset()
@@ -722,6 +729,11 @@ def test_closed_envs_and_integer_actions_are_refused():
     par.close()
     with pytest.raises(coevo.InputError, match="closed"):
         par.step({a: np.zeros(2, np.float32) for a in par.possible_agents})
+    drawn = coevo.parallel_env(STANDARD, episode_steps=3, render_mode="rgb_array")
+    drawn.reset()
+    drawn.close()
+    with pytest.raises(coevo.InputError, match="render: the env is closed"):
+        drawn.render()
     vec = coevo.VecEnv(STANDARD, num_envs=1)
     vec.reset()
     with pytest.raises(coevo.InputError, match="dtype int64, expected floating point"):
@@ -742,3 +754,30 @@ def test_a_partial_reset_is_refused_not_ignored():
     assert np.array_equal(first, again)
     par = coevo.parallel_env(STANDARD, episode_steps=3)
     par.reset(seed=0, options={"options": 1})
+
+
+def test_a_refused_step_before_the_first_reset_leaves_it_the_first_episode():
+    fresh = coevo.VecEnv(STANDARD, num_envs=2, seed=5).reset()
+    vec = coevo.VecEnv(STANDARD, num_envs=2, seed=5)
+    with pytest.raises(coevo.InputError):
+        vec.step(np.full((2, len(vec.agents), 2), np.nan, np.float32))
+    assert np.array_equal(vec.reset(), fresh)
+    par = coevo.parallel_env(STANDARD, seed=5)
+    with pytest.raises(coevo.InputError, match="reset first"):
+        par.step({a: np.zeros(2, np.float32) for a in par.possible_agents})
+
+
+def test_every_env_form_refuses_bad_seeds_and_counts_with_an_input_error():
+    # One class for one kind of error in every form, never Python's OverflowError or TypeError from a
+    # conversion (an InputError is a CoevoError, a ValueError).
+    makers = [lambda **k: coevo.parallel_env(STANDARD, **k), lambda **k: coevo.VecEnv(STANDARD, num_envs=1, **k),
+              lambda **k: coevo.vector_env(STANDARD, num_worlds=1, **k)]
+    for make in makers:
+        for seed in (-1, 2**64, 1.5, True):
+            with pytest.raises(coevo.InputError, match="seed: an integer in"):
+                make(seed=seed)
+        with pytest.raises(coevo.InputError, match=r"counts\['prey'\]: a number of agents"):
+            make(counts={"prey": -1})
+    par = coevo.parallel_env(STANDARD)
+    with pytest.raises(coevo.InputError, match="seed: an integer in"):
+        par.reset(seed=-3)

@@ -280,6 +280,16 @@ impl Env {
             .collect()
     }
 
+    /// The largest magnitude of each number of [`Env::state`] (bounds of a state space), agent by agent.
+    pub fn state_high(&self) -> Vec<f32> {
+        let (pop, registry) = (self.world.resource::<Population>(), self.world.resource::<SpeciesRegistry>());
+        let scene = &self.world.resource::<crate::sim::ActiveScene>().0;
+        by_id(pop)
+            .into_iter()
+            .flat_map(|i| crate::sim::perception::state_high(scene, registry, pop.species[i]).map(|x| x as f32))
+            .collect()
+    }
+
     /// Agents of every species (the rows of [`Env::state`]).
     pub(crate) fn population(&self) -> usize {
         self.world.resource::<Population>().id.len()
@@ -389,7 +399,7 @@ impl VecEnv {
         }
         // All the worlds are bounded before the first is built: built one by one, each would be checked
         // against what the ones before it had left, and the refusal would come late and name no figure.
-        let (limit, one) = (crate::io::memory_bytes(), scene.agent_bytes());
+        let (limit, one) = (crate::io::memory_bytes(), scene.world_bytes());
         if one * worlds as f64 > limit {
             return Err(format!(
                 "num_envs: {worlds} worlds of this scene would need about {}, more than the {} of memory coevo may use here (the least of free memory, the cgroup limit and ulimit -v)",
@@ -506,7 +516,6 @@ impl VecEnv {
     /// One step of every world (`actions`: `[worlds × agents × 2]`), on all cores; a world whose episode
     /// ends starts its next one.
     pub fn step(&mut self, actions: &[f32]) -> crate::error::Result<VecStep> {
-        self.fresh = false;
         let per = self.agents * ACTION_DIM;
         if actions.len() != per * self.envs.len() {
             return Err(format!(
@@ -525,6 +534,8 @@ impl VecEnv {
             return Err(format!("world {world}, {}: {} is not a finite number", names[agent], actions[i]))
                 .kind(Kind::Input);
         }
+        // A step taken (never one refused above) leaves the first episode: a reset after it starts the next.
+        self.fresh = false;
         let mut work: Vec<(&mut Env, &[f32], Option<WorldStep>)> =
             self.envs.iter_mut().zip(actions.chunks(per)).map(|(e, a)| (e, a, None)).collect();
         // On one thread or all, whichever has been faster lately (other work on the machine can make
@@ -555,5 +566,71 @@ impl VecEnv {
             self.finished.extend(finished);
         }
         Ok(step)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::alloc::{GlobalAlloc, Layout, System};
+    use std::cell::Cell;
+
+    /// The system allocator, counting the bytes live that this thread allocated (other tests run beside):
+    /// what a world holds, measured.
+    struct Counting;
+    thread_local! {
+        static LIVE: Cell<isize> = const { Cell::new(0) };
+    }
+    fn count(bytes: isize) {
+        // A thread being torn down has no counter left: its allocations are not this test's.
+        let _ = LIVE.try_with(|live| live.set(live.get() + bytes));
+    }
+    // SAFETY: every call is forwarded to the system allocator unchanged; only sizes are counted.
+    unsafe impl GlobalAlloc for Counting {
+        unsafe fn alloc(&self, l: Layout) -> *mut u8 {
+            count(l.size() as isize);
+            unsafe { System.alloc(l) }
+        }
+        unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
+            count(-(l.size() as isize));
+            unsafe { System.dealloc(p, l) }
+        }
+        unsafe fn realloc(&self, p: *mut u8, l: Layout, new: usize) -> *mut u8 {
+            count(new as isize - l.size() as isize);
+            unsafe { System.realloc(p, l, new) }
+        }
+    }
+    #[global_allocator]
+    static ALLOCATOR: Counting = Counting;
+
+    /// The bytes one world of `scene` holds once made and reset, on one thread.
+    fn measured(scene: &Scene) -> f64 {
+        let before = LIVE.with(|l| l.get());
+        let mut env = VecEnv::seeded(scene.clone(), 16, 1, Default::default(), WorldSeeds::Independent).unwrap();
+        env.set_max_threads(1);
+        env.reset().unwrap();
+        let bytes = (LIVE.with(|l| l.get()) - before) as f64 / 16.0;
+        drop(env);
+        bytes
+    }
+
+    #[test]
+    fn a_refused_step_leaves_the_first_reset_its_first_episode() {
+        let make =
+            || VecEnv::seeded(Scene::preset("gym-pps").unwrap(), 2, 3, Default::default(), WorldSeeds::Independent);
+        let (mut refused, mut fresh) = (make().unwrap(), make().unwrap());
+        assert!(refused.step(&[0.0; 3]).is_err() && refused.step(&vec![f32::NAN; 2 * refused.agents * 2]).is_err());
+        assert_eq!(refused.reset().unwrap(), fresh.reset().unwrap());
+    }
+
+    #[test]
+    fn a_world_holds_what_the_memory_check_bounds_it_by() {
+        for prey in [10, 200] {
+            let mut scene = Scene::preset("gym-pps").unwrap();
+            scene.species.iter_mut().filter(|s| s.name == "prey").for_each(|s| s.count = prey);
+            // The check bounds a world from above (never again ~20 times too little), and not by much.
+            let (held, bound) = (measured(&scene), scene.world_bytes());
+            assert!(held <= bound && bound <= 1.5 * held, "{prey} prey: a world holds {held} B, bounded by {bound} B");
+        }
     }
 }

@@ -425,23 +425,34 @@ fn observe_rows(
 /// vector's rotated components are bounded by its length. With walls every neighbour block takes the bound
 /// of the farthest-reaching species (one bound for every observed species); a margin of 1e-6 covers
 /// rounding.
+/// How far from the arena's centre an agent of species `t` can be along an axis, in metres: half the edge
+/// on the torus; with walls, a little beyond it (its radius and two steps at top speed of overshoot).
+fn reach(scene: &Scene, registry: &SpeciesRegistry, t: usize) -> f64 {
+    let (w, d) = (&scene.world, &registry.defs[t]);
+    match w.boundary {
+        crate::scene::Boundary::Walls => w.arena_edge / 2.0 + d.radius + d.max_speed * w.dt * 2.0,
+        _ => w.arena_edge / 2.0,
+    }
+}
+
+/// The largest magnitude of each of an agent of species `t`'s numbers in the world frame: position x, y,
+/// velocity x, y, unit heading x, y (a speed clipped per component or as a norm stays within the top
+/// speed along each axis). The world-frame observation's own state, and the global state's per agent.
+pub(crate) fn state_high(scene: &Scene, registry: &SpeciesRegistry, t: usize) -> [f64; 6] {
+    let (reach, speed) = (reach(scene, registry, t), registry.defs[t].max_speed);
+    [reach, reach, speed, speed, 1.0, 1.0]
+}
+
 pub(crate) fn observation_high(scene: &Scene, registry: &SpeciesRegistry, s: usize) -> Vec<f32> {
     let w = &scene.world;
     let half = w.arena_edge / 2.0;
     let walls = w.boundary == crate::scene::Boundary::Walls;
-    let reach = |t: usize| {
-        let d = &registry.defs[t];
-        if walls {
-            half + d.radius + d.max_speed * w.dt * 2.0
-        } else {
-            half
-        }
-    };
+    let reach = |t: usize| reach(scene, registry, t);
     let far = (0..registry.len()).map(reach).fold(0.0, f64::max);
     let offset = if walls { reach(s) + far } else { half };
     let speed = registry.defs[s].max_speed;
     let own: [f64; OWN_STATE_DIM] = match scene.observation_frame {
-        ObservationFrame::World => [reach(s), reach(s), speed, speed, 1.0, 1.0],
+        ObservationFrame::World => state_high(scene, registry, s),
         ObservationFrame::Body => {
             // Per-component clipping allows a speed of √2 times the limit along the diagonal.
             let v = match w.speed_clip {

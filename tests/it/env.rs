@@ -168,6 +168,10 @@ fn every_observation_lies_within_the_declared_bounds() {
                 );
                 seen = seen.max(x.abs() / h);
             }
+            // The global state within its bounds too (a state space's).
+            for (k, (x, h)) in env.state().iter().zip(env.state_high()).enumerate() {
+                assert!(x.abs() <= h, "{file}: number {k} of the state is {x}, beyond ±{h}");
+            }
             if r.truncated {
                 env.reset(None).unwrap();
             }
