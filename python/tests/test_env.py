@@ -781,3 +781,22 @@ def test_every_env_form_refuses_bad_seeds_and_counts_with_an_input_error():
     par = coevo.parallel_env(STANDARD)
     with pytest.raises(coevo.InputError, match="seed: an integer in"):
         par.reset(seed=-3)
+
+
+def test_a_record_as_npy_is_read_by_trajectorytools(tmp_path):
+    # `coevo --record OUT.npy` in idtracker.ai's and trajectorytools' layout, read back by trajectorytools
+    # itself (installed by .ci/run), with the CLI the repository's tests built.
+    import subprocess
+
+    tt = pytest.importorskip("trajectorytools")
+    built = [os.path.join(ROOT, "target", p, "coevo") for p in ("debug", "release")]
+    binary = next((b for b in built if os.path.exists(b)), None)
+    if binary is None:
+        pytest.skip("no coevo binary built (cargo build)")
+    out = tmp_path / "swarm.npy"
+    subprocess.run([binary, "--record", str(out), "--scene", STANDARD, "--steps", "30", "--seed", "2"],
+                   check=True, capture_output=True)
+    positions, species = np.load(out), np.load(tmp_path / "swarm-species.npy")
+    assert positions.shape == (31, 13, 2) and list(species).count("prey") == 10
+    tr = tt.Trajectories.from_positions(positions)
+    assert tr.number_of_individuals == 13 and np.isfinite(tr.speed).all()

@@ -7,7 +7,13 @@
 //! action and reward are empty. Numbers are printed in the shortest form that reads back to the same f64.
 //! The record is one continuous trajectory: the episode does not reset during it.
 //!
-//! Beside it, `OUT-order.csv` holds the order parameters of every species with two or more agents at
+//! `--record OUT.npy` writes the positions alone in the layout of idtracker.ai and trajectorytools
+//! (Romero-Ferrero et al., Nat. Methods 2019): a NumPy array `[frames, individuals, 2]` of float64 x, y in
+//! metres, frame t the state at step t (frame 0 the spawned state), individuals by agent id, positions as
+//! simulated (on a torus, wrapped into the arena); `OUT-species.npy` beside it names each individual's
+//! species (`trajectorytools.Trajectories.from_positions(np.load("OUT.npy"))` reads the first).
+//!
+//! Beside either, `OUT-order.csv` holds the order parameters of every species with two or more agents at
 //! every step (`step,species,dos,doa,polarization,milling,clusters,largest_cluster,nn_correlation`, see
 //! [`crate::sim::metrics::Swarming`]); step 0, the spawned state, is not measured.
 
@@ -22,10 +28,12 @@ use std::path::Path;
 
 pub(crate) const HEADER: &str = "step,id,species,x,y,vx,vy,theta,thrust,turn_rate,reward";
 
-/// `--record OUT.csv`.
+/// `--record OUT.csv` (or `OUT.npy`).
 #[derive(clap::Args, Debug, Clone, Default)]
 pub(crate) struct RecordArgs {
-    /// Record a trajectory CSV: step,id,species,x,y,vx,vy,theta,thrust,turn_rate,reward.
+    /// Record a trajectory CSV: step,id,species,x,y,vx,vy,theta,thrust,turn_rate,reward; OUT.npy writes
+    /// the positions as idtracker.ai and trajectorytools lay them out ([frames, individuals, 2], metres),
+    /// with OUT-species.npy naming each individual's species.
     #[arg(long, help_heading = "Modes", value_name = "OUT.csv")]
     pub(crate) record: Option<std::path::PathBuf>,
 }
@@ -53,13 +61,29 @@ pub(crate) fn main(
 /// physical ([`Simulation::check`]).
 pub(crate) fn record(sim: &mut Simulation, steps: usize, path: &Path, existing: Existing) -> crate::error::Result<()> {
     let io_err = |e: io::Error| format!("{}: {e}", path.display());
+    let npy = path.extension().is_some_and(|e| e == "npy");
     let order_path = crate::io::beside(path, "order");
     let order_err = |e: io::Error| format!("{}: {e}", order_path.display());
+    let species_path = crate::io::beside(path, "species").with_extension("npy");
+    let species_err = |e: io::Error| format!("{}: {e}", species_path.display());
     sim.world_mut().resource_mut::<Episode>().auto_reset = false;
     crate::io::check_target(&order_path, existing).map_err(order_err)?;
+    if npy {
+        crate::io::check_target(&species_path, existing).map_err(species_err)?;
+    }
     let mut file = AtomicFile::create(path, existing).map_err(io_err)?;
     let mut order = AtomicFile::create(&order_path, existing).map_err(order_err)?;
-    writeln!(file.writer(), "{HEADER}").map_err(io_err)?;
+    let first = snapshot(sim);
+    let mut species = None;
+    if npy {
+        npy_header(file.writer(), "<f8", &[steps + 1, first.len(), 2]).map_err(io_err)?;
+        let names: Vec<&str> = first.iter().map(|r| r.species.as_str()).collect();
+        let mut f = AtomicFile::create(&species_path, existing).map_err(species_err)?;
+        npy_strings(f.writer(), &names).map_err(species_err)?;
+        species = Some(f);
+    } else {
+        writeln!(file.writer(), "{HEADER}").map_err(io_err)?;
+    }
     writeln!(order.writer(), "step,species,{}", Swarming::NAMES.join(",")).map_err(order_err)?;
     let names: Vec<String> = sim.world().resource::<SpeciesRegistry>().defs.iter().map(|d| d.name.clone()).collect();
     let bar = super::progress::step_bar(&sim.world().resource::<crate::sim::ActiveScene>().0, steps);
@@ -80,6 +104,12 @@ pub(crate) fn record(sim: &mut Simulation, steps: usize, path: &Path, existing: 
             None
         };
         let out = file.writer();
+        if npy {
+            for s in &states {
+                out.write_all(&s.x.to_le_bytes()).and_then(|_| out.write_all(&s.y.to_le_bytes())).map_err(io_err)?;
+            }
+            continue;
+        }
         for (i, s) in states.iter().enumerate() {
             write!(out, "{t},{},{},{},{},{},{},{}", s.id, s.species, s.x, s.y, s.vx, s.vy, s.theta).map_err(io_err)?;
             match &transitions {
@@ -90,7 +120,38 @@ pub(crate) fn record(sim: &mut Simulation, steps: usize, path: &Path, existing: 
         }
     }
     file.commit().map_err(io_err)?;
+    if let Some(f) = species {
+        f.commit().map_err(species_err)?;
+    }
     Ok(order.commit().map_err(order_err)?)
+}
+
+/// A NumPy `.npy` header (format 1.0) for a C-ordered array of `descr` (e.g. `<f8`) and `shape`: the
+/// magic, the version, the header's length, then the dictionary padded with spaces to a newline that ends
+/// on a multiple of 64 bytes, as NumPy writes it.
+fn npy_header(out: &mut impl Write, descr: &str, shape: &[usize]) -> io::Result<()> {
+    let dims: Vec<String> = shape.iter().map(usize::to_string).collect();
+    let shape = if dims.len() == 1 { format!("({},)", dims[0]) } else { format!("({})", dims.join(", ")) };
+    let mut dict = format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': {shape}, }}");
+    let len = 10 + dict.len() + 1;
+    dict.push_str(&" ".repeat(len.next_multiple_of(64) - len));
+    dict.push('\n');
+    out.write_all(b"\x93NUMPY\x01\x00")?;
+    out.write_all(&(dict.len() as u16).to_le_bytes())?;
+    out.write_all(dict.as_bytes())
+}
+
+/// `names` as a `.npy` array of NumPy unicode strings (`<U`n, UTF-32, padded with zeros).
+fn npy_strings(out: &mut impl Write, names: &[&str]) -> io::Result<()> {
+    let width = names.iter().map(|n| n.chars().count()).max().unwrap_or(0).max(1);
+    npy_header(out, &format!("<U{width}"), &[names.len()])?;
+    for name in names {
+        let chars = name.chars().map(u32::from).chain(std::iter::repeat(0)).take(width);
+        for c in chars {
+            out.write_all(&c.to_le_bytes())?;
+        }
+    }
+    Ok(())
 }
 
 struct Row {

@@ -347,3 +347,35 @@ fn distilled_rules_are_fitted_to_a_trained_run_and_deployed_as_scene_policies() 
     assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("not a run folder with trained actors"));
     assert!(!dir.path().join("none").exists());
 }
+
+#[test]
+fn a_record_as_npy_holds_the_csvs_positions_in_trajectorytools_layout() {
+    // `--record OUT.npy`: [frames, individuals, 2] float64, frame t the state at step t, individuals by
+    // id: the CSV record's x and y to the bit; OUT-species.npy names each individual's species.
+    let dir = tempfile::tempdir().unwrap();
+    let csv = record(dir.path(), "r.csv", "scenes/standard.ron", "3", "20");
+    let npy = dir.path().join("n.npy");
+    let o =
+        coevo(&["--record", npy.to_str().unwrap(), "--scene", "scenes/standard.ron", "--steps", "20", "--seed", "3"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let bytes = std::fs::read(&npy).unwrap();
+    assert_eq!(&bytes[..8], b"\x93NUMPY\x01\x00");
+    let header_len = u16::from_le_bytes([bytes[8], bytes[9]]) as usize;
+    assert_eq!((10 + header_len) % 64, 0, "the data starts on a 64-byte boundary, as NumPy writes it");
+    let header = std::str::from_utf8(&bytes[10..10 + header_len]).unwrap();
+    assert!(header.starts_with("{'descr': '<f8', 'fortran_order': False, 'shape': (21, 13, 2), }"), "{header}");
+    let data: Vec<f64> =
+        bytes[10 + header_len..].chunks_exact(8).map(|b| f64::from_le_bytes(b.try_into().unwrap())).collect();
+    let rows: Vec<Vec<&str>> = csv.lines().skip(1).map(|l| l.split(',').collect()).collect();
+    assert_eq!(data.len(), rows.len() * 2);
+    for (k, row) in rows.iter().enumerate() {
+        // Rows by step, then id: the array's order.
+        assert_eq!([data[2 * k], data[2 * k + 1]], [row[3].parse::<f64>().unwrap(), row[4].parse::<f64>().unwrap()]);
+    }
+    let species = std::fs::read(dir.path().join("n-species.npy")).unwrap();
+    let header_len = u16::from_le_bytes([species[8], species[9]]) as usize;
+    assert!(std::str::from_utf8(&species[10..10 + header_len]).unwrap().contains("'descr': '<U8'"));
+    let first: String = species[10 + header_len..10 + header_len + 32].chunks_exact(4).map(|c| c[0] as char).collect();
+    assert_eq!(first, "predator");
+    assert!(dir.path().join("n-order.csv").exists());
+}
