@@ -321,9 +321,11 @@ fn distilled_figures(
         for (part, own, shown) in [("turn.", "persistence", "turn"), ("thrust.", "speed", "thrust")] {
             // A memoryless rule's own-state terms are not fitted: not shown.
             let own_term = |n: &str| n == own || n.ends_with(&format!(".{own}"));
+            // A binned rule's gains per bin are drawn by distance ([`binned_figure`]), not as rows here.
             let gain = |n: &&&String| {
                 ((n.starts_with(part) && !n.ends_with("bias")) || n.as_str() == own)
                     && !(form == RuleForm::Memoryless && own_term(n))
+                    && !n.contains('[')
             };
             let rows: Vec<Row> = gains.iter().filter(gain).map(|n| row(n.trim_start_matches(part), q(n))).collect();
             panels.push(EstimatePanel {
@@ -364,7 +366,52 @@ fn distilled_figures(
         x_label: "fraction of the action's variance".into(),
         rows: explained,
     });
-    plot::save_estimates(&dir.join(format!("{preset}-distilled")), &panels)
+    plot::save_estimates(&dir.join(format!("{preset}-distilled")), &panels)?;
+    binned_figure(exp, preset, table, dir, title)
+}
+
+/// The binned rules an experiment reads (`forms: [.., Binned]`), gain by distance: per species, the turn's
+/// and the thrust's gain of each kind of term (kin directions, alignment, evasion) at each bin's middle,
+/// mean over seeds with its 95 % band (`figures/<preset>-binned`). A bin no neighbour fell in keeps a
+/// gain of zero.
+fn binned_figure(
+    exp: &Experiment,
+    preset: &str,
+    table: &super::summary::Summary,
+    dir: &Path,
+    title: &dyn Fn(&str) -> String,
+) -> crate::error::Result<()> {
+    use crate::scene::RuleForm;
+    let (Some(d), Some(run)) = (&exp.spec.distill, exp.runs.first()) else { return Ok(()) };
+    let variant = exp.spec.variants.first().map(|v| v.name.clone()).unwrap_or_default();
+    let edges: Vec<f64> = super::distill::RADII.iter().map(|r| r * run.scene.world.arena_edge).collect();
+    let middles: Vec<f64> = edges.windows(2).map(|w| (w[0] + w[1]) / 2.0).collect();
+    let mut panels = vec![];
+    for (species, _, _) in super::distill::rules(&run.scene, &d.forms).iter().filter(|(_, f, _)| *f == RuleForm::Binned)
+    {
+        for (part, kinds) in [("turn", &["kin", "alignment", "evasion"][..]), ("thrust", &["kin", "evasion"][..])] {
+            let curves = kinds.iter().map(|kind| {
+                let estimates: Vec<_> = (0..middles.len())
+                    .map(|b| {
+                        let q = Quantity::Distilled(species.clone(), RuleForm::Binned, format!("{part}.{kind}[{b}]"));
+                        estimate(&table.values(exp, preset, &variant, &q))
+                    })
+                    .collect();
+                plot::Curve::of_estimates(kind.to_string(), middles.clone(), &estimates)
+            });
+            panels.push(plot::Panel {
+                title: title(&format!("{species}, binned rule: {part} gain by distance")),
+                x_label: "distance to the neighbour (m, middle of its bin)".into(),
+                y_label: format!("gain on the normalized {part}"),
+                curves: curves.collect(),
+                levels: vec![],
+            });
+        }
+    }
+    if panels.is_empty() {
+        return Ok(());
+    }
+    plot::save(&dir.join(format!("{preset}-binned")), &panels)
 }
 
 /// The training curves, the variants compared (from the per-run values of `table`), catches, and per
