@@ -220,9 +220,14 @@ pub(crate) fn carried(
                 .into());
             }
         }
-        // And the same kernels: one binary computes other numbers on another family.
-        let here: BTreeSet<&str> = data.values().map(|d| d.kernels.as_str()).filter(|k| !k.is_empty()).collect();
-        for &i in &missing {
+        // And the same kernels: one binary computes other numbers on another family (a variant on its own
+        // family, `kernels:`, is held to that one when aggregated).
+        let here: BTreeSet<&str> = data
+            .iter()
+            .filter(|&(&i, d)| !d.kernels.is_empty() && exp.runs[i].kernels.is_none())
+            .map(|(_, d)| d.kernels.as_str())
+            .collect();
+        for &i in missing.iter().filter(|&&i| exp.runs[i].kernels.is_none()) {
             let theirs = recorded[&i].kernels.as_str();
             if !theirs.is_empty() && here.iter().any(|k| *k != theirs) {
                 return Err(format!(

@@ -162,7 +162,21 @@ fn check_one_binary(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> crate:
     if exp.spec.mixed_binaries {
         return Ok(());
     }
-    let mut families = data.iter().filter(|(_, d)| !d.kernels.is_empty());
+    // A variant on its own family (`kernels:`) runs on that one; the others on one family between them.
+    if let Some((&i, d)) = data.iter().find(|&(&i, d)| {
+        let family = exp.runs[i].kernels.as_deref();
+        !d.kernels.is_empty() && family.is_some_and(|f| f != d.kernels && !(f == "avx2" && d.kernels == "avx2-fma"))
+    }) {
+        return Err(format!(
+            "{}: {} ran on {} kernels, not its variant's {}; rerun it",
+            exp.file.display(),
+            exp.runs[i].dir.display(),
+            d.kernels,
+            exp.runs[i].kernels.as_deref().unwrap_or_default()
+        )
+        .into());
+    }
+    let mut families = data.iter().filter(|&(&i, d)| !d.kernels.is_empty() && exp.runs[i].kernels.is_none());
     if let Some((&first, a)) = families.next() {
         if let Some((&other, b)) = families.find(|(_, b)| b.kernels != a.kernels) {
             return Err(format!(

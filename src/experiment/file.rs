@@ -146,6 +146,12 @@ pub(crate) struct VariantFile {
     /// (body-frame's); a new file shares the runs instead.
     #[serde(default)]
     pub(crate) same_training_as: Option<String>,
+    /// The family of matrix-product kernels this variant's runs use instead of the experiment's (the pin's
+    /// or this machine's), e.g. `kernels: Some("avx512-bf16")` beside variants on `avx512`: a comparison of
+    /// kernel families, one binary (`--kernels` names them). Every run on a family other than its own is
+    /// refused when results are aggregated.
+    #[serde(default)]
+    pub(crate) kernels: Option<String>,
     /// A grid's cell (`grid.rs`): its level on each axis, by index into the axis's levels, in the file's
     /// order of axes (their patches apply after `patch`); empty for a listed variant.
     #[serde(skip)]
@@ -563,6 +569,8 @@ pub struct Run {
     pub(crate) shared_from: Option<String>,
     /// The variant's `same_training_as`: the `"EXPERIMENT/VARIANT"` this run is a declared re-training of.
     pub(crate) same_training_as: Option<String>,
+    /// The variant's own kernel family (`kernels:`), None for the experiment's.
+    pub(crate) kernels: Option<String>,
 }
 
 /// A loaded and validated experiment.

@@ -84,6 +84,7 @@ pub(crate) fn expand(spec: &mut ExperimentFile) -> Result<(), (String, String)> 
             patch: ScenePatch::default(),
             shared_from: None,
             same_training_as: None,
+            kernels: None,
             cell,
         });
     }

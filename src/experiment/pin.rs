@@ -95,6 +95,7 @@ impl Pin {
 
 /// The executable an experiment's runs are made by, the kernel family they run on, and the experiment's
 /// pin as it stands once that executable is recorded in it.
+#[derive(Clone)]
 pub(crate) struct Executable {
     pub(crate) path: PathBuf,
     /// Its BLAKE3 prefix (what its runs' provenance will say).

@@ -168,6 +168,15 @@ fn dies_with_parent(command: &mut Command) {
 /// depend on it).
 pub(crate) fn complete_run(exp: &Experiment, run: &Run, exe: &Executable, threads: usize) -> crate::error::Result<()> {
     let dir = run.dir.to_string_lossy().into_owned();
+    // A variant on its own kernel family (`kernels:`) is trained and evaluated on it.
+    let own;
+    let exe = match &run.kernels {
+        Some(family) => {
+            own = Executable { kernels: family.clone(), ..exe.clone() };
+            &own
+        }
+        None => exe,
+    };
     let threads = crate::run::args::threads_argv(threads.max(1));
     let train = |resume: bool, overwrite: bool| crate::run::train::TrainOptions {
         run: run.dir.clone(),
@@ -466,7 +475,8 @@ pub(crate) fn run(exp: &Experiment, opts: &RunnerOptions, only: Option<usize>) -
             )
             .into());
         }
-        if let Some((&i, other)) = elsewhere.iter().find(|(_, e)| !e.kernels.is_empty() && e.kernels != kernels) {
+        let family = |i: usize| exp.runs[i].kernels.as_deref().unwrap_or(kernels);
+        if let Some((&i, other)) = elsewhere.iter().find(|&(&i, e)| !e.kernels.is_empty() && e.kernels != family(i)) {
             return Err(format!(
                 "{}: the committed run {} ran on {} kernels and this machine runs {kernels}; pin them (COEVO_KERNELS={} or --kernels), or set mixed_binaries: true",
                 exp.file.display(),

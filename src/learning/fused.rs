@@ -64,9 +64,10 @@ impl Pass {
             // z first and accumulating the product onto it (one product pass at these sizes, and
             // b + s = s + b exactly), without a copy of b into every row.
             let w = layer.weight.as_slice();
-            let wt: (*const f32, (usize, usize)) = match super::nets::direct() {
-                true => (net.transposed(l).as_ptr(), (outputs, 1)),
-                false => (w.as_ptr(), (1, inputs)),
+            // Coevo's own kernels read Wᵀ by contiguous rows: from the transposed copy.
+            let wt: (*const f32, (usize, usize)) = match super::nets::own_kernels() {
+                super::nets::Own::Direct | super::nets::Own::Bf16 => (net.transposed(l).as_ptr(), (outputs, 1)),
+                super::nets::Own::None => (w.as_ptr(), (1, inputs)),
             };
             // SAFETY: every pointer and stride below addresses only the buffers' own extents:
             // z is rows × outputs, x is rows × inputs, Wᵀ is read as inputs × outputs from W (outputs × inputs)
@@ -209,10 +210,19 @@ pub(crate) unsafe fn product(
     (rhs_rs, rhs_cs): (usize, usize),
 ) {
     #[cfg(target_arch = "x86_64")]
-    if super::nets::direct() && rhs_cs == 1 && n > 0 && n <= super::direct::MAX_WIDTH && !accumulate {
-        // SAFETY: the family is chosen only on a CPU with AVX-512F; the extents are the caller's.
-        unsafe { super::direct::product(m, n, k, dst, dst_rs, lhs, (lhs_rs, lhs_cs), rhs, rhs_rs) };
-        return;
+    if rhs_cs == 1 && n > 0 && n <= super::direct::MAX_WIDTH && !accumulate {
+        use super::nets::{own_kernels, Own};
+        match own_kernels() {
+            // SAFETY: the family is chosen only on a CPU with AVX-512F; the extents are the caller's.
+            Own::Direct => {
+                return unsafe { super::direct::product(m, n, k, dst, dst_rs, lhs, (lhs_rs, lhs_cs), rhs, rhs_rs) }
+            }
+            // SAFETY: the family is chosen only on a CPU with AVX512-BF16 and -BW; the extents are the caller's.
+            Own::Bf16 => {
+                return unsafe { super::bf16::product(m, n, k, dst, dst_rs, lhs, (lhs_rs, lhs_cs), rhs, rhs_rs) }
+            }
+            Own::None => {}
+        }
     }
     gemm::gemm(
         m,

@@ -12,6 +12,7 @@
 //! probability ε a species acts uniformly at random for that step; σ and ε fall by `exploration_decay` per
 //! episode to `exploration_floor`.
 
+pub(crate) mod bf16;
 pub mod checkpoint;
 pub mod control;
 pub mod ddpg;

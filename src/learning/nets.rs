@@ -16,8 +16,10 @@ pub type Dev = Cpu;
 /// across families they may differ in the last bits, so a run records its family (`provenance.ron`) and
 /// is resumed only on the same one.
 pub(crate) fn kernels() -> &'static str {
-    if direct() {
-        return "avx512-direct";
+    match own_kernels() {
+        Own::Direct => return "avx512-direct",
+        Own::Bf16 => return "avx512-bf16",
+        Own::None => {}
     }
     #[cfg(target_arch = "x86_64")]
     {
@@ -33,14 +35,31 @@ pub(crate) fn kernels() -> &'static str {
 }
 
 /// The families `--kernels` and `COEVO_KERNELS` accept.
-pub(crate) const KERNEL_CHOICES: &str = "auto, avx512, avx512-direct, avx2 or portable";
+pub(crate) const KERNEL_CHOICES: &str = "auto, avx512, avx512-direct, avx512-bf16, avx2 or portable";
 
-/// Whether the update's products run on coevo's own AVX-512 kernels (`super::direct`) instead of gemm's.
-static DIRECT: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+/// The families a run can be pinned to and records (`auto` chooses one of them).
+pub(crate) const FAMILIES: [&str; 5] = ["avx512", "avx512-direct", "avx512-bf16", "avx2", "portable"];
 
-/// Whether this process runs the `avx512-direct` family.
-pub(crate) fn direct() -> bool {
-    DIRECT.load(std::sync::atomic::Ordering::Relaxed)
+/// Which of coevo's own kernels run the update's products instead of gemm's, if any.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Own {
+    None,
+    /// `super::direct`: f32, AVX-512.
+    Direct,
+    /// `super::bf16`: bf16 operands, f32 sums, AVX512-BF16.
+    Bf16,
+}
+
+/// [`Own`] as pinned ([`pin_kernels`]): 0 none, 1 direct, 2 bf16.
+static OWN: std::sync::atomic::AtomicU8 = std::sync::atomic::AtomicU8::new(0);
+
+/// Which of coevo's own kernel families this process runs.
+pub(crate) fn own_kernels() -> Own {
+    match OWN.load(std::sync::atomic::Ordering::Relaxed) {
+        1 => Own::Direct,
+        2 => Own::Bf16,
+        _ => Own::None,
+    }
 }
 
 /// Pins the kernel family (`auto`, `avx512`, `avx2`, `portable`), so that machines with different CPUs
@@ -55,7 +74,10 @@ pub(crate) fn pin_kernels(family: &str) -> Result<(), String> {
     let (avx512, fma) = (false, false);
     let cap = match family {
         "avx512-direct" if super::direct::available() => AUTO,
-        "avx512-direct" => return Err(format!("this CPU cannot run the {family} kernels (it runs {})", kernels())),
+        "avx512-bf16" if super::bf16::available() => AUTO,
+        "avx512-direct" | "avx512-bf16" => {
+            return Err(format!("this CPU cannot run the {family} kernels (it runs {})", kernels()))
+        }
         "auto" => AUTO,
         "avx512" if avx512 => AUTO,
         "avx2" | "avx2-fma" if fma => AVX2_FMA,
@@ -65,7 +87,12 @@ pub(crate) fn pin_kernels(family: &str) -> Result<(), String> {
         }
         other => return Err(format!("must be {KERNEL_CHOICES} (got {other:?})")),
     };
-    DIRECT.store(family == "avx512-direct", std::sync::atomic::Ordering::Relaxed);
+    let own = match family {
+        "avx512-direct" => 1,
+        "avx512-bf16" => 2,
+        _ => 0,
+    };
+    OWN.store(own, std::sync::atomic::Ordering::Relaxed);
     set(cap);
     Ok(())
 }

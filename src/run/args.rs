@@ -73,9 +73,11 @@ pub(crate) struct CommonArgs {
     /// Worker threads (default: COEVO_THREADS, else all cores). Results never depend on it.
     #[arg(long, help_heading = "Running", value_name = "N", value_parser = at_least_one)]
     pub(crate) threads: Option<usize>,
-    /// Matrix-product kernels: auto, avx512, avx512-direct, avx2 or portable (default: COEVO_KERNELS, else
-    /// auto: gemm's, AVX-512 where the CPU has it). Pin one family so CPUs with and without AVX-512 compute
-    /// identical runs; avx512-direct is coevo's own AVX-512 products (never chosen by auto; see Benchmarks).
+    /// Matrix-product kernels: auto, avx512, avx512-direct, avx512-bf16, avx2 or portable (default:
+    /// COEVO_KERNELS, else auto: gemm's, AVX-512 where the CPU has it). Pin one family so CPUs with and
+    /// without AVX-512 compute identical runs; avx512-direct is coevo's own AVX-512 products, avx512-bf16
+    /// the same with operands rounded to bfloat16 and f32 sums (AVX512-BF16 CPUs; never chosen by auto;
+    /// see Benchmarks).
     #[arg(long, help_heading = "Running", value_name = "FAMILY")]
     pub(crate) kernels: Option<String>,
 }

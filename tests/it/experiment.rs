@@ -1581,3 +1581,26 @@ fn a_grid_axis_naming_no_scene_field_or_a_claim_naming_no_axis_is_one_line() {
         assert!(!dir.path().join("results/grid").exists(), "nothing written before the file is whole");
     }
 }
+
+#[test]
+fn a_variant_on_its_own_kernel_family_runs_on_it_and_is_held_to_it() {
+    // `kernels:` puts one variant's runs on another family of matrix-product kernels (portable runs on
+    // every CPU) beside the experiment's own: a comparison of families by one binary.
+    let dir = workspace();
+    let text = TINY.replace("(name: \"5:3\", patch: (", "(name: \"5:3\", kernels: Some(\"portable\"), patch: (");
+    assert_ne!(text, TINY);
+    std::fs::write(dir.path().join("experiments/tiny.ron"), &text).unwrap();
+    let out = coevo(dir.path(), &["--experiment", "experiments/tiny.ron", "--jobs", "2"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let kernels = |variant: &str| {
+        let p = std::fs::read_to_string(dir.path().join(format!("results/tiny/paper/{variant}/seed1/provenance.ron")));
+        p.unwrap().lines().find(|l| l.trim_start().starts_with("kernels:")).unwrap().trim().to_string()
+    };
+    assert_eq!(kernels("5-3"), "kernels: \"portable\",");
+    assert_ne!(kernels("1-1"), kernels("5-3"));
+    // A family coevo does not have is refused before any run, naming the field.
+    let bad = text.replace("kernels: Some(\"portable\")", "kernels: Some(\"sse9\")");
+    std::fs::write(dir.path().join("experiments/bad.ron"), bad).unwrap();
+    let stderr = refused(dir.path(), &["--experiment", "experiments/bad.ron"]);
+    assert!(stderr.contains("variants[5:3].kernels: \"sse9\": one of"), "{stderr}");
+}

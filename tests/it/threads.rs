@@ -86,6 +86,9 @@ fn families() -> Vec<&'static str> {
         if std::arch::is_x86_feature_detected!("avx512f") {
             families.extend(["avx512", "avx512-direct"]);
         }
+        if std::arch::is_x86_feature_detected!("avx512bf16") && std::arch::is_x86_feature_detected!("avx512bw") {
+            families.push("avx512-bf16");
+        }
     }
     families
 }
@@ -108,6 +111,26 @@ fn each_pinned_kernel_family_is_recorded_and_reproducible_at_any_thread_count() 
         let read = |name: &str| std::fs::read(dir.path().join(name).join("checkpoint/prey-actor.safetensors")).unwrap();
         assert_ne!(read("avx512-1"), read("avx512-direct-1"), "avx512-direct trained gemm's networks");
     }
+    if families().contains(&"avx512-bf16") {
+        let read = |name: &str| std::fs::read(dir.path().join(name).join("checkpoint/prey-actor.safetensors")).unwrap();
+        assert_ne!(read("avx512-direct-1"), read("avx512-bf16-1"), "avx512-bf16 trained f32 networks");
+    }
+}
+
+#[test]
+fn a_cpu_without_the_bf16_kernels_is_refused_in_one_line() {
+    // On a CPU that has them the family runs (above); on one that has not, one line names it.
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx512bf16") && std::arch::is_x86_feature_detected!("avx512bw") {
+        return;
+    }
+    let out = Command::new(env!("CARGO_BIN_EXE_coevo"))
+        .args(["--describe-scene", "scenes/standard.ron", "--kernels", "avx512-bf16"])
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && stderr.trim().lines().count() == 1, "{stderr}");
+    assert!(stderr.contains("cannot run the avx512-bf16 kernels"), "{stderr}");
 }
 
 #[test]
