@@ -257,6 +257,40 @@ unsafe fn block<const NV: usize, const R: usize>(i0: usize, op: &Packed) {
     }
 }
 
+/// This core's rate of bf16 dot products (FLOP/s: 32 products and 32 sums per `VDPBF16PS`), on 12
+/// independent chains as [`super::direct::fma_peak`] times FMAs; None without the family.
+pub(crate) fn dot_peak(budget: std::time::Duration) -> Option<f64> {
+    #[cfg(target_arch = "x86_64")]
+    {
+        #[target_feature(enable = "avx512f,avx512bf16")]
+        unsafe fn chains(n: usize) -> f32 {
+            let x = std::mem::transmute::<__m512i, __m512bh>(_mm512_set1_epi32(0x3f80_3f80));
+            let y = std::mem::transmute::<__m512i, __m512bh>(_mm512_set1_epi32(0x3a80_3a80));
+            let mut acc = [_mm512_setzero_ps(); 12];
+            for _ in 0..n {
+                for a in acc.iter_mut() {
+                    *a = _mm512_dpbf16_ps(*a, x, y);
+                }
+            }
+            // Every chain summed, so that none is computed for nothing.
+            acc.iter().map(|&a| _mm512_reduce_add_ps(a)).sum()
+        }
+        if !available() {
+            return None;
+        }
+        // SAFETY: the family's features were detected just above.
+        let rounds = crate::parallel::per_second(budget, 3, || {
+            std::hint::black_box(unsafe { chains(1_000_000) });
+        });
+        Some(rounds * 1e6 * 12.0 * 64.0)
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        let _ = budget;
+        None
+    }
+}
+
 #[cfg(all(test, target_arch = "x86_64"))]
 mod tests {
     use super::*;

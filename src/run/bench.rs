@@ -259,6 +259,16 @@ fn products(budget: Duration) -> Vec<Figure> {
             unit: "GFLOP/s",
         });
     }
+    // The avx512-bf16 family's products read against the bf16 instruction's own peak.
+    if crate::learning::nets::own_kernels() == crate::learning::nets::Own::Bf16 {
+        if let Some(peak) = crate::learning::bf16::dot_peak(budget) {
+            figures.push(Figure {
+                label: "this core's bf16 dot-product peak (12 independent chains of VDPBF16PS)".into(),
+                per_second: peak / 1e9,
+                unit: "GFLOP/s",
+            });
+        }
+    }
     figures
 }
 
