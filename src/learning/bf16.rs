@@ -149,44 +149,54 @@ pub(crate) unsafe fn product(
 }
 
 /// `out[j]` = bf16(x0[j·stride]) low | bf16(x1[j·stride]) high for j < len (x1 None: zeros high): two
-/// contiguous runs (stride 1) 16 at a time with `VCVTNE2PS2BF16` and a permute, else one by one.
+/// contiguous runs (stride 1) 16 at a time with `VCVTNE2PS2BF16` and a permute (the last 1–15 masked),
+/// else one by one. The instruction reads a subnormal as zero, as [`to_bf16`] does.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f,avx512bw,avx512bf16")]
 unsafe fn interleave(len: usize, x0: *const f32, stride: usize, x1: Option<*const f32>, out: *mut u32) {
-    let mut j = 0;
     if stride == 1 {
         // Lanes 0–15 of the converted pair are x0's, 16–31 x1's: word 2j takes x0[j], 2j + 1 x1[j].
         let order = _mm512_set_epi16(
             31, 15, 30, 14, 29, 13, 28, 12, 27, 11, 26, 10, 25, 9, 24, 8, 23, 7, 22, 6, 21, 5, 20, 4, 19, 3, 18, 2, 17,
             1, 16, 0,
         );
-        while j + 16 <= len {
-            let lo = _mm512_loadu_ps(x0.add(j));
-            let hi = x1.map_or(_mm512_setzero_ps(), |x1| _mm512_loadu_ps(x1.add(j)));
+        let mut j = 0;
+        while j < len {
+            let mask: u16 = if len - j >= 16 { u16::MAX } else { (1u16 << (len - j)) - 1 };
+            let lo = _mm512_maskz_loadu_ps(mask, x0.add(j));
+            let hi = x1.map_or(_mm512_setzero_ps(), |x1| _mm512_maskz_loadu_ps(mask, x1.add(j)));
             let both = std::mem::transmute::<__m512bh, __m512i>(_mm512_cvtne2ps_pbh(hi, lo));
-            _mm512_storeu_si512(out.add(j).cast(), _mm512_permutexvar_epi16(order, both));
+            _mm512_mask_storeu_epi32(out.add(j).cast(), mask, _mm512_permutexvar_epi16(order, both));
             j += 16;
         }
+        return;
     }
-    for j in j..len {
+    for j in 0..len {
         let lo = to_bf16(*x0.add(j * stride)) as u32;
         let hi = x1.map_or(0, |x1| to_bf16(*x1.add(j * stride)) as u32);
         *out.add(j) = lo | hi << 16;
     }
 }
 
-/// `out[j]` = bf16(x[j]) for j < len: 32 at a time with `VCVTNE2PS2BF16`, the rest one by one.
+/// `out[j]` = bf16(x[j]) for j < len: 32 at a time with `VCVTNE2PS2BF16`, the last 1–31 masked.
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f,avx512bf16")]
+#[target_feature(enable = "avx512f,avx512bw,avx512bf16")]
 unsafe fn convert(len: usize, x: *const f32, out: *mut u16) {
     let mut j = 0;
-    while j + 32 <= len {
-        let words = _mm512_cvtne2ps_pbh(_mm512_loadu_ps(x.add(j + 16)), _mm512_loadu_ps(x.add(j)));
-        _mm512_storeu_si512(out.add(j).cast(), std::mem::transmute::<__m512bh, __m512i>(words));
+    while j < len {
+        let left = len - j;
+        let mask = |from: usize| -> u16 {
+            match left.saturating_sub(from) {
+                n if n >= 16 => u16::MAX,
+                n => (1u16 << n) - 1,
+            }
+        };
+        let (lo, hi) =
+            (_mm512_maskz_loadu_ps(mask(0), x.add(j)), _mm512_maskz_loadu_ps(mask(16), x.wrapping_add(j + 16)));
+        let words = std::mem::transmute::<__m512bh, __m512i>(_mm512_cvtne2ps_pbh(hi, lo));
+        let keep: u32 = if left >= 32 { u32::MAX } else { (1u32 << left) - 1 };
+        _mm512_mask_storeu_epi16(out.add(j).cast(), keep, words);
         j += 32;
-    }
-    for j in j..len {
-        *out.add(j) = to_bf16(*x.add(j));
     }
 }
 
