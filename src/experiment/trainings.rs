@@ -19,7 +19,9 @@ pub(crate) struct Training {
     pub(crate) preset: String,
     pub(crate) variant: String,
     pub(crate) seed: u64,
-    /// Its identity: the scene's id ([`crate::learning::tensors::scene_id`]) and the binary.
+    /// Its identity: the scene's id ([`crate::learning::tensors::scene_id`]) and the binary, with the
+    /// kernel family its variant runs on when it names one (`kernels:`: the same scene, seed and binary on
+    /// another family is another training).
     pub(crate) key: (String, String),
     /// The variant's `same_training_as`, when it declares one.
     pub(crate) declared: Option<String>,
@@ -39,10 +41,18 @@ impl Training {
             preset: run.preset.clone(),
             variant: run.variant.clone(),
             seed: run.seed,
-            key: (crate::learning::tensors::scene_id(&run.scene), binary.to_string()),
+            key: (crate::learning::tensors::scene_id(&run.scene), Training::binary_on(binary, run.kernels.as_deref())),
             declared: run.same_training_as.clone(),
             seconds: if seconds.is_finite() { seconds.max(0.0) } else { 0.0 },
             outcome: None,
+        }
+    }
+
+    /// The binary part of a training's identity: the binary, and the variant's own kernel family if any.
+    fn binary_on(binary: &str, kernels: Option<&str>) -> String {
+        match kernels {
+            Some(family) => format!("{binary} on {family} kernels"),
+            None => binary.to_string(),
         }
     }
 
@@ -241,6 +251,10 @@ mod tests {
         // Two that declare nothing: refused, naming those two.
         let e = check_once(&[declared.clone(), owner.clone(), training("c", "once more", 1, "s", None)]).unwrap_err();
         assert!(e.to_string().starts_with("a/paper/seeing/seed1 and c/paper/once more/seed1"), "{e}");
+        // The same scene and seed by one binary on another kernel family (`kernels:`): another training.
+        let mut bf16 = training("a", "bf16", 1, "s", None);
+        bf16.key.1 = Training::binary_on("b", Some("avx512-bf16"));
+        check_once(&[owner.clone(), bf16]).unwrap();
         // Another binary that gives every training number to the bit: the same training, counted once.
         let mut rebuilt = owner.clone();
         rebuilt.key.1 = "other".into();
