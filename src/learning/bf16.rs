@@ -219,19 +219,7 @@ struct Packed {
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f,avx512bf16")]
 unsafe fn rows<const NV: usize>(m: usize, op: &Packed) {
-    let mut i = 0;
-    while i + ROWS <= m {
-        block::<NV, ROWS>(i, op);
-        i += ROWS;
-    }
-    match m - i {
-        5 => block::<NV, 5>(i, op),
-        4 => block::<NV, 4>(i, op),
-        3 => block::<NV, 3>(i, op),
-        2 => block::<NV, 2>(i, op),
-        1 => block::<NV, 1>(i, op),
-        _ => {}
-    }
+    super::direct::each_block!(m, op, block)
 }
 
 /// Output rows `i0 .. i0 + R`: R × NV accumulators summed over every pair of the inner dimension, then
@@ -303,25 +291,18 @@ pub(crate) fn dot_peak(budget: std::time::Duration) -> Option<f64> {
 
 #[cfg(all(test, target_arch = "x86_64"))]
 mod tests {
+    use super::super::direct::{cases, Case};
     use super::*;
 
     /// The same product summed by a scalar loop in the family's order: pairs in order, the odd term
     /// before the even one, each exact product added to an f32 sum with one rounding.
-    #[allow(clippy::too_many_arguments)]
-    fn reference(
-        m: usize,
-        n: usize,
-        k: usize,
-        a: &[f32],
-        (a_rs, a_cs): (usize, usize),
-        b: &[f32],
-        b_rs: usize,
-    ) -> Vec<f32> {
+    fn reference(c: &Case) -> Vec<f32> {
+        let ((a_rs, a_cs), (n, k)) = (c.strides, (c.n, c.k));
         let r = |x: f32| from_bf16(to_bf16(x));
-        let mut out = vec![0.0f32; m * n];
-        for i in 0..m {
+        let mut out = vec![0.0f32; c.m * n];
+        for i in 0..c.m {
             for j in 0..n {
-                let term = |p: usize| r(a[i * a_rs + p * a_cs]) * r(b[p * b_rs + j]);
+                let term = |p: usize| r(c.a[i * a_rs + p * a_cs]) * r(c.b[p * c.b_rs + j]);
                 let mut s = 0.0f32;
                 for q in 0..k.div_ceil(2) {
                     if 2 * q + 1 < k {
@@ -353,49 +334,24 @@ mod tests {
             eprintln!("skipped: no AVX512-BF16 here");
             return;
         }
-        let mut seed = 1u32;
-        let mut draw = |len: usize| {
-            (0..len)
-                .map(|_| {
-                    seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
-                    (seed >> 8) as f32 / (1u32 << 24) as f32 - 0.5
-                })
-                .collect::<Vec<f32>>()
-        };
-        for (m, n, k) in [
-            (256, 64, 54),
-            (256, 54, 64),
-            (64, 56, 256),
-            (256, 2, 64),
-            (13, 64, 64),
-            (1, 1, 1),
-            (7, 17, 3),
-            (11, 33, 5),
-            (40, 16, 33),
-        ] {
-            // A row-major (m × k) and transposed (read from k × m), B with a padded row stride.
-            for transposed in [false, true] {
-                let a = draw(m * k);
-                let strides = if transposed { (1, m) } else { (k, 1) };
-                let b_rs = n + 3;
-                let b = draw(k * b_rs);
-                let mut dst = vec![f32::NAN; m * n];
-                // SAFETY: this CPU runs the family; A is m·k, B k rows of b_rs ≥ n, dst m × n.
-                unsafe { product(m, n, k, dst.as_mut_ptr(), n, a.as_ptr(), strides, b.as_ptr(), b_rs) };
-                let expected = reference(m, n, k, &a, strides, &b, b_rs);
-                let at = |i: usize, p: usize| a[i * strides.0 + p * strides.1] as f64;
-                for i in 0..m {
-                    for j in 0..n {
-                        let got = dst[i * n + j];
-                        assert_eq!(got.to_bits(), expected[i * n + j].to_bits(), "{m} × {n} × {k}, {transposed}");
-                        let exact: f64 = (0..k).map(|p| at(i, p) * b[p * b_rs + j] as f64).sum();
-                        let magnitude: f64 = (0..k).map(|p| (at(i, p) * b[p * b_rs + j] as f64).abs()).sum();
-                        assert!(
-                            (got as f64 - exact).abs() <= bound(k, magnitude),
-                            "{m} × {n} × {k}: {got} against {exact}, beyond {}",
-                            bound(k, magnitude)
-                        );
-                    }
+        for c in cases() {
+            let Case { m, n, k, ref a, strides, ref b, b_rs } = c;
+            let mut dst = vec![f32::NAN; m * n];
+            // SAFETY: this CPU runs the family; A is m·k, B k rows of b_rs ≥ n, dst m × n.
+            unsafe { product(m, n, k, dst.as_mut_ptr(), n, a.as_ptr(), strides, b.as_ptr(), b_rs) };
+            let expected = reference(&c);
+            let at = |i: usize, p: usize| a[i * strides.0 + p * strides.1] as f64;
+            for i in 0..m {
+                for j in 0..n {
+                    let got = dst[i * n + j];
+                    assert_eq!(got.to_bits(), expected[i * n + j].to_bits(), "{m} × {n} × {k}, {strides:?}");
+                    let exact: f64 = (0..k).map(|p| at(i, p) * b[p * b_rs + j] as f64).sum();
+                    let magnitude: f64 = (0..k).map(|p| (at(i, p) * b[p * b_rs + j] as f64).abs()).sum();
+                    assert!(
+                        (got as f64 - exact).abs() <= bound(k, magnitude),
+                        "{m} × {n} × {k}: {got} against {exact}, beyond {}",
+                        bound(k, magnitude)
+                    );
                 }
             }
         }

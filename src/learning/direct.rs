@@ -78,23 +78,33 @@ struct Operands {
     mask: u16,
 }
 
+/// Every output row of `m`, `ROWS` (6) at a time, then the 1–5 left: `$block::<NV, R>(i0, $op)` for each
+/// block of R rows from i0 (`NV` the registers per row, as where it is used). The bodies of this family's
+/// and `super::bf16`'s `rows`, each compiled with its own features.
+macro_rules! each_block {
+    ($m:expr, $op:expr, $block:ident) => {{
+        let mut i = 0;
+        while i + ROWS <= $m {
+            $block::<NV, ROWS>(i, $op);
+            i += ROWS;
+        }
+        match $m - i {
+            5 => $block::<NV, 5>(i, $op),
+            4 => $block::<NV, 4>(i, $op),
+            3 => $block::<NV, 3>(i, $op),
+            2 => $block::<NV, 2>(i, $op),
+            1 => $block::<NV, 1>(i, $op),
+            _ => {}
+        }
+    }};
+}
+pub(crate) use each_block;
+
 /// Every output row, [`ROWS`] at a time, then the rest.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f")]
 unsafe fn rows<const NV: usize>(m: usize, op: &Operands) {
-    let mut i = 0;
-    while i + ROWS <= m {
-        block::<NV, ROWS>(i, op);
-        i += ROWS;
-    }
-    match m - i {
-        5 => block::<NV, 5>(i, op),
-        4 => block::<NV, 4>(i, op),
-        3 => block::<NV, 3>(i, op),
-        2 => block::<NV, 2>(i, op),
-        1 => block::<NV, 1>(i, op),
-        _ => {}
-    }
+    each_block!(m, op, block)
 }
 
 /// Output rows `i0 .. i0 + R`: R × NV accumulators summed over the whole inner dimension, then stored.
@@ -139,20 +149,12 @@ mod tests {
     use super::*;
 
     /// The same product summed by a scalar loop in the family's order.
-    #[allow(clippy::too_many_arguments)]
-    fn reference(
-        m: usize,
-        n: usize,
-        k: usize,
-        a: &[f32],
-        (a_rs, a_cs): (usize, usize),
-        b: &[f32],
-        b_rs: usize,
-    ) -> Vec<f32> {
-        let mut out = vec![0.0f32; m * n];
-        for i in 0..m {
+    fn reference(c: &Case) -> Vec<f32> {
+        let ((a_rs, a_cs), n) = (c.strides, c.n);
+        let mut out = vec![0.0f32; c.m * n];
+        for i in 0..c.m {
             for j in 0..n {
-                out[i * n + j] = (0..k).fold(0.0f32, |s, p| a[i * a_rs + p * a_cs].mul_add(b[p * b_rs + j], s));
+                out[i * n + j] = (0..c.k).fold(0.0f32, |s, p| c.a[i * a_rs + p * a_cs].mul_add(c.b[p * c.b_rs + j], s));
             }
         }
         out
@@ -164,42 +166,70 @@ mod tests {
             eprintln!("skipped: no AVX-512 here");
             return;
         }
-        let mut seed = 1u32;
-        let mut draw = |len: usize| {
-            (0..len)
-                .map(|_| {
-                    seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
-                    (seed >> 8) as f32 / (1u32 << 24) as f32 - 0.5
-                })
-                .collect::<Vec<f32>>()
-        };
-        for (m, n, k) in [
-            (256, 64, 54),
-            (256, 54, 64),
-            (64, 56, 256),
-            (256, 2, 64),
-            (13, 64, 64),
-            (1, 1, 1),
-            (7, 17, 3),
-            (11, 33, 5),
-        ] {
-            // A row-major (m × k) and transposed (read from k × m), B with a padded row stride.
-            for transposed in [false, true] {
-                let a = draw(m * k);
-                let strides = if transposed { (1, m) } else { (k, 1) };
-                let b_rs = n + 3;
-                let b = draw(k * b_rs);
-                let mut dst = vec![f32::NAN; m * n];
-                // SAFETY: this CPU has AVX-512F; A is m·k, B k rows of b_rs ≥ n, dst m × n.
-                unsafe { product(m, n, k, dst.as_mut_ptr(), n, a.as_ptr(), strides, b.as_ptr(), b_rs) };
-                let expected = reference(m, n, k, &a, strides, &b, b_rs);
-                assert!(
-                    dst.iter().zip(&expected).all(|(x, y)| x.to_bits() == y.to_bits()),
-                    "{m} × {n} × {k}, transposed {transposed}"
-                );
-            }
+        for c in cases() {
+            let (m, n, k) = (c.m, c.n, c.k);
+            let mut dst = vec![f32::NAN; m * n];
+            // SAFETY: this CPU has AVX-512F; A is m·k, B k rows of b_rs ≥ n, dst m × n.
+            unsafe { product(m, n, k, dst.as_mut_ptr(), n, c.a.as_ptr(), c.strides, c.b.as_ptr(), c.b_rs) };
+            let expected = reference(&c);
+            assert!(
+                dst.iter().zip(&expected).all(|(x, y)| x.to_bits() == y.to_bits()),
+                "{m} × {n} × {k}, strides {:?}",
+                c.strides
+            );
         }
     }
+}
+
+/// A product every kernel family of the update is tested on ([`cases`]).
+#[cfg(test)]
+pub(crate) struct Case {
+    pub(crate) m: usize,
+    pub(crate) n: usize,
+    pub(crate) k: usize,
+    /// A, m × k, read with `strides` (row-major, or transposed: read from k × m).
+    pub(crate) a: Vec<f32>,
+    pub(crate) strides: (usize, usize),
+    /// B, k rows `b_rs` apart (padded past n).
+    pub(crate) b: Vec<f32>,
+    pub(crate) b_rs: usize,
+}
+
+/// The update's shapes and odd ones (every remainder of rows and columns), each with A row-major and
+/// transposed, drawn from a fixed generator in [−0.5, 0.5).
+#[cfg(test)]
+pub(crate) fn cases() -> Vec<Case> {
+    let mut seed = 1u32;
+    let mut draw = |len: usize| {
+        (0..len)
+            .map(|_| {
+                seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+                (seed >> 8) as f32 / (1u32 << 24) as f32 - 0.5
+            })
+            .collect::<Vec<f32>>()
+    };
+    let shapes = [
+        (256, 64, 54),
+        (256, 54, 64),
+        (64, 56, 256),
+        (256, 2, 64),
+        (13, 64, 64),
+        (1, 1, 1),
+        (7, 17, 3),
+        (11, 33, 5),
+        (40, 16, 33),
+    ];
+    let mut out = vec![];
+    for (m, n, k) in shapes {
+        for transposed in [false, true] {
+            let a = draw(m * k);
+            let b_rs = n + 3;
+            let b = draw(k * b_rs);
+            let strides = if transposed { (1, m) } else { (k, 1) };
+            out.push(Case { m, n, k, a, strides, b, b_rs });
+        }
+    }
+    out
 }
 
 /// This core's rate of fused multiply-adds (FLOP/s, two per lane), on 12 independent chains (enough to hide the latency of two pipes, few enough to stay in registers) of AVX-512
