@@ -15,8 +15,9 @@
 //! **The error, derived.** With u = 2⁻⁸ (bf16's unit roundoff) and v = 2⁻²⁴ (f32's), each rounded
 //! operand is x(1 + δ), |δ| ≤ u, so each exact product is ab(1 + ε), |ε| ≤ 2u + u²; k sums in f32 add at
 //! most γₖ = kv/(1 − kv) of the running magnitudes. So |ŝ − s| ≤ (2u + u² + γₖ(1 + u)²)·Σ|aᵢbᵢ|, about
-//! 0.0078·Σ|aᵢbᵢ| for the update's widths, plus what flushing subnormals drops (below 2⁻¹²⁶ a term,
-//! [`bound`]). [`tests`] hold every product against it.
+//! 0.0078·Σ|aᵢbᵢ| for the update's widths, plus k·2⁻¹²⁶ for sums flushed to zero ([`bound`]), for
+//! operands with no subnormal value (a subnormal operand counts as zero: its term, under 2⁻¹²⁶ times the
+//! other operand, is dropped). [`tests`] hold every product against it.
 
 #[cfg(target_arch = "x86_64")]
 use std::arch::x86_64::*;
@@ -59,7 +60,8 @@ fn from_bf16(h: u16) -> f32 {
 }
 
 /// The derived bound on |ŝ − s| for an inner dimension of `k` whose terms' magnitudes sum to `magnitude`
-/// (Σ|aᵢbᵢ| in exact arithmetic): the [module docs](self)' bound, and k terms flushed below 2⁻¹²⁶.
+/// (Σ|aᵢbᵢ| in exact arithmetic), no operand subnormal: the [module docs](self)' bound, and k sums
+/// flushed below 2⁻¹²⁶.
 #[cfg(test)]
 fn bound(k: usize, magnitude: f64) -> f64 {
     let (u, v) = (2f64.powi(-8), 2f64.powi(-24));
