@@ -17,7 +17,10 @@
 //! most γₖ = kv/(1 − kv) of the running magnitudes. So |ŝ − s| ≤ (2u + u² + γₖ(1 + u)²)·Σ|aᵢbᵢ|, about
 //! 0.0078·Σ|aᵢbᵢ| for the update's widths, plus k·2⁻¹²⁶ for sums flushed to zero ([`bound`]), for
 //! operands with no subnormal value (a subnormal operand counts as zero: its term, under 2⁻¹²⁶ times the
-//! other operand, is dropped). [`tests`] hold every product against it.
+//! other operand, is dropped) and none beyond bf16's range (rounded to ±∞). [`tests`] hold every product
+//! against it. A product the family does not take (wider than [`MAX_WIDTH`], accumulating, or dfdx's
+//! own) runs on gemm in f32, as under `avx512-direct`. Its bits are those of this project's AMD EPYC;
+//! another vendor's `VDPBF16PS` is not yet checked against the same test.
 
 #[cfg(target_arch = "x86_64")]
 use std::arch::x86_64::*;
@@ -32,7 +35,9 @@ const ROWS: usize = 6;
 pub(crate) fn available() -> bool {
     #[cfg(target_arch = "x86_64")]
     {
-        std::arch::is_x86_feature_detected!("avx512bf16") && std::arch::is_x86_feature_detected!("avx512bw")
+        std::arch::is_x86_feature_detected!("avx512f")
+            && std::arch::is_x86_feature_detected!("avx512bf16")
+            && std::arch::is_x86_feature_detected!("avx512bw")
     }
     #[cfg(not(target_arch = "x86_64"))]
     {
@@ -66,7 +71,8 @@ fn from_bf16(h: u16) -> f32 {
 fn bound(k: usize, magnitude: f64) -> f64 {
     let (u, v) = (2f64.powi(-8), 2f64.powi(-24));
     let gamma = k as f64 * v / (1.0 - k as f64 * v);
-    (2.0 * u + u * u + gamma * (1.0 + u) * (1.0 + u)) * magnitude + k as f64 * 2f64.powi(-126)
+    // A sum flushed to zero is carried through the later roundings too: (1 + γₖ) on the flushed part.
+    (2.0 * u + u * u + gamma * (1.0 + u) * (1.0 + u)) * magnitude + k as f64 * 2f64.powi(-126) * (1.0 + gamma)
 }
 
 thread_local! {
