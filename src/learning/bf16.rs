@@ -110,7 +110,7 @@ pub(crate) unsafe fn product(
         }
         for q in 0..pairs {
             let (row0, row1) = (b.add(2 * q * b_rs), (2 * q + 1 < k).then(|| b.add((2 * q + 1) * b_rs)));
-            interleave(n, row0, 1, row1, pb.as_mut_ptr().add(q * nv * 16));
+            interleave(n, row0, row1, pb.as_mut_ptr().add(q * nv * 16));
             pb[q * nv * 16 + n..(q + 1) * nv * 16].fill(0);
         }
         // A: per output row i and pair q, A(i, 2q) low and A(i, 2q + 1) high, laid out so that the
@@ -123,7 +123,7 @@ pub(crate) unsafe fn product(
         if by_pair {
             for q in 0..pairs {
                 let (col0, col1) = (a.add(2 * q * a_cs), (2 * q + 1 < k).then(|| a.add((2 * q + 1) * a_cs)));
-                interleave(m, col0, a_rs, col1, pa.as_mut_ptr().add(q * m));
+                interleave(m, col0, col1, pa.as_mut_ptr().add(q * m));
             }
         } else if a_cs == 1 {
             // A row's pairs are its consecutive elements: its bf16 words in order (an odd k's last high
@@ -156,33 +156,25 @@ pub(crate) unsafe fn product(
     });
 }
 
-/// `out[j]` = bf16(x0[j·stride]) low | bf16(x1[j·stride]) high for j < len (x1 None: zeros high): two
-/// contiguous runs (stride 1) 16 at a time with `VCVTNE2PS2BF16` and a permute (the last 1–15 masked),
-/// else one by one. The instruction reads a subnormal as zero, as [`to_bf16`] does.
+/// `out[j]` = bf16(x0[j]) low | bf16(x1[j]) high for j < len (x1 None: zeros high), both runs contiguous:
+/// 16 at a time with `VCVTNE2PS2BF16` and a permute, the last 1–15 masked. The instruction reads a
+/// subnormal as zero, as [`to_bf16`] does.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f,avx512bw,avx512bf16")]
-unsafe fn interleave(len: usize, x0: *const f32, stride: usize, x1: Option<*const f32>, out: *mut u32) {
-    if stride == 1 {
-        // Lanes 0–15 of the converted pair are x0's, 16–31 x1's: word 2j takes x0[j], 2j + 1 x1[j].
-        let order = _mm512_set_epi16(
-            31, 15, 30, 14, 29, 13, 28, 12, 27, 11, 26, 10, 25, 9, 24, 8, 23, 7, 22, 6, 21, 5, 20, 4, 19, 3, 18, 2, 17,
-            1, 16, 0,
-        );
-        let mut j = 0;
-        while j < len {
-            let mask: u16 = if len - j >= 16 { u16::MAX } else { (1u16 << (len - j)) - 1 };
-            let lo = _mm512_maskz_loadu_ps(mask, x0.add(j));
-            let hi = x1.map_or(_mm512_setzero_ps(), |x1| _mm512_maskz_loadu_ps(mask, x1.add(j)));
-            let both = std::mem::transmute::<__m512bh, __m512i>(_mm512_cvtne2ps_pbh(hi, lo));
-            _mm512_mask_storeu_epi32(out.add(j).cast(), mask, _mm512_permutexvar_epi16(order, both));
-            j += 16;
-        }
-        return;
-    }
-    for j in 0..len {
-        let lo = to_bf16(*x0.add(j * stride)) as u32;
-        let hi = x1.map_or(0, |x1| to_bf16(*x1.add(j * stride)) as u32);
-        *out.add(j) = lo | hi << 16;
+unsafe fn interleave(len: usize, x0: *const f32, x1: Option<*const f32>, out: *mut u32) {
+    // Lanes 0–15 of the converted pair are x0's, 16–31 x1's: word 2j takes x0[j], 2j + 1 x1[j].
+    let order = _mm512_set_epi16(
+        31, 15, 30, 14, 29, 13, 28, 12, 27, 11, 26, 10, 25, 9, 24, 8, 23, 7, 22, 6, 21, 5, 20, 4, 19, 3, 18, 2, 17, 1,
+        16, 0,
+    );
+    let mut j = 0;
+    while j < len {
+        let mask: u16 = if len - j >= 16 { u16::MAX } else { (1u16 << (len - j)) - 1 };
+        let lo = _mm512_maskz_loadu_ps(mask, x0.add(j));
+        let hi = x1.map_or(_mm512_setzero_ps(), |x1| _mm512_maskz_loadu_ps(mask, x1.add(j)));
+        let both = std::mem::transmute::<__m512bh, __m512i>(_mm512_cvtne2ps_pbh(hi, lo));
+        _mm512_mask_storeu_epi32(out.add(j).cast(), mask, _mm512_permutexvar_epi16(order, both));
+        j += 16;
     }
 }
 
