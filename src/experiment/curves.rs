@@ -2,7 +2,7 @@
 //! starts ([`START`] episodes), the episode it completes half or 90 % of its change or first reaches a
 //! level, its extreme and how far it falls back: the convergence quantities of the experiment files.
 
-use super::file::Quantity;
+use super::file::{Fit, Quantity};
 use super::stats::mean;
 use crate::sim::metrics::WINDOW;
 
@@ -30,6 +30,9 @@ pub(crate) fn curve_argument_error(q: &Quantity) -> Option<String> {
         Quantity::Halfway(c) if c != "dos" && c != "doa" => Some(format!("Halfway takes \"dos\" or \"doa\" (got {c:?})")),
         Quantity::Reaches(c, _) if c != "dos" && c != "doa" => {
             Some(format!("Reaches takes \"dos\" or \"doa\" and a level (got {c:?})"))
+        }
+        Quantity::Fitted(c, _) if !CURVES.contains(&c.as_str()) => {
+            Some(format!("Fitted takes \"dos\", \"doa\" or \"catches\" and Start, End or Time (got {c:?})"))
         }
         Quantity::Reaches(_, level) if !(level.is_finite() && *level > 0.0 && *level <= 1.0) => {
             Some(format!("Reaches takes a level in (0, 1], as DoS and DoA are (got {level})"))
@@ -65,6 +68,7 @@ pub(crate) fn curve_argument_error(q: &Quantity) -> Option<String> {
         | Quantity::AfterExtreme(_)
         | Quantity::Halfway(_)
         | Quantity::Reaches(..)
+        | Quantity::Fitted(..)
         | Quantity::Response(..)
         | Quantity::Crossplay(_) => None,
     }
@@ -91,6 +95,61 @@ fn first_completing(series: &[f64], (start, end): (f64, f64), fraction: f64, win
         // A running sum carries rounding: within 1e-9 of the change counts as reached.
         .find(|(_, m)| (**m - target) * (end - start).signum() >= -1e-9 * (end - start).abs())
         .map_or(f64::NAN, |(t, _)| (t + 1) as f64)
+}
+
+/// The longest time constant [`fit_approach`] gives, in multiples of the curve's episodes: a curve that
+/// still moves linearly at its end fits any long time about equally well, so its time is censored here
+/// (a run ten times as long would be needed to see it settle).
+pub(crate) const FIT_LONGEST: f64 = 10.0;
+
+/// The least-squares fit of y(e) = end + (start − end)·exp(−(e − 1)/time) to a per-episode `series`
+/// (episode e from 1; non-finite values left out): `[start, end, time]`, None for fewer than
+/// [`WINDOW`] finite values or no change (start = end, so no time). For a fixed time the model is linear
+/// in (end, start − end), solved exactly; the time is searched on a log grid from 1 episode to
+/// [`FIT_LONGEST`] × the episodes (240 steps, each ≤ 5 % apart), then refined by golden-section search
+/// between the grid point's neighbours. A rise and a fall are the same model; its sum of squares is
+/// smooth in log time, and the grid keeps the search off a far local minimum.
+pub(crate) fn fit_approach(series: &[f64]) -> Option<[f64; 3]> {
+    let points: Vec<(f64, f64)> =
+        series.iter().enumerate().filter(|(_, y)| y.is_finite()).map(|(e, &y)| (e as f64, y)).collect();
+    if points.len() < WINDOW {
+        return None;
+    }
+    // For one time: the exact (end, start − end) and the sum of squares left.
+    let solve = |time: f64| -> (f64, f64, f64) {
+        let n = points.len() as f64;
+        let (mut sx, mut sy, mut sxx, mut sxy) = (0.0, 0.0, 0.0, 0.0);
+        for &(e, y) in &points {
+            let x = (-e / time).exp();
+            (sx, sy, sxx, sxy) = (sx + x, sy + y, sxx + x * x, sxy + x * y);
+        }
+        let det = n * sxx - sx * sx;
+        let b = if det > 0.0 { (n * sxy - sx * sy) / det } else { 0.0 };
+        let a = (sy - b * sx) / n;
+        let sse = points.iter().map(|&(e, y)| (y - a - b * (-e / time).exp()).powi(2)).sum();
+        (a, b, sse)
+    };
+    const STEPS: usize = 240;
+    let longest = (FIT_LONGEST * series.len() as f64).ln();
+    let at = |i: f64| (longest * i / STEPS as f64).exp();
+    let best = (0..=STEPS)
+        .map(|i| (i, solve(at(i as f64)).2))
+        .fold((0, f64::INFINITY), |b, c| if c.1 < b.1 { c } else { b })
+        .0;
+    // Golden-section search on the grid index between the best point's neighbours.
+    let (mut lo, mut hi) = (best.saturating_sub(1) as f64, (best + 1).min(STEPS) as f64);
+    let g = (5f64.sqrt() - 1.0) / 2.0;
+    for _ in 0..60 {
+        let (m1, m2) = (hi - g * (hi - lo), lo + g * (hi - lo));
+        if solve(at(m1)).2 <= solve(at(m2)).2 {
+            hi = m2;
+        } else {
+            lo = m1;
+        }
+    }
+    let time = at((lo + hi) / 2.0);
+    let (end, change, _) = solve(time);
+    (change != 0.0).then_some([end + change, end, time])
 }
 
 /// The training episodes whose mean is a curve's start ([`Quantity::Start`]).
@@ -151,7 +210,7 @@ pub(crate) const CURVES: [&str; 3] = ["dos", "doa", "catches"];
 pub(crate) const AUTHORS_CURVES: [&str; 2] = crate::run::schema::AUTHORS;
 
 /// A quantity of a training curve's shape ([`Quantity::Start`], [`Quantity::Extreme`],
-/// [`Quantity::ExtremeEpisode`], [`Quantity::AfterExtreme`], [`Quantity::Halfway`]) from its per-episode
+/// [`Quantity::ExtremeEpisode`], [`Quantity::AfterExtreme`], [`Quantity::Halfway`], [`Quantity::Fitted`]) from its per-episode
 /// `series` as the figure data keeps it (single precision), so that a summary written before these
 /// quantities existed is extended from the committed figure data to the same bits as from the run
 /// folders. NaN for other quantities, and where a run is too short: a start needs [`START`] episodes, an
@@ -162,6 +221,11 @@ pub(crate) fn curve_shape(q: &Quantity, series: &[f64]) -> f64 {
         Quantity::Halfway(_) => halfway(series),
         Quantity::Reaches(o, level) => reaches(series, *level, o == "dos"),
         Quantity::Start(_) => start(series),
+        Quantity::Fitted(_, part) => fit_approach(series).map_or(f64::NAN, |[start, end, time]| match part {
+            Fit::Start => start,
+            Fit::End => end,
+            Fit::Time => time,
+        }),
         Quantity::Extreme(o) | Quantity::ExtremeEpisode(o) | Quantity::AfterExtreme(o)
             if series.len() >= 2 * WINDOW =>
         {
@@ -313,6 +377,57 @@ mod tests {
             let message = curve_argument_error(&bad).unwrap();
             assert!(message.contains(says), "{message}");
         }
+    }
+
+    /// Noise for the fits below: uniform in [−0.5, 0.5) × `size`, from a fixed linear congruential
+    /// sequence (the test's answer must not depend on a generator's version).
+    fn noise(n: usize, size: f64) -> Vec<f64> {
+        let mut x: u64 = 12345;
+        (0..n)
+            .map(|_| {
+                x = x.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                ((x >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * size
+            })
+            .collect()
+    }
+
+    #[test]
+    fn the_fit_recovers_a_known_approach_its_rate_apart_from_its_level() {
+        let part = |p: Fit, series: &[f64]| curve_shape(&Quantity::Fitted("doa".into(), p), series);
+        // A DoA curve rising from 0.6 to 0.9 with a time constant of 150 episodes over 2000, plus noise of
+        // SD ~0.09 per episode (as large as a 10-prey DoA episode's): recovered within 10 % and 0.01.
+        let curve_with = |size: f64, start: f64, end: f64, time: f64| -> Vec<f64> {
+            let wiggle = noise(2000, size);
+            (0..2000).map(|e| end + (start - end) * (-(e as f64) / time).exp() + wiggle[e]).collect()
+        };
+        let curve = |start, end, time| curve_with(0.3, start, end, time);
+        // Without noise: exact, to the search's resolution.
+        let exact = curve_with(0.0, 0.6, 0.9, 150.0);
+        assert!((part(Fit::Time, &exact) - 150.0).abs() < 1e-3, "{}", part(Fit::Time, &exact));
+        assert!((part(Fit::End, &exact) - 0.9).abs() < 1e-9 && (part(Fit::Start, &exact) - 0.6).abs() < 1e-9);
+        let slow = curve(0.6, 0.9, 150.0);
+        assert!((part(Fit::Time, &slow) / 150.0 - 1.0).abs() < 0.1, "{}", part(Fit::Time, &slow));
+        assert!((part(Fit::End, &slow) - 0.9).abs() < 0.01, "{}", part(Fit::End, &slow));
+        assert!((part(Fit::Start, &slow) - 0.6).abs() < 0.05, "{}", part(Fit::Start, &slow));
+        // Faster to a lower level: a faster time and a lower end, each read apart from the other (the
+        // change of 0.2 spans ~30 noisy episodes, so its time is known to ~15 %).
+        let fast = curve(0.6, 0.8, 30.0);
+        assert!((part(Fit::Time, &fast) / 30.0 - 1.0).abs() < 0.2, "{}", part(Fit::Time, &fast));
+        assert!((part(Fit::End, &fast) - 0.8).abs() < 0.01);
+        // A fall is the same model.
+        let fall: Vec<f64> = slow.iter().map(|y| 1.5 - y).collect();
+        assert!((part(Fit::Time, &fall) / 150.0 - 1.0).abs() < 0.1);
+        // A curve still moving linearly at its end: its time is censored at FIT_LONGEST × its episodes.
+        let ramp: Vec<f64> = (0..500).map(|e| e as f64 / 500.0).collect();
+        assert!(part(Fit::Time, &ramp) > 0.9 * FIT_LONGEST * 500.0, "{}", part(Fit::Time, &ramp));
+        // Missing episodes are left out; fewer than a window of values, or no change, gives no fit.
+        let mut gaps = slow.clone();
+        gaps.iter_mut().step_by(7).for_each(|y| *y = f64::NAN);
+        assert!((part(Fit::Time, &gaps) / 150.0 - 1.0).abs() < 0.1);
+        assert!(part(Fit::Time, &slow[..99]).is_nan());
+        assert!(part(Fit::Time, &[0.5; 300]).is_nan());
+        let bad = curve_argument_error(&Quantity::Fitted("polarization".into(), Fit::Time)).unwrap();
+        assert!(bad.contains("Fitted takes"), "{bad}");
     }
 
     #[test]

@@ -35,7 +35,7 @@ impl Comparison {
         if !of_training_curves(&parsed) {
             return Err(refuse(format!(
                 "{quantity:?} is not one of the training curves' quantities (DosFirst, DosLast, DoaFirst, DoaLast, \
-                 CatchesFirst, CatchesLast, their Change, and Start, FromStart, Reach90, Halfway, Reaches, Extreme, ExtremeEpisode or \
+                 CatchesFirst, CatchesLast, their Change, and Start, FromStart, Reach90, Halfway, Reaches, Fitted, Extreme, ExtremeEpisode or \
                  AfterExtreme of \"dos\", \"doa\" or \"catches\")"
             )));
         }
@@ -60,6 +60,7 @@ fn of_training_curves(q: &Quantity) -> bool {
         | Reach90(c)
         | Halfway(c)
         | Reaches(c, _)
+        | Fitted(c, _)
         | Extreme(c)
         | ExtremeEpisode(c)
         | AfterExtreme(c) => CURVES.contains(&c.as_str()),

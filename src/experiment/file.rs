@@ -488,6 +488,13 @@ pub enum Quantity {
     /// neither dropped nor counted as early. Unlike [`Quantity::Halfway`], which times each run against
     /// its own change, the target does not move with how much a run changes.
     Reaches(String, f64),
+    /// A part of the exponential approach fitted by least squares to a training curve (`dos`, `doa` or
+    /// `catches`, per episode e from 1): y(e) = end + (start − end)·exp(−(e − 1)/time). `Time`, the time
+    /// constant in episodes (the episodes to complete 63 % of the change), says how *fast* a curve
+    /// converges apart from how *far* (`End`), which `Halfway` and `Reaches` mix. A curve still moving
+    /// at its last episode gets a time up to [`FIT_LONGEST`](super::curves::FIT_LONGEST) times its
+    /// episodes; one with no change has no time (NaN). Fitted by `curves::fit_approach`.
+    Fitted(String, Fit),
     /// The information-transfer response of an evaluation with `perturb:`: `"near"`, the mean |Δheading|
     /// of the turned prey's 6 nearest over the 10 steps after the turn, or `"far"`, the same for ranks 25
     /// and beyond (radians).
@@ -495,6 +502,17 @@ pub enum Quantity {
     /// A read-out of the run's cross-play matrix (`crossplay_readouts::readouts`, the headline species against its
     /// first predator species), e.g. `Crossplay("doa_late_prey_part")`; needs `crossplay:` in the file.
     Crossplay(String),
+}
+
+/// A part of the approach [`Quantity::Fitted`] fits to a training curve.
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq)]
+pub enum Fit {
+    /// The fitted value at the first episode.
+    Start,
+    /// The level the curve approaches.
+    End,
+    /// The time constant, in episodes.
+    Time,
 }
 
 /// Order parameters an [`Quantity::EvalOrder`] may name.

@@ -187,7 +187,14 @@ fn judged(r: &ClaimResult) -> bool {
 
 /// A quantity counted in episodes, shown without decimals.
 fn in_episodes(q: &Quantity) -> bool {
-    matches!(q, Quantity::Reach90(_) | Quantity::Halfway(_) | Quantity::Reaches(..) | Quantity::ExtremeEpisode(_))
+    matches!(
+        q,
+        Quantity::Reach90(_)
+            | Quantity::Halfway(_)
+            | Quantity::Reaches(..)
+            | Quantity::ExtremeEpisode(_)
+            | Quantity::Fitted(_, super::file::Fit::Time)
+    )
 }
 
 /// One cell: the claim's value with the interval its verdict reads and the verdict in short, from the first

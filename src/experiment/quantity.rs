@@ -42,7 +42,8 @@ pub(super) fn primitive(d: &RunData, q: &Quantity) -> f64 {
         | Quantity::ExtremeEpisode(o)
         | Quantity::AfterExtreme(o)
         | Quantity::Halfway(o)
-        | Quantity::Reaches(o, _) => {
+        | Quantity::Reaches(o, _)
+        | Quantity::Fitted(o, _) => {
             let series = match o.as_str() {
                 "dos" => &d.dos,
                 "doa" => &d.doa,
@@ -92,6 +93,7 @@ pub(crate) fn column(q: &Quantity) -> Option<String> {
         Quantity::AfterExtreme(o) => format!("{o}_after_{}", extreme_word(o)),
         Quantity::Halfway(o) => format!("{o}_halfway"),
         Quantity::Reaches(o, level) => format!("{o}_reaches_{level}"),
+        Quantity::Fitted(o, part) => format!("{o}_fitted_{}", format!("{part:?}").to_lowercase()),
         Quantity::EvalDos(e) => format!("eval_{}_dos_settled", super::file::slug(e)),
         Quantity::EvalDoa(e) => format!("eval_{}_doa_settled", super::file::slug(e)),
         Quantity::EvalOrder(e, o) => format!("eval_{}_{o}", super::file::slug(e)),
@@ -177,6 +179,7 @@ pub(crate) fn derive(
         | Quantity::AfterExtreme(_)
         | Quantity::Halfway(_)
         | Quantity::Reaches(..)
+        | Quantity::Fitted(..)
         | Quantity::Response(..)
         | Quantity::Crossplay(_)
         | Quantity::Distilled(..) => primitive(q),
@@ -273,6 +276,7 @@ pub(crate) fn chance_level(exp: &Experiment, claim: &Claim, scene: Option<&crate
         | Quantity::AfterExtreme(_)
         | Quantity::Halfway(_)
         | Quantity::Reaches(..)
+        | Quantity::Fitted(..)
         | Quantity::Response(..)
         | Quantity::Distilled(..) => None,
     }
@@ -313,6 +317,11 @@ pub(crate) fn quantity_name(q: &Quantity) -> String {
             "episode at which {q}'s {HALFWAY_WINDOW}-episode running mean first {} {level} (after the run when never)",
             if q == "dos" { "falls to" } else { "rises to" }
         ),
+        Quantity::Fitted(q, part) => match part {
+            super::file::Fit::Start => format!("{q}'s fitted start (exponential approach)"),
+            super::file::Fit::End => format!("{q}'s fitted end level (exponential approach)"),
+            super::file::Fit::Time => format!("{q}'s fitted time constant, episodes (exponential approach)"),
+        },
         Quantity::Start(q) => format!("{q}, first {START} episodes (the untrained start)"),
         Quantity::FromStart(q) => format!("{q}, last 100 episodes minus the first {START}"),
         Quantity::Extreme(q) => {
