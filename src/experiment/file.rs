@@ -320,6 +320,11 @@ pub struct Claim {
     /// claim is reproduced when the effect's 90 % interval lies inside (−m, m).
     #[serde(default)]
     pub(crate) margin: Option<f64>,
+    /// For a level with the paper's value: the tolerance t, in the quantity's units, within which it is
+    /// reproduced (TOST: the 90 % interval inside paper ± t). DoS and DoA levels take the project's rule
+    /// (`verdict::DOS_TOLERANCE`, `verdict::DOA_TOLERANCE`) when none is given; another level must give one.
+    #[serde(default)]
+    pub(crate) tolerance: Option<f64>,
     /// For a level: the value that chance alone gives, which the level must be told apart from (DoA's
     /// 2/π and DoS at random positions are filled in when not given).
     #[serde(default)]
@@ -366,6 +371,7 @@ impl Claim {
             paper: None,
             versus: None,
             margin: None,
+            tolerance: None,
             baseline: None,
             direction_only: false,
             ours: false,

@@ -385,6 +385,25 @@ impl Experiment {
                     return Err(err("claims", format!("evaluation {e:?} needs a control (Blind, Shuffled or a block form) and a seeing evaluation with the same counts, policies, episodes and steps")));
                 }
             }
+            let level = !super::claims::is_effect(c);
+            match c.tolerance {
+                Some(t) if !(level && c.paper.is_some() && t.is_finite() && t > 0.0) => {
+                    return Err(err(
+                        "claims",
+                        format!(
+                            "{:?}: tolerance is for a level with the paper's value, a positive number (got {t})",
+                            c.text
+                        ),
+                    ));
+                }
+                None if level && c.paper.is_some() && super::verdict::tolerance(c).is_none() => {
+                    return Err(err(
+                        "claims",
+                        format!("{:?}: a level with the paper's value needs a tolerance (DoS and DoA levels have one by rule)", c.text),
+                    ));
+                }
+                _ => {}
+            }
         }
         // The base scene: relative to the working folder, as the project's files say ("scenes/paper.ron"),
         // else to the experiment file's own folder, so a file works from anywhere.

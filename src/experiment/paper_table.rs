@@ -25,6 +25,10 @@ const PRESETS: [&str; 2] = ["paper", "gym-pps"];
 #[serde(deny_unknown_fields)]
 struct StatementsFile {
     statements: Vec<Statement>,
+    /// Markdown written under the table: what a reader of the verdicts must know that no row holds (how a
+    /// change of test moved verdicts).
+    #[serde(default)]
+    after_table: Option<String>,
 }
 
 /// One statement of the paper.
@@ -47,7 +51,7 @@ struct Statement {
 
 /// The statements, checked against the experiments' claims (`results`): every source names a claim of an
 /// experiment file.
-fn statements(results: &[ClaimResult]) -> crate::error::Result<Option<Vec<Statement>>> {
+fn statements(results: &[ClaimResult]) -> crate::error::Result<Option<StatementsFile>> {
     let path = Path::new(STATEMENTS);
     // Experiments of one's own, without the paper's statements beside them: no table.
     if !path.exists() {
@@ -67,7 +71,7 @@ fn statements(results: &[ClaimResult]) -> crate::error::Result<Option<Vec<Statem
             }
         }
     }
-    Ok(Some(file.statements))
+    Ok(Some(file))
 }
 
 /// The answer above the table: per preset, how many statements came out each way (each statement's cell,
@@ -231,7 +235,7 @@ fn cell(s: &Statement, preset: &str, results: &[ClaimResult], link: &dyn Fn(&str
 /// The table with the legend under it, None without [`STATEMENTS`]. `link`: how an experiment's evidence is linked
 /// from where the table is written.
 pub(crate) fn table(results: &[ClaimResult], link: &dyn Fn(&str) -> String) -> crate::error::Result<Option<String>> {
-    let Some(statements) = statements(results)? else { return Ok(None) };
+    let Some(StatementsFile { statements, after_table }) = statements(results)? else { return Ok(None) };
     let mut md = answer(&statements, results);
     // How to read it, before it.
     writeln!(md, "{LEGEND}\n").unwrap();
@@ -248,18 +252,23 @@ pub(crate) fn table(results: &[ClaimResult], link: &dyn Fn(&str) -> String) -> c
         writeln!(md, "| {} | {} | {} | {} | {} |", says.replace('|', "\\|"), s.setting, s.value, cells[0], cells[1])
             .unwrap();
     }
+    if let Some(text) = after_table {
+        writeln!(md, "\n{}", text.trim_end()).unwrap();
+    }
     Ok(Some(md))
 }
 
 /// How to read the table, above it.
 const LEGEND: &str = "Each cell: coevo's mean over seeds ± the interval its verdict reads (for a change or a \
-     difference, the Holm-adjusted interval of its family; for a level, the plain 95 % interval), the verdict, and the \
+     difference, the Holm-adjusted interval of its family; for a level, the plain 95 % interval, while its verdict \
+     reads the 90 % interval of the equivalence test), the verdict, and the \
      experiment it comes from with its seeds. ✓ reproduced (an effect detected in the paper's direction with the paper's \
-     value inside its interval; a level whose interval reaches the paper's value as written and excludes chance); ✓ \
+     value inside its interval; a level equivalent to the paper's value within its tolerance, ±0.005 for DoS and ±0.015 for DoA); ✓ \
      equivalent (a claim of no change shown within its margin); ✓ apart from chance (a level the paper gives no number \
      for, told apart from chance); ◐ the paper's direction detected but not its size; ✗ not reproduced (detected the \
-     other way, or a level whose interval misses the paper's value); ? inconclusive or not detected (neither shown nor \
-     excluded, or a level whose interval holds chance too: not evidence of no effect; \"the paper's size excluded\": its \
+     other way, or a level whose 95 % interval lies outside the paper's value ± its tolerance); ? inconclusive or not \
+     detected (neither shown nor excluded, or a level neither shown within nor outside its tolerance: not evidence of \
+     no effect; \"the paper's size excluded\": its \
      interval rules out an effect as large as the paper's, though not its direction); measured (a level with neither \
      the paper's number nor a chance level to judge it against); in progress (its experiment is judged when all its \
      runs are in). A level marked \"its contrast decides\" is reproduced as a level while the contrast the paper's \

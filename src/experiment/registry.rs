@@ -31,6 +31,12 @@ pub(crate) fn fingerprint(claim: &Claim) -> String {
         super::file::Scale::Linear => canonical,
         scale => format!("{canonical}\u{1f}{scale:?}"),
     };
+    // Likewise a level's own tolerance, which claims before tolerances lack (those take the rule's,
+    // `verdict::tolerance`, set after their results: REPRODUCTION.md's preamble says so).
+    let canonical = match claim.tolerance {
+        None => canonical,
+        Some(t) => format!("{canonical}\u{1f}tolerance {}", bits(Some(t))),
+    };
     // Likewise a grid's test (its axis, level and crossing value), which claims before grids lack; a
     // boundary's direction only when not the default (a fall), so a test stated before directions could be
     // named keeps the fingerprint it was recorded with.

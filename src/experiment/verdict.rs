@@ -46,15 +46,15 @@ pub(crate) enum Outcome {
     /// A comparison of two variants whose runs are identical (one training, run twice).
     NotAComparison,
     /// An effect detected in the paper's direction with the paper's value inside its interval (for a
-    /// direction-only claim, detected in that direction); a level whose interval reaches the paper's value
-    /// and excludes chance.
+    /// direction-only claim, detected in that direction); a level equivalent to the paper's value within its
+    /// tolerance ([`tolerance`]).
     Reproduced,
     /// An effect detected in the paper's direction, the paper's value outside its interval.
     DirectionReproduced {
         larger: bool,
     },
     /// An effect detected against the paper's direction, or beyond a claim of none's margin; a level whose
-    /// interval misses the paper's value.
+    /// 95 % interval lies outside the paper's value ± its tolerance.
     NotReproduced,
     /// A claim of no effect shown within its margin (TOST).
     Equivalent,
@@ -114,13 +114,66 @@ impl std::fmt::Display for Verdict {
     }
 }
 
-/// Half a unit of the last decimal the paper's number is written with: the precision it states ("22 %"
-/// is 0.22 ± 0.005). Read from the number as stored, so a number the paper writes with trailing zeros
-/// ("0.20") would be taken as coarser ("0.2" ± 0.05); no claim of the paper's has one.
-pub(crate) fn paper_precision(paper: f64) -> f64 {
-    let text = format!("{}", paper.abs());
-    let decimals = text.split_once('.').map_or(0, |(_, d)| d.len());
-    0.5 * 10f64.powi(-(decimals as i32))
+/// The tolerance of a level of the paper's DoS: half the smallest difference between two DoS levels the
+/// paper states (22, 20.5, 19, 18, 17 and 15 %: 18 against 17 or 19, one point of D). Within it a level
+/// is nearer the paper's number than any other DoS level the paper tells it apart from. Fixed once, by
+/// this rule, for every DoS level; the precision the paper prints a number with plays no part.
+pub(crate) const DOS_TOLERANCE: f64 = 0.005;
+
+/// The tolerance of a level of the paper's DoA, by the rule of [`DOS_TOLERANCE`]: the paper states 0.65,
+/// 0.75, 0.82, 0.85 and 0.96, the nearest two 0.03 apart.
+pub(crate) const DOA_TOLERANCE: f64 = 0.015;
+
+/// The order parameter a level reads (`dos`, `doa`, or another name), None for a quantity that is no
+/// level of one (an episode, a difference, a fitted gain).
+fn order_of(q: &Quantity) -> Option<&str> {
+    use super::file::Fit;
+    fn curve(c: &str) -> &str {
+        match c {
+            "authors_dos" => "dos",
+            "authors_doa" => "doa",
+            other => other,
+        }
+    }
+    match q {
+        Quantity::DosFirst | Quantity::DosLast | Quantity::EvalDos(_) => Some("dos"),
+        Quantity::DoaFirst | Quantity::DoaLast | Quantity::EvalDoa(_) => Some("doa"),
+        Quantity::Start(c) | Quantity::Extreme(c) | Quantity::TrainingFirst(c) | Quantity::TrainingLast(c) => {
+            Some(curve(c))
+        }
+        Quantity::Fitted(c, Fit::Start | Fit::End) => Some(curve(c)),
+        Quantity::EvalOrder(_, o) => Some(o),
+        Quantity::CatchesFirst | Quantity::CatchesLast | Quantity::EvalCatches(_) => Some("catches"),
+        Quantity::Fitted(_, Fit::Time)
+        | Quantity::DosChange
+        | Quantity::DoaChange
+        | Quantity::CatchesChange
+        | Quantity::InteractionDoa(_)
+        | Quantity::Interaction(..)
+        | Quantity::Learned(..)
+        | Quantity::EvalDifference(..)
+        | Quantity::Distilled(..)
+        | Quantity::DistilledDifference(..)
+        | Quantity::Reach90(_)
+        | Quantity::FromStart(_)
+        | Quantity::ExtremeEpisode(_)
+        | Quantity::AfterExtreme(_)
+        | Quantity::Halfway(_)
+        | Quantity::Reaches(..)
+        | Quantity::Response(..)
+        | Quantity::Crossplay(_) => None,
+    }
+}
+
+/// The tolerance a level claim with a paper's value is judged within: the claim's own `tolerance`, else
+/// [`DOS_TOLERANCE`] or [`DOA_TOLERANCE`] by the order parameter it reads; None for another level (the
+/// file must then state one: `load.rs` refuses it without).
+pub(crate) fn tolerance(claim: &Claim) -> Option<f64> {
+    claim.tolerance.or(match order_of(&claim.quantity) {
+        Some("dos") => Some(DOS_TOLERANCE),
+        Some("doa") => Some(DOA_TOLERANCE),
+        _ => None,
+    })
 }
 
 /// How the seeds an effect needs are counted: per variant for a difference of two variants, per level or
@@ -148,8 +201,9 @@ fn more_seeds(e: &Estimate) -> String {
 /// called a result. Effects: *reproduced* (detected in the paper's direction, the paper's value inside the
 /// interval), *direction reproduced, smaller/larger than the paper*, *not reproduced* (detected the other
 /// way, or an effect shown where the claim is of none), *equivalent within ±m* (TOST, adjusted),
-/// *inconclusive*. Levels: the plain 95 % interval against the paper's value at the precision it states,
-/// and against chance.
+/// *inconclusive*. Levels with the paper's value: *reproduced* when equivalent to it within its
+/// [`tolerance`] (TOST at 5 %, unadjusted), *not reproduced* when the 95 % interval lies outside it,
+/// *inconclusive* otherwise; each says whether the interval excludes chance.
 pub(crate) fn verdict(
     claim: &Claim,
     e: Option<Estimate>,
@@ -264,41 +318,53 @@ pub(crate) fn verdict(
     let (lo, hi) = (e.mean - ci, e.mean + ci);
     let inside = |x: f64| lo <= x && x <= hi;
     let chance = baseline.map(|b| (b, inside(b)));
-    match (claim.paper, chance) {
-        (Some(paper), _) if hi < paper - paper_precision(paper) || lo > paper + paper_precision(paper) => Verdict::new(
-            NotReproduced,
-            format!(
-                "not reproduced: the 95 % CI excludes the paper's {paper} (±{} as written)",
-                paper_precision(paper)
+    let chance_note = match chance {
+        Some((b, false)) => format!("; apart from chance ({b:.3})"),
+        Some((b, true)) => format!("; not told apart from chance ({b:.3})"),
+        None => String::new(),
+    };
+    match (claim.paper, tolerance(claim)) {
+        // Equivalence to the paper's level within its tolerance t (TOST at 5 %: the 90 % interval inside
+        // paper ± t); not reproduced when the 95 % interval lies wholly outside paper ± t.
+        (Some(paper), Some(t)) => {
+            let h = e.half_width(0.10).unwrap_or(ci);
+            let (lo90, hi90) = (e.mean - h, e.mean + h);
+            if paper - t < lo90 && hi90 < paper + t {
+                Verdict::new(
+                    Reproduced,
+                    format!(
+                        "reproduced: equivalent to the paper's {paper} within ±{t} (TOST; 90 % interval [{lo90:.3}, {hi90:.3}]){chance_note}"
+                    ),
+                )
+            } else if hi < paper - t || lo > paper + t {
+                Verdict::new(
+                    NotReproduced,
+                    format!("not reproduced: the 95 % CI [{lo:.3}, {hi:.3}] lies outside the paper's {paper} ± {t}{chance_note}"),
+                )
+            } else {
+                Verdict::new(
+                    Inconclusive { paper_size_excluded: false },
+                    format!(
+                        "inconclusive: the 90 % interval [{lo90:.3}, {hi90:.3}] is not within the paper's {paper} ± {t}, nor the 95 % CI outside it{chance_note}"
+                    ),
+                )
+            }
+        }
+        (Some(paper), None) => Verdict::new(
+            Inconclusive { paper_size_excluded: false },
+            format!("inconclusive: no tolerance to judge the paper's {paper} within"),
+        ),
+        (None, _) => match chance {
+            Some((b, false)) => Verdict::new(
+                Measured { apart_from_chance: Some(true) },
+                format!("measured: differs from chance ({b:.3})"),
             ),
-        ),
-        (Some(paper), Some((b, false))) => {
-            let h = paper_precision(paper);
-            Verdict::new(
-                Reproduced,
-                format!(
-                    "reproduced: the 95 % CI reaches the paper's {paper} as written ({}–{}) and excludes chance ({b:.3})",
-                    paper - h,
-                    paper + h
-                ),
-            )
-        }
-        (Some(_), Some((b, true))) => Verdict::new(
-            Inconclusive { paper_size_excluded: false },
-            format!("inconclusive: the 95 % CI holds both the paper's value and chance ({b:.3})"),
-        ),
-        (Some(_), None) => Verdict::new(
-            Inconclusive { paper_size_excluded: false },
-            "inconclusive: the paper's value is inside the 95 % CI; no chance level to tell it from",
-        ),
-        (None, Some((b, false))) => {
-            Verdict::new(Measured { apart_from_chance: Some(true) }, format!("measured: differs from chance ({b:.3})"))
-        }
-        (None, Some((b, true))) => Verdict::new(
-            Measured { apart_from_chance: Some(false) },
-            format!("measured: not told apart from chance ({b:.3})"),
-        ),
-        (None, None) => Verdict::new(Measured { apart_from_chance: None }, "measured (the paper gives no number)"),
+            Some((b, true)) => Verdict::new(
+                Measured { apart_from_chance: Some(false) },
+                format!("measured: not told apart from chance ({b:.3})"),
+            ),
+            None => Verdict::new(Measured { apart_from_chance: None }, "measured (the paper gives no number)"),
+        },
     }
 }
 
@@ -321,7 +387,10 @@ pub(crate) fn hypothesis(claim: &Claim, baseline: Option<f64>) -> String {
     }
     let chance = baseline.map_or(String::new(), |b| format!(", apart from chance {b:.3}"));
     match claim.paper {
-        Some(p) => format!("the level {p} (±{}){chance}", paper_precision(p)),
+        Some(p) => match tolerance(claim) {
+            Some(t) => format!("the level {p}: equivalence within ±{t}{chance}"),
+            None => format!("the level {p} (no tolerance){chance}"),
+        },
         None if baseline.is_some() => format!("a level apart from chance {:.3}", baseline.unwrap_or_default()),
         None => "a level (measured)".into(),
     }
@@ -371,8 +440,13 @@ mod tests {
         );
         assert_eq!(outcome(&claim(None, true), Some(0.001), None), Outcome::EffectDetected);
         assert_eq!(outcome(&claim(None, true), Some(0.3), None), Outcome::NoEffectDetected);
-        // Levels: the paper's value reached apart from chance, missed, or no number.
-        assert_eq!(outcome(&claim(Some(0.82), false), None, Some(0.637)), Outcome::Reproduced);
+        // Levels: equivalent to the paper's value within its tolerance, undecided, outside it, or no number.
+        let tight = estimate(&[0.819, 0.82, 0.821, 0.82, 0.819, 0.821]);
+        assert_eq!(verdict(&claim(Some(0.82), false), tight, None, None, Some(0.637)).outcome, Outcome::Reproduced);
+        assert_eq!(
+            outcome(&claim(Some(0.82), false), None, Some(0.637)),
+            Outcome::Inconclusive { paper_size_excluded: false }
+        );
         assert_eq!(outcome(&claim(Some(0.5), false), None, Some(0.637)), Outcome::NotReproduced);
         assert_eq!(
             outcome(&claim(None, false), None, Some(0.637)),

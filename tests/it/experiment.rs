@@ -148,6 +148,19 @@ fn experiment_files_expand_to_runs_and_bad_ones_are_one_line() {
             TINY.replace("quantity: DosChange", "quantity: EvalOrder(\"50 prey\", \"swirl\")"),
             "no order parameter named \"swirl\"",
         ),
+        (
+            // A level of the paper's with no rule for its tolerance must state one; an effect takes none.
+            TINY.replace("quantity: DosChange, paper: -0.03", "quantity: CatchesLast, paper: 50.0"),
+            "bad.ron: claims: \"DoS falls\": a level with the paper's value needs a tolerance",
+        ),
+        (
+            TINY.replace("paper: -0.03", "paper: -0.03, tolerance: Some(0.01)"),
+            "bad.ron: claims: \"DoS falls\": tolerance is for a level with the paper's value, a positive number (got 0.01)",
+        ),
+        (
+            TINY.replace("quantity: DosChange, paper: -0.03", "quantity: DosLast, paper: 0.19, tolerance: Some(-0.01)"),
+            "tolerance is for a level with the paper's value, a positive number (got -0.01)",
+        ),
     ] {
         std::fs::write(dir.path().join("experiments/bad.ron"), text).unwrap();
         let stderr = refused(dir.path(), &["--experiment", "experiments/bad.ron"]);
