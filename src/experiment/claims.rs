@@ -146,6 +146,11 @@ impl ClaimResult {
             (None, _) => e.ci,
         }
     }
+
+    /// Why the interval shown carries no information ([`super::verdict::uninformative`]), None when it does.
+    pub(crate) fn uninformative(&self) -> Option<String> {
+        super::verdict::uninformative(&self.claim, &self.estimate?, self.shown_half_width()?)
+    }
 }
 
 #[cfg(test)]

@@ -217,6 +217,10 @@ fn cell(s: &Statement, preset: &str, results: &[ClaimResult], link: &dyn Fn(&str
         (Some(e), None) => format!("{:.digits$}", e.mean),
         (None, _) => String::new(),
     };
+    let value = match r.uninformative() {
+        Some(why) => format!("{value} ({why})"),
+        None => value,
+    };
     let word = r.verdict.as_ref().map_or("", |v| short(v.outcome));
     let word = match disagrees(r) {
         true => format!("{word}, its contrast decides"),

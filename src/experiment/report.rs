@@ -307,6 +307,10 @@ fn section(md: &mut String, Reported { exp, results, finished, summary, .. }: &R
             (Some(e), Some(h)) => format!("{:.3} ± {h:.3} ({})", e.mean, e.n),
             (e, _) => estimate_shown(e, 3),
         };
+        let ours = match r.uninformative() {
+            Some(why) => format!("{ours}, {why}"),
+            None => ours,
+        };
         // The level the interval is shown at: the Holm step's for a test (TOST: twice it, one-sided
         // each way), 95 % for a level; the plain 95 % interval beside it, secondary.
         let level = match (r.level, r.claim.margin) {
@@ -371,11 +375,17 @@ fn section(md: &mut String, Reported { exp, results, finished, summary, .. }: &R
     }
 }
 
-/// An estimate as the reports show it: "mean ± half-width (seeds)" to `digits` decimals, "–" without one.
+/// An estimate as the reports show it: "mean ± half-width (seeds)" to `digits` decimals, "–" without one;
+/// an interval from fewer than [`INFORMATIVE_SEEDS`](super::verdict::INFORMATIVE_SEEDS) seeds is marked
+/// uninformative.
 fn estimate_shown(e: Option<super::stats::Estimate>, digits: usize) -> String {
     match e {
         Some(e) => {
-            format!("{:.digits$}{} ({})", e.mean, e.ci.map_or(String::new(), |c| format!(" ± {c:.digits$}")), e.n)
+            let mark = match e.ci.is_some() && e.n < super::verdict::INFORMATIVE_SEEDS {
+                true => ", uninformative",
+                false => "",
+            };
+            format!("{:.digits$}{} ({}{mark})", e.mean, e.ci.map_or(String::new(), |c| format!(" ± {c:.digits$}")), e.n)
         }
         None => "–".into(),
     }

@@ -124,8 +124,9 @@ pub(crate) const DOS_TOLERANCE: f64 = 0.005;
 /// 0.75, 0.82, 0.85 and 0.96, the nearest two 0.03 apart.
 pub(crate) const DOA_TOLERANCE: f64 = 0.015;
 
-/// The order parameter a level reads (`dos`, `doa`, or another name), None for a quantity that is no
-/// level of one (an episode, a difference, a fitted gain).
+/// The order parameter a quantity is in units of (`dos`, `doa`, `catches` or another order parameter's
+/// name), for a level and for a difference of two alike; None for a quantity in other units (an episode,
+/// a fitted gain or time, a read-out, radians).
 fn order_of(q: &Quantity) -> Option<&str> {
     use super::file::Fit;
     fn curve(c: &str) -> &str {
@@ -136,33 +137,59 @@ fn order_of(q: &Quantity) -> Option<&str> {
         }
     }
     match q {
-        Quantity::DosFirst | Quantity::DosLast | Quantity::EvalDos(_) => Some("dos"),
-        Quantity::DoaFirst | Quantity::DoaLast | Quantity::EvalDoa(_) => Some("doa"),
-        Quantity::Start(c) | Quantity::Extreme(c) | Quantity::TrainingFirst(c) | Quantity::TrainingLast(c) => {
-            Some(curve(c))
-        }
-        Quantity::Fitted(c, Fit::Start | Fit::End) => Some(curve(c)),
-        Quantity::EvalOrder(_, o) => Some(o),
-        Quantity::CatchesFirst | Quantity::CatchesLast | Quantity::EvalCatches(_) => Some("catches"),
-        Quantity::Fitted(_, Fit::Time)
-        | Quantity::DosChange
+        Quantity::DosFirst | Quantity::DosLast | Quantity::EvalDos(_) | Quantity::DosChange => Some("dos"),
+        Quantity::DoaFirst
+        | Quantity::DoaLast
+        | Quantity::EvalDoa(_)
         | Quantity::DoaChange
-        | Quantity::CatchesChange
-        | Quantity::InteractionDoa(_)
-        | Quantity::Interaction(..)
-        | Quantity::Learned(..)
-        | Quantity::EvalDifference(..)
+        | Quantity::InteractionDoa(_) => Some("doa"),
+        Quantity::Start(c)
+        | Quantity::FromStart(c)
+        | Quantity::Extreme(c)
+        | Quantity::AfterExtreme(c)
+        | Quantity::TrainingFirst(c)
+        | Quantity::TrainingLast(c) => Some(curve(c)),
+        Quantity::Fitted(c, Fit::Start | Fit::End) => Some(curve(c)),
+        Quantity::EvalOrder(_, o)
+        | Quantity::Interaction(_, o)
+        | Quantity::Learned(_, o)
+        | Quantity::EvalDifference(_, _, o) => Some(o),
+        Quantity::CatchesFirst | Quantity::CatchesLast | Quantity::CatchesChange | Quantity::EvalCatches(_) => {
+            Some("catches")
+        }
+        Quantity::Fitted(_, Fit::Time)
         | Quantity::Distilled(..)
         | Quantity::DistilledDifference(..)
         | Quantity::Reach90(_)
-        | Quantity::FromStart(_)
         | Quantity::ExtremeEpisode(_)
-        | Quantity::AfterExtreme(_)
         | Quantity::Halfway(_)
         | Quantity::Reaches(..)
         | Quantity::Response(..)
         | Quantity::Crossplay(_) => None,
     }
+}
+
+/// The fewest seeds whose interval a report shows as a result: from fewer, Student's t makes the interval
+/// so wide (t₀.₉₇₅ = 12.7 at 2 seeds, 4.3 at 3, 3.2 at 4) that it says little beyond the sign of a
+/// large effect.
+pub(crate) const INFORMATIVE_SEEDS: usize = 5;
+
+/// Why a claim's interval carries no information, None when it does: from fewer than
+/// [`INFORMATIVE_SEEDS`] seeds, or wider than every value its quantity can take (DoS, DoA, polarization,
+/// milling, the largest cluster's share and the edge rank lie in [0, 1], C_nn in [−1, 1]; a difference of
+/// two spans twice that). Reports print it beside the interval, and pages that cite one must say so
+/// (`tests/it/docs.rs`).
+pub(crate) fn uninformative(claim: &Claim, e: &Estimate, half_width: f64) -> Option<String> {
+    if e.n < INFORMATIVE_SEEDS {
+        return Some(format!("uninformative: {} seeds", e.n));
+    }
+    let range = match order_of(&claim.quantity)? {
+        "dos" | "doa" | "polarization" | "milling" | "largest_cluster" | "edge_rank" => 1.0,
+        "nn_correlation" => 2.0,
+        _ => return None,
+    };
+    let range = if is_effect(claim) { 2.0 * range } else { range };
+    (2.0 * half_width > range).then(|| format!("uninformative: wider than the {range} the quantity can span"))
 }
 
 /// The tolerance a level claim with a paper's value is judged within: the claim's own `tolerance`, else

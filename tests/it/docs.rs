@@ -323,6 +323,15 @@ fn check_cited_claims(
             if negative && detected {
                 wrong.push(format!("line {}: called not detected, but the verdict is {:?}", i + 1, row.verdict));
             }
+            // An interval the reports mark as carrying no information (too few seeds, or wider than the
+            // quantity's range) is said to be so where it is cited, not shown as a result.
+            if row.ours.contains("uninformative") && !said.contains("uninformative") {
+                wrong.push(format!(
+                    "line {}: cites an uninformative interval ({}) without saying so",
+                    i + 1,
+                    row.ours
+                ));
+            }
             rest = after;
             before_len = line.len() - rest.len();
         }
