@@ -326,11 +326,7 @@ fn check_cited_claims(
             // An interval the reports mark as carrying no information (too few seeds, or wider than the
             // quantity's range) is said to be so where it is cited, not shown as a result.
             if row.ours.contains("uninformative") && !said.contains("uninformative") {
-                wrong.push(format!(
-                    "line {}: cites an uninformative interval ({}) without saying so",
-                    i + 1,
-                    row.ours
-                ));
+                wrong.push(format!("line {}: cites an uninformative interval ({}) without saying so", i + 1, row.ours));
             }
             rest = after;
             before_len = line.len() - rest.len();
@@ -804,4 +800,143 @@ fn every_results_page_and_the_readme_point_to_the_definitions() {
         .map(|p| p.display().to_string())
         .collect();
     assert!(missing.is_empty(), "pages that do not link the terms' definitions: {missing:?}");
+}
+
+/// Each term and mark the book defines, by the anchor of its row in `docs/src/reference/definitions.md`
+/// and the words a page uses it by.
+const TERMS: &[(&str, &str)] = &[
+    ("dos", "DoS"),
+    ("doa", "DoA"),
+    ("d", "D"),
+    ("r-pred", "R_pred"),
+    ("polarization", "polarization"),
+    ("milling", "milling"),
+    ("c-nn", "C_nn"),
+    ("xi", "ξ"),
+    ("edge-rank", "edge rank"),
+    ("catches", "catches"),
+    ("halfway", "halfway episode"),
+    ("common-level", "common level"),
+    ("flocking-share", "flocking share"),
+    ("holm", "Holm"),
+    ("tost", "TOST"),
+    ("marks", "✓"),
+    ("marks", "◐"),
+    ("marks", "✗"),
+    ("uninformative", "uninformative"),
+    ("ciao", "CIAO"),
+    ("tau", "τ"),
+    ("d-o", "d_o"),
+];
+
+/// `text` with what is not prose blanked out, byte for byte (so positions stay): fenced and inline code,
+/// HTML comments and tags, images, link targets, and headings.
+fn prose_only(text: &str) -> Vec<u8> {
+    let mut out = text.as_bytes().to_vec();
+    let mut blank =
+        |from: usize, to: usize| out[from..to].iter_mut().for_each(|b| *b = if *b == b'\n' { b'\n' } else { b' ' });
+    let spans = |open: &str, close: &str, within_line: bool| -> Vec<(usize, usize)> {
+        let mut found = vec![];
+        let mut at = 0;
+        while let Some(start) = text[at..].find(open).map(|s| s + at) {
+            let from = start + open.len();
+            let Some(end) = text[from..].find(close).map(|e| e + from + close.len()) else { break };
+            if !(within_line && text[start..end].contains('\n')) {
+                found.push((start, end));
+                at = end;
+            } else {
+                at = from;
+            }
+        }
+        found
+    };
+    for (open, close, line) in
+        [("```", "```", false), ("<!--", "-->", false), ("`", "`", true), ("](", ")", true), ("<", ">", true)]
+    {
+        for (a, b) in spans(open, close, line) {
+            blank(a, b);
+        }
+    }
+    // Images: `![alt](target)`, alt text included; headings: the whole line.
+    for (a, _) in text.match_indices("![") {
+        if let Some(end) = text[a..].find(']').map(|e| a + e + 1) {
+            blank(a, end);
+        }
+    }
+    let mut at = 0;
+    for line in text.split_inclusive('\n') {
+        if line.starts_with('#') {
+            blank(at, at + line.len());
+        }
+        at += line.len();
+    }
+    out
+}
+
+/// The byte position of the first use of `term` in the prose of `text`, as a whole word.
+fn first_use(text: &str, term: &str) -> Option<usize> {
+    let prose = prose_only(text);
+    let word = |c: Option<char>| c.is_some_and(|c| c.is_alphanumeric() || "_-'’".contains(c));
+    let mut at = 0;
+    while let Some(i) = text[at..].find(term).map(|i| i + at) {
+        let end = i + term.len();
+        let blanked = prose[i..end] != text.as_bytes()[i..end];
+        if !blanked && !word(text[..i].chars().next_back()) && !word(text[end..].chars().next()) {
+            return Some(i);
+        }
+        at = i + 1;
+        while !text.is_char_boundary(at) {
+            at += 1;
+        }
+    }
+    None
+}
+
+/// The target of the Markdown link whose text holds position `i`, if any.
+fn link_around(text: &str, i: usize) -> Option<&str> {
+    let open = text[..i].rfind('[')?;
+    if text[..i].rfind(']').is_some_and(|c| c > open) {
+        return None;
+    }
+    let close = open + text[open..].find("](")?;
+    if close < i || text[open..close].contains("\n\n") || text[i..close].contains(']') {
+        return None;
+    }
+    let end = close + text[close..].find(')')?;
+    Some(&text[close + 2..end])
+}
+
+#[test]
+fn every_term_links_to_its_definition_where_a_page_first_uses_it() {
+    let definitions = std::fs::read_to_string("docs/src/reference/definitions.md").unwrap();
+    for (anchor, _) in TERMS {
+        assert!(definitions.contains(&format!("<a id=\"{anchor}\"></a>")), "no definition anchored {anchor:?}");
+    }
+    let mut pages: Vec<PathBuf> = std::fs::read_dir("docs/src/results")
+        .unwrap()
+        .flatten()
+        .map(|e| e.path())
+        .filter(|p| p.extension().is_some_and(|x| x == "md"))
+        .collect();
+    pages.extend([PathBuf::from("README.md"), PathBuf::from("docs/src/introduction.md")]);
+    let mut wrong = vec![];
+    for page in &pages {
+        let text = std::fs::read_to_string(page).unwrap();
+        for (anchor, term) in TERMS {
+            let Some(i) = first_use(&text, term) else { continue };
+            let target = format!("definitions.md#{anchor}");
+            if !link_around(&text, i).is_some_and(|t| t.ends_with(&target)) {
+                let line = text[..i].matches('\n').count() + 1;
+                wrong.push(format!("{}:{line}: the first {term:?} does not link to {target}", page.display()));
+            }
+        }
+    }
+    assert!(wrong.is_empty(), "{}", wrong.join("\n"));
+    // It finds a first use that links nowhere, one that links elsewhere, and skips code and headings.
+    let page = "# DoS\n\n`DoS` and [DoS](x.md) then DoS";
+    assert_eq!(first_use(page, "DoS"), Some(page.find("[DoS]").unwrap() + 1));
+    assert_eq!(link_around(page, page.find("[DoS]").unwrap() + 1), Some("x.md"));
+    assert_eq!(first_use("DoSes and DoS's, then DoS.", "DoS"), Some(22));
+    assert_eq!(link_around("see [the DoS](d.md#dos) here", 9), Some("d.md#dos"));
+    assert_eq!(link_around("a [b](c) DoS", 9), None);
 }
