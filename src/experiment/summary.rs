@@ -56,10 +56,12 @@ pub fn columns(exp: &Experiment) -> Vec<(String, Quantity)> {
         quantities.extend(columns.into_iter().map(|(s, f, n)| named(Quantity::Distilled(s, f, n))));
     }
     quantities.extend([named(Quantity::CatchesFirst), named(Quantity::CatchesLast)]);
-    // A level some claim times a curve against (`Reaches`): a column only in the experiments that ask for
-    // one, so every other summary keeps its columns.
+    // A level some claim times a curve against (`Reaches`), or a fitted approach (`Fitted`): a column only
+    // in the experiments that ask for one, so every other summary keeps its columns.
     for claim in &exp.spec.claims {
-        if matches!(claim.quantity, Quantity::Reaches(..)) && !quantities.iter().any(|(_, q)| *q == claim.quantity) {
+        if matches!(claim.quantity, Quantity::Reaches(..) | Quantity::Fitted(..))
+            && !quantities.iter().any(|(_, q)| *q == claim.quantity)
+        {
             quantities.push(named(claim.quantity.clone()));
         }
     }
@@ -360,6 +362,36 @@ mod tests {
     use super::super::figure_data::FigureData;
     use super::super::file::Experiment;
     use std::collections::BTreeMap;
+
+    #[test]
+    fn every_claim_of_every_experiment_file_reads_columns_its_summary_has() {
+        // A claim whose quantity needs a column the summary does not write would read as "not run yet"
+        // for ever: every primitive its value is derived from must be a column.
+        let mut files: Vec<_> = std::fs::read_dir("experiments").unwrap().flatten().map(|e| e.path()).collect();
+        files.retain(|p| p.extension().is_some_and(|x| x == "ron"));
+        files.sort();
+        assert!(files.len() > 20);
+        for file in files {
+            let exp = Experiment::load(&file, std::path::Path::new("results")).unwrap();
+            let mut have: Vec<_> = super::columns(&exp).into_iter().map(|(_, q)| q).collect();
+            have.extend(super::curve_columns().into_iter().map(|(_, q)| q));
+            for claim in &exp.spec.claims {
+                let asked = std::cell::RefCell::new(vec![]);
+                super::super::quantity::derive(&exp.spec.evaluations, &claim.quantity, &|p| {
+                    asked.borrow_mut().push(p.clone());
+                    0.0
+                });
+                for p in asked.into_inner() {
+                    assert!(
+                        have.contains(&p),
+                        "{}: {:?} reads {p:?}, which its summary has no column of",
+                        file.display(),
+                        claim.text
+                    );
+                }
+            }
+        }
+    }
 
     #[test]
     fn a_non_finite_value_in_a_summary_is_an_error_naming_its_line_and_column() {
