@@ -79,7 +79,7 @@ fn statements(results: &[ClaimResult]) -> crate::error::Result<Option<Statements
 fn answer(statements: &[Statement], results: &[ClaimResult]) -> String {
     let mut out = String::from("**The answer.** ");
     for (preset, values) in [("gym-pps", "the authors' code's values"), ("paper", "the paper's stated values")] {
-        let mut counts = [0usize; 5];
+        let mut counts = [0usize; 6];
         // Undecided statements whose interval rules out an effect of the paper's size.
         let mut size_excluded = 0;
         for s in statements {
@@ -87,6 +87,8 @@ fn answer(statements: &[Statement], results: &[ClaimResult]) -> String {
             let shown = found.iter().find(|r| judged(r)).or(found.first()).copied();
             let outcome = shown.and_then(|r| r.verdict.as_ref()).map(|v| v.outcome);
             let k = match outcome {
+                // A statement no experiment measures (its row says why).
+                _ if s.from.is_empty() => 5,
                 _ if shown.is_some_and(disagrees) => 3,
                 Some(Outcome::Reproduced | Outcome::Equivalent)
                 | Some(Outcome::Measured { apart_from_chance: Some(true) })
@@ -101,19 +103,24 @@ fn answer(statements: &[Statement], results: &[ClaimResult]) -> String {
                 size_excluded += 1;
             }
         }
-        let [held, direction, not, undecided, waiting] = counts;
+        let [held, direction, not, undecided, waiting, unmeasured] = counts;
         let excluded = match size_excluded {
             0 => String::new(),
             n => format!(" ({n} of them rule out an effect of the paper's size)"),
         };
         write!(
             out,
-            "With {values} (`{preset}`), {held} of the {} statements hold (reproduced, equivalent, or, where the paper gives no number, detected or told apart from chance), {direction} hold in direction but not in size, {not} are not reproduced and {undecided} are undecided{excluded}{}. ",
+            "With {values} (`{preset}`), {held} of the {} statements hold (reproduced, equivalent, or, where the paper gives no number, detected or told apart from chance), {direction} hold in direction but not in size, {not} are not reproduced and {undecided} are undecided{excluded}{}{}. ",
             statements.len(),
             match waiting {
                 0 => String::new(),
                 1 => ", and 1 waits for its runs".into(),
                 n => format!(", and {n} wait for their runs"),
+            },
+            match unmeasured {
+                0 => String::new(),
+                1 => "; 1 is not measured (its row says why)".into(),
+                n => format!("; {n} are not measured (their rows say why)"),
             }
         )
         .unwrap();
@@ -211,7 +218,8 @@ fn cell(s: &Statement, preset: &str, results: &[ClaimResult], link: &dyn Fn(&str
         let word = first.verdict.as_ref().map_or("not judged", |v| short(v.outcome));
         return format!("{word} ({})", link(&first.experiment));
     };
-    let digits = if in_episodes(&r.claim.quantity) { 0 } else { 3 };
+    // Episodes without decimals; on ln(1 + x) a difference is a log ratio, shown as any other number.
+    let digits = if in_episodes(&r.claim.quantity) && r.claim.scale == super::file::Scale::Linear { 0 } else { 3 };
     let value = match (r.estimate, r.shown_half_width()) {
         (Some(e), Some(h)) => format!("{:.digits$} ± {h:.digits$}", e.mean),
         (Some(e), None) => format!("{:.digits$}", e.mean),
@@ -390,6 +398,7 @@ mod tests {
 
     #[test]
     fn a_cell_shows_the_first_judged_source_and_what_is_still_running() {
+        // Three seeds: every interval here is marked uninformative, as a cell from fewer than five is.
         let s = Statement {
             says: "DoS falls to about 19 %".into(),
             setting: "training".into(),
@@ -407,10 +416,13 @@ mod tests {
         // The confirmatory source still running gives way to the next, and the cell says it is running.
         assert_eq!(
             cell(&s, "paper", &results, &link),
-            "0.210 ± 0.025 ✗ not reproduced ([standard], 3 seeds; [sweeps] in progress)"
+            "0.210 ± 0.025 (uninformative: 3 seeds) ✗ not reproduced ([standard], 3 seeds; [sweeps] in progress)"
         );
         // Judged, it takes over.
-        assert_eq!(cell(&s, "gym-pps", &results, &link), "0.190 ± 0.025 ✓ reproduced ([sweeps], 3 seeds)");
+        assert_eq!(
+            cell(&s, "gym-pps", &results, &link),
+            "0.190 ± 0.025 (uninformative: 3 seeds) ✓ reproduced ([sweeps], 3 seeds)"
+        );
         // Nothing judged yet: what the first source says.
         assert_eq!(cell(&s, "paper", &results[..1], &link), "in progress ([sweeps])");
         // A source that names no claim is refused when the statements are read.

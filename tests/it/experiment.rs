@@ -308,7 +308,7 @@ fn a_tiny_experiment_runs_resumes_and_gives_the_same_summary_at_one_or_two_jobs(
     // measured, and the verdict says why instead of reporting a zero.
     assert!(
         md.contains(
-            "| paper | catches | catches per episode, change, last − first 100 of `5:3` | – | 0.000 ± 0.000 (2) |"
+            "| paper | catches | catches per episode, change, last − first 100 of `5:3` | – | 0.000 ± 0.000 (2), uninformative: 2 seeds |"
         ),
         "{md}"
     );
