@@ -87,7 +87,7 @@ fn answer(statements: &[Statement], results: &[ClaimResult]) -> String {
             let shown = found.iter().find(|r| judged(r)).or(found.first()).copied();
             let outcome = shown.and_then(|r| r.verdict.as_ref()).map(|v| v.outcome);
             let k = match outcome {
-                // A statement no experiment measures (its row says why).
+                // A statement no experiment tests (its row says why).
                 _ if s.from.is_empty() => 5,
                 _ if shown.is_some_and(disagrees) => 3,
                 Some(Outcome::Reproduced | Outcome::Equivalent)
@@ -119,8 +119,8 @@ fn answer(statements: &[Statement], results: &[ClaimResult]) -> String {
             },
             match unmeasured {
                 0 => String::new(),
-                1 => "; 1 is not measured (its row says why)".into(),
-                n => format!("; {n} are not measured (their rows say why)"),
+                1 => "; 1 is not tested (its row says why)".into(),
+                n => format!("; {n} are not tested (their rows say why)"),
             }
         )
         .unwrap();
@@ -350,7 +350,7 @@ pub(crate) fn book_page(table: &str) -> String {
 const TERMS: &str = "*Every term and mark on this page is defined in [Terms and \
      symbols](../reference/definitions.md): among them [D](../reference/definitions.md#d), the largest distance in the \
      arena; [DoS](../reference/definitions.md#dos) and [DoA](../reference/definitions.md#doa), the paper's order \
-     parameters; [milling](../reference/definitions.md#milling); the [halfway episode](../reference/definitions.md#halfway) \
+     parameters; [milling](../reference/definitions.md#milling); [catches](../reference/definitions.md#catches); the [halfway episode](../reference/definitions.md#halfway) \
      and the episode a [common level](../reference/definitions.md#common-level) is reached; the marks \
      [✓](../reference/definitions.md#marks), [◐](../reference/definitions.md#marks) and \
      [✗](../reference/definitions.md#marks); and an [uninformative](../reference/definitions.md#uninformative) \
@@ -427,5 +427,10 @@ mod tests {
         assert_eq!(cell(&s, "paper", &results[..1], &link), "in progress ([sweeps])");
         // A source that names no claim is refused when the statements are read.
         assert!(cell(&s, "other", &results, &link) == "–");
+        // A statement no experiment tests shows a dash and is counted apart, not as waiting for runs.
+        let untested = Statement { from: vec![], note: Some("not tested: why".into()), ..s.clone() };
+        assert_eq!(cell(&untested, "paper", &results, &link), "–");
+        let said = answer(&[s.clone(), untested], &results);
+        assert!(said.contains("; 1 is not tested (its row says why)") && !said.contains("waits"), "{said}");
     }
 }
