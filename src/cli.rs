@@ -300,9 +300,9 @@ fn run(cli: Cli) -> crate::error::Result<()> {
             let (scene, opts) = cli.train.options(&shared)?;
             // One run is one sample: beside it, how far the seeds of its scene differ in the committed results.
             let spread = opts.progress.then(|| crate::experiment::spread::seeds_like(&scene)).flatten();
-            train::main(Some(scene), &opts, spread.as_deref())
+            train::main(train::Start::New(Box::new(scene)), &opts, spread.as_deref())
         }
-        Called::Resume(run) => train::main(None, &cli.resume.options(run, &shared), None),
+        Called::Resume(run) => train::main(train::Start::Resume, &cli.resume.options(run, &shared), None),
         Called::Eval(run) => {
             let report = crate::run::evaluate::evaluate(&cli.eval.options(run, &shared)?)?;
             crate::outln!("{report}")

@@ -62,23 +62,14 @@ fn options_written_as_argv_read_back_the_same() {
     let (cli, shared) = parsed(cross.to_argv());
     assert_eq!(cli.crossplay.options(cli.crossplay.crossplay.as_ref().unwrap(), &shared).unwrap(), cross);
 
-    let resume = train::TrainOptions {
-        run: PathBuf::from("runs/r"),
-        resume: true,
-        overwrite: false,
-        episodes: Some(2000),
-        progress: false,
-    };
-    let (cli, shared) = parsed(resume.to_argv(std::path::Path::new("unused.ron"), 0));
+    let resume =
+        train::TrainOptions { run: PathBuf::from("runs/r"), overwrite: false, episodes: Some(2000), progress: false };
+    let (cli, shared) = parsed(resume.to_argv(train::StartArgs::Resume));
     assert_eq!(cli.resume.options(cli.resume.resume.as_ref().unwrap(), &shared), resume);
-    let fresh = train::TrainOptions {
-        run: PathBuf::from("runs/new"),
-        resume: false,
-        overwrite: true,
-        episodes: None,
-        progress: false,
-    };
-    let (cli, shared) = parsed(fresh.to_argv(std::path::Path::new("scenes/standard.ron"), 11));
+    let fresh =
+        train::TrainOptions { run: PathBuf::from("runs/new"), overwrite: true, episodes: None, progress: false };
+    let (cli, shared) =
+        parsed(fresh.to_argv(train::StartArgs::New { scene: std::path::Path::new("scenes/standard.ron"), seed: 11 }));
     assert_eq!((cli.scene.scene.clone(), cli.scene.seed), (Some(PathBuf::from("scenes/standard.ron")), Some(11)));
     let (scene, opts) = cli.train.options(&shared).unwrap();
     assert_eq!((scene.seed, opts), (11, fresh));

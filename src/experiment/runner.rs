@@ -89,14 +89,9 @@ fn probe(
     let timed = |k: usize| -> crate::error::Result<f64> {
         let dir = exp.root.join(format!(".probe-{k}"));
         let _ = std::fs::remove_dir_all(&dir);
-        let opts = crate::run::train::TrainOptions {
-            run: dir.clone(),
-            resume: false,
-            overwrite: false,
-            episodes: Some(episodes),
-            progress: false,
-        };
-        let args = [opts.to_argv(&variant_scene(run), run.seed), crate::run::args::threads_argv(threads)].concat();
+        let opts = crate::run::train::TrainOptions::new(dir.clone(), Some(episodes));
+        let start = crate::run::train::StartArgs::New { scene: &variant_scene(run), seed: run.seed };
+        let args = [opts.to_argv(start), crate::run::args::threads_argv(threads)].concat();
         let started = std::time::Instant::now();
         let made = child(exe, &args);
         let seconds = started.elapsed().as_secs_f64();
@@ -178,20 +173,18 @@ pub(crate) fn complete_run(exp: &Experiment, run: &Run, exe: &Executable, thread
         None => exe,
     };
     let threads = crate::run::args::threads_argv(threads.max(1));
-    let train = |resume: bool, overwrite: bool| crate::run::train::TrainOptions {
-        run: run.dir.clone(),
-        resume,
-        overwrite,
-        episodes: resume.then_some(run.scene.episodes),
-        progress: false,
-    };
+    use crate::run::train::{StartArgs, TrainOptions};
+    let scene = variant_scene(run);
+    let new = StartArgs::New { scene: &scene, seed: run.seed };
     let train = match stage(run)? {
         Stage::Trained => None,
-        Stage::Partial(_) => Some(train(true, false)),
-        s @ (Stage::Fresh | Stage::Unsaved) => Some(train(false, s == Stage::Unsaved)),
+        Stage::Partial(_) => Some((TrainOptions::new(run.dir.clone(), Some(run.scene.episodes)), StartArgs::Resume)),
+        s @ (Stage::Fresh | Stage::Unsaved) => {
+            Some((TrainOptions { overwrite: s == Stage::Unsaved, ..TrainOptions::new(run.dir.clone(), None) }, new))
+        }
     };
-    if let Some(opts) = train {
-        let args = [opts.to_argv(&variant_scene(run), run.seed), threads.clone()].concat();
+    if let Some((opts, start)) = train {
+        let args = [opts.to_argv(start), threads.clone()].concat();
         child(exe, &args).map_err(|e| format!("{dir}: {e}"))?;
     }
     drop_replay(exp, run)?;

@@ -19,16 +19,12 @@ use std::io::Write;
 use std::path::Path;
 use std::time::Instant;
 
-pub use super::train_args::{ResumeArgs, TrainArgs, TrainOptions};
+pub use super::train_args::{ResumeArgs, Start, StartArgs, TrainArgs, TrainOptions};
 
 /// `--train` or `--resume`: trains, says where and what came out; `spread`, a line on how far seeds of the
 /// scene differ, goes beside "one run is one sample".
-/// `scene`: the scene of a new run; None to resume `opts.run` (which trains its own `scene.ron`).
-pub(crate) fn main(scene: Option<Scene>, opts: &TrainOptions, spread: Option<&str>) -> crate::error::Result<()> {
-    let trained = match scene {
-        Some(scene) => train(scene, opts)?,
-        None => resume(opts)?,
-    };
+pub(crate) fn main(start: Start, opts: &TrainOptions, spread: Option<&str>) -> crate::error::Result<()> {
+    let trained = run_training(start, opts)?;
     crate::errln!("coevo: trained {trained} episodes into {}", opts.run.display())?;
     if opts.progress {
         // The explanation is the run's result for a reader: on stdout, so `coevo --train > log` keeps it.
@@ -99,26 +95,24 @@ fn check_resumable(
 /// summaries: a long run would hold them all; they are in `metrics.csv`). Everything is validated and
 /// loaded before the run folder is created or touched.
 pub fn train(scene: Scene, opts: &TrainOptions) -> crate::error::Result<usize> {
-    if opts.resume {
-        return Err("a resumed run trains its own scene.ron: call run::train::resume".into());
-    }
-    run_training(Some(scene), opts)
+    run_training(Start::New(Box::new(scene)), opts)
 }
 
-/// Continues the run `opts.run` (`opts.resume` set) from its last checkpoint, with the scene it was
-/// trained with; returns how many episodes this invocation trained.
+/// Continues the run `opts.run` from its last checkpoint, with the scene it was trained with; returns how
+/// many episodes this invocation trained.
 pub fn resume(opts: &TrainOptions) -> crate::error::Result<usize> {
-    if !opts.resume {
-        return Err("resume: options of a new run (resume: false); call run::train::train with its scene".into());
-    }
-    run_training(None, opts)
+    run_training(Start::Resume, opts)
 }
 
-/// [`train`] (`scene` given) or [`resume`] (None: the run's own scene).
-fn run_training(scene: Option<Scene>, opts: &TrainOptions) -> crate::error::Result<usize> {
+/// [`train`] or [`resume`], as `start` says.
+fn run_training(start: Start, opts: &TrainOptions) -> crate::error::Result<usize> {
     let run = &opts.run;
     let dir = RunDir::new(run);
-    if opts.resume {
+    let (scene, resuming) = match start {
+        Start::New(scene) => (Some(*scene), false),
+        Start::Resume => (None, true),
+    };
+    if resuming {
         if !dir.is_run() {
             return Err(format!("{}: holds no coevo run to resume", run.display()).into());
         }
@@ -129,8 +123,8 @@ fn run_training(scene: Option<Scene>, opts: &TrainOptions) -> crate::error::Resu
     }
     // One process per run: a resume takes it before reading what another process may be writing; a new
     // run once everything is validated and loaded, so a refused scene leaves no folder behind.
-    let mut lock = if opts.resume { Some(dir.lock()?) } else { None };
-    if opts.resume {
+    let mut lock = if resuming { Some(dir.lock()?) } else { None };
+    if resuming {
         dir.check_writable()?;
     }
     let scene = match scene {
@@ -154,7 +148,7 @@ fn run_training(scene: Option<Scene>, opts: &TrainOptions) -> crate::error::Resu
     let metrics_text: String;
     // Seconds trained before this invocation: wall_seconds counts the run's whole training time.
     let mut wall_before = 0.0;
-    if opts.resume {
+    if resuming {
         let world = sim.world_mut();
         let (state, manifest) = {
             let mut learners = world.resource_mut::<Learners>();

@@ -5,11 +5,27 @@ use super::args::Shared;
 use crate::scene::Scene;
 use std::path::{Path, PathBuf};
 
+/// How a training begins: a new run of a scene, or the run already in the folder continued from its last
+/// checkpoint with its own `scene.ron`. One type, so a resumed run cannot be handed a scene, nor a new run
+/// be started without one.
+#[derive(Clone, Debug)]
+pub enum Start {
+    New(Box<Scene>),
+    Resume,
+}
+
+/// A training as a command line says it ([`TrainOptions::to_argv`]): a new run of a scene file with a
+/// seed, or a resume.
+#[derive(Clone, Copy, Debug)]
+pub enum StartArgs<'a> {
+    New { scene: &'a Path, seed: u64 },
+    Resume,
+}
+
 #[derive(Clone, Debug, PartialEq)]
 pub struct TrainOptions {
     pub run: PathBuf,
-    pub resume: bool,
-    /// Replace the run already in `run` (its own files only) instead of refusing.
+    /// Replace the run already in `run` (its own files only) instead of refusing; a new run's only.
     pub overwrite: bool,
     /// Total episodes of the run (the scene's `episodes` when None).
     pub episodes: Option<usize>,
@@ -20,22 +36,25 @@ impl TrainOptions {
     /// A new run of `episodes` episodes (the scene's when None) into `run`, quietly: what programs and
     /// tests train with.
     pub fn new(run: impl Into<PathBuf>, episodes: Option<usize>) -> TrainOptions {
-        TrainOptions { run: run.into(), resume: false, overwrite: false, episodes, progress: false }
+        TrainOptions { run: run.into(), overwrite: false, episodes, progress: false }
     }
 
-    /// The call that trains `scene` (a file) with `seed` as these options say, or resumes `run`, as argv.
-    pub(crate) fn to_argv(&self, scene: &Path, seed: u64) -> Vec<String> {
-        let mut argv: Vec<String> = if self.resume {
-            vec!["--resume".into(), self.run.display().to_string()]
-        } else {
-            let mut argv = vec!["--train".into(), "--scene".into(), scene.display().to_string()];
-            argv.extend(["--seed".into(), seed.to_string(), "--out".into(), self.run.display().to_string()]);
-            argv
+    /// The call that begins as `start` says (a scene file with a seed, or a resume of `run`) with these
+    /// options, as argv.
+    pub(crate) fn to_argv(&self, start: StartArgs) -> Vec<String> {
+        let mut argv: Vec<String> = match start {
+            StartArgs::Resume => vec!["--resume".into(), self.run.display().to_string()],
+            StartArgs::New { scene, seed } => {
+                let mut argv = vec!["--train".into(), "--scene".into(), scene.display().to_string()];
+                argv.extend(["--seed".into(), seed.to_string(), "--out".into(), self.run.display().to_string()]);
+                argv
+            }
         };
         if let Some(n) = self.episodes {
             argv.extend(["--episodes".into(), n.to_string()]);
         }
-        if self.overwrite {
+        // Only a new run replaces a folder; a resume continues the one there.
+        if self.overwrite && matches!(start, StartArgs::New { .. }) {
             argv.push("--overwrite".into());
         }
         if !self.progress {
@@ -83,13 +102,7 @@ impl TrainArgs {
         let run = self.out.clone().unwrap_or_else(|| PathBuf::from(format!("runs/{stem}-seed{}", scene.seed)));
         Ok((
             scene,
-            TrainOptions {
-                run,
-                resume: false,
-                overwrite: common.overwrite,
-                episodes: common.episodes,
-                progress: !common.quiet,
-            },
+            TrainOptions { run, overwrite: common.overwrite, episodes: common.episodes, progress: !common.quiet },
         ))
     }
 }
@@ -98,12 +111,6 @@ impl ResumeArgs {
     /// The options of continuing the run `run` (which trains its own scene, [`super::train::resume`]).
     pub(crate) fn options(&self, run: &Path, shared: &Shared) -> TrainOptions {
         let common = &shared.common;
-        TrainOptions {
-            run: run.to_path_buf(),
-            resume: true,
-            overwrite: false,
-            episodes: common.episodes,
-            progress: !common.quiet,
-        }
+        TrainOptions { run: run.to_path_buf(), overwrite: false, episodes: common.episodes, progress: !common.quiet }
     }
 }

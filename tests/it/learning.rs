@@ -23,8 +23,8 @@ fn tiny(episodes: usize) -> Scene {
     s
 }
 
-fn opts(run: &Path, resume: bool, episodes: Option<usize>) -> TrainOptions {
-    TrainOptions { run: run.to_path_buf(), resume, overwrite: false, episodes, progress: false }
+fn opts(run: &Path, episodes: Option<usize>) -> TrainOptions {
+    TrainOptions { run: run.to_path_buf(), overwrite: false, episodes, progress: false }
 }
 
 /// metrics.csv without the wall-clock column, which is the one thing allowed to differ.
@@ -40,7 +40,7 @@ fn metrics_without_wall_clock(run: &Path) -> Vec<String> {
 fn a_tiny_training_run_writes_scene_metrics_and_checkpoints() {
     let dir = tempfile::tempdir().unwrap();
     let run = dir.path().join("run");
-    assert_eq!(train(tiny(5), &opts(&run, false, None)).unwrap(), 5, "episodes trained");
+    assert_eq!(train(tiny(5), &opts(&run, None)).unwrap(), 5, "episodes trained");
     let lines = metrics_without_wall_clock(&run);
     assert_eq!(lines.len(), 6, "header and one row per episode");
     let order = ["dos", "doa", "polarization", "milling", "clusters", "largest_cluster", "nn_correlation", "edge_rank"];
@@ -71,11 +71,11 @@ fn a_tiny_training_run_writes_scene_metrics_and_checkpoints() {
 fn same_scene_and_seed_give_identical_metrics() {
     let dir = tempfile::tempdir().unwrap();
     let (a, b, c) = (dir.path().join("a"), dir.path().join("b"), dir.path().join("c"));
-    train(tiny(3), &opts(&a, false, None)).unwrap();
-    train(tiny(3), &opts(&b, false, None)).unwrap();
+    train(tiny(3), &opts(&a, None)).unwrap();
+    train(tiny(3), &opts(&b, None)).unwrap();
     let mut other = tiny(3);
     other.seed = 99;
-    train(other, &opts(&c, false, None)).unwrap();
+    train(other, &opts(&c, None)).unwrap();
     assert_eq!(metrics_without_wall_clock(&a), metrics_without_wall_clock(&b));
     assert_ne!(metrics_without_wall_clock(&a), metrics_without_wall_clock(&c));
 }
@@ -86,10 +86,10 @@ fn measuring_the_authors_metric_changes_nothing_the_training_does() {
     // every other column to the byte (a run that measures as the authors' code does is the same run).
     let dir = tempfile::tempdir().unwrap();
     let (plain, measured) = (dir.path().join("plain"), dir.path().join("measured"));
-    train(tiny(3), &opts(&plain, false, None)).unwrap();
+    train(tiny(3), &opts(&plain, None)).unwrap();
     let mut s = tiny(3);
     s.authors_metrics = true;
-    train(s, &opts(&measured, false, None)).unwrap();
+    train(s, &opts(&measured, None)).unwrap();
     let (a, b) = (metrics_without_wall_clock(&plain), metrics_without_wall_clock(&measured));
     let header: Vec<&str> = b[0].split(',').collect();
     let kept: Vec<usize> = (0..header.len()).filter(|&i| !header[i].starts_with("authors_")).collect();
@@ -115,7 +115,7 @@ fn measuring_the_authors_metric_changes_nothing_the_training_does() {
 fn a_saved_actor_acts_identically_after_loading() {
     let dir = tempfile::tempdir().unwrap();
     let run = dir.path().join("run");
-    train(tiny(2), &opts(&run, false, None)).unwrap();
+    train(tiny(2), &opts(&run, None)).unwrap();
     // Evaluate mode loads the run's actors; compare with a fresh training sim restored from the checkpoint.
     let scene = Scene::load(&run.join("scene.ron")).unwrap();
     let eval = learning_simulation(scene.clone(), Mode::Evaluate, Some(&run)).unwrap();
@@ -136,7 +136,7 @@ fn a_saved_actor_acts_identically_after_loading() {
 fn resume_after_a_kill_continues_the_count_and_the_metrics() {
     let dir = tempfile::tempdir().unwrap();
     let run = dir.path().join("run");
-    train(tiny(4), &opts(&run, false, None)).unwrap();
+    train(tiny(4), &opts(&run, None)).unwrap();
     // A kill after episode 4's checkpoint but before more rows: simulate rows written after it and a
     // half-written checkpoint folder, both of which resume must discard.
     let before = metrics_without_wall_clock(&run);
@@ -147,7 +147,7 @@ fn resume_after_a_kill_continues_the_count_and_the_metrics() {
     .unwrap();
     std::fs::create_dir_all(run.join("checkpoint.tmp")).unwrap();
     std::fs::write(run.join("checkpoint.tmp/prey-actor.safetensors"), b"half").unwrap();
-    assert_eq!(resume(&opts(&run, true, Some(7))).unwrap(), 3, "episodes 4, 5 and 6 trained");
+    assert_eq!(resume(&opts(&run, Some(7))).unwrap(), 3, "episodes 4, 5 and 6 trained");
     let after = metrics_without_wall_clock(&run);
     assert_eq!(after.len(), 8);
     let episodes: Vec<&str> = after[5..].iter().map(|l| l.split(',').next().unwrap()).collect();
@@ -162,10 +162,10 @@ fn resume_after_a_kill_continues_the_count_and_the_metrics() {
 fn corrupt_missing_or_mismatched_checkpoints_are_refused_clearly() {
     let dir = tempfile::tempdir().unwrap();
     let run = dir.path().join("run");
-    let missing = resume(&opts(&run, true, None)).unwrap_err().to_string();
+    let missing = resume(&opts(&run, None)).unwrap_err().to_string();
     assert!(missing.contains("run: holds no coevo run to resume"), "{missing}");
 
-    train(tiny(1), &opts(&run, false, None)).unwrap();
+    train(tiny(1), &opts(&run, None)).unwrap();
     std::fs::write(run.join("checkpoint/prey-actor.safetensors"), b"not a tensor file").unwrap();
     let eval = |counts: Vec<(String, usize)>| {
         evaluate(&EvalOptions {
@@ -187,7 +187,7 @@ fn corrupt_missing_or_mismatched_checkpoints_are_refused_clearly() {
     let other = dir.path().join("other");
     let mut s = tiny(1);
     s.species[1].topological_limit = 2;
-    train(s, &opts(&other, false, None)).unwrap();
+    train(s, &opts(&other, None)).unwrap();
     std::fs::copy(other.join("checkpoint/prey-actor.safetensors"), run.join("checkpoint/prey-actor.safetensors"))
         .unwrap();
     // Its metadata names its own scene, which the checkpoint's manifest does not: refused by that, before
@@ -200,7 +200,7 @@ fn corrupt_missing_or_mismatched_checkpoints_are_refused_clearly() {
 fn evaluation_deploys_on_fifty_prey_and_without_predators() {
     let dir = tempfile::tempdir().unwrap();
     let run = dir.path().join("run");
-    train(tiny(2), &opts(&run, false, None)).unwrap();
+    train(tiny(2), &opts(&run, None)).unwrap();
     let line = evaluate(&EvalOptions {
         run: run.clone(),
         out: None,
@@ -302,18 +302,18 @@ fn algorithm_1_schedule_and_rule_based_predators_and_no_predators_train() {
     let mut s = tiny(2);
     s.learning.updates_per_step = 1;
     s.learning.updates_per_episode = 0;
-    train(s, &opts(&dir.path().join("alg1"), false, None)).unwrap();
+    train(s, &opts(&dir.path().join("alg1"), None)).unwrap();
     // Confined: chase-nearest predators, learned prey; only prey have learner columns.
     let mut s = Scene::load(Path::new("scenes/confined-penalty.ron")).unwrap();
     s.episode_steps = 20;
     s.learning = tiny(1).learning;
-    train(s, &opts(&dir.path().join("confined"), false, Some(2))).unwrap();
+    train(s, &opts(&dir.path().join("confined"), Some(2))).unwrap();
     let header = metrics_without_wall_clock(&dir.path().join("confined"))[0].clone();
     assert!(header.contains("critic_loss_prey") && !header.contains("critic_loss_predator"), "{header}");
     // n₀ = 0: training without predators.
     let mut s = tiny(2);
     s.species[0].count = 0;
-    train(s, &opts(&dir.path().join("n0"), false, None)).unwrap();
+    train(s, &opts(&dir.path().join("n0"), None)).unwrap();
     assert_eq!(Scene::preset("paper").unwrap().species[1].policy, Policy::Learned);
 }
 
@@ -528,7 +528,7 @@ fn prey_trained_only_against_past_predators_leave_the_predators_untrained() {
     let mut scene = tiny(6);
     scene.learning.snapshot_every = 2;
     scene.learning.opponents = vec![("prey".into(), Opponents::Pool { p: 1.0, pick: Pick::Uniform })];
-    train(scene, &opts(&run, false, None)).unwrap();
+    train(scene, &opts(&run, None)).unwrap();
     let lines = metrics_without_wall_clock(&run);
     let header: Vec<&str> = lines[0].split(',').collect();
     let column = |name: &str| -> Vec<String> {
@@ -571,8 +571,8 @@ fn a_fingerprint_is_the_runs_numbers_not_its_wall_clock() {
     use coevo::run::provenance::fingerprint;
     let dir = tempfile::tempdir().unwrap();
     let (a, b, c) = (dir.path().join("a"), dir.path().join("b"), dir.path().join("c"));
-    train(tiny(2), &opts(&a, false, None)).unwrap();
-    train(tiny(2), &opts(&b, false, None)).unwrap();
+    train(tiny(2), &opts(&a, None)).unwrap();
+    train(tiny(2), &opts(&b, None)).unwrap();
     // Another wall clock in every row: the same fingerprint.
     let metrics = std::fs::read_to_string(b.join("metrics.csv")).unwrap();
     let slower: Vec<String> = metrics
@@ -589,7 +589,7 @@ fn a_fingerprint_is_the_runs_numbers_not_its_wall_clock() {
     // Another seed, or one checkpoint byte changed: another fingerprint.
     let mut other = tiny(2);
     other.seed += 1;
-    train(other, &opts(&c, false, None)).unwrap();
+    train(other, &opts(&c, None)).unwrap();
     assert_ne!(fingerprint(&a).unwrap(), fingerprint(&c).unwrap());
     let actor = b.join("checkpoint/prey-actor.safetensors");
     let mut bytes = std::fs::read(&actor).unwrap();
