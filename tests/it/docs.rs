@@ -726,7 +726,9 @@ fn overruled_sources(
                     let (e, c) = src.split_once(" / ")?;
                     let cited = format!("{e} / {preset} / {c}");
                     let row = cited_rows(&cited, rows)?.first()?;
-                    Some((cited, verdict_kind(&row.verdict)))
+                    // A source not judged yet (no run, or some still running) answers nothing.
+                    let waiting = row.verdict.starts_with("not run yet") || row.verdict.starts_with("in progress");
+                    (!waiting).then(|| (cited, verdict_kind(&row.verdict)))
                 })
                 .collect();
             let Some((answer, kind)) = judged.first().cloned() else { continue };
