@@ -785,10 +785,8 @@ fn no_page_gives_a_statement_of_the_paper_a_second_verdict() {
     assert_eq!(second_verdicts("0.68 ± 0.03<!-- claim: e / paper / a --> (reproduced).", &one).len(), 1);
 }
 
-#[test]
-fn every_results_page_and_the_readme_point_to_the_definitions() {
-    // A reader who meets DoS, DoA, C_nn or a verdict mark on any results page finds its definition from
-    // that page (the-paper.md is generated and says it too).
+/// The pages a reader meets results on: every results page of the book, its introduction and the README.
+fn results_pages() -> Vec<PathBuf> {
     let mut pages: Vec<PathBuf> = std::fs::read_dir("docs/src/results")
         .unwrap()
         .flatten()
@@ -796,6 +794,14 @@ fn every_results_page_and_the_readme_point_to_the_definitions() {
         .filter(|p| p.extension().is_some_and(|x| x == "md"))
         .collect();
     pages.extend([PathBuf::from("README.md"), PathBuf::from("docs/src/introduction.md")]);
+    pages
+}
+
+#[test]
+fn every_results_page_and_the_readme_point_to_the_definitions() {
+    // A reader who meets DoS, DoA, C_nn or a verdict mark on any results page finds its definition from
+    // that page (the-paper.md is generated and says it too).
+    let pages = results_pages();
     let missing: Vec<_> = pages
         .iter()
         .filter(|p| !std::fs::read_to_string(p).unwrap().contains("reference/definitions.md"))
@@ -914,13 +920,7 @@ fn every_term_links_to_its_definition_where_a_page_first_uses_it() {
     for (anchor, _) in TERMS {
         assert!(definitions.contains(&format!("<a id=\"{anchor}\"></a>")), "no definition anchored {anchor:?}");
     }
-    let mut pages: Vec<PathBuf> = std::fs::read_dir("docs/src/results")
-        .unwrap()
-        .flatten()
-        .map(|e| e.path())
-        .filter(|p| p.extension().is_some_and(|x| x == "md"))
-        .collect();
-    pages.extend([PathBuf::from("README.md"), PathBuf::from("docs/src/introduction.md")]);
+    let pages = results_pages();
     let mut wrong = vec![];
     for page in &pages {
         let text = std::fs::read_to_string(page).unwrap();
