@@ -942,3 +942,22 @@ fn every_term_links_to_its_definition_where_a_page_first_uses_it() {
     assert_eq!(link_around("see [the DoS](d.md#dos) here", 9), Some("d.md#dos"));
     assert_eq!(link_around("a [b](c) DoS", 9), None);
 }
+
+#[test]
+fn the_readmes_layout_names_every_top_level_folder() {
+    // "Where things are": a reader finds every folder of the checkout in it (build output aside).
+    let readme = std::fs::read_to_string("README.md").unwrap();
+    let table = readme.split("## Where things are").nth(1).expect("README: no \"Where things are\"");
+    let table = table.split("\n## ").next().unwrap();
+    let tracked = std::process::Command::new("git").args(["ls-files"]).output();
+    let files = match tracked {
+        Ok(out) if out.status.success() => String::from_utf8(out.stdout).unwrap(),
+        // Not a git checkout (a source archive): nothing to compare with.
+        _ => return,
+    };
+    let folders: std::collections::BTreeSet<&str> =
+        files.lines().filter_map(|f| f.split_once('/').map(|(d, _)| d)).collect();
+    assert!(folders.contains("src") && folders.contains(".ci"), "tracked folders read: {folders:?}");
+    let missing: Vec<_> = folders.iter().filter(|d| !table.contains(&format!("`{d}/"))).collect();
+    assert!(missing.is_empty(), "README's \"Where things are\" does not name {missing:?}");
+}
