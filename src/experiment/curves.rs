@@ -115,18 +115,18 @@ pub(crate) fn fit_approach(series: &[f64]) -> Option<[f64; 3]> {
     if points.len() < WINDOW {
         return None;
     }
-    // For one time: the exact (end, start − end) and the sum of squares left.
+    // For one time: the exact (end, start − end) and the sum of squares left, each exponential taken once.
     let solve = |time: f64| -> (f64, f64, f64) {
         let n = points.len() as f64;
+        let xs: Vec<f64> = points.iter().map(|&(e, _)| (-e / time).exp()).collect();
         let (mut sx, mut sy, mut sxx, mut sxy) = (0.0, 0.0, 0.0, 0.0);
-        for &(e, y) in &points {
-            let x = (-e / time).exp();
+        for (&x, &(_, y)) in xs.iter().zip(&points) {
             (sx, sy, sxx, sxy) = (sx + x, sy + y, sxx + x * x, sxy + x * y);
         }
         let det = n * sxx - sx * sx;
         let b = if det > 0.0 { (n * sxy - sx * sy) / det } else { 0.0 };
         let a = (sy - b * sx) / n;
-        let sse = points.iter().map(|&(e, y)| (y - a - b * (-e / time).exp()).powi(2)).sum();
+        let sse = xs.iter().zip(&points).map(|(&x, &(_, y))| (y - a - b * x).powi(2)).sum();
         (a, b, sse)
     };
     const STEPS: usize = 240;
