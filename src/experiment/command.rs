@@ -103,6 +103,7 @@ pub(crate) fn experiment(request: &Request) -> crate::error::Result<()> {
     for exp in &experiments {
         exp.check_outputs()?;
     }
+    let unchecked = check_registered(&experiments)?;
     if which == "all" && request.task.is_none() {
         check_reproduction_targets()?;
     }
@@ -167,7 +168,7 @@ pub(crate) fn experiment(request: &Request) -> crate::error::Result<()> {
         check_trainings_once(&exp, &data)?;
         report_alone(exp, &data, carried)?;
     }
-    Ok(())
+    unchecked.say()
 }
 
 /// Refuses, before one experiment is aggregated, a training held twice without `shared_from` or
@@ -226,6 +227,7 @@ pub(crate) fn write_reproduction(partial: bool) -> crate::error::Result<()> {
         exp.check_outputs()?;
         loaded.push((exp, data, carried));
     }
+    let unchecked = check_registered(loaded.iter().map(|(exp, _, _)| exp))?;
     check_reproduction_targets()?;
     let mut trainings = Vec::new();
     for (exp, data, _) in &loaded {
@@ -254,8 +256,12 @@ pub(crate) fn write_reproduction(partial: bool) -> crate::error::Result<()> {
     let results: Vec<_> = all.iter().flat_map(|r| r.results.iter().cloned()).collect();
     // Within REPRODUCTION.md an experiment's evidence is its section; from the book, its results folder (the
     // book links no Markdown outside itself: mdbook would turn it into a missing page).
-    let here = paper_table::table(&results, &|e: &str| format!("[{e}](#{e})"))?;
-    let book = paper_table::table(&results, &|e: &str| format!("[{e}](../../../results/{e}/)"))?;
+    let here = paper_table::table(&results, &|e: &str| format!("[{e}](#{e})"), "docs/src/reference/definitions.md")?;
+    let book = paper_table::table(
+        &results,
+        &|e: &str| format!("[{e}](../../../results/{e}/)"),
+        "../reference/definitions.md",
+    )?;
     crate::io::write_file(Path::new(REPRODUCTION), Existing::Replace, reproduction(&all, here.as_deref()).as_bytes())?;
     crate::errln!("coevo: wrote {REPRODUCTION}")?;
     // The book's first results page, where the book is (a clone of the repository).
@@ -274,7 +280,7 @@ pub(crate) fn write_reproduction(partial: bool) -> crate::error::Result<()> {
             crate::errln!("coevo: wrote {}", page.display())?;
         }
     }
-    Ok(())
+    unchecked.say()
 }
 
 /// REPRODUCTION.md and the book's page of the table, as `--plot all` writes them: regular files or new.
@@ -424,9 +430,35 @@ pub(crate) fn plot(dir: &Path, partial: bool) -> crate::error::Result<()> {
         )
         .into());
     }
+    let unchecked = check_registered([&exp])?;
     check_trainings_once(&exp, &data)?;
     report_alone(exp, &data, carried)?;
-    Ok(())
+    unchecked.say()
+}
+
+/// Refuses a claim stated after the first committed row it judges ([`super::registration`]); where no
+/// history can be read, the reason, which the caller says once its work is done (a refusal stays one line).
+fn check_registered<'a>(experiments: impl IntoIterator<Item = &'a Experiment>) -> crate::error::Result<Unchecked> {
+    let mut unchecked = None;
+    for exp in experiments {
+        if let super::registration::Checked::Not(why) = super::registration::check(exp)? {
+            unchecked.get_or_insert(why);
+        }
+    }
+    Ok(Unchecked(unchecked))
+}
+
+/// Why the order of registration and data was not checked, if it was not ([`check_registered`]).
+#[must_use]
+struct Unchecked(Option<String>);
+
+impl Unchecked {
+    fn say(self) -> crate::error::Result<()> {
+        match self.0 {
+            Some(why) => crate::errln!("coevo: whether claims were stated before their results is not checked: {why}"),
+            None => Ok(()),
+        }
+    }
 }
 
 /// How many of the experiment's runs are finished: its run folders here (`data`) and the committed runs

@@ -358,6 +358,12 @@ pub struct Claim {
     /// A claim over the file's grid rather than one variant: a trend, a boundary or its shift.
     #[serde(default)]
     pub(crate) grid: Option<GridTest>,
+    /// Stated after the first committed per-run row it judges (or not provably before it): reported, marked
+    /// *exploratory*, never counted as a confirmation. Without it such a claim is refused when its
+    /// experiment is aggregated (`registration.rs`). When it was stated does not change the test, so the
+    /// claim's fingerprint leaves this out.
+    #[serde(default)]
+    pub(crate) exploratory: bool,
 }
 
 impl Claim {
@@ -378,6 +384,7 @@ impl Claim {
             family: None,
             scale: Scale::Linear,
             grid: None,
+            exploratory: false,
         }
     }
 }

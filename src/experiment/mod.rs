@@ -41,6 +41,7 @@ mod load;
 pub mod paper_table;
 pub mod pin;
 pub(crate) mod quantity;
+pub(crate) mod registration;
 pub(crate) mod registry;
 pub(crate) mod report;
 pub(crate) mod runner;

@@ -75,13 +75,17 @@ fn statements(results: &[ClaimResult]) -> crate::error::Result<Option<Statements
 }
 
 /// The answer above the table: per preset, how many statements came out each way (each statement's cell,
-/// [`cell`]'s source), in one sentence each.
-fn answer(statements: &[Statement], results: &[ClaimResult]) -> String {
+/// [`cell`]'s source), in one sentence each; `definitions`: the terms' page, linked from the first term the answer
+/// uses.
+fn answer(statements: &[Statement], results: &[ClaimResult], definitions: &str) -> String {
     let mut out = String::from("**The answer.** ");
+    let mut linked = false;
     for (preset, values) in [("gym-pps", "the authors' code's values"), ("paper", "the paper's stated values")] {
         let mut counts = [0usize; 6];
         // Undecided statements whose interval rules out an effect of the paper's size.
         let mut size_excluded = 0;
+        // Decided verdicts of claims stated after their first results (`registration.rs`).
+        let mut exploratory = 0;
         for s in statements {
             let found = found(s, preset, results);
             let shown = found.iter().find(|r| judged(r)).or(found.first()).copied();
@@ -99,6 +103,9 @@ fn answer(statements: &[Statement], results: &[ClaimResult]) -> String {
                 Some(_) => 3,
             };
             counts[k] += 1;
+            if k <= 2 && shown.is_some_and(|r| r.claim.exploratory) {
+                exploratory += 1;
+            }
             if k == 3 && matches!(outcome, Some(Outcome::Inconclusive { paper_size_excluded: true })) {
                 size_excluded += 1;
             }
@@ -108,9 +115,20 @@ fn answer(statements: &[Statement], results: &[ClaimResult]) -> String {
             0 => String::new(),
             n => format!(" ({n} of them rule out an effect of the paper's size)"),
         };
+        // Linked where the answer first says it, which is before the page's list of terms.
+        let word = match linked {
+            false => format!("[exploratory]({definitions}#exploratory)"),
+            true => "exploratory".into(),
+        };
+        linked |= exploratory > 0;
+        let exploratory = match exploratory {
+            0 => String::new(),
+            1 => format!("; 1 of these decided verdicts is {word} (its claim was stated after its first results were committed)"),
+            n => format!("; {n} of these decided verdicts are {word} (their claims were stated after their first results were committed)"),
+        };
         write!(
             out,
-            "With {values} (`{preset}`), {held} of the {} statements hold (reproduced, equivalent, or, where the paper gives no number, detected or told apart from chance), {direction} hold in direction but not in size, {not} are not reproduced and {undecided} are undecided{excluded}{}{}. ",
+            "With {values} (`{preset}`), {held} of the {} statements hold (reproduced, equivalent, or, where the paper gives no number, detected or told apart from chance), {direction} hold in direction but not in size, {not} are not reproduced and {undecided} are undecided{excluded}{}{}{exploratory}. ",
             statements.len(),
             match waiting {
                 0 => String::new(),
@@ -234,6 +252,10 @@ fn cell(s: &Statement, preset: &str, results: &[ClaimResult], link: &dyn Fn(&str
         true => format!("{word}, its contrast decides"),
         false => word.to_string(),
     };
+    let word = match r.claim.exploratory {
+        true => format!("{word}, exploratory"),
+        false => word,
+    };
     let seeds = r.estimate.map_or(0, |e| e.n);
     let waiting = match first.verdict.as_ref().map(|v| v.outcome) {
         Some(Outcome::InProgress) if !std::ptr::eq(*first, *r) => format!("; {} in progress", link(&first.experiment)),
@@ -245,10 +267,14 @@ fn cell(s: &Statement, preset: &str, results: &[ClaimResult], link: &dyn Fn(&str
 }
 
 /// The table with the legend under it, None without [`STATEMENTS`]. `link`: how an experiment's evidence is linked
-/// from where the table is written.
-pub(crate) fn table(results: &[ClaimResult], link: &dyn Fn(&str) -> String) -> crate::error::Result<Option<String>> {
+/// from where the table is written; `definitions`: the terms' page from there.
+pub(crate) fn table(
+    results: &[ClaimResult],
+    link: &dyn Fn(&str) -> String,
+    definitions: &str,
+) -> crate::error::Result<Option<String>> {
     let Some(StatementsFile { statements, after_table }) = statements(results)? else { return Ok(None) };
-    let mut md = answer(&statements, results);
+    let mut md = answer(&statements, results, definitions);
     // How to read it, before it.
     writeln!(md, "{LEGEND}\n").unwrap();
     md.push_str(
@@ -283,7 +309,8 @@ const LEGEND: &str = "Each cell: coevo's mean over seeds ± the interval its ver
      no effect; \"the paper's size excluded\": its \
      interval rules out an effect as large as the paper's, though not its direction); measured (a level with neither \
      the paper's number nor a chance level to judge it against); in progress (its experiment is judged when all its \
-     runs are in). A level marked \"its contrast decides\" is reproduced as a level while the contrast the paper's \
+     runs are in); exploratory (its claim was committed only after the first of its runs' results were: the verdict \
+     stands as reported, but it was not stated blind, so it is no confirmation). A level marked \"its contrast decides\" is reproduced as a level while the contrast the paper's \
      sentence implies (its own row) is not: the contrast decides, and the answer above counts it undecided. A \
      \"faster\" or \"slower\" row \
      shows the variant's episode minus the standard's: negative is sooner. Every row is of the paper's world-frame \
@@ -430,7 +457,7 @@ mod tests {
         // A statement no experiment tests shows a dash and is counted apart, not as waiting for runs.
         let untested = Statement { from: vec![], note: Some("not tested: why".into()), ..s.clone() };
         assert_eq!(cell(&untested, "paper", &results, &link), "–");
-        let said = answer(&[s.clone(), untested], &results);
+        let said = answer(&[s.clone(), untested], &results, "definitions.md");
         assert!(said.contains("; 1 is not tested (its row says why)") && !said.contains("waits"), "{said}");
     }
 }

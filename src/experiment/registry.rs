@@ -13,10 +13,25 @@ pub(crate) const FILE: &str = "claims.csv";
 /// claims for the adjustment rather than stating what a claim expects, and not `ours` (whether the direction
 /// is the paper's or the project's), which names who expects it and leaves the test as it is.
 pub(crate) fn fingerprint(claim: &Claim) -> String {
+    hash(&format!("{}\u{1f}{}", claim.text, tested(claim)))
+}
+
+/// What a claim tests, without its words, as a short hash: [`fingerprint`] less the text. Its words may be
+/// reworded after its results exist (the record above flags that); what it tests may not
+/// (`registration.rs`).
+pub(crate) fn test_fingerprint(claim: &Claim) -> String {
+    hash(&tested(claim))
+}
+
+fn hash(canonical: &str) -> String {
+    blake3::hash(canonical.as_bytes()).to_hex()[..16].to_string()
+}
+
+/// The fields of a claim that state its test, canonically, as every recorded fingerprint was made.
+fn tested(claim: &Claim) -> String {
     let bits = |x: Option<f64>| x.map_or(String::from("-"), |x| format!("{:016x}", x.to_bits()));
     let canonical = format!(
-        "{}\u{1f}{}\u{1f}{}\u{1f}{:?}\u{1f}{}\u{1f}{}\u{1f}{}\u{1f}{}",
-        claim.text,
+        "{}\u{1f}{}\u{1f}{:?}\u{1f}{}\u{1f}{}\u{1f}{}\u{1f}{}",
         claim.variant,
         claim.versus.as_deref().unwrap_or("-"),
         claim.quantity,
@@ -40,11 +55,10 @@ pub(crate) fn fingerprint(claim: &Claim) -> String {
     // Likewise a grid's test (its axis, level and crossing value), which claims before grids lack; a
     // boundary's direction only when not the default (a fall), so a test stated before directions could be
     // named keeps the fingerprint it was recorded with.
-    let canonical = match &claim.grid {
+    match &claim.grid {
         None => canonical,
         Some(test) => format!("{canonical}\u{1f}{}", grid_statement(test)),
-    };
-    blake3::hash(canonical.as_bytes()).to_hex()[..16].to_string()
+    }
 }
 
 /// A grid test as a claim's fingerprint states it ([`fingerprint`]): as written before a boundary's

@@ -72,7 +72,10 @@ const METHOD: &str = "Each number is the mean over seeds of the prey's 100-episo
      claim's statement (text, variants, quantity, the paper's value, margin, baseline) and family are recorded in \
      `results/<experiment>/claims.csv` when its runs start (results aggregated before coevo kept this record start it \
      with the claims as they stood then), and never rewritten: a claim edited, added or moved to another family after \
-     its results existed is flagged post hoc beside its hypothesis. Its interval is \
+     its results existed is flagged post hoc beside its hypothesis. What a claim tests (all of its statement but its \
+     words) must be in a commit of its experiment file before the first commit holding a per-run row it judges (a \
+     row of its or a shared variant's `summary.csv`), or the claim is marked **exploratory** and its verdict says so; \
+     `coevo --plot` reads this from git and refuses an unmarked claim stated later. Its interval is \
      shown at the level Holm's procedure tested it at (*level*: 0.05/k, Bonferroni's for the smallest p-value; from the \
      first test Holm does not reject on, that test's level), so **the interval excludes 0 exactly when the effect is \
      detected**; the plain 95 % interval is beside it, secondary, and never a result. For an effect the paper states: \

@@ -238,6 +238,19 @@ pub(crate) fn verdict(
     level: Option<f64>,
     baseline: Option<f64>,
 ) -> Verdict {
+    let mut judged = test(claim, e, p_holm, level, baseline);
+    // A claim stated after its first results (`registration.rs`) keeps its test and says so with its verdict.
+    if claim.exploratory && e.is_some_and(|e| e.ci.is_some()) {
+        judged.text.push_str(EXPLORATORY);
+    }
+    judged
+}
+
+/// What an exploratory claim's verdict ends with.
+pub(crate) const EXPLORATORY: &str = "; exploratory: stated after its first results were committed";
+
+/// [`verdict`] as the test alone gives it.
+fn test(claim: &Claim, e: Option<Estimate>, p_holm: Option<f64>, level: Option<f64>, baseline: Option<f64>) -> Verdict {
     use Outcome::*;
     let Some(e) = e else { return Verdict::new(NotRunYet, "not run yet") };
     let Some(ci) = e.ci else { return Verdict::new(OneSeed, "one seed: no interval") };
