@@ -13,6 +13,12 @@ agents, 2]``, on all cores, each world starting its next episode by itself (worl
 ``control="blind:prey:prey"`` (or a list of such forms, as ``coevo --eval --control``) hands out the
 observations altered exactly as coevo alters what its own actors see in the flocking/herding controls.
 
+``coevolve=["predator"]`` keeps the named learning species coevo's: trained inside the world by coevo's own
+Algorithm 1 (exploration, replay, updates, as ``coevo --train``) while Python decides the others, with
+``coevolve_schedule="learning"`` (every episode), ``"frozen"`` (held as initialised) or ``"alternate:K"``
+(learning K episodes, held K, in turn). ``save_run(path)`` writes coevo's side as a run folder (metrics,
+snapshots, checkpoint), whose actor other scenes can load as a ``Frozen`` opponent.
+
 Both step the very schedule ``coevo --train`` steps: no second implementation.
 """
 
@@ -120,6 +126,15 @@ def _no_partial_reset(options: dict | None) -> None:
         raise InputError("options: reset_mask: a partial reset is not supported (a reset resets every world); "
                          "nothing was reset")
 
+def _species_list(species: str | list[str] | None) -> list[str] | None:
+    """``coevolve``: one species name or a list of them."""
+    if species is None:
+        return None
+    if isinstance(species, str):
+        return [species]
+    return list(species)
+
+
 class CoevoParallelEnv(_ParallelEnv):
     """A coevo scene as a PettingZoo ``ParallelEnv`` (see the module's docstring).
 
@@ -138,6 +153,7 @@ class CoevoParallelEnv(_ParallelEnv):
                  counts: dict[str, int] | None = None, episode_steps: int | None = None,
                  render_mode: str | None = None, render_size: int = 480,
                  control: str | list[str] | None = None, max_cycles: int | None = None,
+                 coevolve: list[str] | None = None, coevolve_schedule: str = "learning",
                  _scene_text: str | None = None):
         if render_mode not in (None, "rgb_array", "human"):
             raise InputError(f"render_mode: {render_mode!r} is not one of None, 'rgb_array', 'human'")
@@ -151,14 +167,15 @@ class CoevoParallelEnv(_ParallelEnv):
         text = _read_scene_text(scene) if _scene_text is None else _scene_text
         self._made_with = dict(scene=scene, seed=seed, counts=counts, episode_steps=episode_steps,
                                render_mode=render_mode, render_size=render_size, control=control,
-                               _scene_text=text)
+                               coevolve=coevolve, coevolve_schedule=coevolve_schedule, _scene_text=text)
         self._window = None
         if render_mode == "human":
             try:
                 import matplotlib.pyplot  # noqa: F401 (the window of render_mode="human")
             except ImportError as e:
                 raise ImportError("render_mode='human' shows frames with matplotlib: pip install matplotlib") from e
-        self._env = _Env(scene, seed, _counts(counts), episode_steps, _control(control), text)
+        self._env = _Env(scene, seed, _counts(counts), episode_steps, _control(control), text,
+                         _species_list(coevolve), coevolve_schedule)
         self.possible_agents = list(self._env.agents())
         # One space object for every agent (all observe the same layout), held by this env only: a
         # method cache would keep every env ever made alive.
@@ -196,6 +213,15 @@ class CoevoParallelEnv(_ParallelEnv):
     def scene_ron(self) -> str:
         """The scene as this env runs it (counts, episode length applied): a loadable scene file."""
         return self._env.scene_ron()
+
+    def save_run(self, path: str) -> None:
+        """Saves coevo's side (``coevolve``) into the new folder ``path`` as ``coevo --train`` leaves a run:
+        ``metrics.csv``, its actors' snapshots (an opponent pool) and the checkpoint. Between episodes."""
+        self._env.save_run(str(path))
+
+    def coevo_actor(self, species: str) -> list[np.ndarray]:
+        """The parameters of coevo's actor of ``species`` (``coevolve``) as they are now, layer by layer."""
+        return self._env.coevo_actor(species)
 
     def reset(self, seed: int | None = None, options: dict | None = None):
         if self._closed:
@@ -310,15 +336,18 @@ class VecEnv:
     def __init__(self, scene: str = "scenes/standard.ron", num_envs: int = 64, seed: int = 0,
                  counts: dict[str, int] | None = None, episode_steps: int | None = None,
                  control: str | list[str] | None = None, world_seeds: str = "independent",
-                 threads: int | None = None, _scene_text: str | None = None):
+                 threads: int | None = None, coevolve: list[str] | None = None,
+                 coevolve_schedule: str = "learning", _scene_text: str | None = None):
         """``threads``: step the worlds on at most this many threads (None: every core, or
-        ``COEVO_THREADS``); it changes only the speed, never a number."""
+        ``COEVO_THREADS``); it changes only the speed, never a number. ``coevolve``: the learning species
+        coevo trains inside every world (each world's learners learn from that world alone)."""
         text = _read_scene_text(scene) if _scene_text is None else _scene_text
         self._made_with = dict(scene=scene, num_envs=num_envs, seed=seed, counts=counts,
                                episode_steps=episode_steps, control=control, world_seeds=world_seeds,
-                               threads=threads, _scene_text=text)
+                               threads=threads, coevolve=coevolve, coevolve_schedule=coevolve_schedule,
+                               _scene_text=text)
         self._env = _VecEnv(scene, num_envs, _seed(seed), _counts(counts), episode_steps, _control(control),
-                            world_seeds, threads, text)
+                            world_seeds, threads, text, _species_list(coevolve), coevolve_schedule)
         # World i's seed: `seed` for world 0, `world_seed(seed, i)` for the others (independent of the
         # worlds of neighbouring seeds); seed + i with world_seeds="consecutive", as VecEnvs seeded
         # them before (runs with seeds 1 and 2 then shared 31 of 32 worlds' episode starts).
@@ -378,6 +407,15 @@ class VecEnv:
         infos["final_obs"] = final
         infos["_final_obs"] = np.asarray(truncated, dtype=bool).copy()
         return obs, rewards, truncated, infos
+
+    def save_run(self, world: int, path: str) -> None:
+        """Saves world ``world``'s run of coevo's side (``coevolve``) into the new folder ``path``: right after
+        a step that ended that world's episode, or after a reset."""
+        self._open("save_run").save_run(world, str(path))
+
+    def coevo_actor(self, world: int, species: str) -> list[np.ndarray]:
+        """World ``world``'s coevo actor of ``species``, layer by layer."""
+        return self._open("coevo_actor").coevo_actor(world, species)
 
     def metrics_header(self) -> str:
         """``metrics.csv``'s header (as ``coevo --train`` writes it) with the Python-decided species as the

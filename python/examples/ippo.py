@@ -74,6 +74,11 @@ class Args:
     init_log_std: float = -0.5
     torch_threads: int = 1
     threads: int = 0  # threads stepping the worlds (0: every core, or COEVO_THREADS)
+    # Species coevo keeps training with its own DDPG (Algorithm 1) in the same worlds while PPO trains the rest,
+    # e.g. "predator": PPO prey against predators that keep learning. Each world's predators learn from that
+    # world alone; world 0's are saved as a run folder, OUT/coevo-world0, at the end.
+    coevolve: str = ""
+    coevolve_schedule: str = "learning"  # or "frozen", or "alternate:K" (K episodes each, coevo's side first)
 
 
 def mlp(d_in: int, hidden: int, d_out: int, tanh_out: bool) -> nn.Sequential:
@@ -118,8 +123,9 @@ def main(args: Args) -> None:
     torch.set_num_threads(args.torch_threads)
     rng = np.random.default_rng(args.seed)
     counts = {k: int(v) for k, v in (c.split("=") for c in args.counts.split(",") if c)}
+    coevolve = [c for c in args.coevolve.split(",") if c] or None
     env = coevo.VecEnv(args.scene, num_envs=args.num_envs, seed=args.seed, counts=counts, world_seeds=args.world_seeds,
-                       threads=args.threads or None)
+                       threads=args.threads or None, coevolve=coevolve, coevolve_schedule=args.coevolve_schedule)
     # coevo names the run folder's files (scene.ron, metrics.csv, the checkpoint's actors); a folder that
     # holds anything is refused.
     run = coevo.RunFolder.create(args.out, coevo.parallel_env(args.scene, seed=args.seed, counts=counts).scene_ron())
@@ -230,6 +236,17 @@ def main(args: Args) -> None:
             print(f"iteration {it + 1}/{iterations}, {(it + 1) * args.num_envs * args.num_steps} world steps, "
                   f"{time.time() - started:.0f} s", flush=True)
     metrics.close()
+    if coevolve:
+        # coevo's side of world 0, saved between episodes: the policies play on until its episode ends.
+        while True:
+            actions = np.zeros((args.num_envs, n_agents, 2), np.float32)
+            with torch.no_grad():
+                for s in species:
+                    actions[:, rows_of[s]] = agents[s].act(torch.from_numpy(obs[:, rows_of[s]]))[0].numpy()
+            obs, _, truncated, _ = env.step(np.clip(actions, -1.0, 1.0))
+            if truncated[0]:
+                break
+        env.save_run(0, os.path.join(run.path, "coevo-world0"))
 
 
 if __name__ == "__main__":

@@ -153,6 +153,13 @@ fn control(forms: Option<Vec<String>>) -> PyResult<ObservationControl> {
     ObservationControl::parse(&forms.unwrap_or_default()).map_err(|e| InputError::new_err(format!("control: {e}")))
 }
 
+/// The species coevo keeps training inside the worlds (none: every learning species is Python's), and
+/// when: `"learning"`, `"frozen"` or `"alternate:K"`.
+fn coevolve(species: Option<Vec<String>>, schedule: &str) -> PyResult<coevo::run::env::Coevolve> {
+    let schedule = schedule.parse().map_err(|e| InputError::new_err(format!("coevolve_schedule: {e}")))?;
+    Ok(coevo::run::env::Coevolve { species: species.unwrap_or_default(), schedule })
+}
+
 /// One world whose learning species are decided from Python.
 #[pyclass(module = "coevo._coevo")]
 struct Env {
@@ -162,7 +169,8 @@ struct Env {
 #[pymethods]
 impl Env {
     #[new]
-    #[pyo3(signature = (scene_path, seed=None, counts=None, episode_steps=None, control=None, scene_text=None))]
+    #[pyo3(signature = (scene_path, seed=None, counts=None, episode_steps=None, control=None, scene_text=None, coevolve=None, coevolve_schedule="learning"))]
+    #[allow(clippy::too_many_arguments)]
     fn new(
         scene_path: &str,
         seed: Option<u64>,
@@ -170,9 +178,27 @@ impl Env {
         episode_steps: Option<usize>,
         control: Option<Vec<String>>,
         scene_text: Option<&str>,
+        coevolve: Option<Vec<String>>,
+        coevolve_schedule: &str,
     ) -> PyResult<Self> {
         let scene = scene(scene_path, scene_text, seed, counts, episode_steps)?;
-        Ok(Env { inner: coevo::run::env::Env::with_control(scene, self::control(control)?).map_err(err)? })
+        let coevolve = self::coevolve(coevolve, coevolve_schedule)?;
+        Ok(Env { inner: coevo::run::env::Env::with_options(scene, self::control(control)?, coevolve).map_err(err)? })
+    }
+
+    /// Saves coevo's side of the run (`coevolve`) into the new folder `path` as `coevo --train` leaves a
+    /// run: metrics.csv, its actors' snapshots, the checkpoint. Between episodes (after a reset).
+    fn save_run(&mut self, path: &str) -> PyResult<()> {
+        self.inner.save_run(Path::new(path)).map_err(err)
+    }
+
+    /// The parameters of coevo's actor of `species` (`coevolve`), layer by layer, as they are now.
+    fn coevo_actor<'py>(&self, py: Python<'py>, species: &str) -> PyResult<Vec<Bound<'py, PyArray1<f32>>>> {
+        let layers = self
+            .inner
+            .coevo_actor(species)
+            .ok_or_else(|| InputError::new_err(format!("coevo_actor: coevo trains no species {species:?} here")))?;
+        Ok(layers.into_iter().map(|l| l.into_pyarray(py)).collect())
     }
 
     /// The scene as the world runs it (counts and episode length applied), as a loadable scene file.
@@ -270,7 +296,7 @@ struct VecEnv {
 #[pymethods]
 impl VecEnv {
     #[new]
-    #[pyo3(signature = (scene_path, num_envs, seed=0, counts=None, episode_steps=None, control=None, world_seeds="independent", threads=None, scene_text=None))]
+    #[pyo3(signature = (scene_path, num_envs, seed=0, counts=None, episode_steps=None, control=None, world_seeds="independent", threads=None, scene_text=None, coevolve=None, coevolve_schedule="learning"))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         scene_path: &str,
@@ -282,6 +308,8 @@ impl VecEnv {
         world_seeds: &str,
         threads: Option<usize>,
         scene_text: Option<&str>,
+        coevolve: Option<Vec<String>>,
+        coevolve_schedule: &str,
     ) -> PyResult<Self> {
         if threads == Some(0) {
             return Err(InputError::new_err("threads: must be ≥ 1 (None: every core, or COEVO_THREADS)"));
@@ -299,11 +327,32 @@ impl VecEnv {
                 .of_kind(coevo::error::Kind::Input)))
             }
         };
-        let mut inner = coevo::run::env::VecEnv::seeded(scene, num_envs, seed, control, seeds).map_err(err)?;
+        let coevolve = self::coevolve(coevolve, coevolve_schedule)?;
+        let mut inner =
+            coevo::run::env::VecEnv::coevolving(scene, num_envs, seed, control, seeds, coevolve).map_err(err)?;
         if let Some(n) = threads {
             inner.set_max_threads(n);
         }
         Ok(VecEnv { inner })
+    }
+
+    /// Saves world `world`'s run of coevo's side (`coevolve`) into the new folder `path`, as a single env's
+    /// `save_run`; right after a step that ended that world's episode, or after a reset.
+    fn save_run(&mut self, world: usize, path: &str) -> PyResult<()> {
+        self.inner.save_run(world, Path::new(path)).map_err(err)
+    }
+
+    /// World `world`'s coevo actor of `species`, layer by layer (as a single env's `coevo_actor`).
+    fn coevo_actor<'py>(
+        &self,
+        py: Python<'py>,
+        world: usize,
+        species: &str,
+    ) -> PyResult<Vec<Bound<'py, PyArray1<f32>>>> {
+        let layers = self.inner.coevo_actor(world, species).ok_or_else(|| {
+            InputError::new_err(format!("coevo_actor: no world {world}, or coevo trains no species {species:?} here"))
+        })?;
+        Ok(layers.into_iter().map(|l| l.into_pyarray(py)).collect())
     }
 
     /// Every world's global state `[num_envs, agents of all species, 6]` (x, y, v_x, v_y, h_x, h_y per

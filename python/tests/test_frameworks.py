@@ -56,3 +56,22 @@ def test_the_torchrl_snippet(monkeypatch):
     rollout = scope["rollout"]
     assert rollout["prey", "observation"].shape[:2] == (50, 10)  # stopped at the time limit, 10 prey
     assert rollout["next", "predator", "reward"].shape[:2] == (50, 3)
+
+
+def test_ppo_prey_against_predators_that_coevo_keeps_training(tmp_path, monkeypatch):
+    """examples/ippo.py with ``--coevolve predator``, shorter: PPO trains the prey while coevo's DDPG keeps
+    training the predators in the same worlds; coevo's side of world 0 is saved as a run folder."""
+    for module in ("torch", "safetensors"):
+        if importlib.util.find_spec(module) is None:
+            pytest.skip(f"{module} is not installed")
+    import subprocess
+    import sys
+
+    out = tmp_path / "run"
+    subprocess.run([sys.executable, os.path.join(ROOT, "python", "examples", "ippo.py"), "--seed", "2",
+                    "--out", str(out), "--num-envs", "2", "--num-steps", "32", "--total-world-steps", "256",
+                    "--coevolve", "predator"], check=True, cwd=ROOT)
+    rows = (out / "metrics.csv").read_text().splitlines()
+    assert "critic_loss_prey" in rows[0] and "critic_loss_predator" not in rows[0]
+    coevo_side = (out / "coevo-world0" / "metrics.csv").read_text().splitlines()
+    assert "critic_loss_predator" in coevo_side[0] and len(coevo_side) >= 2

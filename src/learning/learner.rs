@@ -54,6 +54,9 @@ pub struct SpeciesLearner {
     pub(crate) buffer: ReplayBuffer,
     /// Loaded from a checkpoint and never updated.
     pub frozen: bool,
+    /// Held for now by whoever steps the world (an outside learner's schedule, `run::env::Schedule`): acts
+    /// without exploration, stores and updates nothing, until released. Its snapshots are still taken.
+    pub(crate) paused: bool,
     /// Current exploration noise std σ and random-action probability ε.
     pub(crate) noise_std: f64,
     pub(crate) epsilon: f64,
@@ -91,6 +94,7 @@ impl SpeciesLearner {
             dev,
             buffer: ReplayBuffer::new(storing.capacity(p), obs_dim, ACTION_DIM),
             frozen,
+            paused: false,
             noise_std: p.noise_std,
             epsilon: p.epsilon,
             rng,
@@ -110,6 +114,7 @@ impl SpeciesLearner {
             dev: self.dev.clone(),
             buffer: ReplayBuffer::new(self.buffer.capacity, self.buffer.obs_dim, self.buffer.act_dim),
             frozen: self.frozen,
+            paused: self.paused,
             noise_std: self.noise_std,
             epsilon: self.epsilon,
             rng: self.rng.clone(),

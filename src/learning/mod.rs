@@ -255,7 +255,7 @@ fn decide_learned(
                 learner.ddpg.act_into(&learner.dev, &seen, &mut batch.actions);
             }
         }
-        if explore && !learner.frozen {
+        if explore && !learner.frozen && !learner.paused {
             explore_actions(&mut batch.actions, learner.epsilon, learner.noise_std, noise_draw, &mut learner.rng);
         }
         learner.pending_obs.clone_from(&batch.observations);
@@ -312,7 +312,7 @@ fn learn(mut learners: ResMut<Learners>, batches: Res<Batches>, episode: Res<Epi
         .iter_mut()
         .enumerate()
         .filter(|(s, _)| league.is_none_or(|g| g.stand_in(*s).is_none()))
-        .filter_map(|(s, x)| x.as_mut().filter(|x| !x.frozen).map(|x| (s, x, Ok(()))))
+        .filter_map(|(s, x)| x.as_mut().filter(|x| !x.frozen && !x.paused).map(|x| (s, x, Ok(()))))
         .collect();
     for (s, learner, _) in &mut work {
         learner.store(&batches.species[*s]);

@@ -15,6 +15,11 @@
 //! handed out exactly as it alters what coevo's actors are given, so an outside learner's policies can be
 //! put through the flocking/herding controls. Finished episodes are summarised as `metrics.csv` rows
 //! ([`VecEnv::take_episode_rows`]), so an outside learner writes the run files `coevo --plot` reads.
+//!
+//! Coevolution across the border ([`Coevolve`]): learned species named there stay coevo's, trained inside
+//! the world by its own Algorithm 1 (exploration, replay, updates, as `--train` trains them) while the
+//! outside learner decides the others, frozen or learning on a [`Schedule`]; their run (metrics, snapshots,
+//! checkpoint) is saved as a run folder by [`Env::save_run`].
 
 use crate::error::{Kind, ResultExt};
 use crate::learning::control::{ObservationControl, ResolvedControl};
@@ -37,6 +42,57 @@ const CONTROL_STREAM: u64 = 1 << 32;
 
 /// The policy name the externally decided species get (`Plugin("external")`).
 pub(crate) const EXTERNAL: &str = "external";
+
+/// The learned species coevo keeps training inside the world while the others are decided from outside,
+/// and when it trains them. Empty (the default): every learned species is decided from outside.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Coevolve {
+    /// Species names, each `Learned` in the scene.
+    pub species: Vec<String>,
+    pub schedule: Schedule,
+}
+
+/// When coevo's side of a [`Coevolve`] world learns.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Schedule {
+    /// Every episode, as `--train`: exploration noise, replay and updates.
+    #[default]
+    Learning,
+    /// Never: its actors act as they are, without noise (the opponent held fixed).
+    Frozen,
+    /// Learning for `every` episodes, then held for `every`, and so on, from the first episode: the two
+    /// sides take turns when the outside learner holds itself in the other blocks.
+    Alternate { every: usize },
+}
+
+impl std::str::FromStr for Schedule {
+    type Err = String;
+
+    /// `learning`, `frozen` or `alternate:K` (K ≥ 1 episodes a turn).
+    fn from_str(text: &str) -> Result<Schedule, String> {
+        let every = |k: &str| match k.parse::<usize>() {
+            Ok(every) if every >= 1 => Ok(Schedule::Alternate { every }),
+            _ => Err(format!("{text:?}: alternate:K needs K ≥ 1 episodes")),
+        };
+        match text.split_once(':') {
+            None if text == "learning" => Ok(Schedule::Learning),
+            None if text == "frozen" => Ok(Schedule::Frozen),
+            Some(("alternate", k)) => every(k),
+            _ => Err(format!("{text:?} is not learning, frozen or alternate:K")),
+        }
+    }
+}
+
+impl Schedule {
+    /// Whether coevo's side learns in episode `episode` (0-based).
+    pub fn learns(self, episode: usize) -> bool {
+        match self {
+            Schedule::Learning => true,
+            Schedule::Frozen => false,
+            Schedule::Alternate { every } => (episode / every.max(1)).is_multiple_of(2),
+        }
+    }
+}
 
 /// The actions given from outside, per species (empty for species decided inside).
 #[derive(Resource, Default, Clone, Debug)]
@@ -77,6 +133,8 @@ pub struct Env {
     external: Vec<(usize, usize)>,
     obs_dim: usize,
     headline: usize,
+    /// The species coevo trains inside, and when.
+    coevolve: Coevolve,
 }
 
 impl Env {
@@ -89,22 +147,45 @@ impl Env {
     /// As [`Env::new`], the observations handed out altered by `control` (resolved against the scene: an
     /// unknown species or an observer that is not decided from outside is an Err naming the form).
     pub fn with_control(scene: Scene, control: ObservationControl) -> crate::error::Result<Env> {
+        Env::with_options(scene, control, Coevolve::default())
+    }
+
+    /// As [`Env::with_control`], the learned species `coevolve` names trained inside the world by coevo
+    /// (an Err naming the species when one is not a learned species of the scene, or when none is left to
+    /// decide from outside).
+    pub fn with_options(scene: Scene, control: ObservationControl, coevolve: Coevolve) -> crate::error::Result<Env> {
         scene.validate()?;
+        for name in &coevolve.species {
+            if !scene.species.iter().any(|s| s.name == *name && s.policy == Policy::Learned) {
+                return Err(format!("coevolve: {name:?} is not a learned species of the scene")).kind(Kind::Input);
+            }
+        }
+        if let Schedule::Alternate { every: 0 } = coevolve.schedule {
+            return Err("coevolve: alternate every 0 episodes; give at least 1").kind(Kind::Input);
+        }
         let resolved = control
             .resolve(&SpeciesRegistry::from_scene(&scene))
             .map_err(|e| format!("control: {e}"))
             .kind(Kind::Input)?;
-        let learned: Vec<usize> =
-            (0..scene.species.len()).filter(|&s| scene.species[s].policy == Policy::Learned).collect();
+        let learned: Vec<usize> = (0..scene.species.len())
+            .filter(|&s| scene.species[s].policy == Policy::Learned)
+            .filter(|&s| !coevolve.species.contains(&scene.species[s].name))
+            .collect();
         if learned.is_empty() {
-            return Err("the scene has no Learned species to decide from outside").kind(Kind::Scene);
+            let why = match coevolve.species.is_empty() {
+                true => "the scene has no Learned species to decide from outside",
+                false => "coevolve: every learned species is coevo's; none is left to decide from outside",
+            };
+            return Err(why).kind(if coevolve.species.is_empty() { Kind::Scene } else { Kind::Input });
         }
         // The world runs the scene with its learned species decided from outside; `scene` is kept as given.
         let mut decided = scene.clone();
         for &s in &learned {
             decided.species[s].policy = Policy::Plugin(EXTERNAL.into());
         }
-        let mut sim = crate::learning::simulation_with(decided, Mode::Evaluate, None, |app| {
+        // coevo's side, if any, trains as `--train` trains (the outside side's rows of the batch are given).
+        let mode = if coevolve.species.is_empty() { Mode::Evaluate } else { Mode::Train };
+        let mut sim = crate::learning::simulation_with(decided, mode, None, |app| {
             crate::sim::policy::PolicyPlugins::register(app, EXTERNAL);
             app.init_resource::<ExternalActions>();
             app.add_systems(FixedUpdate, apply_external.in_set(SimSet::Decide));
@@ -120,10 +201,53 @@ impl Env {
             .into());
         }
         let external = learned.iter().map(|&s| (s, registry.defs[s].count)).collect();
-        let mut env =
-            Env { world, scene, control, resolved, external, obs_dim: dims[0], headline: registry.headline_by_kind() };
+        let mut env = Env {
+            world,
+            scene,
+            control,
+            resolved,
+            external,
+            obs_dim: dims[0],
+            headline: registry.headline_by_kind(),
+            coevolve,
+        };
         env.world.resource_mut::<Episode>().auto_reset = false;
+        if !env.coevolve.species.is_empty() {
+            // Kept from the first step, as the viewer keeps its live training, so that it can be saved.
+            let run = super::live::LiveRun::new(&env.world);
+            env.world.insert_resource(run);
+            env.hold_or_release();
+        }
         Ok(env)
+    }
+
+    /// coevo's side held or released for the episode about to be played, as its [`Schedule`] says.
+    fn hold_or_release(&mut self) {
+        let learns = self.coevolve.schedule.learns(self.world.resource::<Episode>().index);
+        let mut learners = self.world.resource_mut::<crate::learning::Learners>();
+        for learner in learners.species.iter_mut().flatten().filter(|l| !l.frozen) {
+            learner.paused = !learns;
+        }
+    }
+
+    /// Saves coevo's side of the run into a new folder `dir` as `--train` leaves a run stopped at this
+    /// episode: `scene.ron` (the outside species' policy `Plugin("external")`), `provenance.ron`,
+    /// `metrics.csv` (coevo's species learning), its actors' snapshots and the checkpoint. Between episodes
+    /// only (after a reset), and only when coevo trains a side ([`Coevolve`]).
+    pub fn save_run(&mut self, dir: &std::path::Path) -> crate::error::Result<()> {
+        if !self.world.contains_resource::<super::live::LiveRun>() {
+            return Err("save_run: coevo trains no species in this env (coevolve names none)").kind(Kind::Input);
+        }
+        self.world.resource_scope(|world, mut run: Mut<super::live::LiveRun>| run.save(world, dir))
+    }
+
+    /// The parameters of coevo's actor of `species` as they are now, layer by layer (weights, then biases):
+    /// None for a species coevo does not train here.
+    pub fn coevo_actor(&self, species: &str) -> Option<Vec<Vec<f32>>> {
+        let s = self.scene.species.iter().position(|d| d.name == species)?;
+        self.coevolve.species.contains(&self.scene.species[s].name).then_some(())?;
+        let learners = self.world.resource::<crate::learning::Learners>();
+        learners.species[s].as_ref().map(|l| l.ddpg.actor.parameters())
     }
 
     /// The external agents' names, `<species>_<k>`, in order.
@@ -172,9 +296,14 @@ impl Env {
             Some(seed) => {
                 let mut scene = self.scene.clone();
                 scene.seed = seed;
-                *self = Env::with_control(scene, self.control.clone())?;
+                *self = Env::with_options(scene, self.control.clone(), self.coevolve.clone())?;
             }
-            None => crate::sim::episode::next_episode(&mut self.world),
+            None => {
+                crate::sim::episode::next_episode(&mut self.world);
+                if !self.coevolve.species.is_empty() {
+                    self.hold_or_release();
+                }
+            }
         }
         Ok(self.observations())
     }
@@ -242,6 +371,14 @@ impl Env {
         self.world.insert_resource(ExternalActions(given));
         crate::sim::step_world(&mut self.world);
         crate::sim::check_state(&self.world)?;
+        if let Some(failure) = self.world.get_resource::<crate::learning::Learners>().and_then(|l| l.failure.clone()) {
+            return Err(format!("coevo's side stopped training: {failure}").into());
+        }
+        let ended = self.world.resource::<Episode>().step >= self.scene.episode_steps;
+        if ended && self.world.contains_resource::<super::live::LiveRun>() {
+            // coevo's side's episode row and snapshots, read before a VecEnv takes the episode.
+            super::live::LiveRun::record(&mut self.world);
+        }
         let world = &self.world;
         let batches = world.resource::<Batches>();
         let rewards = self.external.iter().flat_map(|&(s, _)| batches.species[s].rewards.iter().copied()).collect();
@@ -394,6 +531,20 @@ impl VecEnv {
         control: ObservationControl,
         seeds: WorldSeeds,
     ) -> crate::error::Result<VecEnv> {
+        VecEnv::coevolving(scene, worlds, seed, control, seeds, Coevolve::default())
+    }
+
+    /// As [`VecEnv::seeded`], with coevo training the species `coevolve` names in every world
+    /// ([`Env::with_options`]): each world's learners learn from that world alone, as in `--train`, so
+    /// n worlds train n populations of them.
+    pub fn coevolving(
+        scene: Scene,
+        worlds: usize,
+        seed: u64,
+        control: ObservationControl,
+        seeds: WorldSeeds,
+        coevolve: Coevolve,
+    ) -> crate::error::Result<VecEnv> {
         if worlds == 0 {
             return Err("num_envs: must be ≥ 1").kind(Kind::Input);
         }
@@ -415,7 +566,7 @@ impl VecEnv {
                     WorldSeeds::Independent => world_seed(seed, i),
                     WorldSeeds::Consecutive => seed.wrapping_add(i),
                 };
-                Env::with_control(s, control.clone())
+                Env::with_options(s, control.clone(), coevolve.clone())
             })
             .collect::<crate::error::Result<Vec<_>>>()?;
         let agents = envs[0].agents().len();
@@ -434,6 +585,21 @@ impl VecEnv {
     /// thread steps a world never changes what it computes.
     pub fn set_max_threads(&mut self, n: usize) {
         self.max_threads = Some(n.max(1));
+    }
+
+    /// Saves world `world`'s run of coevo's side ([`Env::save_run`]); between episodes, so right after a
+    /// step that ended that world's episode (the world then stands at its next episode's start) or a reset.
+    pub fn save_run(&mut self, world: usize, dir: &std::path::Path) -> crate::error::Result<()> {
+        let n = self.envs.len();
+        let Some(env) = self.envs.get_mut(world) else {
+            return Err(format!("save_run: world {world}: there are {n} (0 to {})", n - 1)).kind(Kind::Input);
+        };
+        env.save_run(dir)
+    }
+
+    /// World `world`'s [`Env::coevo_actor`].
+    pub fn coevo_actor(&self, world: usize, species: &str) -> Option<Vec<Vec<f32>>> {
+        self.envs.get(world)?.coevo_actor(species)
     }
 
     /// Every world's [`Env::state`], world after world: `[worlds × agents of all species × STATE_DIM]`.

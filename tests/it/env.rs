@@ -3,7 +3,7 @@
 //! exactly as each alone, and one-line refusals.
 
 use coevo::learning::{Learners, Mode};
-use coevo::run::env::{Env, VecEnv};
+use coevo::run::env::{Coevolve, Env, Schedule, VecEnv};
 use coevo::scene::Scene;
 use coevo::sim::perception::Population;
 use std::collections::BTreeMap;
@@ -211,4 +211,110 @@ fn vecenvs_of_neighbouring_seeds_share_no_world() {
     let new = VecEnv::seeded(scene, 3, 7, control, WorldSeeds::Independent).unwrap();
     assert_eq!(new.world_seeds()[0], 7);
     assert!(!new.world_seeds()[1..].contains(&8));
+}
+
+/// A short scene whose learners update within a few episodes: 20 steps an episode, a small buffer warm-up.
+fn quick(seed: u64) -> Scene {
+    let mut scene = standard(seed);
+    scene.episode_steps = 20;
+    scene.learning.warmup_transitions = 32;
+    scene.learning.batch_size = 16;
+    scene.learning.hidden = 16;
+    scene.learning.snapshot_every = 2;
+    scene.learning.checkpoint_every = 2;
+    scene
+}
+
+/// Plays `episodes` episodes of `env` (`from_start`: from the first episode of its seed, else from the next)
+/// with the outside side's actions a fixed function of its observations, returning every observation
+/// handed out.
+fn play(env: &mut Env, episodes: usize, from_start: bool) -> Vec<f32> {
+    let mut seen = vec![];
+    let seed = from_start.then_some(env.scene().seed);
+    let mut obs = env.reset(seed).unwrap();
+    for e in 0..episodes {
+        loop {
+            seen.extend_from_slice(&obs);
+            let actions: Vec<f32> =
+                obs.chunks(env.obs_dim()).flat_map(|o| [o[0].tanh(), (o[1] - o[2]).tanh()]).collect();
+            let step = env.step(&actions).unwrap();
+            obs = step.observations;
+            if step.truncated {
+                break;
+            }
+        }
+        if e + 1 < episodes {
+            obs = env.reset(None).unwrap();
+        }
+    }
+    seen
+}
+
+fn coevolve(schedule: Schedule) -> Coevolve {
+    Coevolve { species: vec!["predator".into()], schedule }
+}
+
+#[test]
+fn coevo_keeps_training_its_side_while_the_other_is_decided_outside_reproducibly() {
+    let make = |schedule| Env::with_options(quick(5), Default::default(), coevolve(schedule)).unwrap();
+    // Only the prey are handed out; the predators are coevo's.
+    let mut learning = make(Schedule::Learning);
+    assert!(learning.agents().iter().all(|a| a.starts_with("prey_")), "{:?}", learning.agents());
+    let before = learning.coevo_actor("predator").unwrap();
+    let seen = play(&mut learning, 4, true);
+    let after = learning.coevo_actor("predator").unwrap();
+    assert_ne!(before, after, "the predators' actor learned while the prey were decided outside");
+    // The same seed and the same outside decisions: the same run, bit for bit.
+    let mut again = make(Schedule::Learning);
+    assert_eq!(play(&mut again, 4, true), seen);
+    assert_eq!(again.coevo_actor("predator").unwrap(), after);
+    // Held: its actor stays as initialised.
+    let mut frozen = make(Schedule::Frozen);
+    play(&mut frozen, 4, true);
+    assert_eq!(frozen.coevo_actor("predator").unwrap(), before);
+    // Taking turns every 2 episodes: learning in episodes 0–1, held in 2–3.
+    let mut turns = make(Schedule::Alternate { every: 2 });
+    play(&mut turns, 2, true);
+    let learned = turns.coevo_actor("predator").unwrap();
+    assert_ne!(learned, before);
+    play(&mut turns, 2, false);
+    assert_eq!(turns.coevo_actor("predator").unwrap(), learned, "held in episodes 2 and 3");
+    play(&mut turns, 1, false);
+    assert_ne!(turns.coevo_actor("predator").unwrap(), learned, "learning again in episode 4");
+}
+
+#[test]
+fn coevo_s_side_is_saved_as_a_run_folder_and_refusals_are_one_line() {
+    let mut env = Env::with_options(quick(5), Default::default(), coevolve(Schedule::Learning)).unwrap();
+    play(&mut env, 4, true);
+    env.reset(None).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let run = dir.path().join("run");
+    env.save_run(&run).unwrap();
+    let metrics = std::fs::read_to_string(run.join("metrics.csv")).unwrap();
+    assert_eq!(metrics.lines().count(), 1 + 4, "{metrics}");
+    assert!(run.join("scene.ron").is_file() && run.join("provenance.ron").is_file());
+    // Its predators' snapshots, as `--train` takes them (here at episodes 0, 2 and 4): an opponent pool.
+    let snapshots = std::fs::read_dir(run.join("snapshots")).unwrap().count();
+    assert!(snapshots >= 3, "{snapshots} snapshot files");
+    // And its actor deploys elsewhere as a frozen opponent, as any run's.
+    let mut scene = quick(6);
+    scene.species.iter_mut().filter(|s| s.name == "predator").for_each(|s| {
+        s.policy = coevo::scene::Policy::Frozen(run.to_string_lossy().into_owned());
+    });
+    let mut against = Env::new(scene).unwrap();
+    play(&mut against, 1, true);
+    // Refused, each in one line.
+    let refused = |c: Coevolve| Env::with_options(quick(5), Default::default(), c).err().unwrap().to_string();
+    let unknown = refused(Coevolve { species: vec!["wolf".into()], schedule: Schedule::Learning });
+    assert!(unknown.contains("\"wolf\" is not a learned species"), "{unknown}");
+    let both = refused(Coevolve { species: vec!["predator".into(), "prey".into()], schedule: Schedule::Learning });
+    assert!(both.contains("none is left to decide from outside"), "{both}");
+    let zero = refused(Coevolve { species: vec!["predator".into()], schedule: Schedule::Alternate { every: 0 } });
+    assert!(zero.contains("every 0 episodes"), "{zero}");
+    let plain = Env::new(quick(5)).unwrap().save_run(&dir.path().join("other")).unwrap_err().to_string();
+    assert!(plain.contains("coevolve names none"), "{plain}");
+    for message in [unknown, both, zero, plain] {
+        assert!(!message.contains('\n'), "{message}");
+    }
 }
