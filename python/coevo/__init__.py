@@ -61,6 +61,7 @@ __all__ = [
     "world_seed",
     "response_fields",
     "force_maps",
+    "save_trajectories",
     "CoevoError",
     "SceneError",
     "CheckpointError",
@@ -210,6 +211,10 @@ class CoevoParallelEnv(_ParallelEnv):
         column of ``coevo --record``), rule-based species included."""
         return self._env.positions()
 
+    def individual_species(self) -> list[str]:
+        """Every agent's species, by coevo's agent id, as ``positions()`` orders them (rule-based included)."""
+        return self._env.individual_species()
+
     def scene_ron(self) -> str:
         """The scene as this env runs it (counts, episode length applied): a loadable scene file."""
         return self._env.scene_ron()
@@ -309,6 +314,37 @@ class CoevoParallelEnv(_ParallelEnv):
 
             plt.close(self._window[0])
             self._window = None
+
+
+def save_trajectories(path: str, positions, species: list[str]) -> None:
+    """Writes positions collected from an env (``positions()`` after each step, stacked: ``[frames,
+    individuals, 2]``, metres) in the layout of idtracker.ai and trajectorytools, as ``coevo --record
+    OUT.npy`` does: ``path`` (float64) and ``PATH-species.npy`` beside it naming each individual's species
+    (``individual_species()``). ``trajectorytools.Trajectories.from_positions(np.load(path))`` reads it.
+    Refuses, writing nothing, a wrong shape, a non-finite position, a species list of another length, or a
+    path that exists."""
+    import os
+
+    positions = np.asarray(positions, dtype=np.float64)
+    if positions.ndim != 3 or positions.shape[2] != 2:
+        raise InputError(f"positions: shape {positions.shape}, expected [frames, individuals, 2]")
+    if not np.isfinite(positions).all():
+        raise InputError("positions: holds a non-finite number")
+    if len(species) != positions.shape[1]:
+        raise InputError(f"species: {len(species)} names for {positions.shape[1]} individuals")
+    path = os.fspath(path)
+    if not path.endswith(".npy"):
+        raise InputError(f"path: {path!r} does not end in .npy")
+    species_path = path[: -len(".npy")] + "-species.npy"
+    for p in (path, species_path):
+        if os.path.exists(p):
+            raise InputError(f"{p}: exists; not overwritten")
+    names = np.array(species, dtype=np.str_)
+    # Each written whole under a temporary name, then renamed: never a half-written file under its name.
+    for p, array in ((species_path, names), (path, positions)):
+        with open(p + ".tmp", "wb") as f:
+            np.save(f, array)
+        os.replace(p + ".tmp", p)
 
 
 def parallel_env(scene: str = "scenes/standard.ron", seed: int | None = None, **overrides) -> CoevoParallelEnv:

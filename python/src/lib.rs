@@ -244,6 +244,11 @@ impl Env {
         obs.into_pyarray(py).reshape(shape)
     }
 
+    /// Every agent's species, ordered by coevo's agent id as `positions` (`--record`'s `OUT-species.npy`).
+    fn individual_species(&self) -> Vec<String> {
+        self.inner.individual_species()
+    }
+
     /// Every agent's position `[agents of all species, 2]` (m), ordered by coevo's agent id (the `id`
     /// column of `coevo --record`).
     fn positions<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {

@@ -872,3 +872,39 @@ def test_bad_coevolve_arguments_are_input_errors():
     assert vec.agents[0].startswith("prey_")
     with pytest.raises(coevo.InputError):
         vec.coevo_actor(5, "predator")
+
+
+def test_positions_collected_in_python_save_in_records_layout(tmp_path):
+    # An outside learner's run kept as coevo --record OUT.npy keeps one: [frames, individuals, 2] float64 and
+    # the species beside it, each individual by coevo's agent id; trajectorytools reads it where installed.
+    env = coevo.parallel_env(STANDARD, seed=2, episode_steps=30)
+    obs, _ = env.reset()
+    frames = [env.positions()]
+    while env.agents:
+        obs, _, _, _, _ = env.step({a: np.array([0.5, 0.1], np.float32) for a in env.agents})
+        frames.append(env.positions())
+    out = tmp_path / "mine.npy"
+    coevo.save_trajectories(out, frames, env.individual_species())
+    positions, species = np.load(out), np.load(tmp_path / "mine-species.npy")
+    assert positions.shape == (31, 13, 2) and positions.dtype == np.float64
+    np.testing.assert_array_equal(positions, np.stack(frames))
+    assert list(species).count("prey") == 10 and list(species).count("predator") == 3
+    with pytest.raises(coevo.InputError, match="exists"):
+        coevo.save_trajectories(out, frames, env.individual_species())
+    with pytest.raises(coevo.InputError, match="names for"):
+        coevo.save_trajectories(tmp_path / "other.npy", frames, ["prey"])
+    assert not (tmp_path / "other.npy").exists()
+    # The same layout as the CLI's: species stored alike.
+    built = [os.path.join(ROOT, "target", p, "coevo") for p in ("debug", "release")]
+    binary = next((b for b in built if os.path.exists(b)), None)
+    if binary is not None:
+        import subprocess
+
+        cli = tmp_path / "cli.npy"
+        subprocess.run([binary, "--record", str(cli), "--scene", STANDARD, "--steps", "30", "--seed", "2"],
+                       check=True, capture_output=True)
+        assert np.load(cli).shape == positions.shape
+        assert np.load(tmp_path / "cli-species.npy").dtype.kind == species.dtype.kind
+        np.testing.assert_array_equal(np.load(tmp_path / "cli-species.npy"), species)
+    tt = pytest.importorskip("trajectorytools")
+    assert tt.Trajectories.from_positions(positions).number_of_individuals == 13

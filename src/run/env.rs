@@ -397,6 +397,13 @@ impl Env {
         crate::run::animate::render_rgba(&mut self.world, size, &title)
     }
 
+    /// Every agent's species name, ordered by agent id as [`Env::positions`] (`coevo --record`'s
+    /// `OUT-species.npy`).
+    pub fn individual_species(&self) -> Vec<String> {
+        let pop = self.world.resource::<Population>();
+        by_id(pop).into_iter().map(|i| self.scene.species[pop.species[i]].name.clone()).collect()
+    }
+
     /// Every agent's position (x, y), all species, ordered by agent id (`coevo --record`'s `id`).
     pub fn positions(&self) -> Vec<[f64; 2]> {
         let pop = self.world.resource::<Population>();
