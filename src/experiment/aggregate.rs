@@ -239,10 +239,52 @@ pub(crate) fn tests(exp: &Experiment, table: &Summary) -> Vec<ClaimResult> {
                 (false, true) => Some(Verdict::new(Outcome::NotAComparison, IDENTICAL)),
                 _ => None,
             };
-            results.push(ClaimResult { estimate: e, p, same_test, verdict, ..untested(preset, claim) });
+            let caveat = caveat(exp, table, preset, claim);
+            results.push(ClaimResult { estimate: e, p, same_test, verdict, caveat, ..untested(preset, claim) });
         }
     }
     results
+}
+
+/// What a reader of a verdict must know of its samples: how many runs of an arm have no value (left out of
+/// the test: a curve a fit could not be made to, a quantity undefined in that run), and for a fitted time
+/// constant how many sit at the fit's cap ([`super::curves::FIT_LONGEST`] × the episodes), which the test
+/// reads as the slowest approach although such a curve may not approach at all within the run (it drifts,
+/// or moves the other way). None when there is nothing to say.
+fn caveat(exp: &Experiment, table: &Summary, preset: &str, claim: &super::file::Claim) -> Option<String> {
+    let arms: Vec<(&str, Vec<f64>)> = std::iter::once(claim.variant.as_str())
+        .chain(claim.versus.as_deref())
+        .map(|variant| (variant, table.values(exp, preset, variant, &claim.quantity)))
+        .collect();
+    let mut said = String::new();
+    let missing: Vec<String> = arms
+        .iter()
+        .filter_map(|(v, values)| {
+            let left_out = values.iter().filter(|x| !x.is_finite()).count();
+            (left_out > 0).then(|| format!("{left_out} of {} runs of `{v}`", values.len()))
+        })
+        .collect();
+    if !missing.is_empty() {
+        said.push_str(&format!("; without a value, left out: {}", missing.join(" and ")));
+    }
+    if let super::file::Quantity::Fitted(_, super::file::Fit::Time) = claim.quantity {
+        let capped: Vec<(&str, usize, usize)> = arms
+            .iter()
+            .map(|(variant, values)| {
+                let cap = 0.99 * super::curves::FIT_LONGEST * table.episodes(preset, variant).unwrap_or(0) as f64;
+                let n = values.iter().filter(|x| x.is_finite()).count();
+                (*variant, values.iter().filter(|&&x| x >= cap).count(), n)
+            })
+            .collect();
+        if capped.iter().any(|&(_, c, _)| c > 0) {
+            let arms: Vec<String> = capped.iter().map(|(v, c, n)| format!("{c} of {n} runs of `{v}`")).collect();
+            said.push_str(&format!(
+                "; at the fit's cap (no approach within the run, read as the slowest): {}",
+                arms.join(" and ")
+            ));
+        }
+    }
+    (!said.is_empty()).then_some(said)
 }
 
 /// Adjusts every tested claim of `results` within its family and judges every claim. A family is the
@@ -293,6 +335,9 @@ pub(crate) fn adjust(results: &mut [ClaimResult]) {
         };
         if let Some(first) = &r.same_as {
             judged.note(&format!("; the same test as {first}, counted once in its family"));
+        }
+        if let Some(caveat) = &r.caveat {
+            judged.note(caveat);
         }
         r.verdict = Some(judged);
     }
@@ -358,10 +403,11 @@ fn say_where_a_level_and_its_contrast_disagree(results: &mut [ClaimResult]) {
 
 #[cfg(test)]
 mod tests {
-    use super::adjust;
+    use super::{adjust, tests, Experiment, Summary};
     use crate::experiment::claims::tests::{claim, tested};
     use crate::experiment::file::Quantity;
     use crate::experiment::stats::holm;
+    use std::path::Path;
 
     #[test]
     fn a_named_family_spans_files_and_a_repeated_test_counts_once() {
@@ -437,5 +483,22 @@ mod tests {
         assert!(!agreeing
             .iter()
             .any(|r| r.verdict_text().contains("disagrees") || r.verdict_text().contains("secondary level")));
+    }
+
+    #[test]
+    fn a_fitted_time_says_how_many_runs_sit_at_the_fits_cap() {
+        // The committed convergence-rates runs: with `paper`, 9 of the 20 one-predator DoS fits and 1 of the
+        // 20 standard ones sit at the cap (a review recomputed these from summary.csv).
+        let exp = Experiment::load(Path::new("experiments/convergence-rates.ron"), Path::new("results")).unwrap();
+        let table = Summary::read(&exp.summary_path()).unwrap().unwrap();
+        let results = tests(&exp, &table);
+        let caveat = |text: &str| {
+            let r = results.iter().find(|r| r.preset == "paper" && r.claim.text == text).unwrap();
+            r.caveat.clone().unwrap_or_default()
+        };
+        let slower = caveat("one predator against three: DoS falls slower (fitted time constant longer)");
+        assert!(slower.contains("9 of 20 runs of `n0 = 1` and 1 of 20 runs of `standard`"), "{slower}");
+        // Not a time constant: nothing at a cap, and every run has a value.
+        assert_eq!(caveat("one predator against three: DoS's fitted end level (secondary)"), "");
     }
 }

@@ -98,6 +98,9 @@ pub struct ClaimResult {
     /// A grid's boundary or its shift: its bootstrap resamples, sorted (`grid::Tested`), whose
     /// percentiles are its interval at its family-adjusted level.
     pub(crate) resamples: Option<Vec<f64>>,
+    /// What a reader of its verdict must know of its samples, said after the verdict (how many fitted
+    /// times sit at the fit's cap, [`super::aggregate::tests`]).
+    pub(crate) caveat: Option<String>,
 }
 
 impl ClaimResult {
@@ -124,6 +127,7 @@ impl ClaimResult {
             baseline,
             verdict: None,
             resamples: None,
+            caveat: None,
         }
     }
 }
@@ -344,6 +348,7 @@ pub(crate) mod tests {
             baseline: None,
             verdict: None,
             resamples: None,
+            caveat: None,
         }
     }
 

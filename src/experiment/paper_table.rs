@@ -299,7 +299,7 @@ pub(crate) fn table(
 /// How to read the table, above it.
 const LEGEND: &str = "Each cell: coevo's mean over seeds ± the interval its verdict reads (for a change or a \
      difference, the Holm-adjusted interval of its family; for a level, the plain 95 % interval, while its verdict \
-     reads the 90 % interval of the equivalence test), the verdict, and the \
+     reads the 90 % interval of the equivalence test, per test, not adjusted over a family), the verdict, and the \
      experiment it comes from with its seeds. ✓ reproduced (an effect detected in the paper's direction with the paper's \
      value inside its interval; a level equivalent to the paper's value within its tolerance, ±0.005 for DoS and ±0.015 for DoA); ✓ \
      equivalent (a claim of no change shown within its margin); ✓ apart from chance (a level the paper gives no number \

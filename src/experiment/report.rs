@@ -98,7 +98,8 @@ const METHOD: &str = "Each number is the mean over seeds of the prey's 100-episo
      any other level the paper tells it apart from: ±0.005 for DoS (the paper's 22, 20.5, 19, 18, 17 and 15 %) and \
      ±0.015 for DoA (0.65, 0.75, 0.82, 0.85 and 0.96). This rule was fixed after the results below existed, once, \
      from the paper's numbers alone; it replaced a test of whether the 95 % interval reached the paper's value at the \
-     precision it is printed with, which favoured few seeds. Each level also says whether it is told apart from chance \
+     precision it is printed with, which favoured few seeds. Level verdicts are per test: they enter no family and are \
+     not adjusted for multiplicity, so among many levels some are expected to be decided by chance alone. Each level also says whether it is told apart from chance \
      (DoA by chance: 2/π ≈ 0.637; DoS by chance: uniform random positions at \
      the same density, e.g. 0.226 for 10 prey and 0.100 for 50 in the 2 m torus; the mean edge rank of caught prey by \
      chance: 0.5; C_nn by chance: 0). Where one sentence of the paper gives a level \
