@@ -160,7 +160,7 @@ impl ClaimResult {
 #[cfg(test)]
 pub(crate) mod tests {
     use super::*;
-    use crate::experiment::file::{Experiment, Quantity};
+    use crate::experiment::file::{Curve, Experiment, Quantity};
     use crate::experiment::quantity::quantity;
     use crate::experiment::verdict::{hypothesis, DOA_TOLERANCE, DOS_TOLERANCE};
     use std::path::Path;
@@ -224,17 +224,14 @@ pub(crate) mod tests {
         };
         let a = |q: Quantity| quantity(&exp, &d, &q);
         let start = (0.15f32 as f64 * 10.0) / 10.0;
-        assert!((a(Quantity::Start("authors_doa".into())) - start).abs() < 1e-12);
+        assert!((a(Quantity::Start(Curve::AuthorsDoa)) - start).abs() < 1e-12);
         assert!((a(Quantity::TrainingFirst("authors_doa".into())) - (0.15 * 10.0 + 0.25 * 90.0) / 100.0).abs() < 1e-12);
         assert_eq!(a(Quantity::TrainingLast("authors_doa".into())), 0.5);
-        assert!((a(Quantity::FromStart("authors_doa".into())) - (0.5 - start)).abs() < 1e-12);
-        assert!(
-            a(Quantity::FromStart("authors_dos".into())).abs() < 1e-7,
-            "the flat curve's start at single precision"
-        );
+        assert!((a(Quantity::FromStart(Curve::AuthorsDoa)) - (0.5 - start)).abs() < 1e-12);
+        assert!(a(Quantity::FromStart(Curve::AuthorsDos)).abs() < 1e-7, "the flat curve's start at single precision");
         // A run that did not measure them has no value, never the paper's curve.
         let plain = RunData { doa: d.doa.clone(), ..Default::default() };
-        assert!(quantity(&exp, &plain, &Quantity::FromStart("authors_doa".into())).is_nan());
+        assert!(quantity(&exp, &plain, &Quantity::FromStart(Curve::AuthorsDoa)).is_nan());
     }
 
     pub(crate) fn claim(quantity: Quantity, paper: Option<f64>, margin: Option<f64>) -> Claim {
@@ -307,7 +304,7 @@ pub(crate) mod tests {
         let faster = Claim {
             direction_only: true,
             versus: Some("w".into()),
-            ..claim(Quantity::Reach90("doa".into()), Some(-1.0), None)
+            ..claim(Quantity::Reach90(Curve::Doa), Some(-1.0), None)
         };
         assert!(judged(&faster, &opposite).starts_with("reproduced: detected in the paper's direction"));
         assert!(judged(&faster, &clear).starts_with("not reproduced: detected the other way"));

@@ -2,7 +2,7 @@
 //! starts ([`START`] episodes), the episode it completes half or 90 % of its change or first reaches a
 //! level, its extreme and how far it falls back: the convergence quantities of the experiment files.
 
-use super::file::{Fit, Quantity};
+use super::file::{Curve, Fit, Quantity};
 use super::stats::mean;
 use crate::sim::metrics::WINDOW;
 
@@ -18,20 +18,16 @@ pub(crate) fn window_mean(values: &[f64], first: bool) -> f64 {
 /// elsewhere ([`super::external`]).
 pub(crate) fn curve_argument_error(q: &Quantity) -> Option<String> {
     match q {
-        Quantity::Start(c) | Quantity::FromStart(c)
-            if !CURVES.contains(&c.as_str()) && !AUTHORS_CURVES.contains(&c.as_str()) =>
-        {
-            Some(format!("Start and FromStart take \"dos\", \"doa\", \"catches\", \"authors_dos\" or \"authors_doa\" (got {c:?})"))
-        }
-        Quantity::Extreme(c) | Quantity::ExtremeEpisode(c) | Quantity::AfterExtreme(c) if c != "dos" && c != "doa" => {
+        // Start and FromStart take every curve; the others DoS and DoA (Fitted catches too).
+        Quantity::Extreme(c) | Quantity::ExtremeEpisode(c) | Quantity::AfterExtreme(c) if !c.is_order() => {
             Some(format!("Extreme, ExtremeEpisode and AfterExtreme take \"dos\" or \"doa\" (got {c:?})"))
         }
-        Quantity::Reach90(c) if c != "dos" && c != "doa" => Some(format!("Reach90 takes \"dos\" or \"doa\" (got {c:?})")),
-        Quantity::Halfway(c) if c != "dos" && c != "doa" => Some(format!("Halfway takes \"dos\" or \"doa\" (got {c:?})")),
-        Quantity::Reaches(c, _) if c != "dos" && c != "doa" => {
+        Quantity::Reach90(c) if !c.is_order() => Some(format!("Reach90 takes \"dos\" or \"doa\" (got {c:?})")),
+        Quantity::Halfway(c) if !c.is_order() => Some(format!("Halfway takes \"dos\" or \"doa\" (got {c:?})")),
+        Quantity::Reaches(c, _) if !c.is_order() => {
             Some(format!("Reaches takes \"dos\" or \"doa\" and a level (got {c:?})"))
         }
-        Quantity::Fitted(c, _) if !CURVES.contains(&c.as_str()) => {
+        Quantity::Fitted(c, _) if !CURVES.contains(c) => {
             Some(format!("Fitted takes \"dos\", \"doa\" or \"catches\" and Start, End or Time (got {c:?})"))
         }
         Quantity::Reaches(_, level) if !(level.is_finite() && *level > 0.0 && *level <= 1.0) => {
@@ -201,7 +197,7 @@ fn start(series: &[f64]) -> f64 {
 }
 
 /// The per-episode training series a curve quantity reads: `dos`, `doa` or `catches`.
-pub(crate) const CURVES: [&str; 3] = ["dos", "doa", "catches"];
+pub(crate) const CURVES: [Curve; 3] = [Curve::Dos, Curve::Doa, Curve::Catches];
 
 /// The training series of the authors' DoS and DoA (`metrics.csv`'s `authors_dos_<prey>` and
 /// `authors_doa_<prey>`, written with the scene's `authors_metrics`; differences 9–11 of docs/src/results/authors-code.md): besides
@@ -219,7 +215,7 @@ pub(crate) fn curve_shape(q: &Quantity, series: &[f64]) -> f64 {
     let mean = |v: &mut dyn Iterator<Item = f64>| super::stats::mean(&v.filter(|x| x.is_finite()).collect::<Vec<_>>());
     match q {
         Quantity::Halfway(_) => halfway(series),
-        Quantity::Reaches(o, level) => reaches(series, *level, o == "dos"),
+        Quantity::Reaches(o, level) => reaches(series, *level, *o == Curve::Dos),
         Quantity::Start(_) => start(series),
         Quantity::Fitted(_, part) => fit_approach(series).map_or(f64::NAN, |[start, end, time]| match part {
             Fit::Start => start,
@@ -235,7 +231,7 @@ pub(crate) fn curve_shape(q: &Quantity, series: &[f64]) -> f64 {
                 mean(&mut (end + 1 - WINDOW..=end).filter(|e| (e % 2 == 1) == odd).map(|e| series[e - 1]))
                     .unwrap_or(f64::NAN)
             };
-            let peak = o == "doa";
+            let peak = *o == Curve::Doa;
             let better = |a: f64, b: f64| if peak { a > b } else { a < b };
             let mut best = WINDOW;
             for end in WINDOW + 1..=series.len() {
@@ -284,8 +280,8 @@ pub(crate) fn curve_shape(q: &Quantity, series: &[f64]) -> f64 {
 }
 
 /// What a curve's extreme is called: DoA's peak, DoS's trough.
-pub(crate) fn extreme_word(curve: &str) -> &'static str {
-    if curve == "doa" {
+pub(crate) fn extreme_word(curve: Curve) -> &'static str {
+    if curve == Curve::Doa {
         "peak"
     } else {
         "trough"
@@ -298,7 +294,9 @@ mod tests {
 
     #[test]
     fn a_curves_start_extreme_and_fall_back_are_cross_fitted() {
-        let q = |f: fn(String) -> Quantity, curve: &str, series: &[f64]| curve_shape(&f(curve.into()), series);
+        let q = |f: fn(Curve) -> Quantity, curve: &str, series: &[f64]| {
+            curve_shape(&f(Curve::parse(curve).unwrap()), series)
+        };
         // Constant: the start and the extreme are the constant, the first window wins ties, no fall back.
         let flat = vec![0.75; 250];
         assert_eq!(q(Quantity::Start, "doa", &flat), 0.75);
@@ -330,7 +328,7 @@ mod tests {
 
     #[test]
     fn the_episode_that_completes_half_a_change_from_the_start() {
-        let halfway = |series: &[f64]| curve_shape(&Quantity::Halfway("dos".into()), series);
+        let halfway = |series: &[f64]| curve_shape(&Quantity::Halfway(Curve::Dos), series);
         // 0 for 60 episodes, then 1 for 240: the start is 0, the end 1; the 20-episode running mean at
         // episode t (from 1) is (t − 60)/20 past 60, so it first reaches 0.5 at episode 70; the same falling.
         let step: Vec<f64> = (0..300).map(|t| if t < 60 { 0.0 } else { 1.0 }).collect();
@@ -347,14 +345,15 @@ mod tests {
         assert_eq!(halfway(&drop), 20.0);
         assert!(halfway(&[0.5; 300]).is_nan(), "no change, no episode");
         assert!(halfway(&step[..99]).is_nan(), "shorter than the last window");
-        let bad = curve_argument_error(&Quantity::Halfway("catches".into())).unwrap();
+        let bad = curve_argument_error(&Quantity::Halfway(Curve::Catches)).unwrap();
         assert!(bad.contains("Halfway takes \"dos\" or \"doa\""), "{bad}");
     }
 
     #[test]
     fn the_episode_a_curve_gets_to_a_common_level() {
-        let reaches =
-            |curve: &str, level: f64, series: &[f64]| curve_shape(&Quantity::Reaches(curve.into(), level), series);
+        let reaches = |curve: &str, level: f64, series: &[f64]| {
+            curve_shape(&Quantity::Reaches(Curve::parse(curve).unwrap(), level), series)
+        };
         // DoA 0 for 60 episodes, then 1: the 20-episode running mean at episode t (from 1) is (t − 60)/20
         // past 60, so it rises to 0.25 at episode 65 and to 0.75 at 75, whatever the run's own change.
         let step: Vec<f64> = (0..300).map(|t| if t < 60 { 0.0 } else { 1.0 }).collect();
@@ -370,9 +369,9 @@ mod tests {
         assert_eq!(reaches("doa", 0.25, &[0.5; 300]), 20.0);
         assert!(reaches("doa", 0.25, &[0.5; 19]).is_nan(), "shorter than one window");
         for (bad, says) in [
-            (Quantity::Reaches("catches".into(), 0.5), "Reaches takes \"dos\" or \"doa\""),
-            (Quantity::Reaches("doa".into(), 1.5), "a level in (0, 1]"),
-            (Quantity::Reaches("doa".into(), f64::NAN), "a level in (0, 1]"),
+            (Quantity::Reaches(Curve::Catches, 0.5), "Reaches takes \"dos\" or \"doa\""),
+            (Quantity::Reaches(Curve::Doa, 1.5), "a level in (0, 1]"),
+            (Quantity::Reaches(Curve::Doa, f64::NAN), "a level in (0, 1]"),
         ] {
             let message = curve_argument_error(&bad).unwrap();
             assert!(message.contains(says), "{message}");
@@ -393,7 +392,7 @@ mod tests {
 
     #[test]
     fn the_fit_recovers_a_known_approach_its_rate_apart_from_its_level() {
-        let part = |p: Fit, series: &[f64]| curve_shape(&Quantity::Fitted("doa".into(), p), series);
+        let part = |p: Fit, series: &[f64]| curve_shape(&Quantity::Fitted(Curve::Doa, p), series);
         // A DoA curve rising from 0.6 to 0.9 with a time constant of 150 episodes over 2000, plus noise of
         // SD ~0.09 per episode (as large as a 10-prey DoA episode's): recovered within 10 % and 0.01.
         let curve_with = |size: f64, start: f64, end: f64, time: f64| -> Vec<f64> {
@@ -426,7 +425,7 @@ mod tests {
         assert!((part(Fit::Time, &gaps) / 150.0 - 1.0).abs() < 0.1);
         assert!(part(Fit::Time, &slow[..99]).is_nan());
         assert!(part(Fit::Time, &[0.5; 300]).is_nan());
-        let bad = curve_argument_error(&Quantity::Fitted("polarization".into(), Fit::Time)).unwrap();
+        let bad = curve_argument_error(&Quantity::Fitted(Curve::AuthorsDoa, Fit::Time)).unwrap();
         assert!(bad.contains("Fitted takes"), "{bad}");
     }
 

@@ -63,7 +63,7 @@ fn of_training_curves(q: &Quantity) -> bool {
         | Fitted(c, _)
         | Extreme(c)
         | ExtremeEpisode(c)
-        | AfterExtreme(c) => CURVES.contains(&c.as_str()),
+        | AfterExtreme(c) => CURVES.contains(c),
         // Evaluations, other order parameters, cross-play and fitted rules: not in a curve of DoS, DoA and
         // catches.
         TrainingFirst(_)
@@ -166,6 +166,7 @@ pub fn compare(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::experiment::file::Curve;
 
     fn run(doa: f64, catches: f64) -> RunData {
         // 200 episodes: the first 100 at 0.5 below the last 100.
@@ -228,7 +229,7 @@ mod tests {
         // Quantities as experiment files write them; what curves do not give, refused when parsed.
         assert_eq!(
             Comparison::parse("r", "FromStart(\"doa\")", None).unwrap().quantity,
-            Quantity::FromStart("doa".into())
+            Quantity::FromStart(Curve::Doa)
         );
         let unknown = Comparison::parse("x", "DoaPeak", None).unwrap_err().to_string();
         assert!(unknown.starts_with("quantity of \"x\": \"DoaPeak\" is not a quantity"), "{unknown}");

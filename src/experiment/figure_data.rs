@@ -154,11 +154,15 @@ impl CrossplayCells {
 
 impl FigureData {
     /// A training series by name: `dos`, `doa` or `catches`.
-    pub(crate) fn curve(&self, name: &str) -> &[f64] {
-        match name {
-            "dos" => &self.dos,
-            "doa" => &self.doa,
-            _ => &self.catches,
+    /// The curve of a run that figure data keeps (DoS, DoA, catches); the authors' curves are not kept,
+    /// so they read as empty (a quantity of them gives NaN).
+    pub(crate) fn curve(&self, curve: super::file::Curve) -> &[f64] {
+        use super::file::Curve;
+        match curve {
+            Curve::Dos => &self.dos,
+            Curve::Doa => &self.doa,
+            Curve::Catches => &self.catches,
+            Curve::AuthorsDos | Curve::AuthorsDoa => &[],
         }
     }
 }

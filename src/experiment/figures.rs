@@ -416,14 +416,12 @@ fn binned_figure(
 
 /// The training curves, the variants compared (from the per-run values of `table`), catches, and per
 /// evaluation its per-step curves and confusion curve.
-/// The values a training curve of `curve` ("dos" or "doa") is read against: the paper's start and end
+/// The values a training curve of `curve` (DoS or DoA) is read against: the paper's start and end
 /// levels as the experiment's claims state them (a start over the first 100 episodes, an end over the last
 /// 100 of `episodes`; in the colour of the variant they are about), and chance at the base scene's density.
-fn levels(exp: &Experiment, preset: &str, curve: &str, episodes: usize) -> Vec<Level> {
-    let (last, first) = match curve {
-        "dos" => (Quantity::DosLast, Quantity::Start("dos".into())),
-        _ => (Quantity::DoaLast, Quantity::Start("doa".into())),
-    };
+fn levels(exp: &Experiment, preset: &str, curve: super::file::Curve, episodes: usize) -> Vec<Level> {
+    let last = if curve == super::file::Curve::Dos { Quantity::DosLast } else { Quantity::DoaLast };
+    let first = Quantity::Start(curve);
     let end = episodes as f64;
     let mut out: Vec<Level> = Vec::new();
     for c in exp.spec.claims.iter().filter(|c| c.versus.is_none() && !c.direction_only) {
@@ -479,14 +477,14 @@ fn figures<'a>(
             x_label: "episode".into(),
             y_label: format!("DoS ({WINDOW}-episode mean)"),
             curves: curves(&|d| running_mean(&d.dos, WINDOW), 1.0),
-            levels: levels(exp, preset, "dos", episodes),
+            levels: levels(exp, preset, super::file::Curve::Dos, episodes),
         },
         Panel {
             title: title(&format!("DoA of {prey}")),
             x_label: "episode".into(),
             y_label: format!("DoA ({WINDOW}-episode mean)"),
             curves: curves(&|d| running_mean(&d.doa, WINDOW), 1.0),
-            levels: levels(exp, preset, "doa", episodes),
+            levels: levels(exp, preset, super::file::Curve::Doa, episodes),
         },
     ];
     if training.iter().all(|p| p.curves.is_empty()) {
@@ -536,7 +534,7 @@ fn figures<'a>(
         }
         for q in convergence {
             // A panel's title fits its column: the quantity in short, the definition on the axis.
-            let curve = |c: &str| if c == "dos" { "DoS" } else { "DoA" };
+            let curve = |c: &super::file::Curve| if *c == super::file::Curve::Dos { "DoS" } else { "DoA" };
             let (what, x_label) = match &q {
                 Quantity::Halfway(c) => (
                     format!("{}: halfway episode", curve(c)),

@@ -467,47 +467,47 @@ pub enum Quantity {
     DistilledDifference(String, crate::scene::RuleForm, crate::scene::RuleForm, String),
     /// The episode at which the 100-episode running mean of `dos` or `doa` first completes 90 % of its
     /// change from the first 100 episodes to the last 100 (the paper's time course, Fig. 3).
-    Reach90(String),
+    Reach90(Curve),
     /// Mean of the first [`START`](super::curves::START) training episodes of `dos`, `doa` or `catches`
     /// (or `authors_dos`, `authors_doa`: the shipped code's metric, in runs with `authors_metrics`):
     /// the untrained level the paper's curves start from (the actors learn from the first episodes on,
     /// so this is the nearest a training run gives; `Learned` evaluations measure untrained actors directly).
-    Start(String),
+    Start(Curve),
     /// The last 100 training episodes minus [`Quantity::Start`]: the paper's rise or fall over training,
     /// from where its curves start (`DoaChange` and `DosChange` measure it from the first 100 episodes).
-    FromStart(String),
+    FromStart(Curve),
     /// The extreme of the 100-episode running mean of `doa` (its peak) or `dos` (its trough), the window
     /// chosen on the odd episodes and its mean taken over the even ones. That removes the bias of picking
     /// the best window from episode-to-episode noise, not from the policy's slow drift, which neighbouring
     /// episodes share: a curve that only wanders also shows a fall back after its peak, so
     /// [`Quantity::AfterExtreme`] measures how far the curve ended from its best, not that it declined.
-    Extreme(String),
+    Extreme(Curve),
     /// The episode ending that window.
-    ExtremeEpisode(String),
+    ExtremeEpisode(Curve),
     /// The last 100 episodes minus the extreme, both over the even episodes: how far the curve moved
     /// back after its peak (DoA) or trough (DoS).
-    AfterExtreme(String),
+    AfterExtreme(Curve),
     /// How fast a curve converges: the episode at which the [`HALFWAY_WINDOW`](super::claims::HALFWAY_WINDOW)-
     /// episode running mean of `dos` or `doa` first completes half of its change from the start (the
     /// first [`START`](super::curves::START) episodes) to the last 100 episodes. Half the change is crossed
     /// where the curve is steepest, so its seed-to-seed spread is small (the 90 % of
     /// [`Quantity::Reach90`] is crossed where the curve is flat); the short window resolves curves that
     /// do most of their change within the first 100 episodes.
-    Halfway(String),
+    Halfway(Curve),
     /// How fast a curve gets to one level common to the arms compared: the episode at which the
     /// [`HALFWAY_WINDOW`](super::claims::HALFWAY_WINDOW)-episode running mean of `dos` first falls to the
     /// level or below, or of `doa` first rises to it or above (from its first whole window on). A run
     /// that never gets there counts as getting there one episode after its last (censored), so that it is
     /// neither dropped nor counted as early. Unlike [`Quantity::Halfway`], which times each run against
     /// its own change, the target does not move with how much a run changes.
-    Reaches(String, f64),
+    Reaches(Curve, f64),
     /// A part of the exponential approach fitted by least squares to a training curve (`dos`, `doa` or
     /// `catches`, per episode e from 1): y(e) = end + (start − end)·exp(−(e − 1)/time). `Time`, the time
     /// constant in episodes (the episodes to complete 63 % of the change), says how *fast* a curve
     /// converges apart from how *far* (`End`), which `Halfway` and `Reaches` mix. A curve still moving
     /// at its last episode gets a time up to [`FIT_LONGEST`](super::curves::FIT_LONGEST) times its
     /// episodes; one with no change has no time (NaN). Fitted by `curves::fit_approach`.
-    Fitted(String, Fit),
+    Fitted(Curve, Fit),
     /// The information-transfer response of an evaluation with `perturb:`: `"near"`, the mean |Δheading|
     /// of the turned prey's 6 nearest over the 10 steps after the turn, or `"far"`, the same for ranks 25
     /// and beyond (radians).
@@ -515,6 +515,68 @@ pub enum Quantity {
     /// A read-out of the run's cross-play matrix (`crossplay_readouts::readouts`, the headline species against its
     /// first predator species), e.g. `Crossplay("doa_late_prey_part")`; needs `crossplay:` in the file.
     Crossplay(String),
+}
+
+/// A training curve, per episode, that a curve quantity reads ([`Quantity::Start`], [`Quantity::Fitted`],
+/// ...): written in experiment files as its name, `"dos"`, `"doa"`, `"catches"`, or, in runs with
+/// `authors_metrics`, `"authors_dos"` and `"authors_doa"` (the shipped code's metric).
+#[derive(Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Curve {
+    Dos,
+    Doa,
+    Catches,
+    AuthorsDos,
+    AuthorsDoa,
+}
+
+impl Curve {
+    /// Every curve, in the order of their names.
+    pub const ALL: [Curve; 5] = [Curve::Dos, Curve::Doa, Curve::Catches, Curve::AuthorsDos, Curve::AuthorsDoa];
+
+    /// Its name in experiment files and summary columns.
+    pub fn name(self) -> &'static str {
+        match self {
+            Curve::Dos => "dos",
+            Curve::Doa => "doa",
+            Curve::Catches => "catches",
+            Curve::AuthorsDos => "authors_dos",
+            Curve::AuthorsDoa => "authors_doa",
+        }
+    }
+
+    pub fn parse(name: &str) -> Option<Curve> {
+        Curve::ALL.into_iter().find(|c| c.name() == name)
+    }
+
+    /// DoS and DoA fall and rise; the rest are other curves.
+    pub(crate) fn is_order(self) -> bool {
+        matches!(self, Curve::Dos | Curve::Doa)
+    }
+}
+
+/// As the name it was a string of before it was a type, so that a claim's fingerprint (`registry.rs`,
+/// which hashes the quantity's `Debug`) stands: `"dos"`.
+impl std::fmt::Debug for Curve {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{:?}", self.name())
+    }
+}
+
+impl std::fmt::Display for Curve {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl<'de> Deserialize<'de> for Curve {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Curve, D::Error> {
+        let name = String::deserialize(d)?;
+        Curve::parse(&name).ok_or_else(|| {
+            serde::de::Error::custom(format!(
+                "{name:?} is no training curve: \"dos\", \"doa\", \"catches\", \"authors_dos\" or \"authors_doa\""
+            ))
+        })
+    }
 }
 
 /// A part of the approach [`Quantity::Fitted`] fits to a training curve.

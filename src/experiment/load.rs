@@ -624,12 +624,12 @@ impl Experiment {
         }
         // A claim on the authors' DoS or DoA needs runs that measure them: refused now, not after training.
         for c in &spec.claims {
-            let (Quantity::Start(q) | Quantity::FromStart(q) | Quantity::TrainingFirst(q) | Quantity::TrainingLast(q)) =
-                &c.quantity
-            else {
-                continue;
+            let q = match &c.quantity {
+                Quantity::Start(q) | Quantity::FromStart(q) => q.name(),
+                Quantity::TrainingFirst(q) | Quantity::TrainingLast(q) => q.as_str(),
+                _ => continue,
             };
-            if !super::claims::AUTHORS_CURVES.contains(&q.as_str()) {
+            if !super::claims::AUTHORS_CURVES.contains(&q) {
                 continue;
             }
             let compared = std::iter::once(&c.variant).chain(c.versus.as_ref());

@@ -6,7 +6,7 @@
 
 use super::claims::{RunData, SETTLED_STEPS};
 use super::curves::{curve_shape, extreme_word, reach90, window_mean, AUTHORS_CURVES, HALFWAY_WINDOW, START};
-use super::file::{Claim, Experiment, Quantity};
+use super::file::{Claim, Curve, Experiment, Quantity};
 use super::stats::mean;
 use super::verdict::is_effect;
 
@@ -36,7 +36,7 @@ pub(super) fn primitive(d: &RunData, q: &Quantity) -> f64 {
         Quantity::EvalOrder(e, name) if name == "edge_rank" => d.evals.get(e).map_or(f64::NAN, |x| x.edge_rank),
         Quantity::EvalOrder(e, name) => eval(e, name),
         Quantity::EvalCatches(e) => d.evals.get(e).map_or(f64::NAN, |x| x.catches_per_prey),
-        Quantity::Reach90(name) => reach90(if name == "dos" { &d.dos } else { &d.doa }),
+        Quantity::Reach90(name) => reach90(if *name == Curve::Dos { &d.dos } else { &d.doa }),
         Quantity::Start(o)
         | Quantity::Extreme(o)
         | Quantity::ExtremeEpisode(o)
@@ -44,12 +44,12 @@ pub(super) fn primitive(d: &RunData, q: &Quantity) -> f64 {
         | Quantity::Halfway(o)
         | Quantity::Reaches(o, _)
         | Quantity::Fitted(o, _) => {
-            let series = match o.as_str() {
-                "dos" => &d.dos,
-                "doa" => &d.doa,
-                "catches" => &d.catches,
+            let series = match o {
+                Curve::Dos => &d.dos,
+                Curve::Doa => &d.doa,
+                Curve::Catches => &d.catches,
                 // The authors' DoS and DoA (`authors_metrics`), loaded beside the order parameters.
-                other => d.orders.get(other).map_or(&[][..], |v| v.as_slice()),
+                Curve::AuthorsDos | Curve::AuthorsDoa => d.orders.get(o.name()).map_or(&[][..], |v| v.as_slice()),
             };
             // At single precision, as figure-data.ron.gz keeps the curve (its `single` values): a summary
             // extended from that file gets the same bits.
@@ -88,9 +88,9 @@ pub(crate) fn column(q: &Quantity) -> Option<String> {
         Quantity::TrainingLast(o) => format!("{o}_last100"),
         Quantity::Reach90(o) => format!("{o}_reach90"),
         Quantity::Start(o) => format!("{o}_start{START}"),
-        Quantity::Extreme(o) => format!("{o}_{}", extreme_word(o)),
-        Quantity::ExtremeEpisode(o) => format!("{o}_{}_episode", extreme_word(o)),
-        Quantity::AfterExtreme(o) => format!("{o}_after_{}", extreme_word(o)),
+        Quantity::Extreme(o) => format!("{o}_{}", extreme_word(*o)),
+        Quantity::ExtremeEpisode(o) => format!("{o}_{}_episode", extreme_word(*o)),
+        Quantity::AfterExtreme(o) => format!("{o}_after_{}", extreme_word(*o)),
         Quantity::Halfway(o) => format!("{o}_halfway"),
         Quantity::Reaches(o, level) => format!("{o}_reaches_{level}"),
         Quantity::Fitted(o, part) => format!("{o}_fitted_{}", format!("{part:?}").to_lowercase()),
@@ -139,13 +139,13 @@ pub(crate) fn derive(
         Quantity::DoaChange => primitive(&Quantity::DoaLast) - primitive(&Quantity::DoaFirst),
         Quantity::CatchesChange => primitive(&Quantity::CatchesLast) - primitive(&Quantity::CatchesFirst),
         Quantity::FromStart(o) => {
-            let last = match o.as_str() {
-                "dos" => Quantity::DosLast,
-                "doa" => Quantity::DoaLast,
-                "catches" => Quantity::CatchesLast,
-                other => Quantity::TrainingLast(other.into()),
+            let last = match o {
+                Curve::Dos => Quantity::DosLast,
+                Curve::Doa => Quantity::DoaLast,
+                Curve::Catches => Quantity::CatchesLast,
+                Curve::AuthorsDos | Curve::AuthorsDoa => Quantity::TrainingLast(o.name().into()),
             };
-            primitive(&last) - primitive(&Quantity::Start(o.clone()))
+            primitive(&last) - primitive(&Quantity::Start(*o))
         }
         Quantity::InteractionDoa(e) => seeing(e).map_or(f64::NAN, |s| of_eval(&s, "doa") - of_eval(e, "doa")),
         Quantity::Interaction(e, o) => seeing(e).map_or(f64::NAN, |s| of_eval(&s, o) - of_eval(e, o)),
@@ -227,20 +227,22 @@ pub(crate) fn chance_level(exp: &Experiment, claim: &Claim, scene: Option<&crate
         let arena = crate::sim::space::Arena { edge: scene.world.arena_edge, boundary: scene.world.boundary };
         crate::sim::metrics::random_dos(&arena, n)
     };
+    let random_authors = |curve: &str| {
+        let (scene, n) = headline(None)?;
+        let which = AUTHORS_CURVES.iter().position(|c| *c == curve)?;
+        crate::sim::metrics::random_authors(scene.world.arena_edge, n).map(|v| v[which])
+    };
     match &claim.quantity {
         Quantity::DoaFirst | Quantity::DoaLast | Quantity::EvalDoa(_) => Some(std::f64::consts::FRAC_2_PI),
-        Quantity::Start(o) | Quantity::Extreme(o) if o == "doa" => Some(std::f64::consts::FRAC_2_PI),
+        Quantity::Start(Curve::Doa) | Quantity::Extreme(Curve::Doa) => Some(std::f64::consts::FRAC_2_PI),
         Quantity::DosFirst | Quantity::DosLast => random_dos(None),
-        Quantity::Start(o) | Quantity::Extreme(o) if o == "dos" => random_dos(None),
+        Quantity::Start(Curve::Dos) | Quantity::Extreme(Curve::Dos) => random_dos(None),
         Quantity::EvalDos(e) => random_dos(Some(e)),
         Quantity::Crossplay(r) => super::crossplay_readouts::chance(r),
         // The authors' DoS and DoA of random positions and headings at the training density.
-        Quantity::Start(o) | Quantity::TrainingFirst(o) | Quantity::TrainingLast(o)
-            if AUTHORS_CURVES.contains(&o.as_str()) =>
-        {
-            let (scene, n) = headline(None)?;
-            let which = AUTHORS_CURVES.iter().position(|c| c == o)?;
-            crate::sim::metrics::random_authors(scene.world.arena_edge, n).map(|v| v[which])
+        Quantity::Start(o @ (Curve::AuthorsDos | Curve::AuthorsDoa)) => random_authors(o.name()),
+        Quantity::TrainingFirst(o) | Quantity::TrainingLast(o) if AUTHORS_CURVES.contains(&o.as_str()) => {
+            random_authors(o)
         }
         // Caught prey ranked at random within their group: the mean edge rank of no marginal predation.
         Quantity::EvalOrder(_, q) | Quantity::TrainingFirst(q) | Quantity::TrainingLast(q)
@@ -315,7 +317,7 @@ pub(crate) fn quantity_name(q: &Quantity) -> String {
         ),
         Quantity::Reaches(q, level) => format!(
             "episode at which {q}'s {HALFWAY_WINDOW}-episode running mean first {} {level} (after the run when never)",
-            if q == "dos" { "falls to" } else { "rises to" }
+            if *q == Curve::Dos { "falls to" } else { "rises to" }
         ),
         Quantity::Fitted(q, part) => match part {
             super::file::Fit::Start => format!("{q}'s fitted start (exponential approach)"),
@@ -325,9 +327,9 @@ pub(crate) fn quantity_name(q: &Quantity) -> String {
         Quantity::Start(q) => format!("{q}, first {START} episodes (the untrained start)"),
         Quantity::FromStart(q) => format!("{q}, last 100 episodes minus the first {START}"),
         Quantity::Extreme(q) => {
-            format!("{q}'s {} 100-episode mean (window chosen on odd episodes, measured on even)", extreme_word(q))
+            format!("{q}'s {} 100-episode mean (window chosen on odd episodes, measured on even)", extreme_word(*q))
         }
-        Quantity::ExtremeEpisode(q) => format!("episode ending {q}'s {} 100-episode window", extreme_word(q)),
-        Quantity::AfterExtreme(q) => format!("{q}, last 100 episodes minus its {} (even episodes)", extreme_word(q)),
+        Quantity::ExtremeEpisode(q) => format!("episode ending {q}'s {} 100-episode window", extreme_word(*q)),
+        Quantity::AfterExtreme(q) => format!("{q}, last 100 episodes minus its {} (even episodes)", extreme_word(*q)),
     }
 }

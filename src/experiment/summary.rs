@@ -3,7 +3,7 @@
 //! `summary.csv` alone, so a clone without run folders recomputes them exactly.
 
 use super::claims::{window_mean, RunData};
-use super::file::{slug, Experiment, Quantity};
+use super::file::{slug, Curve, Experiment, Quantity};
 use super::quantity::{column, derive, quantity};
 use super::stats::estimate;
 use std::collections::BTreeMap;
@@ -21,15 +21,15 @@ pub fn columns(exp: &Experiment) -> Vec<(String, Quantity)> {
         primitives.push(Quantity::TrainingFirst(order.into()));
         primitives.push(Quantity::TrainingLast(order.into()));
     }
-    primitives.push(Quantity::Reach90("dos".into()));
-    primitives.push(Quantity::Reach90("doa".into()));
+    primitives.push(Quantity::Reach90(Curve::Dos));
+    primitives.push(Quantity::Reach90(Curve::Doa));
     // The authors' DoS and DoA, in experiments whose runs measure them (`authors_metrics`): their first
     // and last 100 episodes and their untrained start. Other experiments' columns are unchanged.
     if exp.runs.iter().any(|r| r.scene.authors_metrics) {
-        for curve in super::claims::AUTHORS_CURVES {
-            primitives.push(Quantity::TrainingFirst(curve.into()));
-            primitives.push(Quantity::TrainingLast(curve.into()));
-            primitives.push(Quantity::Start(curve.into()));
+        for curve in [Curve::AuthorsDos, Curve::AuthorsDoa] {
+            primitives.push(Quantity::TrainingFirst(curve.name().into()));
+            primitives.push(Quantity::TrainingLast(curve.name().into()));
+            primitives.push(Quantity::Start(curve));
         }
     }
     let named = |q: Quantity| (column(&q).expect("a primitive quantity has a column"), q);
@@ -93,15 +93,15 @@ pub fn columns(exp: &Experiment) -> Vec<(String, Quantity)> {
 pub fn curve_columns() -> Vec<(String, Quantity)> {
     let mut quantities = Vec::new();
     for curve in super::claims::CURVES {
-        quantities.push(Quantity::Start(curve.into()));
+        quantities.push(Quantity::Start(curve));
     }
-    for curve in ["dos", "doa"] {
-        quantities.push(Quantity::Extreme(curve.into()));
-        quantities.push(Quantity::ExtremeEpisode(curve.into()));
-        quantities.push(Quantity::AfterExtreme(curve.into()));
+    for curve in [Curve::Dos, Curve::Doa] {
+        quantities.push(Quantity::Extreme(curve));
+        quantities.push(Quantity::ExtremeEpisode(curve));
+        quantities.push(Quantity::AfterExtreme(curve));
     }
-    for curve in ["dos", "doa"] {
-        quantities.push(Quantity::Halfway(curve.into()));
+    for curve in [Curve::Dos, Curve::Doa] {
+        quantities.push(Quantity::Halfway(curve));
     }
     quantities.into_iter().map(|q| (column(&q).expect("a curve quantity has a column"), q)).collect()
 }
@@ -197,7 +197,7 @@ pub(crate) fn extend(
                 | Quantity::Extreme(o)
                 | Quantity::ExtremeEpisode(o)
                 | Quantity::AfterExtreme(o)
-                | Quantity::Halfway(o) => super::claims::curve_shape(q, d.curve(o)),
+                | Quantity::Halfway(o) => super::claims::curve_shape(q, d.curve(*o)),
                 _ => f64::NAN,
             });
             out.push_str(&field(v));

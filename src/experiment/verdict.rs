@@ -147,9 +147,8 @@ fn order_of(q: &Quantity) -> Option<&str> {
         | Quantity::FromStart(c)
         | Quantity::Extreme(c)
         | Quantity::AfterExtreme(c)
-        | Quantity::TrainingFirst(c)
-        | Quantity::TrainingLast(c) => Some(curve(c)),
-        Quantity::Fitted(c, Fit::Start | Fit::End) => Some(curve(c)),
+        | Quantity::Fitted(c, Fit::Start | Fit::End) => Some(curve(c.name())),
+        Quantity::TrainingFirst(c) | Quantity::TrainingLast(c) => Some(curve(c)),
         Quantity::EvalOrder(_, o)
         | Quantity::Interaction(_, o)
         | Quantity::Learned(_, o)

@@ -106,7 +106,7 @@ fn experiment_files_expand_to_runs_and_bad_ones_are_one_line() {
         ),
         (
             TINY.replace("quantity: DosChange, paper: -0.03", "quantity: FromStart(\"milling\")"),
-            "Start and FromStart take \"dos\", \"doa\", \"catches\", \"authors_dos\" or \"authors_doa\" (got \"milling\")",
+            "bad.ron:15: quantity: \"milling\" is no training curve: \"dos\", \"doa\", \"catches\", \"authors_dos\" or \"authors_doa\"",
         ),
         (
             // The code's metric is read only from runs that measure it.
