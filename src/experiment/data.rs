@@ -6,6 +6,7 @@ use super::file::eval_file;
 use super::file::Experiment;
 use super::runner::{stage, Stage};
 use super::stats::mean;
+use crate::learning::nets::Kernels;
 use crate::run::schema::{self, Table};
 use crate::run::RunDir;
 use crate::sim::metrics::Swarming;
@@ -164,15 +165,15 @@ fn check_one_binary(exp: &Experiment, data: &BTreeMap<usize, RunData>) -> crate:
     }
     // A variant on its own family (`kernels:`) runs on that one; the others on one family between them.
     if let Some((&i, d)) = data.iter().find(|&(&i, d)| {
-        let family = exp.runs[i].kernels.as_deref();
-        !d.kernels.is_empty() && family.is_some_and(|f| f != d.kernels && !(f == "avx2" && d.kernels == "avx2-fma"))
+        let family = exp.runs[i].kernels;
+        !d.kernels.is_empty() && family.is_some_and(|f| Some(f) != Kernels::parse(&d.kernels))
     }) {
         return Err(format!(
             "{}: {} ran on {} kernels, not its variant's {}; rerun it",
             exp.file.display(),
             exp.runs[i].dir.display(),
             d.kernels,
-            exp.runs[i].kernels.as_deref().unwrap_or_default()
+            exp.runs[i].kernels.map_or("", Kernels::name)
         )
         .into());
     }

@@ -151,7 +151,7 @@ pub(crate) struct VariantFile {
     /// kernel families, one binary (`--kernels` names them). Every run on a family other than its own is
     /// refused when results are aggregated.
     #[serde(default)]
-    pub(crate) kernels: Option<String>,
+    pub(crate) kernels: Option<crate::learning::nets::Kernels>,
     /// A grid's cell (`grid.rs`): its level on each axis, by index into the axis's levels, in the file's
     /// order of axes (their patches apply after `patch`); empty for a listed variant.
     #[serde(skip)]
@@ -663,7 +663,7 @@ pub struct Run {
     /// The variant's `same_training_as`: the `"EXPERIMENT/VARIANT"` this run is a declared re-training of.
     pub(crate) same_training_as: Option<String>,
     /// The variant's own kernel family (`kernels:`), None for the experiment's.
-    pub(crate) kernels: Option<String>,
+    pub(crate) kernels: Option<crate::learning::nets::Kernels>,
 }
 
 /// A loaded and validated experiment.

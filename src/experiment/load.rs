@@ -543,19 +543,11 @@ impl Experiment {
                         "a variant is shared (shared_from) or re-trained (same_training_as), not both".into(),
                     ));
                 }
-                if let Some(family) = &v.kernels {
-                    if !crate::learning::nets::FAMILIES.contains(&family.as_str()) {
-                        return Err(err(
-                            &field("kernels"),
-                            format!("{family:?}: one of {:?}", crate::learning::nets::FAMILIES),
-                        ));
-                    }
-                    if v.shared_from.is_some() || v.same_training_as.is_some() {
-                        return Err(err(
-                            &field("kernels"),
-                            "a shared or re-trained variant's runs are another's, on that one's kernels".into(),
-                        ));
-                    }
+                if v.kernels.is_some() && (v.shared_from.is_some() || v.same_training_as.is_some()) {
+                    return Err(err(
+                        &field("kernels"),
+                        "a shared or re-trained variant's runs are another's, on that one's kernels".into(),
+                    ));
                 }
                 let owner = match (&v.shared_from, share) {
                     (Some(from), true) => Some(
@@ -617,7 +609,7 @@ impl Experiment {
                         dir,
                         shared_from,
                         same_training_as: v.same_training_as.clone(),
-                        kernels: v.kernels.clone(),
+                        kernels: v.kernels,
                     });
                 }
             }

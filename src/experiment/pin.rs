@@ -117,7 +117,12 @@ pub(crate) fn executable(exp: &super::Experiment, given: Option<&Path>) -> Resul
         if given.is_some() {
             return Err(not_pinned(exp));
         }
-        return Ok(Executable { path: me, blake3: this, kernels: crate::learning::nets::kernels().into(), pin: None });
+        return Ok(Executable {
+            path: me,
+            blake3: this,
+            kernels: crate::learning::nets::kernels().name().into(),
+            pin: None,
+        });
     };
     if given.is_none() && pin.accepts(&this) {
         return Ok(Executable { path: me, blake3: this, kernels: pin.kernels.clone(), pin: Some(pin.clone()) });

@@ -167,7 +167,7 @@ pub(crate) fn complete_run(exp: &Experiment, run: &Run, exe: &Executable, thread
     let own;
     let exe = match &run.kernels {
         Some(family) => {
-            own = Executable { kernels: family.clone(), ..exe.clone() };
+            own = Executable { kernels: family.name().into(), ..exe.clone() };
             &own
         }
         None => exe,
@@ -468,8 +468,9 @@ pub(crate) fn run(exp: &Experiment, opts: &RunnerOptions, only: Option<usize>) -
             )
             .into());
         }
-        let family = |i: usize| exp.runs[i].kernels.as_deref().unwrap_or(kernels);
-        if let Some((&i, other)) = elsewhere.iter().find(|&(&i, e)| !e.kernels.is_empty() && e.kernels != family(i)) {
+        let family = |i: usize| exp.runs[i].kernels.or(crate::learning::nets::Kernels::parse(kernels));
+        let differs = |i: usize, e: &str| crate::learning::nets::Kernels::parse(e) != family(i);
+        if let Some((&i, other)) = elsewhere.iter().find(|&(&i, e)| !e.kernels.is_empty() && differs(i, &e.kernels)) {
             return Err(format!(
                 "{}: the committed run {} ran on {} kernels and this machine runs {kernels}; pin them (COEVO_KERNELS={} or --kernels), or set mixed_binaries: true",
                 exp.file.display(),

@@ -41,7 +41,10 @@ impl Training {
             preset: run.preset.clone(),
             variant: run.variant.clone(),
             seed: run.seed,
-            key: (crate::learning::tensors::scene_id(&run.scene), Training::binary_on(binary, run.kernels.as_deref())),
+            key: (
+                crate::learning::tensors::scene_id(&run.scene),
+                Training::binary_on(binary, run.kernels.map(|k| k.name())),
+            ),
             declared: run.same_training_as.clone(),
             seconds: if seconds.is_finite() { seconds.max(0.0) } else { 0.0 },
             outcome: None,

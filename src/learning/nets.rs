@@ -10,35 +10,118 @@ use rand_chacha::ChaCha8Rng;
 
 pub type Dev = Cpu;
 
-/// The family of matrix-product kernels this process runs (gemm 0.19, for dfdx's products and the fused
-/// update's): as gemm chooses at run time (AVX-512 where the CPU has it, else AVX2/FMA, else portable
-/// code) unless pinned by [`pin_kernels`]. Results are bit-identical within a family at any thread count;
-/// across families they may differ in the last bits, so a run records its family (`provenance.ron`) and
-/// is resumed only on the same one.
-pub(crate) fn kernels() -> &'static str {
+/// A family of matrix-product kernels: gemm's (0.19, for dfdx's products and the fused update's) or one of
+/// coevo's own for the update's products. Results are bit-identical within a family at any thread count;
+/// across families they may differ in the last bits, so a run records its family (`provenance.ron`, by
+/// [`Kernels::name`]) and is resumed only on the same one.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Kernels {
+    /// gemm's AVX-512 kernels.
+    Avx512,
+    /// `super::direct`: coevo's f32 AVX-512 kernels for the update's products.
+    Avx512Direct,
+    /// `super::bf16`: bf16 operands, f32 sums, on AVX512-BF16.
+    Avx512Bf16,
+    /// gemm's AVX2/FMA kernels (`--kernels avx2`).
+    Avx2Fma,
+    /// gemm's portable code.
+    Portable,
+}
+
+impl Kernels {
+    pub const ALL: [Kernels; 5] =
+        [Kernels::Avx512, Kernels::Avx512Direct, Kernels::Avx512Bf16, Kernels::Avx2Fma, Kernels::Portable];
+
+    /// As runs record it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Kernels::Avx512 => "avx512",
+            Kernels::Avx512Direct => "avx512-direct",
+            Kernels::Avx512Bf16 => "avx512-bf16",
+            Kernels::Avx2Fma => "avx2-fma",
+            Kernels::Portable => "portable",
+        }
+    }
+
+    /// A family as a record, `--kernels` or an experiment file names it (`avx2` is `avx2-fma`).
+    pub fn parse(name: &str) -> Option<Kernels> {
+        match name {
+            "avx2" => Some(Kernels::Avx2Fma),
+            name => Kernels::ALL.into_iter().find(|k| k.name() == name),
+        }
+    }
+
+    /// Which of coevo's own kernels run the update's products instead of gemm's, if any.
+    fn own(self) -> Own {
+        match self {
+            Kernels::Avx512Direct => Own::Direct,
+            Kernels::Avx512Bf16 => Own::Bf16,
+            Kernels::Avx512 | Kernels::Avx2Fma | Kernels::Portable => Own::None,
+        }
+    }
+}
+
+impl std::fmt::Display for Kernels {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// As experiment files name a family (`kernels: Some("avx512-bf16")`).
+impl<'de> serde::Deserialize<'de> for Kernels {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Kernels, D::Error> {
+        let name = String::deserialize(d)?;
+        Kernels::parse(&name).ok_or_else(|| {
+            serde::de::Error::custom(format!(
+                "{name:?} is no kernel family: avx512, avx512-direct, avx512-bf16, avx2 or portable"
+            ))
+        })
+    }
+}
+
+/// What `--kernels` and `COEVO_KERNELS` ask for: a family, or gemm's choice for this CPU.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum KernelChoice {
+    Auto,
+    Family(Kernels),
+}
+
+impl std::str::FromStr for KernelChoice {
+    type Err = String;
+
+    fn from_str(text: &str) -> Result<KernelChoice, String> {
+        match text {
+            "auto" => Ok(KernelChoice::Auto),
+            name => Kernels::parse(name)
+                .map(KernelChoice::Family)
+                .ok_or_else(|| format!("must be {KERNEL_CHOICES} (got {text:?})")),
+        }
+    }
+}
+
+/// The family this process runs: as gemm chooses at run time (AVX-512 where the CPU has it, else
+/// AVX2/FMA, else portable code) unless pinned by [`pin_kernels`].
+pub(crate) fn kernels() -> Kernels {
     match own_kernels() {
-        Own::Direct => return "avx512-direct",
-        Own::Bf16 => return "avx512-bf16",
+        Own::Direct => return Kernels::Avx512Direct,
+        Own::Bf16 => return Kernels::Avx512Bf16,
         Own::None => {}
     }
     #[cfg(target_arch = "x86_64")]
     {
         use gemm_common::kernel_cap::{get, AUTO, AVX2_FMA};
         if get() == AUTO && std::arch::is_x86_feature_detected!("avx512f") {
-            return "avx512";
+            return Kernels::Avx512;
         }
         if get() <= AVX2_FMA && std::arch::is_x86_feature_detected!("fma") {
-            return "avx2-fma";
+            return Kernels::Avx2Fma;
         }
     }
-    "portable"
+    Kernels::Portable
 }
 
 /// The families `--kernels` and `COEVO_KERNELS` accept.
 pub(crate) const KERNEL_CHOICES: &str = "auto, avx512, avx512-direct, avx512-bf16, avx2 or portable";
-
-/// The families a run can be pinned to and records (`auto` chooses one of them).
-pub(crate) const FAMILIES: [&str; 5] = ["avx512", "avx512-direct", "avx512-bf16", "avx2", "portable"];
 
 /// Which of coevo's own kernels run the update's products instead of gemm's, if any.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -62,35 +145,36 @@ pub(crate) fn own_kernels() -> Own {
     }
 }
 
-/// Pins the kernel family (`auto`, `avx512`, `avx2`, `portable`), so that machines with different CPUs
-/// compute identical runs: e.g. `avx2` on a cluster whose nodes only partly have AVX-512. gemm fixes its
-/// choice at its first product, so this must run before the first network is used (the CLI does it
-/// first). Err names what is wrong: an unknown family, or one this CPU cannot run.
-pub(crate) fn pin_kernels(family: &str) -> Result<(), String> {
+/// Pins the kernel family, so that machines with different CPUs compute identical runs: e.g. `avx2` on a
+/// cluster whose nodes only partly have AVX-512. gemm fixes its choice at its first product, so this must
+/// run before the first network is used (the CLI does it first). Err names a family this CPU cannot run.
+pub(crate) fn pin_kernels(choice: KernelChoice) -> Result<(), String> {
     use gemm_common::kernel_cap::{set, AUTO, AVX2_FMA, PORTABLE};
     #[cfg(target_arch = "x86_64")]
     let (avx512, fma) = (std::arch::is_x86_feature_detected!("avx512f"), std::arch::is_x86_feature_detected!("fma"));
     #[cfg(not(target_arch = "x86_64"))]
     let (avx512, fma) = (false, false);
-    let cap = match family {
-        "avx512-direct" if super::direct::available() => AUTO,
-        "avx512-bf16" if super::bf16::available() => AUTO,
-        "avx512-direct" | "avx512-bf16" => {
-            return Err(format!("this CPU cannot run the {family} kernels (it runs {})", kernels()))
-        }
-        "auto" => AUTO,
-        "avx512" if avx512 => AUTO,
-        "avx2" | "avx2-fma" if fma => AVX2_FMA,
-        "portable" => PORTABLE,
-        "avx512" | "avx2" | "avx2-fma" => {
-            return Err(format!("this CPU cannot run the {family} kernels (it runs {})", kernels()));
-        }
-        other => return Err(format!("must be {KERNEL_CHOICES} (got {other:?})")),
+    let runs = |can: bool, family: Kernels| match can {
+        true => Ok(()),
+        false => Err(format!("this CPU cannot run the {family} kernels (it runs {})", kernels())),
     };
-    let own = match family {
-        "avx512-direct" => 1,
-        "avx512-bf16" => 2,
-        _ => 0,
+    let (cap, own) = match choice {
+        KernelChoice::Auto => (AUTO, Own::None),
+        KernelChoice::Family(family) => {
+            let cap = match family {
+                Kernels::Avx512Direct => runs(super::direct::available(), family).map(|()| AUTO)?,
+                Kernels::Avx512Bf16 => runs(super::bf16::available(), family).map(|()| AUTO)?,
+                Kernels::Avx512 => runs(avx512, family).map(|()| AUTO)?,
+                Kernels::Avx2Fma => runs(fma, family).map(|()| AVX2_FMA)?,
+                Kernels::Portable => PORTABLE,
+            };
+            (cap, family.own())
+        }
+    };
+    let own = match own {
+        Own::None => 0,
+        Own::Direct => 1,
+        Own::Bf16 => 2,
     };
     OWN.store(own, std::sync::atomic::Ordering::Relaxed);
     set(cap);

@@ -94,11 +94,10 @@ impl CommonArgs {
             }
             (None, None) => {}
         }
+        let pin = |text: &str| text.parse().and_then(crate::learning::nets::pin_kernels);
         match (&self.kernels, environment("COEVO_KERNELS")?) {
-            (Some(family), _) => crate::learning::nets::pin_kernels(family).map_err(|e| format!("--kernels: {e}"))?,
-            (None, Some(family)) => {
-                crate::learning::nets::pin_kernels(&family).map_err(|e| format!("COEVO_KERNELS: {e}"))?
-            }
+            (Some(family), _) => pin(family).map_err(|e| format!("--kernels: {e}"))?,
+            (None, Some(family)) => pin(&family).map_err(|e| format!("COEVO_KERNELS: {e}"))?,
             (None, None) => {}
         }
         Ok(())

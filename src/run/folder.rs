@@ -521,9 +521,10 @@ impl RunDir {
     /// the continuation would differ in the last bits from the uninterrupted run.
     pub(crate) fn check_kernels(&self) -> crate::error::Result<()> {
         (|| -> crate::error::Result<()> {
+            use crate::learning::nets::Kernels;
             let now = crate::learning::nets::kernels();
             match self.read_provenance()? {
-                Some(p) if !p.kernels.is_empty() && p.kernels != now => Err(format!(
+                Some(p) if !p.kernels.is_empty() && Kernels::parse(&p.kernels) != Some(now) => Err(format!(
                     "{}: the run was trained on {} kernels and this machine runs {now}; continued here it would differ from an uninterrupted run (provenance.ron)",
                     self.path.display(),
                     p.kernels
