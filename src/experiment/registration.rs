@@ -123,9 +123,12 @@ impl Repo {
             let end = rest.iter().position(|&b| b == b'\n').ok_or("git cat-file: a truncated answer")?;
             let header = String::from_utf8_lossy(&rest[..end]).into_owned();
             rest = &rest[end + 1..];
+            // "<spec> missing" names the spec as asked, which may hold spaces (a file's path).
+            if header.ends_with(" missing") {
+                continue;
+            }
             let size = match header.split(' ').collect::<Vec<_>>()[..] {
                 [_, "blob", size] => size.parse::<usize>().ok(),
-                [_, "missing"] => continue,
                 _ => None,
             };
             let Some(size) = size.filter(|size| rest.len() > *size) else {
