@@ -220,8 +220,10 @@ class CoevoParallelEnv(_ParallelEnv):
         return self._env.scene_ron()
 
     def save_run(self, path: str) -> None:
-        """Saves coevo's side (``coevolve``) into the new folder ``path`` as ``coevo --train`` leaves a run:
-        ``metrics.csv``, its actors' snapshots (an opponent pool) and the checkpoint. Between episodes."""
+        """Saves coevo's side (``coevolve``) into the new folder ``path``, written as ``coevo --train`` writes a
+        run: ``metrics.csv``, its actors' snapshots (an opponent pool) and the checkpoint, whose actors load
+        as ``Frozen(path)`` opponents. Between episodes (after the reset that follows a truncation); refused
+        once a reset has cut an episode short. ``reset(seed=...)`` starts coevo's side afresh."""
         self._env.save_run(str(path))
 
     def coevo_actor(self, species: str) -> list[np.ndarray]:
@@ -446,7 +448,7 @@ class VecEnv:
 
     def save_run(self, world: int, path: str) -> None:
         """Saves world ``world``'s run of coevo's side (``coevolve``) into the new folder ``path``: right after
-        a step that ended that world's episode, or after a reset."""
+        a step that ended that world's episode (refused once a ``reset()`` has cut episodes short)."""
         self._open("save_run").save_run(world, str(path))
 
     def coevo_actor(self, world: int, species: str) -> list[np.ndarray]:

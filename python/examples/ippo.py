@@ -76,9 +76,12 @@ class Args:
     threads: int = 0  # threads stepping the worlds (0: every core, or COEVO_THREADS)
     # Species coevo keeps training with its own DDPG (Algorithm 1) in the same worlds while PPO trains the rest,
     # e.g. "predator": PPO prey against predators that keep learning. Each world's predators learn from that
-    # world alone; world 0's are saved as a run folder, OUT/coevo-world0, at the end.
+    # world alone; world 0's are saved as a run folder, OUT/coevo-world0, at the end. OUT's checkpoint then
+    # holds the PPO species' actors only: evaluate them in a scene whose predators are
+    # Frozen("OUT/coevo-world0") (`coevo --eval OUT` would look for a predator actor in OUT).
     coevolve: str = ""
-    coevolve_schedule: str = "learning"  # or "frozen", or "alternate:K" (K episodes each, coevo's side first)
+    # or "frozen", or "alternate:K": coevo's side learns K episodes, then is held K; PPO learns throughout.
+    coevolve_schedule: str = "learning"
 
 
 def mlp(d_in: int, hidden: int, d_out: int, tanh_out: bool) -> nn.Sequential:

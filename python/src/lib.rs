@@ -342,7 +342,7 @@ impl VecEnv {
     }
 
     /// Saves world `world`'s run of coevo's side (`coevolve`) into the new folder `path`, as a single env's
-    /// `save_run`; right after a step that ended that world's episode, or after a reset.
+    /// `save_run`; right after a step that ended that world's episode.
     fn save_run(&mut self, world: usize, path: &str) -> PyResult<()> {
         self.inner.save_run(world, Path::new(path)).map_err(err)
     }

@@ -35,7 +35,10 @@ pub(crate) fn check(exp: &Experiment) -> Result<Checked> {
         return Ok(Checked::Not(format!("{} is outside the repository", exp.file.display())));
     };
     let registered = repo.registered(&file)?;
-    let first_rows = FirstRows::of(exp, &repo)?;
+    let first_rows = match FirstRows::of(exp, &repo)? {
+        Ok(rows) => rows,
+        Err(why) => return Ok(Checked::Not(why)),
+    };
     for claim in exp.spec.claims.iter().filter(|c| !c.exploratory) {
         let Some((row, summary)) = first_rows.of_claim(exp, claim) else { continue };
         let at = registered.get(&registry::test_fingerprint(claim)).copied();
@@ -83,11 +86,15 @@ impl Repo {
         Ok(Repo { top, commits, position })
     }
 
-    /// `path` relative to the repository's top, None outside it.
+    /// `path` relative to the repository's top, None outside it. A folder that is not in the working tree
+    /// (results removed, yet committed) is taken as written.
     fn relative(&self, path: &Path) -> Option<String> {
         let path = std::path::absolute(path).ok()?;
         let top = std::fs::canonicalize(&self.top).ok()?;
-        let path = std::fs::canonicalize(path.parent()?).ok()?.join(path.file_name()?);
+        let path = match std::fs::canonicalize(path.parent()?) {
+            Ok(parent) => parent.join(path.file_name()?),
+            Err(_) => path,
+        };
         Some(path.strip_prefix(top).ok()?.to_string_lossy().into_owned())
     }
 
@@ -167,22 +174,24 @@ struct FirstRows {
 }
 
 impl FirstRows {
-    fn of(exp: &Experiment, repo: &Repo) -> Result<FirstRows> {
+    /// The first rows of every summary `exp` reads, or why one cannot be read from the history.
+    fn of(exp: &Experiment, repo: &Repo) -> Result<std::result::Result<FirstRows, String>> {
         let mut by_summary = HashMap::new();
         let summaries: BTreeSet<PathBuf> =
             exp.spec.variants.iter().flat_map(|v| sources(exp, &v.name)).map(|(s, _)| s).collect();
         for summary in summaries {
             let mut first = HashMap::new();
-            if let Some(path) = repo.relative(&summary) {
-                for (at, text) in repo.versions(&path, false)? {
-                    for variant in variants_in(&text) {
-                        first.entry(variant).or_insert(at);
-                    }
+            let Some(path) = repo.relative(&summary) else {
+                return Ok(Err(format!("{} is outside the repository", summary.display())));
+            };
+            for (at, text) in repo.versions(&path, false)? {
+                for variant in variants_in(&text) {
+                    first.entry(variant).or_insert(at);
                 }
             }
             by_summary.insert(summary, first);
         }
-        Ok(FirstRows { by_summary })
+        Ok(Ok(FirstRows { by_summary }))
     }
 
     /// The first commit holding a row the claim judges, and the summary it is in; None when none is

@@ -469,7 +469,10 @@ pub(crate) fn run(exp: &Experiment, opts: &RunnerOptions, only: Option<usize>) -
             .into());
         }
         let family = |i: usize| exp.runs[i].kernels.or(crate::learning::nets::Kernels::parse(kernels));
-        let differs = |i: usize, e: &str| crate::learning::nets::Kernels::parse(e) != family(i);
+        let differs = |i: usize, e: &str| {
+            let recorded = crate::learning::nets::Kernels::parse(e);
+            recorded.is_none() || recorded != family(i)
+        };
         if let Some((&i, other)) = elsewhere.iter().find(|&(&i, e)| !e.kernels.is_empty() && differs(i, &e.kernels)) {
             return Err(format!(
                 "{}: the committed run {} ran on {} kernels and this machine runs {kernels}; pin them (COEVO_KERNELS={} or --kernels), or set mixed_binaries: true",

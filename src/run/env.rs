@@ -171,6 +171,15 @@ impl Env {
             .filter(|&s| scene.species[s].policy == Policy::Learned)
             .filter(|&s| !coevolve.species.contains(&scene.species[s].name))
             .collect();
+        if let Some(s) =
+            (0..scene.species.len()).find(|&s| coevolve.species.contains(&scene.species[s].name) && resolved.touches(s))
+        {
+            return Err(format!(
+                "control: {} is coevo's (coevolve): a control alters what the outside learner is handed, so it names species decided from outside",
+                scene.species[s].name
+            ))
+            .kind(Kind::Input);
+        }
         if learned.is_empty() {
             let why = match coevolve.species.is_empty() {
                 true => "the scene has no Learned species to decide from outside",
@@ -230,10 +239,12 @@ impl Env {
         }
     }
 
-    /// Saves coevo's side of the run into a new folder `dir` as `--train` leaves a run stopped at this
-    /// episode: `scene.ron` (the outside species' policy `Plugin("external")`), `provenance.ron`,
-    /// `metrics.csv` (coevo's species learning), its actors' snapshots and the checkpoint. Between episodes
-    /// only (after a reset), and only when coevo trains a side ([`Coevolve`]).
+    /// Saves coevo's side of the run into a new folder `dir`, written as `--train` writes a run folder:
+    /// `scene.ron` (the outside species' policy `Plugin("external")`, so `--resume` and `--eval` refuse the
+    /// folder), `provenance.ron`, `metrics.csv` (coevo's species learning), its actors' snapshots and the
+    /// checkpoint, whose actors load elsewhere as `Frozen(dir)` opponents. Between episodes only (after the
+    /// reset that follows an episode's last step), only when coevo trains a side ([`Coevolve`]), and never
+    /// after a reset cut an episode short.
     pub fn save_run(&mut self, dir: &std::path::Path) -> crate::error::Result<()> {
         if !self.world.contains_resource::<super::live::LiveRun>() {
             return Err("save_run: coevo trains no species in this env (coevolve names none)").kind(Kind::Input);
@@ -299,6 +310,16 @@ impl Env {
                 *self = Env::with_options(scene, self.control.clone(), self.coevolve.clone())?;
             }
             None => {
+                let cut = self.world.resource::<Episode>().step < self.scene.episode_steps;
+                if cut {
+                    // coevo's side misses that episode's end (its updates, its metrics row): no longer the
+                    // run `--train` would make, so it is not saved.
+                    if let Some(mut run) = self.world.get_resource_mut::<super::live::LiveRun>() {
+                        run.altered.get_or_insert_with(|| {
+                            "an episode was cut short by a reset before its last step".to_string()
+                        });
+                    }
+                }
                 crate::sim::episode::next_episode(&mut self.world);
                 if !self.coevolve.species.is_empty() {
                     self.hold_or_release();
@@ -595,7 +616,8 @@ impl VecEnv {
     }
 
     /// Saves world `world`'s run of coevo's side ([`Env::save_run`]); between episodes, so right after a
-    /// step that ended that world's episode (the world then stands at its next episode's start) or a reset.
+    /// step that ended that world's episode (the world then stands at its next episode's start). A reset
+    /// that cut an episode short leaves the run unsaveable ([`Env::reset`]).
     pub fn save_run(&mut self, world: usize, dir: &std::path::Path) -> crate::error::Result<()> {
         let n = self.envs.len();
         let Some(env) = self.envs.get_mut(world) else {

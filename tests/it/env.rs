@@ -312,9 +312,25 @@ fn coevo_s_side_is_saved_as_a_run_folder_and_refusals_are_one_line() {
     assert!(both.contains("none is left to decide from outside"), "{both}");
     let zero = refused(Coevolve { species: vec!["predator".into()], schedule: Schedule::Alternate { every: 0 } });
     assert!(zero.contains("every 0 episodes"), "{zero}");
+    let controlled = Env::with_options(
+        quick(5),
+        coevo::learning::control::ObservationControl::parse(&["blind:predator:prey".to_string()]).unwrap(),
+        coevolve(Schedule::Learning),
+    )
+    .err()
+    .unwrap()
+    .to_string();
+    assert!(controlled.contains("predator is coevo's"), "{controlled}");
+    // A reset that cuts an episode short leaves coevo's side without that episode's end: not saved.
+    let mut cut = Env::with_options(quick(5), Default::default(), coevolve(Schedule::Learning)).unwrap();
+    let first = cut.reset(Some(5)).unwrap();
+    cut.step(&vec![0.0; first.len() / cut.obs_dim() * 2]).unwrap();
+    cut.reset(None).unwrap();
+    let refused_cut = cut.save_run(&dir.path().join("cut")).unwrap_err().to_string();
+    assert!(refused_cut.contains("cut short"), "{refused_cut}");
     let plain = Env::new(quick(5)).unwrap().save_run(&dir.path().join("other")).unwrap_err().to_string();
     assert!(plain.contains("coevolve names none"), "{plain}");
-    for message in [unknown, both, zero, plain] {
+    for message in [unknown, both, zero, plain, controlled, refused_cut] {
         assert!(!message.contains('\n'), "{message}");
     }
 }
