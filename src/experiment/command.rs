@@ -439,13 +439,10 @@ pub(crate) fn plot(dir: &Path, partial: bool) -> crate::error::Result<()> {
 /// Refuses a claim stated after the first committed row it judges ([`super::registration`]); where no
 /// history can be read, the reason, which the caller says once its work is done (a refusal stays one line).
 fn check_registered<'a>(experiments: impl IntoIterator<Item = &'a Experiment>) -> crate::error::Result<Unchecked> {
-    let mut unchecked = None;
-    for exp in experiments {
-        if let super::registration::Checked::Not(why) = super::registration::check(exp)? {
-            unchecked.get_or_insert(why);
-        }
-    }
-    Ok(Unchecked(unchecked))
+    Ok(Unchecked(match super::registration::check(experiments)? {
+        super::registration::Checked::Yes => None,
+        super::registration::Checked::Not(why) => Some(why),
+    }))
 }
 
 /// Why the order of registration and data was not checked, if it was not ([`check_registered`]).

@@ -25,38 +25,46 @@ pub(crate) enum Checked {
 }
 
 /// Refuses an experiment one of whose claims was not committed before the first committed per-run row it
-/// judges, naming the file, the claim, both commits and the way out.
-pub(crate) fn check(exp: &Experiment) -> Result<Checked> {
-    let repo = match Repo::of(&exp.file) {
-        Ok(repo) => repo,
-        Err(why) => return Ok(Checked::Not(why)),
-    };
-    let Some(file) = repo.relative(&exp.file) else {
-        return Ok(Checked::Not(format!("{} is outside the repository", exp.file.display())));
-    };
-    let registered = repo.registered(&file)?;
-    let first_rows = match FirstRows::of(exp, &repo)? {
-        Ok(rows) => rows,
-        Err(why) => return Ok(Checked::Not(why)),
-    };
-    for claim in exp.spec.claims.iter().filter(|c| !c.exploratory) {
-        let Some((row, summary)) = first_rows.of_claim(exp, claim) else { continue };
-        let at = registered.get(&registry::test_fingerprint(claim)).copied();
-        if at.is_some_and(|at| at < row) {
-            continue;
-        }
-        let stated = match at {
-            Some(at) => format!("what it tests was first committed in {}", repo.short(at)),
-            None => "what it tests is in no commit of the file".to_string(),
+/// judges, naming the file, the claim, both commits and the way out. The history is read once for all of
+/// `experiments` (one repository, each summary's versions once, however many experiments share from it).
+pub(crate) fn check<'a>(experiments: impl IntoIterator<Item = &'a Experiment>) -> Result<Checked> {
+    let mut repo: Option<Repo> = None;
+    let mut rows = HashMap::new();
+    for exp in experiments {
+        let repo = match repo.as_ref() {
+            Some(repo) => repo,
+            None => match Repo::of(&exp.file) {
+                Ok(made) => repo.insert(made),
+                Err(why) => return Ok(Checked::Not(why)),
+            },
         };
-        return Err(format!(
-            "{}: claim {:?}: {stated}, not before its first committed per-run row ({}, {}); nothing aggregated: mark it `exploratory: true`, or state it before its runs",
-            exp.file.display(),
-            claim.text,
-            repo.short(row),
-            summary.display(),
-        )
-        .into());
+        let Some(file) = repo.relative(&exp.file) else {
+            return Ok(Checked::Not(format!("{} is outside the repository", exp.file.display())));
+        };
+        let registered = repo.registered(&file)?;
+        let first_rows = match FirstRows::of(exp, repo, &mut rows)? {
+            Ok(first_rows) => first_rows,
+            Err(why) => return Ok(Checked::Not(why)),
+        };
+        for claim in exp.spec.claims.iter().filter(|c| !c.exploratory) {
+            let Some((row, summary)) = first_rows.of_claim(exp, claim) else { continue };
+            let at = registered.get(&registry::test_fingerprint(claim)).copied();
+            if at.is_some_and(|at| at < row) {
+                continue;
+            }
+            let stated = match at {
+                Some(at) => format!("what it tests was first committed in {}", repo.short(at)),
+                None => "what it tests is in no commit of the file".to_string(),
+            };
+            return Err(format!(
+                "{}: claim {:?}: {stated}, not before its first committed per-run row ({}, {}); nothing aggregated: mark it `exploratory: true`, or state it before its runs",
+                exp.file.display(),
+                claim.text,
+                repo.short(row),
+                summary.display(),
+            )
+            .into());
+        }
     }
     Ok(Checked::Yes)
 }
@@ -72,14 +80,14 @@ impl Repo {
     /// The repository holding `file`, or why its history cannot be read.
     fn of(file: &Path) -> std::result::Result<Repo, String> {
         let dir = file.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
-        let out = git(dir, &["rev-parse", "--show-toplevel", "--is-shallow-repository"], None)
+        let out = git(dir, &["rev-parse", "--show-toplevel", "--is-shallow-repository"])
             .ok_or_else(|| format!("{} is not in a git repository", file.display()))?;
         let mut lines = out.lines();
         let top = PathBuf::from(lines.next().unwrap_or_default());
         if lines.next() == Some("true") {
             return Err(format!("{} is in a shallow clone, whose history is cut", top.display()));
         }
-        let listed = git(&top, &["rev-list", "--reverse", "--topo-order", "HEAD"], None)
+        let listed = git(&top, &["rev-list", "--reverse", "--topo-order", "HEAD"])
             .ok_or_else(|| format!("{} has no commit", top.display()))?;
         let commits: Vec<String> = listed.lines().map(str::to_string).collect();
         let position = commits.iter().enumerate().map(|(i, c)| (c.clone(), i)).collect();
@@ -110,7 +118,7 @@ impl Repo {
             args.push("--follow");
         }
         args.extend(["--", path]);
-        let Some(log) = git(&self.top, &args, None) else { return Ok(Vec::new()) };
+        let Some(log) = git(&self.top, &args) else { return Ok(Vec::new()) };
         let mut specs = Vec::new();
         let mut commit = None;
         for line in log.lines().filter(|l| !l.is_empty()) {
@@ -169,17 +177,24 @@ impl Repo {
 }
 
 /// For each summary an experiment's rows are committed in, the first commit holding a row of each variant.
-struct FirstRows {
-    by_summary: HashMap<PathBuf, HashMap<String, usize>>,
+struct FirstRows<'a> {
+    by_summary: &'a HashMap<PathBuf, HashMap<String, usize>>,
 }
 
-impl FirstRows {
-    /// The first rows of every summary `exp` reads, or why one cannot be read from the history.
-    fn of(exp: &Experiment, repo: &Repo) -> Result<std::result::Result<FirstRows, String>> {
-        let mut by_summary = HashMap::new();
+impl<'a> FirstRows<'a> {
+    /// The first rows of every summary `exp` reads (read from the history into `read` when not there
+    /// yet), or why one cannot be read from the history.
+    fn of(
+        exp: &Experiment,
+        repo: &Repo,
+        read: &'a mut HashMap<PathBuf, HashMap<String, usize>>,
+    ) -> Result<std::result::Result<FirstRows<'a>, String>> {
         let summaries: BTreeSet<PathBuf> =
             exp.spec.variants.iter().flat_map(|v| sources(exp, &v.name)).map(|(s, _)| s).collect();
         for summary in summaries {
+            if read.contains_key(&summary) {
+                continue;
+            }
             let mut first = HashMap::new();
             let Some(path) = repo.relative(&summary) else {
                 return Ok(Err(format!("{} is outside the repository", summary.display())));
@@ -189,9 +204,9 @@ impl FirstRows {
                     first.entry(variant).or_insert(at);
                 }
             }
-            by_summary.insert(summary, first);
+            read.insert(summary, first);
         }
-        Ok(Ok(FirstRows { by_summary }))
+        Ok(Ok(FirstRows { by_summary: read }))
     }
 
     /// The first commit holding a row the claim judges, and the summary it is in; None when none is
@@ -230,8 +245,8 @@ fn variants_in(text: &str) -> BTreeSet<String> {
     reader.records().filter_map(|r| Some(r.ok()?.get(column)?.to_string())).collect()
 }
 
-fn git(dir: &Path, args: &[&str], input: Option<&[u8]>) -> Option<String> {
-    git_bytes(dir, args, input).map(|out| String::from_utf8_lossy(&out).trim_end().to_string())
+fn git(dir: &Path, args: &[&str]) -> Option<String> {
+    git_bytes(dir, args, None).map(|out| String::from_utf8_lossy(&out).trim_end().to_string())
 }
 
 /// `git -C dir ARGS` with `input` on its standard input: its standard output when it succeeds.
@@ -306,7 +321,7 @@ mod tests {
         fn check(&self) -> Result<Checked> {
             let dir = self.0.path();
             let exp = Experiment::load(&dir.join("experiments/reg.ron"), &dir.join("results")).unwrap();
-            check(&exp)
+            check([&exp])
         }
     }
 
@@ -362,7 +377,7 @@ mod tests {
         std::fs::create_dir_all(dir.path().join("experiments")).unwrap();
         std::fs::write(dir.path().join("experiments/reg.ron"), file(FALLS, false)).unwrap();
         let exp = Experiment::load(&dir.path().join("experiments/reg.ron"), &dir.path().join("results")).unwrap();
-        assert!(matches!(check(&exp).unwrap(), Checked::Not(why) if why.contains("not in a git repository")));
+        assert!(matches!(check([&exp]).unwrap(), Checked::Not(why) if why.contains("not in a git repository")));
     }
 
     /// The project's own experiments, in this repository's history: every claim stated before the first
@@ -370,16 +385,15 @@ mod tests {
     /// checked.
     #[test]
     fn the_projects_claims_were_stated_before_their_rows_or_are_marked() {
-        for file in Experiment::files(Path::new("experiments")).unwrap() {
-            let exp = Experiment::load(&file, Path::new("results")).unwrap();
-            match check(&exp) {
-                Ok(Checked::Yes) => {}
-                Ok(Checked::Not(why)) => {
-                    eprintln!("not checked: {why}");
-                    return;
-                }
-                Err(e) => panic!("{}", e.message),
-            }
+        let experiments: Vec<Experiment> = Experiment::files(Path::new("experiments"))
+            .unwrap()
+            .iter()
+            .map(|file| Experiment::load(file, Path::new("results")).unwrap())
+            .collect();
+        match check(&experiments) {
+            Ok(Checked::Yes) => {}
+            Ok(Checked::Not(why)) => eprintln!("not checked: {why}"),
+            Err(e) => panic!("{}", e.message),
         }
     }
 }
