@@ -48,6 +48,9 @@ pub(crate) struct EvalData {
     pub(crate) confusion: Vec<[f64; 3]>,
     /// With a perturbation: the near and far responses ([`Quantity::Response`]); NaN otherwise.
     pub(crate) response: [f64; 2],
+    /// Each [`super::file::Tactic`] in the order of `Tactic::ALL` (NaN where the files give none: an older
+    /// coevo wrote no `-pursuit` file).
+    pub(crate) tactics: [f64; super::file::Tactic::ALL.len()],
 }
 
 impl EvalData {

@@ -66,6 +66,8 @@ pub(crate) fn curve_argument_error(q: &Quantity) -> Option<String> {
         | Quantity::Reaches(..)
         | Quantity::Fitted(..)
         | Quantity::Response(..)
+        | Quantity::Tactic(..)
+        | Quantity::TacticLearned(..)
         | Quantity::Crossplay(_) => None,
     }
 }
@@ -275,6 +277,8 @@ pub(crate) fn curve_shape(q: &Quantity, series: &[f64]) -> f64 {
         | Quantity::ExtremeEpisode(_)
         | Quantity::AfterExtreme(_)
         | Quantity::Response(..)
+        | Quantity::Tactic(..)
+        | Quantity::TacticLearned(..)
         | Quantity::Crossplay(_) => f64::NAN,
     }
 }

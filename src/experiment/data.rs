@@ -3,7 +3,7 @@
 
 use super::claims::{EvalData, RunData};
 use super::file::eval_file;
-use super::file::Experiment;
+use super::file::{Experiment, Tactic, EARLY_STEPS};
 use super::runner::{stage, Stage};
 use super::stats::mean;
 use crate::learning::nets::Kernels;
@@ -26,6 +26,74 @@ fn read_confusion(path: &Path) -> crate::error::Result<Vec<[f64; 3]>> {
     let first = rows.first().map(|r| r[0]).unwrap_or_default();
     let cell = |c: &str| c.parse::<f64>().unwrap_or(f64::NAN);
     Ok(rows.iter().filter(|r| r[0] == first).map(|r| [cell(r[3]), cell(r[4]), cell(r[5])]).collect())
+}
+
+/// Each [`Tactic`] of an evaluation from its `-confusion` and `-pursuit` files (`run::evaluate`), in the
+/// order of `Tactic::ALL`; NaN for what the files do not give (an older coevo wrote no `-pursuit` file).
+fn read_tactics(confusion: &Path, pursuit: &Path) -> crate::error::Result<[f64; Tactic::ALL.len()]> {
+    let mut out = [f64::NAN; Tactic::ALL.len()];
+    let cell = |c: &str| c.parse::<f64>().unwrap_or(f64::NAN);
+    if confusion.exists() {
+        // The first species' bins: (lowest count, decisions, mean |turn|, mean speed fraction).
+        let text = crate::io::read_text(confusion, crate::io::MAX_TEXT_BYTES)?;
+        let rows: Vec<Vec<&str>> =
+            text.lines().skip(1).map(|l| l.split(',').collect()).filter(|r: &Vec<&str>| r.len() == 6).collect();
+        let first = rows.first().map(|r| r[0]).unwrap_or_default();
+        let bins: Vec<(u32, f64, f64, f64)> = rows
+            .iter()
+            .filter(|r| r[0] == first)
+            .filter_map(|r| {
+                let lowest = r[1].trim_end_matches('+').split('-').next()?.parse().ok()?;
+                Some((lowest, cell(r[2]), cell(r[3]), cell(r[4])))
+            })
+            .collect();
+        // Decision-weighted mean of a column over the bins whose lowest count `within` accepts.
+        let mean_over = |within: &dyn Fn(u32) -> bool, column: &dyn Fn(&(u32, f64, f64, f64)) -> f64| {
+            let (sum, n) = bins
+                .iter()
+                .filter(|b| within(b.0) && b.1 > 0.0 && column(b).is_finite())
+                .fold((0.0, 0.0), |(s, n), b| (s + b.1 * column(b), n + b.1));
+            if n > 0.0 {
+                sum / n
+            } else {
+                f64::NAN
+            }
+        };
+        let (few, many) = (|k: u32| (1..=2).contains(&k), |k: u32| k >= 5);
+        out[Tactic::Slowdown.index()] = mean_over(&many, &|b| b.3) - mean_over(&few, &|b| b.3);
+        out[Tactic::Hesitation.index()] = mean_over(&many, &|b| b.2) - mean_over(&few, &|b| b.2);
+    }
+    if pursuit.exists() {
+        let table = Table::read_eval(pursuit)?;
+        let step = table.column("step")?;
+        let weight = table.column("pursuers")?;
+        let [centre, isolated, nearest, boundary] =
+            ["steer_centre", "steer_isolated", "steer_nearest", "boundary_share"].map(|c| table.column(c));
+        let (centre, isolated, nearest, boundary) = (centre?, isolated?, nearest?, boundary?);
+        let early = |i: usize| step[i] as usize <= EARLY_STEPS;
+        // Pursuer-weighted mean of `value` over the rows `keep` accepts (rows without a value skipped).
+        let weighted = |value: &dyn Fn(usize) -> f64, keep: &dyn Fn(usize) -> bool, weighted: bool| {
+            let (sum, n) = (0..step.len())
+                .filter(|&i| keep(i) && value(i).is_finite())
+                .map(|i| (value(i), if weighted { weight[i] } else { 1.0 }))
+                .fold((0.0, 0.0), |(s, n), (v, w)| (s + w * v, n + w));
+            if n > 0.0 {
+                sum / n
+            } else {
+                f64::NAN
+            }
+        };
+        let centre_first = |i: usize| centre[i] - isolated[i];
+        let centre_early = weighted(&centre_first, &early, true);
+        let centre_later = weighted(&centre_first, &|i| !early(i), true);
+        out[Tactic::CentreEarly.index()] = centre_early;
+        out[Tactic::CentreChange.index()] = centre_later - centre_early;
+        out[Tactic::IsolatedOverNearest.index()] = weighted(&|i| isolated[i] - nearest[i], &|i| !early(i), true);
+        out[Tactic::SteerNearest.index()] = weighted(&|i| nearest[i], &|_| true, true);
+        let uniform = crate::sim::collective::boundary_share_uniform(crate::run::evaluate::BOUNDARY_BAND);
+        out[Tactic::BoundaryExcess.index()] = weighted(&|i| boundary[i], &|i| !early(i), false) - uniform;
+    }
+    Ok(out)
 }
 
 /// The near and far responses of a perturbation file (`run::perturb`): the sample-weighted mean
@@ -133,6 +201,7 @@ pub(crate) fn load(exp: &Experiment) -> crate::error::Result<BTreeMap<usize, Run
             let edge_rank = mean(&ranks.into_iter().filter(|x| x.is_finite()).collect::<Vec<_>>()).unwrap_or(f64::NAN);
             let confusion = read_confusion(&crate::io::beside(&path, "confusion"))?;
             let response = read_response(&crate::io::beside(&path, crate::run::PERTURBATION))?;
+            let tactics = read_tactics(&crate::io::beside(&path, "confusion"), &crate::io::beside(&path, "pursuit"))?;
             // Every catch of the evaluation per episode and per prey deployed (the evaluation's count).
             let catches = table.column(schema::CATCHES).unwrap_or_default();
             let episodes = table
@@ -147,7 +216,10 @@ pub(crate) fn load(exp: &Experiment) -> crate::error::Result<BTreeMap<usize, Run
                 (0, _) | (_, 0) => f64::NAN,
                 (k, n) => catches.iter().filter(|c| c.is_finite()).sum::<f64>() / (k * n) as f64,
             };
-            d.evals.insert(e.name.clone(), EvalData { per_step, edge_rank, catches_per_prey, confusion, response });
+            d.evals.insert(
+                e.name.clone(),
+                EvalData { per_step, edge_rank, catches_per_prey, confusion, response, tactics },
+            );
         }
         data.insert(i, d);
     }

@@ -78,6 +78,8 @@ fn of_training_curves(q: &Quantity) -> bool {
         | EvalDifference(..)
         | Distilled(..)
         | Response(..)
+        | Tactic(..)
+        | TacticLearned(..)
         | DistilledDifference(..)
         | Crossplay(_) => false,
     }

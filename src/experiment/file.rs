@@ -512,6 +512,13 @@ pub enum Quantity {
     /// of the turned prey's 6 nearest over the 10 steps after the turn, or `"far"`, the same for ranks 25
     /// and beyond (radians).
     Response(String, String),
+    /// A read-out of where the predators head and the prey gather in an evaluation (its `-confusion` and
+    /// `-pursuit` files), per run: e.g. `Tactic("trained", Slowdown)`. See [`Tactic`].
+    Tactic(String, Tactic),
+    /// What training changed of a [`Quantity::Tactic`]: its value in an evaluation of the trained actors
+    /// minus in the same evaluation of the untrained ones (`untrained: true`, as [`Quantity::Learned`]
+    /// pairs them), per run.
+    TacticLearned(String, Tactic),
     /// A read-out of the run's cross-play matrix (`crossplay_readouts::readouts`, the headline species against its
     /// first predator species), e.g. `Crossplay("doa_late_prey_part")`; needs `crossplay:` in the file.
     Crossplay(String),
@@ -578,6 +585,97 @@ impl<'de> Deserialize<'de> for Curve {
         })
     }
 }
+
+/// What [`Quantity::Tactic`] reads of an evaluation: the predators' pursuit (of the first species that
+/// catches the headline species) and the prey's place. "Early" is an episode's first [`EARLY_STEPS`]
+/// steps, "later" the rest of it; each step's value is the mean over the predators it has one for,
+/// weighted by how many those are. The paper's statements they measure are in its Discussion: confusion,
+/// the dispersion tactic, and boundary aggregation (Fig. 9(a)).
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq, PartialOrd, Ord)]
+pub enum Tactic {
+    /// Confusion ("the predator gives up the chase, slows down, and stagnates"): a predator's speed (a
+    /// fraction of its max) after a decision taken with 5 or more prey in view, minus after one taken with
+    /// 1 or 2 in view, over the confusion curve's bins weighted by their decisions. Below 0: slower among
+    /// many prey.
+    Slowdown,
+    /// The same for the magnitude of the turn command (a fraction of the max turn rate). Above 0: turning
+    /// more among many prey ("uncertain about which prey to focus on").
+    Hesitation,
+    /// The dispersion tactic's first part ("first move towards the center of a swarm"): how often a
+    /// predator's turns steer toward the centre of the prey in view, minus toward the most isolated of them
+    /// (each a mean of ±1 per decision, [`crate::sim::collective::steering`]), early in episodes. Above 0:
+    /// steering for the centre more.
+    CentreEarly,
+    /// Its second part ("and then focus on isolated ones"): that difference later in episodes minus
+    /// early. Below 0: turning from the centre to the isolated prey.
+    CentreChange,
+    /// Later in episodes, steering toward the most isolated prey in view minus toward the nearest: above
+    /// 0 when a predator picks isolation over proximity.
+    IsolatedOverNearest,
+    /// Steering toward the nearest prey in view over the whole evaluation (1: every turn toward it; 0: as
+    /// often away as toward): a predator that chases the nearest prey reads 1, one that turns at random 0.
+    SteerNearest,
+    /// Boundary aggregation: the share of the prey within a tenth of the arena's edge of a wall later in
+    /// episodes, minus that band's share of the area (0.36, the share of uniformly spread positions).
+    /// Above 0: gathered along the walls. NaN without walls.
+    BoundaryExcess,
+}
+
+impl Tactic {
+    pub(crate) const ALL: [Tactic; 7] = [
+        Tactic::Slowdown,
+        Tactic::Hesitation,
+        Tactic::CentreEarly,
+        Tactic::CentreChange,
+        Tactic::IsolatedOverNearest,
+        Tactic::SteerNearest,
+        Tactic::BoundaryExcess,
+    ];
+
+    /// Its position in [`Tactic::ALL`].
+    pub(crate) fn index(self) -> usize {
+        self as usize
+    }
+
+    /// Its summary.csv column's last part.
+    pub(crate) fn column(self) -> &'static str {
+        match self {
+            Tactic::Slowdown => "slowdown",
+            Tactic::Hesitation => "hesitation",
+            Tactic::CentreEarly => "centre_early",
+            Tactic::CentreChange => "centre_change",
+            Tactic::IsolatedOverNearest => "isolated_over_nearest",
+            Tactic::SteerNearest => "steer_nearest",
+            Tactic::BoundaryExcess => "boundary_excess",
+        }
+    }
+
+    /// Its words in tables.
+    pub(crate) fn words(self) -> &'static str {
+        match self {
+            Tactic::Slowdown => "predators' speed with 5+ prey in view minus with 1–2 (fraction of max speed)",
+            Tactic::Hesitation => "predators' |turn| with 5+ prey in view minus with 1–2 (fraction of max turn)",
+            Tactic::CentreEarly => {
+                "predators' steering to the centre minus to the most isolated prey in view, early in episodes"
+            }
+            Tactic::CentreChange => {
+                "(steering to the centre minus to the most isolated prey in view) later minus early in episodes"
+            }
+            Tactic::IsolatedOverNearest => {
+                "predators' steering to the most isolated minus to the nearest prey in view, later in episodes"
+            }
+            Tactic::SteerNearest => "predators' steering to the nearest prey in view (1 = every turn toward it)",
+            Tactic::BoundaryExcess => {
+                "share of prey within a tenth of the edge of a wall minus the band's share of the area"
+            }
+        }
+    }
+}
+
+/// The steps at the start of each evaluation episode that [`Tactic`] calls early: a tenth of the paper's
+/// 500-step episode, 5 s, in which a predator at the `paper` preset's max speed (0.5 m/s) covers 2.5 m,
+/// about the 2 m arena's edge.
+pub(crate) const EARLY_STEPS: usize = 50;
 
 /// A part of the approach [`Quantity::Fitted`] fits to a training curve.
 #[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq)]

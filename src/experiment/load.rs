@@ -280,7 +280,9 @@ impl Experiment {
             | Quantity::EvalOrder(e, _)
             | Quantity::InteractionDoa(e)
             | Quantity::Interaction(e, _)
-            | Quantity::Learned(e, _) = &c.quantity
+            | Quantity::Learned(e, _)
+            | Quantity::Tactic(e, _)
+            | Quantity::TacticLearned(e, _) = &c.quantity
             {
                 if !spec.evaluations.iter().any(|x| &x.name == e) {
                     return Err(err("claims", format!("no evaluation named {e:?}")));
@@ -300,7 +302,7 @@ impl Experiment {
                     ));
                 }
             }
-            if let Quantity::Learned(e, _) = &c.quantity {
+            if let Quantity::Learned(e, _) | Quantity::TacticLearned(e, _) = &c.quantity {
                 if untrained_partner(&spec.evaluations, e).is_none() {
                     return Err(err("claims", format!("evaluation {e:?} needs an untrained partner (untrained: true, the same counts, episodes, steps and control)")));
                 }

@@ -60,6 +60,7 @@ pub(super) fn primitive(d: &RunData, q: &Quantity) -> f64 {
             d.distilled.get(&(species.clone(), *form, name.clone())).copied().unwrap_or(f64::NAN)
         }
         Quantity::Response(e, which) => d.evals.get(e).map_or(f64::NAN, |x| x.response[usize::from(which == "far")]),
+        Quantity::Tactic(e, t) => d.evals.get(e).map_or(f64::NAN, |x| x.tactics[t.index()]),
         // Derived from the ones above ([`derive`]): no value of their own. Named, not `_`, so that a new
         // quantity is a compile error here until it is given a value or declared derived.
         Quantity::DosChange
@@ -70,6 +71,7 @@ pub(super) fn primitive(d: &RunData, q: &Quantity) -> f64 {
         | Quantity::Interaction(..)
         | Quantity::Learned(..)
         | Quantity::EvalDifference(..)
+        | Quantity::TacticLearned(..)
         | Quantity::DistilledDifference(..) => f64::NAN,
     }
 }
@@ -103,6 +105,7 @@ pub(crate) fn column(q: &Quantity) -> Option<String> {
             format!("distilled_{species}_{}_{}", format!("{form:?}").to_lowercase(), name.replace('.', "_"))
         }
         Quantity::Response(e, which) => format!("eval_{}_response_{which}", super::file::slug(e)),
+        Quantity::Tactic(e, t) => format!("eval_{}_{}", super::file::slug(e), t.column()),
         // Derived ([`derive`]): summary.csv holds what they are computed from (and, for the interactions,
         // a column `summary::columns` names itself).
         Quantity::DosChange
@@ -113,6 +116,7 @@ pub(crate) fn column(q: &Quantity) -> Option<String> {
         | Quantity::Interaction(..)
         | Quantity::Learned(..)
         | Quantity::EvalDifference(..)
+        | Quantity::TacticLearned(..)
         | Quantity::DistilledDifference(..) => return None,
     })
 }
@@ -154,6 +158,12 @@ pub(crate) fn derive(
             None => f64::NAN,
         },
         Quantity::EvalDifference(a, b, o) => of_eval(a, o) - of_eval(b, o),
+        Quantity::TacticLearned(e, t) => match super::file::untrained_partner(evaluations, e) {
+            Some(untrained) => {
+                primitive(&Quantity::Tactic(e.clone(), *t)) - primitive(&Quantity::Tactic(untrained.name.clone(), *t))
+            }
+            None => f64::NAN,
+        },
         Quantity::DistilledDifference(species, a, b, name) => {
             let of = |form| primitive(&Quantity::Distilled(species.clone(), form, name.clone()));
             of(*a) - of(*b)
@@ -181,6 +191,7 @@ pub(crate) fn derive(
         | Quantity::Reaches(..)
         | Quantity::Fitted(..)
         | Quantity::Response(..)
+        | Quantity::Tactic(..)
         | Quantity::Crossplay(_)
         | Quantity::Distilled(..) => primitive(q),
     }
@@ -269,6 +280,7 @@ pub(crate) fn chance_level(exp: &Experiment, claim: &Claim, scene: Option<&crate
         | Quantity::Interaction(..)
         | Quantity::Learned(..)
         | Quantity::EvalDifference(..)
+        | Quantity::TacticLearned(..)
         | Quantity::DistilledDifference(..)
         | Quantity::Reach90(_)
         | Quantity::Start(_)
@@ -281,6 +293,16 @@ pub(crate) fn chance_level(exp: &Experiment, claim: &Claim, scene: Option<&crate
         | Quantity::Fitted(..)
         | Quantity::Response(..)
         | Quantity::Distilled(..) => None,
+        // Each is a difference whose 0 is "no such tactic", except the heading to the nearest prey.
+        Quantity::Tactic(_, t) => match t {
+            super::file::Tactic::SteerNearest => None,
+            super::file::Tactic::Slowdown
+            | super::file::Tactic::Hesitation
+            | super::file::Tactic::CentreEarly
+            | super::file::Tactic::CentreChange
+            | super::file::Tactic::IsolatedOverNearest
+            | super::file::Tactic::BoundaryExcess => Some(0.0),
+        },
     }
 }
 
@@ -300,6 +322,10 @@ pub(crate) fn quantity_name(q: &Quantity) -> String {
         Quantity::Crossplay(r) => format!("cross-play read-out {r}"),
         Quantity::Distilled(species, form, name) => format!("{name} of the {form:?} rule fitted to the {species}"),
         Quantity::Response(e, w) => format!("{w} response to one prey turned, in evaluation \"{e}\" (rad)"),
+        Quantity::Tactic(e, t) => format!("{} in evaluation \"{e}\"", t.words()),
+        Quantity::TacticLearned(e, t) => {
+            format!("{} in evaluation \"{e}\", trained minus untrained actors", t.words())
+        }
         Quantity::EvalDos(e) => format!("DoS settled in evaluation \"{e}\""),
         Quantity::EvalDoa(e) => format!("DoA settled in evaluation \"{e}\""),
         Quantity::EvalOrder(e, q) => format!("{q} in evaluation \"{e}\""),

@@ -56,13 +56,23 @@ pub fn columns(exp: &Experiment) -> Vec<(String, Quantity)> {
         quantities.extend(columns.into_iter().map(|(s, f, n)| named(Quantity::Distilled(s, f, n))));
     }
     quantities.extend([named(Quantity::CatchesFirst), named(Quantity::CatchesLast)]);
-    // A level some claim times a curve against (`Reaches`), or a fitted approach (`Fitted`): a column only
-    // in the experiments that ask for one, so every other summary keeps its columns.
+    // A level some claim times a curve against (`Reaches`), a fitted approach (`Fitted`) or a predators'
+    // tactic (`Tactic`): a column only in the experiments that ask for one, so every other summary keeps
+    // its columns.
     for claim in &exp.spec.claims {
-        if matches!(claim.quantity, Quantity::Reaches(..) | Quantity::Fitted(..))
-            && !quantities.iter().any(|(_, q)| *q == claim.quantity)
-        {
-            quantities.push(named(claim.quantity.clone()));
+        // A tactic's change by training reads it in the trained evaluation and in its untrained partner.
+        let read = match &claim.quantity {
+            Quantity::Reaches(..) | Quantity::Fitted(..) | Quantity::Tactic(..) => vec![claim.quantity.clone()],
+            Quantity::TacticLearned(e, t) => std::iter::once(e.clone())
+                .chain(super::file::untrained_partner(&exp.spec.evaluations, e).map(|u| u.name.clone()))
+                .map(|e| Quantity::Tactic(e, *t))
+                .collect(),
+            _ => vec![],
+        };
+        for q in read {
+            if !quantities.iter().any(|(_, known)| *known == q) {
+                quantities.push(named(q));
+            }
         }
     }
     // Likewise an evaluation's catches per prey: in the experiments whose claims read them (directly or

@@ -27,6 +27,7 @@ pub(crate) fn is_effect(claim: &Claim) -> bool {
                 | Quantity::Interaction(..)
                 | Quantity::Learned(..)
                 | Quantity::EvalDifference(..)
+                | Quantity::TacticLearned(..)
                 | Quantity::DistilledDifference(..)
         )
         || matches!(&claim.quantity, Quantity::Crossplay(r) if super::crossplay_readouts::chance(r).is_none())
@@ -164,6 +165,8 @@ fn order_of(q: &Quantity) -> Option<&str> {
         | Quantity::Halfway(_)
         | Quantity::Reaches(..)
         | Quantity::Response(..)
+        | Quantity::Tactic(..)
+        | Quantity::TacticLearned(..)
         | Quantity::Crossplay(_) => None,
     }
 }

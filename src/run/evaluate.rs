@@ -1,8 +1,9 @@
 //! `coevo --eval RUN`: a run's trained actors deployed without noise (the paper's "loading trained
 //! policies on agents"), optionally under an observation control. Writes the per-step file (DoS, DoA and
-//! the order parameters of the headline species, catches) and three distributions beside it: the
-//! nearest-neighbour distances (`-nn`), the heading correlation C(r) (`-correlation`) and the confusion
-//! curve (`-confusion`, written last: its presence marks a complete evaluation).
+//! the order parameters of the headline species, catches) and four files beside it: the
+//! nearest-neighbour distances (`-nn`), the heading correlation C(r) (`-correlation`), where the
+//! predators head and the prey gather per step (`-pursuit`) and the confusion curve (`-confusion`, written
+//! last: its presence marks a complete evaluation).
 //!
 //! The loop accumulates ([`Accumulated::step`]); the files and the summary line are written from what it
 //! accumulated ([`Accumulated::distributions`], [`Accumulated::summary`]).
@@ -15,12 +16,15 @@ use crate::learning::control::ObservationControl;
 use crate::learning::Mode;
 use crate::scene::Overrides;
 use crate::sim::clock::Episode;
-use crate::sim::collective::{add_heading_correlation, confusion_bin_label, heading_correlation};
+use crate::sim::collective::{
+    add_heading_correlation, confusion_bin_label, heading_correlation, pursuit_targets, steering,
+};
 use crate::sim::metrics::{Confusion, SwarmMetrics, Swarming};
 use crate::sim::perception::Population;
 use crate::sim::space::Arena;
 use crate::sim::species::SpeciesRegistry;
 use crate::sim::Simulation;
+use bevy::math::DVec2;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
@@ -159,10 +163,30 @@ struct Accumulated {
     /// C(r) of heading fluctuations in bins of one body diameter, out to half the arena's edge.
     correlation: Vec<(f64, u64)>,
     variance: (f64, u64),
+    /// The `-pursuit` file's rows so far.
+    pursuit: String,
+    /// The first species that catches the headline species, and the radius of the prey it has in view
+    /// (the confusion curve's).
+    pursuer: Option<(usize, f64)>,
+    /// Each of its agents' heading and targets at the previous state ([`pursuit_targets`]): the decision
+    /// taken there is the turn read at this step.
+    targets: Vec<Option<(DVec2, [DVec2; 3])>>,
 }
 
+/// The band along the walls of the `-pursuit` file's boundary share, as a fraction of the arena's edge:
+/// the outer tenth on each side, 36 % of the area.
+pub(crate) const BOUNDARY_BAND: f64 = 0.1;
+
+/// The `-pursuit` file's header. Per step: the predators of the first species that catches the headline
+/// species that had three or more of it in view at the state where they took the decision applied in this
+/// step (`pursuers`); their mean [`steering`] toward the centre of those prey, the most isolated of them
+/// and the nearest ([`pursuit_targets`]), each in [−1, 1] (1: every turn toward it, 0: as often away); and
+/// the share of the headline species within [`BOUNDARY_BAND`] × edge of a wall (empty on the torus).
+pub(crate) const PURSUIT_HEADER: &str =
+    "episode,step,pursuers,steer_centre,steer_isolated,steer_nearest,boundary_share";
+
 impl Accumulated {
-    fn new(diameter: f64, arena: &Arena) -> Accumulated {
+    fn new(diameter: f64, arena: &Arena, pursuer: Option<(usize, f64)>) -> Accumulated {
         Accumulated {
             sums: [0.0; Swarming::N],
             steps: 0,
@@ -171,6 +195,9 @@ impl Accumulated {
             nn_histogram: vec![0; NN_BINS + 1],
             correlation: vec![(0.0, 0); (arena.edge / 2.0 / diameter).ceil().max(1.0) as usize],
             variance: (0.0, 0),
+            pursuit: format!("{PURSUIT_HEADER}\n"),
+            pursuer,
+            targets: Vec::new(),
         }
     }
 
@@ -208,11 +235,46 @@ impl Accumulated {
             &mut self.correlation,
             &mut self.variance,
         );
+        self.add_pursuit(pop, arena, &m.nn_distances_now[prey], prey, episode, step);
         row
     }
 
-    /// The `-nn`, `-correlation` and `-confusion` files, in that order, and the correlation length.
-    fn distributions(&self, sim: &Simulation, registry: &SpeciesRegistry) -> ([String; 3], Option<f64>) {
+    /// The step's row of the `-pursuit` file: the decisions applied in this step against the targets at
+    /// the state they were taken in (none at an episode's first step, whose previous state was another
+    /// episode's); then this state's targets, for the next step.
+    fn add_pursuit(&mut self, pop: &Population, arena: &Arena, nn: &[f64], prey: usize, episode: usize, step: usize) {
+        let blank = |x: Option<f64>| x.map_or(String::new(), |v| v.to_string());
+        let prey_at = &pop.position[pop.ranges[prey].clone()];
+        let mut sums = [0.0; 3];
+        let mut pursuers = 0usize;
+        if let Some((s, radius)) = self.pursuer {
+            let agents = pop.ranges[s].clone();
+            if step > 1 && self.targets.len() == agents.len() {
+                for (i, before) in agents.clone().zip(&self.targets) {
+                    if let Some((heading, targets)) = before {
+                        sums.iter_mut().zip(targets).for_each(|(a, t)| *a += steering(*heading, *t, pop.turn[i]));
+                        pursuers += 1;
+                    }
+                }
+            }
+            self.targets = agents
+                .map(|i| pursuit_targets(arena, pop.position[i], prey_at, nn, radius).map(|t| (pop.heading[i], t)))
+                .collect();
+        }
+        let means = sums.map(|x| (pursuers > 0).then(|| x / pursuers as f64));
+        let band = crate::sim::collective::boundary_share(arena, prey_at, BOUNDARY_BAND * arena.edge);
+        self.pursuit.push_str(&format!(
+            "{episode},{step},{pursuers},{},{},{},{}\n",
+            blank(means[0]),
+            blank(means[1]),
+            blank(means[2]),
+            blank(band)
+        ));
+    }
+
+    /// The `-nn`, `-correlation`, `-pursuit` and `-confusion` files, in that order, and the correlation
+    /// length.
+    fn distributions(&self, sim: &Simulation, registry: &SpeciesRegistry) -> ([String; 4], Option<f64>) {
         let blank = |x: Option<f64>| x.map_or(String::new(), |v| v.to_string());
         let total = self.nn_histogram.iter().sum::<u64>().max(1) as f64;
         let mut nn = String::from("from_diameters,to_diameters,from_m,to_m,fraction\n");
@@ -256,7 +318,7 @@ impl Accumulated {
                 ));
             }
         }
-        ([nn, correlation, confusion], correlation_length)
+        ([nn, correlation, self.pursuit.clone(), confusion], correlation_length)
     }
 
     /// The means over the evaluation, in words.
@@ -367,7 +429,10 @@ pub fn evaluate(opts: &EvalOptions) -> crate::error::Result<String> {
     let write_err = |e: std::io::Error| format!("{}: {e}", path.display());
     let mut file = AtomicFile::create(&path, Existing::Replace).map_err(write_err)?;
     writeln!(file.writer(), "{}", schema::eval_header(&registry, prey)).map_err(write_err)?;
-    let mut acc = Accumulated::new(2.0 * registry.defs[prey].radius, sim.world().resource::<Arena>());
+    let pursuer = (0..registry.len())
+        .find(|&s| registry.prey_of(s).any(|t| t == prey))
+        .map(|s| (s, scene.confusion_radius.unwrap_or(registry.perception_radius[s])));
+    let mut acc = Accumulated::new(2.0 * registry.defs[prey].radius, sim.world().resource::<Arena>(), pursuer);
     let bar = super::progress::step_bar(&scene, opts.episodes * scene.episode_steps);
     for episode in 0..opts.episodes {
         if episode > 0 {

@@ -49,7 +49,7 @@ pub(crate) use crate::learning::files::{CHECKPOINT, CHECKPOINT_OLD, CHECKPOINT_T
 /// The rules `--distill` fitted to the run's actors (`analysis::distill`).
 pub(crate) const DISTILLED: &str = "distilled.ron";
 /// The files an evaluation writes beside its per-step CSV (`OUT-nn.csv`, ...); the confusion curve last.
-pub(crate) const EVAL_BESIDE: [&str; 3] = ["nn", "correlation", "confusion"];
+pub(crate) const EVAL_BESIDE: [&str; 4] = ["nn", "correlation", "pursuit", "confusion"];
 /// The file a perturbed evaluation writes beside the others (`OUT-perturbation.csv`, [`perturb`]).
 pub(crate) const PERTURBATION: &str = "perturbation";
 

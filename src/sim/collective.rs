@@ -301,6 +301,66 @@ pub(crate) fn edge_rank(arena: &Arena, positions: &[DVec2], group: &[usize], j: 
     Some(nearer / (group.len() - 1) as f64)
 }
 
+/// The prey a predator at `at` could be going for among those within `radius` of it (the paper's
+/// dispersion tactic: "they first move towards the center of a swarm to disperse it and then focus on
+/// isolated ones", Discussion): the offsets from `at` to (0) the centre of those prey, (1) the most
+/// isolated of them (the largest distance `nn[j]` to its nearest fellow prey; the first of equals), (2) the
+/// nearest of them (the first of equals). The centre is the mean of their minimum-image offsets, so it is
+/// well defined across the torus seam. None with fewer than three prey in view: with two, each is the
+/// other's nearest and neither is more isolated.
+pub(crate) fn pursuit_targets(arena: &Arena, at: DVec2, prey: &[DVec2], nn: &[f64], radius: f64) -> Option<[DVec2; 3]> {
+    let mut in_view = 0usize;
+    let mut sum = DVec2::ZERO;
+    let (mut isolated, mut nearest): (Option<(f64, DVec2)>, Option<(f64, DVec2)>) = (None, None);
+    for (&x, &alone) in prey.iter().zip(nn) {
+        let offset = arena.delta(at, x);
+        let distance = offset.length();
+        if distance > radius {
+            continue;
+        }
+        in_view += 1;
+        sum += offset;
+        if isolated.is_none_or(|(best, _)| alone > best) {
+            isolated = Some((alone, offset));
+        }
+        if nearest.is_none_or(|(best, _)| distance < best) {
+            nearest = Some((distance, offset));
+        }
+    }
+    match (in_view >= 3, isolated, nearest) {
+        (true, Some((_, isolated)), Some((_, nearest))) => Some([sum / in_view as f64, isolated, nearest]),
+        _ => None,
+    }
+}
+
+/// Whether a `turn` command (positive: counter-clockwise) steers an agent heading `heading` toward a
+/// target at `offset`: 1 when it turns to the target's side, −1 when it turns away, 0 without a turn or
+/// with the target dead ahead or behind. Unlike the angle between heading and target, it reads the
+/// decision itself, not a heading that a limited turn rate keeps lagging behind it.
+pub(crate) fn steering(heading: DVec2, offset: DVec2, turn: f64) -> f64 {
+    let side = heading.perp_dot(offset);
+    if turn == 0.0 || side == 0.0 {
+        0.0
+    } else {
+        turn.signum() * side.signum()
+    }
+}
+
+/// The share of `positions` within `band` of a wall (the paper's boundary aggregation, Fig. 9(a)); None on
+/// the torus, which has no wall. Uniform positions give [`boundary_share_uniform`].
+pub(crate) fn boundary_share(arena: &Arena, positions: &[DVec2], band: f64) -> Option<f64> {
+    (arena.boundary == Boundary::Walls && !positions.is_empty()).then(|| {
+        let near = positions.iter().filter(|p| arena.half() - p.x.abs().max(p.y.abs()) < band).count();
+        near as f64 / positions.len() as f64
+    })
+}
+
+/// The share of a square arena's area within `band_of_edge` × its edge of a wall: what [`boundary_share`]
+/// is for positions spread uniformly, the level without aggregation at the boundary.
+pub(crate) fn boundary_share_uniform(band_of_edge: f64) -> f64 {
+    1.0 - (1.0 - 2.0 * band_of_edge).max(0.0).powi(2)
+}
+
 /// Bins of "prey within the predator's perception radius" for the confusion curve: 0, 1, 2, 3–4, 5–8,
 /// 9–16, 17–32, 33+ (doubling, so a few predators among thousands of prey still fill the upper bins).
 pub(crate) const CONFUSION_BINS: [(u32, u32); 8] =
@@ -495,6 +555,53 @@ mod tests {
         }
         let (c, _) = heading_correlation(&bins, var, 0.5);
         assert!(c.iter().flatten().all(|v| v.abs() < 0.05), "{c:?}");
+    }
+
+    #[test]
+    fn pursuit_targets_are_the_centre_the_most_isolated_and_the_nearest_in_view() {
+        let arena = Arena { edge: 10.0, boundary: Boundary::Periodic };
+        // Three prey in a tight group to the east, one isolated to the north; one far beyond view.
+        let prey = [
+            DVec2::new(2.0, 0.0),
+            DVec2::new(2.1, 0.0),
+            DVec2::new(2.0, 0.1),
+            DVec2::new(0.0, 1.5),
+            DVec2::new(-4.0, 0.0),
+        ];
+        let nn = [0.1, 0.1, 0.1, 2.0, 3.0];
+        let [centre, isolated, nearest] = pursuit_targets(&arena, DVec2::ZERO, &prey, &nn, 2.5).unwrap();
+        assert!((centre - DVec2::new(1.525, 0.4)).length() < 1e-12, "{centre}");
+        assert_eq!((isolated, nearest), (DVec2::new(0.0, 1.5), DVec2::new(0.0, 1.5)));
+        // Across the seam: a predator at x = 4.5 sees the group at x = 2 about 2.5 m west and the prey at
+        // x = −4 1.5 m east, the short way round a 10 m torus; that one is the nearest and the most isolated.
+        let [_, isolated, nearest] = pursuit_targets(&arena, DVec2::new(4.5, 0.0), &prey, &nn, 2.6).unwrap();
+        assert!((isolated - DVec2::new(1.5, 0.0)).length() < 1e-12 && isolated == nearest, "{isolated} {nearest}");
+        // Fewer than three in view: no reading.
+        assert_eq!(pursuit_targets(&arena, DVec2::ZERO, &prey, &nn, 1.6), None);
+    }
+
+    #[test]
+    fn steering_is_the_side_a_turn_takes_against_the_side_of_the_target() {
+        let (east, north_east, south_east) = (DVec2::X, DVec2::new(1.0, 1.0), DVec2::new(1.0, -1.0));
+        assert_eq!(steering(east, north_east, 0.3), 1.0, "a left turn toward a target on the left");
+        assert_eq!(steering(east, south_east, 0.3), -1.0, "a left turn away from a target on the right");
+        assert_eq!(steering(east, south_east, -1.0), 1.0);
+        assert_eq!(steering(east, DVec2::new(2.0, 0.0), 0.5), 0.0, "dead ahead");
+        assert_eq!(steering(east, north_east, 0.0), 0.0, "no turn");
+    }
+
+    #[test]
+    fn boundary_share_of_uniform_positions_is_the_bands_area() {
+        use rand::{Rng, SeedableRng};
+        let arena = Arena { edge: 2.0, boundary: Boundary::Walls };
+        let mut rng = rand::rngs::StdRng::seed_from_u64(7);
+        let positions: Vec<DVec2> =
+            (0..200_000).map(|_| DVec2::new(rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0))).collect();
+        let share = boundary_share(&arena, &positions, 0.2).unwrap();
+        assert!((boundary_share_uniform(0.1) - 0.36).abs() < 1e-12);
+        assert!((share - 0.36).abs() < 0.005, "{share}");
+        assert_eq!(boundary_share(&arena, &[DVec2::new(0.95, 0.0), DVec2::ZERO], 0.2), Some(0.5));
+        assert_eq!(boundary_share(&Arena { edge: 2.0, boundary: Boundary::Periodic }, &positions, 0.2), None);
     }
 
     #[test]

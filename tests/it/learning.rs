@@ -267,6 +267,48 @@ fn evaluation_deploys_on_fifty_prey_and_without_predators() {
         confusion.lines().filter(|l| !l.ends_with(",0,,,")).count() > 2,
         "a 0.5 m radius spreads decisions over bins: {confusion}"
     );
+    // Where the predators steer: a row per step, none at an episode's first step (its decisions were
+    // taken in the episode before). The known answers: predators that chase the nearest prey steer toward
+    // it at every decision (1), predators that turn at random as often away as toward (about 0).
+    let pursuit = std::fs::read_to_string(run.join("with-predators-pursuit.csv")).unwrap();
+    assert_eq!(pursuit.lines().count(), 1 + 2 * steps, "{pursuit}");
+    assert!(pursuit
+        .lines()
+        .skip(1)
+        .filter(|l| l.split(',').nth(1) == Some("1"))
+        .all(|l| l.split(',').nth(2) == Some("0")));
+    let steer_nearest = |policy: coevo::scene::Policy, out: &str| -> f64 {
+        evaluate(&EvalOptions {
+            run: run.clone(),
+            out: Some(out.into()),
+            control: Default::default(),
+            episodes: 2,
+            overrides: Overrides {
+                counts: vec![("prey".into(), 50), ("predator".into(), 3)],
+                episode_steps: Some(100),
+                policies: vec![("predator".into(), policy)],
+                ..Default::default()
+            },
+            untrained: false,
+            snapshots: vec![],
+            perturb: None,
+            perturb_step: None,
+        })
+        .unwrap();
+        let text = std::fs::read_to_string(run.join(out.replace(".csv", "-pursuit.csv"))).unwrap();
+        let (sum, n) = text.lines().skip(1).map(|l| l.split(',').collect::<Vec<_>>()).filter(|r| r[2] != "0").fold(
+            (0.0, 0.0),
+            |(s, n), r| {
+                let w: f64 = r[2].parse().unwrap();
+                (s + w * r[5].parse::<f64>().unwrap(), n + w)
+            },
+        );
+        assert!(n > 300.0, "{text}");
+        sum / n
+    };
+    assert_eq!(steer_nearest(Policy::ChaseNearest, "chase.csv"), 1.0);
+    let random = steer_nearest(Policy::Random, "random.csv");
+    assert!(random.abs() < 0.1, "{random}");
 
     // One step per episode: measured, not zeros; with one prey there is nothing to measure, and it says so.
     let one = |counts: Vec<(String, usize)>| {
