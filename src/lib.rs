@@ -31,7 +31,7 @@
 //! - **A downstream crate** training and evaluating: [`run::train`] (`train`, `resume`, `TrainOptions`),
 //!   [`run::evaluate`], [`run::animate`], [`learning`] (`Learners`, `Mode`, `simulation`), [`sim::metrics`]
 //!   and [`experiment::Experiment`] with its crossplay, distillation and summary readers, and
-//!   [`experiment::pin::Pin`], a pinned experiment's record of its binary.
+//!   [`claims::pin::Pin`], a pinned experiment's record of its binary.
 //!
 //! A few items stay public only because the integration tests check them from outside (checkpoint
 //! manifests and snapshots in [`learning`], [`cli::check_args`], [`io::bytes_shown`]); they are not meant
@@ -45,6 +45,7 @@ pub const VERSION: &str = env!("CARGO_PKG_VERSION");
 pub const GIT_COMMIT: &str = env!("COEVO_GIT_COMMIT");
 
 pub mod analysis;
+pub mod claims;
 pub mod cli;
 pub mod error;
 pub mod experiment;

@@ -7,9 +7,9 @@
 //! beside the rows it writes from the folders that are here. An experiment run over several sessions or
 //! machines thus loses nothing it finished, and its summary is the one a single machine would write.
 
-use super::claims::RunData;
 use super::figure_data::{self, FigureData};
 use super::file::Experiment;
+use super::results::RunData;
 use super::summary::{csv_text, Summary};
 use std::collections::{BTreeMap, BTreeSet};
 use std::fmt::Write as _;

@@ -6,7 +6,7 @@ use super::file::Experiment;
 use super::report::{experiment_report, reproduction, Reported, EXPERIMENTS, REPORT, RESULTS};
 use super::runner;
 use super::summary::Summary;
-use super::{aggregate, data, figures, paper_table};
+use super::{aggregate, data, family, figures, paper_table};
 use crate::io::Existing;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -174,7 +174,7 @@ pub(crate) fn experiment(request: &Request) -> crate::error::Result<()> {
 /// Refuses, before one experiment is aggregated, a training held twice without `shared_from` or
 /// `same_training_as` ([`super::trainings::check_once`]): among its own runs (`data` and its committed
 /// rows) and, for a file of `experiments/`, against the other files' committed summaries.
-fn check_trainings_once(exp: &Experiment, data: &BTreeMap<usize, super::claims::RunData>) -> crate::error::Result<()> {
+fn check_trainings_once(exp: &Experiment, data: &BTreeMap<usize, super::results::RunData>) -> crate::error::Result<()> {
     let mut trainings = Vec::new();
     if in_suite(exp) {
         for file in Experiment::files(Path::new(EXPERIMENTS))? {
@@ -247,7 +247,7 @@ pub(crate) fn write_reproduction(partial: bool) -> crate::error::Result<()> {
     // The families span the files: every experiment's tests adjusted together, then each reported.
     let counts: Vec<usize> = aggregated.iter().map(|(_, a)| a.results.len()).collect();
     let mut results: Vec<_> = aggregated.iter_mut().flat_map(|(_, a)| std::mem::take(&mut a.results)).collect();
-    aggregate::adjust(&mut results);
+    family::adjust(&mut results);
     let mut all = Vec::new();
     for ((exp, mut a), n) in aggregated.into_iter().zip(counts) {
         a.results = results.drain(..n).collect();
@@ -296,7 +296,7 @@ fn check_reproduction_targets() -> crate::error::Result<()> {
 /// spans files), when the file is one of them; alone otherwise.
 fn report_alone(
     exp: Experiment,
-    data: &BTreeMap<usize, super::claims::RunData>,
+    data: &BTreeMap<usize, super::results::RunData>,
     carried: super::carry::Carried,
 ) -> crate::error::Result<Reported> {
     let mut a = aggregate::aggregate(&exp, data, carried)?;
@@ -319,10 +319,10 @@ fn report_alone(
             all.extend(own.iter().cloned());
             all.len() - own.len()
         });
-        aggregate::adjust(&mut all);
+        family::adjust(&mut all);
         a.results = all.drain(at..at + own.len()).collect();
     } else {
-        aggregate::adjust(&mut a.results);
+        family::adjust(&mut a.results);
     }
     report(exp, a)
 }
@@ -460,7 +460,7 @@ impl Unchecked {
 
 /// How many of the experiment's runs are finished: its run folders here (`data`) and the committed runs
 /// finished elsewhere ([`super::carry`]), or, with no folder here (a clone), the rows of its committed summary.csv that are runs of the file.
-fn finished(exp: &Experiment, data: &BTreeMap<usize, super::claims::RunData>) -> crate::error::Result<usize> {
+fn finished(exp: &Experiment, data: &BTreeMap<usize, super::results::RunData>) -> crate::error::Result<usize> {
     if !data.is_empty() {
         // With the committed runs not finished here, which aggregation carries.
         let committed = super::carry::committed_runs(exp)?;
@@ -474,7 +474,7 @@ fn finished(exp: &Experiment, data: &BTreeMap<usize, super::claims::RunData>) ->
 /// "not run yet", which every report says.
 fn check_whole(
     exp: &Experiment,
-    data: &BTreeMap<usize, super::claims::RunData>,
+    data: &BTreeMap<usize, super::results::RunData>,
     what: &str,
 ) -> crate::error::Result<()> {
     let (done, runs) = (finished(exp, data)?, exp.runs.len());

@@ -1,9 +1,9 @@
 //! An experiment's finished runs, loaded from their CSV files (never retraining) and checked: one
 //! binary, and every committed run either here or carried (`carry`).
 
-use super::claims::{EvalData, RunData};
 use super::file::eval_file;
 use super::file::{Experiment, Tactic, EARLY_STEPS};
+use super::results::{EvalData, RunData};
 use super::runner::{stage, Stage};
 use super::stats::mean;
 use crate::learning::nets::Kernels;
@@ -34,25 +34,31 @@ fn read_tactics(confusion: &Path, pursuit: &Path) -> crate::error::Result<[f64; 
     let mut out = [f64::NAN; Tactic::ALL.len()];
     let cell = |c: &str| c.parse::<f64>().unwrap_or(f64::NAN);
     if confusion.exists() {
-        // The first species' bins: (lowest count, decisions, mean |turn|, mean speed fraction).
+        // The first species' bins of the confusion curve.
+        struct Bin {
+            lowest: u32,
+            decisions: f64,
+            turn: f64,
+            speed: f64,
+        }
         let text = crate::io::read_text(confusion, crate::io::MAX_TEXT_BYTES)?;
         let rows: Vec<Vec<&str>> =
             text.lines().skip(1).map(|l| l.split(',').collect()).filter(|r: &Vec<&str>| r.len() == 6).collect();
         let first = rows.first().map(|r| r[0]).unwrap_or_default();
-        let bins: Vec<(u32, f64, f64, f64)> = rows
+        let bins: Vec<Bin> = rows
             .iter()
             .filter(|r| r[0] == first)
             .filter_map(|r| {
                 let lowest = r[1].trim_end_matches('+').split('-').next()?.parse().ok()?;
-                Some((lowest, cell(r[2]), cell(r[3]), cell(r[4])))
+                Some(Bin { lowest, decisions: cell(r[2]), turn: cell(r[3]), speed: cell(r[4]) })
             })
             .collect();
         // Decision-weighted mean of a column over the bins whose lowest count `within` accepts.
-        let mean_over = |within: &dyn Fn(u32) -> bool, column: &dyn Fn(&(u32, f64, f64, f64)) -> f64| {
+        let mean_over = |within: &dyn Fn(u32) -> bool, column: fn(&Bin) -> f64| {
             let (sum, n) = bins
                 .iter()
-                .filter(|b| within(b.0) && b.1 > 0.0 && column(b).is_finite())
-                .fold((0.0, 0.0), |(s, n), b| (s + b.1 * column(b), n + b.1));
+                .filter(|b| within(b.lowest) && b.decisions > 0.0 && column(b).is_finite())
+                .fold((0.0, 0.0), |(s, n), b| (s + b.decisions * column(b), n + b.decisions));
             if n > 0.0 {
                 sum / n
             } else {
@@ -60,8 +66,8 @@ fn read_tactics(confusion: &Path, pursuit: &Path) -> crate::error::Result<[f64; 
             }
         };
         let (few, many) = (|k: u32| (1..=2).contains(&k), |k: u32| k >= 5);
-        out[Tactic::Slowdown.index()] = mean_over(&many, &|b| b.3) - mean_over(&few, &|b| b.3);
-        out[Tactic::Hesitation.index()] = mean_over(&many, &|b| b.2) - mean_over(&few, &|b| b.2);
+        out[Tactic::Slowdown.index()] = mean_over(&many, |b| b.speed) - mean_over(&few, |b| b.speed);
+        out[Tactic::Hesitation.index()] = mean_over(&many, |b| b.turn) - mean_over(&few, |b| b.turn);
     }
     if pursuit.exists() {
         let table = Table::read_eval(pursuit)?;
@@ -156,7 +162,7 @@ pub(crate) fn load(exp: &Experiment) -> crate::error::Result<BTreeMap<usize, Run
         };
         // The authors' DoS and DoA, where the scene measured them (`authors_metrics`): curves like the
         // order parameters, read by the claims on the paper's numbers as the shipped code measures them.
-        for q in super::claims::AUTHORS_CURVES {
+        for q in super::results::AUTHORS_CURVES {
             if let Ok(values) = metrics.column(&schema::of(q, &prey)) {
                 d.orders.insert(q.to_string(), values);
             }

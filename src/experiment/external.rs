@@ -2,12 +2,12 @@
 //! authors' learner on coevo's world, `python/examples/gym_pps_learner.py`), compared with
 //! coevo's own as a report compares two variants: the same quantities ([`super::quantity::derive`]), the
 //! same test (Welch's difference, TOST within a margin fixed beforehand), Holm over the family
-//! ([`super::aggregate::adjust`]), and the same words ([`super::verdict::verdict`]). Nothing here reads a
+//! ([`super::family::adjust`]), and the same words ([`super::verdict::verdict`]). Nothing here reads a
 //! file: the caller hands over each run's per-episode DoS, DoA and catches.
 
-use super::claims::{curve_argument_error, is_effect, ClaimResult, RunData, CURVES, WINDOW};
 use super::file::{Claim, Quantity};
 use super::quantity::{compares_windows, derive, primitive};
+use super::results::{curve_argument_error, is_effect, ClaimResult, RunData, CURVES, WINDOW};
 use super::stats::difference;
 use crate::error::{Error, Kind, Result};
 
@@ -161,7 +161,7 @@ pub fn compare(
             ..ClaimResult::untested(family, "", &claim, None)
         });
     }
-    super::aggregate::adjust(&mut results);
+    super::family::adjust(&mut results);
     Ok(results)
 }
 

@@ -1,10 +1,10 @@
 //! An experiment's figures (drawn by `plot.rs`) and a run's training curves (`--plot RUN`).
 
-use super::claims::{RunData, SETTLED_STEPS, WINDOW};
 use super::data::headline;
 use super::figure_data::{self, FigureData};
 use super::file::{slug, Experiment, Quantity};
 use super::plot::{self, Curve, EstimatePanel, Level, Panel, Row};
+use super::results::{RunData, SETTLED_STEPS, WINDOW};
 use super::stats::{estimate, running_mean};
 use super::summary::Summary;
 use crate::run::schema;
@@ -538,11 +538,11 @@ fn figures<'a>(
             let (what, x_label) = match &q {
                 Quantity::Halfway(c) => (
                     format!("{}: halfway episode", curve(c)),
-                    format!("episode its {}-episode mean completes half its change", super::claims::HALFWAY_WINDOW),
+                    format!("episode its {}-episode mean completes half its change", super::results::HALFWAY_WINDOW),
                 ),
                 Quantity::Reaches(c, level) => (
                     format!("{}: episode it first reaches {level}", curve(c)),
-                    format!("episode its {}-episode mean first reaches {level}", super::claims::HALFWAY_WINDOW),
+                    format!("episode its {}-episode mean first reaches {level}", super::results::HALFWAY_WINDOW),
                 ),
                 other => (super::quantity::quantity_name(other), "episode".into()),
             };

@@ -238,7 +238,7 @@ impl Experiment {
                     ),
                 ));
             }
-            if c.scale != super::file::Scale::Linear && (!super::claims::is_effect(c) || c.margin.is_some()) {
+            if c.scale != super::file::Scale::Linear && (!super::results::is_effect(c) || c.margin.is_some()) {
                 return Err(err(
                     "claims",
                     format!("{:?}: a scale other than Linear is for an effect tested for a direction (not a level, not an equivalence margin)", c.text),
@@ -294,7 +294,7 @@ impl Experiment {
             | Quantity::TrainingLast(q) = &c.quantity
             {
                 let authors = matches!(c.quantity, Quantity::TrainingFirst(_) | Quantity::TrainingLast(_))
-                    && super::claims::AUTHORS_CURVES.contains(&q.as_str());
+                    && super::results::AUTHORS_CURVES.contains(&q.as_str());
                 if !EVAL_ORDER.contains(&q.as_str()) && !authors {
                     return Err(err(
                         "claims",
@@ -331,7 +331,7 @@ impl Experiment {
                     ));
                 }
             }
-            if let Some(message) = super::claims::curve_argument_error(&c.quantity) {
+            if let Some(message) = super::results::curve_argument_error(&c.quantity) {
                 return Err(err("claims", message));
             }
             if let Quantity::Response(e, which) = &c.quantity {
@@ -387,7 +387,7 @@ impl Experiment {
                     return Err(err("claims", format!("evaluation {e:?} needs a control (Blind, Shuffled or a block form) and a seeing evaluation with the same counts, policies, episodes and steps")));
                 }
             }
-            let level = !super::claims::is_effect(c);
+            let level = !super::results::is_effect(c);
             match c.tolerance {
                 Some(t) if !(level && c.paper.is_some() && t.is_finite() && t > 0.0) => {
                     return Err(err(
@@ -623,7 +623,7 @@ impl Experiment {
                 Quantity::TrainingFirst(q) | Quantity::TrainingLast(q) => q.as_str(),
                 _ => continue,
             };
-            if !super::claims::AUTHORS_CURVES.contains(&q) {
+            if !super::results::AUTHORS_CURVES.contains(&q) {
                 continue;
             }
             let compared = std::iter::once(&c.variant).chain(c.versus.as_ref());

@@ -23,32 +23,24 @@
 //! evaluations write `eval-<name>.csv` beside it, and [`aggregate`] reads only CSV files to write
 //! `summary.csv`, `summary-mean.csv` and the figures ([`plot`]).
 
-// The single-run analyses the lab runs, aggregates and draws with, from the room below it.
+// The single-run analyses the lab runs, aggregates and draws with, and the claims it judges, from the
+// rooms below it.
 pub(crate) use crate::analysis::{crossplay, crossplay_matrix, crossplay_readouts, distill, plot, stats};
+pub(crate) use crate::claims::{
+    curves, family, figure_data, file, grid, quantity, registry, report, results, summary, trainings, verdict,
+};
 pub mod aggregate;
 pub(crate) mod carry;
-pub(crate) mod claims;
 pub(crate) mod command;
-pub(crate) mod curves;
 pub(crate) mod data;
 pub(crate) mod estimate;
 pub mod external;
-pub(crate) mod figure_data;
 pub(crate) mod figures;
-pub(crate) mod file;
-pub(crate) mod grid;
 mod load;
 pub mod paper_table;
-pub mod pin;
-pub(crate) mod quantity;
+pub(crate) mod pin;
 pub(crate) mod registration;
-pub(crate) mod registry;
-pub(crate) mod report;
 pub(crate) mod runner;
 pub(crate) mod spread;
-pub mod summary;
-pub(crate) mod trainings;
-pub(crate) mod verdict;
 
-pub use claims::{ClaimResult, RunData};
-pub use file::*;
+pub use crate::claims::{file::*, ClaimResult, RunData};

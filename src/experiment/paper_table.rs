@@ -5,8 +5,8 @@
 //! REPRODUCTION.md gives that claim. Written at the top of REPRODUCTION.md and as the book's first results
 //! page ([`BOOK_PAGE`]).
 
-use super::claims::ClaimResult;
 use super::file::Quantity;
+use super::results::ClaimResult;
 use super::verdict::Outcome;
 use serde::Deserialize;
 use std::fmt::Write as _;
@@ -206,7 +206,7 @@ fn found<'a>(s: &Statement, preset: &str, results: &'a [ClaimResult]) -> Vec<&'a
 /// Whether a level's verdict disagrees with the contrast its sentence implies (the aggregation's note,
 /// `aggregate::say_where_a_level_and_its_contrast_disagree`): the contrast decides the paper's sentence.
 fn disagrees(r: &ClaimResult) -> bool {
-    r.verdict.as_ref().is_some_and(|v| v.text.contains(super::aggregate::DISAGREES))
+    r.verdict.as_ref().is_some_and(|v| v.text.contains(super::family::DISAGREES))
 }
 
 /// Whether a claim's result stands as a verdict (not waiting for its runs).

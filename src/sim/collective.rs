@@ -311,7 +311,9 @@ pub(crate) fn edge_rank(arena: &Arena, positions: &[DVec2], group: &[usize], j: 
 pub(crate) fn pursuit_targets(arena: &Arena, at: DVec2, prey: &[DVec2], nn: &[f64], radius: f64) -> Option<[DVec2; 3]> {
     let mut in_view = 0usize;
     let mut sum = DVec2::ZERO;
-    let (mut isolated, mut nearest): (Option<(f64, DVec2)>, Option<(f64, DVec2)>) = (None, None);
+    // (distance to its nearest fellow, offset) and (distance, offset) of the best so far.
+    let mut isolated: Option<(f64, DVec2)> = None;
+    let mut nearest: Option<(f64, DVec2)> = None;
     for (&x, &alone) in prey.iter().zip(nn) {
         let offset = arena.delta(at, x);
         let distance = offset.length();

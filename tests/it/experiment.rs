@@ -240,7 +240,7 @@ fn a_tiny_experiment_runs_resumes_and_gives_the_same_summary_at_one_or_two_jobs(
                     || name.starts_with("edge_rank_")
                     || name.ends_with("_reach90")
                     // The curves' shape needs 10 episodes, its extreme 200: blank in these 3-episode runs.
-                    || coevo::experiment::summary::curve_columns().iter().any(|(c, _)| c == name);
+                    || coevo::claims::summary::curve_columns().iter().any(|(c, _)| c == name);
             assert!(
                 cell.parse::<f64>().is_ok_and(f64::is_finite) || (optional && cell.is_empty()),
                 "{name} = {cell:?} in {row}"
@@ -1046,7 +1046,7 @@ fn claims_on_the_authors_metric_read_its_curves() {
     assert!(report.contains("apart from chance 0.154"), "{report}");
     // The other experiments' summaries keep their columns: no run of tiny.ron measures the code's metric.
     let tiny = Experiment::load(&dir.path().join("experiments/tiny.ron"), Path::new("results")).unwrap();
-    assert!(coevo::experiment::summary::columns(&tiny).iter().all(|(name, _)| !name.starts_with("authors_")));
+    assert!(coevo::claims::summary::columns(&tiny).iter().all(|(name, _)| !name.starts_with("authors_")));
 }
 
 #[test]
@@ -1251,8 +1251,8 @@ fn every_committed_mean_rederives_from_its_summary() {
     for file in Experiment::files(Path::new("experiments")).unwrap() {
         let exp = Experiment::load(&file, Path::new("results")).unwrap();
         let Ok(committed) = std::fs::read_to_string(exp.root.join("summary-mean.csv")) else { continue };
-        let table = coevo::experiment::summary::Summary::read(&exp.root.join("summary.csv")).unwrap().unwrap();
-        let means = coevo::experiment::summary::means_text(&exp, &table, &coevo::experiment::summary::columns(&exp));
+        let table = coevo::claims::summary::Summary::read(&exp.root.join("summary.csv")).unwrap().unwrap();
+        let means = coevo::claims::summary::means_text(&exp, &table, &coevo::claims::summary::columns(&exp));
         if coevo::experiment::aggregate::in_progress(&exp, &table) {
             assert_eq!(
                 committed, "preset,variant,quantity,seeds,mean,ci95\n",
@@ -1268,7 +1268,7 @@ fn every_committed_mean_rederives_from_its_summary() {
         }
         // Summaries written before the curve columns gained them later (from the committed figure data),
         // and their means were written without those lines: every other line must be there.
-        let curves: Vec<String> = coevo::experiment::summary::curve_columns().into_iter().map(|(c, _)| c).collect();
+        let curves: Vec<String> = coevo::claims::summary::curve_columns().into_iter().map(|(c, _)| c).collect();
         let extra: Vec<&&str> = derived
             .iter()
             .filter(|l| !committed.lines().any(|c| c == **l) && !curves.iter().any(|c| l.contains(&format!(",{c},"))))
@@ -1486,7 +1486,7 @@ fn a_pinned_experiment_runs_only_with_a_build_that_reproduces_its_fingerprint() 
     let out = coevo(root, &args);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     assert!(String::from_utf8_lossy(&out.stderr).contains("reproduced"));
-    let recorded = coevo::experiment::pin::Pin::read(&root.join("results/tiny")).unwrap().unwrap();
+    let recorded = coevo::claims::pin::Pin::read(&root.join("results/tiny")).unwrap().unwrap();
     assert_eq!(recorded.rebuilds.len(), 1);
     let provenance = std::fs::read_to_string(root.join("results/tiny/paper/1-1/seed1/provenance.ron")).unwrap();
     assert!(provenance.contains(&format!("binary: \"{}\"", recorded.rebuilds[0])), "{provenance}");

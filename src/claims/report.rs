@@ -1,9 +1,9 @@
 //! What an experiment reports: its REPORT.md, and REPRODUCTION.md over the project's experiment files
 //! (written by `--experiment` and `--plot`, [`super::command`]).
 
-use super::claims::ClaimResult;
 use super::file::{Experiment, Quantity, EVAL_ORDER, EVAL_ORDER_DIGITS, EVAL_ORDER_LABELS};
 use super::quantity::quantity_name;
+use super::results::ClaimResult;
 use super::summary;
 use super::verdict::p_shown;
 use crate::sim::metrics::Swarming;
@@ -291,15 +291,15 @@ fn section(md: &mut String, Reported { exp, results, finished, summary, .. }: &R
         .iter()
         .flat_map(|p| exp.spec.variants.iter().filter_map(move |v| summary.episodes(p, &v.name)))
         .min();
-    if let Some(n) = shortest.filter(|&n| n < 2 * super::claims::WINDOW) {
+    if let Some(n) = shortest.filter(|&n| n < 2 * super::results::WINDOW) {
         writeln!(
             md,
             "**Runs of {n} episodes:** shorter than {} episodes, so their first and last {} episodes overlap: every \
              first- or last-100 value below reads overlapping episodes (all of them, at {} episodes or fewer), and changes \
              over training are not measured.\n",
-            2 * super::claims::WINDOW,
-            super::claims::WINDOW,
-            super::claims::WINDOW
+            2 * super::results::WINDOW,
+            super::results::WINDOW,
+            super::results::WINDOW
         )
         .unwrap();
     }
@@ -321,7 +321,7 @@ fn section(md: &mut String, Reported { exp, results, finished, summary, .. }: &R
             (Some(l), Some(_)) => format!("TOST, α = {}", super::verdict::alpha_shown(l)),
             (Some(l), None) => format!("α = {}", super::verdict::alpha_shown(l)),
             // An effect not tested (not run yet, one seed, identical runs) has no level.
-            (None, _) if super::claims::is_effect(&r.claim) => "–".into(),
+            (None, _) if super::results::is_effect(&r.claim) => "–".into(),
             (None, _) => "95 %".into(),
         };
         let plain = match r.estimate.and_then(|e| e.ci.map(|c| (e.mean, c))) {

@@ -4,9 +4,9 @@
 //! names every variant it leaves to another, so a new quantity is a compile error until every one says
 //! what it is.
 
-use super::claims::{RunData, SETTLED_STEPS};
 use super::curves::{curve_shape, extreme_word, reach90, window_mean, AUTHORS_CURVES, HALFWAY_WINDOW, START};
 use super::file::{Claim, Curve, Experiment, Quantity};
+use super::results::{RunData, SETTLED_STEPS};
 use super::stats::mean;
 use super::verdict::is_effect;
 
@@ -16,7 +16,7 @@ pub(crate) fn quantity(exp: &Experiment, d: &RunData, q: &Quantity) -> f64 {
 }
 
 /// The value of a primitive quantity (one with a [`column`] of its own) from a run's files.
-pub(super) fn primitive(d: &RunData, q: &Quantity) -> f64 {
+pub(crate) fn primitive(d: &RunData, q: &Quantity) -> f64 {
     let settled = |v: &[f64]| {
         mean(&v[v.len().saturating_sub(SETTLED_STEPS)..].iter().copied().filter(|x| x.is_finite()).collect::<Vec<_>>())
             .unwrap_or(f64::NAN)

@@ -11,10 +11,10 @@
 //! of any figure, at half the size; the figures are drawn from the values so rounded ([`of_run`]),
 //! whether they come from the run folders or from the file.
 
-use super::claims::RunData;
 use super::crossplay_matrix::{Cell, Matrix, Pair};
 use super::file::eval_file;
 use super::file::{Experiment, Run};
+use super::results::RunData;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::io::{Read, Write};

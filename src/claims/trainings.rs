@@ -5,8 +5,8 @@
 //! before anything is written, so no training is counted as two pieces of evidence or two in the suite's
 //! totals ([`count`]).
 
-use super::claims::RunData;
 use super::file::Experiment;
+use super::results::RunData;
 use super::summary::Summary;
 use std::collections::BTreeMap;
 

@@ -2,9 +2,9 @@
 //! written and read by one definition of their columns ([`columns`]). The claims are computed from
 //! `summary.csv` alone, so a clone without run folders recomputes them exactly.
 
-use super::claims::{window_mean, RunData};
 use super::file::{slug, Curve, Experiment, Quantity};
 use super::quantity::{column, derive, quantity};
+use super::results::{window_mean, RunData};
 use super::stats::estimate;
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
@@ -102,7 +102,7 @@ pub fn columns(exp: &Experiment) -> Vec<(String, Quantity)> {
 /// the committed figure data, which holds the curves, without rewriting a byte of what it held.
 pub fn curve_columns() -> Vec<(String, Quantity)> {
     let mut quantities = Vec::new();
-    for curve in super::claims::CURVES {
+    for curve in super::results::CURVES {
         quantities.push(Quantity::Start(curve));
     }
     for curve in [Curve::Dos, Curve::Doa] {
@@ -207,7 +207,7 @@ pub(crate) fn extend(
                 | Quantity::Extreme(o)
                 | Quantity::ExtremeEpisode(o)
                 | Quantity::AfterExtreme(o)
-                | Quantity::Halfway(o) => super::claims::curve_shape(q, d.curve(*o)),
+                | Quantity::Halfway(o) => super::results::curve_shape(q, d.curve(*o)),
                 _ => f64::NAN,
             });
             out.push_str(&field(v));
@@ -368,9 +368,9 @@ pub(crate) fn csv_text(s: &str) -> String {
 
 #[cfg(test)]
 mod tests {
-    use super::super::claims::RunData;
     use super::super::figure_data::FigureData;
     use super::super::file::Experiment;
+    use super::super::results::RunData;
     use std::collections::BTreeMap;
 
     #[test]

@@ -249,7 +249,7 @@ pub(crate) struct Tested {
     pub(crate) resamples: Option<Vec<f64>>,
     /// What the test read, to the bit, as `aggregate::adjust` compares tests (two claims of one family
     /// that read the same runs the same way are one test): every value along its cells, and its test.
-    pub(crate) reads: Option<super::claims::SameTest>,
+    pub(crate) reads: Option<super::results::SameTest>,
 }
 
 /// Tests a grid claim on the per-run values `values(variant)` (on the claim's scale).
@@ -666,7 +666,7 @@ mod tests {
     #[test]
     fn a_crossing_is_found_between_the_levels_that_bracket_it() {
         let x = [0.0, 1.0, 2.0, 3.0];
-        use crate::experiment::file::Crossing::{Either, Falls, Rises};
+        use crate::claims::file::Crossing::{Either, Falls, Rises};
         assert_eq!(crossing(&x, &[0.4, 0.3, 0.1, 0.0], 0.2, Falls), 1.5);
         assert_eq!(crossing(&x, &[0.4, 0.2, 0.1, 0.0], 0.2, Falls), 1.0, "a level exactly at the value");
         assert_eq!(crossing(&x, &[0.0, 0.1, 0.3, 0.4], 0.2, Rises), 1.5, "rising through it");
@@ -716,9 +716,9 @@ mod tests {
 
     #[test]
     fn a_boundary_is_located_where_the_means_cross_and_not_where_they_do_not() {
-        use crate::experiment::file::{Claim, Crossing::Falls};
+        use crate::claims::file::{Claim, Crossing::Falls};
         let x = [-3.58, -2.58, -1.58, -1.0, 0.0];
-        let claim = Claim::of("known boundary", "", crate::experiment::file::Quantity::DoaLast);
+        let claim = Claim::of("known boundary", "", crate::claims::file::Quantity::DoaLast);
         let crossing_at = |levels: &[Vec<f64>]| {
             let mut rng = resampler(&claim);
             let mut r: Vec<f64> =

@@ -461,8 +461,8 @@ pub(crate) fn p_shown(p: f64) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::experiment::file::Quantity;
-    use crate::experiment::stats::estimate;
+    use crate::claims::file::Quantity;
+    use crate::claims::stats::estimate;
 
     fn claim(paper: Option<f64>, versus: bool) -> Claim {
         Claim { paper, versus: versus.then(|| "b".into()), ..Claim::of("c", "v", Quantity::DoaLast) }
@@ -504,7 +504,7 @@ mod tests {
     fn an_undecided_direction_says_how_many_seeds_over_its_interval() {
         // A difference measured at +0.02 between two arms of 5 seeds, not detected: the seeds that would
         // detect it, and the range from the interval's far end (fewer) to its near end, which holds 0.
-        let e = crate::experiment::stats::difference(&[0.80, 0.86, 0.83, 0.79, 0.85], &[0.81, 0.82, 0.80, 0.78, 0.82]);
+        let e = crate::claims::stats::difference(&[0.80, 0.86, 0.83, 0.79, 0.85], &[0.81, 0.82, 0.80, 0.78, 0.82]);
         let c = Claim { direction_only: true, ..claim(Some(1.0), true) };
         let text = verdict(&c, e, Some(0.4), Some(ALPHA), None).text;
         let number = |after: &str| -> usize {

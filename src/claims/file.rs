@@ -82,7 +82,7 @@ pub(crate) struct DistillSpec {
 }
 
 fn distill_episodes() -> usize {
-    crate::experiment::distill::EPISODES
+    crate::claims::distill::EPISODES
 }
 
 fn distill_forms() -> Vec<crate::scene::RuleForm> {
@@ -487,7 +487,7 @@ pub enum Quantity {
     /// The last 100 episodes minus the extreme, both over the even episodes: how far the curve moved
     /// back after its peak (DoA) or trough (DoS).
     AfterExtreme(Curve),
-    /// How fast a curve converges: the episode at which the [`HALFWAY_WINDOW`](super::claims::HALFWAY_WINDOW)-
+    /// How fast a curve converges: the episode at which the [`HALFWAY_WINDOW`](super::results::HALFWAY_WINDOW)-
     /// episode running mean of `dos` or `doa` first completes half of its change from the start (the
     /// first [`START`](super::curves::START) episodes) to the last 100 episodes. Half the change is crossed
     /// where the curve is steepest, so its seed-to-seed spread is small (the 90 % of
@@ -495,7 +495,7 @@ pub enum Quantity {
     /// do most of their change within the first 100 episodes.
     Halfway(Curve),
     /// How fast a curve gets to one level common to the arms compared: the episode at which the
-    /// [`HALFWAY_WINDOW`](super::claims::HALFWAY_WINDOW)-episode running mean of `dos` first falls to the
+    /// [`HALFWAY_WINDOW`](super::results::HALFWAY_WINDOW)-episode running mean of `dos` first falls to the
     /// level or below, or of `doa` first rises to it or above (from its first whole window on). A run
     /// that never gets there counts as getting there one episode after its last (censored), so that it is
     /// neither dropped nor counted as early. Unlike [`Quantity::Halfway`], which times each run against
@@ -780,7 +780,7 @@ pub struct Experiment {
 
 /// The longest variant or evaluation name: it becomes a folder or file name (`eval-NAME-confusion.csv`),
 /// which file systems cap at 255 bytes.
-pub(super) const MAX_NAME: usize = 100;
+pub(crate) const MAX_NAME: usize = 100;
 
 /// The file an evaluation of a run writes (named by the run folder's owner, `run::RunDir`).
 pub(crate) fn eval_file(dir: &std::path::Path, evaluation: &str) -> std::path::PathBuf {

@@ -77,7 +77,7 @@ pub struct ClaimResult {
     pub claim: Claim,
     pub estimate: Option<Estimate>,
     /// For an effect: the two-sided p-value of "no effect" (TOST's for a claim of no effect), and Holm's
-    /// adjustment of it over its family ([`super::aggregate::adjust`]).
+    /// adjustment of it over its family ([`super::family::adjust`]).
     pub p: Option<f64>,
     pub p_holm: Option<f64>,
     /// For an effect: the level α_k at which its interval is shown, so that the interval excludes zero
@@ -87,7 +87,7 @@ pub struct ClaimResult {
     /// How many tests its family holds, across every experiment file that names it (0 when untested).
     pub(crate) family_tests: usize,
     /// What its test reads, to the bit (its samples and margin): tests of one family that read the same
-    /// are one test ([`super::aggregate::adjust`]). None when untested.
+    /// are one test ([`super::family::adjust`]). None when untested.
     pub(crate) same_test: Option<SameTest>,
     /// The test of its family it repeats ("experiment / preset / claim"), counted once.
     pub(crate) same_as: Option<String>,
@@ -95,7 +95,7 @@ pub struct ClaimResult {
     pub(crate) stated: super::registry::Stated,
     /// For a level: the value chance alone gives ([`chance_level`]).
     pub(crate) baseline: Option<f64>,
-    /// None until it is judged ([`super::aggregate::adjust`]), or given before its test (in progress,
+    /// None until it is judged ([`super::family::adjust`]), or given before its test (in progress,
     /// identical runs, windows that overlap).
     pub(crate) verdict: Option<super::verdict::Verdict>,
     /// A grid's boundary or its shift: its bootstrap resamples, sorted (`grid::Tested`), whose
@@ -140,7 +140,7 @@ pub(crate) type SameTest = (Vec<u64>, Option<Vec<u64>>, Option<u64>);
 
 // What kind of test a claim gets and at which level are the verdict's (`verdict.rs`), re-exported here
 // beside the quantities they read.
-pub(crate) use super::verdict::{is_effect, ALPHA};
+pub(crate) use super::verdict::is_effect;
 
 impl ClaimResult {
     /// The half-width of the interval shown for this claim: at its family-adjusted level for an effect
@@ -163,14 +163,14 @@ impl ClaimResult {
 #[cfg(test)]
 pub(crate) mod tests {
     use super::*;
-    use crate::experiment::file::{Curve, Experiment, Quantity};
-    use crate::experiment::quantity::quantity;
-    use crate::experiment::verdict::{hypothesis, DOA_TOLERANCE, DOS_TOLERANCE};
+    use crate::claims::file::{Curve, Experiment, Quantity};
+    use crate::claims::quantity::quantity;
+    use crate::claims::verdict::{hypothesis, ALPHA, DOA_TOLERANCE, DOS_TOLERANCE};
     use std::path::Path;
 
-    /// The sentence of a verdict ([`crate::experiment::verdict::verdict`]), which these tests read.
+    /// The sentence of a verdict ([`crate::claims::verdict::verdict`]), which these tests read.
     fn verdict(claim: &Claim, e: Option<Estimate>, p: Option<f64>, level: Option<f64>, b: Option<f64>) -> String {
-        crate::experiment::verdict::verdict(claim, e, p, level, b).text
+        crate::claims::verdict::verdict(claim, e, p, level, b).text
     }
 
     #[test]
@@ -244,7 +244,7 @@ pub(crate) mod tests {
     /// The verdict on one effect claim of its own family (so Holm's adjustment is the p-value itself and
     /// its level α): TOST for a claim of no effect.
     fn judged(c: &Claim, samples: &[f64]) -> String {
-        let e = crate::experiment::stats::estimate(samples);
+        let e = crate::claims::stats::estimate(samples);
         let p = e.and_then(|e| e.test_p(c.margin));
         verdict(c, e, p, Some(ALPHA), None)
     }
@@ -325,14 +325,14 @@ pub(crate) mod tests {
         assert_eq!(hypothesis(&faster, None), "an effect < 0");
         // A detected effect that does not survive Holm's adjustment is not detected, and its power is
         // stated at the level it was tested at.
-        let e = crate::experiment::stats::estimate(&clear);
+        let e = crate::claims::stats::estimate(&clear);
         let v = verdict(&free, e, Some(0.2), Some(ALPHA / 44.0), None);
         assert!(v.starts_with("no effect detected (inconclusive): 80 % power at its level (α = 0.05/44)"), "{v}");
     }
 
     /// A claim of experiment `experiment` tested on one sample, not yet adjusted or judged.
     pub(crate) fn tested(c: &Claim, experiment: &str, sample: &[f64]) -> ClaimResult {
-        let e = crate::experiment::stats::estimate(sample).unwrap();
+        let e = crate::claims::stats::estimate(sample).unwrap();
         ClaimResult {
             experiment: experiment.into(),
             preset: "p".into(),
@@ -344,7 +344,7 @@ pub(crate) mod tests {
             family_tests: 0,
             same_test: Some((sample.iter().map(|x| x.to_bits()).collect(), None, None)),
             same_as: None,
-            stated: crate::experiment::registry::Stated::Unknown,
+            stated: crate::claims::registry::Stated::Unknown,
             baseline: None,
             verdict: None,
             resamples: None,
@@ -365,15 +365,15 @@ pub(crate) mod tests {
             // exclude zero while the adjusted one must not.
             &[0.09, 0.01, 0.06, 0.1, 0.03],
         ];
-        let e: Vec<Estimate> = samples.iter().map(|s| crate::experiment::stats::estimate(s).unwrap()).collect();
+        let e: Vec<Estimate> = samples.iter().map(|s| crate::claims::stats::estimate(s).unwrap()).collect();
         let p: Vec<f64> = e.iter().map(|e| e.p_value().unwrap()).collect();
         let free = claim(Quantity::InteractionDoa("x".into()), None, None);
         assert!(p.iter().any(|&p| (0.017..0.05).contains(&p)), "{p:?}");
         let mut results: Vec<ClaimResult> = (0..samples.len()).map(|i| tested(&free, "e", samples[i])).collect();
-        crate::experiment::aggregate::adjust(&mut results);
+        crate::claims::family::adjust(&mut results);
         assert_eq!(
             results.iter().map(|r| r.p_holm.unwrap()).collect::<Vec<_>>(),
-            crate::experiment::stats::holm(&p),
+            crate::claims::stats::holm(&p),
             "one file's claims without a family name are one family"
         );
         for (i, r) in results.iter().enumerate() {
@@ -392,7 +392,7 @@ pub(crate) mod tests {
     #[test]
     fn levels_are_judged_by_equivalence_within_their_tolerance_and_told_apart_from_chance() {
         let level = claim(Quantity::EvalDoa("x".into()), Some(0.82), None);
-        let e = |s: &[f64]| crate::experiment::stats::estimate(s);
+        let e = |s: &[f64]| crate::claims::stats::estimate(s);
         let chance = Some(std::f64::consts::FRAC_2_PI);
         // Mean 0.82, SD 0.016 over 5 seeds: the 90 % interval (±0.015) is not inside 0.82 ± 0.015, and
         // the 95 % one holds 0.82: inconclusive. Ten seeds with SD 0.003 are within it.
@@ -420,7 +420,7 @@ pub(crate) mod tests {
         assert_eq!(verdict(&level, e(&[0.8]), None, None, chance), "one seed: no interval");
         // DoS levels take ±0.005; a claim's own tolerance replaces the rule's.
         let starts = claim(Quantity::DosFirst, Some(0.22), None);
-        assert_eq!(crate::experiment::verdict::tolerance(&starts), Some(DOS_TOLERANCE));
+        assert_eq!(crate::claims::verdict::tolerance(&starts), Some(DOS_TOLERANCE));
         let near = [0.219, 0.221, 0.220, 0.219, 0.221, 0.220];
         assert!(verdict(&starts, e(&near), None, None, Some(0.1)).starts_with("reproduced"));
         let own = Claim { tolerance: Some(0.0005), ..starts.clone() };
@@ -430,7 +430,7 @@ pub(crate) mod tests {
 
     #[test]
     fn a_claim_on_the_log_scale_tests_ln_1_plus_each_value() {
-        use crate::experiment::file::Scale;
+        use crate::claims::file::Scale;
         assert_eq!(Scale::Linear.of(3.0), 3.0);
         assert_eq!(Scale::Log1p.of(0.0), 0.0);
         assert!((Scale::Log1p.of(std::f64::consts::E - 1.0) - 1.0).abs() < 1e-12);
@@ -439,10 +439,10 @@ pub(crate) mod tests {
         // raw values holds zero; on ln(1 + x) it does not.
         let every = [78.0, 80.0, 82.0, 85.0, 88.0, 90.0, 95.0, 100.0, 1500.0, 2500.0];
         let base = [23.0, 25.0, 26.0, 28.0, 29.0, 30.0, 31.0, 33.0, 34.0, 35.0];
-        let raw = crate::experiment::stats::difference(&every, &base).unwrap();
+        let raw = crate::claims::stats::difference(&every, &base).unwrap();
         assert!(raw.mean - raw.ci.unwrap() < 0.0, "{raw:?}");
         let log = |v: &[f64]| v.iter().map(|&x| Scale::Log1p.of(x)).collect::<Vec<_>>();
-        let logged = crate::experiment::stats::difference(&log(&every), &log(&base)).unwrap();
+        let logged = crate::claims::stats::difference(&log(&every), &log(&base)).unwrap();
         assert!(logged.mean - logged.ci.unwrap() > 0.0, "{logged:?}");
         // Only for effects: a level on the log scale is refused when its file is read.
         let dir = tempfile::tempdir().unwrap();
