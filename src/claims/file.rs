@@ -2,7 +2,6 @@
 //! (variants, evaluations, claims), the runs it resolves to, and the names it derives (slugs, partners).
 //! Read and validated by `load.rs`.
 
-use crate::run::schema::EDGE_RANK;
 use crate::scene::{Overrides, Scene, ScenePatch};
 use crate::sim::metrics::Swarming;
 use serde::Deserialize;
@@ -429,14 +428,14 @@ pub enum Quantity {
     /// Another per-episode order parameter of training (`polarization`, `milling`, `clusters`,
     /// `largest_cluster`, `nn_correlation`, `edge_rank`, or the shipped code's `authors_dos` and
     /// `authors_doa` in runs with `authors_metrics`): mean of the first / last 100 episodes.
-    TrainingFirst(String),
-    TrainingLast(String),
+    TrainingFirst(Order),
+    TrainingLast(Order),
     /// The evaluation's mean over its last 50 steps (the trained policies' settled state).
     EvalDos(String),
     EvalDoa(String),
     /// The same for another order parameter of the evaluation: `polarization`, `milling`, `clusters`,
     /// `largest_cluster`, `nn_correlation`; or `edge_rank`, the mean edge rank of every prey caught in it.
-    EvalOrder(String, String),
+    EvalOrder(String, Order),
     /// Catches per prey (the headline species) per episode in the evaluation, over its whole episodes:
     /// every predator–prey contact that began, divided by the episodes and the prey deployed (group-size
     /// series compare groups of different sizes by it). A column of `summary.csv` only in experiments
@@ -447,15 +446,15 @@ pub enum Quantity {
     InteractionDoa(String),
     /// The same for another order parameter (as [`Quantity::EvalOrder`] names them), e.g.
     /// `Interaction("50 prey, blind to prey", "nn_correlation")`: seeing minus the control, per run.
-    Interaction(String, String),
+    Interaction(String, Order),
     /// What training changed: an order parameter (`dos`, `doa` or as [`Quantity::EvalOrder`]) in an
     /// evaluation of the trained actors minus the same evaluation of the untrained ones (same counts,
     /// episodes, steps and control, `untrained: true`), per run.
-    Learned(String, String),
+    Learned(String, Order),
     /// An order parameter (`dos`, `doa` or as [`Quantity::EvalOrder`]) in one evaluation minus the same in
     /// another of the same run, per run (paired): e.g. `EvalDifference("50 prey, distilled prey", "50 prey",
     /// "doa")`, what replacing the learned prey by their distilled rule changes.
-    EvalDifference(String, String, String),
+    EvalDifference(String, String, Order),
     /// A number of the rule `coevo --distill` fitted to one species of the run (`distilled.ron`; needs
     /// `distill:` in the file): a parameter of its policy by field name (`turn.alignment`,
     /// `repulsion_radius`, `persistence`, ...) or how much it explains on the held-out episodes
@@ -524,65 +523,140 @@ pub enum Quantity {
     Crossplay(String),
 }
 
-/// A training curve, per episode, that a curve quantity reads ([`Quantity::Start`], [`Quantity::Fitted`],
-/// ...): written in experiment files as its name, `"dos"`, `"doa"`, `"catches"`, or, in runs with
-/// `authors_metrics`, `"authors_dos"` and `"authors_doa"` (the shipped code's metric).
-#[derive(Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
-pub enum Curve {
-    Dos,
-    Doa,
-    Catches,
-    AuthorsDos,
-    AuthorsDoa,
+/// An enum written in experiment files by name: its variants with their names, `ALL`, `name`, `parse`,
+/// `Display` (the name) and `Debug` (the name quoted, as the string each was before it was a type, so that
+/// a claim's fingerprint, which hashes the quantity's `Debug` in `registry.rs`, stands), and a
+/// `Deserialize` that refuses any other name, listing the names.
+macro_rules! named {
+    ($(#[$doc:meta])* $name:ident, $what:literal { $($(#[$vdoc:meta])* $variant:ident = $text:literal,)* }) => {
+        $(#[$doc])*
+        #[derive(Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+        pub enum $name {
+            $($(#[$vdoc])* $variant,)*
+        }
+
+        impl $name {
+            /// Every one, in the order of their names.
+            pub const ALL: [$name; [$($text),*].len()] = [$($name::$variant),*];
+
+            /// Its name in experiment files and summary columns.
+            pub fn name(self) -> &'static str {
+                match self {
+                    $($name::$variant => $text,)*
+                }
+            }
+
+            pub fn parse(name: &str) -> Option<$name> {
+                $name::ALL.into_iter().find(|c| c.name() == name)
+            }
+        }
+
+        impl std::fmt::Debug for $name {
+            fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+                write!(f, "{:?}", self.name())
+            }
+        }
+
+        impl std::fmt::Display for $name {
+            fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+                f.write_str(self.name())
+            }
+        }
+
+        impl<'de> Deserialize<'de> for $name {
+            fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<$name, D::Error> {
+                let name = String::deserialize(d)?;
+                $name::parse(&name).ok_or_else(|| {
+                    let names: Vec<String> = $name::ALL.iter().map(|c| format!("{:?}", c.name())).collect();
+                    serde::de::Error::custom(format!("{name:?} is no {}: one of {}", $what, names.join(", ")))
+                })
+            }
+        }
+    };
+}
+
+named! {
+    /// A training curve, per episode, that a curve quantity reads ([`Quantity::Start`], [`Quantity::Fitted`],
+    /// ...): written in experiment files as its name, `"dos"`, `"doa"`, `"catches"`, or, in runs with
+    /// `authors_metrics`, `"authors_dos"` and `"authors_doa"` (the shipped code's metric).
+    Curve, "training curve" {
+        Dos = "dos",
+        Doa = "doa",
+        Catches = "catches",
+        AuthorsDos = "authors_dos",
+        AuthorsDoa = "authors_doa",
+    }
 }
 
 impl Curve {
-    /// Every curve, in the order of their names.
-    pub const ALL: [Curve; 5] = [Curve::Dos, Curve::Doa, Curve::Catches, Curve::AuthorsDos, Curve::AuthorsDoa];
-
-    /// Its name in experiment files and summary columns.
-    pub fn name(self) -> &'static str {
-        match self {
-            Curve::Dos => "dos",
-            Curve::Doa => "doa",
-            Curve::Catches => "catches",
-            Curve::AuthorsDos => "authors_dos",
-            Curve::AuthorsDoa => "authors_doa",
-        }
-    }
-
-    pub fn parse(name: &str) -> Option<Curve> {
-        Curve::ALL.into_iter().find(|c| c.name() == name)
-    }
-
     /// DoS and DoA fall and rise; the rest are other curves.
     pub(crate) fn is_order(self) -> bool {
         matches!(self, Curve::Dos | Curve::Doa)
     }
 }
 
-/// As the name it was a string of before it was a type, so that a claim's fingerprint (`registry.rs`,
-/// which hashes the quantity's `Debug`) stands: `"dos"`.
-impl std::fmt::Debug for Curve {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "{:?}", self.name())
+named! {
+    /// What an order-parameter quantity reads ([`Quantity::EvalOrder`], [`Quantity::Interaction`],
+    /// [`Quantity::Learned`], [`Quantity::EvalDifference`], [`Quantity::TrainingFirst`],
+    /// [`Quantity::TrainingLast`]): the paper's DoS and DoA, catches, the order parameters of
+    /// [`Swarming`] beside them, the edge rank of caught prey, and the shipped code's DoS and DoA. Which of
+    /// them each quantity takes is [`Order::of_evaluation`], [`Order::of_training`] and
+    /// [`Order::compared`].
+    Order, "order parameter" {
+        Dos = "dos",
+        Doa = "doa",
+        Catches = "catches",
+        Polarization = "polarization",
+        Milling = "milling",
+        Clusters = "clusters",
+        LargestCluster = "largest_cluster",
+        NnCorrelation = "nn_correlation",
+        EdgeRank = "edge_rank",
+        AuthorsDos = "authors_dos",
+        AuthorsDoa = "authors_doa",
     }
 }
 
-impl std::fmt::Display for Curve {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.name())
+impl Order {
+    /// Taken by [`Quantity::EvalOrder`]: [`EVAL_ORDER`] (DoS, DoA and catches have quantities of their own).
+    pub(crate) fn of_evaluation(self) -> bool {
+        EVAL_ORDER.contains(&self)
     }
-}
 
-impl<'de> Deserialize<'de> for Curve {
-    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Curve, D::Error> {
-        let name = String::deserialize(d)?;
-        Curve::parse(&name).ok_or_else(|| {
-            serde::de::Error::custom(format!(
-                "{name:?} is no training curve: \"dos\", \"doa\", \"catches\", \"authors_dos\" or \"authors_doa\""
-            ))
-        })
+    /// Taken by [`Quantity::TrainingFirst`] and [`Quantity::TrainingLast`]: [`EVAL_ORDER`] and the shipped
+    /// code's DoS and DoA (`authors_metrics`).
+    pub(crate) fn of_training(self) -> bool {
+        self.of_evaluation() || matches!(self, Order::AuthorsDos | Order::AuthorsDoa)
+    }
+
+    /// Taken by the comparisons of evaluations ([`Quantity::Interaction`], [`Quantity::Learned`],
+    /// [`Quantity::EvalDifference`]): DoS, DoA, catches and [`EVAL_ORDER`].
+    pub(crate) fn compared(self) -> bool {
+        self.of_evaluation() || matches!(self, Order::Dos | Order::Doa | Order::Catches)
+    }
+
+    /// The order parameter it measures, whoever's metric: DoS and DoA for the shipped code's.
+    pub(crate) fn measured(self) -> Order {
+        match self {
+            Order::AuthorsDos => Order::Dos,
+            Order::AuthorsDoa => Order::Doa,
+            other => other,
+        }
+    }
+
+    /// The width of the values it can take, None when unbounded: DoS, DoA, polarization, milling, the
+    /// largest cluster's share and the edge rank lie in [0, 1], C_nn in [−1, 1].
+    pub(crate) fn span(self) -> Option<f64> {
+        match self.measured() {
+            Order::Dos
+            | Order::Doa
+            | Order::Polarization
+            | Order::Milling
+            | Order::LargestCluster
+            | Order::EdgeRank => Some(1.0),
+            Order::NnCorrelation => Some(2.0),
+            Order::Catches | Order::Clusters | Order::AuthorsDos | Order::AuthorsDoa => None,
+        }
     }
 }
 
@@ -688,10 +762,17 @@ pub enum Fit {
     Time,
 }
 
-/// Order parameters an [`Quantity::EvalOrder`] may name.
-/// Taken from the one list of order parameters: every one of [`Swarming`] but DoS and DoA (its first two;
-/// they have quantities of their own, `EvalDos` and `EvalDoa`), then the edge rank of caught prey.
-pub const EVAL_ORDER: [&str; EVAL_ORDERS] = eval_order(Swarming::NAMES, EDGE_RANK);
+/// Order parameters an [`Quantity::EvalOrder`] may name: every one of [`Swarming`] but DoS and DoA (its
+/// first two; they have quantities of their own, `EvalDos` and `EvalDoa`), then the edge rank of caught
+/// prey. A test holds their names to [`Swarming::NAMES`], so an order parameter added there is added here.
+pub const EVAL_ORDER: [Order; EVAL_ORDERS] = [
+    Order::Polarization,
+    Order::Milling,
+    Order::Clusters,
+    Order::LargestCluster,
+    Order::NnCorrelation,
+    Order::EdgeRank,
+];
 
 /// The report-table heading and digits of each of [`EVAL_ORDER`], in its order.
 pub const EVAL_ORDER_LABELS: [&str; EVAL_ORDERS] = eval_order(Swarming::LABELS, "edge rank");
@@ -799,4 +880,20 @@ pub(crate) fn slug(name: &str) -> String {
         }
     }
     out.trim_end_matches('-').to_string()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{Order, EVAL_ORDER};
+    use crate::sim::metrics::Swarming;
+
+    #[test]
+    fn the_evaluations_order_parameters_are_swarmings_then_the_edge_rank() {
+        // An order parameter added to `Swarming` must be added to `Order` and `EVAL_ORDER` too.
+        let names: Vec<&str> = EVAL_ORDER.iter().map(|o| o.name()).collect();
+        let expected: Vec<&str> = Swarming::NAMES[2..].iter().copied().chain([crate::run::schema::EDGE_RANK]).collect();
+        assert_eq!(names, expected);
+        assert_eq!(Order::parse("nn_correlation"), Some(Order::NnCorrelation));
+        assert_eq!(format!("{:?}", Order::Milling), "\"milling\"", "as the string it was: fingerprints stand");
+    }
 }

@@ -5,7 +5,7 @@
 //! what it is.
 
 use super::curves::{curve_shape, extreme_word, reach90, window_mean, AUTHORS_CURVES, HALFWAY_WINDOW, START};
-use super::file::{Claim, Curve, Experiment, Quantity};
+use super::file::{Claim, Curve, Experiment, Order, Quantity};
 use super::results::{RunData, SETTLED_STEPS};
 use super::stats::mean;
 use super::verdict::is_effect;
@@ -21,7 +21,7 @@ pub(crate) fn primitive(d: &RunData, q: &Quantity) -> f64 {
         mean(&v[v.len().saturating_sub(SETTLED_STEPS)..].iter().copied().filter(|x| x.is_finite()).collect::<Vec<_>>())
             .unwrap_or(f64::NAN)
     };
-    let eval = |e: &str, name: &str| d.evals.get(e).map_or(f64::NAN, |x| settled(x.series(name)));
+    let eval = |e: &str, o: Order| d.evals.get(e).map_or(f64::NAN, |x| settled(x.series(o.name())));
     match q {
         Quantity::DosFirst => window_mean(&d.dos, true),
         Quantity::DosLast => window_mean(&d.dos, false),
@@ -29,12 +29,12 @@ pub(crate) fn primitive(d: &RunData, q: &Quantity) -> f64 {
         Quantity::DoaLast => window_mean(&d.doa, false),
         Quantity::CatchesFirst => window_mean(&d.catches, true),
         Quantity::CatchesLast => window_mean(&d.catches, false),
-        Quantity::TrainingFirst(q) => d.orders.get(q).map_or(f64::NAN, |v| window_mean(v, true)),
-        Quantity::TrainingLast(q) => d.orders.get(q).map_or(f64::NAN, |v| window_mean(v, false)),
-        Quantity::EvalDos(e) => eval(e, "dos"),
-        Quantity::EvalDoa(e) => eval(e, "doa"),
-        Quantity::EvalOrder(e, name) if name == "edge_rank" => d.evals.get(e).map_or(f64::NAN, |x| x.edge_rank),
-        Quantity::EvalOrder(e, name) => eval(e, name),
+        Quantity::TrainingFirst(o) => d.orders.get(o.name()).map_or(f64::NAN, |v| window_mean(v, true)),
+        Quantity::TrainingLast(o) => d.orders.get(o.name()).map_or(f64::NAN, |v| window_mean(v, false)),
+        Quantity::EvalDos(e) => eval(e, Order::Dos),
+        Quantity::EvalDoa(e) => eval(e, Order::Doa),
+        Quantity::EvalOrder(e, Order::EdgeRank) => d.evals.get(e).map_or(f64::NAN, |x| x.edge_rank),
+        Quantity::EvalOrder(e, o) => eval(e, *o),
         Quantity::EvalCatches(e) => d.evals.get(e).map_or(f64::NAN, |x| x.catches_per_prey),
         Quantity::Reach90(name) => reach90(if *name == Curve::Dos { &d.dos } else { &d.doa }),
         Quantity::Start(o)
@@ -131,11 +131,18 @@ pub(crate) fn derive(
     primitive: &dyn Fn(&Quantity) -> f64,
 ) -> f64 {
     // An order parameter of an evaluation: DoS and DoA settled, the others as EvalOrder has them.
-    let of_eval = |e: &str, o: &str| match o {
-        "dos" => primitive(&Quantity::EvalDos(e.into())),
-        "doa" => primitive(&Quantity::EvalDoa(e.into())),
-        "catches" => primitive(&Quantity::EvalCatches(e.into())),
-        _ => primitive(&Quantity::EvalOrder(e.into(), o.into())),
+    let of_eval = |e: &str, o: Order| match o {
+        Order::Dos => primitive(&Quantity::EvalDos(e.into())),
+        Order::Doa => primitive(&Quantity::EvalDoa(e.into())),
+        Order::Catches => primitive(&Quantity::EvalCatches(e.into())),
+        // Refused in these quantities when the file is loaded (`Order::compared`).
+        Order::AuthorsDos | Order::AuthorsDoa => f64::NAN,
+        Order::Polarization
+        | Order::Milling
+        | Order::Clusters
+        | Order::LargestCluster
+        | Order::NnCorrelation
+        | Order::EdgeRank => primitive(&Quantity::EvalOrder(e.into(), o)),
     };
     let seeing = |e: &str| super::file::seeing_partner(evaluations, e).map(|s| s.name.clone());
     match q {
@@ -147,17 +154,18 @@ pub(crate) fn derive(
                 Curve::Dos => Quantity::DosLast,
                 Curve::Doa => Quantity::DoaLast,
                 Curve::Catches => Quantity::CatchesLast,
-                Curve::AuthorsDos | Curve::AuthorsDoa => Quantity::TrainingLast(o.name().into()),
+                Curve::AuthorsDos => Quantity::TrainingLast(Order::AuthorsDos),
+                Curve::AuthorsDoa => Quantity::TrainingLast(Order::AuthorsDoa),
             };
             primitive(&last) - primitive(&Quantity::Start(*o))
         }
-        Quantity::InteractionDoa(e) => seeing(e).map_or(f64::NAN, |s| of_eval(&s, "doa") - of_eval(e, "doa")),
-        Quantity::Interaction(e, o) => seeing(e).map_or(f64::NAN, |s| of_eval(&s, o) - of_eval(e, o)),
+        Quantity::InteractionDoa(e) => seeing(e).map_or(f64::NAN, |s| of_eval(&s, Order::Doa) - of_eval(e, Order::Doa)),
+        Quantity::Interaction(e, o) => seeing(e).map_or(f64::NAN, |s| of_eval(&s, *o) - of_eval(e, *o)),
         Quantity::Learned(e, o) => match super::file::untrained_partner(evaluations, e) {
-            Some(untrained) => of_eval(e, o) - of_eval(&untrained.name, o),
+            Some(untrained) => of_eval(e, *o) - of_eval(&untrained.name, *o),
             None => f64::NAN,
         },
-        Quantity::EvalDifference(a, b, o) => of_eval(a, o) - of_eval(b, o),
+        Quantity::EvalDifference(a, b, o) => of_eval(a, *o) - of_eval(b, *o),
         Quantity::TacticLearned(e, t) => match super::file::untrained_partner(evaluations, e) {
             Some(untrained) => {
                 primitive(&Quantity::Tactic(e.clone(), *t)) - primitive(&Quantity::Tactic(untrained.name.clone(), *t))
@@ -252,19 +260,16 @@ pub(crate) fn chance_level(exp: &Experiment, claim: &Claim, scene: Option<&crate
         Quantity::Crossplay(r) => super::crossplay_readouts::chance(r),
         // The authors' DoS and DoA of random positions and headings at the training density.
         Quantity::Start(o @ (Curve::AuthorsDos | Curve::AuthorsDoa)) => random_authors(o.name()),
-        Quantity::TrainingFirst(o) | Quantity::TrainingLast(o) if AUTHORS_CURVES.contains(&o.as_str()) => {
-            random_authors(o)
-        }
+        Quantity::TrainingFirst(o @ (Order::AuthorsDos | Order::AuthorsDoa))
+        | Quantity::TrainingLast(o @ (Order::AuthorsDos | Order::AuthorsDoa)) => random_authors(o.name()),
         // Caught prey ranked at random within their group: the mean edge rank of no marginal predation.
-        Quantity::EvalOrder(_, q) | Quantity::TrainingFirst(q) | Quantity::TrainingLast(q)
-            if q == crate::run::schema::EDGE_RANK =>
-        {
-            Some(0.5)
-        }
+        Quantity::EvalOrder(_, Order::EdgeRank)
+        | Quantity::TrainingFirst(Order::EdgeRank)
+        | Quantity::TrainingLast(Order::EdgeRank) => Some(0.5),
         // Independent headings: no correlation between nearest neighbours.
-        Quantity::EvalOrder(_, q) | Quantity::TrainingFirst(q) | Quantity::TrainingLast(q) if q == "nn_correlation" => {
-            Some(0.0)
-        }
+        Quantity::EvalOrder(_, Order::NnCorrelation)
+        | Quantity::TrainingFirst(Order::NnCorrelation)
+        | Quantity::TrainingLast(Order::NnCorrelation) => Some(0.0),
         // No value by chance: the other order parameters, timings, and numbers of a fitted rule (effects
         // returned above). Named, not `_`, so that a new quantity says whether chance gives it a value.
         Quantity::DosChange

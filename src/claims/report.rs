@@ -228,7 +228,7 @@ fn collective(md: &mut String, Reported { exp, summary, finished, .. }: &Reporte
                     EVAL_ORDER
                         .iter()
                         .zip(EVAL_ORDER_DIGITS)
-                        .map(|(name, digits)| shown(Quantity::EvalOrder(e.name.clone(), name.to_string()), digits)),
+                        .map(|(o, digits)| shown(Quantity::EvalOrder(e.name.clone(), *o), digits)),
                 );
                 if cells.iter().all(|c| c == "–") {
                     continue;

@@ -228,8 +228,8 @@ pub(crate) mod tests {
         let a = |q: Quantity| quantity(&exp, &d, &q);
         let start = (0.15f32 as f64 * 10.0) / 10.0;
         assert!((a(Quantity::Start(Curve::AuthorsDoa)) - start).abs() < 1e-12);
-        assert!((a(Quantity::TrainingFirst("authors_doa".into())) - (0.15 * 10.0 + 0.25 * 90.0) / 100.0).abs() < 1e-12);
-        assert_eq!(a(Quantity::TrainingLast("authors_doa".into())), 0.5);
+        assert!((a(Quantity::TrainingFirst(crate::claims::file::Order::AuthorsDoa)) - (0.15 * 10.0 + 0.25 * 90.0) / 100.0).abs() < 1e-12);
+        assert_eq!(a(Quantity::TrainingLast(crate::claims::file::Order::AuthorsDoa)), 0.5);
         assert!((a(Quantity::FromStart(Curve::AuthorsDoa)) - (0.5 - start)).abs() < 1e-12);
         assert!(a(Quantity::FromStart(Curve::AuthorsDos)).abs() < 1e-7, "the flat curve's start at single precision");
         // A run that did not measure them has no value, never the paper's curve.

@@ -2,7 +2,7 @@
 //! written and read by one definition of their columns ([`columns`]). The claims are computed from
 //! `summary.csv` alone, so a clone without run folders recomputes them exactly.
 
-use super::file::{slug, Curve, Experiment, Quantity};
+use super::file::{slug, Curve, Experiment, Order, Quantity};
 use super::quantity::{column, derive, quantity};
 use super::results::{window_mean, RunData};
 use super::stats::estimate;
@@ -18,17 +18,17 @@ pub fn columns(exp: &Experiment) -> Vec<(String, Quantity)> {
     let evals: Vec<String> = exp.spec.evaluations.iter().map(|e| e.name.clone()).collect();
     let mut primitives = vec![Quantity::DosFirst, Quantity::DosLast, Quantity::DoaFirst, Quantity::DoaLast];
     for order in super::file::EVAL_ORDER {
-        primitives.push(Quantity::TrainingFirst(order.into()));
-        primitives.push(Quantity::TrainingLast(order.into()));
+        primitives.push(Quantity::TrainingFirst(order));
+        primitives.push(Quantity::TrainingLast(order));
     }
     primitives.push(Quantity::Reach90(Curve::Dos));
     primitives.push(Quantity::Reach90(Curve::Doa));
     // The authors' DoS and DoA, in experiments whose runs measure them (`authors_metrics`): their first
     // and last 100 episodes and their untrained start. Other experiments' columns are unchanged.
     if exp.runs.iter().any(|r| r.scene.authors_metrics) {
-        for curve in [Curve::AuthorsDos, Curve::AuthorsDoa] {
-            primitives.push(Quantity::TrainingFirst(curve.name().into()));
-            primitives.push(Quantity::TrainingLast(curve.name().into()));
+        for (order, curve) in [(Order::AuthorsDos, Curve::AuthorsDos), (Order::AuthorsDoa, Curve::AuthorsDoa)] {
+            primitives.push(Quantity::TrainingFirst(order));
+            primitives.push(Quantity::TrainingLast(order));
             primitives.push(Quantity::Start(curve));
         }
     }
@@ -37,7 +37,7 @@ pub fn columns(exp: &Experiment) -> Vec<(String, Quantity)> {
     for e in &evals {
         quantities.push(named(Quantity::EvalDos(e.clone())));
         quantities.push(named(Quantity::EvalDoa(e.clone())));
-        quantities.extend(super::file::EVAL_ORDER.iter().map(|o| named(Quantity::EvalOrder(e.clone(), o.to_string()))));
+        quantities.extend(super::file::EVAL_ORDER.iter().map(|o| named(Quantity::EvalOrder(e.clone(), *o))));
         if super::file::seeing_partner(&exp.spec.evaluations, e).is_some() {
             quantities.push((format!("eval_{}_doa_interaction", slug(e)), Quantity::InteractionDoa(e.clone())));
         }
@@ -83,7 +83,7 @@ pub fn columns(exp: &Experiment) -> Vec<(String, Quantity)> {
     for claim in &exp.spec.claims {
         match &claim.quantity {
             Quantity::EvalCatches(e) => caught.push(e.clone()),
-            Quantity::EvalDifference(a, b, o) if o == "catches" => caught.extend([a.clone(), b.clone()]),
+            Quantity::EvalDifference(a, b, Order::Catches) => caught.extend([a.clone(), b.clone()]),
             _ => {}
         }
     }

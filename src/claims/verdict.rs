@@ -2,7 +2,7 @@
 //! and the checks between a level and its contrast read) with the sentence reports print ([`Verdict`]),
 //! and the hypothesis it was tested against. Defined in REPRODUCTION.md's preamble.
 
-use super::file::{Claim, Quantity};
+use super::file::{Claim, Curve, Order, Quantity};
 use super::stats::Estimate;
 
 /// Significance level of every test, after Holm's adjustment.
@@ -128,34 +128,34 @@ pub(crate) const DOA_TOLERANCE: f64 = 0.015;
 /// The order parameter a quantity is in units of (`dos`, `doa`, `catches` or another order parameter's
 /// name), for a level and for a difference of two alike; None for a quantity in other units (an episode,
 /// a fitted gain or time, a read-out, radians).
-fn order_of(q: &Quantity) -> Option<&str> {
+fn order_of(q: &Quantity) -> Option<Order> {
     use super::file::Fit;
-    fn curve(c: &str) -> &str {
-        match c {
-            "authors_dos" => "dos",
-            "authors_doa" => "doa",
-            other => other,
-        }
-    }
+    // A training curve in the units of the order parameter it measures.
+    let curve = |c: &Curve| match c {
+        Curve::Dos | Curve::AuthorsDos => Order::Dos,
+        Curve::Doa | Curve::AuthorsDoa => Order::Doa,
+        Curve::Catches => Order::Catches,
+    };
     match q {
-        Quantity::DosFirst | Quantity::DosLast | Quantity::EvalDos(_) | Quantity::DosChange => Some("dos"),
+        Quantity::DosFirst | Quantity::DosLast | Quantity::EvalDos(_) | Quantity::DosChange => Some(Order::Dos),
         Quantity::DoaFirst
         | Quantity::DoaLast
         | Quantity::EvalDoa(_)
         | Quantity::DoaChange
-        | Quantity::InteractionDoa(_) => Some("doa"),
+        | Quantity::InteractionDoa(_) => Some(Order::Doa),
         Quantity::Start(c)
         | Quantity::FromStart(c)
         | Quantity::Extreme(c)
         | Quantity::AfterExtreme(c)
-        | Quantity::Fitted(c, Fit::Start | Fit::End) => Some(curve(c.name())),
-        Quantity::TrainingFirst(c) | Quantity::TrainingLast(c) => Some(curve(c)),
-        Quantity::EvalOrder(_, o)
+        | Quantity::Fitted(c, Fit::Start | Fit::End) => Some(curve(c)),
+        Quantity::TrainingFirst(o)
+        | Quantity::TrainingLast(o)
+        | Quantity::EvalOrder(_, o)
         | Quantity::Interaction(_, o)
         | Quantity::Learned(_, o)
-        | Quantity::EvalDifference(_, _, o) => Some(o),
+        | Quantity::EvalDifference(_, _, o) => Some(o.measured()),
         Quantity::CatchesFirst | Quantity::CatchesLast | Quantity::CatchesChange | Quantity::EvalCatches(_) => {
-            Some("catches")
+            Some(Order::Catches)
         }
         Quantity::Fitted(_, Fit::Time)
         | Quantity::Distilled(..)
@@ -185,11 +185,7 @@ pub(crate) fn uninformative(claim: &Claim, e: &Estimate, half_width: f64) -> Opt
     if e.n < INFORMATIVE_SEEDS {
         return Some(format!("uninformative: {} seeds", e.n));
     }
-    let range = match order_of(&claim.quantity)? {
-        "dos" | "doa" | "polarization" | "milling" | "largest_cluster" | "edge_rank" => 1.0,
-        "nn_correlation" => 2.0,
-        _ => return None,
-    };
+    let range = order_of(&claim.quantity)?.span()?;
     let range = if is_effect(claim) { 2.0 * range } else { range };
     (2.0 * half_width > range).then(|| format!("uninformative: wider than the {range} the quantity can span"))
 }
@@ -199,8 +195,8 @@ pub(crate) fn uninformative(claim: &Claim, e: &Estimate, half_width: f64) -> Opt
 /// file must then state one: `load.rs` refuses it without).
 pub(crate) fn tolerance(claim: &Claim) -> Option<f64> {
     claim.tolerance.or(match order_of(&claim.quantity) {
-        Some("dos") => Some(DOS_TOLERANCE),
-        Some("doa") => Some(DOA_TOLERANCE),
+        Some(Order::Dos) => Some(DOS_TOLERANCE),
+        Some(Order::Doa) => Some(DOA_TOLERANCE),
         _ => None,
     })
 }

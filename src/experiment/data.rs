@@ -150,7 +150,9 @@ pub(crate) fn load(exp: &Experiment) -> crate::error::Result<BTreeMap<usize, Run
                 .map(|q| {
                     (
                         q.to_string(),
-                        metrics.column(&schema::of(q, &prey)).unwrap_or_else(|_| vec![f64::NAN; metrics.rows.len()]),
+                        metrics
+                            .column(&schema::of(q.name(), &prey))
+                            .unwrap_or_else(|_| vec![f64::NAN; metrics.rows.len()]),
                     )
                 })
                 .collect(),

@@ -2,7 +2,7 @@
 
 use super::data::headline;
 use super::figure_data::{self, FigureData};
-use super::file::{slug, Experiment, Quantity};
+use super::file::{slug, Experiment, Order, Quantity};
 use super::plot::{self, Curve, EstimatePanel, Level, Panel, Row};
 use super::results::{RunData, SETTLED_STEPS, WINDOW};
 use super::stats::{estimate, running_mean};
@@ -154,9 +154,9 @@ fn series_figures(exp: &Experiment, preset: &str, table: &Summary, saved: &mut u
     }
     let quantities = [
         ("DoA", Quantity::EvalDoa as fn(String) -> Quantity),
-        ("polarization", |e| Quantity::EvalOrder(e, "polarization".into())),
-        ("milling", |e| Quantity::EvalOrder(e, "milling".into())),
-        ("C_nn", |e| Quantity::EvalOrder(e, "nn_correlation".into())),
+        ("polarization", |e| Quantity::EvalOrder(e, Order::Polarization)),
+        ("milling", |e| Quantity::EvalOrder(e, Order::Milling)),
+        ("C_nn", |e| Quantity::EvalOrder(e, Order::NnCorrelation)),
         ("catches per prey per episode", Quantity::EvalCatches),
     ];
     let mut panels = Vec::new();
@@ -284,7 +284,8 @@ fn distilled_figures(
             ci: e.and_then(|e| e.ci),
         }
     };
-    let orders = [("DoA", "doa"), ("DoS", "dos"), ("polarization", "polarization"), ("milling", "milling")];
+    let orders =
+        [("DoA", Order::Doa), ("DoS", Order::Dos), ("polarization", Order::Polarization), ("milling", Order::Milling)];
     // Evaluations named "50 prey", "50 prey, distilled prey", ...: the rows drop the common "50 prey, ".
     let first = exp.spec.evaluations.first().map(|e| format!("{}, ", e.name)).unwrap_or_default();
     let short = |name: &str| name.strip_prefix(first.as_str()).unwrap_or(name).to_string();
@@ -293,9 +294,9 @@ fn distilled_figures(
         .map(|(shown, order)| {
             let rows = exp.spec.evaluations.iter().map(|e| {
                 let q = match *order {
-                    "doa" => Quantity::EvalDoa(e.name.clone()),
-                    "dos" => Quantity::EvalDos(e.name.clone()),
-                    other => Quantity::EvalOrder(e.name.clone(), other.into()),
+                    Order::Doa => Quantity::EvalDoa(e.name.clone()),
+                    Order::Dos => Quantity::EvalDos(e.name.clone()),
+                    other => Quantity::EvalOrder(e.name.clone(), other),
                 };
                 row(&short(&e.name), q)
             });

@@ -288,19 +288,23 @@ impl Experiment {
                     return Err(err("claims", format!("no evaluation named {e:?}")));
                 }
             }
-            if let Quantity::EvalOrder(_, q)
-            | Quantity::Interaction(_, q)
-            | Quantity::TrainingFirst(q)
-            | Quantity::TrainingLast(q) = &c.quantity
-            {
-                let authors = matches!(c.quantity, Quantity::TrainingFirst(_) | Quantity::TrainingLast(_))
-                    && super::results::AUTHORS_CURVES.contains(&q.as_str());
-                if !EVAL_ORDER.contains(&q.as_str()) && !authors {
-                    return Err(err(
-                        "claims",
-                        format!("no order parameter named {q:?} (one of {})", EVAL_ORDER.join(", ")),
-                    ));
-                }
+            let names = |orders: &[Order]| orders.iter().map(|o| o.name()).collect::<Vec<_>>().join(", ");
+            let taken = match &c.quantity {
+                Quantity::EvalOrder(_, q) | Quantity::Interaction(_, q) => Some((q, q.of_evaluation())),
+                Quantity::TrainingFirst(q) | Quantity::TrainingLast(q) => Some((q, q.of_training())),
+                Quantity::Learned(_, q) | Quantity::EvalDifference(_, _, q) => Some((q, q.compared())),
+                _ => None,
+            };
+            if let Some((q, false)) = taken {
+                let takes: Vec<Order> = Order::ALL
+                    .into_iter()
+                    .filter(|o| match &c.quantity {
+                        Quantity::TrainingFirst(_) | Quantity::TrainingLast(_) => o.of_training(),
+                        Quantity::Learned(..) | Quantity::EvalDifference(..) => o.compared(),
+                        _ => o.of_evaluation(),
+                    })
+                    .collect();
+                return Err(err("claims", format!("{q:?} is not taken here (one of {})", names(&takes))));
             }
             if let Quantity::Learned(e, _) | Quantity::TacticLearned(e, _) = &c.quantity {
                 if untrained_partner(&spec.evaluations, e).is_none() {
@@ -317,17 +321,6 @@ impl Experiment {
                     return Err(err(
                         "claims",
                         format!("EvalDifference({a:?}, {b:?}, ..) compares an evaluation with itself"),
-                    ));
-                }
-            }
-            if let Quantity::Learned(_, q) | Quantity::EvalDifference(_, _, q) = &c.quantity {
-                if !["dos", "doa", "catches"].contains(&q.as_str()) && !EVAL_ORDER.contains(&q.as_str()) {
-                    return Err(err(
-                        "claims",
-                        format!(
-                            "no order parameter named {q:?} (dos, doa, catches or one of {})",
-                            EVAL_ORDER.join(", ")
-                        ),
                     ));
                 }
             }
@@ -620,7 +613,7 @@ impl Experiment {
         for c in &spec.claims {
             let q = match &c.quantity {
                 Quantity::Start(q) | Quantity::FromStart(q) => q.name(),
-                Quantity::TrainingFirst(q) | Quantity::TrainingLast(q) => q.as_str(),
+                Quantity::TrainingFirst(q) | Quantity::TrainingLast(q) => q.name(),
                 _ => continue,
             };
             if !super::results::AUTHORS_CURVES.contains(&q) {

@@ -106,7 +106,7 @@ fn experiment_files_expand_to_runs_and_bad_ones_are_one_line() {
         ),
         (
             TINY.replace("quantity: DosChange, paper: -0.03", "quantity: FromStart(\"milling\")"),
-            "bad.ron:15: quantity: \"milling\" is no training curve: \"dos\", \"doa\", \"catches\", \"authors_dos\" or \"authors_doa\"",
+            "bad.ron:15: quantity: \"milling\" is no training curve: one of \"dos\", \"doa\", \"catches\", \"authors_dos\", \"authors_doa\"",
         ),
         (
             // The code's metric is read only from runs that measure it.
@@ -146,7 +146,7 @@ fn experiment_files_expand_to_runs_and_bad_ones_are_one_line() {
         (TINY.replace("control: Blind", "control: \"blinded\""), "\"blinded\" is not a control"),
         (
             TINY.replace("quantity: DosChange", "quantity: EvalOrder(\"50 prey\", \"swirl\")"),
-            "no order parameter named \"swirl\"",
+            "\"swirl\" is no order parameter: one of \"dos\", \"doa\"",
         ),
         (
             // A level of the paper's with no rule for its tolerance must state one; an effect takes none.
