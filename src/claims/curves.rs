@@ -2,7 +2,7 @@
 //! starts ([`START`] episodes), the episode it completes half or 90 % of its change or first reaches a
 //! level, its extreme and how far it falls back: the convergence quantities of the experiment files.
 
-use super::file::{Curve, Fit, Quantity};
+use super::file::{Curve, Fit};
 use super::stats::mean;
 use crate::sim::metrics::WINDOW;
 
@@ -11,65 +11,6 @@ pub(crate) fn window_mean(values: &[f64], first: bool) -> f64 {
     let n = values.len().min(WINDOW);
     let part = if first { &values[..n] } else { &values[values.len() - n..] };
     mean(&part.iter().copied().filter(|v| v.is_finite()).collect::<Vec<_>>()).unwrap_or(f64::NAN)
-}
-
-/// Why a training-curve quantity does not take the curve it names (the curves each takes), None when it
-/// does or is another quantity: the one check of experiment files ([`super::load`]) and of curves made
-/// elsewhere ([`super::external`]).
-pub(crate) fn curve_argument_error(q: &Quantity) -> Option<String> {
-    match q {
-        // Start and FromStart take every curve; the others DoS and DoA (Fitted catches too).
-        Quantity::Extreme(c) | Quantity::ExtremeEpisode(c) | Quantity::AfterExtreme(c) if !c.is_order() => {
-            Some(format!("Extreme, ExtremeEpisode and AfterExtreme take \"dos\" or \"doa\" (got {c:?})"))
-        }
-        Quantity::Reach90(c) if !c.is_order() => Some(format!("Reach90 takes \"dos\" or \"doa\" (got {c:?})")),
-        Quantity::Halfway(c) if !c.is_order() => Some(format!("Halfway takes \"dos\" or \"doa\" (got {c:?})")),
-        Quantity::Reaches(c, _) if !c.is_order() => {
-            Some(format!("Reaches takes \"dos\" or \"doa\" and a level (got {c:?})"))
-        }
-        Quantity::Fitted(c, _) if !CURVES.contains(c) => {
-            Some(format!("Fitted takes \"dos\", \"doa\" or \"catches\" and Start, End or Time (got {c:?})"))
-        }
-        Quantity::Reaches(_, level) if !(level.is_finite() && *level > 0.0 && *level <= 1.0) => {
-            Some(format!("Reaches takes a level in (0, 1], as DoS and DoA are (got {level})"))
-        }
-        // Every other quantity, and the ones above with the curves they take (named, not `_`: a new
-        // quantity is a compile error here until it says whether it takes a curve).
-        Quantity::DosFirst
-        | Quantity::DosLast
-        | Quantity::DoaFirst
-        | Quantity::DoaLast
-        | Quantity::DosChange
-        | Quantity::DoaChange
-        | Quantity::CatchesChange
-        | Quantity::CatchesFirst
-        | Quantity::CatchesLast
-        | Quantity::TrainingFirst(_)
-        | Quantity::TrainingLast(_)
-        | Quantity::EvalDos(_)
-        | Quantity::EvalDoa(_)
-        | Quantity::EvalOrder(..)
-        | Quantity::EvalCatches(_)
-        | Quantity::InteractionDoa(_)
-        | Quantity::Interaction(..)
-        | Quantity::Learned(..)
-        | Quantity::EvalDifference(..)
-        | Quantity::Distilled(..)
-        | Quantity::DistilledDifference(..)
-        | Quantity::Reach90(_)
-        | Quantity::Start(_)
-        | Quantity::FromStart(_)
-        | Quantity::Extreme(_)
-        | Quantity::ExtremeEpisode(_)
-        | Quantity::AfterExtreme(_)
-        | Quantity::Halfway(_)
-        | Quantity::Reaches(..)
-        | Quantity::Fitted(..)
-        | Quantity::Response(..)
-        | Quantity::Tactic(..)
-        | Quantity::TacticLearned(..)
-        | Quantity::Crossplay(_) => None,
-    }
 }
 
 /// The episode (from 1) at which the 100-episode running mean of `series` first completes 90 % of its
@@ -207,33 +148,51 @@ pub(crate) const CURVES: [Curve; 3] = [Curve::Dos, Curve::Doa, Curve::Catches];
 /// [`Quantity::TrainingLast`] read, so the paper's numbers can be judged as the shipped code measures them.
 pub(crate) const AUTHORS_CURVES: [&str; 2] = crate::run::schema::AUTHORS;
 
-/// A quantity of a training curve's shape ([`Quantity::Start`], [`Quantity::Extreme`],
-/// [`Quantity::ExtremeEpisode`], [`Quantity::AfterExtreme`], [`Quantity::Halfway`], [`Quantity::Fitted`]) from its per-episode
-/// `series` as the figure data keeps it (single precision), so that a summary written before these
-/// quantities existed is extended from the committed figure data to the same bits as from the run
-/// folders. NaN for other quantities, and where a run is too short: a start needs [`START`] episodes, an
-/// extreme two windows, a halfway episode one window of 100.
-pub(crate) fn curve_shape(q: &Quantity, series: &[f64]) -> f64 {
+/// Which number of a training curve's shape a quantity reads (`Quantity::shape` says which curve and
+/// which shape): where it starts, when it gets halfway or to a level, its fitted approach, its extreme.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) enum Shape {
+    /// [`Quantity::Start`].
+    Start,
+    /// [`Quantity::Halfway`].
+    Halfway,
+    /// [`Quantity::Reaches`] a level.
+    Reaches(f64),
+    /// A part of [`Quantity::Fitted`].
+    Fitted(Fit),
+    /// [`Quantity::Extreme`].
+    Extreme,
+    /// [`Quantity::ExtremeEpisode`].
+    ExtremeEpisode,
+    /// [`Quantity::AfterExtreme`].
+    AfterExtreme,
+}
+
+/// A number of the shape of `curve`'s per-episode `series` as the figure data keeps it (single
+/// precision), so that a summary written before these quantities existed is extended from the committed
+/// figure data to the same bits as from the run folders. NaN where a run is too short: a start needs
+/// [`START`] episodes, an extreme two windows, a halfway episode one window of 100.
+pub(crate) fn curve_shape(shape: Shape, curve: Curve, series: &[f64]) -> f64 {
     let mean = |v: &mut dyn Iterator<Item = f64>| super::stats::mean(&v.filter(|x| x.is_finite()).collect::<Vec<_>>());
-    match q {
-        Quantity::Halfway(_) => halfway(series),
-        Quantity::Reaches(o, level) => reaches(series, *level, *o == Curve::Dos),
-        Quantity::Start(_) => start(series),
-        Quantity::Fitted(_, part) => fit_approach(series).map_or(f64::NAN, |[start, end, time]| match part {
+    match shape {
+        Shape::Halfway => halfway(series),
+        Shape::Reaches(level) => reaches(series, level, curve == Curve::Dos),
+        Shape::Start => start(series),
+        Shape::Fitted(part) => fit_approach(series).map_or(f64::NAN, |[start, end, time]| match part {
             Fit::Start => start,
             Fit::End => end,
             Fit::Time => time,
         }),
-        Quantity::Extreme(o) | Quantity::ExtremeEpisode(o) | Quantity::AfterExtreme(o)
-            if series.len() >= 2 * WINDOW =>
-        {
+        // An extreme of a run too short for two windows.
+        Shape::Extreme | Shape::ExtremeEpisode | Shape::AfterExtreme if series.len() < 2 * WINDOW => f64::NAN,
+        Shape::Extreme | Shape::ExtremeEpisode | Shape::AfterExtreme => {
             // Windows end at episode t (1-based) for t in WINDOW..=len; within one, the odd episodes choose
             // and the even ones measure. Episode e (1-based) is series[e - 1].
             let half = |end: usize, odd: bool| {
                 mean(&mut (end + 1 - WINDOW..=end).filter(|e| (e % 2 == 1) == odd).map(|e| series[e - 1]))
                     .unwrap_or(f64::NAN)
             };
-            let peak = *o == Curve::Doa;
+            let peak = curve == Curve::Doa;
             let better = |a: f64, b: f64| if peak { a > b } else { a < b };
             let mut best = WINDOW;
             for end in WINDOW + 1..=series.len() {
@@ -241,45 +200,12 @@ pub(crate) fn curve_shape(q: &Quantity, series: &[f64]) -> f64 {
                     best = end;
                 }
             }
-            if matches!(q, Quantity::Extreme(_)) {
-                half(best, false)
-            } else if matches!(q, Quantity::ExtremeEpisode(_)) {
-                best as f64
-            } else {
-                half(series.len(), false) - half(best, false)
+            match shape {
+                Shape::Extreme => half(best, false),
+                Shape::ExtremeEpisode => best as f64,
+                _ => half(series.len(), false) - half(best, false),
             }
         }
-        // Not a curve's shape, or an extreme of a run too short for two windows.
-        Quantity::DosFirst
-        | Quantity::DosLast
-        | Quantity::DoaFirst
-        | Quantity::DoaLast
-        | Quantity::DosChange
-        | Quantity::DoaChange
-        | Quantity::CatchesChange
-        | Quantity::CatchesFirst
-        | Quantity::CatchesLast
-        | Quantity::TrainingFirst(_)
-        | Quantity::TrainingLast(_)
-        | Quantity::EvalDos(_)
-        | Quantity::EvalDoa(_)
-        | Quantity::EvalOrder(..)
-        | Quantity::EvalCatches(_)
-        | Quantity::InteractionDoa(_)
-        | Quantity::Interaction(..)
-        | Quantity::Learned(..)
-        | Quantity::EvalDifference(..)
-        | Quantity::Distilled(..)
-        | Quantity::DistilledDifference(..)
-        | Quantity::Reach90(_)
-        | Quantity::FromStart(_)
-        | Quantity::Extreme(_)
-        | Quantity::ExtremeEpisode(_)
-        | Quantity::AfterExtreme(_)
-        | Quantity::Response(..)
-        | Quantity::Tactic(..)
-        | Quantity::TacticLearned(..)
-        | Quantity::Crossplay(_) => f64::NAN,
     }
 }
 
@@ -295,6 +221,16 @@ pub(crate) fn extreme_word(curve: Curve) -> &'static str {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::claims::file::Quantity;
+
+    /// A curve quantity's value, as `quantity` reads it.
+    fn curve_shape(q: &Quantity, series: &[f64]) -> f64 {
+        crate::claims::quantity::curve_shape(q, series)
+    }
+
+    fn curve_argument_error(q: &Quantity) -> Option<String> {
+        q.curve_argument_error()
+    }
 
     #[test]
     fn a_curves_start_extreme_and_fall_back_are_cross_fitted() {

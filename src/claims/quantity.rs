@@ -4,8 +4,8 @@
 //! names every variant it leaves to another, so a new quantity is a compile error until every one says
 //! what it is.
 
-use super::curves::{curve_shape, extreme_word, reach90, window_mean, AUTHORS_CURVES, HALFWAY_WINDOW, START};
-use super::file::{Claim, Curve, Experiment, Order, Quantity};
+use super::curves::{extreme_word, reach90, window_mean, Shape, AUTHORS_CURVES, CURVES, HALFWAY_WINDOW, START};
+use super::file::{Claim, Curve, Experiment, Fit, Order, Quantity};
 use super::results::{RunData, SETTLED_STEPS};
 use super::stats::mean;
 use super::verdict::is_effect;
@@ -205,11 +205,200 @@ pub(crate) fn derive(
     }
 }
 
-/// Whether a quantity compares the first and last 100 training episodes (meaningless when they overlap).
-pub(crate) fn compares_windows(q: &Quantity) -> bool {
-    matches!(
-        q,
-        Quantity::DosChange
+/// Each property of a quantity, one exhaustive match each, so that a new quantity is a compile error here
+/// until it says what it is: the quantity's variant in `file.rs`, its properties here and, for one that
+/// reads new numbers of a run, where they are read (`results.rs`, `experiment/data.rs`).
+impl Quantity {
+    /// The training curve and the number of its shape this quantity reads ([`curve_shape`]), None for
+    /// another quantity.
+    pub(crate) fn shape(&self) -> Option<(Curve, Shape)> {
+        match self {
+            Quantity::Start(c) => Some((*c, Shape::Start)),
+            Quantity::Halfway(c) => Some((*c, Shape::Halfway)),
+            Quantity::Reaches(c, level) => Some((*c, Shape::Reaches(*level))),
+            Quantity::Fitted(c, part) => Some((*c, Shape::Fitted(*part))),
+            Quantity::Extreme(c) => Some((*c, Shape::Extreme)),
+            Quantity::ExtremeEpisode(c) => Some((*c, Shape::ExtremeEpisode)),
+            Quantity::AfterExtreme(c) => Some((*c, Shape::AfterExtreme)),
+            Quantity::DosFirst
+            | Quantity::DosLast
+            | Quantity::DoaFirst
+            | Quantity::DoaLast
+            | Quantity::DosChange
+            | Quantity::DoaChange
+            | Quantity::CatchesChange
+            | Quantity::CatchesFirst
+            | Quantity::CatchesLast
+            | Quantity::TrainingFirst(_)
+            | Quantity::TrainingLast(_)
+            | Quantity::EvalDos(_)
+            | Quantity::EvalDoa(_)
+            | Quantity::EvalOrder(..)
+            | Quantity::EvalCatches(_)
+            | Quantity::InteractionDoa(_)
+            | Quantity::Interaction(..)
+            | Quantity::Learned(..)
+            | Quantity::EvalDifference(..)
+            | Quantity::Distilled(..)
+            | Quantity::DistilledDifference(..)
+            | Quantity::Reach90(_)
+            | Quantity::FromStart(_)
+            | Quantity::Response(..)
+            | Quantity::Tactic(..)
+            | Quantity::TacticLearned(..)
+            | Quantity::Crossplay(_) => None,
+        }
+    }
+
+    /// Why a training-curve quantity does not take the curve it names (the curves each takes), None when it
+    /// does or is another quantity: the one check of experiment files (`experiment::load`) and of curves made
+    /// elsewhere (`experiment::external`).
+    pub(crate) fn curve_argument_error(&self) -> Option<String> {
+        match self {
+            // Start and FromStart take every curve; the others DoS and DoA (Fitted catches too).
+            Quantity::Extreme(c) | Quantity::ExtremeEpisode(c) | Quantity::AfterExtreme(c) if !c.is_order() => {
+                Some(format!("Extreme, ExtremeEpisode and AfterExtreme take \"dos\" or \"doa\" (got {c:?})"))
+            }
+            Quantity::Reach90(c) if !c.is_order() => Some(format!("Reach90 takes \"dos\" or \"doa\" (got {c:?})")),
+            Quantity::Halfway(c) if !c.is_order() => Some(format!("Halfway takes \"dos\" or \"doa\" (got {c:?})")),
+            Quantity::Reaches(c, _) if !c.is_order() => {
+                Some(format!("Reaches takes \"dos\" or \"doa\" and a level (got {c:?})"))
+            }
+            Quantity::Fitted(c, _) if !CURVES.contains(c) => {
+                Some(format!("Fitted takes \"dos\", \"doa\" or \"catches\" and Start, End or Time (got {c:?})"))
+            }
+            Quantity::Reaches(_, level) if !(level.is_finite() && *level > 0.0 && *level <= 1.0) => {
+                Some(format!("Reaches takes a level in (0, 1], as DoS and DoA are (got {level})"))
+            }
+            // Every other quantity, and the ones above with the curves they take (named, not `_`: a new
+            // quantity is a compile error here until it says whether it takes a curve).
+            Quantity::DosFirst
+            | Quantity::DosLast
+            | Quantity::DoaFirst
+            | Quantity::DoaLast
+            | Quantity::DosChange
+            | Quantity::DoaChange
+            | Quantity::CatchesChange
+            | Quantity::CatchesFirst
+            | Quantity::CatchesLast
+            | Quantity::TrainingFirst(_)
+            | Quantity::TrainingLast(_)
+            | Quantity::EvalDos(_)
+            | Quantity::EvalDoa(_)
+            | Quantity::EvalOrder(..)
+            | Quantity::EvalCatches(_)
+            | Quantity::InteractionDoa(_)
+            | Quantity::Interaction(..)
+            | Quantity::Learned(..)
+            | Quantity::EvalDifference(..)
+            | Quantity::Distilled(..)
+            | Quantity::DistilledDifference(..)
+            | Quantity::Reach90(_)
+            | Quantity::Start(_)
+            | Quantity::FromStart(_)
+            | Quantity::Extreme(_)
+            | Quantity::ExtremeEpisode(_)
+            | Quantity::AfterExtreme(_)
+            | Quantity::Halfway(_)
+            | Quantity::Reaches(..)
+            | Quantity::Fitted(..)
+            | Quantity::Response(..)
+            | Quantity::Tactic(..)
+            | Quantity::TacticLearned(..)
+            | Quantity::Crossplay(_) => None,
+        }
+    }
+
+    /// The order parameter it is in units of (for a level, and for a difference of two alike), None for a
+    /// quantity in other units (an episode, a fitted gain or time, a read-out, radians, a tactic).
+    pub(crate) fn order(&self) -> Option<Order> {
+        // A training curve in the units of the order parameter it measures.
+        let curve = |c: &Curve| match c {
+            Curve::Dos | Curve::AuthorsDos => Order::Dos,
+            Curve::Doa | Curve::AuthorsDoa => Order::Doa,
+            Curve::Catches => Order::Catches,
+        };
+        match self {
+            Quantity::DosFirst | Quantity::DosLast | Quantity::EvalDos(_) | Quantity::DosChange => Some(Order::Dos),
+            Quantity::DoaFirst
+            | Quantity::DoaLast
+            | Quantity::EvalDoa(_)
+            | Quantity::DoaChange
+            | Quantity::InteractionDoa(_) => Some(Order::Doa),
+            Quantity::Start(c)
+            | Quantity::FromStart(c)
+            | Quantity::Extreme(c)
+            | Quantity::AfterExtreme(c)
+            | Quantity::Fitted(c, Fit::Start | Fit::End) => Some(curve(c)),
+            Quantity::TrainingFirst(o)
+            | Quantity::TrainingLast(o)
+            | Quantity::EvalOrder(_, o)
+            | Quantity::Interaction(_, o)
+            | Quantity::Learned(_, o)
+            | Quantity::EvalDifference(_, _, o) => Some(o.measured()),
+            Quantity::CatchesFirst | Quantity::CatchesLast | Quantity::CatchesChange | Quantity::EvalCatches(_) => {
+                Some(Order::Catches)
+            }
+            Quantity::Fitted(_, Fit::Time)
+            | Quantity::Distilled(..)
+            | Quantity::DistilledDifference(..)
+            | Quantity::Reach90(_)
+            | Quantity::ExtremeEpisode(_)
+            | Quantity::Halfway(_)
+            | Quantity::Reaches(..)
+            | Quantity::Response(..)
+            | Quantity::Tactic(..)
+            | Quantity::TacticLearned(..)
+            | Quantity::Crossplay(_) => None,
+        }
+    }
+
+    /// Whether it is a difference within each run (a change over training, what a control or training
+    /// removes, one evaluation or form against another), so that a claim on it is an effect, never a level.
+    pub(crate) fn is_difference(&self) -> bool {
+        match self {
+            Quantity::DosChange
+            | Quantity::DoaChange
+            | Quantity::CatchesChange
+            | Quantity::FromStart(_)
+            | Quantity::AfterExtreme(_)
+            | Quantity::InteractionDoa(_)
+            | Quantity::Interaction(..)
+            | Quantity::Learned(..)
+            | Quantity::EvalDifference(..)
+            | Quantity::TacticLearned(..)
+            | Quantity::DistilledDifference(..) => true,
+            // A cross-play read-out without a value by chance is a difference of two cells.
+            Quantity::Crossplay(r) => super::crossplay_readouts::chance(r).is_none(),
+            Quantity::DosFirst
+            | Quantity::DosLast
+            | Quantity::DoaFirst
+            | Quantity::DoaLast
+            | Quantity::CatchesFirst
+            | Quantity::CatchesLast
+            | Quantity::TrainingFirst(_)
+            | Quantity::TrainingLast(_)
+            | Quantity::EvalDos(_)
+            | Quantity::EvalDoa(_)
+            | Quantity::EvalOrder(..)
+            | Quantity::EvalCatches(_)
+            | Quantity::Distilled(..)
+            | Quantity::Reach90(_)
+            | Quantity::Start(_)
+            | Quantity::Extreme(_)
+            | Quantity::ExtremeEpisode(_)
+            | Quantity::Halfway(_)
+            | Quantity::Reaches(..)
+            | Quantity::Fitted(..)
+            | Quantity::Response(..)
+            | Quantity::Tactic(..) => false,
+        }
+    }
+
+    /// Whether it compares the first and last 100 training episodes (meaningless when they overlap).
+    pub(crate) fn compares_windows(&self) -> bool {
+        match self {
+            Quantity::DosChange
             | Quantity::DoaChange
             | Quantity::CatchesChange
             | Quantity::Reach90(_)
@@ -218,8 +407,404 @@ pub(crate) fn compares_windows(q: &Quantity) -> bool {
             | Quantity::FromStart(_)
             | Quantity::Extreme(_)
             | Quantity::ExtremeEpisode(_)
+            | Quantity::AfterExtreme(_) => true,
+            Quantity::DosFirst
+            | Quantity::DosLast
+            | Quantity::DoaFirst
+            | Quantity::DoaLast
+            | Quantity::CatchesFirst
+            | Quantity::CatchesLast
+            | Quantity::TrainingFirst(_)
+            | Quantity::TrainingLast(_)
+            | Quantity::EvalDos(_)
+            | Quantity::EvalDoa(_)
+            | Quantity::EvalOrder(..)
+            | Quantity::EvalCatches(_)
+            | Quantity::InteractionDoa(_)
+            | Quantity::Interaction(..)
+            | Quantity::Learned(..)
+            | Quantity::EvalDifference(..)
+            | Quantity::Distilled(..)
+            | Quantity::DistilledDifference(..)
+            | Quantity::Start(_)
+            | Quantity::Fitted(..)
+            | Quantity::Response(..)
+            | Quantity::Tactic(..)
+            | Quantity::TacticLearned(..)
+            | Quantity::Crossplay(_) => false,
+        }
+    }
+
+    /// Whether it is computed from the per-episode DoS, DoA and catches alone (what curves made elsewhere
+    /// hold, `experiment::external`).
+    pub(crate) fn of_training_curves(&self) -> bool {
+        match self {
+            Quantity::DosFirst
+            | Quantity::DosLast
+            | Quantity::DoaFirst
+            | Quantity::DoaLast
+            | Quantity::DosChange
+            | Quantity::DoaChange
+            | Quantity::CatchesChange
+            | Quantity::CatchesFirst
+            | Quantity::CatchesLast => true,
+            Quantity::Start(c)
+            | Quantity::FromStart(c)
+            | Quantity::Reach90(c)
+            | Quantity::Halfway(c)
+            | Quantity::Reaches(c, _)
+            | Quantity::Fitted(c, _)
+            | Quantity::Extreme(c)
+            | Quantity::ExtremeEpisode(c)
+            | Quantity::AfterExtreme(c) => CURVES.contains(c),
+            // Evaluations, other order parameters, cross-play, fitted rules and tactics.
+            Quantity::TrainingFirst(_)
+            | Quantity::TrainingLast(_)
+            | Quantity::EvalDos(_)
+            | Quantity::EvalDoa(_)
+            | Quantity::EvalOrder(..)
+            | Quantity::EvalCatches(_)
+            | Quantity::InteractionDoa(_)
+            | Quantity::Interaction(..)
+            | Quantity::Learned(..)
+            | Quantity::EvalDifference(..)
+            | Quantity::Distilled(..)
+            | Quantity::DistilledDifference(..)
+            | Quantity::Response(..)
+            | Quantity::Tactic(..)
+            | Quantity::TacticLearned(..)
+            | Quantity::Crossplay(_) => false,
+        }
+    }
+
+    /// The columns a claim on it adds to `summary.csv` beyond every summary's own
+    /// (`summary::columns`): a level some claim times a curve against, a fitted approach, a tactic (and,
+    /// for a tactic's change by training, the same in the untrained partner of `evaluations`). Every other
+    /// summary keeps its columns.
+    pub(crate) fn asked_columns(&self, evaluations: &[super::file::Evaluation]) -> Vec<Quantity> {
+        match self {
+            Quantity::Reaches(..) | Quantity::Fitted(..) | Quantity::Tactic(..) => vec![self.clone()],
+            Quantity::TacticLearned(e, t) => std::iter::once(e.clone())
+                .chain(super::file::untrained_partner(evaluations, e).map(|u| u.name.clone()))
+                .map(|e| Quantity::Tactic(e, *t))
+                .collect(),
+            Quantity::DosFirst
+            | Quantity::DosLast
+            | Quantity::DoaFirst
+            | Quantity::DoaLast
+            | Quantity::DosChange
+            | Quantity::DoaChange
+            | Quantity::CatchesChange
+            | Quantity::CatchesFirst
+            | Quantity::CatchesLast
+            | Quantity::TrainingFirst(_)
+            | Quantity::TrainingLast(_)
+            | Quantity::EvalDos(_)
+            | Quantity::EvalDoa(_)
+            | Quantity::EvalOrder(..)
+            | Quantity::EvalCatches(_)
+            | Quantity::InteractionDoa(_)
+            | Quantity::Interaction(..)
+            | Quantity::Learned(..)
+            | Quantity::EvalDifference(..)
+            | Quantity::Distilled(..)
+            | Quantity::DistilledDifference(..)
+            | Quantity::Reach90(_)
+            | Quantity::Start(_)
+            | Quantity::FromStart(_)
+            | Quantity::Extreme(_)
+            | Quantity::ExtremeEpisode(_)
             | Quantity::AfterExtreme(_)
-    )
+            | Quantity::Halfway(_)
+            | Quantity::Response(..)
+            | Quantity::Crossplay(_) => vec![],
+        }
+    }
+
+    /// Whether it reads the rules fitted to a run (`distilled.ron`).
+    pub(crate) fn reads_rules(&self) -> bool {
+        match self {
+            Quantity::Distilled(..) | Quantity::DistilledDifference(..) => true,
+            Quantity::DosFirst
+            | Quantity::DosLast
+            | Quantity::DoaFirst
+            | Quantity::DoaLast
+            | Quantity::DosChange
+            | Quantity::DoaChange
+            | Quantity::CatchesChange
+            | Quantity::CatchesFirst
+            | Quantity::CatchesLast
+            | Quantity::TrainingFirst(_)
+            | Quantity::TrainingLast(_)
+            | Quantity::EvalDos(_)
+            | Quantity::EvalDoa(_)
+            | Quantity::EvalOrder(..)
+            | Quantity::EvalCatches(_)
+            | Quantity::InteractionDoa(_)
+            | Quantity::Interaction(..)
+            | Quantity::Learned(..)
+            | Quantity::EvalDifference(..)
+            | Quantity::Reach90(_)
+            | Quantity::Start(_)
+            | Quantity::FromStart(_)
+            | Quantity::Extreme(_)
+            | Quantity::ExtremeEpisode(_)
+            | Quantity::AfterExtreme(_)
+            | Quantity::Halfway(_)
+            | Quantity::Reaches(..)
+            | Quantity::Fitted(..)
+            | Quantity::Response(..)
+            | Quantity::Tactic(..)
+            | Quantity::TacticLearned(..)
+            | Quantity::Crossplay(_) => false,
+        }
+    }
+
+    /// Whether it is the episode a curve converges by (drawn beside the changes in a file's figures).
+    pub(crate) fn is_convergence_episode(&self) -> bool {
+        match self {
+            Quantity::Halfway(_) | Quantity::Reaches(..) => true,
+            Quantity::DosFirst
+            | Quantity::DosLast
+            | Quantity::DoaFirst
+            | Quantity::DoaLast
+            | Quantity::DosChange
+            | Quantity::DoaChange
+            | Quantity::CatchesChange
+            | Quantity::CatchesFirst
+            | Quantity::CatchesLast
+            | Quantity::TrainingFirst(_)
+            | Quantity::TrainingLast(_)
+            | Quantity::EvalDos(_)
+            | Quantity::EvalDoa(_)
+            | Quantity::EvalOrder(..)
+            | Quantity::EvalCatches(_)
+            | Quantity::InteractionDoa(_)
+            | Quantity::Interaction(..)
+            | Quantity::Learned(..)
+            | Quantity::EvalDifference(..)
+            | Quantity::Distilled(..)
+            | Quantity::DistilledDifference(..)
+            | Quantity::Reach90(_)
+            | Quantity::Start(_)
+            | Quantity::FromStart(_)
+            | Quantity::Extreme(_)
+            | Quantity::ExtremeEpisode(_)
+            | Quantity::AfterExtreme(_)
+            | Quantity::Fitted(..)
+            | Quantity::Response(..)
+            | Quantity::Tactic(..)
+            | Quantity::TacticLearned(..)
+            | Quantity::Crossplay(_) => false,
+        }
+    }
+
+    /// The evaluations it reads, by name (each must be one of the file's).
+    pub(crate) fn evaluations(&self) -> Vec<&str> {
+        match self {
+            Quantity::EvalDos(e)
+            | Quantity::EvalDoa(e)
+            | Quantity::EvalCatches(e)
+            | Quantity::EvalOrder(e, _)
+            | Quantity::InteractionDoa(e)
+            | Quantity::Interaction(e, _)
+            | Quantity::Learned(e, _)
+            | Quantity::Tactic(e, _)
+            | Quantity::TacticLearned(e, _)
+            | Quantity::Response(e, _) => vec![e.as_str()],
+            Quantity::EvalDifference(a, b, _) => vec![a.as_str(), b.as_str()],
+            Quantity::DosFirst
+            | Quantity::DosLast
+            | Quantity::DoaFirst
+            | Quantity::DoaLast
+            | Quantity::DosChange
+            | Quantity::DoaChange
+            | Quantity::CatchesChange
+            | Quantity::CatchesFirst
+            | Quantity::CatchesLast
+            | Quantity::TrainingFirst(_)
+            | Quantity::TrainingLast(_)
+            | Quantity::Distilled(..)
+            | Quantity::DistilledDifference(..)
+            | Quantity::Reach90(_)
+            | Quantity::Start(_)
+            | Quantity::FromStart(_)
+            | Quantity::Extreme(_)
+            | Quantity::ExtremeEpisode(_)
+            | Quantity::AfterExtreme(_)
+            | Quantity::Halfway(_)
+            | Quantity::Reaches(..)
+            | Quantity::Fitted(..)
+            | Quantity::Crossplay(_) => vec![],
+        }
+    }
+
+    /// The evaluations whose catches per prey it reads (a column of `summary.csv` only where a claim
+    /// reads one).
+    pub(crate) fn catches_of(&self) -> Vec<String> {
+        match self {
+            Quantity::EvalCatches(e) => vec![e.clone()],
+            Quantity::EvalDifference(a, b, Order::Catches) => vec![a.clone(), b.clone()],
+            Quantity::EvalDifference(..)
+            | Quantity::DosFirst
+            | Quantity::DosLast
+            | Quantity::DoaFirst
+            | Quantity::DoaLast
+            | Quantity::DosChange
+            | Quantity::DoaChange
+            | Quantity::CatchesChange
+            | Quantity::CatchesFirst
+            | Quantity::CatchesLast
+            | Quantity::TrainingFirst(_)
+            | Quantity::TrainingLast(_)
+            | Quantity::EvalDos(_)
+            | Quantity::EvalDoa(_)
+            | Quantity::EvalOrder(..)
+            | Quantity::InteractionDoa(_)
+            | Quantity::Interaction(..)
+            | Quantity::Learned(..)
+            | Quantity::Distilled(..)
+            | Quantity::DistilledDifference(..)
+            | Quantity::Reach90(_)
+            | Quantity::Start(_)
+            | Quantity::FromStart(_)
+            | Quantity::Extreme(_)
+            | Quantity::ExtremeEpisode(_)
+            | Quantity::AfterExtreme(_)
+            | Quantity::Halfway(_)
+            | Quantity::Reaches(..)
+            | Quantity::Fitted(..)
+            | Quantity::Response(..)
+            | Quantity::Tactic(..)
+            | Quantity::TacticLearned(..)
+            | Quantity::Crossplay(_) => vec![],
+        }
+    }
+
+    /// The order parameter it names and whether it takes that one ([`Order::of_evaluation`],
+    /// [`Order::of_training`], [`Order::compared`]); None for a quantity that names none.
+    pub(crate) fn named_order(&self) -> Option<(Order, fn(Order) -> bool)> {
+        match self {
+            Quantity::EvalOrder(_, o) | Quantity::Interaction(_, o) => Some((*o, Order::of_evaluation)),
+            Quantity::TrainingFirst(o) | Quantity::TrainingLast(o) => Some((*o, Order::of_training)),
+            Quantity::Learned(_, o) | Quantity::EvalDifference(_, _, o) => Some((*o, Order::compared)),
+            Quantity::DosFirst
+            | Quantity::DosLast
+            | Quantity::DoaFirst
+            | Quantity::DoaLast
+            | Quantity::DosChange
+            | Quantity::DoaChange
+            | Quantity::CatchesChange
+            | Quantity::CatchesFirst
+            | Quantity::CatchesLast
+            | Quantity::EvalDos(_)
+            | Quantity::EvalDoa(_)
+            | Quantity::EvalCatches(_)
+            | Quantity::InteractionDoa(_)
+            | Quantity::Distilled(..)
+            | Quantity::DistilledDifference(..)
+            | Quantity::Reach90(_)
+            | Quantity::Start(_)
+            | Quantity::FromStart(_)
+            | Quantity::Extreme(_)
+            | Quantity::ExtremeEpisode(_)
+            | Quantity::AfterExtreme(_)
+            | Quantity::Halfway(_)
+            | Quantity::Reaches(..)
+            | Quantity::Fitted(..)
+            | Quantity::Response(..)
+            | Quantity::Tactic(..)
+            | Quantity::TacticLearned(..)
+            | Quantity::Crossplay(_) => None,
+        }
+    }
+
+    /// The numbers of fitted rules it reads: (species, form, name) of each.
+    pub(crate) fn rules_read(&self) -> Vec<(&str, crate::scene::RuleForm, &str)> {
+        match self {
+            Quantity::Distilled(species, form, name) => vec![(species.as_str(), *form, name.as_str())],
+            Quantity::DistilledDifference(species, a, b, name) => {
+                vec![(species.as_str(), *a, name.as_str()), (species.as_str(), *b, name.as_str())]
+            }
+            Quantity::DosFirst
+            | Quantity::DosLast
+            | Quantity::DoaFirst
+            | Quantity::DoaLast
+            | Quantity::DosChange
+            | Quantity::DoaChange
+            | Quantity::CatchesChange
+            | Quantity::CatchesFirst
+            | Quantity::CatchesLast
+            | Quantity::TrainingFirst(_)
+            | Quantity::TrainingLast(_)
+            | Quantity::EvalDos(_)
+            | Quantity::EvalDoa(_)
+            | Quantity::EvalOrder(..)
+            | Quantity::EvalCatches(_)
+            | Quantity::InteractionDoa(_)
+            | Quantity::Interaction(..)
+            | Quantity::Learned(..)
+            | Quantity::EvalDifference(..)
+            | Quantity::Reach90(_)
+            | Quantity::Start(_)
+            | Quantity::FromStart(_)
+            | Quantity::Extreme(_)
+            | Quantity::ExtremeEpisode(_)
+            | Quantity::AfterExtreme(_)
+            | Quantity::Halfway(_)
+            | Quantity::Reaches(..)
+            | Quantity::Fitted(..)
+            | Quantity::Response(..)
+            | Quantity::Tactic(..)
+            | Quantity::TacticLearned(..)
+            | Quantity::Crossplay(_) => vec![],
+        }
+    }
+
+    /// The shipped code's DoS or DoA it reads (`authors_metrics`), by its curve's name; None otherwise.
+    pub(crate) fn authors_curve(&self) -> Option<&'static str> {
+        let name = match self {
+            Quantity::Start(c) | Quantity::FromStart(c) => c.name(),
+            Quantity::TrainingFirst(o) | Quantity::TrainingLast(o) => o.name(),
+            Quantity::DosFirst
+            | Quantity::DosLast
+            | Quantity::DoaFirst
+            | Quantity::DoaLast
+            | Quantity::DosChange
+            | Quantity::DoaChange
+            | Quantity::CatchesChange
+            | Quantity::CatchesFirst
+            | Quantity::CatchesLast
+            | Quantity::EvalDos(_)
+            | Quantity::EvalDoa(_)
+            | Quantity::EvalOrder(..)
+            | Quantity::EvalCatches(_)
+            | Quantity::InteractionDoa(_)
+            | Quantity::Interaction(..)
+            | Quantity::Learned(..)
+            | Quantity::EvalDifference(..)
+            | Quantity::Distilled(..)
+            | Quantity::DistilledDifference(..)
+            | Quantity::Reach90(_)
+            | Quantity::Extreme(_)
+            | Quantity::ExtremeEpisode(_)
+            | Quantity::AfterExtreme(_)
+            | Quantity::Halfway(_)
+            | Quantity::Reaches(..)
+            | Quantity::Fitted(..)
+            | Quantity::Response(..)
+            | Quantity::Tactic(..)
+            | Quantity::TacticLearned(..)
+            | Quantity::Crossplay(_) => return None,
+        };
+        AUTHORS_CURVES.contains(&name).then_some(name)
+    }
+}
+
+/// A curve quantity's value from its curve's per-episode `series` ([`Quantity::shape`]); NaN for another
+/// quantity.
+pub(crate) fn curve_shape(q: &Quantity, series: &[f64]) -> f64 {
+    q.shape().map_or(f64::NAN, |(curve, shape)| super::curves::curve_shape(shape, curve, series))
 }
 
 /// The value a level has by chance alone, which a level must be told apart from: the claim's `baseline`,

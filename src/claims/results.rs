@@ -65,9 +65,7 @@ pub(crate) use crate::sim::metrics::WINDOW;
 /// Steps at the end of an evaluation episode averaged as its settled state.
 pub(crate) const SETTLED_STEPS: usize = 50;
 
-pub(crate) use super::curves::{
-    curve_argument_error, curve_shape, window_mean, AUTHORS_CURVES, CURVES, HALFWAY_WINDOW,
-};
+pub(crate) use super::curves::{window_mean, AUTHORS_CURVES, CURVES, HALFWAY_WINDOW};
 
 /// A claim checked on one preset.
 #[derive(Clone, Debug)]
@@ -228,7 +226,11 @@ pub(crate) mod tests {
         let a = |q: Quantity| quantity(&exp, &d, &q);
         let start = (0.15f32 as f64 * 10.0) / 10.0;
         assert!((a(Quantity::Start(Curve::AuthorsDoa)) - start).abs() < 1e-12);
-        assert!((a(Quantity::TrainingFirst(crate::claims::file::Order::AuthorsDoa)) - (0.15 * 10.0 + 0.25 * 90.0) / 100.0).abs() < 1e-12);
+        assert!(
+            (a(Quantity::TrainingFirst(crate::claims::file::Order::AuthorsDoa)) - (0.15 * 10.0 + 0.25 * 90.0) / 100.0)
+                .abs()
+                < 1e-12
+        );
         assert_eq!(a(Quantity::TrainingLast(crate::claims::file::Order::AuthorsDoa)), 0.5);
         assert!((a(Quantity::FromStart(Curve::AuthorsDoa)) - (0.5 - start)).abs() < 1e-12);
         assert!(a(Quantity::FromStart(Curve::AuthorsDos)).abs() < 1e-7, "the flat curve's start at single precision");

@@ -2,6 +2,7 @@
 //! written and read by one definition of their columns ([`columns`]). The claims are computed from
 //! `summary.csv` alone, so a clone without run folders recomputes them exactly.
 
+use super::curves::{curve_shape, Shape};
 use super::file::{slug, Curve, Experiment, Order, Quantity};
 use super::quantity::{column, derive, quantity};
 use super::results::{window_mean, RunData};
@@ -60,15 +61,7 @@ pub fn columns(exp: &Experiment) -> Vec<(String, Quantity)> {
     // tactic (`Tactic`): a column only in the experiments that ask for one, so every other summary keeps
     // its columns.
     for claim in &exp.spec.claims {
-        // A tactic's change by training reads it in the trained evaluation and in its untrained partner.
-        let read = match &claim.quantity {
-            Quantity::Reaches(..) | Quantity::Fitted(..) | Quantity::Tactic(..) => vec![claim.quantity.clone()],
-            Quantity::TacticLearned(e, t) => std::iter::once(e.clone())
-                .chain(super::file::untrained_partner(&exp.spec.evaluations, e).map(|u| u.name.clone()))
-                .map(|e| Quantity::Tactic(e, *t))
-                .collect(),
-            _ => vec![],
-        };
+        let read = claim.quantity.asked_columns(&exp.spec.evaluations);
         for q in read {
             if !quantities.iter().any(|(_, known)| *known == q) {
                 quantities.push(named(q));
@@ -81,11 +74,7 @@ pub fn columns(exp: &Experiment) -> Vec<(String, Quantity)> {
     let series = exp.spec.evaluations.iter().any(|e| e.arena_edge.is_some());
     let mut caught: Vec<String> = if series { evals.clone() } else { Vec::new() };
     for claim in &exp.spec.claims {
-        match &claim.quantity {
-            Quantity::EvalCatches(e) => caught.push(e.clone()),
-            Quantity::EvalDifference(a, b, Order::Catches) => caught.extend([a.clone(), b.clone()]),
-            _ => {}
-        }
+        caught.extend(claim.quantity.catches_of());
     }
     for e in caught {
         let q = Quantity::EvalCatches(e);
@@ -202,13 +191,18 @@ pub(crate) fn extend(
         out.push_str(line);
         let run = of_run.get(&(row.preset.as_str(), row.variant.as_str(), row.seed)).and_then(|i| curves.get(i));
         for (_, q) in &added {
-            let v = run.map_or(f64::NAN, |d| match q {
-                Quantity::Start(o)
-                | Quantity::Extreme(o)
-                | Quantity::ExtremeEpisode(o)
-                | Quantity::AfterExtreme(o)
-                | Quantity::Halfway(o) => super::results::curve_shape(q, d.curve(*o)),
-                _ => f64::NAN,
+            // The shapes the figure data gives to the same bits (a fitted approach or a common level was
+            // never extended this way: those summaries had their columns from the start).
+            let v = run.map_or(f64::NAN, |d| match q.shape() {
+                Some((
+                    curve,
+                    shape @ (Shape::Start
+                    | Shape::Extreme
+                    | Shape::ExtremeEpisode
+                    | Shape::AfterExtreme
+                    | Shape::Halfway),
+                )) => curve_shape(shape, curve, d.curve(curve)),
+                Some((_, Shape::Reaches(_) | Shape::Fitted(_))) | None => f64::NAN,
             });
             out.push_str(&field(v));
         }

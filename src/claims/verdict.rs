@@ -2,7 +2,7 @@
 //! and the checks between a level and its contrast read) with the sentence reports print ([`Verdict`]),
 //! and the hypothesis it was tested against. Defined in REPRODUCTION.md's preamble.
 
-use super::file::{Claim, Curve, Order, Quantity};
+use super::file::{Claim, Order};
 use super::stats::Estimate;
 
 /// Significance level of every test, after Holm's adjustment.
@@ -16,21 +16,7 @@ pub(crate) fn is_effect(claim: &Claim) -> bool {
         || claim.grid.is_some()
         || claim.direction_only
         || claim.margin.is_some()
-        || matches!(
-            claim.quantity,
-            Quantity::DosChange
-                | Quantity::DoaChange
-                | Quantity::CatchesChange
-                | Quantity::FromStart(_)
-                | Quantity::AfterExtreme(_)
-                | Quantity::InteractionDoa(_)
-                | Quantity::Interaction(..)
-                | Quantity::Learned(..)
-                | Quantity::EvalDifference(..)
-                | Quantity::TacticLearned(..)
-                | Quantity::DistilledDifference(..)
-        )
-        || matches!(&claim.quantity, Quantity::Crossplay(r) if super::crossplay_readouts::chance(r).is_none())
+        || claim.quantity.is_difference()
 }
 
 /// What a claim's test came to.
@@ -125,52 +111,6 @@ pub(crate) const DOS_TOLERANCE: f64 = 0.005;
 /// 0.75, 0.82, 0.85 and 0.96, the nearest two 0.03 apart.
 pub(crate) const DOA_TOLERANCE: f64 = 0.015;
 
-/// The order parameter a quantity is in units of (`dos`, `doa`, `catches` or another order parameter's
-/// name), for a level and for a difference of two alike; None for a quantity in other units (an episode,
-/// a fitted gain or time, a read-out, radians).
-fn order_of(q: &Quantity) -> Option<Order> {
-    use super::file::Fit;
-    // A training curve in the units of the order parameter it measures.
-    let curve = |c: &Curve| match c {
-        Curve::Dos | Curve::AuthorsDos => Order::Dos,
-        Curve::Doa | Curve::AuthorsDoa => Order::Doa,
-        Curve::Catches => Order::Catches,
-    };
-    match q {
-        Quantity::DosFirst | Quantity::DosLast | Quantity::EvalDos(_) | Quantity::DosChange => Some(Order::Dos),
-        Quantity::DoaFirst
-        | Quantity::DoaLast
-        | Quantity::EvalDoa(_)
-        | Quantity::DoaChange
-        | Quantity::InteractionDoa(_) => Some(Order::Doa),
-        Quantity::Start(c)
-        | Quantity::FromStart(c)
-        | Quantity::Extreme(c)
-        | Quantity::AfterExtreme(c)
-        | Quantity::Fitted(c, Fit::Start | Fit::End) => Some(curve(c)),
-        Quantity::TrainingFirst(o)
-        | Quantity::TrainingLast(o)
-        | Quantity::EvalOrder(_, o)
-        | Quantity::Interaction(_, o)
-        | Quantity::Learned(_, o)
-        | Quantity::EvalDifference(_, _, o) => Some(o.measured()),
-        Quantity::CatchesFirst | Quantity::CatchesLast | Quantity::CatchesChange | Quantity::EvalCatches(_) => {
-            Some(Order::Catches)
-        }
-        Quantity::Fitted(_, Fit::Time)
-        | Quantity::Distilled(..)
-        | Quantity::DistilledDifference(..)
-        | Quantity::Reach90(_)
-        | Quantity::ExtremeEpisode(_)
-        | Quantity::Halfway(_)
-        | Quantity::Reaches(..)
-        | Quantity::Response(..)
-        | Quantity::Tactic(..)
-        | Quantity::TacticLearned(..)
-        | Quantity::Crossplay(_) => None,
-    }
-}
-
 /// The fewest seeds whose interval a report shows as a result: from fewer, Student's t makes the interval
 /// so wide (t₀.₉₇₅ = 12.7 at 2 seeds, 4.3 at 3, 3.2 at 4) that it says little beyond the sign of a
 /// large effect.
@@ -185,7 +125,7 @@ pub(crate) fn uninformative(claim: &Claim, e: &Estimate, half_width: f64) -> Opt
     if e.n < INFORMATIVE_SEEDS {
         return Some(format!("uninformative: {} seeds", e.n));
     }
-    let range = order_of(&claim.quantity)?.span()?;
+    let range = claim.quantity.order()?.span()?;
     let range = if is_effect(claim) { 2.0 * range } else { range };
     (2.0 * half_width > range).then(|| format!("uninformative: wider than the {range} the quantity can span"))
 }
@@ -194,7 +134,7 @@ pub(crate) fn uninformative(claim: &Claim, e: &Estimate, half_width: f64) -> Opt
 /// [`DOS_TOLERANCE`] or [`DOA_TOLERANCE`] by the order parameter it reads; None for another level (the
 /// file must then state one: `load.rs` refuses it without).
 pub(crate) fn tolerance(claim: &Claim) -> Option<f64> {
-    claim.tolerance.or(match order_of(&claim.quantity) {
+    claim.tolerance.or(match claim.quantity.order() {
         Some(Order::Dos) => Some(DOS_TOLERANCE),
         Some(Order::Doa) => Some(DOA_TOLERANCE),
         _ => None,

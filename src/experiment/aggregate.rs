@@ -217,7 +217,7 @@ pub(crate) fn tests(exp: &Experiment, table: &Summary) -> Vec<ClaimResult> {
             // are one sample, not two: no comparison, no p-value.
             let identical = theirs.as_ref().is_some_and(|t| t.len() >= 2 && *t == ours);
             // A change over training needs a first and a last window that do not overlap.
-            let overlap = super::quantity::compares_windows(&claim.quantity)
+            let overlap = claim.quantity.compares_windows()
                 && std::iter::once(&claim.variant)
                     .chain(&claim.versus)
                     .any(|v| table.episodes(preset, v).is_some_and(|n| n < 2 * WINDOW));

@@ -6,8 +6,8 @@
 //! file: the caller hands over each run's per-episode DoS, DoA and catches.
 
 use super::file::{Claim, Quantity};
-use super::quantity::{compares_windows, derive, primitive};
-use super::results::{curve_argument_error, is_effect, ClaimResult, RunData, CURVES, WINDOW};
+use super::quantity::{derive, primitive};
+use super::results::{is_effect, ClaimResult, RunData, WINDOW};
 use super::stats::difference;
 use crate::error::{Error, Kind, Result};
 
@@ -29,10 +29,10 @@ impl Comparison {
         let refuse = |message: String| Error::field(format!("quantity of \"{text}\""), message).of_kind(Kind::Input);
         let parsed =
             ron::from_str::<Quantity>(quantity).map_err(|e| refuse(format!("{quantity:?} is not a quantity ({e})")))?;
-        if let Some(message) = curve_argument_error(&parsed) {
+        if let Some(message) = parsed.curve_argument_error() {
             return Err(refuse(message));
         }
-        if !of_training_curves(&parsed) {
+        if !parsed.of_training_curves() {
             return Err(refuse(format!(
                 "{quantity:?} is not one of the training curves' quantities (DosFirst, DosLast, DoaFirst, DoaLast, \
                  CatchesFirst, CatchesLast, their Change, and Start, FromStart, Reach90, Halfway, Reaches, Fitted, Extreme, ExtremeEpisode or \
@@ -47,42 +47,6 @@ impl Comparison {
 /// catches (what `metrics.csv` logs as `dos_prey`, `doa_prey` and `catches`).
 pub fn curves(dos: Vec<f64>, doa: Vec<f64>, catches: Vec<f64>) -> RunData {
     RunData { dos, doa, catches, ..Default::default() }
-}
-
-/// Whether `q` is computed from the per-episode DoS, DoA and catches alone (what [`curves`] holds).
-fn of_training_curves(q: &Quantity) -> bool {
-    use Quantity::*;
-    match q {
-        DosFirst | DosLast | DoaFirst | DoaLast | DosChange | DoaChange | CatchesChange | CatchesFirst
-        | CatchesLast => true,
-        Start(c)
-        | FromStart(c)
-        | Reach90(c)
-        | Halfway(c)
-        | Reaches(c, _)
-        | Fitted(c, _)
-        | Extreme(c)
-        | ExtremeEpisode(c)
-        | AfterExtreme(c) => CURVES.contains(c),
-        // Evaluations, other order parameters, cross-play and fitted rules: not in a curve of DoS, DoA and
-        // catches.
-        TrainingFirst(_)
-        | TrainingLast(_)
-        | EvalDos(_)
-        | EvalDoa(_)
-        | EvalOrder(..)
-        | EvalCatches(_)
-        | InteractionDoa(_)
-        | Interaction(..)
-        | Learned(..)
-        | EvalDifference(..)
-        | Distilled(..)
-        | Response(..)
-        | Tactic(..)
-        | TacticLearned(..)
-        | DistilledDifference(..)
-        | Crossplay(_) => false,
-    }
 }
 
 /// The label of the two sides in the verdicts' claims (a claim's `variant` and `versus`).
@@ -129,7 +93,7 @@ pub fn compare(
         if c.margin.is_some_and(|m| !(m.is_finite() && m > 0.0)) {
             return Err(refuse(format!("margin {:?}: must be a positive number", c.margin)));
         }
-        if compares_windows(&c.quantity) && episodes < 2 * WINDOW {
+        if c.quantity.compares_windows() && episodes < 2 * WINDOW {
             return Err(refuse(format!(
                 "{:?} compares the first and last {WINDOW} episodes, which overlap in runs of {episodes} episodes",
                 c.quantity

@@ -528,8 +528,7 @@ fn figures<'a>(
         // variant with its interval, beside the changes.
         let mut convergence: Vec<Quantity> = Vec::new();
         for c in &exp.spec.claims {
-            if matches!(c.quantity, Quantity::Halfway(_) | Quantity::Reaches(..)) && !convergence.contains(&c.quantity)
-            {
+            if c.quantity.is_convergence_episode() && !convergence.contains(&c.quantity) {
                 convergence.push(c.quantity.clone());
             }
         }

@@ -274,59 +274,6 @@ impl Experiment {
                     ));
                 }
             }
-            if let Quantity::EvalDos(e)
-            | Quantity::EvalDoa(e)
-            | Quantity::EvalCatches(e)
-            | Quantity::EvalOrder(e, _)
-            | Quantity::InteractionDoa(e)
-            | Quantity::Interaction(e, _)
-            | Quantity::Learned(e, _)
-            | Quantity::Tactic(e, _)
-            | Quantity::TacticLearned(e, _) = &c.quantity
-            {
-                if !spec.evaluations.iter().any(|x| &x.name == e) {
-                    return Err(err("claims", format!("no evaluation named {e:?}")));
-                }
-            }
-            let names = |orders: &[Order]| orders.iter().map(|o| o.name()).collect::<Vec<_>>().join(", ");
-            let taken = match &c.quantity {
-                Quantity::EvalOrder(_, q) | Quantity::Interaction(_, q) => Some((q, q.of_evaluation())),
-                Quantity::TrainingFirst(q) | Quantity::TrainingLast(q) => Some((q, q.of_training())),
-                Quantity::Learned(_, q) | Quantity::EvalDifference(_, _, q) => Some((q, q.compared())),
-                _ => None,
-            };
-            if let Some((q, false)) = taken {
-                let takes: Vec<Order> = Order::ALL
-                    .into_iter()
-                    .filter(|o| match &c.quantity {
-                        Quantity::TrainingFirst(_) | Quantity::TrainingLast(_) => o.of_training(),
-                        Quantity::Learned(..) | Quantity::EvalDifference(..) => o.compared(),
-                        _ => o.of_evaluation(),
-                    })
-                    .collect();
-                return Err(err("claims", format!("{q:?} is not taken here (one of {})", names(&takes))));
-            }
-            if let Quantity::Learned(e, _) | Quantity::TacticLearned(e, _) = &c.quantity {
-                if untrained_partner(&spec.evaluations, e).is_none() {
-                    return Err(err("claims", format!("evaluation {e:?} needs an untrained partner (untrained: true, the same counts, episodes, steps and control)")));
-                }
-            }
-            if let Quantity::EvalDifference(a, b, _) = &c.quantity {
-                for e in [a, b] {
-                    if !spec.evaluations.iter().any(|x| &x.name == e) {
-                        return Err(err("claims", format!("no evaluation named {e:?}")));
-                    }
-                }
-                if a == b {
-                    return Err(err(
-                        "claims",
-                        format!("EvalDifference({a:?}, {b:?}, ..) compares an evaluation with itself"),
-                    ));
-                }
-            }
-            if let Some(message) = super::results::curve_argument_error(&c.quantity) {
-                return Err(err("claims", message));
-            }
             if let Quantity::Response(e, which) = &c.quantity {
                 if !["near", "far"].contains(&which.as_str()) {
                     return Err(err("claims", format!("Response takes \"near\" or \"far\" (got {which:?})")));
@@ -337,6 +284,31 @@ impl Experiment {
                         format!("Response({e:?}, ..) needs an evaluation {e:?} with perturb: RADIANS"),
                     ));
                 }
+            }
+            for e in c.quantity.evaluations() {
+                if !spec.evaluations.iter().any(|x| x.name == e) {
+                    return Err(err("claims", format!("no evaluation named {e:?}")));
+                }
+            }
+            if let Some((q, takes)) = c.quantity.named_order().filter(|(q, takes)| !takes(*q)) {
+                let taken: Vec<&str> = Order::ALL.into_iter().filter(|o| takes(*o)).map(Order::name).collect();
+                return Err(err("claims", format!("{q:?} is not taken here (one of {})", taken.join(", "))));
+            }
+            if let Quantity::Learned(e, _) | Quantity::TacticLearned(e, _) = &c.quantity {
+                if untrained_partner(&spec.evaluations, e).is_none() {
+                    return Err(err("claims", format!("evaluation {e:?} needs an untrained partner (untrained: true, the same counts, episodes, steps and control)")));
+                }
+            }
+            if let Quantity::EvalDifference(a, b, _) = &c.quantity {
+                if a == b {
+                    return Err(err(
+                        "claims",
+                        format!("EvalDifference({a:?}, {b:?}, ..) compares an evaluation with itself"),
+                    ));
+                }
+            }
+            if let Some(message) = c.quantity.curve_argument_error() {
+                return Err(err("claims", message));
             }
             if let Quantity::DistilledDifference(_, a, b, _) = &c.quantity {
                 if a == b {
@@ -503,13 +475,7 @@ impl Experiment {
                             }
                         }
                     }
-                    let read = spec.claims.iter().flat_map(|c| match &c.quantity {
-                        Quantity::Distilled(species, form, name) => vec![(species, *form, name)],
-                        Quantity::DistilledDifference(species, a, b, name) => {
-                            vec![(species, *a, name), (species, *b, name)]
-                        }
-                        _ => vec![],
-                    });
+                    let read = spec.claims.iter().flat_map(|c| c.quantity.rules_read());
                     for (species, form, name) in read {
                         let Some((_, _, names)) = rules.iter().find(|(s, f, _)| s == species && *f == form) else {
                             return Err(err(
@@ -520,7 +486,7 @@ impl Experiment {
                                 ),
                             ));
                         };
-                        if !names.contains(name) {
+                        if !names.iter().any(|n| n == name) {
                             return Err(err(
                                 "claims",
                                 format!(
@@ -611,14 +577,7 @@ impl Experiment {
         }
         // A claim on the authors' DoS or DoA needs runs that measure them: refused now, not after training.
         for c in &spec.claims {
-            let q = match &c.quantity {
-                Quantity::Start(q) | Quantity::FromStart(q) => q.name(),
-                Quantity::TrainingFirst(q) | Quantity::TrainingLast(q) => q.name(),
-                _ => continue,
-            };
-            if !super::results::AUTHORS_CURVES.contains(&q) {
-                continue;
-            }
+            let Some(q) = c.quantity.authors_curve() else { continue };
             let compared = std::iter::once(&c.variant).chain(c.versus.as_ref());
             if let Some(v) =
                 compared.into_iter().find(|v| runs.iter().any(|r| &r.variant == *v && !r.scene.authors_metrics))

@@ -310,10 +310,7 @@ pub(crate) fn finished(exp: &Experiment, run: &Run) -> bool {
 /// Whether a claim reads a number of the fitted rules (`Distilled(...)`): then every run needs its
 /// `distilled.ron`, whether or not an evaluation deploys the rules.
 fn claims_read_rules(exp: &Experiment) -> bool {
-    exp.spec.distill.is_some()
-        && exp.spec.claims.iter().any(|c| {
-            matches!(c.quantity, super::file::Quantity::Distilled(..) | super::file::Quantity::DistilledDifference(..))
-        })
+    exp.spec.distill.is_some() && exp.spec.claims.iter().any(|c| c.quantity.reads_rules())
 }
 
 /// Whether an evaluation's files are complete: its per-step CSV and, written last, its confusion curve
