@@ -970,3 +970,29 @@ fn the_readmes_layout_names_every_top_level_folder() {
     let missing: Vec<_> = folders.iter().filter(|d| !table.contains(&format!("`{d}/"))).collect();
     assert!(missing.is_empty(), "README's \"Where things are\" does not name {missing:?}");
 }
+
+/// The README's "Where things are" names every top-level folder of the repository and every room of
+/// `src/`, so its layout table matches the tree.
+#[test]
+fn the_readme_layout_names_every_folder_and_room() {
+    let readme = std::fs::read_to_string("README.md").unwrap();
+    let section = readme.split("## Where things are").nth(1).unwrap();
+    let table = section.split("\n## ").next().unwrap();
+    let mut missing = Vec::new();
+    for entry in std::fs::read_dir(".").unwrap().map(|e| e.unwrap()) {
+        let name = entry.file_name().to_string_lossy().to_string();
+        let shown = if entry.path().is_dir() { format!("`{name}/`") } else { format!("`{name}`") };
+        let skipped = ["target", ".git", "src"].contains(&name.as_str()) || (name.starts_with('.') && name != ".ci");
+        if entry.path().is_dir() && !skipped && !table.contains(&shown) {
+            missing.push(shown);
+        }
+    }
+    for entry in std::fs::read_dir("src").unwrap().map(|e| e.unwrap()) {
+        let name = entry.file_name().to_string_lossy().to_string();
+        let shown = if entry.path().is_dir() { format!("`src/{name}/`") } else { format!("`src/{name}`") };
+        if name != "lib.rs" && !table.contains(&shown) {
+            missing.push(shown);
+        }
+    }
+    assert!(missing.is_empty(), "README.md's \"Where things are\" does not name {}", missing.join(", "));
+}
