@@ -9,6 +9,86 @@ use crate::error::Error;
 /// whose Bevy registers more types in every app; bounded here from above.
 const WORLD_BYTES: f64 = if cfg!(feature = "viewer") { 1_050_000.0 } else { 420_000.0 };
 
+/// `field` refused with `message` unless `ok`.
+fn check(ok: bool, field: &str, message: impl FnOnce() -> String) -> crate::error::Result<()> {
+    if ok {
+        Ok(())
+    } else {
+        Err(Error::field(field.to_string(), message()))
+    }
+}
+
+fn positive(v: f64, field: &str) -> crate::error::Result<()> {
+    check(v.is_finite() && v > 0.0, field, || format!("must be a finite number > 0 (got {v})"))
+}
+
+/// A rule's numbers with their names, owned.
+fn named(numbers: &[(&str, f64)]) -> Vec<(String, f64)> {
+    numbers.iter().map(|&(n, v)| (n.to_string(), v)).collect()
+}
+
+fn non_negative(v: f64, field: &str) -> crate::error::Result<()> {
+    check(v.is_finite() && v >= 0.0, field, || format!("must be a finite number ≥ 0 (got {v})"))
+}
+
+/// A species' rule-based policy: its numbers finite, its radii non-negative, and each rule's own shape
+/// (nested zones, increasing bin edges with one gain per bin, Vicsek's η in [0, 2π]).
+fn check_policy(s: &SpeciesDef) -> crate::error::Result<()> {
+    let f = |name: &str| format!("species[{}].{name}", s.name);
+    let rule: Vec<(String, f64)> = match &s.policy {
+        Policy::Zonal(rule) => {
+            let radii = [rule.repulsion_radius, rule.alignment_radius, rule.attraction_radius];
+            check(radii.windows(2).all(|w| w[0] <= w[1]), &f("policy"), || {
+                format!("Zonal: the zones are nested: repulsion_radius ≤ alignment_radius ≤ attraction_radius (got {radii:?})")
+            })?;
+            named(&rule.numbers())
+        }
+        Policy::Binned(rule) => {
+            let (e, bins) = (&rule.edges, rule.bins());
+            check(bins > 0 && e[0] >= 0.0 && e.windows(2).all(|w| w[0] < w[1]), &f("policy.edges"), || {
+                format!("Binned: at least two edges, increasing from ≥ 0 (got {e:?})")
+            })?;
+            let lists = [
+                ("turn.kin", rule.turn.kin.len(), bins),
+                ("turn.alignment", rule.turn.alignment.len(), bins),
+                ("turn.evasion", rule.turn.evasion.len(), bins),
+                ("thrust.kin", rule.thrust.kin.len(), bins),
+                ("thrust.alignment", rule.thrust.alignment.len(), 0),
+                ("thrust.evasion", rule.thrust.evasion.len(), bins),
+            ];
+            for (name, got, want) in lists {
+                check(got == want, &f(&format!("policy.{name}")), || {
+                    format!("Binned: {want} gains, one per bin between the {} edges (got {got})", e.len())
+                })?;
+            }
+            rule.numbers()
+        }
+        Policy::Pursuit(rule) => named(&rule.numbers()),
+        Policy::Vicsek(rule) => {
+            check((0.0..=std::f64::consts::TAU).contains(&rule.noise), &f("policy.noise"), || {
+                format!("Vicsek: η in radians, in [0, 2π] (got {})", rule.noise)
+            })?;
+            named(&rule.numbers())
+        }
+        Policy::Couzin(rule) => {
+            // Widths and σ as well as radii: a negative one would silently empty a zone or the noise.
+            for (name, v) in rule.numbers() {
+                non_negative(v, &f(&format!("policy.{name}")))?;
+            }
+            named(&rule.numbers())
+        }
+        _ => vec![],
+    };
+    for (name, v) in &rule {
+        let field = f(&format!("policy.{name}"));
+        match name.ends_with("radius") {
+            true => non_negative(*v, &field)?,
+            false => check(v.is_finite(), &field, || format!("must be a finite number (got {v})"))?,
+        }
+    }
+    Ok(())
+}
+
 impl Scene {
     /// Checks every value the physics or learning would choke on; an error names the field.
     pub fn validate(&self) -> crate::error::Result<()> {
@@ -17,23 +97,6 @@ impl Scene {
     }
 
     fn check_values(&self) -> crate::error::Result<()> {
-        fn check(ok: bool, field: &str, message: impl FnOnce() -> String) -> crate::error::Result<()> {
-            if ok {
-                Ok(())
-            } else {
-                Err(Error::field(field.to_string(), message()))
-            }
-        }
-        fn positive(v: f64, field: &str) -> crate::error::Result<()> {
-            check(v.is_finite() && v > 0.0, field, || format!("must be a finite number > 0 (got {v})"))
-        }
-        /// A rule's numbers with their names, owned.
-        fn named(numbers: &[(&str, f64)]) -> Vec<(String, f64)> {
-            numbers.iter().map(|&(n, v)| (n.to_string(), v)).collect()
-        }
-        fn non_negative(v: f64, field: &str) -> crate::error::Result<()> {
-            check(v.is_finite() && v >= 0.0, field, || format!("must be a finite number ≥ 0 (got {v})"))
-        }
         let w = &self.world;
         positive(self.cluster_link, "cluster_link")?;
         if let Some(r) = self.confusion_radius {
@@ -66,145 +129,7 @@ impl Scene {
             "every species has count 0: there would be no agent to simulate".into()
         })?;
         for (i, s) in self.species.iter().enumerate() {
-            let f = |name: &str| format!("species[{}].{name}", s.name);
-            check(!s.name.is_empty(), &format!("species[{i}].name"), || "must not be empty".into())?;
-            // The longest file named after a species (`NAME-replay-FROM-TO.safetensors`) stays far
-            // below the 255 bytes file systems allow.
-            check(
-                s.name.len() <= 64,
-                &format!("species[{}…].name", &s.name[..s.name.floor_char_boundary(16)]),
-                || {
-                    format!(
-                        "at most 64 characters (got {}); it names checkpoint files and CSV columns",
-                        s.name.chars().count()
-                    )
-                },
-            )?;
-            // Names become CSV column names (dos_prey, catches_by_hawk) and file names (prey-actor.safetensors).
-            check(
-                s.name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-'),
-                &format!("species[{i}].name"),
-                || {
-                    format!(
-                        "{:?}: use letters, digits, _ and - only (it names CSV columns and checkpoint files)",
-                        s.name
-                    )
-                },
-            )?;
-            check(self.species.iter().filter(|o| o.name == s.name).count() == 1, &f("name"), || {
-                format!("species name {:?} appears twice", s.name)
-            })?;
-            positive(s.mass, &f("mass"))?;
-            positive(s.radius, &f("radius"))?;
-            check(2.0 * s.radius < w.arena_edge, &f("radius"), || {
-                format!("body diameter {} m does not fit in the arena of edge {} m", 2.0 * s.radius, w.arena_edge)
-            })?;
-            positive(s.max_speed, &f("max_speed"))?;
-            non_negative(s.max_thrust, &f("max_thrust"))?;
-            non_negative(s.max_turn_rate, &f("max_turn_rate"))?;
-            let rule: Vec<(String, f64)> = match &s.policy {
-                Policy::Zonal(rule) => {
-                    let radii = [rule.repulsion_radius, rule.alignment_radius, rule.attraction_radius];
-                    check(radii.windows(2).all(|w| w[0] <= w[1]), &f("policy"), || {
-                        format!("Zonal: the zones are nested: repulsion_radius ≤ alignment_radius ≤ attraction_radius (got {radii:?})")
-                    })?;
-                    named(&rule.numbers())
-                }
-                Policy::Binned(rule) => {
-                    let (e, bins) = (&rule.edges, rule.bins());
-                    check(bins > 0 && e[0] >= 0.0 && e.windows(2).all(|w| w[0] < w[1]), &f("policy.edges"), || {
-                        format!("Binned: at least two edges, increasing from ≥ 0 (got {e:?})")
-                    })?;
-                    let lists = [
-                        ("turn.kin", rule.turn.kin.len(), bins),
-                        ("turn.alignment", rule.turn.alignment.len(), bins),
-                        ("turn.evasion", rule.turn.evasion.len(), bins),
-                        ("thrust.kin", rule.thrust.kin.len(), bins),
-                        ("thrust.alignment", rule.thrust.alignment.len(), 0),
-                        ("thrust.evasion", rule.thrust.evasion.len(), bins),
-                    ];
-                    for (name, got, want) in lists {
-                        check(got == want, &f(&format!("policy.{name}")), || {
-                            format!("Binned: {want} gains, one per bin between the {} edges (got {got})", e.len())
-                        })?;
-                    }
-                    rule.numbers()
-                }
-                Policy::Pursuit(rule) => named(&rule.numbers()),
-                Policy::Vicsek(rule) => {
-                    check((0.0..=std::f64::consts::TAU).contains(&rule.noise), &f("policy.noise"), || {
-                        format!("Vicsek: η in radians, in [0, 2π] (got {})", rule.noise)
-                    })?;
-                    named(&rule.numbers())
-                }
-                Policy::Couzin(rule) => {
-                    // Widths and σ as well as radii: a negative one would silently empty a zone or the noise.
-                    for (name, v) in rule.numbers() {
-                        non_negative(v, &f(&format!("policy.{name}")))?;
-                    }
-                    named(&rule.numbers())
-                }
-                _ => vec![],
-            };
-            for (name, v) in &rule {
-                let field = f(&format!("policy.{name}"));
-                match name.ends_with("radius") {
-                    true => non_negative(*v, &field)?,
-                    false => check(v.is_finite(), &field, || format!("must be a finite number (got {v})"))?,
-                }
-            }
-            match s.perception {
-                Perception::Full => {}
-                Perception::FractionOfD(x) => positive(x, &f("perception"))?,
-                Perception::Radius(x) => positive(x, &f("perception"))?,
-            }
-            for c in &s.colour {
-                check((0.0..=1.0).contains(c), &f("colour"), || format!("components must be in [0, 1] (got {c})"))?;
-            }
-            for target in &s.catches {
-                check(self.species.iter().any(|o| &o.name == target), &f("catches"), || {
-                    format!("no species named {target:?} in this scene")
-                })?;
-                check(target != &s.name, &f("catches"), || "a species cannot catch itself".into())?;
-            }
-            for target in &s.blind_to {
-                check(self.species.iter().any(|o| &o.name == target), &f("blind_to"), || {
-                    format!("no species named {target:?} in this scene")
-                })?;
-            }
-            // Entry `i` of a per-species list (`perception_of`, `topological_limit_of`) names a species of
-            // this scene that no earlier entry names.
-            let once = |field: &str, names: &[&String], i: usize| {
-                let target = names[i];
-                check(self.species.iter().any(|o| &o.name == target), &f(field), || {
-                    format!("no species named {target:?} in this scene")
-                })?;
-                check(!names[..i].contains(&target), &f(field), || format!("{target:?} is named twice"))
-            };
-            let names: Vec<&String> = s.perception_of.iter().map(|(t, _)| t).collect();
-            for (i, (_, perception)) in s.perception_of.iter().enumerate() {
-                once("perception_of", &names, i)?;
-                match *perception {
-                    Perception::Full => {}
-                    Perception::FractionOfD(x) | Perception::Radius(x) => positive(x, &f("perception_of"))?,
-                }
-            }
-            let names: Vec<&String> = s.topological_limit_of.iter().map(|(t, _)| t).collect();
-            for i in 0..names.len() {
-                once("topological_limit_of", &names, i)?;
-            }
-            // Degrees of a field of view: more than none, at most all around.
-            let field_of_view = |degrees: f64, field: &str| {
-                check(degrees > 0.0 && degrees <= super::schema::FULL_VIEW, &f(field), || {
-                    format!("degrees in (0, 360] (360: all around, the paper; got {degrees})")
-                })
-            };
-            field_of_view(s.field_of_view, "field_of_view")?;
-            let names: Vec<&String> = s.field_of_view_of.iter().map(|(t, _)| t).collect();
-            for (i, (_, degrees)) in s.field_of_view_of.iter().enumerate() {
-                once("field_of_view_of", &names, i)?;
-                field_of_view(*degrees, "field_of_view_of")?;
-            }
+            self.check_species(i, s)?;
         }
         for (i, r) in self.contact_rewards.iter().enumerate() {
             let field = format!("contact_rewards[{i}]");
@@ -225,6 +150,104 @@ impl Scene {
                 || format!("the pair {} → {} appears twice", r.catcher, r.caught),
             )?;
         }
+        self.check_learning()?;
+        self.check_stability()?;
+        self.check_memory(crate::io::memory_bytes())
+    }
+
+    /// One species `s` (entry `i` of the scene's list): its name, body, policy, perception and sight.
+    fn check_species(&self, i: usize, s: &SpeciesDef) -> crate::error::Result<()> {
+        let w = &self.world;
+        let f = |name: &str| format!("species[{}].{name}", s.name);
+        check(!s.name.is_empty(), &format!("species[{i}].name"), || "must not be empty".into())?;
+        // The longest file named after a species (`NAME-replay-FROM-TO.safetensors`) stays far
+        // below the 255 bytes file systems allow.
+        check(s.name.len() <= 64, &format!("species[{}…].name", &s.name[..s.name.floor_char_boundary(16)]), || {
+            format!("at most 64 characters (got {}); it names checkpoint files and CSV columns", s.name.chars().count())
+        })?;
+        // Names become CSV column names (dos_prey, catches_by_hawk) and file names (prey-actor.safetensors).
+        check(
+            s.name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-'),
+            &format!("species[{i}].name"),
+            || format!("{:?}: use letters, digits, _ and - only (it names CSV columns and checkpoint files)", s.name),
+        )?;
+        check(self.species.iter().filter(|o| o.name == s.name).count() == 1, &f("name"), || {
+            format!("species name {:?} appears twice", s.name)
+        })?;
+        positive(s.mass, &f("mass"))?;
+        positive(s.radius, &f("radius"))?;
+        check(2.0 * s.radius < w.arena_edge, &f("radius"), || {
+            format!("body diameter {} m does not fit in the arena of edge {} m", 2.0 * s.radius, w.arena_edge)
+        })?;
+        positive(s.max_speed, &f("max_speed"))?;
+        non_negative(s.max_thrust, &f("max_thrust"))?;
+        non_negative(s.max_turn_rate, &f("max_turn_rate"))?;
+        check_policy(s)?;
+        match s.perception {
+            Perception::Full => {}
+            Perception::FractionOfD(x) => positive(x, &f("perception"))?,
+            Perception::Radius(x) => positive(x, &f("perception"))?,
+        }
+        for c in &s.colour {
+            check((0.0..=1.0).contains(c), &f("colour"), || format!("components must be in [0, 1] (got {c})"))?;
+        }
+        self.check_sight(s)?;
+        Ok(())
+    }
+
+    /// Whom species `s` catches, is blind to, and sees how (per-species perception, topological limits,
+    /// fields of view): each a species of this scene, named once.
+    fn check_sight(&self, s: &SpeciesDef) -> crate::error::Result<()> {
+        let f = |name: &str| format!("species[{}].{name}", s.name);
+        for target in &s.catches {
+            check(self.species.iter().any(|o| &o.name == target), &f("catches"), || {
+                format!("no species named {target:?} in this scene")
+            })?;
+            check(target != &s.name, &f("catches"), || "a species cannot catch itself".into())?;
+        }
+        for target in &s.blind_to {
+            check(self.species.iter().any(|o| &o.name == target), &f("blind_to"), || {
+                format!("no species named {target:?} in this scene")
+            })?;
+        }
+        // Entry `i` of a per-species list (`perception_of`, `topological_limit_of`) names a species of
+        // this scene that no earlier entry names.
+        let once = |field: &str, names: &[&String], i: usize| {
+            let target = names[i];
+            check(self.species.iter().any(|o| &o.name == target), &f(field), || {
+                format!("no species named {target:?} in this scene")
+            })?;
+            check(!names[..i].contains(&target), &f(field), || format!("{target:?} is named twice"))
+        };
+        let names: Vec<&String> = s.perception_of.iter().map(|(t, _)| t).collect();
+        for (i, (_, perception)) in s.perception_of.iter().enumerate() {
+            once("perception_of", &names, i)?;
+            match *perception {
+                Perception::Full => {}
+                Perception::FractionOfD(x) | Perception::Radius(x) => positive(x, &f("perception_of"))?,
+            }
+        }
+        let names: Vec<&String> = s.topological_limit_of.iter().map(|(t, _)| t).collect();
+        for i in 0..names.len() {
+            once("topological_limit_of", &names, i)?;
+        }
+        // Degrees of a field of view: more than none, at most all around.
+        let field_of_view = |degrees: f64, field: &str| {
+            check(degrees > 0.0 && degrees <= super::schema::FULL_VIEW, &f(field), || {
+                format!("degrees in (0, 360] (360: all around, the paper; got {degrees})")
+            })
+        };
+        field_of_view(s.field_of_view, "field_of_view")?;
+        let names: Vec<&String> = s.field_of_view_of.iter().map(|(t, _)| t).collect();
+        for (i, (_, degrees)) in s.field_of_view_of.iter().enumerate() {
+            once("field_of_view_of", &names, i)?;
+            field_of_view(*degrees, "field_of_view_of")?;
+        }
+        Ok(())
+    }
+
+    /// Algorithm 1's numbers and the opponents each learning species trains against.
+    fn check_learning(&self) -> crate::error::Result<()> {
         let l = &self.learning;
         positive(l.actor_lr, "learning.actor_lr")?;
         positive(l.critic_lr, "learning.critic_lr")?;
@@ -270,8 +293,7 @@ impl Scene {
                 format!("must be ≥ 1: the pool of {name} is the snapshots kept every snapshot_every episodes")
             })?;
         }
-        self.check_stability()?;
-        self.check_memory(crate::io::memory_bytes())
+        Ok(())
     }
 
     /// Refuses parameters for which the semi-implicit Euler step of Appendix B is unstable or unphysical.
