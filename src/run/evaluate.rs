@@ -348,6 +348,40 @@ impl Accumulated {
     }
 }
 
+/// The perturbation `--perturb` and `--perturb-step` ask for, checked against the episode's `steps`; None
+/// without `--perturb`.
+fn perturbation(opts: &EvalOptions, steps: usize) -> crate::error::Result<Option<super::perturb::Perturbation>> {
+    let Some(angle) = opts.perturb else { return Ok(None) };
+    let p = super::perturb::Perturbation { angle, step: opts.perturb_step.unwrap_or(steps / 2) };
+    if p.step == 0 || p.step >= steps {
+        return Err(format!(
+            "--perturb-step {}: must be between 1 and the episode's steps − 1 ({})",
+            p.step,
+            steps - 1
+        )
+        .into());
+    }
+    if !p.angle.is_finite() || p.angle == 0.0 {
+        return Err(format!("--perturb {}: must be a finite, non-zero angle in radians", p.angle).into());
+    }
+    Ok(Some(p))
+}
+
+/// Each species with its count (species names are not pluralized: "prey: 50", not "50 prey"), a replaced
+/// policy beside it: "predator: 3 (ChaseNearest), prey: 50".
+fn counts_shown(opts: &EvalOptions, registry: &SpeciesRegistry) -> String {
+    registry
+        .defs
+        .iter()
+        .map(|d| match opts.overrides.policies.iter().any(|(name, _)| *name == d.name) {
+            // As a scene file or --policy writes it (a fitted rule with all its numbers).
+            true => format!("{}: {} ({})", d.name, d.count, ron::to_string(&d.policy).unwrap_or_default()),
+            false => format!("{}: {}", d.name, d.count),
+        })
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
 /// Deploys a run's policies without noise and streams per-step DoS/DoA to `RUN/eval.csv` (replaced
 /// whole, when complete); returns the summary line.
 pub fn evaluate(opts: &EvalOptions) -> crate::error::Result<String> {
@@ -387,22 +421,7 @@ pub fn evaluate(opts: &EvalOptions) -> crate::error::Result<String> {
     };
     super::progress::announce_cost(&scene, opts.episodes * scene.episode_steps)?;
     let mut sim = build()?;
-    let perturbation = opts.perturb.map(|angle| super::perturb::Perturbation {
-        angle,
-        step: opts.perturb_step.unwrap_or(scene.episode_steps / 2),
-    });
-    let mut twin = match perturbation {
-        Some(p) if p.step == 0 || p.step >= scene.episode_steps => {
-            return Err(format!(
-                "--perturb-step {}: must be between 1 and the episode's steps − 1 ({})",
-                p.step,
-                scene.episode_steps - 1
-            )
-            .into())
-        }
-        Some(p) if !p.angle.is_finite() || p.angle == 0.0 => {
-            return Err(format!("--perturb {}: must be a finite, non-zero angle in radians", p.angle).into())
-        }
+    let mut twin = match perturbation(opts, scene.episode_steps)? {
         Some(p) => Some((build()?, super::perturb::Response::new(p, 0))),
         None => None,
     };
@@ -464,17 +483,6 @@ pub fn evaluate(opts: &EvalOptions) -> crate::error::Result<String> {
     for (what, text) in super::folder::EVAL_BESIDE.iter().zip(files) {
         crate::io::write_file(&crate::io::beside(&path, what), Existing::Replace, text.as_bytes())?;
     }
-    // Each species with its count (species names are not pluralized: "prey: 50", not "50 prey"), a replaced
-    // policy beside it: "predator: 3 (ChaseNearest), prey: 50".
-    let counts: Vec<String> = registry
-        .defs
-        .iter()
-        .map(|d| match opts.overrides.policies.iter().any(|(name, _)| *name == d.name) {
-            // As a scene file or --policy writes it (a fitted rule with all its numbers).
-            true => format!("{}: {} ({})", d.name, d.count, ron::to_string(&d.policy).unwrap_or_default()),
-            false => format!("{}: {}", d.name, d.count),
-        })
-        .collect();
     Ok(format!(
         "eval {}{}{}: {} × {} steps ({}): {}; per step in {}{}",
         opts.run.display(),
@@ -489,7 +497,7 @@ pub fn evaluate(opts: &EvalOptions) -> crate::error::Result<String> {
         },
         if opts.episodes == 1 { "1 episode".to_string() } else { format!("{} episodes", opts.episodes) },
         scene.episode_steps,
-        counts.join(", "),
+        counts_shown(opts, &registry),
         acc.summary(
             name,
             correlation_length,
