@@ -640,12 +640,16 @@ impl Quantity {
     }
 
     /// The evaluations whose catches per prey it reads (a column of `summary.csv` only where a claim
-    /// reads one).
-    pub(crate) fn catches_of(&self) -> Vec<String> {
+    /// reads one), with the untrained partners in `evaluations` of a change by training.
+    pub(crate) fn catches_of(&self, evaluations: &[super::file::Evaluation]) -> Vec<String> {
         match self {
             Quantity::EvalCatches(e) => vec![e.clone()],
             Quantity::EvalDifference(a, b, Order::Catches) => vec![a.clone(), b.clone()],
+            Quantity::Learned(e, Order::Catches) => std::iter::once(e.clone())
+                .chain(super::file::untrained_partner(evaluations, e).map(|u| u.name.clone()))
+                .collect(),
             Quantity::EvalDifference(..)
+            | Quantity::Learned(..)
             | Quantity::DosFirst
             | Quantity::DosLast
             | Quantity::DoaFirst
@@ -662,7 +666,6 @@ impl Quantity {
             | Quantity::EvalOrder(..)
             | Quantity::InteractionDoa(_)
             | Quantity::Interaction(..)
-            | Quantity::Learned(..)
             | Quantity::Distilled(..)
             | Quantity::DistilledDifference(..)
             | Quantity::Reach90(_)

@@ -87,6 +87,9 @@ pub(crate) enum Stated {
     Edited,
     /// Its text is not recorded: added after its results existed.
     Added,
+    /// Its text is not recorded, but a recorded claim no longer in the file had the same test under
+    /// another text: reworded after its results existed, what it tests unchanged.
+    Reworded,
     /// As recorded, but in another family than the one recorded: moved after its results existed.
     Moved,
     /// Nothing recorded (no results yet).
@@ -99,6 +102,7 @@ impl Stated {
         match self {
             Stated::Edited => " — **edited after its results existed** (post hoc)",
             Stated::Added => " — **added after its results existed** (post hoc)",
+            Stated::Reworded => " — reworded after its results existed (what it tests unchanged)",
             Stated::Moved => " — **moved to this family after its results existed** (post hoc)",
             Stated::AsRecorded | Stated::Unknown => "",
         }
@@ -186,9 +190,18 @@ pub(crate) fn record(exp: &Experiment, unfinished: &dyn Fn(&str) -> bool) -> cra
 }
 
 /// How `claim` stands against `recorded` ([`read`]).
-pub(crate) fn stated(claim: &Claim, recorded: Option<&[(String, Recorded)]>) -> Stated {
+pub(crate) fn stated(claim: &Claim, claims: &[Claim], recorded: Option<&[(String, Recorded)]>) -> Stated {
     let Some(recorded) = recorded else { return Stated::Unknown };
+    // A recorded text that no claim of the file has now, whose fingerprint this claim's test gives
+    // under that text: this claim, reworded.
+    let reworded = || {
+        recorded.iter().any(|(text, r)| {
+            !claims.iter().any(|c| c.text == *text)
+                && r.fingerprint == fingerprint(&Claim { text: text.clone(), ..claim.clone() })
+        })
+    };
     match recorded.iter().find(|(text, _)| *text == claim.text) {
+        None if reworded() => Stated::Reworded,
         None => Stated::Added,
         Some((_, r)) if r.fingerprint != fingerprint(claim) => Stated::Edited,
         Some((_, r)) if r.family.as_ref().is_some_and(|f| *f != family_of(claim)) => Stated::Moved,

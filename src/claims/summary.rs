@@ -74,7 +74,7 @@ pub fn columns(exp: &Experiment) -> Vec<(String, Quantity)> {
     let series = exp.spec.evaluations.iter().any(|e| e.arena_edge.is_some());
     let mut caught: Vec<String> = if series { evals.clone() } else { Vec::new() };
     for claim in &exp.spec.claims {
-        caught.extend(claim.quantity.catches_of());
+        caught.extend(claim.quantity.catches_of(&exp.spec.evaluations));
     }
     for e in caught {
         let q = Quantity::EvalCatches(e);

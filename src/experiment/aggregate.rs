@@ -92,7 +92,7 @@ pub(crate) fn aggregate(
     }
     let recorded = registry::read(&exp.root)?;
     for r in &mut results {
-        r.stated = registry::stated(&r.claim, recorded.as_deref());
+        r.stated = registry::stated(&r.claim, &exp.spec.claims, recorded.as_deref());
     }
     Ok(Aggregated {
         results,

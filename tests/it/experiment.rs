@@ -149,6 +149,11 @@ fn experiment_files_expand_to_runs_and_bad_ones_are_one_line() {
             "\"swirl\" is no order parameter: one of \"dos\", \"doa\"",
         ),
         (
+            // An order parameter of its own quantity (DoS has EvalDos) is refused where another is asked for.
+            TINY.replace("quantity: DosChange", "quantity: EvalOrder(\"50 prey\", \"dos\")"),
+            "bad.ron: claims: \"dos\" is not taken here (one of polarization, milling, clusters, largest_cluster, nn_correlation, edge_rank)",
+        ),
+        (
             // A level of the paper's with no rule for its tolerance must state one; an effect takes none.
             TINY.replace("quantity: DosChange, paper: -0.03", "quantity: CatchesLast, paper: 50.0"),
             "bad.ron: claims: \"DoS falls\": a level with the paper's value needs a tolerance",
@@ -899,6 +904,17 @@ fn a_shared_variant_is_the_other_experiments_runs_trained_once_and_never_compare
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     assert!(row("tiny", "DoS falls").contains("edited after its results existed"), "{}", row("tiny", "DoS falls"));
     assert!(!row("tiny", "catches").contains("after its results existed"), "{}", row("tiny", "catches"));
+    // Reworded, what it tests unchanged: said as such, not as a claim added after its results.
+    let reworded = TINY.replace("(text: \"DoS falls\"", "(text: \"DoS falls over training\"");
+    assert_ne!(reworded, TINY);
+    std::fs::write(dir.path().join("experiments/tiny.ron"), reworded).unwrap();
+    let out = coevo(dir.path(), &["--plot", "results/tiny"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let now = row("tiny", "DoS falls over training");
+    assert!(
+        now.contains("reworded after its results existed (what it tests unchanged)") && !now.contains("post hoc"),
+        "{now}"
+    );
     std::fs::write(dir.path().join("experiments/tiny.ron"), TINY).unwrap();
     // A shared reference to another scene, or two variants shared from the same runs, are refused.
     for (text, says) in [
