@@ -205,6 +205,9 @@ pub(crate) fn derive(
     }
 }
 
+/// Which order parameters a quantity takes ([`Order::of_evaluation`], [`Order::of_training`], [`Order::compared`]).
+pub(crate) type Takes = fn(Order) -> bool;
+
 /// Each property of a quantity, one exhaustive match each, so that a new quantity is a compile error here
 /// until it says what it is: the quantity's variant in `file.rs`, its properties here and, for one that
 /// reads new numbers of a run, where they are read (`results.rs`, `experiment/data.rs`).
@@ -686,7 +689,7 @@ impl Quantity {
 
     /// The order parameter it names and whether it takes that one ([`Order::of_evaluation`],
     /// [`Order::of_training`], [`Order::compared`]); None for a quantity that names none.
-    pub(crate) fn named_order(&self) -> Option<(Order, fn(Order) -> bool)> {
+    pub(crate) fn named_order(&self) -> Option<(Order, Takes)> {
         match self {
             Quantity::EvalOrder(_, o) | Quantity::Interaction(_, o) => Some((*o, Order::of_evaluation)),
             Quantity::TrainingFirst(o) | Quantity::TrainingLast(o) => Some((*o, Order::of_training)),

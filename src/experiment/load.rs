@@ -397,7 +397,7 @@ fn check_claims(spec: &ExperimentFile, file: &Path) -> Result<()> {
             if !c.variant.is_empty() || c.versus.is_some() || c.baseline.is_some() {
                 return Err(err("claims", format!("{:?}: {what}", c.text)));
             }
-            super::grid::along(&spec, test).map_err(|m| err("claims", format!("{:?}: grid: {m}", c.text)))?;
+            super::grid::along(spec, test).map_err(|m| err("claims", format!("{:?}: grid: {m}", c.text)))?;
             if !matches!(test, GridTest::Trend { .. }) && (c.margin.is_some() || c.scale != Scale::Linear) {
                 return Err(err(
                     "claims",
