@@ -104,6 +104,69 @@ pub fn resume(opts: &TrainOptions) -> crate::error::Result<usize> {
     run_training(Start::Resume, opts)
 }
 
+/// A resumed run put back as its checkpoint left it (learners, league, spawn state, episode), checked
+/// against its scene and rows; returns `metrics.csv`'s rows up to the checkpoint, under today's header.
+fn restore(
+    sim: &mut Simulation,
+    dir: &RunDir,
+    scene: &Scene,
+    opts: &TrainOptions,
+    total: usize,
+    registry: &SpeciesRegistry,
+    names: &[String],
+) -> crate::error::Result<String> {
+    let run = &opts.run;
+    let world = sim.world_mut();
+    let (state, manifest) = {
+        let mut learners = world.resource_mut::<Learners>();
+        let l = &mut *learners;
+        let (state, manifest) = checkpoint::load(run, &mut l.species, names)?;
+        if let Some(league) = l.league.as_mut() {
+            let load =
+                |name: &str, episode, like: &_| crate::learning::snapshots::load_snapshot(run, name, episode, like);
+            league.restore(run, &l.species, state.episodes_done, state.league.clone(), load)?;
+        }
+        (state, manifest)
+    };
+    let rows = match &manifest {
+        Some(m) => dir.metrics_up_to(&m.metrics)?,
+        None => state.metrics_csv.clone(),
+    };
+    check_resumable(run, &scene, &state, &rows, total, opts.episodes.is_some())?;
+    dir.note_binary()?;
+    world.resource_mut::<SimRng>().0 = state.spawn_rng.clone().unwrap_or_else(|| state.sim_rng.clone());
+    world.resource_mut::<Episode>().index = state.episodes_done;
+    crate::sim::episode::spawn_population(world);
+    if state.spawn_rng.is_none() || state.species.iter().flatten().any(|s| s.transitions.is_none()) {
+        crate::errln!(
+            "coevo: warning: {}: the checkpoint lacks replay buffers or spawn state (an older coevo, or segments removed, as an experiment does once a run is trained): the resumed run refills its buffers and differs from an uninterrupted one",
+            run.display()
+        )?;
+    }
+    // A run begun by an older coevo keeps its rows, under today's columns (new ones blank).
+    Ok(schema::with_header(
+        &rows,
+        &schema::metrics_header(&registry, world.resource::<Learners>(), scene.authors_metrics),
+    ))
+}
+
+/// A new run's folder made (after checking it may be): its scene, provenance and `metrics.csv`'s header,
+/// returned.
+fn begin(
+    sim: &Simulation,
+    dir: &RunDir,
+    scene: &Scene,
+    opts: &TrainOptions,
+    registry: &SpeciesRegistry,
+) -> crate::error::Result<String> {
+    dir.check_new(opts.overwrite)?;
+    dir.clear()?;
+    crate::io::write_file(&dir.scene(), Existing::Replace, scene.to_ron().as_bytes())?;
+    dir.write_provenance(&scene)?;
+    let header = schema::metrics_header(&registry, sim.world().resource::<Learners>(), scene.authors_metrics);
+    Ok(format!("{header}\n"))
+}
+
 /// [`train`] or [`resume`], as `start` says.
 fn run_training(start: Start, opts: &TrainOptions) -> crate::error::Result<usize> {
     let run = &opts.run;
@@ -145,51 +208,12 @@ fn run_training(start: Start, opts: &TrainOptions) -> crate::error::Result<usize
     let names: Vec<String> = registry.defs.iter().map(|d| d.name.clone()).collect();
     let metrics_path = dir.metrics();
     // metrics.csv up to the last row written: what the next checkpoint's manifest hashes.
-    let metrics_text: String;
+    let metrics_text = match resuming {
+        true => restore(&mut sim, &dir, &scene, opts, total, &registry, &names)?,
+        false => begin(&sim, &dir, &scene, opts, &registry)?,
+    };
     // Seconds trained before this invocation: wall_seconds counts the run's whole training time.
-    let mut wall_before = 0.0;
-    if resuming {
-        let world = sim.world_mut();
-        let (state, manifest) = {
-            let mut learners = world.resource_mut::<Learners>();
-            let l = &mut *learners;
-            let (state, manifest) = checkpoint::load(run, &mut l.species, &names)?;
-            if let Some(league) = l.league.as_mut() {
-                let load =
-                    |name: &str, episode, like: &_| crate::learning::snapshots::load_snapshot(run, name, episode, like);
-                league.restore(run, &l.species, state.episodes_done, state.league.clone(), load)?;
-            }
-            (state, manifest)
-        };
-        let rows = match &manifest {
-            Some(m) => dir.metrics_up_to(&m.metrics)?,
-            None => state.metrics_csv.clone(),
-        };
-        check_resumable(run, &scene, &state, &rows, total, opts.episodes.is_some())?;
-        dir.note_binary()?;
-        world.resource_mut::<SimRng>().0 = state.spawn_rng.clone().unwrap_or_else(|| state.sim_rng.clone());
-        world.resource_mut::<Episode>().index = state.episodes_done;
-        crate::sim::episode::spawn_population(world);
-        if state.spawn_rng.is_none() || state.species.iter().flatten().any(|s| s.transitions.is_none()) {
-            crate::errln!(
-                "coevo: warning: {}: the checkpoint lacks replay buffers or spawn state (an older coevo, or segments removed, as an experiment does once a run is trained): the resumed run refills its buffers and differs from an uninterrupted one",
-                run.display()
-            )?;
-        }
-        // A run begun by an older coevo keeps its rows, under today's columns (new ones blank).
-        metrics_text = schema::with_header(
-            &rows,
-            &schema::metrics_header(&registry, world.resource::<Learners>(), scene.authors_metrics),
-        );
-        wall_before = schema::last_wall_seconds(&metrics_text);
-    } else {
-        dir.check_new(opts.overwrite)?;
-        dir.clear()?;
-        crate::io::write_file(&dir.scene(), Existing::Replace, scene.to_ron().as_bytes())?;
-        dir.write_provenance(&scene)?;
-        let header = schema::metrics_header(&registry, sim.world().resource::<Learners>(), scene.authors_metrics);
-        metrics_text = format!("{header}\n");
-    }
+    let wall_before = if resuming { schema::last_wall_seconds(&metrics_text) } else { 0.0 };
     crate::io::write_file(&metrics_path, Existing::Replace, metrics_text.as_bytes())?;
     let mut csv = std::fs::OpenOptions::new().append(true).open(&metrics_path).map_err(io_err(&metrics_path))?;
     // The rows are hashed as they are written, so memory stays constant over any number of episodes.
