@@ -1,5 +1,6 @@
 //! An experiment's figures (drawn by `plot.rs`) and a run's training curves (`--plot RUN`).
 
+use super::curves::Shape;
 use super::data::headline;
 use super::figure_data::{self, FigureData};
 use super::file::{slug, Experiment, Order, Quantity};
@@ -448,6 +449,82 @@ fn levels(exp: &Experiment, preset: &str, curve: super::file::Curve, episodes: u
     out
 }
 
+/// Variants side by side: what each change does to the learning and to the interaction-driven part of
+/// the alignment (seeing minus each control), mean over seeds with its 95 % CI; the ablations' answer to
+/// "which differences decide".
+fn variants_figure(
+    exp: &Experiment,
+    preset: &str,
+    prey: &str,
+    table: &Summary,
+    title: &dyn Fn(&str) -> String,
+) -> crate::error::Result<()> {
+    let dir = exp.figures_dir();
+    let mut compared = vec![
+        (
+            format!("DoA of {prey}: change over training"),
+            format!("DoA, last − first {WINDOW} episodes"),
+            Quantity::DoaChange,
+        ),
+        (
+            format!("DoS of {prey}: change over training"),
+            format!("DoS, last − first {WINDOW} episodes"),
+            Quantity::DosChange,
+        ),
+        (
+            "catches: change over training".into(),
+            format!("catches per episode, last − first {WINDOW} episodes"),
+            Quantity::CatchesChange,
+        ),
+    ];
+    for e in &exp.spec.evaluations {
+        if let Some(seeing) = super::file::seeing_partner(&exp.spec.evaluations, &e.name) {
+            let title = format!("{}: DoA seeing − {}", seeing.name, e.name);
+            compared.push((
+                title,
+                format!("DoA difference, last {SETTLED_STEPS} steps"),
+                Quantity::InteractionDoa(e.name.clone()),
+            ));
+        }
+    }
+    // How fast each variant converges, where a claim of the file asks (Halfway, Reaches): the episode per
+    // variant with its interval, beside the changes.
+    let mut convergence: Vec<Quantity> = Vec::new();
+    for c in &exp.spec.claims {
+        if c.quantity.is_convergence_episode() && !convergence.contains(&c.quantity) {
+            convergence.push(c.quantity.clone());
+        }
+    }
+    for q in convergence {
+        // A panel's title fits its column: the quantity in short, the definition on the axis.
+        let curve = |c: super::file::Curve| if c == super::file::Curve::Dos { "DoS" } else { "DoA" };
+        let (what, x_label) = match q.shape() {
+            Some((c, Shape::Halfway)) => (
+                format!("{}: halfway episode", curve(c)),
+                format!("episode its {}-episode mean completes half its change", super::results::HALFWAY_WINDOW),
+            ),
+            Some((c, Shape::Reaches(level))) => (
+                format!("{}: episode it first reaches {level}", curve(c)),
+                format!("episode its {}-episode mean first reaches {level}", super::results::HALFWAY_WINDOW),
+            ),
+            _ => (super::quantity::quantity_name(&q), "episode".into()),
+        };
+        compared.push((what, x_label, q));
+    }
+    let panels: Vec<EstimatePanel> = compared
+        .into_iter()
+        .map(|(what, x_label, q)| {
+            let rows = exp.spec.variants.iter().map(|v| {
+                let e = estimate(&table.values(exp, preset, &v.name, &q));
+                let label = format!("{} ({})", v.name, e.map_or(0, |e| e.n));
+                Row { label, mean: e.map_or(f64::NAN, |e| e.mean), ci: e.and_then(|e| e.ci) }
+            });
+            EstimatePanel { title: title(&what), x_label, rows: rows.collect() }
+        })
+        .collect();
+    plot::save_estimates(&dir.join(format!("{preset}-variants")), &panels)
+}
+
 fn figures<'a>(
     exp: &Experiment,
     preset: &str,
@@ -493,73 +570,8 @@ fn figures<'a>(
     }
     plot::save(&dir.join(format!("{preset}-training")), &training)?;
     *saved += 1;
-    // Variants side by side: what each change does to the learning and to the interaction-driven part of
-    // the alignment (seeing minus each control), mean over seeds with its 95 % CI; the ablations' answer to
-    // "which differences decide".
     if exp.spec.variants.len() > 1 {
-        let mut compared = vec![
-            (
-                format!("DoA of {prey}: change over training"),
-                format!("DoA, last − first {WINDOW} episodes"),
-                Quantity::DoaChange,
-            ),
-            (
-                format!("DoS of {prey}: change over training"),
-                format!("DoS, last − first {WINDOW} episodes"),
-                Quantity::DosChange,
-            ),
-            (
-                "catches: change over training".into(),
-                format!("catches per episode, last − first {WINDOW} episodes"),
-                Quantity::CatchesChange,
-            ),
-        ];
-        for e in &exp.spec.evaluations {
-            if let Some(seeing) = super::file::seeing_partner(&exp.spec.evaluations, &e.name) {
-                let title = format!("{}: DoA seeing − {}", seeing.name, e.name);
-                compared.push((
-                    title,
-                    format!("DoA difference, last {SETTLED_STEPS} steps"),
-                    Quantity::InteractionDoa(e.name.clone()),
-                ));
-            }
-        }
-        // How fast each variant converges, where a claim of the file asks (Halfway, Reaches): the episode per
-        // variant with its interval, beside the changes.
-        let mut convergence: Vec<Quantity> = Vec::new();
-        for c in &exp.spec.claims {
-            if c.quantity.is_convergence_episode() && !convergence.contains(&c.quantity) {
-                convergence.push(c.quantity.clone());
-            }
-        }
-        for q in convergence {
-            // A panel's title fits its column: the quantity in short, the definition on the axis.
-            let curve = |c: &super::file::Curve| if *c == super::file::Curve::Dos { "DoS" } else { "DoA" };
-            let (what, x_label) = match &q {
-                Quantity::Halfway(c) => (
-                    format!("{}: halfway episode", curve(c)),
-                    format!("episode its {}-episode mean completes half its change", super::results::HALFWAY_WINDOW),
-                ),
-                Quantity::Reaches(c, level) => (
-                    format!("{}: episode it first reaches {level}", curve(c)),
-                    format!("episode its {}-episode mean first reaches {level}", super::results::HALFWAY_WINDOW),
-                ),
-                other => (super::quantity::quantity_name(other), "episode".into()),
-            };
-            compared.push((what, x_label, q));
-        }
-        let panels: Vec<EstimatePanel> = compared
-            .into_iter()
-            .map(|(what, x_label, q)| {
-                let rows = exp.spec.variants.iter().map(|v| {
-                    let e = estimate(&table.values(exp, preset, &v.name, &q));
-                    let label = format!("{} ({})", v.name, e.map_or(0, |e| e.n));
-                    Row { label, mean: e.map_or(f64::NAN, |e| e.mean), ci: e.and_then(|e| e.ci) }
-                });
-                EstimatePanel { title: title(&what), x_label, rows: rows.collect() }
-            })
-            .collect();
-        plot::save_estimates(&dir.join(format!("{preset}-variants")), &panels)?;
+        variants_figure(exp, preset, prey, table, &title)?;
         *saved += 1;
     }
     if exp.spec.distill.is_some() {
