@@ -132,7 +132,7 @@ fn restore(
         Some(m) => dir.metrics_up_to(&m.metrics)?,
         None => state.metrics_csv.clone(),
     };
-    check_resumable(run, &scene, &state, &rows, total, opts.episodes.is_some())?;
+    check_resumable(run, scene, &state, &rows, total, opts.episodes.is_some())?;
     dir.note_binary()?;
     world.resource_mut::<SimRng>().0 = state.spawn_rng.clone().unwrap_or_else(|| state.sim_rng.clone());
     world.resource_mut::<Episode>().index = state.episodes_done;
@@ -146,7 +146,7 @@ fn restore(
     // A run begun by an older coevo keeps its rows, under today's columns (new ones blank).
     Ok(schema::with_header(
         &rows,
-        &schema::metrics_header(&registry, world.resource::<Learners>(), scene.authors_metrics),
+        &schema::metrics_header(registry, world.resource::<Learners>(), scene.authors_metrics),
     ))
 }
 
@@ -162,8 +162,8 @@ fn begin(
     dir.check_new(opts.overwrite)?;
     dir.clear()?;
     crate::io::write_file(&dir.scene(), Existing::Replace, scene.to_ron().as_bytes())?;
-    dir.write_provenance(&scene)?;
-    let header = schema::metrics_header(&registry, sim.world().resource::<Learners>(), scene.authors_metrics);
+    dir.write_provenance(scene)?;
+    let header = schema::metrics_header(registry, sim.world().resource::<Learners>(), scene.authors_metrics);
     Ok(format!("{header}\n"))
 }
 
