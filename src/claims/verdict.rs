@@ -192,107 +192,120 @@ fn test(claim: &Claim, e: Option<Estimate>, p_holm: Option<f64>, level: Option<f
     use Outcome::*;
     let Some(e) = e else { return Verdict::new(NotRunYet, "not run yet") };
     let Some(ci) = e.ci else { return Verdict::new(OneSeed, "one seed: no interval") };
-    if is_effect(claim) {
-        let level = level.unwrap_or(ALPHA);
-        let detected = p_holm.is_some_and(|p| p < ALPHA);
-        let p_text = p_holm.map_or(String::new(), |p| format!("Holm p = {}", p_shown(p)));
-        let power = || match e.detectable_at(level) {
-            Some(d) => format!(
-                "80 % power at its level (α = {}) only for effects of ±{d:.3} or more with {} seeds",
-                alpha_shown(level),
-                e.n
-            ),
-            None => String::new(),
-        };
-        if let Some(m) = claim.margin {
-            let h = e.half_width(2.0 * level).unwrap_or(ci);
-            let (lo, hi) = (e.mean - h, e.mean + h);
-            let two_sided = e.half_width(level).unwrap_or(ci);
-            return if detected {
-                Verdict::new(
-                    Equivalent,
-                    format!(
-                        "equivalent within ±{m}: the adjusted interval [{lo:.3}, {hi:.3}] lies inside (TOST, {p_text})"
-                    ),
-                )
-            } else if e.mean.abs() - two_sided >= m {
-                Verdict::new(NotReproduced, format!("not reproduced: an effect beyond ±{m} ({:+.3})", e.mean))
-            } else {
-                // What the data do support: the adjusted interval lies inside a margin only wider than its
-                // farther end (rounded up, so the margin printed is never one the interval reaches past).
-                Verdict::new(
-                    Inconclusive { paper_size_excluded: false },
-                    format!(
-                        "inconclusive: neither equivalence within ±{m} (adjusted interval [{lo:.3}, {hi:.3}]) nor an effect shown; equivalence would be shown only for a margin wider than ±{:.3} (at this test's level)",
-                        (lo.abs().max(hi.abs()) * 1000.0).ceil() / 1000.0
-                    ),
-                )
-            };
-        }
-        let h = e.half_width(level).unwrap_or(ci);
-        let inside = |x: f64| e.mean - h <= x && x <= e.mean + h;
-        return match claim.paper {
-            // The project's own direction: judged against its hypothesis, never "reproduced".
-            Some(sign) if claim.ours && detected => match e.mean.signum() == sign.signum() {
-                true => Verdict::new(DetectedAsHypothesised, format!("detected as hypothesised ({p_text})")),
-                false => Verdict::new(DetectedOpposite, format!("detected opposite to the hypothesis ({p_text})")),
-            },
-            Some(paper) if detected && e.mean.signum() == paper.signum() => {
-                if claim.direction_only || inside(paper) {
-                    Verdict::new(Reproduced, format!("reproduced: detected in the paper's direction ({p_text})"))
-                } else {
-                    let larger = e.mean.abs() >= paper.abs();
-                    let size = if larger { "larger" } else { "smaller" };
-                    Verdict::new(
-                        DirectionReproduced { larger },
-                        format!("direction reproduced, {size} than the paper's {paper:+.3} ({p_text})"),
-                    )
-                }
-            }
-            Some(_) if detected => {
-                Verdict::new(NotReproduced, format!("not reproduced: detected the other way ({p_text})"))
-            }
-            // The seeds that would decide it: for a direction the paper gives no size of, those that would
-            // detect the difference measured here if it were the true one (none when it points the other way),
-            // and how far that answer moves over the interval: from its far end in the hypothesised direction
-            // to its near end, which holds 0 (never) since the effect was not detected.
-            Some(paper) if claim.direction_only => {
-                let far = e.mean + paper.signum() * h;
-                let seeds = match e.mean.signum() == paper.signum() {
-                    true => e.seeds_for(level, e.mean).map_or(more_seeds(&e), |n| {
-                        let range = match e.seeds_for(level, far) {
-                            Some(at_far) => format!("; over its adjusted interval the answer runs from about {at_far} (at {far:+.3}) to never (at 0, inside it)"),
-                            None => String::new(),
-                        };
-                        format!("; about {n} {} would detect a difference of the size measured here ({:+.3}) with 80 % power{range}", seeds_counted(&e), e.mean)
-                    }),
-                    false => "; the estimate points away from the paper's direction, so more seeds are not expected to show it".into(),
-                };
-                Verdict::new(
-                    Inconclusive { paper_size_excluded: false },
-                    format!("inconclusive: no effect detected; {}{seeds}", power()),
-                )
-            }
-            Some(paper) if !inside(paper) => Verdict::new(
-                Inconclusive { paper_size_excluded: true },
+    match is_effect(claim) {
+        true => effect_verdict(claim, e, ci, p_holm, level.unwrap_or(ALPHA)),
+        false => level_verdict(claim, e, ci, baseline),
+    }
+}
+
+/// An effect's verdict: its equivalence within a margin, or its direction against the paper's (or the
+/// project's), at the level Holm's procedure tested it at.
+fn effect_verdict(claim: &Claim, e: Estimate, ci: f64, p_holm: Option<f64>, level: f64) -> Verdict {
+    use Outcome::*;
+    let detected = p_holm.is_some_and(|p| p < ALPHA);
+    let p_text = p_holm.map_or(String::new(), |p| format!("Holm p = {}", p_shown(p)));
+    let power = || match e.detectable_at(level) {
+        Some(d) => format!(
+            "80 % power at its level (α = {}) only for effects of ±{d:.3} or more with {} seeds",
+            alpha_shown(level),
+            e.n
+        ),
+        None => String::new(),
+    };
+    if let Some(m) = claim.margin {
+        let h = e.half_width(2.0 * level).unwrap_or(ci);
+        let (lo, hi) = (e.mean - h, e.mean + h);
+        let two_sided = e.half_width(level).unwrap_or(ci);
+        return if detected {
+            Verdict::new(
+                Equivalent,
                 format!(
-                    "inconclusive: no effect detected, and the paper's {paper:+.3} is outside the adjusted interval (an effect of its size is excluded)"
+                    "equivalent within ±{m}: the adjusted interval [{lo:.3}, {hi:.3}] lies inside (TOST, {p_text})"
                 ),
-            ),
-            Some(paper) => {
-                let seeds = e.seeds_for(level, paper).map_or(more_seeds(&e), |n| match n <= e.n {
-                    true => format!("; its {} seeds had 80 % power for the paper's {paper:+.3} (about {n} would): an effect of that size would likely have been detected", e.n),
-                    false => format!("; about {n} {} would detect the paper's {paper:+.3} with 80 % power", seeds_counted(&e)),
-                });
-                Verdict::new(
-                    Inconclusive { paper_size_excluded: false },
-                    format!("inconclusive: no effect detected; {}{seeds}", power()),
-                )
-            }
-            None if detected => Verdict::new(EffectDetected, format!("effect detected: {:+.3} ({p_text})", e.mean)),
-            None => Verdict::new(NoEffectDetected, format!("no effect detected (inconclusive): {}", power())),
+            )
+        } else if e.mean.abs() - two_sided >= m {
+            Verdict::new(NotReproduced, format!("not reproduced: an effect beyond ±{m} ({:+.3})", e.mean))
+        } else {
+            // What the data do support: the adjusted interval lies inside a margin only wider than its
+            // farther end (rounded up, so the margin printed is never one the interval reaches past).
+            Verdict::new(
+                Inconclusive { paper_size_excluded: false },
+                format!(
+                    "inconclusive: neither equivalence within ±{m} (adjusted interval [{lo:.3}, {hi:.3}]) nor an effect shown; equivalence would be shown only for a margin wider than ±{:.3} (at this test's level)",
+                    (lo.abs().max(hi.abs()) * 1000.0).ceil() / 1000.0
+                ),
+            )
         };
     }
+    let h = e.half_width(level).unwrap_or(ci);
+    let inside = |x: f64| e.mean - h <= x && x <= e.mean + h;
+    match claim.paper {
+        // The project's own direction: judged against its hypothesis, never "reproduced".
+        Some(sign) if claim.ours && detected => match e.mean.signum() == sign.signum() {
+            true => Verdict::new(DetectedAsHypothesised, format!("detected as hypothesised ({p_text})")),
+            false => Verdict::new(DetectedOpposite, format!("detected opposite to the hypothesis ({p_text})")),
+        },
+        Some(paper) if detected && e.mean.signum() == paper.signum() => {
+            if claim.direction_only || inside(paper) {
+                Verdict::new(Reproduced, format!("reproduced: detected in the paper's direction ({p_text})"))
+            } else {
+                let larger = e.mean.abs() >= paper.abs();
+                let size = if larger { "larger" } else { "smaller" };
+                Verdict::new(
+                    DirectionReproduced { larger },
+                    format!("direction reproduced, {size} than the paper's {paper:+.3} ({p_text})"),
+                )
+            }
+        }
+        Some(_) if detected => {
+            Verdict::new(NotReproduced, format!("not reproduced: detected the other way ({p_text})"))
+        }
+        // The seeds that would decide it: for a direction the paper gives no size of, those that would
+        // detect the difference measured here if it were the true one (none when it points the other way),
+        // and how far that answer moves over the interval: from its far end in the hypothesised direction
+        // to its near end, which holds 0 (never) since the effect was not detected.
+        Some(paper) if claim.direction_only => {
+            let far = e.mean + paper.signum() * h;
+            let seeds = match e.mean.signum() == paper.signum() {
+                true => e.seeds_for(level, e.mean).map_or(more_seeds(&e), |n| {
+                    let range = match e.seeds_for(level, far) {
+                        Some(at_far) => format!("; over its adjusted interval the answer runs from about {at_far} (at {far:+.3}) to never (at 0, inside it)"),
+                        None => String::new(),
+                    };
+                    format!("; about {n} {} would detect a difference of the size measured here ({:+.3}) with 80 % power{range}", seeds_counted(&e), e.mean)
+                }),
+                false => "; the estimate points away from the paper's direction, so more seeds are not expected to show it".into(),
+            };
+            Verdict::new(
+                Inconclusive { paper_size_excluded: false },
+                format!("inconclusive: no effect detected; {}{seeds}", power()),
+            )
+        }
+        Some(paper) if !inside(paper) => Verdict::new(
+            Inconclusive { paper_size_excluded: true },
+            format!(
+                "inconclusive: no effect detected, and the paper's {paper:+.3} is outside the adjusted interval (an effect of its size is excluded)"
+            ),
+        ),
+        Some(paper) => {
+            let seeds = e.seeds_for(level, paper).map_or(more_seeds(&e), |n| match n <= e.n {
+                true => format!("; its {} seeds had 80 % power for the paper's {paper:+.3} (about {n} would): an effect of that size would likely have been detected", e.n),
+                false => format!("; about {n} {} would detect the paper's {paper:+.3} with 80 % power", seeds_counted(&e)),
+            });
+            Verdict::new(
+                Inconclusive { paper_size_excluded: false },
+                format!("inconclusive: no effect detected; {}{seeds}", power()),
+            )
+        }
+        None if detected => Verdict::new(EffectDetected, format!("effect detected: {:+.3} ({p_text})", e.mean)),
+        None => Verdict::new(NoEffectDetected, format!("no effect detected (inconclusive): {}", power())),
+    }
+}
+
+/// A level's verdict: equivalent to the paper's value within its tolerance, outside it, or undecided, and
+/// whether it is told apart from chance.
+fn level_verdict(claim: &Claim, e: Estimate, ci: f64, baseline: Option<f64>) -> Verdict {
+    use Outcome::*;
     let (lo, hi) = (e.mean - ci, e.mean + ci);
     let inside = |x: f64| lo <= x && x <= hi;
     let chance = baseline.map(|b| (b, inside(b)));
