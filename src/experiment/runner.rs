@@ -430,6 +430,47 @@ pub(crate) fn pending(
     }
 }
 
+/// Runs finished elsewhere are carried only beside runs of the same binary, on the same family of
+/// matrix-product kernels, as `exe` would make here: otherwise continuing is refused now, not after hours
+/// of runs that aggregation would then refuse to mix with them.
+fn check_carried(
+    exp: &Experiment,
+    exe: &super::pin::Executable,
+    elsewhere: &std::collections::BTreeMap<usize, super::carry::Elsewhere>,
+) -> crate::error::Result<()> {
+    let (me, kernels) = (exe.blake3.as_str(), exe.kernels.as_str());
+    let key = |i: usize| super::figure_data::key(&exp.runs[i]);
+    let pin = exe.pin.as_ref();
+    if let Some((&i, other)) =
+        elsewhere.iter().find(|(_, e)| e.binary.split(' ').any(|b| !super::pin::Pin::same(pin, b, me)))
+    {
+        return Err(format!(
+            "{}: the committed run {} was made by the coevo binary {}, the runs here would be made by {me}; continue it with that binary (pin its commit in {}, see the book's \"Pinned binaries\"), or set mixed_binaries: true",
+            exp.file.display(),
+            key(i),
+            other.binary,
+            super::pin::Pin::path(&exp.root).display()
+        )
+        .into());
+    }
+    let family = |i: usize| exp.runs[i].kernels.or(crate::learning::nets::Kernels::parse(kernels));
+    let differs = |i: usize, e: &str| {
+        let recorded = crate::learning::nets::Kernels::parse(e);
+        recorded.is_none() || recorded != family(i)
+    };
+    if let Some((&i, other)) = elsewhere.iter().find(|&(&i, e)| !e.kernels.is_empty() && differs(i, &e.kernels)) {
+        return Err(format!(
+            "{}: the committed run {} ran on {} kernels and this machine runs {kernels}; pin them (COEVO_KERNELS={} or --kernels), or set mixed_binaries: true",
+            exp.file.display(),
+            key(i),
+            other.kernels,
+            other.kernels
+        )
+        .into());
+    }
+    Ok(())
+}
+
 /// Runs the experiment's runs (all, or only `only`, an index into `exp.runs` as a Slurm array task
 /// does), `jobs` at a time. Every run is attempted; Err lists the ones that failed.
 pub(crate) fn run(exp: &Experiment, opts: &RunnerOptions, only: Option<usize>) -> crate::error::Result<()> {
@@ -450,36 +491,7 @@ pub(crate) fn run(exp: &Experiment, opts: &RunnerOptions, only: Option<usize>) -
     // (this machine's, or the one pinned): continuing them otherwise is refused now, not after hours of
     // runs that aggregation would then refuse to mix with them.
     if let Some(exe) = exe.as_ref().filter(|_| !exp.spec.mixed_binaries) {
-        let (me, kernels) = (exe.blake3.as_str(), exe.kernels.as_str());
-        let key = |i: usize| super::figure_data::key(&exp.runs[i]);
-        let pin = exe.pin.as_ref();
-        if let Some((&i, other)) =
-            elsewhere.iter().find(|(_, e)| e.binary.split(' ').any(|b| !super::pin::Pin::same(pin, b, me)))
-        {
-            return Err(format!(
-                "{}: the committed run {} was made by the coevo binary {}, the runs here would be made by {me}; continue it with that binary (pin its commit in {}, see the book's \"Pinned binaries\"), or set mixed_binaries: true",
-                exp.file.display(),
-                key(i),
-                other.binary,
-                super::pin::Pin::path(&exp.root).display()
-            )
-            .into());
-        }
-        let family = |i: usize| exp.runs[i].kernels.or(crate::learning::nets::Kernels::parse(kernels));
-        let differs = |i: usize, e: &str| {
-            let recorded = crate::learning::nets::Kernels::parse(e);
-            recorded.is_none() || recorded != family(i)
-        };
-        if let Some((&i, other)) = elsewhere.iter().find(|&(&i, e)| !e.kernels.is_empty() && differs(i, &e.kernels)) {
-            return Err(format!(
-                "{}: the committed run {} ran on {} kernels and this machine runs {kernels}; pin them (COEVO_KERNELS={} or --kernels), or set mixed_binaries: true",
-                exp.file.display(),
-                key(i),
-                other.kernels,
-                other.kernels
-            )
-            .into());
-        }
+        check_carried(exp, exe, &elsewhere)?;
     }
     prepare(exp)?;
     // The claims are recorded before the runs they are judged on (the registry flags later edits).
