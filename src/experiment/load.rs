@@ -129,15 +129,7 @@ impl Experiment {
         check_lists(&mut spec, file)?;
         check_names(&spec, file)?;
         check_claims(&spec, file)?;
-        // The base scene: relative to the working folder, as the project's files say ("scenes/paper.ron"),
-        // else to the experiment file's own folder, so a file works from anywhere.
-        let beside = file.parent().map(|p| p.join(&spec.base));
-        let base = match beside {
-            Some(b) if !Path::new(&spec.base).exists() && b.exists() => b,
-            _ => PathBuf::from(&spec.base),
-        };
-        let base_text = crate::io::read_text(&base, crate::scene::MAX_SCENE_BYTES)
-            .map_err(|e| err("base", format!("{}: {}", base.display(), e.message)))?;
+        let (base, base_text) = read_base(&spec, file)?;
         let root = results.join(&name);
         let mut runs = Vec::new();
         for preset in &spec.presets {
@@ -253,6 +245,19 @@ impl Experiment {
         files.sort();
         Ok(files)
     }
+}
+
+/// The base scene's path and text: relative to the working folder, as the project's files say
+/// ("scenes/paper.ron"), else to the experiment file's own folder, so a file works from anywhere.
+fn read_base(spec: &ExperimentFile, file: &Path) -> Result<(PathBuf, String)> {
+    let beside = file.parent().map(|p| p.join(&spec.base));
+    let base = match beside {
+        Some(b) if !Path::new(&spec.base).exists() && b.exists() => b,
+        _ => PathBuf::from(&spec.base),
+    };
+    let text = crate::io::read_text(&base, crate::scene::MAX_SCENE_BYTES)
+        .map_err(|e| refuse(file)("base", format!("{}: {}", base.display(), e.message)))?;
+    Ok((base, text))
 }
 
 /// The experiment file's field `field` refused with `message`, in `file`.

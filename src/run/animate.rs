@@ -344,6 +344,17 @@ fn frame_svg(
         }
     }
     svg.push_str("</svg>");
+    for (line, text) in caption(world, opts, prey, step).iter().enumerate() {
+        let y = opts.size as f64 + 15.0 + 16.0 * line as f64;
+        let text = text.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;");
+        let _ = write!(svg, r#"<text x="6" y="{y:.0}" font-size="12" fill="{}">{text}</text>"#, hex(TEXT));
+    }
+    svg.push_str("</svg>");
+    svg
+}
+
+/// The two lines under a frame: the title and step, then the headline species' order and the contacts.
+fn caption(world: &bevy::prelude::World, opts: &AnimateOptions, prey: usize, step: usize) -> [String; 2] {
     let m = world.resource::<SwarmMetrics>();
     let order = match m.now.get(prey).copied().flatten() {
         Some(s) => format!(
@@ -353,17 +364,10 @@ fn frame_svg(
         None => String::new(),
     };
     let name = &world.resource::<SpeciesRegistry>().defs[prey].name;
-    let caption = [
+    [
         format!("{}  ·  step {step}/{}", opts.title, opts.steps),
         format!("{name}: {order}  ·  in contact {}", m.catches_now),
-    ];
-    for (line, text) in caption.iter().enumerate() {
-        let y = opts.size as f64 + 15.0 + 16.0 * line as f64;
-        let text = text.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;");
-        let _ = write!(svg, r#"<text x="6" y="{y:.0}" font-size="12" fill="{}">{text}</text>"#, hex(TEXT));
-    }
-    svg.push_str("</svg>");
-    svg
+    ]
 }
 
 /// One global palette: the scene's colours, each blended over the floor at eight levels (anti-aliased

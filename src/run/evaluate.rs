@@ -348,6 +348,17 @@ impl Accumulated {
     }
 }
 
+/// Every file an evaluation writing `path` makes, checked before its episodes run (a folder or a FIFO at
+/// eval-nn.csv is refused now, not after eval.csv was replaced).
+fn check_outputs(path: &Path, opts: &EvalOptions) -> crate::error::Result<()> {
+    let mut outputs = vec![path.to_path_buf()];
+    outputs.extend(super::folder::EVAL_BESIDE.iter().map(|what| crate::io::beside(path, what)));
+    if opts.perturb.is_some() {
+        outputs.push(crate::io::beside(path, super::folder::PERTURBATION));
+    }
+    crate::io::check_targets(&outputs, Existing::Replace)
+}
+
 /// The perturbation `--perturb` and `--perturb-step` ask for, checked against the episode's `steps`; None
 /// without `--perturb`.
 fn perturbation(opts: &EvalOptions, steps: usize) -> crate::error::Result<Option<super::perturb::Perturbation>> {
@@ -403,14 +414,7 @@ pub fn evaluate(opts: &EvalOptions) -> crate::error::Result<String> {
     // Nobody else writes the run while it is evaluated (a training would swap its checkpoint), and what a
     // killed process left (a checkpoint swap cut short) is put right before the actors are read.
     let _lock = dir.lock()?;
-    // Every file this evaluation writes, checked before its episodes run (a folder or a FIFO at
-    // eval-nn.csv is refused now, not after eval.csv was replaced).
-    let mut outputs = vec![path.clone()];
-    outputs.extend(super::folder::EVAL_BESIDE.iter().map(|what| crate::io::beside(&path, what)));
-    if opts.perturb.is_some() {
-        outputs.push(crate::io::beside(&path, super::folder::PERTURBATION));
-    }
-    crate::io::check_targets(&outputs, Existing::Replace)?;
+    check_outputs(&path, opts)?;
     let scene = opts.overrides.load(&dir.scene())?;
     let trained = (!opts.untrained).then_some(opts.run.as_path());
     let build = || -> crate::error::Result<Simulation> {

@@ -104,6 +104,33 @@ pub fn resume(opts: &TrainOptions) -> crate::error::Result<usize> {
     run_training(Start::Resume, opts)
 }
 
+/// The scene a training starts from: a new run's (its folder checked free), or a resumed run's own (its
+/// folder checked to be a run of this build's plugins and kernels, locked and writable). One process per
+/// run: a resume takes the lock before reading what another process may be writing; a new run once
+/// everything is validated and loaded, so a refused scene leaves no folder behind.
+fn open(
+    start: Start,
+    opts: &TrainOptions,
+    dir: &RunDir,
+) -> crate::error::Result<(Scene, Option<super::folder::RunLock>)> {
+    match start {
+        Start::New(scene) => {
+            dir.check_new(opts.overwrite)?;
+            Ok((*scene, None))
+        }
+        Start::Resume => {
+            if !dir.is_run() {
+                return Err(format!("{}: holds no coevo run to resume", opts.run.display()).into());
+            }
+            dir.check_plugins()?;
+            dir.check_kernels()?;
+            let lock = dir.lock()?;
+            dir.check_writable()?;
+            Ok((Scene::load(&dir.scene())?, Some(lock)))
+        }
+    }
+}
+
 /// A resumed run put back as its checkpoint left it (learners, league, spawn state, episode), checked
 /// against its scene and rows; returns `metrics.csv`'s rows up to the checkpoint, under today's header.
 fn restore(
@@ -171,29 +198,8 @@ fn begin(
 fn run_training(start: Start, opts: &TrainOptions) -> crate::error::Result<usize> {
     let run = &opts.run;
     let dir = RunDir::new(run);
-    let (scene, resuming) = match start {
-        Start::New(scene) => (Some(*scene), false),
-        Start::Resume => (None, true),
-    };
-    if resuming {
-        if !dir.is_run() {
-            return Err(format!("{}: holds no coevo run to resume", run.display()).into());
-        }
-        dir.check_plugins()?;
-        dir.check_kernels()?;
-    } else {
-        dir.check_new(opts.overwrite)?;
-    }
-    // One process per run: a resume takes it before reading what another process may be writing; a new
-    // run once everything is validated and loaded, so a refused scene leaves no folder behind.
-    let mut lock = if resuming { Some(dir.lock()?) } else { None };
-    if resuming {
-        dir.check_writable()?;
-    }
-    let scene = match scene {
-        Some(scene) => scene,
-        None => Scene::load(&dir.scene())?,
-    };
+    let resuming = matches!(start, Start::Resume);
+    let (scene, mut lock) = open(start, opts, &dir)?;
     scene.validate().map_err(|e| e.in_file(run))?;
     let total = opts.episodes.unwrap_or(scene.episodes);
     if total == 0 {
