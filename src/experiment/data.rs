@@ -14,9 +14,19 @@ use crate::sim::species::SpeciesRegistry;
 use std::collections::BTreeMap;
 use std::path::Path;
 
-/// The first species' rows of a confusion curve file (`species,prey_in_view,samples,mean_abs_turn,
-/// mean_speed_fraction,catches_per_step`); empty when there is no file.
-fn read_confusion(path: &Path) -> crate::error::Result<Vec<[f64; 3]>> {
+/// One bin of the first species' confusion curve, as `run::evaluate` writes it (`species,prey_in_view,
+/// samples,mean_abs_turn,mean_speed_fraction,catches_per_step`).
+struct ConfusionRow {
+    /// The fewest prey in view the bin counts (`5` of `5-8`); None for a label that names none.
+    lowest: Option<u32>,
+    decisions: f64,
+    turn: f64,
+    speed: f64,
+    catches: f64,
+}
+
+/// The first species' rows of a confusion curve file; empty when there is no file.
+fn read_confusion(path: &Path) -> crate::error::Result<Vec<ConfusionRow>> {
     if !path.exists() {
         return Ok(vec![]);
     }
@@ -25,39 +35,30 @@ fn read_confusion(path: &Path) -> crate::error::Result<Vec<[f64; 3]>> {
         text.lines().skip(1).map(|l| l.split(',').collect()).filter(|r: &Vec<&str>| r.len() == 6).collect();
     let first = rows.first().map(|r| r[0]).unwrap_or_default();
     let cell = |c: &str| c.parse::<f64>().unwrap_or(f64::NAN);
-    Ok(rows.iter().filter(|r| r[0] == first).map(|r| [cell(r[3]), cell(r[4]), cell(r[5])]).collect())
+    Ok(rows
+        .iter()
+        .filter(|r| r[0] == first)
+        .map(|r| ConfusionRow {
+            lowest: r[1].trim_end_matches('+').split('-').next().and_then(|k| k.parse().ok()),
+            decisions: cell(r[2]),
+            turn: cell(r[3]),
+            speed: cell(r[4]),
+            catches: cell(r[5]),
+        })
+        .collect())
 }
 
-/// Each [`Tactic`] of an evaluation from its `-confusion` and `-pursuit` files (`run::evaluate`), in the
-/// order of `Tactic::ALL`; NaN for what the files do not give (an older coevo wrote no `-pursuit` file).
-fn read_tactics(confusion: &Path, pursuit: &Path) -> crate::error::Result<[f64; Tactic::ALL.len()]> {
+/// Each [`Tactic`] of an evaluation from its confusion curve (`confusion`, [`read_confusion`]) and its
+/// `-pursuit` file (`run::evaluate`), in the order of `Tactic::ALL`; NaN for what they do not give (an
+/// older coevo wrote no `-pursuit` file).
+fn read_tactics(confusion: &[ConfusionRow], pursuit: &Path) -> crate::error::Result<[f64; Tactic::ALL.len()]> {
     let mut out = [f64::NAN; Tactic::ALL.len()];
-    let cell = |c: &str| c.parse::<f64>().unwrap_or(f64::NAN);
-    if confusion.exists() {
-        // The first species' bins of the confusion curve.
-        struct Bin {
-            lowest: u32,
-            decisions: f64,
-            turn: f64,
-            speed: f64,
-        }
-        let text = crate::io::read_text(confusion, crate::io::MAX_TEXT_BYTES)?;
-        let rows: Vec<Vec<&str>> =
-            text.lines().skip(1).map(|l| l.split(',').collect()).filter(|r: &Vec<&str>| r.len() == 6).collect();
-        let first = rows.first().map(|r| r[0]).unwrap_or_default();
-        let bins: Vec<Bin> = rows
-            .iter()
-            .filter(|r| r[0] == first)
-            .filter_map(|r| {
-                let lowest = r[1].trim_end_matches('+').split('-').next()?.parse().ok()?;
-                Some(Bin { lowest, decisions: cell(r[2]), turn: cell(r[3]), speed: cell(r[4]) })
-            })
-            .collect();
+    if !confusion.is_empty() {
         // Decision-weighted mean of a column over the bins whose lowest count `within` accepts.
-        let mean_over = |within: &dyn Fn(u32) -> bool, column: fn(&Bin) -> f64| {
-            let (sum, n) = bins
+        let mean_over = |within: &dyn Fn(u32) -> bool, column: fn(&ConfusionRow) -> f64| {
+            let (sum, n) = confusion
                 .iter()
-                .filter(|b| within(b.lowest) && b.decisions > 0.0 && column(b).is_finite())
+                .filter(|b| b.lowest.is_some_and(within) && b.decisions > 0.0 && column(b).is_finite())
                 .fold((0.0, 0.0), |(s, n), b| (s + b.decisions * column(b), n + b.decisions));
             if n > 0.0 {
                 sum / n
@@ -207,9 +208,10 @@ pub(crate) fn load(exp: &Experiment) -> crate::error::Result<BTreeMap<usize, Run
             let per_step = Swarming::NAMES.iter().map(|n| series(n)).collect::<crate::error::Result<Vec<_>>>()?;
             let ranks = table.column(&schema::of(schema::EDGE_RANK, &prey)).unwrap_or_default();
             let edge_rank = mean(&ranks.into_iter().filter(|x| x.is_finite()).collect::<Vec<_>>()).unwrap_or(f64::NAN);
-            let confusion = read_confusion(&crate::io::beside(&path, "confusion"))?;
+            let curve = read_confusion(&crate::io::beside(&path, "confusion"))?;
             let response = read_response(&crate::io::beside(&path, crate::run::PERTURBATION))?;
-            let tactics = read_tactics(&crate::io::beside(&path, "confusion"), &crate::io::beside(&path, "pursuit"))?;
+            let tactics = read_tactics(&curve, &crate::io::beside(&path, "pursuit"))?;
+            let confusion = curve.iter().map(|b| [b.turn, b.speed, b.catches]).collect();
             // Every catch of the evaluation per episode and per prey deployed (the evaluation's count).
             let catches = table.column(schema::CATCHES).unwrap_or_default();
             let episodes = table

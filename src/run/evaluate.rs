@@ -10,7 +10,7 @@
 
 use super::args::Shared;
 use super::folder::RunDir;
-use super::schema;
+use super::schema::{self, blank};
 use crate::io::{AtomicFile, Existing};
 use crate::learning::control::ObservationControl;
 use crate::learning::Mode;
@@ -243,7 +243,6 @@ impl Accumulated {
     /// the state they were taken in (none at an episode's first step, whose previous state was another
     /// episode's); then this state's targets, for the next step.
     fn add_pursuit(&mut self, pop: &Population, arena: &Arena, nn: &[f64], prey: usize, episode: usize, step: usize) {
-        let blank = |x: Option<f64>| x.map_or(String::new(), |v| v.to_string());
         let prey_at = &pop.position[pop.ranges[prey].clone()];
         let mut sums = [0.0; 3];
         let mut pursuers = 0usize;
@@ -275,7 +274,6 @@ impl Accumulated {
     /// The `-nn`, `-correlation`, `-pursuit` and `-confusion` files, in that order, and the correlation
     /// length.
     fn distributions(&self, sim: &Simulation, registry: &SpeciesRegistry) -> ([String; 4], Option<f64>) {
-        let blank = |x: Option<f64>| x.map_or(String::new(), |v| v.to_string());
         let total = self.nn_histogram.iter().sum::<u64>().max(1) as f64;
         let mut nn = String::from("from_diameters,to_diameters,from_m,to_m,fraction\n");
         for (b, count) in self.nn_histogram.iter().enumerate() {

@@ -46,7 +46,8 @@ fn species_columns(species: &str) -> impl Iterator<Item = String> + '_ {
     Swarming::NAMES.iter().chain(&[EDGE_RANK]).map(move |q| of(q, species))
 }
 
-fn blank(x: Option<f64>) -> String {
+/// A CSV cell of a value that may be missing: blank then.
+pub(crate) fn blank(x: Option<f64>) -> String {
     x.map_or(String::new(), |v| v.to_string())
 }
 
