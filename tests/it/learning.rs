@@ -36,6 +36,21 @@ fn metrics_without_wall_clock(run: &Path) -> Vec<String> {
         .collect()
 }
 
+/// An evaluation of `run`'s trained actors as they see (no control, no perturbation).
+fn seeing(run: &Path, out: Option<String>, episodes: usize, overrides: Overrides) -> EvalOptions {
+    EvalOptions {
+        run: run.to_path_buf(),
+        out,
+        control: Default::default(),
+        episodes,
+        overrides,
+        untrained: false,
+        snapshots: vec![],
+        perturb: None,
+        perturb_step: None,
+    }
+}
+
 #[test]
 fn a_tiny_training_run_writes_scene_metrics_and_checkpoints() {
     let dir = tempfile::tempdir().unwrap();
@@ -168,17 +183,7 @@ fn corrupt_missing_or_mismatched_checkpoints_are_refused_clearly() {
     train(tiny(1), &opts(&run, None)).unwrap();
     std::fs::write(run.join("checkpoint/prey-actor.safetensors"), b"not a tensor file").unwrap();
     let eval = |counts: Vec<(String, usize)>| {
-        evaluate(&EvalOptions {
-            run: run.clone(),
-            out: None,
-            control: Default::default(),
-            episodes: 1,
-            overrides: Overrides { counts, episode_steps: Some(5), ..Default::default() },
-            untrained: false,
-            snapshots: vec![],
-            perturb: None,
-            perturb_step: None,
-        })
+        evaluate(&seeing(&run, None, 1, Overrides { counts, episode_steps: Some(5), ..Default::default() }))
     };
     let corrupt = eval(vec![]).unwrap_err().to_string();
     assert!(corrupt.contains("prey-actor.safetensors: not a valid safetensors file"), "{corrupt}");
@@ -201,21 +206,16 @@ fn evaluation_deploys_on_fifty_prey_and_without_predators() {
     let dir = tempfile::tempdir().unwrap();
     let run = dir.path().join("run");
     train(tiny(2), &opts(&run, None)).unwrap();
-    let line = evaluate(&EvalOptions {
-        run: run.clone(),
-        out: None,
-        control: Default::default(),
-        episodes: 2,
-        overrides: Overrides {
+    let line = evaluate(&seeing(
+        &run,
+        None,
+        2,
+        Overrides {
             counts: vec![("prey".into(), 50), ("predator".into(), 0)],
             episode_steps: Some(30),
             ..Default::default()
         },
-        untrained: false,
-        snapshots: vec![],
-        perturb: None,
-        perturb_step: None,
-    })
+    ))
     .unwrap();
     assert!(line.contains("predator: 0, prey: 50"), "{line}");
     let csv = std::fs::read_to_string(run.join("eval.csv")).unwrap();
@@ -243,22 +243,17 @@ fn evaluation_deploys_on_fifty_prey_and_without_predators() {
     assert!(confusion.lines().skip(1).all(|l| l.split(',').nth(2) == Some("0")), "{confusion}");
     // With predators, every predator decision after the first step lands in one bin of the curve.
     let steps = 20;
-    evaluate(&EvalOptions {
-        run: run.clone(),
-        out: Some("with-predators.csv".into()),
-        control: Default::default(),
-        episodes: 2,
-        overrides: Overrides {
+    evaluate(&seeing(
+        &run,
+        Some("with-predators.csv".into()),
+        2,
+        Overrides {
             counts: vec![("prey".into(), 50), ("predator".into(), 3)],
             episode_steps: Some(steps),
             confusion_radius: Some(0.5),
             ..Default::default()
         },
-        untrained: false,
-        snapshots: vec![],
-        perturb: None,
-        perturb_step: None,
-    })
+    ))
     .unwrap();
     let confusion = std::fs::read_to_string(run.join("with-predators-confusion.csv")).unwrap();
     let samples: u64 = confusion.lines().skip(1).map(|l| l.split(',').nth(2).unwrap().parse::<u64>().unwrap()).sum();
@@ -278,22 +273,17 @@ fn evaluation_deploys_on_fifty_prey_and_without_predators() {
         .filter(|l| l.split(',').nth(1) == Some("1"))
         .all(|l| l.split(',').nth(2) == Some("0")));
     let steer_nearest = |policy: coevo::scene::Policy, out: &str| -> f64 {
-        evaluate(&EvalOptions {
-            run: run.clone(),
-            out: Some(out.into()),
-            control: Default::default(),
-            episodes: 2,
-            overrides: Overrides {
+        evaluate(&seeing(
+            &run,
+            Some(out.into()),
+            2,
+            Overrides {
                 counts: vec![("prey".into(), 50), ("predator".into(), 3)],
                 episode_steps: Some(100),
                 policies: vec![("predator".into(), policy)],
                 ..Default::default()
             },
-            untrained: false,
-            snapshots: vec![],
-            perturb: None,
-            perturb_step: None,
-        })
+        ))
         .unwrap();
         let text = std::fs::read_to_string(run.join(out.replace(".csv", "-pursuit.csv"))).unwrap();
         let (sum, n) = text.lines().skip(1).map(|l| l.split(',').collect::<Vec<_>>()).filter(|r| r[2] != "0").fold(
@@ -312,18 +302,7 @@ fn evaluation_deploys_on_fifty_prey_and_without_predators() {
 
     // One step per episode: measured, not zeros; with one prey there is nothing to measure, and it says so.
     let one = |counts: Vec<(String, usize)>| {
-        evaluate(&EvalOptions {
-            run: run.clone(),
-            out: None,
-            control: Default::default(),
-            episodes: 1,
-            overrides: Overrides { counts, episode_steps: Some(1), ..Default::default() },
-            untrained: false,
-            snapshots: vec![],
-            perturb: None,
-            perturb_step: None,
-        })
-        .unwrap()
+        evaluate(&seeing(&run, None, 1, Overrides { counts, episode_steps: Some(1), ..Default::default() })).unwrap()
     };
     let line = one(vec![]);
     assert!(!line.contains("mean DoS 0.0000"), "{line}");
