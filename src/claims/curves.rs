@@ -225,7 +225,7 @@ mod tests {
 
     /// A curve quantity's value, as `quantity` reads it.
     fn curve_shape(q: &Quantity, series: &[f64]) -> f64 {
-        crate::claims::quantity::curve_shape(q, series)
+        crate::claims::quantity::shape_of(q, series)
     }
 
     fn curve_argument_error(q: &Quantity) -> Option<String> {

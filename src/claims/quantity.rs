@@ -53,7 +53,7 @@ pub(crate) fn primitive(d: &RunData, q: &Quantity) -> f64 {
             };
             // At single precision, as figure-data.ron.gz keeps the curve (its `single` values): a summary
             // extended from that file gets the same bits.
-            curve_shape(q, &series.iter().map(|&x| x as f32 as f64).collect::<Vec<_>>())
+            shape_of(q, &series.iter().map(|&x| x as f32 as f64).collect::<Vec<_>>())
         }
         Quantity::Crossplay(name) => d.crossplay.get(name).copied().unwrap_or(f64::NAN),
         Quantity::Distilled(species, form, name) => {
@@ -809,7 +809,7 @@ impl Quantity {
 
 /// A curve quantity's value from its curve's per-episode `series` ([`Quantity::shape`]); NaN for another
 /// quantity.
-pub(crate) fn curve_shape(q: &Quantity, series: &[f64]) -> f64 {
+pub(crate) fn shape_of(q: &Quantity, series: &[f64]) -> f64 {
     q.shape().map_or(f64::NAN, |(curve, shape)| super::curves::curve_shape(shape, curve, series))
 }
 
