@@ -315,14 +315,14 @@ fn run(cli: Cli) -> crate::error::Result<()> {
                 .deploy
                 .run
                 .as_ref()
-                .map_or(PathBuf::from(args::STANDARD_SCENE), |r| r.join(crate::run::folder::SCENE));
+                .map_or(PathBuf::from(args::STANDARD_SCENE), |r| r.join(crate::store::folder::SCENE));
             let (scene, _) = shared.scene.load(&default, &Default::default())?;
             force_map::main(trajectory, &scene, shared.common.overwrite)
         }
         Called::Record(out) => record::main(out, &cli.deploy, &shared),
         Called::Animate(out) => animate::main(out, &cli.animate, &cli.deploy, &shared),
         Called::Describe(path) => args::describe(path, &shared),
-        Called::Fingerprint(run) => crate::outln!("{}", crate::run::provenance::fingerprint(run)?),
+        Called::Fingerprint(run) => crate::outln!("{}", crate::store::provenance::fingerprint(run)?),
         Called::Bench => {
             if let Some(stem) = &cli.bench.bench_figure {
                 crate::experiment::figures::check_new_figure(stem, "--bench-figure")?;

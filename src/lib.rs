@@ -1,13 +1,14 @@
 //! coevo: predators and prey that learn together (Li, Li & Zhao, New J. Phys. 2023) as a Bevy ECS app.
 //!
-//! The crate reads as the data flows: scene → simulation → learning → runs and experiments → viewer.
+//! The crate reads as the data flows: scene → simulation → learning → store → runs and experiments → viewer.
 //!
 //! | folder / file | what |
 //! |---|---|
 //! | `scene/` | scenes: schema, presets, patches and overrides, validation, the observation layout |
 //! | `sim/` | the simulation core (components, space, physics, perception, reward, metrics, collective measures, episodes, species, policies) and [`sim::Simulation`]; one fixed step is the chain of [`sim::SimSet`]s (see [`sim`]) |
-//! | `learning/` | Algorithm 1 (DDPG) as a plugin on dfdx, checkpoints |
-//! | `run/` | a run folder (names, reserved outputs, lock, provenance, CSV schemas) and the run modes: train, evaluate, record, animate, bench |
+//! | `learning/` | Algorithm 1 (DDPG) as a plugin on dfdx; it knows no file |
+//! | `store/` | what a run leaves on disk: a run folder (names, reserved outputs, lock, provenance, CSV schemas) and its checkpoint format (safetensors, replay segments, snapshots, manifest) |
+//! | `run/` | the run modes: train, evaluate, record, animate, bench |
 //! | `analysis/` | single-run analyses: read-outs of one run's trained actors (response fields, force maps, distilled rules, cross-play), with the statistics and drawing they share |
 //! | `experiment/` | the lab: experiment files, the runner, aggregation, claims and verdicts, reports |
 //! | `viewer/` | the window (`--features viewer`) |
@@ -24,12 +25,12 @@
 //!   components of [`sim::components`], [`sim::perception`]'s batches, [`sim::reward`], [`sim::space::Arena`],
 //!   [`sim::SimSet`] and [`sim::Simulation`], the scene types of [`scene`], and [`cli::main`] to run it all.
 //! - **A binding or driver** (the Python package, `python/src/lib.rs`): [`run::env`] (`Env`, `VecEnv`),
-//!   [`run::RunDir`] and [`run::schema::Table`] to read run folders, [`run::args::load_scene`],
+//!   [`store::RunDir`] and [`store::schema::Table`] to read run folders, [`run::args::load_scene`],
 //!   [`learning::control::ObservationControl`], [`analysis::stats`], [`analysis::response`],
 //!   [`analysis::force_map`], [`experiment::external`], [`error`] (`Error`, `Kind`) and [`io`]'s safe
 //!   writes.
 //! - **A downstream crate** training and evaluating: [`run::train`] (`train`, `resume`, `TrainOptions`),
-//!   [`run::evaluate`], [`run::animate`], [`learning`] (`Learners`, `Mode`, `simulation`), [`sim::metrics`]
+//!   [`run::evaluate`], [`run::animate`], [`learning`] (`Learners`, `Mode`), [`run::simulation`], [`sim::metrics`]
 //!   and [`experiment::Experiment`] with its crossplay, distillation and summary readers, and
 //!   [`claims::pin::Pin`], a pinned experiment's record of its binary.
 //!
@@ -55,6 +56,7 @@ pub mod parallel;
 pub mod run;
 pub mod scene;
 pub mod sim;
+pub mod store;
 pub mod svg;
 #[cfg(feature = "viewer")]
 pub mod viewer;

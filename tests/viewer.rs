@@ -254,8 +254,8 @@ fn rule_based_mode_replaces_learned_species_by_chase_and_flee() {
 #[test]
 fn the_shipped_trained_run_is_first_in_the_run_list_and_loads() {
     let runs = coevo::viewer::run_folders();
-    assert_eq!(runs.first().map(PathBuf::as_path), Some(Path::new(coevo::run::SHIPPED_RUN)));
-    let run = PathBuf::from(coevo::run::SHIPPED_RUN);
+    assert_eq!(runs.first().map(PathBuf::as_path), Some(Path::new(coevo::store::SHIPPED_RUN)));
+    let run = PathBuf::from(coevo::store::SHIPPED_RUN);
     let scene = Scene::load(&run.join("scene.ron")).unwrap();
     let (_, learners) =
         Setup { scene, source: run.join("scene.ron"), mode: RunMode::Watch(run.clone()), snapshots: vec![] }
@@ -280,7 +280,7 @@ fn watching_a_run_deploys_the_snapshots_asked_for() {
     let mut other = trained.species[1].as_ref().unwrap().ddpg.actor.clone();
     let shifted: Vec<Vec<f32>> = other.parameters().iter().map(|p| p.iter().map(|x| x + 0.5).collect()).collect();
     other.set_parameters(&shifted);
-    coevo::learning::snapshots::save_snapshot(&run, &scene, "prey", 0, &other).unwrap();
+    coevo::store::snapshots::save_snapshot(&run, &scene, "prey", 0, &other).unwrap();
     common::reseal_snapshots(&run);
     let (_, learners) = setup(vec![("prey".into(), 0)]).prepare().unwrap();
     assert_eq!(learners.species[1].as_ref().unwrap().ddpg.actor.parameters(), other.parameters());

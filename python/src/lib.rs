@@ -4,9 +4,9 @@
 
 use coevo::analysis::stats::{self, Estimate};
 use coevo::learning::control::ObservationControl;
-use coevo::run::schema::Table;
-use coevo::run::RunDir;
 use coevo::scene::{Overrides, Scene};
+use coevo::store::schema::Table;
+use coevo::store::RunDir;
 use numpy::{IntoPyArray, PyArray1, PyArray2, PyArray3, PyArrayMethods, PyReadonlyArray2, PyReadonlyArray3};
 use pyo3::create_exception;
 use pyo3::exceptions::PyValueError;

@@ -20,11 +20,11 @@ use super::crossplay_readouts::{ratings_csv, readouts, readouts_csv};
 use super::plot;
 use crate::learning::{Learners, Mode};
 use crate::run::args::Shared;
-use crate::run::RunDir;
 use crate::scene::{Overrides, Scene};
 use crate::sim::clock::Episode;
 use crate::sim::metrics::EpisodeLog;
 use crate::sim::species::SpeciesRegistry;
+use crate::store::RunDir;
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::PathBuf;
 use std::time::Instant;
@@ -111,7 +111,7 @@ fn play(
     episodes: usize,
 ) -> crate::error::Result<Cell> {
     let mut learners = Learners::new(scene, Mode::Evaluate);
-    learners.load_actors(scene, Some(run))?;
+    crate::store::load_actors(&mut learners, scene, Some(run))?;
     for (s, actor) in [pair.prey, pair.predator].into_iter().zip(actors) {
         learners.species[s].as_mut().expect("learning species have learners").ddpg.actor = actor.clone();
     }
@@ -171,7 +171,7 @@ pub fn crossplay(opts: &CrossplayOptions) -> crate::error::Result<(Vec<Matrix>, 
             continue;
         }
         let name = &registry.defs[s].name;
-        let episodes = crate::learning::snapshots::snapshot_episodes(&opts.run, name);
+        let episodes = crate::store::snapshots::snapshot_episodes(&opts.run, name);
         if episodes.len() < 2 {
             return Err(format!(
                 "{}: {} snapshot(s) of {name}, cross-play needs two or more (runs trained before coevo kept snapshots have none; retrain, with learning.snapshot_every > 0)",
@@ -182,7 +182,7 @@ pub fn crossplay(opts: &CrossplayOptions) -> crate::error::Result<(Vec<Matrix>, 
         }
         let shape = &like.species[s].as_ref().expect("learning species have learners").ddpg.actor;
         for e in episodes {
-            snapshots[s].push((e, crate::learning::snapshots::load_snapshot(&opts.run, name, e, shape)?));
+            snapshots[s].push((e, crate::store::snapshots::load_snapshot(&opts.run, name, e, shape)?));
         }
     }
     dir.note_binary()?;
@@ -238,8 +238,8 @@ pub fn crossplay(opts: &CrossplayOptions) -> crate::error::Result<(Vec<Matrix>, 
 /// File stem of a pair's outputs: `crossplay` when it is the scene's only pair.
 fn stem(pair: &Pair, only: bool) -> String {
     match only {
-        true => crate::run::CROSSPLAY.into(),
-        false => format!("{}-{}-{}", crate::run::CROSSPLAY, pair.prey_name, pair.predator_name),
+        true => crate::store::CROSSPLAY.into(),
+        false => format!("{}-{}-{}", crate::store::CROSSPLAY, pair.prey_name, pair.predator_name),
     }
 }
 
@@ -252,8 +252,8 @@ fn outputs(dir: &RunDir, pairs: &[Pair]) -> Vec<std::path::PathBuf> {
         files.push(dir.crossplay(&stem(p, only)));
         files.extend(plot::files(&dir.figures().join(stem(p, only))));
     }
-    files.push(dir.crossplay(crate::run::CROSSPLAY_READOUTS));
-    files.push(dir.crossplay(crate::run::CROSSPLAY_RATINGS));
+    files.push(dir.crossplay(crate::store::CROSSPLAY_READOUTS));
+    files.push(dir.crossplay(crate::store::CROSSPLAY_RATINGS));
     files
 }
 
@@ -294,10 +294,10 @@ fn write(run: &std::path::Path, matrices: &[Matrix]) -> crate::error::Result<Vec
         written.push(csv.display().to_string());
         written.push(plot::files(&figure)[1].display().to_string());
     }
-    let readouts = dir.crossplay(crate::run::CROSSPLAY_READOUTS);
+    let readouts = dir.crossplay(crate::store::CROSSPLAY_READOUTS);
     crate::io::write_file(&readouts, Existing::Replace, readouts_csv(matrices).as_bytes())?;
     written.push(readouts.display().to_string());
-    let ratings = dir.crossplay(crate::run::CROSSPLAY_RATINGS);
+    let ratings = dir.crossplay(crate::store::CROSSPLAY_RATINGS);
     crate::io::write_file(&ratings, Existing::Replace, ratings_csv(matrices).as_bytes())?;
     written.push(ratings.display().to_string());
     Ok(written)

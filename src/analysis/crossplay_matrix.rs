@@ -1,9 +1,9 @@
 //! The cross-play matrix (`--crossplay`, [`super::crossplay`]): its cells, the predator–prey pairs it is
 //! played for, and `crossplay.csv` written and read back.
 
-use crate::run::RunDir;
 use crate::scene::{Policy, Scene};
 use crate::sim::species::SpeciesRegistry;
+use crate::store::RunDir;
 
 /// A pair of learning species: `prey` (the matrix's rows) caught by `predator` (its columns).
 #[derive(Clone, Debug)]
@@ -83,7 +83,7 @@ pub(crate) fn cells_csv(m: &Matrix) -> String {
 
 /// A run's cross-play matrix as written in `crossplay.csv` (the scene's only pair), None without one.
 pub fn read_matrix(run: &std::path::Path, pair: &Pair) -> crate::error::Result<Option<Matrix>> {
-    let path = RunDir::new(run).crossplay(crate::run::CROSSPLAY);
+    let path = RunDir::new(run).crossplay(crate::store::CROSSPLAY);
     let Ok(text) = crate::io::read_text(&path, crate::io::MAX_TEXT_BYTES) else { return Ok(None) };
     let bad = |e: csv::Error| format!("{}: {e}", path.display());
     let mut reader = csv::Reader::from_reader(text.as_bytes());

@@ -3,7 +3,7 @@
 
 use super::crossplay_matrix::{Cell, Matrix};
 use super::stats::kendall_tau;
-use crate::run::RunDir;
+use crate::store::RunDir;
 
 /// One read-out of a matrix: its name, value (None where undefined) and what it says.
 #[derive(Clone, Debug, PartialEq)]
@@ -82,7 +82,7 @@ pub(crate) fn ratings_csv(matrices: &[Matrix]) -> String {
 /// A run's ratings as `crossplay-ratings.csv` holds them, of the pair whose prey is its first: per
 /// species (prey, then predator) its (snapshot episode, rating) points; None without the file.
 pub fn read_ratings(run: &std::path::Path) -> Option<Vec<(String, Vec<[f64; 2]>)>> {
-    let path = RunDir::new(run).crossplay(crate::run::CROSSPLAY_RATINGS);
+    let path = RunDir::new(run).crossplay(crate::store::CROSSPLAY_RATINGS);
     let text = crate::io::read_text(&path, crate::io::MAX_TEXT_BYTES).ok()?;
     let mut reader = csv::Reader::from_reader(text.as_bytes());
     let mut out: Vec<(String, Vec<[f64; 2]>)> = Vec::new();
@@ -138,7 +138,7 @@ pub(crate) fn read_readouts(
     run: &std::path::Path,
     prey: &str,
 ) -> crate::error::Result<std::collections::BTreeMap<String, f64>> {
-    let path = RunDir::new(run).crossplay(crate::run::CROSSPLAY_READOUTS);
+    let path = RunDir::new(run).crossplay(crate::store::CROSSPLAY_READOUTS);
     let mut out = std::collections::BTreeMap::new();
     let Ok(text) = crate::io::read_text(&path, crate::io::MAX_TEXT_BYTES) else { return Ok(out) };
     let bad = |e: csv::Error| format!("{}: {e}", path.display());

@@ -497,7 +497,7 @@ pub(crate) fn distill(run: &Path, overrides: &Overrides, episodes: usize) -> cra
             format!("--episodes {episodes}: --distill needs ≥ 2 (the first half fits, the rest is held out)").into()
         );
     }
-    let dir = crate::run::RunDir::new(run);
+    let dir = crate::store::RunDir::new(run);
     let scene = overrides.load(&dir.scene())?;
     let registry = SpeciesRegistry::from_scene(&scene);
     let read: Vec<bool> = (0..registry.len()).map(|s| fitted_species(&scene, &registry, s)).collect();
@@ -574,7 +574,7 @@ pub(crate) const EPISODES: usize = 4;
 
 /// `--distill RUN`: fits, writes `RUN/distilled.ron` and prints each rule with how much it explains.
 pub(crate) fn main(run: &Path, overrides: &Overrides, episodes: Option<usize>) -> crate::error::Result<()> {
-    let dir = crate::run::RunDir::new(run);
+    let dir = crate::store::RunDir::new(run);
     if !dir.has_actors() {
         return Err(format!("--distill {}: not a run folder with trained actors", run.display()).into());
     }

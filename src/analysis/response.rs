@@ -186,7 +186,7 @@ fn deployed(run: &Path) -> crate::error::Result<(Scene, Learners)> {
     let dir = a_run(run)?;
     let scene = Scene::load(&dir.scene())?;
     let mut learners = Learners::new(&scene, Mode::Evaluate);
-    learners.load_actors(&scene, Some(run))?;
+    crate::store::load_actors(&mut learners, &scene, Some(run))?;
     Ok((scene, learners))
 }
 
@@ -277,8 +277,8 @@ fn swarm(scene: &Scene, run: &Path) -> crate::error::Result<Vec<Vec<Vec<f32>>>> 
 }
 
 /// `run` as a run folder with trained actors this program can deploy (its species plugins).
-fn a_run(run: &Path) -> crate::error::Result<crate::run::RunDir> {
-    let dir = crate::run::RunDir::new(run);
+fn a_run(run: &Path) -> crate::error::Result<crate::store::RunDir> {
+    let dir = crate::store::RunDir::new(run);
     if !dir.has_actors() {
         return Err(format!("--response {}: not a run folder with trained actors", run.display()).into());
     }

@@ -49,7 +49,7 @@ pub(crate) fn record(
     kept: &[bool],
 ) -> crate::error::Result<Vec<Option<Recorded>>> {
     let mut learners = crate::learning::Learners::new(scene, Mode::Evaluate);
-    learners.load_actors(scene, Some(run))?;
+    crate::store::load_actors(&mut learners, scene, Some(run))?;
     let mut sim = crate::learning::simulation_of(scene.clone(), learners, |_| {})?;
     let registry = SpeciesRegistry::from_scene(scene);
     let mut recorded: Vec<Option<Recorded>> = (0..registry.len())

@@ -146,7 +146,7 @@ pub(crate) const CURVES: [Curve; 3] = [Curve::Dos, Curve::Doa, Curve::Catches];
 /// `authors_doa_<prey>`, written with the scene's `authors_metrics`; differences 9–11 of docs/src/results/authors-code.md): besides
 /// [`CURVES`], what [`Quantity::Start`], [`Quantity::FromStart`], [`Quantity::TrainingFirst`] and
 /// [`Quantity::TrainingLast`] read, so the paper's numbers can be judged as the shipped code measures them.
-pub(crate) const AUTHORS_CURVES: [&str; 2] = crate::run::schema::AUTHORS;
+pub(crate) const AUTHORS_CURVES: [&str; 2] = crate::store::schema::AUTHORS;
 
 /// Which number of a training curve's shape a quantity reads (`Quantity::shape` says which curve and
 /// which shape): where it starts, when it gets halfway or to a level, its fitted approach, its extreme.

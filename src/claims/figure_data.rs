@@ -184,7 +184,7 @@ pub(crate) fn of_run(exp: &Experiment, run: &Run, data: &RunData) -> crate::erro
         let spec = exp.spec.evaluations.iter().find(|s| &s.name == name);
         let response = match spec.filter(|s| s.perturb.is_some()) {
             Some(_) => {
-                let path = crate::io::beside(&eval_file(&run.dir, name), crate::run::PERTURBATION);
+                let path = crate::io::beside(&eval_file(&run.dir, name), crate::store::PERTURBATION);
                 response_by_lag(&path)?
             }
             None => None,

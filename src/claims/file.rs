@@ -49,7 +49,7 @@ pub struct ExperimentFile {
     pub(crate) judged_when_complete: bool,
     /// Keep each run's replay buffers once it is trained (~0.45 GB a run of the standard scene), so that
     /// `coevo --resume RUN --episodes N` can extend it exactly as an uninterrupted longer run. Off by
-    /// default: a finished run's buffers are removed (`learning::replay_segments::drop_replay`), so a suite of
+    /// default: a finished run's buffers are removed (`store::replay_segments::drop_replay`), so a suite of
     /// 150 runs needs ~1 GB rather than ~70 GB.
     #[serde(default)]
     pub(crate) keep_replay: bool,
@@ -863,9 +863,9 @@ pub struct Experiment {
 /// which file systems cap at 255 bytes.
 pub(crate) const MAX_NAME: usize = 100;
 
-/// The file an evaluation of a run writes (named by the run folder's owner, `run::RunDir`).
+/// The file an evaluation of a run writes (named by the run folder's owner, `store::RunDir`).
 pub(crate) fn eval_file(dir: &std::path::Path, evaluation: &str) -> std::path::PathBuf {
-    crate::run::RunDir::new(dir).evaluation(&slug(evaluation))
+    crate::store::RunDir::new(dir).evaluation(&slug(evaluation))
 }
 
 /// A folder-safe version of a name: runs of other characters become one `-` ("5:3" → "5-3",
@@ -891,7 +891,8 @@ mod tests {
     fn the_evaluations_order_parameters_are_swarmings_then_the_edge_rank() {
         // An order parameter added to `Swarming` must be added to `Order` and `EVAL_ORDER` too.
         let names: Vec<&str> = EVAL_ORDER.iter().map(|o| o.name()).collect();
-        let expected: Vec<&str> = Swarming::NAMES[2..].iter().copied().chain([crate::run::schema::EDGE_RANK]).collect();
+        let expected: Vec<&str> =
+            Swarming::NAMES[2..].iter().copied().chain([crate::store::schema::EDGE_RANK]).collect();
         assert_eq!(names, expected);
         assert_eq!(Order::parse("nn_correlation"), Some(Order::NnCorrelation));
         assert_eq!(format!("{:?}", Order::Milling), "\"milling\"", "as the string it was: fingerprints stand");

@@ -19,7 +19,7 @@ pub(crate) struct Training {
     pub(crate) preset: String,
     pub(crate) variant: String,
     pub(crate) seed: u64,
-    /// Its identity: the scene's id ([`crate::learning::tensors::scene_id`]) and the binary, with the
+    /// Its identity: the scene's id ([`crate::store::tensors::scene_id`]) and the binary, with the
     /// kernel family its variant runs on when it names one (`kernels:`: the same scene, seed and binary on
     /// another family is another training).
     pub(crate) key: (String, String),
@@ -42,7 +42,7 @@ impl Training {
             variant: run.variant.clone(),
             seed: run.seed,
             key: (
-                crate::learning::tensors::scene_id(&run.scene),
+                crate::store::tensors::scene_id(&run.scene),
                 Training::binary_on(binary, run.kernels.map(|k| k.name())),
             ),
             declared: run.same_training_as.clone(),
@@ -75,7 +75,7 @@ impl Training {
 /// The trainings of an experiment's rows (`summary`): each finished run it trained itself, once (a run
 /// whose rows two machines' summaries both hold is carried once, `carry`).
 pub(crate) fn from_summary(exp: &Experiment, summary: &Summary) -> Vec<Training> {
-    let wall = summary.columns.iter().position(|c| c == crate::run::schema::WALL_SECONDS);
+    let wall = summary.columns.iter().position(|c| c == crate::store::schema::WALL_SECONDS);
     let mut seen = std::collections::BTreeSet::new();
     summary
         .runs(exp)
@@ -86,7 +86,7 @@ pub(crate) fn from_summary(exp: &Experiment, summary: &Summary) -> Vec<Training>
             // made after it), nor its wall clock.
             let training = |c: &str| {
                 !["eval_", "crossplay_", "distilled_"].iter().any(|p| c.starts_with(p))
-                    && c != crate::run::schema::WALL_SECONDS
+                    && c != crate::store::schema::WALL_SECONDS
             };
             let bits = summary.columns.iter().zip(&row.values).filter(|(c, _)| training(c));
             Training {

@@ -137,7 +137,7 @@ pub(crate) fn finished_elsewhere(exp: &Experiment) -> crate::error::Result<BTree
     let elsewhere: BTreeMap<usize, Elsewhere> = summary
         .runs(exp)
         .into_iter()
-        .filter(|&(i, _)| !crate::run::is_run(&exp.runs[i].dir) && uncarriable(exp, i, &recorded).is_none())
+        .filter(|&(i, _)| !crate::store::is_run(&exp.runs[i].dir) && uncarriable(exp, i, &recorded).is_none())
         .map(|(i, row)| (i, Elsewhere { binary: row.binary.clone(), kernels: recorded[&i].kernels.clone() }))
         .collect();
     let indices: Vec<usize> = elsewhere.keys().copied().collect();

@@ -398,7 +398,7 @@ pub(crate) fn plot(dir: &Path, partial: bool) -> crate::error::Result<()> {
     if dir == Path::new("all") {
         return write_reproduction(partial);
     }
-    if crate::run::is_run(dir) {
+    if crate::store::is_run(dir) {
         let path = figures::plot_run(dir, partial)?;
         crate::errln!("coevo: wrote {} and its .svg", path.display())?;
         return Ok(());

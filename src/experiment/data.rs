@@ -7,10 +7,10 @@ use super::results::{EvalData, RunData};
 use super::runner::{stage, Stage};
 use super::stats::mean;
 use crate::learning::nets::Kernels;
-use crate::run::schema::{self, Table};
-use crate::run::RunDir;
 use crate::sim::metrics::Swarming;
 use crate::sim::species::SpeciesRegistry;
+use crate::store::schema::{self, Table};
+use crate::store::RunDir;
 use std::collections::BTreeMap;
 use std::path::Path;
 
@@ -209,7 +209,7 @@ pub(crate) fn load(exp: &Experiment) -> crate::error::Result<BTreeMap<usize, Run
             let ranks = table.column(&schema::of(schema::EDGE_RANK, &prey)).unwrap_or_default();
             let edge_rank = mean(&ranks.into_iter().filter(|x| x.is_finite()).collect::<Vec<_>>()).unwrap_or(f64::NAN);
             let curve = read_confusion(&crate::io::beside(&path, "confusion"))?;
-            let response = read_response(&crate::io::beside(&path, crate::run::PERTURBATION))?;
+            let response = read_response(&crate::io::beside(&path, crate::store::PERTURBATION))?;
             let tactics = read_tactics(&curve, &crate::io::beside(&path, "pursuit"))?;
             let confusion = curve.iter().map(|b| [b.turn, b.speed, b.catches]).collect();
             // Every catch of the evaluation per episode and per prey deployed (the evaluation's count).

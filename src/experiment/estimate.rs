@@ -12,9 +12,9 @@ fn measured(exp: &Experiment) -> Option<(f64, usize)> {
         .runs
         .iter()
         .filter_map(|run| {
-            let metrics = crate::run::RunDir::new(&run.dir).metrics();
-            let table = crate::run::schema::Table::read(&metrics).ok()?;
-            let wall = table.column(crate::run::schema::WALL_SECONDS).ok()?;
+            let metrics = crate::store::RunDir::new(&run.dir).metrics();
+            let table = crate::store::schema::Table::read(&metrics).ok()?;
+            let wall = table.column(crate::store::schema::WALL_SECONDS).ok()?;
             let last = *wall.last()?;
             (last.is_finite() && last > 0.0).then(|| last / wall.len() as f64)
         })

@@ -8,9 +8,9 @@ use super::plot::{self, Curve, EstimatePanel, Level, Panel, Row};
 use super::results::{RunData, SETTLED_STEPS, WINDOW};
 use super::stats::{estimate, running_mean};
 use super::summary::Summary;
-use crate::run::schema;
-use crate::run::RunDir;
 use crate::sim::species::SpeciesRegistry;
+use crate::store::schema;
+use crate::store::RunDir;
 use std::collections::BTreeMap;
 use std::path::Path;
 
@@ -689,7 +689,7 @@ pub(crate) fn plot_run(dir: &Path, partial: bool) -> crate::error::Result<std::p
             levels: chance(Some(std::f64::consts::FRAC_2_PI)),
         },
     ];
-    let figures = crate::run::RunDir::new(dir).figures();
+    let figures = crate::store::RunDir::new(dir).figures();
     crate::io::own_dir(&figures)?;
     plot::save(&figures.join("training"), &panels)?;
     Ok(figures.join("training.png"))

@@ -124,7 +124,7 @@ impl Experiment {
         let name = file.file_stem().map_or(String::new(), |s| s.to_string_lossy().into_owned());
         let err = |field: &str, message: String| Error::field(field.to_string(), message).in_file(file);
         // The name is a folder under results/: one safe component, never `.`, `..` or hidden.
-        crate::run::check_name(&name)
+        crate::store::check_name(&name)
             .map_err(|m| format!("{shown}: the file name {m}, as it names the folder results/{name}"))?;
         check_lists(&mut spec, file)?;
         check_names(&spec, file)?;
@@ -326,7 +326,7 @@ fn check_names(spec: &ExperimentFile, file: &Path) -> Result<()> {
     for v in &spec.variants {
         let field = format!("variants[{}].name", v.name);
         let folder = slug(&v.name);
-        crate::run::check_name(&folder)
+        crate::store::check_name(&folder)
             .map_err(|m| err(&field, format!("as a folder name ({folder:?}) it {m}; use letters or digits")))?;
         if !folders.insert(folder.clone()) {
             return Err(err(&field, format!("names the same folder ({folder:?}) as another variant")));
@@ -335,11 +335,11 @@ fn check_names(spec: &ExperimentFile, file: &Path) -> Result<()> {
     let mut files = std::collections::HashSet::with_capacity(spec.evaluations.len());
     for e in &spec.evaluations {
         let field = |f: &str| format!("evaluations[{}].{f}", e.name);
-        let file = crate::run::evaluation_file_name(&slug(&e.name));
+        let file = crate::store::evaluation_file_name(&slug(&e.name));
         if slug(&e.name).is_empty() {
             return Err(err(&field("name"), "needs a letter or digit".into()));
         }
-        crate::run::RunDir::new(".")
+        crate::store::RunDir::new(".")
             .eval_output(Some(&file))
             .map_err(|m| err(&field("name"), m.to_string().replacen("--eval-out ", "as the file ", 1)))?;
         if !files.insert(slug(&e.name)) {

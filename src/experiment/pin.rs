@@ -35,7 +35,7 @@ pub(crate) struct Executable {
 /// from changes nothing.
 pub(crate) fn executable(exp: &super::Experiment, given: Option<&Path>) -> Result<Executable> {
     let me = std::env::current_exe().map_err(|e| format!("cannot find the coevo binary: {e}"))?;
-    let this = crate::run::provenance::binary().to_string();
+    let this = crate::store::provenance::binary().to_string();
     let Some(pin) = &exp.pin else {
         if given.is_some() {
             return Err(not_pinned(exp));
@@ -205,9 +205,9 @@ pub(crate) fn not_pinned(exp: &super::Experiment) -> crate::error::Error {
         .into()
 }
 
-/// A file's BLAKE3 prefix, as provenance names executables ([`crate::run::provenance::file_hash`]).
+/// A file's BLAKE3 prefix, as provenance names executables ([`crate::store::provenance::file_hash`]).
 fn blake3_prefix(path: &Path) -> Result<String> {
-    crate::run::provenance::file_hash(path).map_err(|e| format!("{}: cannot read: {e}", path.display()).into())
+    crate::store::provenance::file_hash(path).map_err(|e| format!("{}: cannot read: {e}", path.display()).into())
 }
 
 /// Runs a command to its end; Err is `what` with the last line it wrote.
@@ -313,8 +313,8 @@ fn verify(pin: &Pin, exe: &Path) -> Result<()> {
                 .current_dir(&scratch)
                 .env("COEVO_KERNELS", FINGERPRINT_KERNELS),
         )?;
-        let commit = crate::run::RunDir::new(&out).read_provenance()?.map(|p| p.git_commit).unwrap_or_default();
-        Ok::<_, crate::error::Error>((commit, crate::run::provenance::fingerprint(&out)?))
+        let commit = crate::store::RunDir::new(&out).read_provenance()?.map(|p| p.git_commit).unwrap_or_default();
+        Ok::<_, crate::error::Error>((commit, crate::store::provenance::fingerprint(&out)?))
     })();
     let _ = std::fs::remove_dir_all(&scratch);
     let (commit, fingerprint) = result?;

@@ -37,21 +37,21 @@ pub(crate) enum Stage {
 
 /// The variant's resolved scene file, which fresh runs are trained from.
 fn variant_scene(run: &Run) -> PathBuf {
-    run.dir.parent().expect("runs live in a variant folder").join(crate::run::SCENE)
+    run.dir.parent().expect("runs live in a variant folder").join(crate::store::SCENE)
 }
 
 /// The stage of a run, and a refusal when its folder holds a run of another scene (the experiment file
 /// changed under it: coevo never mixes the two).
 pub(crate) fn stage(run: &Run) -> crate::error::Result<Stage> {
-    if !crate::run::is_run(&run.dir) {
+    if !crate::store::is_run(&run.dir) {
         return Ok(Stage::Fresh);
     }
     let shown = run.dir.display();
-    let state = crate::run::RunDir::new(&run.dir).state();
+    let state = crate::store::RunDir::new(&run.dir).state();
     if !state.exists() {
         return Ok(Stage::Unsaved);
     }
-    let state = crate::learning::checkpoint::read_state(&state)?;
+    let state = crate::store::checkpoint::read_state(&state)?;
     let mut theirs = state.scene.clone();
     theirs.episodes = run.scene.episodes;
     if theirs != run.scene {
@@ -188,7 +188,7 @@ pub(crate) fn complete_run(exp: &Experiment, run: &Run, exe: &Executable, thread
         child(exe, &args).map_err(|e| format!("{dir}: {e}"))?;
     }
     drop_replay(exp, run)?;
-    let distilled = crate::run::RunDir::new(&run.dir).distilled();
+    let distilled = crate::store::RunDir::new(&run.dir).distilled();
     // Rules fitted as an earlier `distill:` asked (an edited file) are fitted again, as an edited
     // evaluation is run again: the evaluations that deployed them go first, then the rules, so a kill in
     // between leaves nothing that passes for current.
@@ -217,7 +217,7 @@ pub(crate) fn complete_run(exp: &Experiment, run: &Run, exe: &Executable, thread
         // An evaluation run again (stale, or killed part-way): its old side files go first, the confusion
         // curve (the mark of a complete evaluation) before the rest, so a child killed before it writes
         // them anew never leaves a new CSV beside old curves that would pass for complete.
-        for stem in ["confusion", "nn", "correlation", crate::run::PERTURBATION] {
+        for stem in ["confusion", "nn", "correlation", crate::store::PERTURBATION] {
             let side = crate::io::beside(&out, stem);
             if side.exists() {
                 std::fs::remove_file(&side).map_err(|err| format!("{}: {err}", side.display()))?;
@@ -279,22 +279,22 @@ fn with_distilled(e: &super::file::Evaluation, distilled: &Path) -> crate::error
     Ok(overrides)
 }
 
-/// Removes a trained run's replay buffers (`learning::replay_segments::drop_replay`) under its lock, unless the
+/// Removes a trained run's replay buffers (`store::replay_segments::drop_replay`) under its lock, unless the
 /// experiment keeps them. A shared run's buffers are its owner's to keep or drop.
 fn drop_replay(exp: &Experiment, run: &Run) -> crate::error::Result<()> {
     if exp.spec.keep_replay || run.shared_from.is_some() || stage(run)? != Stage::Trained {
         return Ok(());
     }
-    let dir = crate::run::RunDir::new(&run.dir);
+    let dir = crate::store::RunDir::new(&run.dir);
     let _lock = dir.lock()?;
-    crate::learning::replay_segments::drop_replay(&run.dir)
+    crate::store::replay_segments::drop_replay(&run.dir)
         .map_err(|e| format!("{}: cannot remove the trained run's replay buffers: {e}", run.dir.display()))?;
     Ok(())
 }
 
 /// Whether a run's cross-play is complete (its read-outs are written last).
 fn crossplayed(run: &Run) -> bool {
-    crate::run::RunDir::new(&run.dir).crossplay(crate::run::CROSSPLAY_READOUTS).exists()
+    crate::store::RunDir::new(&run.dir).crossplay(crate::store::CROSSPLAY_READOUTS).exists()
 }
 
 /// Whether a run is trained and has every evaluation (and its cross-play, when asked), with its rules fitted as
@@ -303,7 +303,7 @@ pub(crate) fn finished(exp: &Experiment, run: &Run) -> bool {
     stage(run) == Ok(Stage::Trained)
         && exp.spec.evaluations.iter().all(|e| evaluated_as(run, e))
         && exp.spec.distill.as_ref().is_none_or(|d| distill_stale(run, d).is_none())
-        && (!claims_read_rules(exp) || crate::run::RunDir::new(&run.dir).distilled().exists())
+        && (!claims_read_rules(exp) || crate::store::RunDir::new(&run.dir).distilled().exists())
         && (exp.spec.crossplay.is_none() || crossplayed(run))
 }
 
@@ -324,7 +324,7 @@ fn evaluated(eval_csv: &Path) -> bool {
 fn evaluated_as(run: &Run, e: &super::file::Evaluation) -> bool {
     let eval_csv = eval_file(&run.dir, &e.name);
     evaluated(&eval_csv)
-        && (e.perturb.is_none() || crate::io::beside(&eval_csv, crate::run::PERTURBATION).exists())
+        && (e.perturb.is_none() || crate::io::beside(&eval_csv, crate::store::PERTURBATION).exists())
         && stale(run, e).is_none()
 }
 
@@ -341,7 +341,7 @@ pub(crate) fn first_stale(exp: &Experiment) -> Option<String> {
 /// How the rules fitted to a run (`distilled.ron`) differ from what the file's `distill:` asks for now
 /// (an edited file: other counts, episodes or steps); None when they match or none are fitted yet.
 pub(crate) fn distill_stale(run: &Run, d: &super::file::DistillSpec) -> Option<String> {
-    let path = crate::run::RunDir::new(&run.dir).distilled();
+    let path = crate::store::RunDir::new(&run.dir).distilled();
     if !path.exists() {
         return None;
     }

@@ -13,20 +13,14 @@
 //! episode to `exploration_floor`.
 
 pub(crate) mod bf16;
-pub mod checkpoint;
 pub mod control;
 pub mod ddpg;
 pub(crate) mod direct;
-pub(crate) mod files;
 pub(crate) mod fused;
 pub(crate) mod league;
 pub(crate) mod learner;
-pub mod manifest;
 pub mod nets;
 pub(crate) mod replay;
-pub(crate) mod replay_segments;
-pub mod snapshots;
-pub(crate) mod tensors;
 
 use crate::scene::{LearningParams, NoiseDraw, Policy, Scene};
 use crate::sim::clock::Episode;
@@ -41,7 +35,6 @@ use ddpg::Losses;
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
-use std::path::{Path, PathBuf};
 
 pub(crate) use learner::{SpeciesLearner, Storing};
 
@@ -120,57 +113,6 @@ impl Learners {
             names: registry.defs.iter().map(|d| d.name.clone()).collect(),
         }
     }
-
-    /// Loads trained actors: every `Frozen(path)` species from its folder and, with `run`, every `Learned`
-    /// species from that run. Fails, changing nothing, when a checkpoint is missing or does not fit the
-    /// scene (observation size, hidden width, species name).
-    pub fn load_actors(&mut self, scene: &Scene, run: Option<&Path>) -> crate::error::Result<()> {
-        let mut loaded = Vec::new();
-        for (s, def) in scene.species.iter().enumerate() {
-            let source = match (&def.policy, run) {
-                (Policy::Frozen(path), _) => PathBuf::from(path),
-                (Policy::Learned, Some(run)) => run.to_path_buf(),
-                _ => continue,
-            };
-            let l = self.species[s].as_ref().expect("learned and frozen species have learners");
-            loaded.push((s, checkpoint::load_actor(&source, &def.name, &l.ddpg.actor)?));
-        }
-        for (s, actor) in loaded {
-            self.species[s].as_mut().expect("checked above").ddpg.actor = actor;
-        }
-        Ok(())
-    }
-}
-
-impl Learners {
-    /// Replaces the actors of the named learning species by their snapshots of `run` after the given
-    /// episodes (`--snapshot prey=300`; cross-play deploys the same files). Fails, changing nothing, on a
-    /// species that is not learned in the scene or an episode the run kept no snapshot of.
-    pub(crate) fn load_snapshots(
-        &mut self,
-        scene: &Scene,
-        run: &Path,
-        wanted: &[(String, usize)],
-    ) -> crate::error::Result<()> {
-        let mut loaded = Vec::new();
-        for (name, episode) in wanted {
-            let s =
-                scene.species.iter().position(|d| &d.name == name && d.policy == Policy::Learned).ok_or_else(|| {
-                    let learned: Vec<&str> =
-                        scene.species.iter().filter(|d| d.policy == Policy::Learned).map(|d| d.name.as_str()).collect();
-                    format!(
-                        "--snapshot {name}={episode}: no learning species named {name:?} (learned: {})",
-                        learned.join(", ")
-                    )
-                })?;
-            let like = &self.species[s].as_ref().expect("learned species have learners").ddpg.actor;
-            loaded.push((s, snapshots::load_snapshot(run, name, *episode, like)?));
-        }
-        for (s, actor) in loaded {
-            self.species[s].as_mut().expect("checked above").ddpg.actor = actor;
-        }
-        Ok(())
-    }
 }
 
 impl Plugin for LearningPlugin {
@@ -183,24 +125,6 @@ impl Plugin for LearningPlugin {
         }
         app.add_systems(FixedUpdate, (decide_learned.in_set(SimSet::Decide), learn.in_set(SimSet::Learn)));
     }
-}
-
-/// A simulation with the learning plugin, frozen actors loaded (`Frozen(path)` species, and with `eval_run`
-/// every `Learned` species from that run).
-pub fn simulation(scene: Scene, mode: Mode, eval_run: Option<&Path>) -> crate::error::Result<Simulation> {
-    simulation_with(scene, mode, eval_run, |_| {})
-}
-
-/// [`simulation`] with more plugins (a species of your own) added by `extra`.
-pub(crate) fn simulation_with(
-    scene: Scene,
-    mode: Mode,
-    eval_run: Option<&Path>,
-    extra: impl FnOnce(&mut App),
-) -> crate::error::Result<Simulation> {
-    let mut learners = Learners::new(&scene, mode);
-    learners.load_actors(&scene, eval_run)?;
-    simulation_of(scene, learners, extra)
 }
 
 /// A simulation with the learning plugin driven by `learners` as given (actors chosen by the caller:

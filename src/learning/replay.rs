@@ -15,7 +15,7 @@ pub(crate) struct ReplayBuffer {
     /// Where the next transition goes; wraps to 0 at capacity, overwriting the oldest.
     next: usize,
     /// Transitions ever pushed: transition k (from 0) sits in slot k mod capacity while it is held, which
-    /// is what a checkpoint saves and restores (`learning::checkpoint`), so a resumed run samples exactly
+    /// is what a checkpoint saves and restores (`store::checkpoint`), so a resumed run samples exactly
     /// what the uninterrupted one would.
     pub(crate) pushed: u64,
     obs: Vec<f32>,

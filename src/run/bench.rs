@@ -147,8 +147,8 @@ pub(crate) fn group_size_steps(budget: Duration) -> Vec<(usize, usize, Figure)> 
             let mut scene = super::args::load_scene(std::path::Path::new("scenes/standard.ron"), &overrides)
                 .expect("the default scene is built in");
             scene.episode_steps = usize::MAX;
-            let mut sim = crate::learning::simulation(scene, crate::learning::Mode::Evaluate, None)
-                .expect("no checkpoint needed");
+            let mut sim =
+                crate::run::simulation(scene, crate::learning::Mode::Evaluate, None).expect("no checkpoint needed");
             for _ in 0..3 {
                 sim.step(); // warm the grids and batches
             }
@@ -303,7 +303,7 @@ pub(crate) fn learning(budget: Duration) -> Vec<Figure> {
     for s in &mut scene.species {
         s.policy = Policy::Learned;
     }
-    let mut sim = crate::learning::simulation(scene, Mode::Evaluate, None).expect("no checkpoint needed");
+    let mut sim = crate::run::simulation(scene, Mode::Evaluate, None).expect("no checkpoint needed");
     figures.push(Figure {
         label: "policy-driven step, 3+10000 agents (untrained weights)".into(),
         per_second: crate::parallel::per_second(budget, 5, || sim.step()),

@@ -107,7 +107,7 @@ fn children_cpu() -> f64 {
 fn metrics_without_wall(path: &Path) -> crate::error::Result<Vec<String>> {
     let text = crate::io::read_text(path, crate::io::MAX_TEXT_BYTES)?;
     let header: Vec<&str> = text.lines().next().unwrap_or("").split(',').collect();
-    let wall = header.iter().position(|c| *c == crate::run::schema::WALL_SECONDS);
+    let wall = header.iter().position(|c| *c == crate::store::schema::WALL_SECONDS);
     Ok(text
         .lines()
         .map(|l| {

@@ -28,19 +28,21 @@ impl DeployArgs {
     /// acting exactly as in --eval.
     pub(crate) fn deploy(&self, scene: &SceneArgs) -> crate::error::Result<Deployed> {
         if let Some(run) = &self.run {
-            super::folder::RunDir::new(run).check_plugins()?;
+            crate::store::folder::RunDir::new(run).check_plugins()?;
         }
-        let default =
-            self.run.as_ref().map_or(PathBuf::from(super::args::STANDARD_SCENE), |r| r.join(super::folder::SCENE));
+        let default = self
+            .run
+            .as_ref()
+            .map_or(PathBuf::from(super::args::STANDARD_SCENE), |r| r.join(crate::store::folder::SCENE));
         let (mut loaded, _) = scene.load(&default, &scene.overrides(false)?)?;
         let steps = scene.steps.unwrap_or(loaded.episode_steps);
         loaded.episode_steps = steps;
         super::progress::announce_cost(&loaded, steps)?;
         let wanted = scene.snapshots(self.run.as_deref(), "--run")?;
         let mut learners = crate::learning::Learners::new(&loaded, Mode::Evaluate);
-        learners.load_actors(&loaded, self.run.as_deref())?;
+        crate::store::load_actors(&mut learners, &loaded, self.run.as_deref())?;
         if let Some(run) = &self.run {
-            learners.load_snapshots(&loaded, run, &wanted)?;
+            crate::store::load_snapshots(&mut learners, &loaded, run, &wanted)?;
         }
         let sim = crate::learning::simulation_of(loaded.clone(), learners, |_| {})?;
         let actors: Vec<String> = loaded

@@ -194,7 +194,7 @@ impl Env {
         }
         // coevo's side, if any, trains as `--train` trains (the outside side's rows of the batch are given).
         let mode = if coevolve.species.is_empty() { Mode::Evaluate } else { Mode::Train };
-        let mut sim = crate::learning::simulation_with(decided, mode, None, |app| {
+        let mut sim = crate::run::simulation_with(decided, mode, None, |app| {
             crate::sim::policy::PolicyPlugins::register(app, EXTERNAL);
             app.init_resource::<ExternalActions>();
             app.add_systems(FixedUpdate, apply_external.in_set(SimSet::Decide));
@@ -360,7 +360,7 @@ impl Env {
     pub(crate) fn metrics_header(&self) -> String {
         let learning: Vec<usize> = self.external.iter().map(|&(s, _)| s).collect();
         let authors = self.world.resource::<crate::sim::ActiveScene>().0.authors_metrics;
-        super::schema::metrics_header_for(self.world.resource::<SpeciesRegistry>(), &learning, authors)
+        crate::store::schema::metrics_header_for(self.world.resource::<SpeciesRegistry>(), &learning, authors)
     }
 
     /// One step t → t+1 with `actions` (`[agents × 2]`, normalized, clamped to [−1, 1]). Err on a wrong
@@ -652,7 +652,7 @@ impl VecEnv {
     }
 
     /// The episodes finished since the last call as the first cells of `metrics.csv` rows (up to the
-    /// returns, [`super::schema::episode_cells`]), numbered in the order they finished across all worlds
+    /// returns, [`crate::store::schema::episode_cells`]), numbered in the order they finished across all worlds
     /// (by step, then by world), so the file does not depend on how often this is called.
     pub fn take_episode_rows(&mut self) -> Vec<String> {
         let registry = self.envs[0].world.resource::<SpeciesRegistry>();
@@ -663,7 +663,7 @@ impl VecEnv {
             .enumerate()
             .map(|(k, mut e)| {
                 e.episode = first + k;
-                super::schema::episode_cells(&e, registry).join(",")
+                crate::store::schema::episode_cells(&e, registry).join(",")
             })
             .collect();
         self.numbered += rows.len();

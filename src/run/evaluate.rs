@@ -9,8 +9,6 @@
 //! accumulated ([`Accumulated::distributions`], [`Accumulated::summary`]).
 
 use super::args::Shared;
-use super::folder::RunDir;
-use super::schema::{self, blank};
 use crate::io::{AtomicFile, Existing};
 use crate::learning::control::ObservationControl;
 use crate::learning::Mode;
@@ -24,6 +22,8 @@ use crate::sim::perception::Population;
 use crate::sim::space::Arena;
 use crate::sim::species::SpeciesRegistry;
 use crate::sim::Simulation;
+use crate::store::folder::RunDir;
+use crate::store::schema::{self, blank};
 use bevy::math::DVec2;
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -350,9 +350,9 @@ impl Accumulated {
 /// eval-nn.csv is refused now, not after eval.csv was replaced).
 fn check_outputs(path: &Path, opts: &EvalOptions) -> crate::error::Result<()> {
     let mut outputs = vec![path.to_path_buf()];
-    outputs.extend(super::folder::EVAL_BESIDE.iter().map(|what| crate::io::beside(path, what)));
+    outputs.extend(crate::store::folder::EVAL_BESIDE.iter().map(|what| crate::io::beside(path, what)));
     if opts.perturb.is_some() {
-        outputs.push(crate::io::beside(path, super::folder::PERTURBATION));
+        outputs.push(crate::io::beside(path, crate::store::folder::PERTURBATION));
     }
     crate::io::check_targets(&outputs, Existing::Replace)
 }
@@ -417,8 +417,8 @@ pub fn evaluate(opts: &EvalOptions) -> crate::error::Result<String> {
     let trained = (!opts.untrained).then_some(opts.run.as_path());
     let build = || -> crate::error::Result<Simulation> {
         let mut learners = crate::learning::Learners::new(&scene, Mode::Evaluate);
-        learners.load_actors(&scene, trained)?;
-        learners.load_snapshots(&scene, &opts.run, &opts.snapshots)?;
+        crate::store::load_actors(&mut learners, &scene, trained)?;
+        crate::store::load_snapshots(&mut learners, &scene, &opts.run, &opts.snapshots)?;
         crate::learning::simulation_of(scene.clone(), learners, |_| {})
     };
     super::progress::announce_cost(&scene, opts.episodes * scene.episode_steps)?;
@@ -479,10 +479,10 @@ pub fn evaluate(opts: &EvalOptions) -> crate::error::Result<String> {
     file.commit().map_err(write_err)?;
     // The confusion curve last: the experiment runner takes its presence for a complete evaluation.
     if let Some((_, response)) = &twin {
-        let out = crate::io::beside(&path, super::folder::PERTURBATION);
+        let out = crate::io::beside(&path, crate::store::folder::PERTURBATION);
         crate::io::write_file(&out, Existing::Replace, response.csv().as_bytes())?;
     }
-    for (what, text) in super::folder::EVAL_BESIDE.iter().zip(files) {
+    for (what, text) in crate::store::folder::EVAL_BESIDE.iter().zip(files) {
         crate::io::write_file(&crate::io::beside(&path, what), Existing::Replace, text.as_bytes())?;
     }
     Ok(format!(

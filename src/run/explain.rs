@@ -3,10 +3,10 @@
 //! back, how far seeds of the scene differ, and the next commands for that run, spelled as they run where
 //! the user is.
 
-use super::folder::RunDir;
-use super::schema;
 use crate::scene::Scene;
 use crate::sim::species::SpeciesRegistry;
+use crate::store::folder::RunDir;
+use crate::store::schema;
 use std::path::Path;
 
 /// The command that opens the viewer on run `r`, as it runs where the user is: this executable when it
@@ -97,7 +97,7 @@ pub(crate) fn explain(run: &Path, spread: Option<&str>) -> crate::error::Result<
     out.push_str(spread.unwrap_or_default());
     let r = run.display();
     // Each next command with what it does, the comments in one column, coevo spelled as it runs here.
-    let coevo = super::provenance::spelled();
+    let coevo = crate::store::provenance::spelled();
     let next = [
         (format!("{coevo} --eval {r} --prey 50 --episodes 10"), format!("the trained actors, no noise, on 50 {name}")),
         (

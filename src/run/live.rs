@@ -3,8 +3,6 @@
 //! an episode boundary, so that `--resume`, `--eval` and the viewer's watch mode take it, and a resumed run
 //! continues exactly as the `--train` run of its scene and seed would have.
 
-use super::folder::RunDir;
-use super::schema;
 use crate::io::Existing;
 use crate::learning::nets::Mlp;
 use crate::learning::Learners;
@@ -12,6 +10,8 @@ use crate::sim::clock::Episode;
 use crate::sim::metrics::EpisodeLog;
 use crate::sim::species::SpeciesRegistry;
 use crate::sim::ActiveScene;
+use crate::store::folder::RunDir;
+use crate::store::schema;
 use bevy::prelude::{Resource, World};
 use std::path::Path;
 use std::time::Instant;
@@ -96,12 +96,12 @@ impl LiveRun {
     fn write_since(&mut self, world: &World, run: &RunDir, checkpoint: bool) -> crate::error::Result<()> {
         let (dir, scene) = (run.path(), &world.resource::<ActiveScene>().0);
         for (name, episode, actor) in &self.snapshots[self.snapshots_written..] {
-            crate::learning::snapshots::save_snapshot(dir, scene, name, *episode, actor)?;
+            crate::store::snapshots::save_snapshot(dir, scene, name, *episode, actor)?;
         }
         self.snapshots_written = self.snapshots.len();
         crate::io::write_file(&run.metrics(), Existing::Replace, self.metrics_text.as_bytes())?;
         if checkpoint {
-            let metrics = crate::learning::manifest::Digest::of(self.metrics_text.as_bytes());
+            let metrics = crate::store::manifest::Digest::of(self.metrics_text.as_bytes());
             super::train::save_checkpoint(dir, world, scene, None, metrics)?;
             self.checkpointed = self.episodes;
         }

@@ -1,12 +1,8 @@
 //! `coevo --train` and `--resume`: headless training (Algorithm 1), driving the fixed-step schedule
-//! directly, into a run folder ([`super::RunDir`]): `metrics.csv` one row per episode
-//! ([`super::schema`]), a checkpoint every `checkpoint_every` episodes (`learning::checkpoint`).
+//! directly, into a run folder ([`crate::store::RunDir`]): `metrics.csv` one row per episode
+//! ([`crate::store::schema`]), a checkpoint every `checkpoint_every` episodes (`store::checkpoint`).
 
-use super::folder::{io_err, RunDir};
-use super::schema;
 use crate::io::Existing;
-use crate::learning::checkpoint::{self, SpeciesState, TrainingState};
-use crate::learning::manifest::{Digest, Hashing};
 use crate::learning::{Learners, Mode};
 use crate::scene::Scene;
 use crate::sim::clock::Episode;
@@ -14,6 +10,10 @@ use crate::sim::episode::{SimRng, SpawnedFrom};
 use crate::sim::metrics::EpisodeLog;
 use crate::sim::species::SpeciesRegistry;
 use crate::sim::Simulation;
+use crate::store::checkpoint::{self, SpeciesState, TrainingState};
+use crate::store::folder::{io_err, RunDir};
+use crate::store::manifest::{Digest, Hashing};
+use crate::store::schema;
 use indicatif::{ProgressBar, ProgressStyle};
 use std::io::Write;
 use std::path::Path;
@@ -112,7 +112,7 @@ fn open(
     start: Start,
     opts: &TrainOptions,
     dir: &RunDir,
-) -> crate::error::Result<(Scene, Option<super::folder::RunLock>)> {
+) -> crate::error::Result<(Scene, Option<crate::store::folder::RunLock>)> {
     match start {
         Start::New(scene) => {
             dir.check_new(opts.overwrite)?;
@@ -149,8 +149,7 @@ fn restore(
         let l = &mut *learners;
         let (state, manifest) = checkpoint::load(run, &mut l.species, names)?;
         if let Some(league) = l.league.as_mut() {
-            let load =
-                |name: &str, episode, like: &_| crate::learning::snapshots::load_snapshot(run, name, episode, like);
+            let load = |name: &str, episode, like: &_| crate::store::snapshots::load_snapshot(run, name, episode, like);
             league.restore(run, &l.species, state.episodes_done, state.league.clone(), load)?;
         }
         (state, manifest)
@@ -205,7 +204,7 @@ fn run_training(start: Start, opts: &TrainOptions) -> crate::error::Result<usize
     if total == 0 {
         return Err("--episodes: must be ≥ 1".into());
     }
-    let mut sim = crate::learning::simulation(scene.clone(), Mode::Train, None)?;
+    let mut sim = crate::run::simulation(scene.clone(), Mode::Train, None)?;
     if lock.is_none() {
         lock = Some(dir.lock()?);
     }
@@ -237,7 +236,7 @@ fn run_training(start: Start, opts: &TrainOptions) -> crate::error::Result<usize
         let learners = sim.world().resource::<Learners>();
         for (l, name) in learners.species.iter().zip(&names) {
             if let Some(l) = l.as_ref().filter(|l| !l.frozen) {
-                crate::learning::snapshots::save_snapshot(run, &scene, name, episode, &l.ddpg.actor)
+                crate::store::snapshots::save_snapshot(run, &scene, name, episode, &l.ddpg.actor)
                     .map_err(|e| lock.held().err().unwrap_or(e))?;
             }
         }
@@ -272,7 +271,7 @@ fn run_training(start: Start, opts: &TrainOptions) -> crate::error::Result<usize
             save(&sim, last_good.as_ref(), &metrics)?;
             return Err(format!(
                 "training stopped: {failure}; the last good networks are saved in {}",
-                crate::learning::files::checkpoint_dir(run).display()
+                crate::store::names::checkpoint_dir(run).display()
             )
             .into());
         }

@@ -36,7 +36,7 @@ impl SimRng {
 }
 
 /// The environment stream as it stood before the current population was spawned: with it, a resumed run
-/// spawns exactly the population the uninterrupted run had (`learning::checkpoint`).
+/// spawns exactly the population the uninterrupted run had (`store::checkpoint`).
 #[derive(Resource, Clone, Debug)]
 pub(crate) struct SpawnedFrom(pub ChaCha8Rng);
 

@@ -435,8 +435,8 @@ impl args::ViewerArgs {
         }
         let (default, mode) = match &self.watch {
             Some(run) => {
-                crate::run::RunDir::new(run).check_plugins()?;
-                (run.join(crate::run::SCENE), RunMode::Watch(run.clone()))
+                crate::store::RunDir::new(run).check_plugins()?;
+                (run.join(crate::store::SCENE), RunMode::Watch(run.clone()))
             }
             None => (
                 Path::new(crate::run::args::STANDARD_SCENE).to_path_buf(),
@@ -478,7 +478,7 @@ impl args::ViewerArgs {
                     format!("--save-run {}: saves live training; not with --watch or --rules", dir.display()).into()
                 );
             }
-            crate::run::RunDir::new(dir).check_new(false).map_err(|e| format!("--save-run {e}"))?;
+            crate::store::RunDir::new(dir).check_new(false).map_err(|e| format!("--save-run {e}"))?;
         }
         run(ViewerOptions {
             setup: Setup { scene: loaded, source, mode, snapshots },

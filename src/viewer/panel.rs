@@ -207,7 +207,7 @@ fn restart_as(c: &mut Control, scene: Scene, source: PathBuf, mode: RunMode) {
 fn snapshot_picker(ui: &mut egui::Ui, c: &mut Control) {
     let RunMode::Watch(run) = c.current.mode.clone() else { return };
     for def in c.current.scene.species.iter().filter(|d| d.policy == crate::scene::Policy::Learned) {
-        let kept = crate::learning::snapshots::snapshot_episodes(&run, &def.name);
+        let kept = crate::store::snapshots::snapshot_episodes(&run, &def.name);
         if kept.is_empty() {
             continue;
         }
@@ -258,7 +258,7 @@ fn mode_and_files(ui: &mut egui::Ui, c: &mut Control, draft: &mut Scene) {
         .show_ui(ui, |ui| {
             for run in &runs {
                 if ui.selectable_label(false, file_name(run)).clicked() {
-                    let path = crate::run::RunDir::new(run).scene();
+                    let path = crate::store::RunDir::new(run).scene();
                     match Scene::load(&path) {
                         Ok(scene) => {
                             *draft = scene.clone();

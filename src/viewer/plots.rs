@@ -138,8 +138,8 @@ const CATCHES: egui::Color32 = egui::Color32::from_rgb(200, 40, 40);
 /// Reads a watched run's training curves of `species` (DoS, DoA, catches per episode) from its
 /// `metrics.csv`; None when it has none to show.
 pub(crate) fn training_curves(run: &std::path::Path, species: &str) -> Option<[Vec<[f64; 2]>; 3]> {
-    use crate::run::schema::{self, Table};
-    let table = Table::read(&crate::run::RunDir::new(run).metrics()).ok()?;
+    use crate::store::schema::{self, Table};
+    let table = Table::read(&crate::store::RunDir::new(run).metrics()).ok()?;
     let column = |name: &str| -> Option<Vec<[f64; 2]>> {
         Some(table.column(name).ok()?.into_iter().enumerate().map(|(e, v)| [e as f64, v]).collect())
     };
@@ -149,7 +149,7 @@ pub(crate) fn training_curves(run: &std::path::Path, species: &str) -> Option<[V
 
 /// How many of `species` a watched run trained with (its `scene.ron`); None without one.
 pub(crate) fn trained_count(run: &std::path::Path, species: &str) -> Option<usize> {
-    let scene = crate::scene::Scene::load(&crate::run::RunDir::new(run).scene()).ok()?;
+    let scene = crate::scene::Scene::load(&crate::store::RunDir::new(run).scene()).ok()?;
     scene.species.iter().find(|d| d.name == species).map(|d| d.count)
 }
 
@@ -423,14 +423,14 @@ mod tests {
         let run = dir.path().join("run");
         crate::run::train::train(scene, &crate::run::train::TrainOptions::new(run.clone(), Some(3))).unwrap();
         let [dos, doa, catches] = super::training_curves(&run, "prey").expect("curves from metrics.csv");
-        let table = crate::run::schema::Table::read(&crate::run::RunDir::new(&run).metrics()).unwrap();
+        let table = crate::store::schema::Table::read(&crate::store::RunDir::new(&run).metrics()).unwrap();
         let values = |c: &[[f64; 2]]| c.iter().map(|p| p[1]).collect::<Vec<_>>();
         assert_eq!(dos.iter().map(|p| p[0]).collect::<Vec<_>>(), vec![0.0, 1.0, 2.0]);
         assert_eq!(values(&dos), table.column("dos_prey").unwrap());
         assert_eq!(values(&doa), table.column("doa_prey").unwrap());
         assert_eq!(values(&catches), table.column("catches").unwrap());
         // A run folder without metrics (the shipped actors) has none: the plot shows the watched episodes.
-        std::fs::remove_file(crate::run::RunDir::new(&run).metrics()).unwrap();
+        std::fs::remove_file(crate::store::RunDir::new(&run).metrics()).unwrap();
         assert!(super::training_curves(&run, "prey").is_none());
     }
 }

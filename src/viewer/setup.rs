@@ -69,9 +69,10 @@ impl Setup {
             _ => (Mode::Train, None),
         };
         let mut learners = Learners::new(&scene, mode);
-        learners.load_actors(&scene, run).map_err(|e| format!("checkpoint refused: {e}"))?;
+        crate::store::load_actors(&mut learners, &scene, run).map_err(|e| format!("checkpoint refused: {e}"))?;
         if let Some(run) = run {
-            learners.load_snapshots(&scene, run, &self.snapshots).map_err(|e| format!("snapshot refused: {e}"))?;
+            crate::store::load_snapshots(&mut learners, &scene, run, &self.snapshots)
+                .map_err(|e| format!("snapshot refused: {e}"))?;
         }
         Ok((scene, learners))
     }
@@ -129,8 +130,8 @@ pub fn scene_files() -> Vec<PathBuf> {
 
 /// The run folders a picker offers: the shipped run first, then `runs/*/` holding a `checkpoint/`, sorted.
 pub fn run_folders() -> Vec<PathBuf> {
-    let is_run = |p: &std::path::Path| crate::run::RunDir::new(p).has_actors();
-    let mut runs: Vec<PathBuf> = crate::run::SHIPPED_RUNS.iter().map(PathBuf::from).filter(|p| is_run(p)).collect();
+    let is_run = |p: &std::path::Path| crate::store::RunDir::new(p).has_actors();
+    let mut runs: Vec<PathBuf> = crate::store::SHIPPED_RUNS.iter().map(PathBuf::from).filter(|p| is_run(p)).collect();
     runs.extend(list_dir("runs", is_run));
     runs
 }

@@ -58,7 +58,7 @@ pub fn manual(scene: Scene) -> Simulation {
 /// Records the run's snapshots as they are now in its checkpoint's manifest, as if training had written
 /// them (what a test that edits snapshots on purpose needs).
 pub fn reseal_snapshots(run: &std::path::Path) {
-    use coevo::learning::manifest::{Digest, Manifest, MANIFEST};
+    use coevo::store::manifest::{Digest, Manifest, MANIFEST};
     let dir = run.join("checkpoint");
     let mut manifest = Manifest::read(&dir).unwrap().unwrap();
     for (name, digest) in manifest.snapshots.iter_mut() {

@@ -6,10 +6,10 @@ use coevo::analysis::crossplay::{crossplay, CrossplayOptions};
 use coevo::analysis::crossplay_matrix::Matrix;
 use coevo::analysis::crossplay_readouts::{readouts, READOUTS};
 use coevo::learning::nets::Mlp;
-use coevo::learning::snapshots::{load_snapshot, save_snapshot, snapshot_episodes};
 use coevo::learning::{Learners, Mode};
 use coevo::run::train::{train, TrainOptions};
 use coevo::scene::{Overrides, Scene};
+use coevo::store::snapshots::{load_snapshot, save_snapshot, snapshot_episodes};
 use std::path::{Path, PathBuf};
 
 use crate::common;

@@ -4,8 +4,8 @@
 use coevo::error::Kind;
 use coevo::experiment::Experiment;
 use coevo::learning::{Learners, Mode};
-use coevo::run::RunDir;
 use coevo::scene::{Overrides, Scene};
+use coevo::store::RunDir;
 use std::path::Path;
 
 #[test]
@@ -23,12 +23,12 @@ fn each_concern_classifies_its_errors() {
     // Checkpoints: actors asked of a folder that has none.
     let scene = Scene::load(Path::new("scenes/standard.ron")).unwrap();
     let mut learners = Learners::new(&scene, Mode::Evaluate);
-    let e = learners.load_actors(&scene, Some(root)).unwrap_err();
+    let e = coevo::store::load_actors(&mut learners, &scene, Some(root)).unwrap_err();
     assert_eq!(e.kind, Kind::Checkpoint, "{e}");
     // A manifest that is not a file is a damaged checkpoint, not a failure to read.
     let damaged = root.join("damaged");
     std::fs::create_dir_all(damaged.join("checkpoint/manifest.ron")).unwrap();
-    let e = learners.load_actors(&scene, Some(&damaged)).unwrap_err();
+    let e = coevo::store::load_actors(&mut learners, &scene, Some(&damaged)).unwrap_err();
     assert!(e.to_string().contains("manifest.ron: is not a regular file"), "{e}");
     assert_eq!(e.kind, Kind::Checkpoint, "{e}");
     // Run folders: a second lock while the first is held; an evaluation output named like a run file.

@@ -5,10 +5,11 @@
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
 
-/// Each room's floor, bottom up. Rooms on one floor import neither each other: the claims and how they are
+/// Each room's floor, bottom up. What a run leaves on disk (`store`) stands above the learning it saves and
+/// below the run modes that ask it to. Rooms on one floor import neither each other: the claims and how they are
 /// judged (`claims`) and the window (`viewer`) stand side by side above the single-run analyses, and the
 /// lab that runs and assembles experiments (`experiment`) above the claims.
-const FLOORS: [(&str, u32); 14] = [
+const FLOORS: [(&str, u32); 15] = [
     ("error", 1),
     ("parallel", 2),
     ("svg", 2),
@@ -16,13 +17,14 @@ const FLOORS: [(&str, u32); 14] = [
     ("scene", 4),
     ("sim", 5),
     ("learning", 6),
-    ("run", 7),
-    ("analysis", 8),
-    ("claims", 9),
-    ("viewer", 9),
-    ("experiment", 10),
-    ("cli", 11),
-    ("main", 12),
+    ("store", 7),
+    ("run", 8),
+    ("analysis", 9),
+    ("claims", 10),
+    ("viewer", 10),
+    ("experiment", 11),
+    ("cli", 12),
+    ("main", 13),
 ];
 
 /// The rooms a source text names through `crate::` in its code (comments, doc links among them, are not

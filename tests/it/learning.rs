@@ -1,12 +1,13 @@
 //! The learning plugin end to end, on tiny runs: training, checkpoints, resume, evaluation, bad input.
 
-use coevo::learning::simulation as learning_simulation;
-use coevo::learning::{checkpoint, Learners, Mode};
+use coevo::learning::{Learners, Mode};
 use coevo::run::evaluate::{evaluate, EvalOptions};
+use coevo::run::simulation as learning_simulation;
 use coevo::run::train::{resume, train, TrainOptions};
 use coevo::scene::Overrides;
 use coevo::scene::{Policy, Scene};
 use coevo::sim::perception::Batches;
+use coevo::store::checkpoint;
 use std::path::Path;
 
 /// The standard scene shrunk to seconds: short episodes, small networks and batches.
@@ -381,7 +382,7 @@ fn a_restarted_world_trains_exactly_like_a_fresh_one() {
 fn deploys_for_three_steps(asset: &Path, scene: &Scene) {
     let mut small = scene.clone();
     small.episode_steps = 3;
-    let mut sim = coevo::learning::simulation(small, coevo::learning::Mode::Evaluate, Some(asset)).unwrap();
+    let mut sim = coevo::run::simulation(small, coevo::learning::Mode::Evaluate, Some(asset)).unwrap();
     for _ in 0..3 {
         sim.step();
     }
@@ -589,7 +590,7 @@ fn prey_trained_only_against_past_predators_leave_the_predators_untrained() {
 
 #[test]
 fn a_fingerprint_is_the_runs_numbers_not_its_wall_clock() {
-    use coevo::run::provenance::fingerprint;
+    use coevo::store::provenance::fingerprint;
     let dir = tempfile::tempdir().unwrap();
     let (a, b, c) = (dir.path().join("a"), dir.path().join("b"), dir.path().join("c"));
     train(tiny(2), &opts(&a, None)).unwrap();

@@ -3,12 +3,12 @@
 //! `NJP_algorithm/main.py` stores them; logged beside the paper's, only when the scene asks.
 
 use crate::common::scene;
-use coevo::run::schema;
 use coevo::scene::{Boundary, Policy};
 use coevo::sim::metrics::{authors_dos_doa, EpisodeLog};
 use coevo::sim::perception::Population;
 use coevo::sim::species::SpeciesRegistry;
 use coevo::sim::Simulation;
+use coevo::store::schema;
 
 /// The authors' DoS and DoA of the prey at the state the world holds now.
 fn prey_now(sim: &Simulation) -> [f64; 2] {

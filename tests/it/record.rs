@@ -129,7 +129,7 @@ fn a_record_drives_learned_species_with_the_runs_actors() {
 
     // Rebuild the state of step 4 from the record, perceive it and ask the trained actors.
     let mut sim =
-        coevo::learning::simulation(Scene::load(&run.join("scene.ron")).unwrap(), Mode::Evaluate, Some(&run)).unwrap();
+        coevo::run::simulation(Scene::load(&run.join("scene.ron")).unwrap(), Mode::Evaluate, Some(&run)).unwrap();
     let step: Vec<&Vec<String>> = rows.iter().filter(|r| r[0] == "4").collect();
     let num = |r: &Vec<String>, i: usize| r[i].parse::<f64>().unwrap();
     {

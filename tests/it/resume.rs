@@ -2,7 +2,7 @@
 //! themselves. Every run here is a real `coevo` process, killed with SIGKILL or SIGTERM as a machine or a
 //! user would.
 
-use coevo::learning::manifest::Manifest;
+use coevo::store::manifest::Manifest;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
@@ -437,7 +437,7 @@ fn a_live_run_saved_between_episodes_resumes_to_the_train_run() {
     // The world stepped as the viewer's live training steps it, its episodes recorded (and then taken by
     // someone else, as the viewer's plots take them), saved after 7 of its 24 episodes.
     let scene = coevo::scene::Scene::load(&scene_path).unwrap();
-    let mut sim = coevo::learning::simulation(scene, coevo::learning::Mode::Train, None).unwrap();
+    let mut sim = coevo::run::simulation(scene, coevo::learning::Mode::Train, None).unwrap();
     let live = LiveRun::new(sim.world());
     sim.world_mut().insert_resource(live);
     let saved = dir.path().join("saved");
@@ -481,7 +481,7 @@ fn a_live_run_saved_between_episodes_resumes_to_the_train_run() {
     // leaves it: 15 rows, checkpointed at 14. `--resume` drops the row past the checkpoint and continues
     // to the uninterrupted run.
     let scene = coevo::scene::Scene::load(&scene_path).unwrap();
-    let mut sim = coevo::learning::simulation(scene, coevo::learning::Mode::Train, None).unwrap();
+    let mut sim = coevo::run::simulation(scene, coevo::learning::Mode::Train, None).unwrap();
     let live = LiveRun::new(sim.world());
     sim.world_mut().insert_resource(live);
     let kept = dir.path().join("kept");

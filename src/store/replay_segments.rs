@@ -2,11 +2,11 @@
 //! previous checkpoint's segments the buffer still holds and adds one with the transitions since
 //! (`checkpoint.rs` module docs).
 
-use super::files::{checkpoint_dir, parse_segment_name, segment_name};
 use super::manifest::{Digest, Hashing, Manifest};
-use super::replay::ReplayBuffer;
+use super::names::{checkpoint_dir, parse_segment_name, segment_name};
 use super::tensors::{f32_tensor, metadata, metadata_json, padded, parse, read_as, sealed, Expected};
 use crate::io::Existing;
+use crate::learning::replay::ReplayBuffer;
 use std::path::{Path, PathBuf};
 
 /// Frees a finished run's replay buffers: removes every replay segment of its checkpoint (~0.45 GB a run

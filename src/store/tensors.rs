@@ -3,8 +3,8 @@
 //! file by name (metadata, tensor names, shapes, non-finite values) before the manifest checks the rest.
 
 use super::manifest::{Digest, Manifest};
-use super::nets::Mlp;
 use crate::io::Existing;
+use crate::learning::nets::Mlp;
 use crate::scene::Scene;
 use dfdx::shapes::HasShape;
 use safetensors::tensor::{Dtype, SafeTensors, TensorView};

@@ -5,8 +5,8 @@
 //!   scene.ron          the resolved scene the run was trained on
 //!   provenance.ron     what made it: coevo's version and the species plugins the run needs
 //!   metrics.csv        one row per training episode
-//!   checkpoint/        networks, optimizer moments, RNG states, replay buffers (learning::checkpoint)
-//!   snapshots/         each learning species' actor every `snapshot_every` episodes (learning::checkpoint)
+//!   checkpoint/        networks, optimizer moments, RNG states, replay buffers (store::checkpoint)
+//!   snapshots/         each learning species' actor every `snapshot_every` episodes (store::checkpoint)
 //!   eval*.csv          evaluations (`--eval`), each with -nn, -correlation and -confusion files beside
 //!   coevo.lock         while a process trains or evaluates it: that process's PID
 //! ```
@@ -44,8 +44,8 @@ pub(crate) const CROSSPLAY: &str = "crossplay";
 pub(crate) const CROSSPLAY_READOUTS: &str = "crossplay-readouts";
 /// The stem of every snapshot's rating from the cross-play matrix (`crossplay-ratings.csv`).
 pub(crate) const CROSSPLAY_RATINGS: &str = "crossplay-ratings";
-/// The checkpoint folders are the checkpoint's own (`learning::checkpoint`).
-pub(crate) use crate::learning::files::{CHECKPOINT, CHECKPOINT_OLD, CHECKPOINT_TMP, SNAPSHOTS};
+/// The checkpoint folders are the checkpoint's own (`store::checkpoint`).
+pub(crate) use super::names::{CHECKPOINT, CHECKPOINT_OLD, CHECKPOINT_TMP, SNAPSHOTS};
 /// The rules `--distill` fitted to the run's actors (`analysis::distill`).
 pub(crate) const DISTILLED: &str = "distilled.ron";
 /// The files an evaluation writes beside its per-step CSV (`OUT-nn.csv`, ...); the confusion curve last.
@@ -69,7 +69,7 @@ fn outputs_of_the_run(name: &str) -> bool {
     stem == eval || stem.strip_prefix(eval).is_some_and(|rest| rest.starts_with('-')) || stem.starts_with(CROSSPLAY)
 }
 
-pub(super) fn io_err(path: &Path) -> impl Fn(std::io::Error) -> String + '_ {
+pub(crate) fn io_err(path: &Path) -> impl Fn(std::io::Error) -> String + '_ {
     move |e| format!("{}: {e}", path.display())
 }
 
@@ -108,7 +108,7 @@ impl RunDir {
 
     /// A species' trained actor in the checkpoint.
     pub fn actor(&self, species: &str) -> PathBuf {
-        self.checkpoint().join(crate::learning::files::actor_name(species))
+        self.checkpoint().join(super::names::actor_name(species))
     }
 
     pub(crate) fn provenance(&self) -> PathBuf {
@@ -140,28 +140,24 @@ impl RunDir {
         self.path.join(SNAPSHOTS)
     }
 
-    /// The checkpoint's state (`learning::checkpoint::TrainingState`).
+    /// The checkpoint's state (`store::checkpoint::TrainingState`).
     pub(crate) fn state(&self) -> PathBuf {
-        self.checkpoint().join(crate::learning::files::STATE)
+        self.checkpoint().join(super::names::STATE)
     }
 
     /// `metrics.csv`'s rows up to the checkpoint whose manifest gives `expected` (the digest of its first
     /// `expected.bytes` bytes): refused in one line where they differ from what was trained (edited, cut
     /// or lost since). Rows after them (episodes trained after the checkpoint) are not returned.
-    pub(crate) fn metrics_up_to(&self, expected: &crate::learning::manifest::Digest) -> crate::error::Result<String> {
+    pub(crate) fn metrics_up_to(&self, expected: &super::manifest::Digest) -> crate::error::Result<String> {
         let text = crate::io::read_text(&self.metrics(), crate::io::MAX_TEXT_BYTES)?;
         Ok(self.rows_as_trained(&text, expected)?.to_string())
     }
 
     /// The first `expected.bytes` bytes of `text` (the run's `metrics.csv` as read), refused unless they
     /// hash to `expected` ([`RunDir::metrics_up_to`]).
-    fn rows_as_trained<'t>(
-        &self,
-        text: &'t str,
-        expected: &crate::learning::manifest::Digest,
-    ) -> crate::error::Result<&'t str> {
+    fn rows_as_trained<'t>(&self, text: &'t str, expected: &super::manifest::Digest) -> crate::error::Result<&'t str> {
         let head = text.get(..expected.bytes as usize).unwrap_or(text);
-        if crate::learning::manifest::Digest::of(head.as_bytes()) != *expected {
+        if super::manifest::Digest::of(head.as_bytes()) != *expected {
             return Err(format!(
                 "{}: its rows up to the checkpoint differ from what was trained (changed, cut or lost since: the checkpoint's manifest hashes them); restore the file or train the run again",
                 self.metrics().display()
@@ -193,7 +189,7 @@ impl RunDir {
                     false => Err(format!("{shown}: the run has no checkpoint to count its {rows} rows against (stopped before its first); --partial draws them, marked partial").into()),
                 };
             }
-            let (state, manifest) = crate::learning::checkpoint::read_checked_state(&self.checkpoint())?;
+            let (state, manifest) = super::checkpoint::read_checked_state(&self.checkpoint())?;
             let done = state.episodes_done;
             // The count first (the plainer message), then the rows' bytes against the manifest.
             let counted: crate::error::Result<Option<String>> = match rows.cmp(&done) {
@@ -323,8 +319,8 @@ impl RunDir {
                     let name = entry.file_name().to_string_lossy().into_owned();
                     let ours = entry.file_type().is_ok_and(|t| t.is_file())
                         && (name.ends_with(".safetensors")
-                            || name == crate::learning::files::STATE
-                            || name == crate::learning::manifest::MANIFEST
+                            || name == super::names::STATE
+                            || name == super::manifest::MANIFEST
                             || (name.starts_with('.') && name.ends_with(".tmp")));
                     if !ours {
                         return Err(format!(
@@ -480,7 +476,7 @@ impl RunDir {
     /// checkpoint is missing, removed where the new one is whole), temporaries of dead PIDs.
     fn remove_leftovers(&self) {
         let _ = std::fs::remove_dir_all(self.path.join(CHECKPOINT_TMP));
-        crate::learning::checkpoint::finish_swap(&self.path);
+        super::checkpoint::finish_swap(&self.path);
         crate::io::remove_stale_temporaries(&self.path, None);
         crate::io::remove_stale_temporaries(&self.checkpoint(), None);
         crate::io::remove_stale_temporaries(&self.path.join(SNAPSHOTS), None);

@@ -117,7 +117,7 @@ pub fn fingerprint(run: &std::path::Path) -> crate::error::Result<String> {
     let mut files: Vec<std::path::PathBuf> = std::fs::read_dir(&checkpoint)
         .map_err(|e| format!("{}: {e}", checkpoint.display()))?
         .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| p.is_file() && p.file_name().is_some_and(|n| n != crate::learning::manifest::MANIFEST))
+        .filter(|p| p.is_file() && p.file_name().is_some_and(|n| n != super::manifest::MANIFEST))
         .collect();
     files.sort();
     for path in files {

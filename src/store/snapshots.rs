@@ -2,10 +2,10 @@
 //! run (not part of the checkpoint; the checkpoint's manifest hashes those up to it).
 
 use super::checkpoint::run_manifest;
-use super::files::{checkpoint_dir, parse_snapshot_name, snapshot_path, SNAPSHOTS};
-use super::nets::Mlp;
+use super::names::{checkpoint_dir, parse_snapshot_name, snapshot_path, SNAPSHOTS};
 use super::tensors::{metadata, mlp_from, read_as, sealed, write_actor, Expected};
 use crate::error::{Kind, ResultExt};
+use crate::learning::nets::Mlp;
 use crate::scene::Scene;
 use std::path::Path;
 

@@ -1,5 +1,5 @@
 //! The names of the files learning writes in a run folder: the checkpoint folder and its swap, the state,
-//! each species' actor, training and replay-segment files, and the snapshots. `run::RunDir` gives the
+//! each species' actor, training and replay-segment files, and the snapshots. `store::RunDir` gives the
 //! paths of the run folder to everything above `learning/`; these are the names below it.
 
 use std::path::{Path, PathBuf};

@@ -40,15 +40,15 @@
 //! The files' names are `files.rs`; the safetensors format (metadata, names as PyTorch's, finite F32
 //! tensors) `tensors.rs`; the replay segments `replay_segments.rs`; snapshots `snapshots.rs`.
 
-use super::ddpg::Ddpg;
-use super::files::*;
-use super::learner::SpeciesLearner;
 use super::manifest::{Digest, Manifest, SpeciesEntry, MANIFEST};
-use super::nets::Mlp;
+use super::names::*;
 use super::replay_segments::{load_replay, save_replay, segments};
 use super::tensors::*;
 use crate::error::{Kind, ResultExt};
 use crate::io::Existing;
+use crate::learning::ddpg::Ddpg;
+use crate::learning::learner::SpeciesLearner;
+use crate::learning::nets::Mlp;
 use crate::scene::Scene;
 use dfdx::shapes::HasShape;
 use rand_chacha::ChaCha8Rng;
@@ -74,7 +74,7 @@ pub struct TrainingState {
     /// Opponents from the past (`learning.opponents`): the league's draws and record; absent in runs
     /// without a pool, so their checkpoints are as before.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub(crate) league: Option<super::league::LeagueState>,
+    pub(crate) league: Option<crate::learning::league::LeagueState>,
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize)]
