@@ -32,6 +32,7 @@ from pettingzoo import ParallelEnv as _ParallelEnv
 
 from ._coevo import Env as _Env
 from ._coevo import VecEnv as _VecEnv
+from ._coevo import save_movement as _save_movement
 from ._coevo import scene_text as _read_scene_text
 from ._coevo import RunFolder, __version__, compare_curves, force_maps, git_commit, response_fields, t_estimate, welch, world_seed
 from ._coevo import (  # one exception class per kind of error, all subclasses of CoevoError (a ValueError)
@@ -206,6 +207,11 @@ class CoevoParallelEnv(_ParallelEnv):
     def episode_steps(self) -> int:
         return self._env.episode_steps
 
+    @property
+    def dt(self) -> float:
+        """The time step (s): ``positions()`` after successive steps are ``1 / dt`` frames per second apart."""
+        return self._env.dt
+
     def positions(self) -> np.ndarray:
         """Every agent's position ``[agents of all species, 2]`` (m), by coevo's agent id (the ``id``
         column of ``coevo --record``), rule-based species included."""
@@ -318,13 +324,20 @@ class CoevoParallelEnv(_ParallelEnv):
             self._window = None
 
 
-def save_trajectories(path: str, positions, species: list[str]) -> None:
+def save_trajectories(path: str, positions, species: list[str], fps: float | None = None) -> None:
     """Writes positions collected from an env (``positions()`` after each step, stacked: ``[frames,
-    individuals, 2]``, metres) in the layout of idtracker.ai and trajectorytools, as ``coevo --record
-    OUT.npy`` does: ``path`` (float64) and ``PATH-species.npy`` beside it naming each individual's species
-    (``individual_species()``). ``trajectorytools.Trajectories.from_positions(np.load(path))`` reads it.
-    Refuses, writing nothing, a wrong shape, a non-finite position, a species list of another length, or a
-    path that exists."""
+    individuals, 2]``, metres) with each individual's species (``individual_species()``), by the path's
+    ending, as ``coevo --record`` does:
+
+    - ``OUT.npy``: the layout of idtracker.ai and trajectorytools, ``path`` (float64) and
+      ``PATH-species.npy`` beside it naming each individual's species;
+      ``trajectorytools.Trajectories.from_positions(np.load(path))`` reads it;
+    - ``OUT.nc``: a ``movement`` poses dataset in netCDF (``position``, ``confidence``, ``species``,
+      individuals named ``predator_0``, ...), time in seconds with ``fps`` (``1 / env.dt``), in
+      frames without; ``xarray.open_dataset(path)`` reads it.
+
+    Refuses, writing nothing, a wrong shape, a non-finite position, a species list of another length, a
+    non-positive fps, another ending, or a path that exists."""
     import os
 
     positions = np.asarray(positions, dtype=np.float64)
@@ -335,8 +348,14 @@ def save_trajectories(path: str, positions, species: list[str]) -> None:
     if len(species) != positions.shape[1]:
         raise InputError(f"species: {len(species)} names for {positions.shape[1]} individuals")
     path = os.fspath(path)
+    if path.endswith(".nc"):
+        if os.path.exists(path):
+            raise InputError(f"{path}: exists; not overwritten")
+        _save_movement(path, np.ascontiguousarray(positions), [str(s) for s in species],
+                             None if fps is None else float(fps))
+        return
     if not path.endswith(".npy"):
-        raise InputError(f"path: {path!r} does not end in .npy")
+        raise InputError(f"path: {path!r} ends in neither .npy nor .nc")
     species_path = path[: -len(".npy")] + "-species.npy"
     for p in (path, species_path):
         if os.path.exists(p):

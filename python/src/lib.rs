@@ -231,6 +231,12 @@ impl Env {
         self.inner.episode_steps()
     }
 
+    /// The time step (s): `positions()` after successive steps are `1 / dt` frames per second apart.
+    #[getter]
+    fn dt(&self) -> f64 {
+        self.inner.scene().world.dt
+    }
+
     #[getter]
     fn seed(&self) -> u64 {
         self.inner.scene().seed
@@ -630,6 +636,23 @@ fn world_seed(seed: u64, i: u64) -> u64 {
     coevo::run::env::world_seed(seed, i)
 }
 
+/// Positions `[frames, individuals, 2]` (m) with each individual's species written to `path` as a
+/// `movement` poses dataset in netCDF, as `coevo --record OUT.nc` writes one (`coevo::run::movement`);
+/// `fps` None gives a time coordinate in frames. Refuses an existing file, writing nothing.
+#[pyfunction]
+#[pyo3(signature = (path, positions, species, fps=None))]
+fn save_movement(path: &str, positions: PyReadonlyArray3<f64>, species: Vec<String>, fps: Option<f64>) -> PyResult<()> {
+    let view = positions.as_array();
+    let frames: Vec<Vec<(f64, f64)>> =
+        view.outer_iter().map(|frame| frame.outer_iter().map(|p| (p[0], p[1])).collect()).collect();
+    let poses = coevo::run::movement::Poses { positions: &frames, species: &species, fps };
+    coevo::run::movement::write(Path::new(path), &poses, coevo::io::Existing::Refuse).map_err(|e| {
+        let mut e = e;
+        e.kind = coevo::error::Kind::Input;
+        err(e)
+    })
+}
+
 #[pymodule]
 fn _coevo(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", coevo::VERSION)?;
@@ -644,6 +667,7 @@ fn _coevo(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(t_estimate, m)?)?;
     m.add_function(wrap_pyfunction!(welch, m)?)?;
     m.add_function(wrap_pyfunction!(compare_curves, m)?)?;
+    m.add_function(wrap_pyfunction!(save_movement, m)?)?;
     let py = m.py();
     m.add("CoevoError", py.get_type::<CoevoError>())?;
     m.add("SceneError", py.get_type::<SceneError>())?;

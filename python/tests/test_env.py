@@ -908,3 +908,80 @@ def test_positions_collected_in_python_save_in_records_layout(tmp_path):
         np.testing.assert_array_equal(np.load(tmp_path / "cli-species.npy"), species)
     tt = pytest.importorskip("trajectorytools")
     assert tt.Trajectories.from_positions(positions).number_of_individuals == 13
+
+
+def _movement_dataset(path):
+    # A `movement` poses dataset as movement's own netCDF loader opens one (its napari widget):
+    # xarray.open_dataset, then movement's validator where movement is installed (.ci/run installs it).
+    xr = pytest.importorskip("xarray")
+    ds = xr.open_dataset(path)
+    try:
+        from movement.validators.datasets import ValidPosesInputs
+    except ImportError:
+        ValidPosesInputs = None
+    if ValidPosesInputs is not None:
+        ValidPosesInputs.validate(ds)
+    return ds
+
+
+def test_a_record_as_netcdf_is_a_movement_poses_dataset(tmp_path):
+    # `coevo --record OUT.nc` holds `--record OUT.npy`'s positions for the same seed, in movement's layout:
+    # position (time, space, keypoints, individuals), individuals named by species, time in seconds.
+    import subprocess
+
+    built = [os.path.join(ROOT, "target", p, "coevo") for p in ("debug", "release")]
+    binary = next((b for b in built if os.path.exists(b)), None)
+    if binary is None:
+        pytest.skip("no coevo binary built (cargo build)")
+    for name in ("movement.nc", "swarm.npy"):
+        subprocess.run([binary, "--record", str(tmp_path / name), "--scene", STANDARD, "--steps", "30", "--seed", "2"],
+                       check=True, capture_output=True)
+    ds = _movement_dataset(tmp_path / "movement.nc")
+    assert ds.position.dims == ("time", "space", "keypoints", "individuals")
+    assert ds.attrs["ds_type"] == "poses" and ds.attrs["source_software"] == "coevo"
+    assert ds.attrs["time_unit"] == "seconds"
+    np.testing.assert_allclose(ds.time.values * ds.attrs["fps"], np.arange(31), rtol=0, atol=1e-9)
+    positions = np.load(tmp_path / "swarm.npy")
+    # movement's [time, space, keypoint 0, individuals] is the npy's [frames, individuals, 2] transposed.
+    np.testing.assert_array_equal(ds.position.values[:, :, 0, :].transpose(0, 2, 1), positions)
+    np.testing.assert_array_equal(ds.species.values.astype(str), np.load(tmp_path / "swarm-species.npy"))
+    assert list(ds.individuals.values.astype(str)[:4]) == ["predator_0", "predator_1", "predator_2", "prey_0"]
+    assert list(ds.space.values.astype(str)) == ["x", "y"] and (ds.confidence.values == 1).all()
+    try:
+        from movement.kinematics import compute_speed
+    except ImportError:
+        return
+    # movement's own kinematics on it: speeds as the positions give them (frames 1/fps apart).
+    speed = compute_speed(ds.position).values[:, 0, :]
+    assert np.isfinite(speed).all() and (speed < 100).all()
+
+
+def test_positions_collected_in_python_save_as_a_movement_dataset(tmp_path):
+    # save_trajectories("OUT.nc", ...) writes what `coevo --record OUT.nc` writes, from positions collected
+    # in Python, with the env's time step; it refuses what the npy form refuses, writing nothing.
+    env = coevo.parallel_env(STANDARD, seed=2, episode_steps=30)
+    env.reset()
+    frames = [env.positions()]
+    while env.agents:
+        env.step({a: np.array([0.5, 0.1], np.float32) for a in env.agents})
+        frames.append(env.positions())
+    out = tmp_path / "mine.nc"
+    coevo.save_trajectories(out, frames, env.individual_species(), fps=1 / env.dt)
+    ds = _movement_dataset(out)
+    np.testing.assert_array_equal(ds.position.values[:, :, 0, :].transpose(0, 2, 1), np.stack(frames))
+    assert ds.attrs["fps"] == 1 / env.dt
+    assert list(ds.species.values.astype(str)) == env.individual_species()
+    with pytest.raises(coevo.InputError, match="exists"):
+        coevo.save_trajectories(out, frames, env.individual_species())
+    for bad, match in (({"species": ["prey"]}, "names for"), ({"fps": 0.0}, "fps 0"),
+                       ({"fps": float("nan")}, "fps NaN")):
+        args = {"species": env.individual_species(), **bad}
+        with pytest.raises(coevo.InputError, match=match):
+            coevo.save_trajectories(tmp_path / "other.nc", frames, **args)
+    with pytest.raises(coevo.InputError, match="neither"):
+        coevo.save_trajectories(tmp_path / "other.h5", frames, env.individual_species())
+    assert not (tmp_path / "other.nc").exists() and not (tmp_path / "other.h5").exists()
+    # Without fps, time counts frames.
+    coevo.save_trajectories(tmp_path / "frames.nc", frames, env.individual_species())
+    ds = _movement_dataset(tmp_path / "frames.nc")
+    assert ds.attrs["time_unit"] == "frames" and list(ds.time.values[:3]) == [0, 1, 2]

@@ -13,6 +13,7 @@ pub mod env;
 pub mod evaluate;
 pub(crate) mod explain;
 pub mod live;
+pub mod movement;
 pub(crate) mod perturb;
 pub(crate) mod progress;
 pub(crate) mod record;

@@ -13,6 +13,9 @@
 //! simulated (on a torus, wrapped into the arena); `OUT-species.npy` beside it names each individual's
 //! species (`trajectorytools.Trajectories.from_positions(np.load("OUT.npy"))` reads the first).
 //!
+//! `--record OUT.nc` writes the same positions as a `movement` poses dataset in netCDF ([`super::movement`]),
+//! with each individual's species and the time in seconds.
+//!
 //! Beside either, `OUT-order.csv` holds the order parameters of every species with two or more agents at
 //! every step (`step,species,dos,doa,polarization,milling,clusters,largest_cluster,nn_correlation`, see
 //! [`crate::sim::metrics::Swarming`]); step 0, the spawned state, is not measured.
@@ -33,7 +36,8 @@ pub(crate) const HEADER: &str = "step,id,species,x,y,vx,vy,theta,thrust,turn_rat
 pub(crate) struct RecordArgs {
     /// Record a trajectory CSV: step,id,species,x,y,vx,vy,theta,thrust,turn_rate,reward; OUT.npy writes
     /// the positions as idtracker.ai and trajectorytools lay them out ([frames, individuals, 2], metres),
-    /// with OUT-species.npy naming each individual's species.
+    /// with OUT-species.npy naming each individual's species; OUT.nc writes them as a `movement` poses
+    /// dataset (netCDF).
     #[arg(long, help_heading = "Modes", value_name = "OUT.csv")]
     pub(crate) record: Option<std::path::PathBuf>,
 }
@@ -62,26 +66,35 @@ pub(crate) fn main(
 pub(crate) fn record(sim: &mut Simulation, steps: usize, path: &Path, existing: Existing) -> crate::error::Result<()> {
     let io_err = |e: io::Error| format!("{}: {e}", path.display());
     let npy = path.extension().is_some_and(|e| e == "npy");
+    let netcdf = path.extension().is_some_and(|e| e == "nc");
     let order_path = crate::io::beside(path, "order");
     let order_err = |e: io::Error| format!("{}: {e}", order_path.display());
     let species_path = crate::io::beside(path, "species").with_extension("npy");
     let species_err = |e: io::Error| format!("{}: {e}", species_path.display());
     sim.world_mut().resource_mut::<Episode>().auto_reset = false;
+    if netcdf {
+        crate::io::check_target(path, existing).map_err(io_err)?;
+    }
     crate::io::check_target(&order_path, existing).map_err(order_err)?;
     if npy {
         crate::io::check_target(&species_path, existing).map_err(species_err)?;
     }
-    let mut file = AtomicFile::create(path, existing).map_err(io_err)?;
+    // The netCDF file is written whole at the end (its writer takes each variable whole); the others stream.
+    let mut file = match netcdf {
+        true => None,
+        false => Some(AtomicFile::create(path, existing).map_err(io_err)?),
+    };
     let mut order = AtomicFile::create(&order_path, existing).map_err(order_err)?;
     let first = snapshot(sim);
+    let mut frames: Vec<Vec<(f64, f64)>> = Vec::new();
     let mut species = None;
     if npy {
-        npy_header(file.writer(), "<f8", &[steps + 1, first.len(), 2]).map_err(io_err)?;
+        npy_header(file.as_mut().expect("streamed").writer(), "<f8", &[steps + 1, first.len(), 2]).map_err(io_err)?;
         let names: Vec<&str> = first.iter().map(|r| r.species.as_str()).collect();
         let mut f = AtomicFile::create(&species_path, existing).map_err(species_err)?;
         npy_strings(f.writer(), &names).map_err(species_err)?;
         species = Some(f);
-    } else {
+    } else if let Some(file) = file.as_mut() {
         writeln!(file.writer(), "{HEADER}").map_err(io_err)?;
     }
     writeln!(order.writer(), "step,species,{}", Swarming::NAMES.join(",")).map_err(order_err)?;
@@ -103,6 +116,10 @@ pub(crate) fn record(sim: &mut Simulation, steps: usize, path: &Path, existing: 
         } else {
             None
         };
+        let Some(file) = file.as_mut() else {
+            frames.push(states.iter().map(|s| (s.x, s.y)).collect());
+            continue;
+        };
         let out = file.writer();
         if npy {
             for s in &states {
@@ -119,7 +136,15 @@ pub(crate) fn record(sim: &mut Simulation, steps: usize, path: &Path, existing: 
             .map_err(io_err)?;
         }
     }
-    file.commit().map_err(io_err)?;
+    match file {
+        Some(file) => file.commit().map_err(io_err)?,
+        None => {
+            let species: Vec<String> = first.iter().map(|r| r.species.clone()).collect();
+            let fps = 1.0 / sim.world().resource::<crate::sim::ActiveScene>().0.world.dt;
+            let poses = super::movement::Poses { positions: &frames, species: &species, fps: Some(fps) };
+            super::movement::write(path, &poses, existing)?;
+        }
+    }
     if let Some(f) = species {
         f.commit().map_err(species_err)?;
     }

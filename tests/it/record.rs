@@ -379,3 +379,50 @@ fn a_record_as_npy_holds_the_csvs_positions_in_trajectorytools_layout() {
     assert_eq!(first, "predator");
     assert!(dir.path().join("n-order.csv").exists());
 }
+
+#[test]
+fn a_record_as_netcdf_holds_the_csvs_positions_in_movement_s_layout() {
+    // `--record OUT.nc`: a `movement` poses dataset, position (time, space, keypoints, individuals) the CSV
+    // record's x and y to the bit, individuals by id and named by species, time in seconds (fps = 1/dt);
+    // an existing file is refused and left as it was.
+    let dir = tempfile::tempdir().unwrap();
+    let csv = record(dir.path(), "r.csv", "scenes/standard.ron", "3", "20");
+    let nc = dir.path().join("m.nc");
+    let args = ["--record", nc.to_str().unwrap(), "--scene", "scenes/standard.ron", "--steps", "20", "--seed", "3"];
+    let o = coevo(&args);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let mut reader = netcdf3::FileReader::open(&nc).unwrap();
+    let position = reader.read_var_f64("position").unwrap();
+    let time = reader.read_var_f64("time").unwrap();
+    let individuals = reader.read_var_u8("individuals").unwrap();
+    let species = reader.read_var_u8("species").unwrap();
+    let set = reader.data_set();
+    assert_eq!(set.get_var("position").unwrap().dim_names(), ["time", "space", "keypoints", "individuals"]);
+    assert_eq!(set.get_global_attr_as_string("ds_type").unwrap(), "poses");
+    assert_eq!(set.get_global_attr_as_string("time_unit").unwrap(), "seconds");
+    let fps = set.get_global_attr_f64("fps").unwrap()[0];
+    let rows: Vec<Vec<&str>> = csv.lines().skip(1).map(|l| l.split(',').collect()).collect();
+    let n = 13;
+    assert_eq!(position.len(), rows.len() * 2);
+    for (k, row) in rows.iter().enumerate() {
+        let (t, i) = (k / n, k % n);
+        let (x, y) = (position[t * 2 * n + i], position[t * 2 * n + n + i]);
+        assert_eq!([x, y], [row[3].parse::<f64>().unwrap(), row[4].parse::<f64>().unwrap()]);
+        assert_eq!(row[0].parse::<usize>().unwrap(), t);
+    }
+    assert_eq!(time.len(), 21);
+    assert!((time[20] - 20.0 / fps).abs() < 1e-12);
+    let words = |bytes: &[u8], width: usize| -> Vec<String> {
+        bytes
+            .chunks(width)
+            .map(|c| String::from_utf8(c.iter().copied().take_while(|b| *b != 0).collect()).unwrap())
+            .collect()
+    };
+    assert_eq!(words(&individuals, individuals.len() / n)[..4], ["predator_0", "predator_1", "predator_2", "prey_0"]);
+    assert_eq!(words(&species, species.len() / n)[3], "prey");
+    let before = std::fs::read(&nc).unwrap();
+    let o = coevo(&args);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("m.nc"), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(std::fs::read(&nc).unwrap(), before);
+}
