@@ -82,6 +82,10 @@ class Args:
     coevolve: str = ""
     # or "frozen", or "alternate:K": coevo's side learns K episodes, then is held K; PPO learns throughout.
     coevolve_schedule: str = "learning"
+    # Measure the prey's learning as the recipes do (recipe_common.py): catches per episode of the
+    # deterministic policy on fixed evaluation worlds, as initialised and as trained, into OUT/catches.json.
+    # For a scene where only the prey learn (scenes/prey-vs-chasers.ron).
+    catches: bool = False
 
 
 def mlp(d_in: int, hidden: int, d_out: int, tanh_out: bool) -> nn.Sequential:
@@ -158,6 +162,17 @@ def main(args: Args) -> None:
     losses = {s: ("", "", "") for s in learning}  # value loss, policy loss, std of the latest update
     started = time.time()
 
+    if args.catches:
+        import recipe_common
+
+        if species != ["prey"]:
+            raise SystemExit(f"--catches: the prey must be the only species PPO trains, not {species}")
+
+        def deterministic(obs: np.ndarray) -> np.ndarray:
+            with torch.no_grad():
+                return agents["prey"].actor_mean(torch.from_numpy(obs)).numpy()
+
+        untrained = recipe_common.catches_per_episode(deterministic, args.scene)
     obs = env.reset()
     done = np.zeros(args.num_envs, np.float32)
     iterations = args.total_world_steps // (args.num_envs * args.num_steps)
@@ -239,6 +254,11 @@ def main(args: Args) -> None:
             print(f"iteration {it + 1}/{iterations}, {(it + 1) * args.num_envs * args.num_steps} world steps, "
                   f"{time.time() - started:.0f} s", flush=True)
     metrics.close()
+    if args.catches:
+        recipe_common.write_result(args.out, "cleanrl", args.seed, untrained,
+                                   recipe_common.catches_per_episode(deterministic, args.scene),
+                                   world_steps=iterations * args.num_envs * args.num_steps, copies=args.num_envs,
+                                   seconds=round(time.time() - started, 1), torch=torch.__version__)
     if coevolve:
         # coevo's side of world 0, saved between episodes: the policies play on until its episode ends.
         while True:
