@@ -125,7 +125,7 @@ pub(crate) unsafe fn product(
                 let (col0, col1) = (a.add(2 * q * a_cs), (2 * q + 1 < k).then(|| a.add((2 * q + 1) * a_cs)));
                 interleave(m, col0, col1, pa.as_mut_ptr().add(q * m));
             }
-        } else if a_cs == 1 && a_rs == k && k % 2 == 0 {
+        } else if a_cs == 1 && a_rs == k && k.is_multiple_of(2) {
             // Dense rows of an even length: row i's pairs are its words, and the rows follow each other, so
             // the packed A is the whole block's bf16 words in order (one pass, not one call per row).
             convert(m * k, a, pa.as_mut_ptr().cast());

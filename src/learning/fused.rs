@@ -80,7 +80,7 @@ impl Pass {
                 z.chunks_exact_mut(outputs).for_each(|row| row.iter_mut().zip(bias).for_each(|(v, b)| *v = f(*v + b)))
             };
             match (l == last, net.output) {
-                (false, _) => rows_of(z, |v| v.max(0.0)),
+                (false, _) => super::wide::run(|| rows_of(z, |v| v.max(0.0))),
                 (true, Output::Tanh) => rows_of(z, f32::tanh),
                 (true, Output::Linear) => rows_of(z, |v| v),
             }
@@ -137,9 +137,11 @@ impl Pass {
                     );
                 }
                 db.fill(0.0);
-                for row in delta.chunks_exact(outputs) {
-                    db.iter_mut().zip(row).for_each(|(s, d)| *s += d);
-                }
+                super::wide::run(|| {
+                    for row in delta.chunks_exact(outputs) {
+                        db.iter_mut().zip(row).for_each(|(s, d)| *s += d);
+                    }
+                });
             }
             if l > 0 {
                 // δ_below = (δ·W) ⊙ ReLU'(x): x is the ReLU output below, positive exactly where its input was.
@@ -161,7 +163,7 @@ impl Pass {
                 }
                 // A multiplication by 0 or 1, not a branch: the compiler vectorizes it (a branch here took a
                 // third of an update), and it is dfdx's own ReLU backward, bit for bit.
-                below.iter_mut().zip(x).for_each(|(d, &x)| *d *= if x > 0.0 { 1.0 } else { 0.0 });
+                super::wide::run(|| below.iter_mut().zip(x).for_each(|(d, &x)| *d *= if x > 0.0 { 1.0 } else { 0.0 }));
                 std::mem::swap(&mut delta, &mut below);
             } else if let Some((columns, out)) = d_input.take() {
                 let n = columns.len();

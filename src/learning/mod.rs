@@ -21,6 +21,7 @@ pub(crate) mod league;
 pub(crate) mod learner;
 pub mod nets;
 pub(crate) mod replay;
+pub(crate) mod wide;
 
 use crate::scene::{LearningParams, NoiseDraw, Policy, Scene};
 use crate::sim::clock::Episode;

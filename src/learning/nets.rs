@@ -329,7 +329,7 @@ impl Mlp {
     /// Soft target update θ' ← τ·θ + (1 − τ)·θ' (Algorithm 1, last line), in place.
     pub(crate) fn soft_update_towards(&mut self, online: &Mlp, tau: f32) {
         for (target, online) in self.parameters_mut().zip(online.parameter_slices()) {
-            target.iter_mut().zip(online).for_each(|(t, o)| *t = tau * o + (1.0 - tau) * *t);
+            super::wide::run(|| target.iter_mut().zip(online).for_each(|(t, o)| *t = tau * o + (1.0 - tau) * *t));
         }
     }
 
@@ -363,13 +363,16 @@ impl Adam {
         self.step += 1;
         let correct1 = 1.0 - BETA1.powi(self.step as i32);
         let correct2 = 1.0 - BETA2.powi(self.step as i32);
+        let lr = self.lr;
         for (((p, g), m), v) in net.parameters_mut().zip(gradients).zip(&mut self.m).zip(&mut self.v) {
-            // Zipped slices, not indices: no bounds checks, so the loop vectorizes.
-            for (((p, g), m), v) in p.iter_mut().zip(g).zip(m.iter_mut()).zip(v.iter_mut()) {
-                *m = flush_subnormal(BETA1 * *m + (1.0 - BETA1) * g);
-                *v = flush_subnormal(BETA2 * *v + (1.0 - BETA2) * g * g);
-                *p -= self.lr * (*m / correct1) / ((*v / correct2).sqrt() + EPSILON);
-            }
+            // Zipped slices, not indices: no bounds checks, so the loop vectorizes (as wide as the CPU allows).
+            super::wide::run(|| {
+                for (((p, g), m), v) in p.iter_mut().zip(g).zip(m.iter_mut()).zip(v.iter_mut()) {
+                    *m = flush_subnormal(BETA1 * *m + (1.0 - BETA1) * g);
+                    *v = flush_subnormal(BETA2 * *v + (1.0 - BETA2) * g * g);
+                    *p -= lr * (*m / correct1) / ((*v / correct2).sqrt() + EPSILON);
+                }
+            });
         }
     }
 }
