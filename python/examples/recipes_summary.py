@@ -71,6 +71,19 @@ def main(folder: str) -> None:
         cells = [f"seed {x['seed']}: {x['catches_untrained']:.1f} → {x['catches_trained']:.1f} ({x['seconds']:.0f} s)"
                  for x in runs[r]]
         lines.append(f"- `{r}`: " + "; ".join(cells) + f" (coevo {runs[r][0]['coevo_commit']})")
+    # Descriptive, not part of the test: fixed actions on the same evaluation worlds, as yardsticks.
+    import numpy as np
+
+    from recipe_common import catches_per_episode
+
+    rng = np.random.default_rng(1)
+    references = {
+        "uniform random actions (seeded)": lambda o: rng.uniform(-1.0, 1.0, (o.shape[0], 2)),
+        "action (0, 0) always": lambda o: np.zeros((o.shape[0], 2)),
+        "action (1, 0) always (full thrust, no turn)": lambda o: np.tile([1.0, 0.0], (o.shape[0], 1)),
+    }
+    lines += ["", "Yardsticks on the same evaluation worlds (descriptive, not tested): catches per episode of "
+              + "; ".join(f"{name} {catches_per_episode(act):.1f}" for name, act in references.items()) + "."]
     out = os.path.join(folder, "summary.md")
     with open(out + ".tmp", "w") as f:
         f.write("\n".join(lines) + "\n")

@@ -43,10 +43,11 @@ def test_the_gymnasium_snippet(monkeypatch, capsys):
 
 def test_the_stable_baselines3_snippet(monkeypatch):
     scope = run(snippet("**Stable-Baselines3**"), {"episode_steps=500": "episode_steps=20",
-                "total_timesteps=100_000": "total_timesteps=2 * 64 * 52"},
+                "total_timesteps=1_000_000": "total_timesteps=128 * 40"},
                 ["stable_baselines3", "supersuit"], monkeypatch)
     model, copies = scope["model"], scope["vec"].venv.vec_envs
-    assert model.num_timesteps == 2 * 64 * 52 and model.observation_space.shape == scope["vec"].observation_space.shape
+    # One rollout of 128 steps of 4 copies × 10 prey: only the prey are agents, the predators chase by a rule.
+    assert model.num_timesteps == 128 * 40 and model.observation_space.shape == scope["vec"].observation_space.shape
     # Seeded beneath SuperSuit's wrapper, the four copies run four different worlds.
     assert len({tuple(copy.par_env.positions()[0]) for copy in copies}) == 4
 
@@ -75,3 +76,53 @@ def test_ppo_prey_against_predators_that_coevo_keeps_training(tmp_path, monkeypa
     assert "critic_loss_prey" in rows[0] and "critic_loss_predator" not in rows[0]
     coevo_side = (out / "coevo-world0" / "metrics.csv").read_text().splitlines()
     assert "critic_loss_predator" in coevo_side[0] and len(coevo_side) >= 2
+
+
+def recipe(tmp_path, script: str, args: list[str], needs: list[str]) -> dict:
+    """A recipe of the guide's "Recipes that learn", shorter (a few batches, not a training): it writes
+    catches.json with the untrained and trained policies' catches per episode on the evaluation worlds."""
+    for module in needs:
+        if importlib.util.find_spec(module) is None:
+            pytest.skip(f"{module} is not installed")
+    import json
+    import math
+    import subprocess
+    import sys
+
+    out = tmp_path / "run"
+    subprocess.run([sys.executable, os.path.join(ROOT, "python", "examples", script), "--seed", "2",
+                    "--out", str(out), *args], check=True, cwd=ROOT)
+    result = json.loads((out / "catches.json").read_text())
+    assert math.isfinite(result["catches_untrained"]) and math.isfinite(result["catches_trained"])
+    assert result["trained_minus_untrained"] == result["catches_trained"] - result["catches_untrained"]
+    return result
+
+
+def test_the_stable_baselines3_recipe(tmp_path):
+    result = recipe(tmp_path, "recipe_sb3.py", ["--world-steps", "600", "--copies", "2"],
+                    ["torch", "stable_baselines3", "supersuit"])
+    assert result["route"] == "sb3" and (tmp_path / "run" / "sb3-prey.zip").exists()
+
+
+def test_the_torchrl_recipe(tmp_path):
+    result = recipe(tmp_path, "recipe_torchrl.py", ["--world-steps", "1000", "--copies", "2"], ["torch", "torchrl"])
+    assert result["route"] == "torchrl" and (tmp_path / "run" / "torchrl-prey.pt").exists()
+
+
+def test_the_cleanrl_style_recipe(tmp_path):
+    result = recipe(tmp_path, "ippo.py", ["--scene", "scenes/prey-vs-chasers.ron", "--num-envs", "2", "--num-steps",
+                                          "32", "--total-world-steps", "256", "--catches", "true"],
+                    ["torch", "safetensors"])
+    assert result["route"] == "cleanrl" and (tmp_path / "run" / "metrics.csv").exists()
+
+
+def test_the_recipes_seed_their_worlds_apart():
+    # SuperSuit seeds copy i with base + i: the bases of neighbouring seeds are far apart, so runs seeded 1 to 5
+    # with 8 copies each share no world.
+    import sys
+
+    sys.path.insert(0, os.path.join(ROOT, "python", "examples"))
+    from recipe_common import training_seed
+
+    worlds = [training_seed(seed) + i for seed in range(1, 6) for i in range(8)]
+    assert len(set(worlds)) == len(worlds) and all(0 <= w < 2**64 for w in worlds)

@@ -269,7 +269,7 @@ pub(crate) const STANDARD_SCENE: &str = "scenes/standard.ron";
 /// The default scene's text, built into the binary ([`SceneArgs::load`]).
 /// The scenes shipped in `scenes/`, built into the binary (and the Python package) by the path a clone
 /// gives them, so that they load outside the clone too (after `cargo install`, from an installed wheel).
-const SHIPPED_SCENES: [(&str, &str); 8] = [
+const SHIPPED_SCENES: [(&str, &str); 9] = [
     (STANDARD_SCENE, include_str!("../../scenes/standard.ron")),
     ("scenes/paper.ron", include_str!("../../scenes/paper.ron")),
     ("scenes/gym-pps.ron", include_str!("../../scenes/gym-pps.ron")),
@@ -278,6 +278,7 @@ const SHIPPED_SCENES: [(&str, &str); 8] = [
     ("scenes/confined-penalty.ron", include_str!("../../scenes/confined-penalty.ron")),
     ("scenes/many-eyes.ron", include_str!("../../scenes/many-eyes.ron")),
     ("scenes/distilled.ron", include_str!("../../scenes/distilled.ron")),
+    ("scenes/prey-vs-chasers.ron", include_str!("../../scenes/prey-vs-chasers.ron")),
 ];
 
 /// A scene's text (as [`load_scene`] read it from `path`, which errors name) with `overrides` applied and
