@@ -13,6 +13,7 @@ as initialised and as trained: *trained minus untrained* is its learning, in cat
 
 from __future__ import annotations
 
+import argparse
 import json
 import os
 import time
@@ -26,6 +27,19 @@ SCENE = os.path.join(HERE, "..", "..", "scenes", "prey-vs-chasers.ron")
 EVAL_SEED = 777_000_001
 EVAL_WORLDS = 8
 EVAL_EPISODES = 2
+
+
+def arguments(description: str, route: str, copies: int) -> argparse.Namespace:
+    """A recipe's flags: ``--seed``, ``--out`` (default ``runs/ROUTE-seedS``), ``--world-steps`` (summed over
+    the worlds stepped together) and ``--copies`` (those worlds)."""
+    p = argparse.ArgumentParser(description=description)
+    p.add_argument("--seed", type=int, default=1)
+    p.add_argument("--out", default=None, help=f"the run's folder (default runs/{route}-seed<seed>)")
+    p.add_argument("--world-steps", type=int, default=100_000, help="world steps summed over the copies")
+    p.add_argument("--copies", type=int, default=copies, help="worlds stepped together")
+    a = p.parse_args()
+    a.out = a.out or f"runs/{route}-seed{a.seed}"
+    return a
 
 
 def training_seed(seed: int) -> int:

@@ -14,7 +14,6 @@ trained policy as ``OUT/sb3-prey.zip``.
 
 from __future__ import annotations
 
-import argparse
 import os
 import time
 
@@ -24,16 +23,11 @@ from stable_baselines3 import PPO
 from stable_baselines3.common.utils import set_random_seed
 
 import coevo
-from recipe_common import SCENE, catches_per_episode, training_seed, write_result
+from recipe_common import SCENE, arguments, catches_per_episode, training_seed, write_result
 
 
 def main() -> None:
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--seed", type=int, default=1)
-    p.add_argument("--out", default="runs/sb3-seed1")
-    p.add_argument("--world-steps", type=int, default=100_000, help="world steps summed over the copies")
-    p.add_argument("--copies", type=int, default=8, help="worlds stepped together")
-    a = p.parse_args()
+    a = arguments(__doc__.splitlines()[0], "sb3", copies=8)
     torch.set_num_threads(1)
     started = time.time()
     env = coevo.parallel_env(SCENE, episode_steps=500)

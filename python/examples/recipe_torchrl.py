@@ -13,7 +13,6 @@ parameters as ``OUT/torchrl-prey.pt``.
 
 from __future__ import annotations
 
-import argparse
 import os
 import time
 
@@ -29,7 +28,7 @@ from torchrl.modules import MultiAgentMLP, ProbabilisticActor, TanhNormal
 from torchrl.objectives import ClipPPOLoss, ValueEstimators
 
 import coevo
-from recipe_common import SCENE, catches_per_episode, training_seed, write_result
+from recipe_common import SCENE, arguments, catches_per_episode, training_seed, write_result
 
 PREY = ("prey", "observation"), ("prey", "action"), ("prey", "reward")
 
@@ -40,12 +39,7 @@ def make_env(seed: int):
 
 
 def main() -> None:
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--seed", type=int, default=1)
-    p.add_argument("--out", default="runs/torchrl-seed1")
-    p.add_argument("--world-steps", type=int, default=100_000, help="world steps summed over the copies")
-    p.add_argument("--copies", type=int, default=4, help="worlds stepped together")
-    a = p.parse_args()
+    a = arguments(__doc__.splitlines()[0], "torchrl", copies=4)
     torch.manual_seed(a.seed)
     torch.set_num_threads(1)
     started = time.time()
