@@ -35,7 +35,7 @@
 //!   [`claims::pin::Pin`], a pinned experiment's record of its binary.
 //!
 //! A few items stay public only because the integration tests check them from outside (checkpoint
-//! manifests and snapshots in [`learning`], [`cli::check_args`], [`io::bytes_shown`]); they are not meant
+//! manifests and snapshots in [`store`], [`cli::check_args`], [`io::bytes_shown`]); they are not meant
 //! to be built on. The docs link private items as well: read them with `cargo doc --document-private-items`.
 
 #![allow(rustdoc::private_intra_doc_links)]

@@ -337,7 +337,7 @@ def save_trajectories(path: str, positions, species: list[str], fps: float | Non
       frames without; ``xarray.open_dataset(path)`` reads it.
 
     Refuses, writing nothing, a wrong shape, a non-finite position, a species list of another length, a
-    non-positive fps, another ending, or a path that exists."""
+    non-positive fps (or any fps for ``.npy``), another ending, or a path that exists."""
     import os
 
     positions = np.asarray(positions, dtype=np.float64)
@@ -356,6 +356,8 @@ def save_trajectories(path: str, positions, species: list[str], fps: float | Non
         return
     if not path.endswith(".npy"):
         raise InputError(f"path: {path!r} ends in neither .npy nor .nc")
+    if fps is not None:
+        raise InputError("fps: the .npy layout holds no time; fps is for .nc")
     species_path = path[: -len(".npy")] + "-species.npy"
     for p in (path, species_path):
         if os.path.exists(p):

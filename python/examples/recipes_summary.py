@@ -66,12 +66,17 @@ def main(folder: str) -> None:
         verdict = "not shown" if p >= ALPHA else ("learned" if e["mean"] < 0 else "detected the other way")
         lines.append(f"| {what} | {mean('catches_untrained'):.1f} | {mean('catches_trained'):.1f} | "
                      f"{e['mean']:+.1f} ± {e['ci']:.1f} | {p:.2g} | {verdict} |")
-    lines += ["", "Per run (catches per episode, untrained → trained; seconds of the whole run):", ""]
+    lines += ["", "Per run (catches per episode, untrained → trained; the world steps asked for; seconds of the whole "
+              "run, two runs at a time on two cores):", ""]
     for r in ROUTES:
-        cells = [f"seed {x['seed']}: {x['catches_untrained']:.1f} → {x['catches_trained']:.1f} ({x['seconds']:.0f} s)"
-                 for x in runs[r]]
-        lines.append(f"- `{r}`: " + "; ".join(cells) + f" (coevo {runs[r][0]['coevo_commit']})")
-    # Descriptive, not part of the test: fixed actions on the same evaluation worlds, as yardsticks.
+        commits = {x["coevo_commit"] for x in runs[r]}
+        if len(commits) != 1:
+            raise SystemExit(f"{r}: runs made by different builds of coevo ({', '.join(sorted(commits))})")
+        cells = [f"seed {x['seed']}: {x['catches_untrained']:.1f} → {x['catches_trained']:.1f} "
+                 f"({x['world_steps']} world steps, {x['seconds']:.0f} s)" for x in runs[r]]
+        lines.append(f"- `{r}`: " + "; ".join(cells) + f" (coevo {commits.pop()})")
+    # Descriptive, not part of the test, and added to this file after the runs: fixed actions on the same
+    # evaluation worlds, as yardsticks.
     import numpy as np
 
     from recipe_common import catches_per_episode

@@ -646,9 +646,11 @@ fn save_movement(path: &str, positions: PyReadonlyArray3<f64>, species: Vec<Stri
     let frames: Vec<Vec<(f64, f64)>> =
         view.outer_iter().map(|frame| frame.outer_iter().map(|p| (p[0], p[1])).collect()).collect();
     let poses = coevo::run::movement::Poses { positions: &frames, species: &species, fps };
-    coevo::run::movement::write(Path::new(path), &poses, coevo::io::Existing::Refuse).map_err(|e| {
-        let mut e = e;
-        e.kind = coevo::error::Kind::Input;
+    coevo::run::movement::write(Path::new(path), &poses, coevo::io::Existing::Refuse).map_err(|mut e| {
+        // What the file would hold is refused as the caller's input; a file that cannot be written stays I/O.
+        if e.kind == coevo::error::Kind::Other {
+            e.kind = coevo::error::Kind::Input;
+        }
         err(e)
     })
 }

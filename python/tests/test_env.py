@@ -912,21 +912,25 @@ def test_positions_collected_in_python_save_in_records_layout(tmp_path):
 
 def _movement_dataset(path):
     # A `movement` poses dataset as movement's own netCDF loader opens one (its napari widget):
-    # xarray.open_dataset, then movement's validator where movement is installed (.ci/run installs it).
+    # xarray.open_dataset, then movement's validator where movement is installed (.ci/run installs it). The
+    # file has movement 0.17's dimension names; an older movement (the last for Python 3.11) checks the same
+    # dataset under its plural names.
     xr = pytest.importorskip("xarray")
     ds = xr.open_dataset(path)
     try:
         from movement.validators.datasets import ValidPosesInputs
     except ImportError:
-        ValidPosesInputs = None
-    if ValidPosesInputs is not None:
+        return ds
+    if "keypoints" in ValidPosesInputs.DIM_NAMES:
+        ValidPosesInputs.validate(ds.rename({"keypoint": "keypoints", "individual": "individuals"}))
+    else:
         ValidPosesInputs.validate(ds)
     return ds
 
 
 def test_a_record_as_netcdf_is_a_movement_poses_dataset(tmp_path):
     # `coevo --record OUT.nc` holds `--record OUT.npy`'s positions for the same seed, in movement's layout:
-    # position (time, space, keypoints, individuals), individuals named by species, time in seconds.
+    # position (time, space, keypoint, individual), individuals named by species, time in seconds.
     import subprocess
 
     built = [os.path.join(ROOT, "target", p, "coevo") for p in ("debug", "release")]
@@ -937,7 +941,7 @@ def test_a_record_as_netcdf_is_a_movement_poses_dataset(tmp_path):
         subprocess.run([binary, "--record", str(tmp_path / name), "--scene", STANDARD, "--steps", "30", "--seed", "2"],
                        check=True, capture_output=True)
     ds = _movement_dataset(tmp_path / "movement.nc")
-    assert ds.position.dims == ("time", "space", "keypoints", "individuals")
+    assert ds.position.dims == ("time", "space", "keypoint", "individual")
     assert ds.attrs["ds_type"] == "poses" and ds.attrs["source_software"] == "coevo"
     assert ds.attrs["time_unit"] == "seconds"
     np.testing.assert_allclose(ds.time.values * ds.attrs["fps"], np.arange(31), rtol=0, atol=1e-9)
@@ -945,13 +949,16 @@ def test_a_record_as_netcdf_is_a_movement_poses_dataset(tmp_path):
     # movement's [time, space, keypoint 0, individuals] is the npy's [frames, individuals, 2] transposed.
     np.testing.assert_array_equal(ds.position.values[:, :, 0, :].transpose(0, 2, 1), positions)
     np.testing.assert_array_equal(ds.species.values.astype(str), np.load(tmp_path / "swarm-species.npy"))
-    assert list(ds.individuals.values.astype(str)[:4]) == ["predator_0", "predator_1", "predator_2", "prey_0"]
+    assert list(ds.individual.values.astype(str)[:4]) == ["predator_0", "predator_1", "predator_2", "prey_0"]
     assert list(ds.space.values.astype(str)) == ["x", "y"] and (ds.confidence.values == 1).all()
     try:
         from movement.kinematics import compute_speed
+        from movement.validators.datasets import ValidPosesInputs
     except ImportError:
         return
     # movement's own kinematics on it: speeds as the positions give them (frames 1/fps apart).
+    if "keypoints" in ValidPosesInputs.DIM_NAMES:
+        ds = ds.rename({"keypoint": "keypoints", "individual": "individuals"})
     speed = compute_speed(ds.position).values[:, 0, :]
     assert np.isfinite(speed).all() and (speed < 100).all()
 
@@ -978,9 +985,14 @@ def test_positions_collected_in_python_save_as_a_movement_dataset(tmp_path):
         args = {"species": env.individual_species(), **bad}
         with pytest.raises(coevo.InputError, match=match):
             coevo.save_trajectories(tmp_path / "other.nc", frames, **args)
+    with pytest.raises(coevo.InputError, match="fps is for .nc"):
+        coevo.save_trajectories(tmp_path / "other.npy", frames, env.individual_species(), fps=10.0)
+    with pytest.raises(coevo.CoevoIOError):
+        coevo.save_trajectories(tmp_path / "no-such-folder" / "x.nc", frames, env.individual_species())
     with pytest.raises(coevo.InputError, match="neither"):
         coevo.save_trajectories(tmp_path / "other.h5", frames, env.individual_species())
     assert not (tmp_path / "other.nc").exists() and not (tmp_path / "other.h5").exists()
+    assert not (tmp_path / "other.npy").exists()
     # Without fps, time counts frames.
     coevo.save_trajectories(tmp_path / "frames.nc", frames, env.individual_species())
     ds = _movement_dataset(tmp_path / "frames.nc")

@@ -11,7 +11,7 @@ use std::sync::Mutex;
 /// Temporary files and folders of this process that a signal must not leave behind.
 pub(super) static LIVE_TEMPORARIES: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
 
-/// Registers a temporary file or folder (and the lock files of [`crate::run`]) for removal on a signal.
+/// Registers a temporary file or folder (and the lock files of [`crate::store`]) for removal on a signal.
 pub(crate) fn register_temporary(path: &Path) {
     LIVE_TEMPORARIES.lock().unwrap_or_else(|e| e.into_inner()).push(path.to_path_buf());
 }

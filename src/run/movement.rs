@@ -6,20 +6,23 @@
 //! `xarray.open_dataset` reads with any of its netCDF engines, holding what `movement` builds in
 //! `ValidPosesInputs.to_dataset`:
 //!
-//! - `position` (time, space, keypoints, individuals), float64, metres: x and y of each individual, one
+//! - `position` (time, space, keypoint, individual), float64, metres: x and y of each individual, one
 //!   keypoint (`centroid`: an agent is a point), frame t the state at step t (frame 0 the spawned state),
 //!   positions as simulated (on a torus, wrapped into the arena);
-//! - `confidence` (time, keypoints, individuals): 1 everywhere, for simulated positions are exact (a
+//! - `confidence` (time, keypoint, individual): 1 everywhere, for simulated positions are exact (a
 //!   tracker gives its own score here; `movement` fills NaN when it has none);
 //! - coordinates `time` (seconds: frame / fps, with fps = 1 / the scene's time step; or frame numbers
-//!   when no fps is given), `space` (`x`, `y`), `keypoints` (`centroid`), `individuals` (`predator_0`,
+//!   when no fps is given), `space` (`x`, `y`), `keypoint` (`centroid`), `individual` (`predator_0`,
 //!   …, `prey_0`, …: species and index within it, by coevo's agent id);
-//! - `species` (individuals): each individual's species, as `OUT-species.npy` names them beside an `.npy`;
+//! - `species` (individual): each individual's species, as `OUT-species.npy` names them beside an `.npy`;
 //! - attributes `ds_type` = `poses`, `source_software` = `coevo`, `fps`, `time_unit` (`seconds` or
 //!   `frames`), as `movement` sets them, and `coevo_version`.
 //!
-//! `python/tests/test_env.py` reads such files with xarray and checks them with `movement`'s own
-//! validator where it is installed.
+//! The dimension names are those of `movement` 0.17 and later (`keypoint`, `individual`); its releases
+//! before 0.17 (the last for Python 3.11) named them `keypoints` and `individuals`, and read these files
+//! after `ds.rename({"keypoint": "keypoints", "individual": "individuals"})`.
+//! `python/tests/test_env.py` reads such files with xarray and checks them with the installed `movement`'s
+//! own validator (renamed so where it is older).
 
 use crate::io::Existing;
 use std::io::{Cursor, Seek, SeekFrom, Write};
@@ -86,11 +89,11 @@ impl Poses<'_> {
         for (dim, len) in [
             ("time", frames),
             ("space", 2),
-            ("keypoints", 1),
-            ("individuals", n),
+            ("keypoint", 1),
+            ("individual", n),
             ("string1", 1),
-            ("string_keypoints", KEYPOINT.len()),
-            ("string_individuals", name_width),
+            ("string_keypoint", KEYPOINT.len()),
+            ("string_individual", name_width),
             ("string_species", species_width),
         ] {
             set.add_fixed_dim(dim, len).map_err(e)?;
@@ -101,13 +104,13 @@ impl Poses<'_> {
         }
         .map_err(e)?;
         set.add_var_u8("space", &["space", "string1"]).map_err(e)?;
-        set.add_var_u8("keypoints", &["keypoints", "string_keypoints"]).map_err(e)?;
-        set.add_var_u8("individuals", &["individuals", "string_individuals"]).map_err(e)?;
-        set.add_var_f64("position", &["time", "space", "keypoints", "individuals"]).map_err(e)?;
-        set.add_var_f64("confidence", &["time", "keypoints", "individuals"]).map_err(e)?;
-        set.add_var_u8("species", &["individuals", "string_species"]).map_err(e)?;
+        set.add_var_u8("keypoint", &["keypoint", "string_keypoint"]).map_err(e)?;
+        set.add_var_u8("individual", &["individual", "string_individual"]).map_err(e)?;
+        set.add_var_f64("position", &["time", "space", "keypoint", "individual"]).map_err(e)?;
+        set.add_var_f64("confidence", &["time", "keypoint", "individual"]).map_err(e)?;
+        set.add_var_u8("species", &["individual", "string_species"]).map_err(e)?;
         // As xarray writes strings to netCDF-3, so that it reads them back as text, not bytes.
-        for var in ["space", "keypoints", "individuals", "species"] {
+        for var in ["space", "keypoint", "individual", "species"] {
             set.add_var_attr_string(var, "_Encoding", "utf-8").map_err(e)?;
         }
         set.add_global_attr_string("ds_type", "poses").map_err(e)?;
@@ -118,7 +121,7 @@ impl Poses<'_> {
         }
         set.add_global_attr_string("time_unit", if self.fps.is_some() { "seconds" } else { "frames" }).map_err(e)?;
 
-        // (time, space, keypoints, individuals): per frame, every x, then every y.
+        // (time, space, keypoint, individual): per frame, every x, then every y.
         let mut position = Vec::with_capacity(frames * 2 * n);
         for frame in self.positions {
             position.extend(frame.iter().map(|p| p.0));
@@ -134,8 +137,8 @@ impl Poses<'_> {
         }
         .map_err(w)?;
         file.write_var_u8("space", b"xy").map_err(w)?;
-        file.write_var_u8("keypoints", KEYPOINT.as_bytes()).map_err(w)?;
-        file.write_var_u8("individuals", &names).map_err(w)?;
+        file.write_var_u8("keypoint", KEYPOINT.as_bytes()).map_err(w)?;
+        file.write_var_u8("individual", &names).map_err(w)?;
         file.write_var_f64("position", &position).map_err(w)?;
         file.write_var_f64("confidence", &vec![1.0; frames * n]).map_err(w)?;
         file.write_var_u8("species", &species).map_err(w)?;
@@ -204,7 +207,7 @@ mod tests {
         assert_eq!(reader.read_var_u8("species").unwrap(), b"predatorprey\0\0\0\0prey\0\0\0\0");
         let set = reader.data_set();
         let dims: Vec<String> = set.get_var("position").unwrap().dim_names();
-        assert_eq!(dims, ["time", "space", "keypoints", "individuals"]);
+        assert_eq!(dims, ["time", "space", "keypoint", "individual"]);
         assert_eq!(set.get_global_attr_as_string("ds_type").unwrap(), "poses");
         assert_eq!(set.get_global_attr_f64("fps").unwrap(), [10.0]);
     }

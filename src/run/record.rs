@@ -86,6 +86,22 @@ pub(crate) fn record(sim: &mut Simulation, steps: usize, path: &Path, existing: 
     };
     let mut order = AtomicFile::create(&order_path, existing).map_err(order_err)?;
     let first = snapshot(sim);
+    if netcdf {
+        // The frames, the variable laid out for the file and the file's bytes: three copies of every position.
+        let need = (steps as f64 + 1.0) * (first.len() as f64 * 16.0 * 3.0 + 24.0);
+        let limit = crate::io::memory_bytes();
+        if need > limit {
+            let shown = crate::io::bytes_shown;
+            return Err(format!(
+                "{}: a netCDF record of {steps} steps of {} agents is held in memory until it is written, {}, more than the {} coevo may use here; record fewer --steps, or to OUT.npy, which streams",
+                path.display(),
+                first.len(),
+                shown(need),
+                shown(limit)
+            )
+            .into());
+        }
+    }
     let mut frames: Vec<Vec<(f64, f64)>> = Vec::new();
     let mut species = None;
     if npy {

@@ -37,7 +37,7 @@
 //! removes a run's segments once it is trained ([`super::replay_segments::drop_replay`]) unless its file says
 //! `keep_replay: true`.
 //!
-//! The files' names are `files.rs`; the safetensors format (metadata, names as PyTorch's, finite F32
+//! The files' names are `names.rs`; the safetensors format (metadata, names as PyTorch's, finite F32
 //! tensors) `tensors.rs`; the replay segments `replay_segments.rs`; snapshots `snapshots.rs`.
 
 use super::manifest::{Digest, Manifest, SpeciesEntry, MANIFEST};

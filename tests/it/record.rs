@@ -382,7 +382,7 @@ fn a_record_as_npy_holds_the_csvs_positions_in_trajectorytools_layout() {
 
 #[test]
 fn a_record_as_netcdf_holds_the_csvs_positions_in_movement_s_layout() {
-    // `--record OUT.nc`: a `movement` poses dataset, position (time, space, keypoints, individuals) the CSV
+    // `--record OUT.nc`: a `movement` poses dataset, position (time, space, keypoint, individual) the CSV
     // record's x and y to the bit, individuals by id and named by species, time in seconds (fps = 1/dt);
     // an existing file is refused and left as it was.
     let dir = tempfile::tempdir().unwrap();
@@ -394,10 +394,10 @@ fn a_record_as_netcdf_holds_the_csvs_positions_in_movement_s_layout() {
     let mut reader = netcdf3::FileReader::open(&nc).unwrap();
     let position = reader.read_var_f64("position").unwrap();
     let time = reader.read_var_f64("time").unwrap();
-    let individuals = reader.read_var_u8("individuals").unwrap();
+    let individuals = reader.read_var_u8("individual").unwrap();
     let species = reader.read_var_u8("species").unwrap();
     let set = reader.data_set();
-    assert_eq!(set.get_var("position").unwrap().dim_names(), ["time", "space", "keypoints", "individuals"]);
+    assert_eq!(set.get_var("position").unwrap().dim_names(), ["time", "space", "keypoint", "individual"]);
     assert_eq!(set.get_global_attr_as_string("ds_type").unwrap(), "poses");
     assert_eq!(set.get_global_attr_as_string("time_unit").unwrap(), "seconds");
     let fps = set.get_global_attr_f64("fps").unwrap()[0];
@@ -425,4 +425,10 @@ fn a_record_as_netcdf_holds_the_csvs_positions_in_movement_s_layout() {
     assert!(!o.status.success());
     assert!(String::from_utf8_lossy(&o.stderr).contains("m.nc"), "{}", String::from_utf8_lossy(&o.stderr));
     assert_eq!(std::fs::read(&nc).unwrap(), before);
+    // A record that would not fit in memory is refused before its first step, writing nothing.
+    let big = dir.path().join("big.nc");
+    let o = coevo(&["--record", big.to_str().unwrap(), "--steps", "4000000000", "--prey", "1000"]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && stderr.contains("held in memory until it is written"), "{stderr}");
+    assert!(!big.exists() && !dir.path().join("big-order.csv").exists());
 }
