@@ -562,7 +562,12 @@ class CoevoVectorEnv(_VectorEnv):
             if not isinstance(seed, (int, np.integer)) or isinstance(seed, bool):
                 raise InputError(f"seed: one integer seeds every world (world i from world_seed(seed, i)); "
                                  f"got {type(seed).__name__}")
-            self._worlds = self._make(int(seed))
+            seed = int(seed)
+            if not 0 <= seed < 2**64:
+                raise InputError(f"seed: {seed} is outside [0, 2^64); nothing was reset")
+            # The old worlds go before the new ones are made: memory holds one set of worlds, not two.
+            self._worlds.close()
+            self._worlds = self._make(seed)
             obs = self._worlds.reset()
         elif self._next_first is not None:
             obs = self._next_first  # the episodes that ended have begun their successors already
