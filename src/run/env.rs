@@ -199,7 +199,8 @@ impl Env {
             app.init_resource::<ExternalActions>();
             app.add_systems(FixedUpdate, apply_external.in_set(SimSet::Decide));
         })?;
-        let world = std::mem::take(sim.world_mut());
+        let mut world = std::mem::take(sim.world_mut());
+        strip(&mut world);
         let registry = world.resource::<SpeciesRegistry>().clone();
         let dims: Vec<usize> = learned.iter().map(|&s| registry.observation_dim(s)).collect();
         if dims.iter().any(|&d| d != dims[0]) {
@@ -761,6 +762,21 @@ impl VecEnv {
             self.finished.extend(finished);
         }
         Ok(step)
+    }
+}
+
+/// What a world stepped from outside keeps of its app: the schedules it steps (`FixedUpdate`, and
+/// `Perceive`, which a reset and the step run) and no reflection registry (nothing here reflects), so that
+/// each of many worlds holds less. The app's frame schedules (`Main`, `First`, `PostUpdate`, `Last`, the
+/// fixed-step loop) never run here: [`crate::sim::step_world`] runs `FixedUpdate` alone.
+fn strip(world: &mut World) {
+    use bevy::ecs::schedule::ScheduleLabel;
+    world.remove_resource::<bevy::prelude::AppTypeRegistry>();
+    let mut schedules = world.resource_mut::<bevy::ecs::schedule::Schedules>();
+    let kept = [bevy::prelude::FixedUpdate.intern(), crate::sim::perception::Perceive.intern()];
+    let unused: Vec<_> = schedules.iter().map(|(_, s)| s.label()).filter(|l| !kept.contains(l)).collect();
+    for label in unused {
+        schedules.remove(label);
     }
 }
 
