@@ -43,7 +43,8 @@ def main() -> None:
     trained = catches_per_episode(act)
     os.makedirs(a.out, exist_ok=True)
     model.save(os.path.join(a.out, "sb3-prey.zip"))
-    write_result(a.out, "sb3", a.seed, untrained, trained, world_steps=a.world_steps, copies=a.copies,
+    # SB3 stops at the end of a rollout: the world steps taken, not those asked for.
+    write_result(a.out, "sb3", a.seed, untrained, trained, world_steps=model.num_timesteps // prey, copies=a.copies,
                  seconds=round(time.time() - started, 1), torch=torch.__version__,
                  stable_baselines3=__import__("stable_baselines3").__version__, supersuit=ss.__version__)
 
