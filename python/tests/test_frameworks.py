@@ -141,7 +141,10 @@ def test_the_committed_recipes_table_is_what_its_runs_give(tmp_path):
     subprocess.run([sys.executable, os.path.join(ROOT, "python", "examples", "recipes_summary.py"), str(copy)],
                    check=True, cwd=ROOT, capture_output=True)
     table = (copy / "summary.md").read_text()
-    assert table == open(os.path.join(committed, "summary.md")).read()
+    # All but the yardsticks, which simulate afresh: another CPU's libm may round a sine differently and
+    # send the worlds elsewhere; the verdicts and intervals come from the committed numbers alone.
+    tested = lambda text: [line for line in text.splitlines() if not line.startswith("Yardsticks")]  # noqa: E731
+    assert tested(table) == tested(open(os.path.join(committed, "summary.md")).read())
     # The guide shows the same table.
     guide = open(GUIDE, encoding="utf-8").read()
     assert all(row in guide for row in table.split("\n\n")[0].splitlines())
