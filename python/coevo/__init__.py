@@ -34,7 +34,7 @@ from ._coevo import Env as _Env
 from ._coevo import VecEnv as _VecEnv
 from ._coevo import save_movement as _save_movement
 from ._coevo import scene_text as _read_scene_text
-from ._coevo import RunFolder, __version__, compare_curves, force_maps, git_commit, response_fields, t_estimate, welch, world_seed
+from ._coevo import RunFolder, __version__, compare_curves, force_maps, git_commit, holm, response_fields, t_estimate, welch, world_seed
 from ._coevo import (  # one exception class per kind of error, all subclasses of CoevoError (a ValueError)
     CheckpointError,
     CoevoError,
@@ -59,6 +59,7 @@ __all__ = [
     "compare_curves",
     "t_estimate",
     "welch",
+    "holm",
     "world_seed",
     "response_fields",
     "force_maps",
@@ -352,7 +353,7 @@ def save_trajectories(path: str, positions, species: list[str], fps: float | Non
         if os.path.exists(path):
             raise InputError(f"{path}: exists; not overwritten")
         _save_movement(path, np.ascontiguousarray(positions), [str(s) for s in species],
-                             None if fps is None else float(fps))
+                       None if fps is None else float(fps))
         return
     if not path.endswith(".npy"):
         raise InputError(f"path: {path!r} ends in neither .npy nor .nc")

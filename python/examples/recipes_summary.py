@@ -11,7 +11,7 @@ committed ``catches.json``):
   multi-agent PPO through its PettingZoo wrapper; ``cleanrl``: ``ippo.py``, CleanRL-style), seeds 1 to 5
   each, 100 000 world steps each (200 episodes of 500 steps, summed over the worlds stepped together).
 - **Test**: per route, the mean of the five per-run differences, its 95 % Student-t interval and the
-  two-sided t test against 0 (``coevo.t_estimate``); Holm over the three routes at 0.05.
+  two-sided t test against 0 (``coevo.t_estimate``); Holm over the three routes at 0.05 (``coevo.holm``).
 - **Verdict**: *learned* when the Holm-adjusted p is under 0.05 and the mean is negative (fewer catches);
   *detected the other way* when it is under 0.05 and positive; *not shown* otherwise.
 
@@ -35,16 +35,6 @@ SEEDS = [1, 2, 3, 4, 5]
 ALPHA = 0.05
 
 
-def holm(p: list[float]) -> list[float]:
-    """Holm's step-down adjusted p-values (as the reports adjust a family)."""
-    order = sorted(range(len(p)), key=lambda i: p[i])
-    adjusted, running = [0.0] * len(p), 0.0
-    for rank, i in enumerate(order):
-        running = max(running, min(1.0, (len(p) - rank) * p[i]))
-        adjusted[i] = running
-    return adjusted
-
-
 def main(folder: str) -> None:
     runs = {route: [] for route in ROUTES}
     for route in ROUTES:
@@ -55,7 +45,7 @@ def main(folder: str) -> None:
             with open(path) as f:
                 runs[route].append(json.load(f))
     estimates = {r: coevo.t_estimate([x["trained_minus_untrained"] for x in runs[r]]) for r in ROUTES}
-    adjusted = dict(zip(ROUTES, holm([estimates[r]["p"] for r in ROUTES])))
+    adjusted = dict(zip(ROUTES, coevo.holm([estimates[r]["p"] for r in ROUTES])))
     lines = [
         "| route | untrained, catches per episode | trained | trained minus untrained (95 % interval) | p (Holm) | verdict |",
         "|---|---|---|---|---|---|",

@@ -582,6 +582,14 @@ fn welch(py: Python<'_>, a: Vec<f64>, b: Vec<f64>) -> PyResult<Option<Py<PyDict>
     estimate_dict(py, stats::difference(&a, &b))
 }
 
+/// Holm's step-down adjustment of a family of p-values, in the order given, as coevo's reports adjust a
+/// family (`coevo::analysis::stats::holm`).
+#[pyfunction]
+fn holm(p: Vec<f64>) -> PyResult<Vec<f64>> {
+    finite("p", &p)?;
+    Ok(stats::holm(&p))
+}
+
 /// Training curves made elsewhere against coevo's own, judged as coevo's reports judge two variants
 /// (`coevo::experiment::external::compare`). `theirs` and `ours`: one dict per run of per-episode
 /// `"dos"`, `"doa"` and `"catches"`. For each `(text, quantity, margin)` of `comparisons` (the quantity as
@@ -668,6 +676,7 @@ fn _coevo(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(force_maps, m)?)?;
     m.add_function(wrap_pyfunction!(t_estimate, m)?)?;
     m.add_function(wrap_pyfunction!(welch, m)?)?;
+    m.add_function(wrap_pyfunction!(holm, m)?)?;
     m.add_function(wrap_pyfunction!(compare_curves, m)?)?;
     m.add_function(wrap_pyfunction!(save_movement, m)?)?;
     let py = m.py();

@@ -310,6 +310,10 @@ def test_statistics_are_coevos():
             coevo.t_estimate([1.0, bad, 3.0])
         with pytest.raises(coevo.CoevoError, match=r"b\[0\] is"):
             coevo.welch([1.0, 2.0], [bad, 2.0])
+        with pytest.raises(coevo.InputError, match=r"p\[2\] is"):
+            coevo.holm([0.01, 0.2, bad])
+    # Holm's step-down adjustment, in the order given: 3·0.01, then max(0.03, 2·0.03), then max(0.06, 0.04).
+    assert coevo.holm([0.01, 0.04, 0.03]) == pytest.approx([0.03, 0.06, 0.06], abs=1e-15)
 
 
 def test_curves_made_elsewhere_are_judged_as_coevos_reports_judge_two_variants():
@@ -923,10 +927,16 @@ def _movement_dataset(path):
         from movement.validators.datasets import ValidPosesInputs
     except ImportError:
         return ds
+    ValidPosesInputs.validate(_in_installed_movement_names(ds))
+    return ds
+
+
+def _in_installed_movement_names(ds):
+    # movement before 0.17 names the dimensions `keypoints` and `individuals`.
+    from movement.validators.datasets import ValidPosesInputs
+
     if "keypoints" in ValidPosesInputs.DIM_NAMES:
-        ValidPosesInputs.validate(ds.rename({"keypoint": "keypoints", "individual": "individuals"}))
-    else:
-        ValidPosesInputs.validate(ds)
+        return ds.rename({"keypoint": "keypoints", "individual": "individuals"})
     return ds
 
 
@@ -955,13 +965,10 @@ def test_a_record_as_netcdf_is_a_movement_poses_dataset(tmp_path):
     assert list(ds.space.values.astype(str)) == ["x", "y"] and (ds.confidence.values == 1).all()
     try:
         from movement.kinematics import compute_speed
-        from movement.validators.datasets import ValidPosesInputs
     except ImportError:
         return
     # movement's own kinematics on it: speeds as the positions give them (frames 1/fps apart).
-    if "keypoints" in ValidPosesInputs.DIM_NAMES:
-        ds = ds.rename({"keypoint": "keypoints", "individual": "individuals"})
-    speed = compute_speed(ds.position).values[:, 0, :]
+    speed = compute_speed(_in_installed_movement_names(ds).position).values[:, 0, :]
     assert np.isfinite(speed).all() and (speed < 100).all()
 
 

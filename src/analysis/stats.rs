@@ -169,7 +169,7 @@ impl Estimate {
 /// Holm's step-down adjustment of a family of p-values (same order as given): the k-th smallest becomes
 /// max over j ≤ k of min(1, (m − j + 1)·p₍ⱼ₎). Controls the family-wise error rate at α without assuming
 /// independence.
-pub(crate) fn holm(p: &[f64]) -> Vec<f64> {
+pub fn holm(p: &[f64]) -> Vec<f64> {
     let m = p.len();
     let mut order: Vec<usize> = (0..m).collect();
     order.sort_by(|&a, &b| p[a].total_cmp(&p[b]));
