@@ -355,7 +355,7 @@ impl VecEnv {
 
     /// World `world`'s coevo actor of `species`, layer by layer (as a single env's `coevo_actor`).
     fn coevo_actor<'py>(
-        &self,
+        &mut self,
         py: Python<'py>,
         world: usize,
         species: &str,
@@ -368,7 +368,7 @@ impl VecEnv {
 
     /// Every world's global state `[num_envs, agents of all species, 6]` (x, y, v_x, v_y, h_x, h_y per
     /// agent, by agent id, world frame).
-    fn state<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray3<f32>>> {
+    fn state<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyArray3<f32>>> {
         let shape = [self.inner.worlds(), self.inner.population(), coevo::run::env::STATE_DIM];
         self.inner.state().into_pyarray(py).reshape(shape)
     }

@@ -166,7 +166,8 @@ pub(crate) fn group_size_steps(budget: Duration) -> Vec<(usize, usize, Figure)> 
 pub const GROUP_SIZES: [usize; 7] = [10, 50, 200, 1_000, 2_000, 5_000, 10_000];
 
 /// Stepping from outside (`run::env`, what the Python package drives): one world of the standard scene,
-/// and 64 worlds stepped together, constant actions; world steps per second summed over worlds.
+/// and 8, 64 and 1 024 worlds stepped together (parked on shared apps, `run::pool`), constant actions;
+/// world steps per second summed over worlds.
 pub(crate) fn external(budget: Duration) -> Vec<Figure> {
     use crate::run::env::{Env, VecEnv};
     let scene = || {
@@ -192,7 +193,7 @@ pub(crate) fn external(budget: Duration) -> Vec<Figure> {
     // On one thread and on all of them (--threads), since other work on the machine can make more threads
     // slower than one (the benchmarks page measures both idle and under load).
     let all = crate::parallel::threads();
-    for n in [64, 1024] {
+    for n in [8, 64, 1024] {
         for threads in if all > 1 { vec![1, all] } else { vec![1] } {
             let Ok(mut worlds) = VecEnv::new(scene(), n, 1) else { continue };
             let actions = vec![0.5; worlds.worlds() * worlds.agents() * 2];

@@ -96,7 +96,7 @@ impl Schedule {
 
 /// The actions given from outside, per species (empty for species decided inside).
 #[derive(Resource, Default, Clone, Debug)]
-struct ExternalActions(Vec<Vec<f32>>);
+pub(super) struct ExternalActions(Vec<Vec<f32>>);
 
 /// Decide: the external species' rows of the action batch are the actions given to [`Env::step`].
 fn apply_external(actions: Res<ExternalActions>, mut batches: ResMut<Batches>) {
@@ -105,6 +105,14 @@ fn apply_external(actions: Res<ExternalActions>, mut batches: ResMut<Batches>) {
             batch.actions.copy_from_slice(given);
         }
     }
+}
+
+/// What a step gives besides observations and rewards ([`StepResult`]'s other fields).
+struct Outcome {
+    truncated: bool,
+    dos: f64,
+    doa: f64,
+    catches: u32,
 }
 
 /// What one step returned, for every external agent in order.
@@ -124,8 +132,8 @@ pub struct StepResult {
 /// One world driven from outside. It holds the Bevy `World` alone (taken out of its `App` once built,
 /// the schedules live in it), so worlds can step on several threads.
 pub struct Env {
-    world: World,
-    scene: Scene,
+    pub(super) world: World,
+    pub(super) scene: Scene,
     /// What the outside learner is given of the observations (default: everything).
     control: ObservationControl,
     resolved: ResolvedControl,
@@ -304,6 +312,12 @@ impl Env {
     /// Starts a new episode and returns the observations: with a seed, the world starts afresh from it
     /// (exactly as `--train`/`--record` with that seed); without, the next episode of the same stream.
     pub fn reset(&mut self, seed: Option<u64>) -> crate::error::Result<Vec<f32>> {
+        self.start(seed)?;
+        Ok(self.observations())
+    }
+
+    /// [`Env::reset`] without handing out the observations.
+    fn start(&mut self, seed: Option<u64>) -> crate::error::Result<()> {
         match seed {
             Some(seed) => {
                 let mut scene = self.scene.clone();
@@ -327,18 +341,28 @@ impl Env {
                 }
             }
         }
-        Ok(self.observations())
+        Ok(())
     }
 
     fn observations(&self) -> Vec<f32> {
+        let mut out = vec![0.0; self.external.iter().map(|&(_, n)| n).sum::<usize>() * self.obs_dim];
+        self.write_observations(&mut out);
+        out
+    }
+
+    /// The external agents' observations into `out` (`[agents × d_o]`): a [`VecEnv`] has each world
+    /// write its own rows of the step's array, with no array of its own in between.
+    fn write_observations(&self, out: &mut [f32]) {
         let batches = self.world.resource::<Batches>();
         // The step's random stream, made the first time a control needs it (most calls have none).
         let mut rng: Option<ChaCha8Rng> = None;
-        let mut out = Vec::new();
+        let mut at = 0;
         for &(s, _) in &self.external {
             let b = &batches.species[s];
+            let out = &mut out[at..at + b.observations.len()];
+            at += b.observations.len();
             if !self.resolved.touches(s) {
-                out.extend_from_slice(&b.observations);
+                out.copy_from_slice(&b.observations);
                 continue;
             }
             let rng = rng.get_or_insert_with(|| {
@@ -346,9 +370,8 @@ impl Env {
                 let t = (e.index * (self.scene.episode_steps + 1) + e.step) as u64;
                 SimRng::stream(self.scene.seed, CONTROL_STREAM + t)
             });
-            out.extend(self.resolved.apply(s, &b.observations, b.n, rng));
+            out.copy_from_slice(&self.resolved.apply(s, &b.observations, b.n, rng));
         }
-        out
     }
 
     /// The summaries of the episodes finished since the last call (time averages, catches, returns: what a
@@ -368,6 +391,14 @@ impl Env {
     /// length or a non-finite action (one line; the world is not stepped), or when the state stops being
     /// physical. After a truncated step the world keeps its last state until [`Env::reset`].
     pub fn step(&mut self, actions: &[f32]) -> crate::error::Result<StepResult> {
+        let mut rewards = vec![0.0; self.external.iter().map(|&(_, n)| n).sum()];
+        let Outcome { truncated, dos, doa, catches } = self.advance(actions, &mut rewards)?;
+        Ok(StepResult { observations: self.observations(), rewards, truncated, dos, doa, catches })
+    }
+
+    /// [`Env::step`], the rewards written into `rewards` (`[agents]`) and the observations left in the
+    /// world ([`Env::write_observations`]).
+    fn advance(&mut self, actions: &[f32], rewards: &mut [f32]) -> crate::error::Result<Outcome> {
         let agents: usize = self.external.iter().map(|&(_, n)| n).sum();
         if actions.len() != agents * ACTION_DIM {
             return Err(format!(
@@ -383,14 +414,16 @@ impl Env {
         if self.world.resource::<Episode>().step >= self.scene.episode_steps {
             return Err("step: the episode is over (truncated); reset first").kind(Kind::Input);
         }
-        let mut given = vec![Vec::new(); self.scene.species.len()];
+        // Into the resource's own vectors: a step allocates nothing for its actions.
+        let mut given = self.world.resource_mut::<ExternalActions>();
+        given.0.resize(self.scene.species.len(), Vec::new());
         let mut rest = actions;
         for &(s, n) in &self.external {
             let (mine, more) = rest.split_at(n * ACTION_DIM);
-            given[s] = mine.iter().map(|a| a.clamp(-1.0, 1.0)).collect();
+            given.0[s].clear();
+            given.0[s].extend(mine.iter().map(|a| a.clamp(-1.0, 1.0)));
             rest = more;
         }
-        self.world.insert_resource(ExternalActions(given));
         crate::sim::step_world(&mut self.world);
         crate::sim::check_state(&self.world)?;
         if let Some(failure) = self.world.get_resource::<crate::learning::Learners>().and_then(|l| l.failure.clone()) {
@@ -403,13 +436,17 @@ impl Env {
         }
         let world = &self.world;
         let batches = world.resource::<Batches>();
-        let rewards = self.external.iter().flat_map(|&(s, _)| batches.species[s].rewards.iter().copied()).collect();
+        let mut at = 0;
+        for &(s, n) in &self.external {
+            rewards[at..at + n].copy_from_slice(&batches.species[s].rewards);
+            at += n;
+        }
         let metrics = world.resource::<SwarmMetrics>();
         let now = metrics.now.get(self.headline).copied().flatten();
         let (dos, doa, catches) =
             (now.map_or(f64::NAN, |m| m.dos), now.map_or(f64::NAN, |m| m.doa), metrics.catches_now);
         let truncated = world.resource::<Episode>().step >= self.scene.episode_steps;
-        Ok(StepResult { observations: self.observations(), rewards, truncated, dos, doa, catches })
+        Ok(Outcome { truncated, dos, doa, catches })
     }
 
     /// The current state drawn as the headless animations draw it (`size` pixels square plus a caption):
@@ -503,8 +540,10 @@ pub fn world_seed(seed: u64, i: u64) -> u64 {
 }
 
 /// Many worlds of one scene, world i from [`world_seed`]`(seed, i)`, stepped together on flat arrays.
+/// Where coevo trains no species, the worlds share one app per thread and keep only their state between
+/// steps ([`super::pool`]), with the same results as worlds of their own.
 pub struct VecEnv {
-    envs: Vec<Env>,
+    envs: super::pool::Worlds,
     agents: usize,
     /// Finished episodes not yet taken, in the order they finished (by step, then by world).
     finished: Vec<EpisodeSummary>,
@@ -535,7 +574,7 @@ pub struct VecStep {
 }
 
 /// One world's step in a [`VecEnv`]: its result and, when its episode ended, its last observations.
-type WorldStep = crate::error::Result<(StepResult, Option<Vec<f32>>, Vec<EpisodeSummary>)>;
+type WorldStep = crate::error::Result<(Outcome, Option<Vec<f32>>, Vec<EpisodeSummary>)>;
 
 impl VecEnv {
     pub fn new(scene: Scene, worlds: usize, seed: u64) -> crate::error::Result<VecEnv> {
@@ -577,28 +616,32 @@ impl VecEnv {
         if worlds == 0 {
             return Err("num_envs: must be ≥ 1").kind(Kind::Input);
         }
-        // All the worlds are bounded before the first is built: built one by one, each would be checked
+        // All the worlds are bounded before the second is built: built one by one, each would be checked
         // against what the ones before it had left, and the refusal would come late and name no figure.
-        let (limit, one) = (crate::io::memory_bytes(), scene.world_bytes());
-        if one * worlds as f64 > limit {
-            return Err(format!(
-                "num_envs: {worlds} worlds of this scene would need about {}, more than the {} of memory coevo may use here (the least of free memory, the cgroup limit and ulimit -v)",
-                crate::io::bytes_shown(one * worlds as f64),
-                crate::io::bytes_shown(limit)
-            ))
-            .kind(Kind::Input);
-        }
-        let envs = (0..worlds as u64)
-            .map(|i| {
-                let mut s = scene.clone();
-                s.seed = match seeds {
-                    WorldSeeds::Independent => world_seed(seed, i),
-                    WorldSeeds::Consecutive => seed.wrapping_add(i),
-                };
-                Env::with_options(s, control.clone(), coevolve.clone())
-            })
-            .collect::<crate::error::Result<Vec<_>>>()?;
-        let agents = envs[0].agents().len();
+        let limit = crate::io::memory_bytes();
+        let check = |bytes: f64| -> crate::error::Result<()> {
+            if bytes > limit {
+                return Err(format!(
+                    "num_envs: {worlds} worlds of this scene would need about {}, more than the {} of memory coevo may use here (the least of free memory, the cgroup limit and ulimit -v)",
+                    crate::io::bytes_shown(bytes),
+                    crate::io::bytes_shown(limit)
+                ))
+                .kind(Kind::Input);
+            }
+            Ok(())
+        };
+        // Whether pooled or not is known once a world is built, which bounded alone it may be.
+        check(scene.world_bytes())?;
+        let bytes = super::pool::Bytes { apart: scene.world_bytes(), parked: scene.parked_bytes() };
+        let envs = super::pool::Worlds::new(worlds, crate::parallel::threads(), bytes, check, |i| {
+            let mut s = scene.clone();
+            s.seed = match seeds {
+                WorldSeeds::Independent => world_seed(seed, i as u64),
+                WorldSeeds::Consecutive => seed.wrapping_add(i as u64),
+            };
+            Env::with_options(s, control.clone(), coevolve.clone())
+        })?;
+        let agents = envs.any().agents().len();
         Ok(VecEnv {
             envs,
             agents,
@@ -621,42 +664,41 @@ impl VecEnv {
     /// that cut an episode short leaves the run unsaveable ([`Env::reset`]).
     pub fn save_run(&mut self, world: usize, dir: &std::path::Path) -> crate::error::Result<()> {
         let n = self.envs.len();
-        let Some(env) = self.envs.get_mut(world) else {
-            return Err(format!("save_run: world {world}: there are {n} (0 to {})", n - 1)).kind(Kind::Input);
-        };
-        env.save_run(dir)
+        self.envs.with(world, |env| env.save_run(dir)).unwrap_or_else(|| {
+            Err(format!("save_run: world {world}: there are {n} (0 to {})", n - 1)).kind(Kind::Input)
+        })
     }
 
     /// World `world`'s [`Env::coevo_actor`].
-    pub fn coevo_actor(&self, world: usize, species: &str) -> Option<Vec<Vec<f32>>> {
-        self.envs.get(world)?.coevo_actor(species)
+    pub fn coevo_actor(&mut self, world: usize, species: &str) -> Option<Vec<Vec<f32>>> {
+        self.envs.with(world, |env| env.coevo_actor(species))?
     }
 
     /// Every world's [`Env::state`], world after world: `[worlds × agents of all species × STATE_DIM]`.
-    pub fn state(&self) -> Vec<f32> {
-        self.envs.iter().flat_map(Env::state).collect()
+    pub fn state(&mut self) -> Vec<f32> {
+        self.envs.map(1, |_, env| env.state()).concat()
     }
 
     /// Agents of every species per world (the rows of a world's [`Env::state`]).
     pub fn population(&self) -> usize {
-        self.envs[0].population()
+        self.envs.any().population()
     }
 
     /// Each world's seed, in order.
     pub fn world_seeds(&self) -> Vec<u64> {
-        self.envs.iter().map(|e| e.scene().seed).collect()
+        self.envs.seeds()
     }
 
     /// `metrics.csv`'s header ([`Env::metrics_header`]).
     pub fn metrics_header(&self) -> String {
-        self.envs[0].metrics_header()
+        self.envs.any().metrics_header()
     }
 
     /// The episodes finished since the last call as the first cells of `metrics.csv` rows (up to the
     /// returns, [`crate::store::schema::episode_cells`]), numbered in the order they finished across all worlds
     /// (by step, then by world), so the file does not depend on how often this is called.
     pub fn take_episode_rows(&mut self) -> Vec<String> {
-        let registry = self.envs[0].world.resource::<SpeciesRegistry>();
+        let registry = self.envs.any().world.resource::<SpeciesRegistry>();
         let first = self.numbered;
         let rows: Vec<String> = self
             .finished
@@ -680,33 +722,31 @@ impl VecEnv {
     }
 
     pub fn obs_dim(&self) -> usize {
-        self.envs[0].obs_dim()
+        self.envs.any().obs_dim()
     }
 
     /// [`Env::observation_high`] (the same in every world).
     pub fn observation_high(&self) -> Vec<f32> {
-        self.envs[0].observation_high()
+        self.envs.any().observation_high()
     }
 
     /// The agents' names (the same in every world).
     pub fn agent_names(&self) -> Vec<String> {
-        self.envs[0].agents()
+        self.envs.any().agents()
     }
 
     /// Starts the next episode in every world (the first call after the worlds were made: their first
     /// episode, already spawned); returns the observations.
     pub fn reset(&mut self) -> crate::error::Result<Vec<f32>> {
         if !std::mem::take(&mut self.fresh) {
-            for env in &mut self.envs {
-                env.reset(None)?;
-            }
+            self.envs.map(1, |_, env| env.reset(None)).into_iter().collect::<crate::error::Result<Vec<_>>>()?;
         }
         Ok(self.observations())
     }
 
     /// Every world's current observations, `[worlds × agents × d_o]`.
-    pub fn observations(&self) -> Vec<f32> {
-        self.envs.iter().flat_map(Env::observations).collect()
+    pub fn observations(&mut self) -> Vec<f32> {
+        self.envs.map(1, |_, env| env.observations()).concat()
     }
 
     /// One step of every world (`actions`: `[worlds × agents × 2]`), on all cores; a world whose episode
@@ -725,35 +765,37 @@ impl VecEnv {
         }
         // Every world's actions are checked before any world steps: a refused call changes nothing.
         if let Some(i) = actions.iter().position(|a| !a.is_finite()) {
-            let names = self.envs[0].agents();
+            let names = self.envs.any().agents();
             let (world, agent) = (i / per, (i % per) / ACTION_DIM);
             return Err(format!("world {world}, {}: {} is not a finite number", names[agent], actions[i]))
                 .kind(Kind::Input);
         }
         // A step taken (never one refused above) leaves the first episode: a reset after it starts the next.
         self.fresh = false;
-        let mut work: Vec<(&mut Env, &[f32], Option<WorldStep>)> =
-            self.envs.iter_mut().zip(actions.chunks(per)).map(|(e, a)| (e, a, None)).collect();
         // On one thread or all, whichever has been faster lately (other work on the machine can make
-        // all threads slower than one); the same worlds either way.
-        let cap = self.max_threads;
-        self.threads.run_at_most(cap, |workers| {
-            crate::parallel::for_each_mut_on(&mut work, workers, |(env, a, out)| {
-                *out = Some(env.step(a).and_then(|mut r| {
-                    if !r.truncated {
-                        return Ok((r, None, vec![]));
-                    }
-                    let finished = env.take_episodes();
-                    let last = std::mem::replace(&mut r.observations, env.reset(None)?);
-                    Ok((r, Some(last), finished))
-                }));
+        // all threads slower than one); the same worlds either way. Each world writes its rows of the
+        // step's arrays.
+        let (n, agents, d) = (self.envs.len(), self.agents, self.obs_dim());
+        let (mut observations, mut rewards) = (vec![0.0; n * agents * d], vec![0.0; n * agents]);
+        let rows: Vec<(&mut [f32], &mut [f32])> =
+            observations.chunks_mut(agents * d).zip(rewards.chunks_mut(agents)).collect();
+        let (cap, envs) = (self.max_threads, &mut self.envs);
+        let stepped: Vec<WorldStep> = self.threads.run_at_most(cap, |workers| {
+            envs.map_with(workers, rows, |k, env, (observed, rewarded)| {
+                let outcome = env.advance(&actions[k * per..(k + 1) * per], rewarded)?;
+                if !outcome.truncated {
+                    env.write_observations(observed);
+                    return Ok((outcome, None, vec![]));
+                }
+                let (last, finished) = (env.observations(), env.take_episodes());
+                env.start(None)?;
+                env.write_observations(observed);
+                Ok((outcome, Some(last), finished))
             })
         });
-        let mut step = VecStep::default();
-        for (_, _, out) in work {
-            let (r, last, finished) = out.expect("every world stepped")?;
-            step.observations.extend(r.observations);
-            step.rewards.extend(r.rewards);
+        let mut step = VecStep { observations, rewards, ..VecStep::default() };
+        for out in stepped {
+            let (r, last, finished) = out?;
             step.truncated.push(r.truncated);
             step.final_observations.push(last);
             step.dos.push(r.dos);
@@ -814,15 +856,93 @@ mod tests {
     #[global_allocator]
     static ALLOCATOR: Counting = Counting;
 
-    /// The bytes one world of `scene` holds once made and reset, on one thread.
-    fn measured(scene: &Scene) -> f64 {
-        let before = LIVE.with(|l| l.get());
-        let mut env = VecEnv::seeded(scene.clone(), 16, 1, Default::default(), WorldSeeds::Independent).unwrap();
-        env.set_max_threads(1);
-        env.reset().unwrap();
-        let bytes = (LIVE.with(|l| l.get()) - before) as f64 / 16.0;
-        drop(env);
-        bytes
+    /// The bytes a world of `scene` holds: made alone (an app of its own) or parked among many (the bytes
+    /// 48 pooled worlds hold beyond 16, a thirty-second of them), once made, reset and stepped, on one
+    /// thread.
+    fn measured(scene: &Scene) -> (f64, f64) {
+        let live = || LIVE.with(|l| l.get()) as f64;
+        let before = live();
+        let mut alone = Env::new(scene.clone()).unwrap();
+        alone.reset(None).unwrap();
+        alone.step(&vec![0.3; alone.agents().len() * 2]).unwrap();
+        let apart = live() - before;
+        drop(alone);
+        let pooled = |n: usize| {
+            let before = live();
+            let mut env = VecEnv::seeded(scene.clone(), n, 1, Default::default(), WorldSeeds::Independent).unwrap();
+            assert!(env.envs.pooled());
+            env.set_max_threads(1);
+            env.reset().unwrap();
+            env.step(&vec![0.3; n * env.agents() * 2]).unwrap();
+            live() - before
+        };
+        (apart, (pooled(48) - pooled(16)) / 32.0)
+    }
+
+    /// Pooled worlds against the same worlds each in an app of its own, in kinds of worlds whose steps
+    /// read every parked part: learned species decided from outside, rule-based and noisy classic
+    /// opponents (the environment's random stream), walls, the authors' energy budget, a shuffled control
+    /// (the world's seed), episodes ending and restarting. Every output is compared to the bit.
+    #[test]
+    fn pooled_worlds_step_as_worlds_of_their_own() {
+        let load = |f: &str| Scene::load(std::path::Path::new(f)).unwrap();
+        let mut energy = load("scenes/gym-pps-code.ron");
+        energy.world.energy_budget = true;
+        let mut vicsek = load("scenes/confined.ron");
+        vicsek.species[0].policy = Policy::Vicsek(crate::scene::VicsekRule { radius: 0.5, noise: 1.0 });
+        let mut random = load("scenes/standard.ron");
+        random.species[0].policy = Policy::Random;
+        let shuffled = ObservationControl::parse(&["shuffled:prey:prey"]).unwrap();
+        for (name, mut scene, control) in [
+            ("standard", load("scenes/standard.ron"), ObservationControl::default()),
+            ("prey-vs-chasers", load("scenes/prey-vs-chasers.ron"), ObservationControl::default()),
+            ("energy", energy, ObservationControl::default()),
+            ("vicsek in walls", vicsek, ObservationControl::default()),
+            ("random, shuffled", random, shuffled),
+        ] {
+            scene.episode_steps = 6;
+            let make = || VecEnv::seeded(scene.clone(), 7, 11, control.clone(), WorldSeeds::Independent).unwrap();
+            let mut pooled = make();
+            assert!(pooled.envs.pooled(), "{name}: {:?}", super::super::pool::eligible(pooled.envs.any()));
+            let mut apart = make();
+            let seeds = apart.world_seeds();
+            apart.envs = super::super::pool::Worlds::Apart(
+                seeds
+                    .iter()
+                    .map(|&seed| {
+                        let mut s = scene.clone();
+                        s.seed = seed;
+                        Env::with_control(s, control.clone()).unwrap()
+                    })
+                    .collect(),
+            );
+            assert_eq!(pooled.world_seeds(), seeds);
+            assert_eq!(pooled.reset().unwrap(), apart.reset().unwrap(), "{name}");
+            let n = 7 * pooled.agents() * ACTION_DIM;
+            for t in 0..15 {
+                let actions: Vec<f32> = (0..n).map(|i| ((i * 7919 + t * 104_729) % 200) as f32 / 100.0 - 1.0).collect();
+                if t == 9 {
+                    // A reset between steps, mid-episode, for every world.
+                    assert_eq!(pooled.reset().unwrap(), apart.reset().unwrap(), "{name}, reset at {t}");
+                }
+                let (a, b) = (pooled.step(&actions).unwrap(), apart.step(&actions).unwrap());
+                // Debug text tells bits apart (NaN from NaN included); kept out of the message, it is long.
+                assert!(format!("{a:?}") == format!("{b:?}"), "{name}, step {t}: the pooled step differs");
+                assert_eq!(pooled.state(), apart.state(), "{name}, step {t}");
+            }
+            let rows = pooled.take_episode_rows();
+            assert!(rows.len() >= 14, "{name}: {} episodes", rows.len());
+            assert_eq!(rows, apart.take_episode_rows(), "{name}");
+        }
+    }
+
+    /// What keeps worlds apart: coevo training a side (its learners are per world).
+    #[test]
+    fn worlds_where_coevo_trains_stay_apart() {
+        let scene = Scene::load(std::path::Path::new("scenes/standard.ron")).unwrap();
+        let coevolve = Coevolve { species: vec!["predator".into()], schedule: Schedule::Learning };
+        let worlds = VecEnv::coevolving(scene, 2, 1, Default::default(), WorldSeeds::Independent, coevolve).unwrap();
+        assert!(!worlds.envs.pooled());
     }
 
     #[test]
@@ -840,8 +960,14 @@ mod tests {
             let mut scene = Scene::preset("gym-pps").unwrap();
             scene.species.iter_mut().filter(|s| s.name == "prey").for_each(|s| s.count = prey);
             // The check bounds a world from above (never again ~20 times too little), and not by much.
-            let (held, bound) = (measured(&scene), scene.world_bytes());
-            assert!(held <= bound && bound <= 1.5 * held, "{prey} prey: a world holds {held} B, bounded by {bound} B");
+            let (apart, parked) = measured(&scene);
+            for (what, held, bound) in [("alone", apart, scene.world_bytes()), ("parked", parked, scene.parked_bytes())]
+            {
+                assert!(
+                    held <= bound && bound <= 1.5 * held,
+                    "{prey} prey: a world {what} holds {held} B, bounded by {bound} B"
+                );
+            }
         }
     }
 }

@@ -15,6 +15,7 @@ pub(crate) mod explain;
 pub mod live;
 pub mod movement;
 pub(crate) mod perturb;
+mod pool;
 pub(crate) mod progress;
 pub(crate) mod record;
 mod simulation;

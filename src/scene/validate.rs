@@ -9,6 +9,9 @@ use crate::error::Error;
 /// (whose Bevy has more component types; its reflection registry, ~640 kB there, is dropped from a world
 /// stepped from outside, `run::env::strip`); bounded here from above.
 const WORLD_BYTES: f64 = if cfg!(feature = "viewer") { 460_000.0 } else { 420_000.0 };
+/// What a parked world holds whatever its agents (its scene, clock, random streams and metrics): ~8 kB
+/// measured on the default scene, bounded here from above.
+const PARKED_BYTES: f64 = 10_000.0;
 
 /// `field` refused with `message` unless `ok`.
 fn check(ok: bool, field: &str, message: impl FnOnce() -> String) -> crate::error::Result<()> {
@@ -381,6 +384,15 @@ impl Scene {
     /// components and perception arrays. `run::env`'s tests hold it against what a world holds, measured.
     pub(crate) fn world_bytes(&self) -> f64 {
         WORLD_BYTES + (0..self.species.len()).map(|s| self.species_agent_bytes(s)).sum::<f64>()
+    }
+
+    /// The bytes one world of this scene holds parked between its steps, when many worlds share an app
+    /// (`run::pool`): its resources ([`PARKED_BYTES`]) and per agent its components, observations and
+    /// perception arrays (~600 B with 54 observation numbers: 15 kB a world of 3 + 10, measured). Held
+    /// against what a parked world holds by `run::env`'s tests.
+    pub(crate) fn parked_bytes(&self) -> f64 {
+        let agent = |s: usize| self.species[s].count as f64 * (self.observation_dim(s) as f64 * 4.0 + 420.0);
+        PARKED_BYTES + (0..self.species.len()).map(agent).sum::<f64>()
     }
 
     fn species_agent_bytes(&self, s: usize) -> f64 {
