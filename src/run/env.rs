@@ -630,8 +630,8 @@ impl VecEnv {
             }
             Ok(())
         };
-        // Whether pooled or not is known once a world is built, which bounded alone it may be.
-        check(scene.world_bytes())?;
+        // Whether pooled or not is known once a world is built (one world is bounded when its scene is
+        // validated).
         let bytes = super::pool::Bytes { apart: scene.world_bytes(), parked: scene.parked_bytes() };
         let envs = super::pool::Worlds::new(worlds, crate::parallel::threads(), bytes, check, |i| {
             let mut s = scene.clone();
@@ -856,16 +856,21 @@ mod tests {
     #[global_allocator]
     static ALLOCATOR: Counting = Counting;
 
-    /// The bytes a world of `scene` holds: made alone (an app of its own) or parked among many (the bytes
-    /// 48 pooled worlds hold beyond 16, a thirty-second of them), once made, reset and stepped, on one
-    /// thread.
+    /// The bytes a world of `scene` holds: made alone (an app of its own; 16 of them, a sixteenth) or
+    /// parked among many (the bytes 48 pooled worlds hold beyond 16, a thirty-second of them), once made,
+    /// reset and stepped, on one thread.
     fn measured(scene: &Scene) -> (f64, f64) {
         let live = || LIVE.with(|l| l.get()) as f64;
         let before = live();
-        let mut alone = Env::new(scene.clone()).unwrap();
-        alone.reset(None).unwrap();
-        alone.step(&vec![0.3; alone.agents().len() * 2]).unwrap();
-        let apart = live() - before;
+        let alone: Vec<Env> = (0..16)
+            .map(|_| {
+                let mut env = Env::new(scene.clone()).unwrap();
+                env.reset(None).unwrap();
+                env.step(&vec![0.3; env.agents().len() * 2]).unwrap();
+                env
+            })
+            .collect();
+        let apart = (live() - before) / 16.0;
         drop(alone);
         let pooled = |n: usize| {
             let before = live();
@@ -936,13 +941,34 @@ mod tests {
         }
     }
 
-    /// What keeps worlds apart: coevo training a side (its learners are per world).
+    /// A world whose step panics is swapped back out: the others, and its own seed, are as they were, and
+    /// the engine hosts again.
+    #[test]
+    fn a_panicking_step_leaves_every_world_its_own() {
+        let scene = Scene::load(std::path::Path::new("scenes/standard.ron")).unwrap();
+        let make = || VecEnv::seeded(scene.clone(), 3, 5, Default::default(), WorldSeeds::Independent).unwrap();
+        let (mut hit, mut calm) = (make(), make());
+        let seeds = hit.world_seeds();
+        let caught = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            hit.envs.map(1, |k, env| assert_ne!(k, 1, "world {} panics", env.scene().seed))
+        }));
+        assert!(caught.is_err());
+        assert_eq!(hit.world_seeds(), seeds);
+        assert_eq!(hit.observations(), calm.observations());
+        let actions = vec![0.2; 3 * hit.agents() * ACTION_DIM];
+        let (a, b) = (hit.step(&actions).unwrap(), calm.step(&actions).unwrap());
+        assert!(format!("{a:?}") == format!("{b:?}"));
+    }
+
+    /// What keeps worlds apart: coevo training a side (its learners are per world), or one world alone.
     #[test]
     fn worlds_where_coevo_trains_stay_apart() {
         let scene = Scene::load(std::path::Path::new("scenes/standard.ron")).unwrap();
         let coevolve = Coevolve { species: vec!["predator".into()], schedule: Schedule::Learning };
         let worlds = VecEnv::coevolving(scene, 2, 1, Default::default(), WorldSeeds::Independent, coevolve).unwrap();
         assert!(!worlds.envs.pooled());
+        let one = VecEnv::new(Scene::load(std::path::Path::new("scenes/standard.ron")).unwrap(), 1, 1).unwrap();
+        assert!(!one.envs.pooled());
     }
 
     #[test]

@@ -13,8 +13,9 @@
 //! world has its own copy of every system), and a thousand of those no longer fit the caches.
 //!
 //! Pooling is used only where it is known to be exact: every resource of the world is either parked or
-//! known to be the same in every world, and every component of an agent is one coevo parks. A species
-//! plugin that brings state of its own, or coevo training a side (its learners are per world), keeps
+//! known to be the same in every world, every component of an agent is one coevo parks, and no species
+//! plugin is in the app (a plugin's systems may keep state of their own, e.g. in a `Local`, which no
+//! swap would see). Coevo training a side (its learners are per world), a plugin, or a single world keep
 //! the worlds apart ([`eligible`] says why).
 
 use super::env::{Env, ExternalActions};
@@ -75,8 +76,9 @@ parked_resources! {
 }
 
 /// Resources the same in every world of one scene, whatever its seed: derived from the scene's fields
-/// but its seed, never written by a step. `Learners` only when nothing learns ([`eligible`]) and every
-/// fixed actor is the same in every world ([`Worlds::new`] compares them).
+/// but its seed, and nothing a step writes in them is read by a later step. `Learners` only when nothing
+/// learns ([`eligible`]) and every fixed actor is the same in every world ([`Worlds::new`] compares
+/// them): acting then writes only its scratch (`pending_obs`, read by learning alone).
 fn shared_resources() -> Vec<TypeId> {
     vec![
         TypeId::of::<SpeciesRegistry>(),
@@ -264,7 +266,8 @@ impl Worlds {
     ) -> crate::error::Result<Worlds> {
         let first = make(0)?;
         let engines = engines.clamp(1, worlds);
-        if eligible(&first).is_err() {
+        // One world gains nothing from an engine beside it.
+        if worlds < 2 || eligible(&first).is_err() {
             check(bytes.apart * worlds as f64)?;
             return Ok(Worlds::Apart(
                 std::iter::once(Ok(first)).chain((1..worlds).map(make)).collect::<Result<_, _>>()?,
@@ -355,10 +358,8 @@ impl Worlds {
                 }
                 crate::parallel::for_each_mut_on(&mut work, workers, |turn| {
                     for (i, item) in std::mem::take(&mut turn.items).into_iter().enumerate() {
-                        let world = &mut turn.worlds[i];
-                        world.swap(turn.engine);
-                        turn.out.push(f(turn.first + i, &mut turn.engine.env, item));
-                        world.swap(turn.engine);
+                        let on = OnEngine::new(&mut turn.worlds[i], turn.engine);
+                        turn.out.push(f(turn.first + i, &mut on.engine.env, item));
                     }
                 });
                 work.into_iter().flat_map(|turn| turn.out).collect()
@@ -374,16 +375,34 @@ impl Worlds {
                 let mut k = k;
                 for (engine, chunk) in engines.iter_mut().zip(parked.iter_mut()) {
                     if let Some(world) = chunk.get_mut(k) {
-                        world.swap(engine);
-                        let r = f(&mut engine.env);
-                        world.swap(engine);
-                        return Some(r);
+                        return Some(f(&mut OnEngine::new(world, engine).engine.env));
                     }
                     k -= chunk.len();
                 }
                 None
             }
         }
+    }
+}
+
+/// A parked world swapped into an engine, swapped back out when dropped, also when what it was swapped in
+/// for panics: the world is then left as that step left it, as a world of its own would be, and the
+/// engine hosts again.
+struct OnEngine<'a> {
+    world: &'a mut Parked,
+    engine: &'a mut Engine,
+}
+
+impl<'a> OnEngine<'a> {
+    fn new(world: &'a mut Parked, engine: &'a mut Engine) -> OnEngine<'a> {
+        world.swap(engine);
+        OnEngine { world, engine }
+    }
+}
+
+impl Drop for OnEngine<'_> {
+    fn drop(&mut self) {
+        self.world.swap(self.engine);
     }
 }
 
@@ -412,6 +431,10 @@ pub(super) fn eligible(env: &Env) -> Result<(), String> {
         if learners.mode != Mode::Evaluate || learners.league.is_some() {
             return Err("coevo trains a side in every world".into());
         }
+    }
+    let plugins = &world.resource::<crate::sim::policy::PolicyPlugins>().0;
+    if let Some(name) = plugins.iter().find(|name| *name != super::env::EXTERNAL) {
+        return Err(format!("species plugin {name:?} is in the app; its systems may keep state of their own"));
     }
     let bare: Vec<TypeId> = {
         let mut app = App::new();
