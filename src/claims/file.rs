@@ -47,7 +47,7 @@ pub struct ExperimentFile {
     /// `--partial`. Off by default: `--partial` reports the finished runs' numbers, marked partial.
     #[serde(default)]
     pub(crate) judged_when_complete: bool,
-    /// Keep each run's replay buffers once it is trained (~0.45 GB a run of the standard scene), so that
+    /// Keep each run's replay buffers once it is trained (~0.25 GB a run of the standard scene), so that
     /// `coevo --resume RUN --episodes N` can extend it exactly as an uninterrupted longer run. Off by
     /// default: a finished run's buffers are removed (`store::replay_segments::drop_replay`), so a suite of
     /// 150 runs needs ~1 GB rather than ~70 GB.

@@ -8,7 +8,9 @@
 //!   Adam moments `actor_adam.m.*`, `actor_adam.v.*`, `critic_adam.m.*`, `critic_adam.v.*`.
 //! - `<species>-replay-<from>-<to>.safetensors`: the replay buffer's transitions `from..to` (indices among
 //!   every transition the species ever stored), tensors `obs` (n, d_o), `actions` (n, 2), `rewards` (n),
-//!   `next_obs` (n, d_o). Together the segments cover what the buffer holds (its last `buffer_capacity`
+//!   `next_from` (n, I64: the row whose `obs` is row i's next observation, or −1) and `next_obs` (the rows
+//!   marked −1, d_o): a next observation that is the same agent's next observation is not stored twice
+//!   (segments of an older coevo hold `next_obs` (n, d_o) for every row, and still load). Together the segments cover what the buffer holds (its last `buffer_capacity`
 //!   transitions), so a resumed run samples exactly the mini-batches the uninterrupted run would.
 //! - `state.ron`: the scene, episodes done, RNG states (environment as it stood before the current
 //!   population was spawned, each species), exploration σ/ε, Adam step counts, transitions stored. Of a
@@ -33,7 +35,7 @@
 //! leaves either the previous checkpoint or the new one, never a mix. Replay segments are written once:
 //! each checkpoint hard-links the previous checkpoint's segments that the buffer still holds and adds one
 //! segment with the transitions since, so a checkpoint costs the new data only, and the folder holds at
-//! most one buffer's worth plus one segment (~0.22 GB per species of the standard scene). An experiment
+//! most one buffer's worth plus one segment (~0.12 GB per species of the standard scene). An experiment
 //! removes a run's segments once it is trained ([`super::replay_segments::drop_replay`]) unless its file says
 //! `keep_replay: true`.
 //!

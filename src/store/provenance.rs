@@ -94,7 +94,8 @@ pub(crate) fn spelled() -> String {
 
 /// A run's behavioural fingerprint: the first 16 hex digits of a BLAKE3 hash over its `metrics.csv` with
 /// the `wall_seconds` column left out and over every file of its checkpoint but the manifest (which hashes
-/// the metrics with their wall clock), by name. Two binaries built from one commit differ as files (codegen
+/// the metrics with their wall clock), by name; a replay segment as written with every next observation
+/// (`replay_segments::hash_with_every_next_observation`), however it is stored. Two binaries built from one commit differ as files (codegen
 /// is not byte-reproducible) but compute the same numbers; the same short training by both gives the same
 /// fingerprint, which is how a pinned experiment's binary is rebuilt instead of kept in git
 /// (docs/src/guide/experiments.md, "Pinned binaries").
@@ -123,6 +124,12 @@ pub fn fingerprint(run: &std::path::Path) -> crate::error::Result<String> {
     for path in files {
         hasher.update(path.file_name().unwrap_or_default().as_encoded_bytes());
         let cannot = |e: std::io::Error| format!("{}: cannot read: {e}", path.display());
+        let name = path.file_name().unwrap_or_default().to_string_lossy();
+        if super::names::parse_segment_name(&name).is_some() {
+            // As written with every next observation, whichever way it is stored.
+            super::replay_segments::hash_with_every_next_observation(&path, &mut hasher).map_err(cannot)?;
+            continue;
+        }
         let mut file = crate::io::open_input(&path).map_err(cannot)?;
         std::io::copy(&mut file, &mut hasher).map_err(cannot)?;
     }
