@@ -166,7 +166,7 @@ pub(crate) fn group_size_steps(budget: Duration) -> Vec<(usize, usize, Figure)> 
 pub const GROUP_SIZES: [usize; 7] = [10, 50, 200, 1_000, 2_000, 5_000, 10_000];
 
 /// Stepping from outside (`run::env`, what the Python package drives): one world of the standard scene,
-/// and 8, 64 and 1 024 worlds stepped together (parked on shared apps, `run::pool`), constant actions;
+/// and 8, 64 and 1 024 worlds stepped together (parked on shared apps, `run::env::pool`), constant actions;
 /// world steps per second summed over worlds.
 pub(crate) fn external(budget: Duration) -> Vec<Figure> {
     use crate::run::env::{Env, VecEnv};

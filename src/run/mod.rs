@@ -1,8 +1,8 @@
-//! Run modes and their run folders: `folder.rs` owns a run folder (its names, what may be written into
-//! it, who may write); `train.rs` (its flags in `train_args.rs`, its closing report in `explain.rs`), `evaluate.rs`, `record.rs`, `animate.rs`, `bench.rs` are the modes,
-//! `schema.rs` their CSV columns, `provenance.rs` what made a run, `env.rs` coevo stepped from outside,
-//! `progress.rs` costly calls' notices, `args.rs` the flags several modes share (each mode's own flags sit
-//! beside it), `deploy.rs` what `--record` and `--animate` show.
+//! Run modes: `train.rs` (its flags in `train_args.rs`, its closing report in `explain.rs`), `evaluate.rs`,
+//! `record.rs`, `animate.rs` and `bench.rs` are the modes; `env/` is coevo stepped from outside (one world,
+//! many, and many parked on shared apps); `progress.rs` costly calls' notices, `args.rs` the flags several
+//! modes share (each mode's own flags sit beside it), `deploy.rs` what `--record` and `--animate` show.
+//! What a run leaves on disk (its folder, provenance, CSV columns, checkpoints) is [`crate::store`]'s.
 
 pub mod animate;
 pub mod args;
@@ -15,7 +15,6 @@ pub(crate) mod explain;
 pub mod live;
 pub mod movement;
 pub(crate) mod perturb;
-mod pool;
 pub(crate) mod progress;
 pub(crate) mod record;
 mod simulation;

@@ -387,7 +387,7 @@ impl Scene {
     }
 
     /// The bytes one world of this scene holds parked between its steps, when many worlds share an app
-    /// (`run::pool`): its resources ([`PARKED_BYTES`]) and per agent its components, observations and
+    /// (`run::env::pool`): its resources ([`PARKED_BYTES`]) and per agent its components, observations and
     /// perception arrays (~600 B with 54 observation numbers: 15 kB a world of 3 + 10, measured). Held
     /// against what a parked world holds by `run::env`'s tests.
     pub(crate) fn parked_bytes(&self) -> f64 {

@@ -1,4 +1,4 @@
-//! Many worlds on few apps: the worlds of a [`super::env::VecEnv`] whose species are all decided from
+//! Many worlds on few apps: the worlds of a [`super::VecEnv`] whose species are all decided from
 //! outside or by fixed rules and actors share one running world per thread, the *engine*, and each keeps
 //! only its state between steps, *parked*.
 //!
@@ -18,7 +18,7 @@
 //! swap would see). Coevo training a side (its learners are per world), a plugin, or a single world keep
 //! the worlds apart ([`eligible`] says why).
 
-use super::env::{Env, ExternalActions};
+use super::world::{Env, ExternalActions, EXTERNAL};
 use crate::learning::{Learners, Mode};
 use crate::scene::Scene;
 use crate::sim::clock::Episode;
@@ -228,7 +228,7 @@ pub(super) struct Bytes {
     pub(super) parked: f64,
 }
 
-/// The worlds of a [`super::env::VecEnv`]: each its own app, or parked on a few engines.
+/// The worlds of a [`super::VecEnv`]: each its own app, or parked on a few engines.
 pub(super) enum Worlds {
     Apart(Vec<Env>),
     /// `parked[i]` is stepped on `engines[i]`: contiguous runs of worlds, in order.
@@ -433,7 +433,7 @@ pub(super) fn eligible(env: &Env) -> Result<(), String> {
         }
     }
     let plugins = &world.resource::<crate::sim::policy::PolicyPlugins>().0;
-    if let Some(name) = plugins.iter().find(|name| *name != super::env::EXTERNAL) {
+    if let Some(name) = plugins.iter().find(|name| *name != EXTERNAL) {
         return Err(format!("species plugin {name:?} is in the app; its systems may keep state of their own"));
     }
     let bare: Vec<TypeId> = {
