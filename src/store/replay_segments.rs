@@ -84,10 +84,9 @@ pub(super) fn write_segment(
 ) -> std::io::Result<Digest> {
     let n = (to - from) as usize;
     let (d, a) = (buf.obs_dim, buf.act_dim);
-    let same = |x: &[f32], y: &[f32]| x.iter().zip(y).all(|(p, q)| p.to_bits() == q.to_bits());
     let next_from: Vec<i64> = match stride(buf, from, to) {
         Some(c) => (from..to)
-            .map(|k| match k + c < to && same(buf.transition(k).3, buf.transition(k + c).0) {
+            .map(|k| match k + c < to && same_bits(buf.transition(k).3, buf.transition(k + c).0) {
                 true => (k + c - from) as i64,
                 false => -1,
             })
@@ -208,10 +207,15 @@ pub(crate) fn hash_with_every_next_observation(path: &Path, hasher: &mut blake3:
 /// observation equal to the bit to the observation c rows on, looked for from the segment's first rows
 /// (at most 64 of them, c up to 4 096); None when none is found (every next observation is then kept).
 fn stride(buf: &ReplayBuffer, from: u64, to: u64) -> Option<u64> {
-    let same = |x: &[f32], y: &[f32]| x.iter().zip(y).all(|(p, q)| p.to_bits() == q.to_bits());
     (from..to.min(from + 64)).find_map(|k| {
-        (1..=4096u64).take_while(|c| k + c < to).find(|&c| same(buf.transition(k).3, buf.transition(k + c).0))
+        (1..=4096u64).take_while(|c| k + c < to).find(|&c| same_bits(buf.transition(k).3, buf.transition(k + c).0))
     })
+}
+
+/// Two observations equal to the bit (−0 is not 0 here: a row stands for another only if it reads back
+/// as the very same numbers).
+fn same_bits(x: &[f32], y: &[f32]) -> bool {
+    x.iter().zip(y).all(|(p, q)| p.to_bits() == q.to_bits())
 }
 
 /// Bytes of a replay segment gathered before each write ([`write_segment`]): many BLAKE3 chunks (1 KiB

@@ -238,14 +238,17 @@ impl VecEnv {
     /// episode, already spawned); returns the observations.
     pub fn reset(&mut self) -> crate::error::Result<Vec<f32>> {
         if !std::mem::take(&mut self.fresh) {
-            self.envs.map(1, |_, env| env.reset(None)).into_iter().collect::<crate::error::Result<Vec<_>>>()?;
+            self.envs.map(1, |_, env| env.start(None)).into_iter().collect::<crate::error::Result<Vec<_>>>()?;
         }
         Ok(self.observations())
     }
 
-    /// Every world's current observations, `[worlds × agents × d_o]`.
+    /// Every world's current observations, `[worlds × agents × d_o]`, each world writing its rows.
     pub fn observations(&mut self) -> Vec<f32> {
-        self.envs.map(1, |_, env| env.observations()).concat()
+        let rows = self.agents * self.obs_dim();
+        let mut observations = vec![0.0; self.envs.len() * rows];
+        self.envs.map_with(1, observations.chunks_mut(rows).collect(), |_, env, out| env.write_observations(out));
+        observations
     }
 
     /// One step of every world (`actions`: `[worlds × agents × 2]`), on all cores; a world whose episode

@@ -255,8 +255,8 @@ impl Engine {
 
 impl Worlds {
     /// `worlds` worlds, world k made by `make(k)` as a world of its own; parked on up to `engines`
-    /// engines when [`eligible`].
-    /// `check` is given the bytes all of them will hold before the second is made.
+    /// engines when [`eligible`]. `check` is given the bytes all of them will hold before the second is
+    /// made.
     pub(super) fn new(
         worlds: usize,
         engines: usize,
@@ -278,12 +278,8 @@ impl Worlds {
         let hosts: Vec<Env> = (0..engines).map(|_| make(0)).collect::<Result<_, _>>()?;
         let actors = fixed_actors(&hosts[0]);
         let mut parked: Vec<Vec<Parked>> = (0..engines).map(|_| Vec::new()).collect();
-        let mut pending = Some(first);
-        for k in 0..worlds {
-            let env = match pending.take() {
-                Some(env) => env,
-                None => make(k)?,
-            };
+        for (k, env) in std::iter::once(Ok(first)).chain((1..worlds).map(&make)).enumerate() {
+            let env = env?;
             if fixed_actors(&env) != actors {
                 // Fixed actors that differ between worlds (none shipped does this) are per world: apart.
                 drop((hosts, parked, env));
@@ -411,7 +407,7 @@ impl Drop for OnEngine<'_> {
 struct Turn<'a, T, R> {
     first: usize,
     engine: &'a mut Engine,
-    worlds: &'a mut Vec<Parked>,
+    worlds: &'a mut [Parked],
     items: Vec<T>,
     out: Vec<R>,
 }
