@@ -222,21 +222,21 @@ fn measure(
         })
         .collect();
     m.nn_distances_now.resize(n_species, Vec::new());
-    m.now = (0..n_species)
-        .map(|s| {
-            let out = &mut m.nn_distances_now[s];
-            swarming(
-                &arena,
-                &pop.position,
-                &pop.heading,
-                &pop.grids[s],
-                pop.ranges[s].clone(),
-                &pop.nearest_kin,
-                &labels[s],
-                out,
-            )
-        })
-        .collect();
+    // Refilled in place (as the population's vectors are, sim::perception::index_population).
+    m.now.clear();
+    m.now.extend((0..n_species).map(|s| {
+        let out = &mut m.nn_distances_now[s];
+        swarming(
+            &arena,
+            &pop.position,
+            &pop.heading,
+            &pop.grids[s],
+            pop.ranges[s].clone(),
+            &pop.nearest_kin,
+            &labels[s],
+            out,
+        )
+    }));
     // Marginal predation: where in its group each newly caught prey was.
     m.edge_ranks_now.resize(n_species, Vec::new());
     for (s, ranks) in m.edge_ranks_now.iter_mut().enumerate() {
@@ -272,12 +272,14 @@ fn measure(
             }
         }
     }
-    m.in_view = in_view;
+    m.in_view.clear();
+    m.in_view.extend_from_slice(&in_view);
     // The episode's running sums.
     let e = &mut m.episode;
     e.swarming.resize(n_species, [0.0; Swarming::N]);
     e.edge_ranks.resize(n_species, (0.0, 0));
-    e.agents = (0..n_species).map(|s| pop.count(s)).collect();
+    e.agents.clear();
+    e.agents.extend((0..n_species).map(|s| pop.count(s)));
     for (sum, now) in e.swarming.iter_mut().zip(&m.now) {
         if let Some(now) = now {
             sum.iter_mut().zip(now.values()).for_each(|(a, v)| *a += v);

@@ -190,8 +190,12 @@ fn index_population(
     p.nearest_kin.clear();
     p.nearest_kin.resize(order.len(), None);
     let n_species = registry.len();
-    p.ranges = vec![0..0; n_species];
-    p.max_radius = vec![0.0; n_species];
+    // Refilled in place, here and below: a vector replaced every step would free the parked world's
+    // old one, which a thousand worlds stepped in turn keep cold (run::env::pool).
+    p.ranges.clear();
+    p.ranges.resize(n_species, 0..0);
+    p.max_radius.clear();
+    p.max_radius.resize(n_species, 0.0);
     let mut slot_of = vec![Slot { index: 0, row: 0 }; order.len()];
     for ((s, id), q, e, x, v, h, radius, turn, energy) in order {
         let slot = p.entity.len();

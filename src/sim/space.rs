@@ -63,15 +63,18 @@ impl Arena {
 }
 
 /// The shortest signed displacement along one periodic axis of length `edge`.
+///
+/// The three candidates are all computed and one is selected by bit masks: which one applies follows the
+/// data (about half of the pairs on a small torus cross its seam), and a branch there would be
+/// mispredicted once per pair; the value is the same either way.
+#[inline]
 pub fn min_image(d: f64, edge: f64) -> f64 {
     let half = edge / 2.0;
-    if d > half {
-        d - edge
-    } else if d < -half {
-        d + edge
-    } else {
-        d
-    }
+    let select = |take: bool, a: f64, b: f64| {
+        let mask = (take as u64).wrapping_neg();
+        f64::from_bits((a.to_bits() & mask) | (b.to_bits() & !mask))
+    };
+    select(d > half, d - edge, select(d < -half, d + edge, d))
 }
 
 /// Wraps one coordinate into [−half, half) by the overshoot. One step never moves more than an edge.
@@ -218,7 +221,10 @@ impl CellGrid {
         let q = Knn { arena, p, k, r2: radius * radius, exclude };
         let n = self.cells_per_side;
         if n < SCAN_ALL_BELOW {
-            q.scan(self, 0..self.items.len(), out);
+            // Under 2 · SCAN_ALL_BELOW² members, so ranked without branches: sorted insertion's
+            // branches follow each world's data, which a branch predictor learns for a few worlds
+            // stepped in turn but not for a thousand.
+            q.rank_block(self, std::slice::from_ref(&(0..self.items.len())), !self.periodic, out);
             return;
         }
         // Expanding square rings of cells around p's cell. A cell at offset (dx, dy) is at least
@@ -374,6 +380,8 @@ impl CellGrid {
 /// (whole vectors of eight).
 const BLOCK_RANKED: usize = 48;
 const _: () = assert!(BLOCK_RANKED.is_multiple_of(8));
+// A grid of fewer than SCAN_ALL_BELOW cells a side holds fewer than 2 · SCAN_ALL_BELOW² members (rebuild).
+const _: () = assert!(2 * SCAN_ALL_BELOW * SCAN_ALL_BELOW <= BLOCK_RANKED);
 
 /// One k-nearest query: keeps the best `k` candidates in a short sorted list.
 struct Knn<'a> {
@@ -412,7 +420,12 @@ impl Knn<'_> {
                 // by the next one or reset below. The block holds at most BLOCK_RANKED, so m stays in bounds.
                 d2[m] = d;
                 index[m] = i;
-                m += ((d <= self.r2) & (i != self.exclude)) as usize;
+                // `!(d > r2)`, as a sorted scan admits: a distance that is not a number (a position
+                // gone non-finite, which stops the run after this step) is still a candidate, so a
+                // query for the nearest one always finds one.
+                #[allow(clippy::neg_cmp_op_on_partial_ord)] // NaN admitted on purpose, as said above
+                let admitted = !(d > self.r2);
+                m += (admitted & (i != self.exclude)) as usize;
             }
         }
         if m < BLOCK_RANKED {
@@ -493,6 +506,7 @@ fn place_by_rank_avx512(d2: &[f64; BLOCK_RANKED], index: &[u32; BLOCK_RANKED], m
     use std::arch::x86_64::*;
     // Whole blocks of eight lanes: the padding is never before a real candidate.
     let blocks = m.div_ceil(8);
+    let mut sorted = [(0.0f64, 0u32); BLOCK_RANKED];
     for a in 0..m {
         let (da, ia) = (d2[a], index[a]);
         let (vd, vi) = (_mm512_set1_pd(da), _mm256_set1_epi32(ia as i32));
@@ -509,10 +523,11 @@ fn place_by_rank_avx512(d2: &[f64; BLOCK_RANKED], index: &[u32; BLOCK_RANKED], m
             let tie = _mm512_cmp_pd_mask::<_CMP_EQ_OQ>(d, vd) & _mm256_cmplt_epu32_mask(i, vi);
             rank += (nearer | tie).count_ones() as usize;
         }
-        if rank < out.len() {
-            out[rank] = (da, ia);
-        }
+        // Every candidate goes to its place (the ranks are 0..m, each once) and the first out.len() are
+        // kept: whether a candidate makes the cut follows the data, so it is not a branch.
+        sorted[rank] = (da, ia);
     }
+    out.copy_from_slice(&sorted[..out.len()]);
 }
 
 #[cfg(test)]
@@ -531,6 +546,29 @@ mod tests {
         assert!((d - DVec2::new(0.1, -0.1)).length() < 1e-12, "{d}");
         let walls = Arena { edge: 2.0, boundary: Boundary::Walls };
         assert!((walls.delta(DVec2::new(0.95, 0.0), DVec2::new(-0.95, 0.0)).x + 1.9).abs() < 1e-12);
+    }
+
+    #[test]
+    fn minimum_image_selects_what_the_branches_would() {
+        let branches = |d: f64, edge: f64| {
+            let half = edge / 2.0;
+            if d > half {
+                d - edge
+            } else if d < -half {
+                d + edge
+            } else {
+                d
+            }
+        };
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        let edges = [2.0, 3.7, 100.0];
+        let special = [0.0, -0.0, 1.0, -1.0, 1.0 + f64::EPSILON, -1.0 - f64::EPSILON, 1.85, -1.85, 50.0, -50.0];
+        for &edge in &edges {
+            let random = (0..2000).map(|_| rng.gen_range(-edge..edge));
+            for d in special.into_iter().chain(random) {
+                assert_eq!(min_image(d, edge).to_bits(), branches(d, edge).to_bits(), "d = {d}, edge = {edge}");
+            }
+        }
     }
 
     #[test]

@@ -75,7 +75,7 @@ impl Schedule {
 
 /// The actions given from outside, per species (empty for species decided inside).
 #[derive(Resource, Default, Clone, Debug)]
-pub(super) struct ExternalActions(Vec<Vec<f32>>);
+pub(super) struct ExternalActions(pub(super) Vec<Vec<f32>>);
 
 /// Decide: the external species' rows of the action batch are the actions given to [`Env::step`].
 fn apply_external(actions: Res<ExternalActions>, mut batches: ResMut<Batches>) {
