@@ -430,6 +430,17 @@ class VecEnv:
         ``parallel_env(seed=world_seeds[i])`` starts): observations ``[num_envs, agents, d_o]``."""
         return self._open("reset").reset()
 
+    def reseed(self, seed: int):
+        """Every world starts afresh from ``seed``, in place (one world at a time, the old state freed as
+        the new one takes its place): afterwards this VecEnv is one made with ``seed``, and ``reset()``
+        hands out each world's first episode."""
+        env, seed = self._open("reseed"), _seed(seed)
+        if seed is None:
+            raise InputError("seed: an integer in [0, 2^64) (got None); nothing was reseeded")
+        env.reseed(seed)
+        self._made_with["seed"] = seed
+        self.world_seeds = list(env.world_seeds())
+
     def state(self) -> np.ndarray:
         """Every world's global state ``[num_envs, agents of all species, 6]``: x, y, v_x, v_y, h_x, h_y per
         agent (m, m/s, unit heading), by agent id, in the world frame, for centralised critics."""
@@ -566,9 +577,13 @@ class CoevoVectorEnv(_VectorEnv):
             seed = int(seed)
             if not 0 <= seed < 2**64:
                 raise InputError(f"seed: {seed} is outside [0, 2^64); nothing was reset")
-            # The old worlds go before the new ones are made: memory holds one set of worlds, not two.
-            self._worlds.close()
-            self._worlds = self._make(seed)
+            # In place, one world at a time: memory holds the worlds and one more, never two sets.
+            try:
+                self._worlds.reseed(seed)
+            except CoevoError:
+                # Some worlds may be reseeded and others not: all of them are made anew.
+                self._worlds.close()
+                self._worlds = self._make(seed)
             obs = self._worlds.reset()
         elif self._next_first is not None:
             obs = self._next_first  # the episodes that ended have begun their successors already

@@ -412,6 +412,14 @@ impl VecEnv {
         [self.inner.worlds(), self.inner.agents(), self.inner.obs_dim()]
     }
 
+    /// Every world starts afresh from `seed` (world i from `world_seed(seed, i)`), in place: one world at a
+    /// time, the old state freed as the new takes its place; the next `reset()` hands out each world's
+    /// first episode, as a VecEnv made with `seed` would.
+    fn reseed(&mut self, py: Python<'_>, seed: u64) -> PyResult<()> {
+        let inner = &mut self.inner;
+        py.allow_threads(|| inner.reseed(seed)).map_err(err)
+    }
+
     /// The next episode in every world: observations `[num_envs, agents, d_o]`.
     fn reset<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyArray3<f32>>> {
         let obs = self.inner.reset().map_err(err)?;

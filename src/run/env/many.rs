@@ -43,6 +43,8 @@ pub fn world_seed(seed: u64, i: u64) -> u64 {
 /// steps ([`super::pool`]), with the same results as worlds of their own.
 pub struct VecEnv {
     envs: Worlds,
+    /// What every world is made from, but its seed.
+    made: Made,
     agents: usize,
     /// Finished episodes not yet taken, in the order they finished (by step, then by world).
     finished: Vec<EpisodeSummary>,
@@ -70,6 +72,25 @@ pub struct VecStep {
     pub dos: Vec<f64>,
     pub doa: Vec<f64>,
     pub catches: Vec<u32>,
+}
+
+/// What a [`VecEnv`]'s worlds are made from: world i of seed `seed` is [`Made::world`]`(seed, i)`.
+struct Made {
+    scene: Scene,
+    control: ObservationControl,
+    coevolve: Coevolve,
+    seeds: WorldSeeds,
+}
+
+impl Made {
+    fn world(&self, seed: u64, i: usize) -> crate::error::Result<Env> {
+        let mut s = self.scene.clone();
+        s.seed = match self.seeds {
+            WorldSeeds::Independent => world_seed(seed, i as u64),
+            WorldSeeds::Consecutive => seed.wrapping_add(i as u64),
+        };
+        Env::with_options(s, self.control.clone(), self.coevolve.clone())
+    }
 }
 
 /// One world's step in a [`VecEnv`]: its result and, when its episode ended, its last observations.
@@ -132,17 +153,12 @@ impl VecEnv {
         // Whether pooled or not is known once a world is built (one world is bounded when its scene is
         // validated).
         let bytes = Bytes { apart: scene.world_bytes(), parked: scene.parked_bytes() };
-        let envs = Worlds::new(worlds, crate::parallel::threads(), bytes, check, |i| {
-            let mut s = scene.clone();
-            s.seed = match seeds {
-                WorldSeeds::Independent => world_seed(seed, i as u64),
-                WorldSeeds::Consecutive => seed.wrapping_add(i as u64),
-            };
-            Env::with_options(s, control.clone(), coevolve.clone())
-        })?;
+        let made = Made { scene, control, coevolve, seeds };
+        let envs = Worlds::new(worlds, crate::parallel::threads(), bytes, check, |i| made.world(seed, i))?;
         let agents = envs.any().agents().len();
         Ok(VecEnv {
             envs,
+            made,
             agents,
             finished: vec![],
             numbered: 0,
@@ -241,6 +257,21 @@ impl VecEnv {
             self.envs.map(1, |_, env| env.start(None)).into_iter().collect::<crate::error::Result<Vec<_>>>()?;
         }
         Ok(self.observations())
+    }
+
+    /// Every world starts afresh from `seed` (world i from [`world_seed`]`(seed, i)`, or as the worlds
+    /// were seeded), in place: one world at a time, its new state made and the old one freed, so memory
+    /// holds the worlds and one more, and the worlds go on sharing their engines. Afterwards everything
+    /// is as in a VecEnv made with `seed` (`a_reseeded_vec_env_is_one_made_with_that_seed`): the next
+    /// [`VecEnv::reset`] hands out each world's first episode, and no finished episode is left to take.
+    /// An error leaves some worlds reseeded and others not: make the VecEnv anew then.
+    pub fn reseed(&mut self, seed: u64) -> crate::error::Result<()> {
+        let made = &self.made;
+        self.envs.reseed(|i| made.world(seed, i))?;
+        self.finished.clear();
+        self.numbered = 0;
+        self.fresh = true;
+        Ok(())
     }
 
     /// Every world's current observations, `[worlds × agents × d_o]`, each world writing its rows.
@@ -427,6 +458,47 @@ mod tests {
             let rows = pooled.take_episode_rows();
             assert!(rows.len() >= 14, "{name}: {} episodes", rows.len());
             assert_eq!(rows, apart.take_episode_rows(), "{name}");
+        }
+    }
+
+    /// A VecEnv reseeded after stepping (pooled, and with coevo training a side, apart) steps as one made
+    /// with the new seed, to the bit: observations, rewards, state, episode rows and world seeds; its pooled
+    /// worlds stay on the same engines.
+    #[test]
+    fn a_reseeded_vec_env_is_one_made_with_that_seed() {
+        let mut scene = Scene::load(std::path::Path::new("scenes/standard.ron")).unwrap();
+        scene.episode_steps = 5;
+        let coevolving = Coevolve { species: vec!["predator".into()], ..Coevolve::default() };
+        for (name, coevolve) in [("pooled", Coevolve::default()), ("apart", coevolving)] {
+            let make = |seed| {
+                let (s, c) = (scene.clone(), ObservationControl::default());
+                VecEnv::coevolving(s, 5, seed, c, WorldSeeds::Independent, coevolve.clone()).unwrap()
+            };
+            let (mut reseeded, mut fresh) = (make(3), make(4));
+            assert_eq!(reseeded.envs.pooled(), name == "pooled");
+            let n = 5 * reseeded.agents() * ACTION_DIM;
+            let actions =
+                |t: usize| -> Vec<f32> { (0..n).map(|i| ((i * 31 + t * 17) % 20) as f32 / 10.0 - 1.0).collect() };
+            reseeded.reset().unwrap();
+            for t in 0..7 {
+                reseeded.step(&actions(t)).unwrap();
+            }
+            let engine = match &reseeded.envs {
+                super::super::pool::Worlds::Pooled { engines, .. } => Some(engines.as_ptr()),
+                _ => None,
+            };
+            reseeded.reseed(4).unwrap();
+            if let super::super::pool::Worlds::Pooled { engines, .. } = &reseeded.envs {
+                assert_eq!(Some(engines.as_ptr()), engine, "the engines are kept");
+            }
+            assert_eq!(reseeded.world_seeds(), fresh.world_seeds(), "{name}");
+            assert_eq!(reseeded.reset().unwrap(), fresh.reset().unwrap(), "{name}");
+            for t in 0..12 {
+                let (a, b) = (reseeded.step(&actions(t)).unwrap(), fresh.step(&actions(t)).unwrap());
+                assert!(format!("{a:?}") == format!("{b:?}"), "{name}, step {t}: the reseeded step differs");
+                assert_eq!(reseeded.state(), fresh.state(), "{name}, step {t}");
+            }
+            assert_eq!(reseeded.take_episode_rows(), fresh.take_episode_rows(), "{name}");
         }
     }
 

@@ -329,6 +329,34 @@ impl Worlds {
         Ok(Worlds::Pooled { engines: hosts.into_iter().map(Engine::new).collect(), parked })
     }
 
+    /// World k replaced by `make(k)`, one world at a time (its old state freed as the new one takes its
+    /// place). Pooled worlds stay on their engines; their new fixed actors must be the engines' (the
+    /// same scene gives the same, as [`Worlds::new`] checked for the first seed). A failure (a world that
+    /// cannot be made, or other fixed actors) leaves the worlds before it reseeded and the rest as they
+    /// were: the caller makes its worlds anew.
+    pub(super) fn reseed(&mut self, make: impl Fn(usize) -> crate::error::Result<Env>) -> crate::error::Result<()> {
+        match self {
+            Worlds::Apart(envs) => {
+                for (k, env) in envs.iter_mut().enumerate() {
+                    *env = make(k)?;
+                }
+            }
+            Worlds::Pooled { engines, parked } => {
+                let actors = fixed_actors(&engines[0].env);
+                for (k, world) in parked.iter_mut().flatten().enumerate() {
+                    let env = make(k)?;
+                    if fixed_actors(&env) != actors {
+                        return Err("reset: a world of the new seed holds fixed actors other than the first seed's; \
+                                    make the worlds anew instead"
+                            .into());
+                    }
+                    *world = Parked::take(env);
+                }
+            }
+        }
+        Ok(())
+    }
+
     pub(super) fn len(&self) -> usize {
         match self {
             Worlds::Apart(envs) => envs.len(),
