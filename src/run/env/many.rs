@@ -169,9 +169,11 @@ impl VecEnv {
     }
 
     /// Steps on at most `n` threads (at least 1; never more than [`crate::parallel::threads`]); which
-    /// thread steps a world never changes what it computes.
+    /// thread steps a world never changes what it computes. Pooled worlds keep at most `n` engines (one
+    /// app a thread), and a larger `n` later does not bring the others back.
     pub fn set_max_threads(&mut self, n: usize) {
         self.max_threads = Some(n.max(1));
+        self.envs.keep_engines(n);
     }
 
     /// Saves world `world`'s run of coevo's side ([`Env::save_run`]); between episodes, so right after a
@@ -500,6 +502,30 @@ mod tests {
             }
             assert_eq!(reseeded.take_episode_rows(), fresh.take_episode_rows(), "{name}");
         }
+    }
+
+    /// Pooled worlds moved onto fewer engines (`set_max_threads`) step as before, to the bit.
+    #[test]
+    fn worlds_moved_onto_one_engine_step_as_on_many() {
+        let mut scene = Scene::load(std::path::Path::new("scenes/standard.ron")).unwrap();
+        scene.episode_steps = 4;
+        let make = || VecEnv::seeded(scene.clone(), 5, 2, Default::default(), WorldSeeds::Independent).unwrap();
+        let (mut many, mut one) = (make(), make());
+        // Three engines, whatever the machine's cores.
+        let bytes = super::super::pool::Bytes { apart: 0.0, parked: 0.0 };
+        let three = super::super::pool::Worlds::new(5, 3, bytes, |_| Ok(()), |i| many.made.world(2, i)).unwrap();
+        many.envs = three;
+        one.set_max_threads(1);
+        let super::super::pool::Worlds::Pooled { engines, parked } = &one.envs else { panic!("pooled") };
+        assert_eq!((engines.len(), parked.len(), parked[0].len()), (1, 1, 5));
+        assert_eq!(many.reset().unwrap(), one.reset().unwrap());
+        let n = 5 * many.agents() * ACTION_DIM;
+        for t in 0..9 {
+            let actions: Vec<f32> = (0..n).map(|i| ((i * 13 + t * 7) % 20) as f32 / 10.0 - 1.0).collect();
+            let (a, b) = (many.step(&actions).unwrap(), one.step(&actions).unwrap());
+            assert!(format!("{a:?}") == format!("{b:?}"), "step {t}: one engine steps otherwise");
+        }
+        assert_eq!(many.take_episode_rows(), one.take_episode_rows());
     }
 
     /// A world whose step panics is swapped back out: the others, and its own seed, are as they were, and

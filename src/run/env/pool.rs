@@ -357,6 +357,25 @@ impl Worlds {
         Ok(())
     }
 
+    /// At most `n` engines (at least one): the worlds of the engines dropped move to those kept, again in
+    /// contiguous runs. Any engine of a scene hosts any of its worlds (each engine is the same host, and a
+    /// step swaps a world's whole state in), so this changes no value; it spares a caller that steps on
+    /// fewer threads than there are cores an app per idle core and the cache those apps would take.
+    pub(super) fn keep_engines(&mut self, n: usize) {
+        let Worlds::Pooled { engines, parked } = self else { return };
+        let n = n.clamp(1, engines.len());
+        if n == engines.len() {
+            return;
+        }
+        engines.truncate(n);
+        let worlds: Vec<Parked> = parked.drain(..).flatten().collect();
+        let total = worlds.len();
+        parked.extend((0..n).map(|_| Vec::new()));
+        for (k, world) in worlds.into_iter().enumerate() {
+            parked[k * n / total].push(world);
+        }
+    }
+
     pub(super) fn len(&self) -> usize {
         match self {
             Worlds::Apart(envs) => envs.len(),
