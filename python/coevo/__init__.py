@@ -433,11 +433,16 @@ class VecEnv:
     def reseed(self, seed: int):
         """Every world starts afresh from ``seed``, in place (one world at a time, the old state freed as
         the new one takes its place): afterwards this VecEnv is one made with ``seed``, and ``reset()``
-        hands out each world's first episode."""
+        hands out each world's first episode (episodes finished and not yet taken are dropped). Should it
+        fail part way, the VecEnv is closed: some worlds would be reseeded and others not."""
         env, seed = self._open("reseed"), _seed(seed)
         if seed is None:
             raise InputError("seed: an integer in [0, 2^64) (got None); nothing was reseeded")
-        env.reseed(seed)
+        try:
+            env.reseed(seed)
+        except BaseException:
+            self.close()
+            raise
         self._made_with["seed"] = seed
         self.world_seeds = list(env.world_seeds())
 
@@ -581,7 +586,7 @@ class CoevoVectorEnv(_VectorEnv):
             try:
                 self._worlds.reseed(seed)
             except CoevoError:
-                # Some worlds may be reseeded and others not: all of them are made anew.
+                # The worlds, some reseeded and others not, were closed: they are made anew.
                 self._worlds.close()
                 self._worlds = self._make(seed)
             obs = self._worlds.reset()

@@ -412,7 +412,8 @@ impl VecEnv {
         [self.inner.worlds(), self.inner.agents(), self.inner.obs_dim()]
     }
 
-    /// Every world starts afresh from `seed` (world i from `world_seed(seed, i)`), in place: one world at a
+    /// Every world starts afresh from `seed` (world i from `world_seed(seed, i)`, or `seed + i` with
+    /// `world_seeds="consecutive"`), in place: one world at a
     /// time, the old state freed as the new takes its place; the next `reset()` hands out each world's
     /// first episode, as a VecEnv made with `seed` would.
     fn reseed(&mut self, py: Python<'_>, seed: u64) -> PyResult<()> {

@@ -1041,9 +1041,24 @@ def test_a_seeded_reset_of_vector_env_is_one_made_with_that_seed():
         env.step(actions)
     fresh = coevo.vector_env(STANDARD, num_worlds=3, seed=8, episode_steps=3)
     a, _ = env.reset(seed=8)
-    b, _ = fresh.reset(seed=8)
+    b, _ = fresh.reset()  # a fresh env's first reset: its seed's first episodes
     assert np.array_equal(a, b)
     assert env._worlds.world_seeds == fresh._worlds.world_seeds
     for _ in range(5):
         a, b = env.step(actions), fresh.step(actions)
         assert all(np.array_equal(x, y) for x, y in zip(a[:4], b[:4]))
+
+
+def test_a_reseeded_vecenv_names_its_new_worlds_and_is_copied_with_them():
+    import copy
+
+    vec = coevo.VecEnv(STANDARD, num_envs=3, seed=2, episode_steps=3)
+    vec.reset()
+    vec.step(np.full((3, len(vec.agents), 2), 0.1, np.float32))
+    vec.reseed(9)
+    made = coevo.VecEnv(STANDARD, num_envs=3, seed=9, episode_steps=3)
+    assert vec.world_seeds == made.world_seeds
+    assert np.array_equal(vec.reset(), made.reset())
+    assert copy.deepcopy(vec).world_seeds == made.world_seeds
+    with pytest.raises(coevo.InputError, match="seed"):
+        vec.reseed(None)

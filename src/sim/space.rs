@@ -221,10 +221,14 @@ impl CellGrid {
         let q = Knn { arena, p, k, r2: radius * radius, exclude };
         let n = self.cells_per_side;
         if n < SCAN_ALL_BELOW {
-            // Under 2 · SCAN_ALL_BELOW² members, so ranked without branches: sorted insertion's
-            // branches follow each world's data, which a branch predictor learns for a few worlds
-            // stepped in turn but not for a thousand.
-            q.rank_block(self, std::slice::from_ref(&(0..self.items.len())), !self.periodic, out);
+            // Under 2 · SCAN_ALL_BELOW² ≤ BLOCK_RANKED members (rebuild's cells a side), so ranked without
+            // branches: sorted insertion's branches follow each world's data, which a branch predictor
+            // learns for a few worlds stepped in turn but not for a thousand.
+            if self.items.len() <= BLOCK_RANKED {
+                q.rank_block(self, std::slice::from_ref(&(0..self.items.len())), !self.periodic, out);
+            } else {
+                q.scan(self, 0..self.items.len(), out);
+            }
             return;
         }
         // Expanding square rings of cells around p's cell. A cell at offset (dx, dy) is at least
@@ -418,11 +422,11 @@ impl Knn<'_> {
                 let d = if plain { x - self.p } else { self.arena.delta(self.p, x) }.length_squared();
                 // Written always, kept only if it counts (no branch): a rejected candidate is overwritten
                 // by the next one or reset below. The block holds at most BLOCK_RANKED, so m stays in bounds.
-                d2[m] = d;
+                // A distance that is not a number (a position gone non-finite, which stops the run after
+                // this step) is a candidate ranked last, as +∞: a query for the nearest one still finds
+                // one, and the ranks stay a permutation (NaN compares false with everything).
+                d2[m] = if d.is_nan() { f64::INFINITY } else { d };
                 index[m] = i;
-                // `!(d > r2)`, as a sorted scan admits: a distance that is not a number (a position
-                // gone non-finite, which stops the run after this step) is still a candidate, so a
-                // query for the nearest one always finds one.
                 #[allow(clippy::neg_cmp_op_on_partial_ord)] // NaN admitted on purpose, as said above
                 let admitted = !(d > self.r2);
                 m += (admitted & (i != self.exclude)) as usize;
@@ -523,7 +527,8 @@ fn place_by_rank_avx512(d2: &[f64; BLOCK_RANKED], index: &[u32; BLOCK_RANKED], m
             let tie = _mm512_cmp_pd_mask::<_CMP_EQ_OQ>(d, vd) & _mm256_cmplt_epu32_mask(i, vi);
             rank += (nearer | tie).count_ones() as usize;
         }
-        // Every candidate goes to its place (the ranks are 0..m, each once) and the first out.len() are
+        // Every candidate goes to its place (the ranks are 0..m, each once: distances are never NaN
+        // here, rank_block) and the first out.len() are
         // kept: whether a candidate makes the cut follows the data, so it is not a branch.
         sorted[rank] = (da, ia);
     }
@@ -562,7 +567,23 @@ mod tests {
         };
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
         let edges = [2.0, 3.7, 100.0];
-        let special = [0.0, -0.0, 1.0, -1.0, 1.0 + f64::EPSILON, -1.0 - f64::EPSILON, 1.85, -1.85, 50.0, -50.0];
+        let special = [
+            0.0,
+            -0.0,
+            1.0,
+            -1.0,
+            1.0 + f64::EPSILON,
+            -1.0 - f64::EPSILON,
+            1.85,
+            -1.85,
+            50.0,
+            -50.0,
+            250.0,
+            -250.0,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::NAN,
+        ];
         for &edge in &edges {
             let random = (0..2000).map(|_| rng.gen_range(-edge..edge));
             for d in special.into_iter().chain(random) {
@@ -673,6 +694,32 @@ mod tests {
     /// Exact ties everywhere (a lattice) and blocks too crowded to rank (a tight cluster) take the block
     /// path's both branches; the answer must still be brute force's, ties broken by index.
     #[test]
+    fn small_grids_rank_ties_by_index_and_a_non_finite_position_last() {
+        for boundary in [Boundary::Periodic, Boundary::Walls] {
+            let arena = Arena { edge: 4.0, boundary };
+            // 30 members on a lattice (2 cells a side): many equal distances.
+            let mut pos: Vec<DVec2> =
+                (0..30).map(|i| DVec2::new((i % 6) as f64 * 0.5 - 1.5, (i / 6) as f64 * 0.5 - 1.0)).collect();
+            let mut grid = CellGrid::default();
+            grid.rebuild(&arena, &pos, 0..pos.len());
+            let mut out = vec![];
+            for (q, &p) in pos.iter().enumerate() {
+                for (k, radius) in [(6, f64::INFINITY), (1, 0.5), (12, 1.0)] {
+                    grid.k_nearest(&arena, p, k, radius, q as u32, &mut out);
+                    assert_eq!(out, brute_nearest(&arena, &pos, p, k, radius, q as u32), "{boundary:?} q={q}");
+                }
+            }
+            // A member whose position is not a number is found last, never in a finite one's place.
+            pos[3] = DVec2::NAN;
+            grid.rebuild(&arena, &pos, 0..pos.len());
+            grid.k_nearest(&arena, pos[0], 30, f64::INFINITY, 0, &mut out);
+            assert_eq!(out.len(), 29);
+            assert_eq!(out.last().map(|&(d, i)| (d, i)), Some((f64::INFINITY, 3)), "{boundary:?}");
+            assert!(out[..28].iter().all(|&(d, i)| d.is_finite() && i != 3), "{boundary:?}");
+        }
+    }
+
+    #[test]
     fn grid_k_nearest_breaks_ties_by_index_and_survives_crowded_blocks() {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
         for boundary in [Boundary::Periodic, Boundary::Walls] {
@@ -697,7 +744,7 @@ mod tests {
     fn grid_k_nearest_matches_brute_force_on_both_boundaries() {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
         for boundary in [Boundary::Periodic, Boundary::Walls] {
-            for n in [1usize, 5, 40, 400] {
+            for n in [1usize, 5, 10, 17, 31, 40, 400] {
                 let arena = Arena { edge: 4.0, boundary };
                 let pos: Vec<DVec2> =
                     (0..n).map(|_| DVec2::new(rng.gen_range(-2.0..2.0), rng.gen_range(-2.0..2.0))).collect();

@@ -263,10 +263,12 @@ impl VecEnv {
 
     /// Every world starts afresh from `seed` (world i from [`world_seed`]`(seed, i)`, or as the worlds
     /// were seeded), in place: one world at a time, its new state made and the old one freed, so memory
-    /// holds the worlds and one more, and the worlds go on sharing their engines. Afterwards everything
-    /// is as in a VecEnv made with `seed` (`a_reseeded_vec_env_is_one_made_with_that_seed`): the next
-    /// [`VecEnv::reset`] hands out each world's first episode, and no finished episode is left to take.
-    /// An error leaves some worlds reseeded and others not: make the VecEnv anew then.
+    /// holds the worlds and one more, and the worlds go on sharing their engines. Afterwards every value it
+    /// computes is that of a VecEnv made with `seed` (`a_reseeded_vec_env_is_one_made_with_that_seed`):
+    /// the next [`VecEnv::reset`] hands out each world's first episode. Finished episodes not yet taken
+    /// ([`VecEnv::take_episode_rows`]) are dropped and their numbering starts again at 0, and coevo's
+    /// side, where it trains one, starts untrained, as in a VecEnv made anew. An error leaves some worlds
+    /// reseeded and others not: make the VecEnv anew then.
     pub fn reseed(&mut self, seed: u64) -> crate::error::Result<()> {
         let made = &self.made;
         self.envs.reseed(|i| made.world(seed, i))?;
@@ -485,14 +487,9 @@ mod tests {
             for t in 0..7 {
                 reseeded.step(&actions(t)).unwrap();
             }
-            let engine = match &reseeded.envs {
-                super::super::pool::Worlds::Pooled { engines, .. } => Some(engines.as_ptr()),
-                _ => None,
-            };
+            let engines = reseeded.envs.engine_ids();
             reseeded.reseed(4).unwrap();
-            if let super::super::pool::Worlds::Pooled { engines, .. } = &reseeded.envs {
-                assert_eq!(Some(engines.as_ptr()), engine, "the engines are kept");
-            }
+            assert_eq!(reseeded.envs.engine_ids(), engines, "{name}: the engines are kept");
             assert_eq!(reseeded.world_seeds(), fresh.world_seeds(), "{name}");
             assert_eq!(reseeded.reset().unwrap(), fresh.reset().unwrap(), "{name}");
             for t in 0..12 {
@@ -510,22 +507,39 @@ mod tests {
         let mut scene = Scene::load(std::path::Path::new("scenes/standard.ron")).unwrap();
         scene.episode_steps = 4;
         let make = || VecEnv::seeded(scene.clone(), 5, 2, Default::default(), WorldSeeds::Independent).unwrap();
-        let (mut many, mut one) = (make(), make());
-        // Three engines, whatever the machine's cores.
-        let bytes = super::super::pool::Bytes { apart: 0.0, parked: 0.0 };
-        let three = super::super::pool::Worlds::new(5, 3, bytes, |_| Ok(()), |i| many.made.world(2, i)).unwrap();
-        many.envs = three;
-        one.set_max_threads(1);
-        let super::super::pool::Worlds::Pooled { engines, parked } = &one.envs else { panic!("pooled") };
-        assert_eq!((engines.len(), parked.len(), parked[0].len()), (1, 1, 5));
-        assert_eq!(many.reset().unwrap(), one.reset().unwrap());
-        let n = 5 * many.agents() * ACTION_DIM;
-        for t in 0..9 {
-            let actions: Vec<f32> = (0..n).map(|i| ((i * 13 + t * 7) % 20) as f32 / 10.0 - 1.0).collect();
-            let (a, b) = (many.step(&actions).unwrap(), one.step(&actions).unwrap());
-            assert!(format!("{a:?}") == format!("{b:?}"), "step {t}: one engine steps otherwise");
+        let (mut many, mut fewer) = (make(), make());
+        // Three engines each, whatever the machine's cores.
+        for env in [&mut many, &mut fewer] {
+            let bytes = super::super::pool::Bytes { apart: 0.0, parked: 0.0 };
+            let three = super::super::pool::Worlds::new(5, 3, bytes, |_| Ok(()), |i| env.made.world(2, i)).unwrap();
+            env.envs = three;
         }
-        assert_eq!(many.take_episode_rows(), one.take_episode_rows());
+        let groups = |env: &VecEnv| match &env.envs {
+            super::super::pool::Worlds::Pooled { engines, parked } => {
+                (engines.len(), parked.iter().map(Vec::len).collect::<Vec<_>>())
+            }
+            _ => panic!("pooled"),
+        };
+        assert_eq!(groups(&fewer), (3, vec![2, 2, 1]));
+        assert_eq!(many.reset().unwrap(), fewer.reset().unwrap());
+        let n = 5 * many.agents() * ACTION_DIM;
+        for t in 0..13 {
+            // Onto two engines (3 + 2) before the first episode ends, onto one after it.
+            match t {
+                2 => fewer.set_max_threads(2),
+                6 => fewer.set_max_threads(1),
+                _ => {}
+            }
+            let actions: Vec<f32> = (0..n).map(|i| ((i * 13 + t * 7) % 20) as f32 / 10.0 - 1.0).collect();
+            let (a, b) = (many.step(&actions).unwrap(), fewer.step(&actions).unwrap());
+            assert!(format!("{a:?}") == format!("{b:?}"), "step {t}: fewer engines step otherwise");
+            match t {
+                2..6 => assert_eq!(groups(&fewer), (2, vec![3, 2])),
+                6.. => assert_eq!(groups(&fewer), (1, vec![5])),
+                _ => {}
+            }
+        }
+        assert_eq!(many.take_episode_rows(), fewer.take_episode_rows());
     }
 
     /// A world whose step panics is swapped back out: the others, and its own seed, are as they were, and

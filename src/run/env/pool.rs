@@ -178,42 +178,51 @@ impl Parked {
         Parked { scene: env.scene.clone(), resources, agents }
     }
 
-    /// Asks the cache for this world's state (its own bytes, its agents and the buffers of its
-    /// population, batches, actions and metrics) while another world steps: a thousand parked worlds do
-    /// not fit the caches, and a world's buffers are read at scattered times during its step, each a
-    /// wait on memory otherwise. A hint only: it changes no value.
-    /// The world's own bytes (which name where its buffers are) are fetched a step earlier
-    /// ([`Parked::prefetch_own`]), so reading them here does not wait.
-    fn prefetch(&self) {
-        prefetch(&self.agents);
+    /// Asks the cache for part of this world's state while other worlds step: a thousand parked worlds
+    /// do not fit the caches, and a world's buffers are read at scattered times during its step, each a
+    /// wait on memory otherwise. A hint only: it changes no value. Stage `depth` fetches what lies
+    /// `depth` pointers away from the world's own bytes, so stepping asks for world k + 3's own bytes,
+    /// k + 2's buffers they name and k + 1's buffers those name, and no stage waits to read where the
+    /// next one is.
+    fn prefetch(&self, depth: usize) {
         let (p, r) = (&self.resources.population, &self.resources);
-        prefetch(&p.entity);
-        prefetch(&p.id);
-        prefetch(&p.species);
-        prefetch(&p.position);
-        prefetch(&p.velocity);
-        prefetch(&p.heading);
-        prefetch(&p.radius);
-        prefetch(&p.turn);
-        prefetch(&p.energy);
-        prefetch(&p.ranges);
-        prefetch(&p.max_radius);
-        prefetch(&p.nearest_kin);
-        prefetch(&r.batches.species);
-        for b in &r.batches.species {
-            prefetch(&b.observations);
-            prefetch(&b.actions);
-            prefetch(&b.rewards);
+        match depth {
+            0 => prefetch(std::slice::from_ref(self)),
+            1 => {
+                prefetch(&self.agents);
+                prefetch(&p.entity);
+                prefetch(&p.id);
+                prefetch(&p.species);
+                prefetch(&p.position);
+                prefetch(&p.velocity);
+                prefetch(&p.heading);
+                prefetch(&p.radius);
+                prefetch(&p.turn);
+                prefetch(&p.energy);
+                prefetch(&p.ranges);
+                prefetch(&p.max_radius);
+                prefetch(&p.nearest_kin);
+                prefetch(&r.batches.species);
+                prefetch(&r.actions.0);
+                prefetch(&r.metrics.now);
+                prefetch(&r.metrics.catches_now_by);
+                prefetch(&r.metrics.nn_distances_now);
+                prefetch(&r.metrics.edge_ranks_now);
+                prefetch(&r.confusion.0);
+                prefetch(&r.scene.0.species);
+                prefetch(&self.scene.species);
+            }
+            _ => {
+                for b in &r.batches.species {
+                    prefetch(&b.observations);
+                    prefetch(&b.actions);
+                    prefetch(&b.rewards);
+                }
+                r.actions.0.iter().for_each(|a| prefetch(a));
+                r.metrics.nn_distances_now.iter().for_each(|d| prefetch(d));
+                r.metrics.edge_ranks_now.iter().for_each(|d| prefetch(d));
+            }
         }
-        prefetch(&r.actions.0);
-        r.actions.0.iter().for_each(|a| prefetch(a));
-        prefetch(&r.metrics.now);
-        r.metrics.nn_distances_now.iter().for_each(|d| prefetch(d));
-    }
-
-    /// Asks the cache for this world's own bytes, which hold where its buffers are.
-    fn prefetch_own(&self) {
-        prefetch(std::slice::from_ref(self));
     }
 
     /// Exchanges this world's state with the engine's: afterwards the engine steps this world, and this
@@ -391,6 +400,15 @@ impl Worlds {
         }
     }
 
+    /// The engines' worlds, by id (none when apart).
+    #[cfg(test)]
+    pub(super) fn engine_ids(&self) -> Vec<bevy::ecs::world::WorldId> {
+        match self {
+            Worlds::Apart(_) => vec![],
+            Worlds::Pooled { engines, .. } => engines.iter().map(|e| e.env.world.id()).collect(),
+        }
+    }
+
     /// Whether the worlds share engines.
     #[cfg(test)]
     pub(super) fn pooled(&self) -> bool {
@@ -439,12 +457,10 @@ impl Worlds {
                 }
                 crate::parallel::for_each_mut_on(&mut work, workers, |turn| {
                     for (i, item) in std::mem::take(&mut turn.items).into_iter().enumerate() {
-                        // Two worlds ahead, their own bytes; one ahead, the buffers those name.
-                        if let Some(next) = turn.worlds.get(i + 2) {
-                            next.prefetch_own();
-                        }
-                        if let Some(next) = turn.worlds.get(i + 1) {
-                            next.prefetch();
+                        for depth in 0..3 {
+                            if let Some(ahead) = turn.worlds.get(i + 3 - depth) {
+                                ahead.prefetch(depth);
+                            }
                         }
                         let on = OnEngine::new(&mut turn.worlds[i], turn.engine);
                         turn.out.push(f(turn.first + i, &mut on.engine.env, item));
@@ -516,6 +532,8 @@ fn prefetch<T>(items: &[T]) {
             unsafe { _mm_prefetch::<_MM_HINT_T0>(start.add(offset)) };
         }
     }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = items;
 }
 
 /// The parameters of the fixed actors a world holds (species in registry order).
