@@ -413,9 +413,9 @@ impl VecEnv {
     }
 
     /// Every world starts afresh from `seed` (world i from `world_seed(seed, i)`, or `seed + i` with
-    /// `world_seeds="consecutive"`), in place: one world at a
-    /// time, the old state freed as the new takes its place; the next `reset()` hands out each world's
-    /// first episode, as a VecEnv made with `seed` would.
+    /// `world_seeds="consecutive"`), in place: one world at a time, the old state freed as the new takes
+    /// its place; the next `reset()` hands out each world's first episode, as a VecEnv made with `seed`
+    /// would.
     fn reseed(&mut self, py: Python<'_>, seed: u64) -> PyResult<()> {
         let inner = &mut self.inner;
         py.allow_threads(|| inner.reseed(seed)).map_err(err)

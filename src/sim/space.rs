@@ -528,8 +528,8 @@ fn place_by_rank_avx512(d2: &[f64; BLOCK_RANKED], index: &[u32; BLOCK_RANKED], m
             rank += (nearer | tie).count_ones() as usize;
         }
         // Every candidate goes to its place (the ranks are 0..m, each once: distances are never NaN
-        // here, rank_block) and the first out.len() are
-        // kept: whether a candidate makes the cut follows the data, so it is not a branch.
+        // here, rank_block) and the first out.len() are kept: whether a candidate makes the cut follows
+        // the data, so it is not a branch.
         sorted[rank] = (da, ia);
     }
     out.copy_from_slice(&sorted[..out.len()]);
@@ -612,6 +612,21 @@ mod tests {
         all
     }
 
+    /// Every member of `pos` queried for its `(k, radius)` neighbours by a grid over `pos` (itself
+    /// excluded) gets brute force's answer, ties broken by index.
+    fn every_member_finds_what_brute_force_finds(arena: &Arena, pos: &[DVec2], cases: &[(usize, f64)]) {
+        let mut grid = CellGrid::default();
+        grid.rebuild(arena, pos, 0..pos.len());
+        let mut out = vec![];
+        for (q, &p) in pos.iter().enumerate() {
+            for &(k, radius) in cases {
+                grid.k_nearest(arena, p, k, radius, q as u32, &mut out);
+                let brute = brute_nearest(arena, pos, p, k, radius, q as u32);
+                assert_eq!(out, brute, "{:?} q={q} k={k}", arena.boundary);
+            }
+        }
+    }
+
     #[test]
     fn ranking_is_the_same_on_every_instruction_set() {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
@@ -691,8 +706,6 @@ mod tests {
         }
     }
 
-    /// Exact ties everywhere (a lattice) and blocks too crowded to rank (a tight cluster) take the block
-    /// path's both branches; the answer must still be brute force's, ties broken by index.
     #[test]
     fn small_grids_rank_ties_by_index_and_a_non_finite_position_last() {
         for boundary in [Boundary::Periodic, Boundary::Walls] {
@@ -700,17 +713,10 @@ mod tests {
             // 30 members on a lattice (2 cells a side): many equal distances.
             let mut pos: Vec<DVec2> =
                 (0..30).map(|i| DVec2::new((i % 6) as f64 * 0.5 - 1.5, (i / 6) as f64 * 0.5 - 1.0)).collect();
-            let mut grid = CellGrid::default();
-            grid.rebuild(&arena, &pos, 0..pos.len());
-            let mut out = vec![];
-            for (q, &p) in pos.iter().enumerate() {
-                for (k, radius) in [(6, f64::INFINITY), (1, 0.5), (12, 1.0)] {
-                    grid.k_nearest(&arena, p, k, radius, q as u32, &mut out);
-                    assert_eq!(out, brute_nearest(&arena, &pos, p, k, radius, q as u32), "{boundary:?} q={q}");
-                }
-            }
+            every_member_finds_what_brute_force_finds(&arena, &pos, &[(6, f64::INFINITY), (1, 0.5), (12, 1.0)]);
             // A member whose position is not a number is found last, never in a finite one's place.
             pos[3] = DVec2::NAN;
+            let (mut grid, mut out) = (CellGrid::default(), vec![]);
             grid.rebuild(&arena, &pos, 0..pos.len());
             grid.k_nearest(&arena, pos[0], 30, f64::INFINITY, 0, &mut out);
             assert_eq!(out.len(), 29);
@@ -719,6 +725,8 @@ mod tests {
         }
     }
 
+    /// Exact ties everywhere (a lattice) and blocks too crowded to rank (a tight cluster) take the block
+    /// path's both branches; the answer must still be brute force's, ties broken by index.
     #[test]
     fn grid_k_nearest_breaks_ties_by_index_and_survives_crowded_blocks() {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
@@ -727,16 +735,7 @@ mod tests {
             let mut pos: Vec<DVec2> =
                 (0..256).map(|i| DVec2::new((i % 16) as f64 * 0.25 - 2.0, (i / 16) as f64 * 0.25 - 2.0)).collect();
             pos.extend((0..120).map(|_| DVec2::new(rng.gen_range(0.9..1.0), rng.gen_range(-1.0..-0.9))));
-            let mut grid = CellGrid::default();
-            grid.rebuild(&arena, &pos, 0..pos.len());
-            let mut out = vec![];
-            for (q, &p) in pos.iter().enumerate() {
-                for (k, radius) in [(6, f64::INFINITY), (1, 0.3), (12, 0.6)] {
-                    grid.k_nearest(&arena, p, k, radius, q as u32, &mut out);
-                    let brute = brute_nearest(&arena, &pos, p, k, radius, q as u32);
-                    assert_eq!(out, brute, "{boundary:?} q={q} k={k}");
-                }
-            }
+            every_member_finds_what_brute_force_finds(&arena, &pos, &[(6, f64::INFINITY), (1, 0.3), (12, 0.6)]);
         }
     }
 
