@@ -7,6 +7,7 @@ use super::names::{checkpoint_dir, parse_segment_name, segment_name};
 use super::tensors::{f32_tensor, metadata, metadata_json, padded, parse, read_as, sealed, Expected};
 use crate::io::Existing;
 use crate::learning::replay::ReplayBuffer;
+use safetensors::Dtype;
 use std::path::{Path, PathBuf};
 
 /// Frees a finished run's replay buffers: removes every replay segment of its checkpoint (~0.25 GB a run
@@ -97,11 +98,11 @@ pub(super) fn write_segment(
     let header = header(
         &metadata_json(&metadata(species, "replay", None)),
         &[
-            ("obs", "F32", vec![n, d]),
-            ("actions", "F32", vec![n, a]),
-            ("rewards", "F32", vec![n]),
-            ("next_from", "I64", vec![n]),
-            ("next_obs", "F32", vec![kept, d]),
+            ("obs", Dtype::F32, vec![n, d]),
+            ("actions", Dtype::F32, vec![n, a]),
+            ("rewards", Dtype::F32, vec![n]),
+            ("next_from", Dtype::I64, vec![n]),
+            ("next_obs", Dtype::F32, vec![kept, d]),
         ],
     );
     let mut digest = Digest::default();
@@ -139,15 +140,16 @@ pub(super) fn write_segment(
 
 /// A segment's safetensors header: its metadata (as JSON) and its tensors (name, dtype, shape), laid out
 /// one after another in that order.
-fn header(meta: &str, tensors: &[(&str, &str, Vec<usize>)]) -> String {
+fn header(meta: &str, tensors: &[(&str, Dtype, Vec<usize>)]) -> String {
     let mut offset = 0usize;
     let entries: Vec<String> = tensors
         .iter()
         .map(|(name, dtype, shape)| {
-            let bytes = if *dtype == "I64" { 8 } else { 4 } * shape.iter().product::<usize>();
+            let bytes = dtype.size() * shape.iter().product::<usize>();
             let shape: Vec<String> = shape.iter().map(usize::to_string).collect();
+            // safetensors names a dtype as its variant is spelt ("F32", "I64").
             let entry = format!(
-                "\"{name}\":{{\"dtype\":\"{dtype}\",\"shape\":[{}],\"data_offsets\":[{offset},{}]}}",
+                "\"{name}\":{{\"dtype\":\"{dtype:?}\",\"shape\":[{}],\"data_offsets\":[{offset},{}]}}",
                 shape.join(","),
                 offset + bytes
             );
@@ -186,10 +188,10 @@ pub(crate) fn hash_with_every_next_observation(path: &Path, hasher: &mut blake3:
     let header = header(
         &meta,
         &[
-            ("obs", "F32", vec![n, d]),
-            ("actions", "F32", vec![n, a]),
-            ("rewards", "F32", vec![n]),
-            ("next_obs", "F32", vec![n, d]),
+            ("obs", Dtype::F32, vec![n, d]),
+            ("actions", Dtype::F32, vec![n, a]),
+            ("rewards", Dtype::F32, vec![n]),
+            ("next_obs", Dtype::F32, vec![n, d]),
         ],
     );
     hasher.update(&(header.len() as u64).to_le_bytes());
@@ -317,7 +319,7 @@ fn next_observations(
 ) -> crate::error::Result<Vec<f32>> {
     let damaged = |what: &str| format!("{}: {what}; the checkpoint is damaged", path.display());
     let t = st.tensor("next_from").map_err(|_| damaged("no tensor next_from"))?;
-    if t.dtype() != safetensors::Dtype::I64 || t.shape() != [n] {
+    if t.dtype() != Dtype::I64 || t.shape() != [n] {
         return Err(damaged(&format!("tensor next_from is {:?} {:?}, not I64 [{n}]", t.dtype(), t.shape())).into());
     }
     let from: Vec<i64> = t.data().chunks_exact(8).map(|c| i64::from_le_bytes(c.try_into().expect("8 bytes"))).collect();
@@ -420,10 +422,10 @@ mod tests {
         let header = header(
             &metadata_json(&metadata("prey", "replay", None)),
             &[
-                ("obs", "F32", vec![24, 5]),
-                ("actions", "F32", vec![24, 2]),
-                ("rewards", "F32", vec![24]),
-                ("next_obs", "F32", vec![24, 5]),
+                ("obs", Dtype::F32, vec![24, 5]),
+                ("actions", Dtype::F32, vec![24, 2]),
+                ("rewards", Dtype::F32, vec![24]),
+                ("next_obs", Dtype::F32, vec![24, 5]),
             ],
         );
         let mut bytes = (header.len() as u64).to_le_bytes().to_vec();
