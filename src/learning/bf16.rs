@@ -76,8 +76,24 @@ fn bound(k: usize, magnitude: f64) -> f64 {
 }
 
 thread_local! {
-    /// The packed operands of the last product on this thread, reused (no allocation per product).
-    static PACKED: std::cell::RefCell<(Vec<u32>, Vec<u32>)> = const { std::cell::RefCell::new((Vec::new(), Vec::new())) };
+    /// The packed operands of the last product on this thread, reused (no allocation per product): A's,
+    /// and B's for a product whose B is not packed beforehand.
+    static PACKED_A: std::cell::RefCell<Vec<u32>> = const { std::cell::RefCell::new(Vec::new()) };
+    static PACKED_B: std::cell::RefCell<Vec<u32>> = const { std::cell::RefCell::new(Vec::new()) };
+}
+
+/// What a product does to each output before storing it: the forward pass's bias and ReLU, or the backward
+/// pass's ReLU derivative. The same operations in the same order as the separate passes they replace
+/// (`fused.rs`), so the same bits, without a second pass over the output.
+#[derive(Clone, Copy, Debug)]
+pub(crate) enum Epilogue<'a> {
+    /// The sums as they are.
+    None,
+    /// s + b(j) for column j, then max(·, 0) when `relu` (a NaN gives 0, as `f32::max`).
+    Bias { bias: &'a [f32], relu: bool },
+    /// s · (1 if x(i, j) > 0 else 0): `x` is `[m × n]` with rows `x_rs` apart, the ReLU output whose
+    /// input the product's output is the gradient of.
+    ReluMask { x: *const f32, x_rs: usize },
 }
 
 /// dst `[m × n]` (row stride `dst_rs`) = A·B with both operands rounded to bf16 and f32 sums, A(i, p) =
@@ -95,24 +111,98 @@ pub(crate) unsafe fn product(
     dst: *mut f32,
     dst_rs: usize,
     a: *const f32,
-    (a_rs, a_cs): (usize, usize),
+    a_strides: (usize, usize),
     b: *const f32,
     b_rs: usize,
 ) {
+    PACKED_B.with_borrow_mut(|pb| {
+        pack_b(k, n, b, b_rs, pb);
+        product_packed(m, n, k, dst, dst_rs, a, a_strides, pb, Epilogue::None);
+    });
+}
+
+/// B `[k × n]` (contiguous rows `b_rs` apart, n ≤ [`MAX_WIDTH`]) packed for [`product_packed`] into `out`:
+/// pair-row q holds, per column j (padded to whole registers with zeros), bf16(B(2q, j)) in its low half
+/// and bf16(B(2q + 1, j)) in its high half (zero past an odd k).
+///
+/// # Safety
+/// The CPU runs the family ([`available`]); B's k rows of n lie inside its buffer.
+pub(crate) unsafe fn pack_b(k: usize, n: usize, b: *const f32, b_rs: usize, out: &mut Vec<u32>) {
     assert!(n > 0 && n <= MAX_WIDTH, "a bf16 product is at most {MAX_WIDTH} columns wide");
-    let (pairs, nv) = (k.div_ceil(2), n.div_ceil(16));
-    PACKED.with_borrow_mut(|(pa, pb)| {
-        // B: pair-row q holds, per column j (padded to whole registers with zeros), B(2q, j) in its low
-        // half and B(2q + 1, j) in its high half.
-        // Every word is written below (no zeroing pass): the buffers only grow.
-        if pb.len() < pairs * nv * 16 {
-            pb.resize(pairs * nv * 16, 0);
+    #[cfg(not(target_arch = "x86_64"))]
+    unreachable!("the bf16 family runs only on x86_64 ({k} × {n} at {b:?}, {b_rs}, {})", out.len());
+    #[cfg(target_arch = "x86_64")]
+    {
+        let (pairs, width) = (k.div_ceil(2), n.div_ceil(16) * 16);
+        // Every word is written below (no zeroing pass): the buffer only grows.
+        if out.len() < pairs * width {
+            out.resize(pairs * width, 0);
         }
         for q in 0..pairs {
             let (row0, row1) = (b.add(2 * q * b_rs), (2 * q + 1 < k).then(|| b.add((2 * q + 1) * b_rs)));
-            interleave(n, row0, row1, pb.as_mut_ptr().add(q * nv * 16));
-            pb[q * nv * 16 + n..(q + 1) * nv * 16].fill(0);
+            interleave(n, row0, row1, out.as_mut_ptr().add(q * width), width);
         }
+    }
+}
+
+/// Wᵀ of a layer's weights W (`outputs × inputs`, row-major) packed as [`pack_b`] packs a B of `inputs`
+/// rows and `outputs` columns (the forward pass's z = x·Wᵀ): the same words, read from W's rows, without
+/// a transposed copy. Pair-row q, column j holds W(j, 2q) and W(j, 2q + 1): two neighbours in W's row j.
+///
+/// # Safety
+/// The CPU runs the family ([`available`]).
+pub(crate) unsafe fn pack_transposed(w: &[f32], outputs: usize, inputs: usize, out: &mut Vec<u32>) {
+    assert!(outputs > 0 && outputs <= MAX_WIDTH && w.len() == outputs * inputs, "a bf16 product's weights");
+    #[cfg(not(target_arch = "x86_64"))]
+    unreachable!("the bf16 family runs only on x86_64 ({outputs} × {inputs}, {})", out.len());
+    #[cfg(target_arch = "x86_64")]
+    {
+        let (pairs, width) = (inputs.div_ceil(2), outputs.div_ceil(16) * 16);
+        out.clear();
+        out.resize(pairs * width, 0);
+        PACKED_A.with_borrow_mut(|row| {
+            if row.len() < pairs {
+                row.resize(pairs, 0);
+            }
+            for j in 0..outputs {
+                // W's row j has `inputs` elements, `row` room for their `pairs` words.
+                convert(inputs, w.as_ptr().add(j * inputs), row.as_mut_ptr().cast());
+                if inputs % 2 == 1 {
+                    row[pairs - 1] &= 0xffff;
+                }
+                for (q, &word) in row[..pairs].iter().enumerate() {
+                    out[q * width + j] = word;
+                }
+            }
+        });
+    }
+}
+
+/// [`product`] with B packed beforehand by [`pack_b`] or [`pack_transposed`] (`pb`), and `epilogue` applied
+/// to every output as it is stored.
+///
+/// # Safety
+/// As [`product`]; `pb` holds a packing of a `k × n` B; the epilogue's `x` addresses `[m × n]`.
+#[cfg(target_arch = "x86_64")]
+#[allow(clippy::too_many_arguments)]
+pub(crate) unsafe fn product_packed(
+    m: usize,
+    n: usize,
+    k: usize,
+    dst: *mut f32,
+    dst_rs: usize,
+    a: *const f32,
+    (a_rs, a_cs): (usize, usize),
+    pb: &[u32],
+    epilogue: Epilogue,
+) {
+    assert!(n > 0 && n <= MAX_WIDTH, "a bf16 product is at most {MAX_WIDTH} columns wide");
+    let (pairs, nv) = (k.div_ceil(2), n.div_ceil(16));
+    assert!(pb.len() >= pairs * nv * 16, "a packed B of {k} × {n}");
+    if let Epilogue::Bias { bias, .. } = epilogue {
+        assert!(bias.len() >= n, "a bias per column");
+    }
+    PACKED_A.with_borrow_mut(|pa| {
         // A: per output row i and pair q, A(i, 2q) low and A(i, 2q + 1) high, laid out so that the
         // pairs are written in runs: by row when A's rows are contiguous, by pair when its columns are.
         if pa.len() < m * pairs {
@@ -123,7 +213,7 @@ pub(crate) unsafe fn product(
         if by_pair {
             for q in 0..pairs {
                 let (col0, col1) = (a.add(2 * q * a_cs), (2 * q + 1 < k).then(|| a.add((2 * q + 1) * a_cs)));
-                interleave(m, col0, col1, pa.as_mut_ptr().add(q * m));
+                interleave(m, col0, col1, pa.as_mut_ptr().add(q * m), m);
             }
         } else if a_cs == 1 && a_rs == k && k.is_multiple_of(2) {
             // Dense rows of an even length: row i's pairs are its words, and the rows follow each other, so
@@ -150,7 +240,7 @@ pub(crate) unsafe fn product(
         }
         let tail = n - (nv - 1) * 16;
         let mask = if tail == 16 { u16::MAX } else { (1u16 << tail) - 1 };
-        let op = Packed { pairs, dst, dst_rs, a: pa.as_ptr(), prs, pcs, b: pb.as_ptr(), bs: nv * 16, mask };
+        let op = Packed { pairs, dst, dst_rs, a: pa.as_ptr(), prs, pcs, b: pb.as_ptr(), bs: nv * 16, mask, epilogue };
         match nv {
             1 => rows::<1>(m, &op),
             2 => rows::<2>(m, &op),
@@ -160,24 +250,27 @@ pub(crate) unsafe fn product(
     });
 }
 
-/// `out[j]` = bf16(x0[j]) low | bf16(x1[j]) high for j < len (x1 None: zeros high), both runs contiguous:
-/// 16 at a time with `VCVTNE2PS2BF16` and a permute, the last 1–15 masked. The instruction reads a
-/// subnormal as zero, as [`to_bf16`] does.
+/// `out[j]` = bf16(x0[j]) low | bf16(x1[j]) high for j < len (x1 None: zeros high), both runs contiguous,
+/// and 0 for len ≤ j < `out_len` (whole registers' padding): 16 at a time with `VCVTNE2PS2BF16` and a
+/// permute, the last 1–15 masked. The instruction reads a subnormal as zero, as [`to_bf16`] does.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f,avx512bw,avx512bf16")]
-unsafe fn interleave(len: usize, x0: *const f32, x1: Option<*const f32>, out: *mut u32) {
+unsafe fn interleave(len: usize, x0: *const f32, x1: Option<*const f32>, out: *mut u32, out_len: usize) {
+    debug_assert!(out_len >= len);
     // Lanes 0–15 of the converted pair are x0's, 16–31 x1's: word 2j takes x0[j], 2j + 1 x1[j].
     let order = _mm512_set_epi16(
         31, 15, 30, 14, 29, 13, 28, 12, 27, 11, 26, 10, 25, 9, 24, 8, 23, 7, 22, 6, 21, 5, 20, 4, 19, 3, 18, 2, 17, 1,
         16, 0,
     );
     let mut j = 0;
-    while j < len {
-        let mask: u16 = if len - j >= 16 { u16::MAX } else { (1u16 << (len - j)) - 1 };
-        let lo = _mm512_maskz_loadu_ps(mask, x0.add(j));
-        let hi = x1.map_or(_mm512_setzero_ps(), |x1| _mm512_maskz_loadu_ps(mask, x1.add(j)));
+    while j < out_len {
+        let mask: u16 = if len.saturating_sub(j) >= 16 { u16::MAX } else { (1u16 << len.saturating_sub(j)) - 1 };
+        let lo = _mm512_maskz_loadu_ps(mask, x0.wrapping_add(j));
+        let hi = x1.map_or(_mm512_setzero_ps(), |x1| _mm512_maskz_loadu_ps(mask, x1.wrapping_add(j)));
         let both = std::mem::transmute::<__m512bh, __m512i>(_mm512_cvtne2ps_pbh(hi, lo));
-        _mm512_mask_storeu_epi32(out.add(j).cast(), mask, _mm512_permutexvar_epi16(order, both));
+        // Lanes past len are zeros (masked loads): stored up to out_len.
+        let store: u16 = if out_len - j >= 16 { u16::MAX } else { (1u16 << (out_len - j)) - 1 };
+        _mm512_mask_storeu_epi32(out.add(j).cast(), store, _mm512_permutexvar_epi16(order, both));
         j += 16;
     }
 }
@@ -205,9 +298,9 @@ unsafe fn convert(len: usize, x: *const f32, out: *mut u16) {
 }
 
 /// A product's packed operands ([`product`]): A's pair (i, q) at `a[i·prs + q·pcs]`, B's pair-row q at
-/// `b[q·bs ..]`; `mask` selects the last register's columns.
+/// `b[q·bs ..]`; `mask` selects the last register's columns; `epilogue` applies to each output stored.
 #[cfg(target_arch = "x86_64")]
-struct Packed {
+struct Packed<'a> {
     pairs: usize,
     dst: *mut f32,
     dst_rs: usize,
@@ -217,6 +310,7 @@ struct Packed {
     b: *const u32,
     bs: usize,
     mask: u16,
+    epilogue: Epilogue<'a>,
 }
 
 /// Every output row, [`ROWS`] at a time, then the rest.
@@ -247,13 +341,31 @@ unsafe fn block<const NV: usize, const R: usize>(i0: usize, op: &Packed) {
             }
         }
     }
+    let (zero, one) = (_mm512_setzero_ps(), _mm512_set1_ps(1.0));
     for (r, acc) in acc.iter().enumerate() {
         let out = op.dst.add((i0 + r) * op.dst_rs);
-        for (v, s) in acc.iter().enumerate() {
+        for (v, &s) in acc.iter().enumerate() {
+            let mask = if v + 1 < NV { u16::MAX } else { op.mask };
+            let s = match op.epilogue {
+                Epilogue::None => s,
+                Epilogue::Bias { bias, relu } => {
+                    let s = _mm512_add_ps(s, _mm512_maskz_loadu_ps(mask, bias.as_ptr().add(16 * v)));
+                    // MAXPS returns its second operand when either is a NaN: 0, as f32::max(NaN, 0).
+                    if relu {
+                        _mm512_max_ps(s, zero)
+                    } else {
+                        s
+                    }
+                }
+                Epilogue::ReluMask { x, x_rs } => {
+                    let x = _mm512_maskz_loadu_ps(mask, x.add((i0 + r) * x_rs + 16 * v));
+                    _mm512_mul_ps(s, _mm512_mask_blend_ps(_mm512_cmp_ps_mask::<_CMP_GT_OQ>(x, zero), zero, one))
+                }
+            };
             if v + 1 < NV {
-                _mm512_storeu_ps(out.add(16 * v), *s);
+                _mm512_storeu_ps(out.add(16 * v), s);
             } else {
-                _mm512_mask_storeu_ps(out.add(16 * v), op.mask, *s);
+                _mm512_mask_storeu_ps(out.add(16 * v), op.mask, s);
             }
         }
     }
@@ -358,6 +470,73 @@ mod tests {
                     );
                 }
             }
+        }
+    }
+
+    #[test]
+    fn weights_packed_from_w_are_the_words_of_its_transposed_copy_packed() {
+        if !available() {
+            eprintln!("skipped: no AVX512-BF16 here");
+            return;
+        }
+        for (outputs, inputs) in [(64, 54), (64, 64), (2, 64), (1, 64), (17, 5), (33, 1), (16, 3)] {
+            let w: Vec<f32> = (0..outputs * inputs).map(|i| ((i * 7919) % 1000) as f32 / 997.0 - 0.5).collect();
+            let mut t = vec![0.0; w.len()];
+            for j in 0..outputs {
+                for p in 0..inputs {
+                    t[p * outputs + j] = w[j * inputs + p];
+                }
+            }
+            let (mut from_w, mut from_t) = (vec![u32::MAX; 3], vec![u32::MAX; 5000]);
+            // SAFETY: this CPU runs the family; t is inputs rows of `outputs`.
+            unsafe {
+                pack_transposed(&w, outputs, inputs, &mut from_w);
+                pack_b(inputs, outputs, t.as_ptr(), outputs, &mut from_t);
+            }
+            assert_eq!(from_w[..], from_t[..from_w.len()], "{outputs} × {inputs}");
+        }
+    }
+
+    #[test]
+    fn epilogues_give_the_bits_of_the_passes_they_replace() {
+        if !available() {
+            eprintln!("skipped: no AVX512-BF16 here");
+            return;
+        }
+        for c in cases().into_iter().filter(|c| c.strides.1 == 1) {
+            let Case { m, n, k, ref a, strides, ref b, b_rs } = c;
+            // Every kind of value the passes meet: signs, zeros of both signs, a NaN.
+            let special = [0.0, -0.0, f32::NAN, -1.5, 2.0];
+            let bias: Vec<f32> =
+                (0..n).map(|j| if j % 7 == 3 { special[j % 5] } else { j as f32 / 9.0 - 2.0 }).collect();
+            let x: Vec<f32> = (0..m * n).map(|i| special[i % 5] * (i % 3) as f32).collect();
+            let mut plain = vec![0.0; m * n];
+            let mut pb = vec![];
+            // SAFETY: this CPU runs the family; A is m·k, B k rows of b_rs ≥ n, dst and x m × n.
+            unsafe {
+                product(m, n, k, plain.as_mut_ptr(), n, a.as_ptr(), strides, b.as_ptr(), b_rs);
+                pack_b(k, n, b.as_ptr(), b_rs, &mut pb);
+            }
+            let with = |epilogue: Epilogue| {
+                let mut dst = vec![f32::NAN; m * n];
+                // SAFETY: as above.
+                unsafe { product_packed(m, n, k, dst.as_mut_ptr(), n, a.as_ptr(), strides, &pb, epilogue) };
+                dst.iter().map(|v| v.to_bits()).collect::<Vec<u32>>()
+            };
+            let passes = |f: &dyn Fn(usize, f32) -> f32| {
+                plain.iter().enumerate().map(|(i, &v)| f(i, v).to_bits()).collect::<Vec<u32>>()
+            };
+            assert_eq!(with(Epilogue::None), passes(&|_, v| v), "{m} × {n} × {k}");
+            assert_eq!(with(Epilogue::Bias { bias: &bias, relu: false }), passes(&|i, v| v + bias[i % n]));
+            // Zeros' signs may differ from `f32::max`'s (either sign is a maximum of ±0): they never change
+            // a later sum, which starts from +0. Compared as values, and NaN as NaN.
+            let relu = with(Epilogue::Bias { bias: &bias, relu: true });
+            for (i, (&got, &v)) in relu.iter().zip(&plain).enumerate() {
+                let want = (v + bias[i % n]).max(0.0);
+                assert!(f32::from_bits(got) == want || (f32::from_bits(got).is_nan() && want.is_nan()), "ReLU at {i}");
+            }
+            let mask = Epilogue::ReluMask { x: x.as_ptr(), x_rs: n };
+            assert_eq!(with(mask), passes(&|i, v| v * if x[i] > 0.0 { 1.0 } else { 0.0 }), "{m} × {n} × {k}");
         }
     }
 }

@@ -10,7 +10,8 @@
 //!
 //! Matrices are row-major; a network's weights are (out, in), PyTorch's `nn.Linear` layout (`nets.rs`).
 
-use super::nets::{Mlp, Output};
+use super::bf16::Epilogue;
+use super::nets::{Mlp, Output, Own};
 use std::ops::Range;
 
 /// One network's forward pass over a batch, kept for its backward pass.
@@ -60,29 +61,49 @@ impl Pass {
             let (below, above) = self.acts.split_at_mut(l + 1);
             let (x, z) = (&below[l], &mut above[0]);
             let (inputs, outputs) = (layer.inputs(), layer.outputs());
-            // z = x·Wᵀ, then z + b and the activation in one pass over z: the same sums as writing b into
-            // z first and accumulating the product onto it (one product pass at these sizes, and
-            // b + s = s + b exactly), without a copy of b into every row.
-            let w = layer.weight.as_slice();
-            // Coevo's own kernels read Wᵀ by contiguous rows: from the transposed copy.
-            let wt: (*const f32, (usize, usize)) = match super::nets::own_kernels() {
-                super::nets::Own::Direct | super::nets::Own::Bf16 => (net.transposed(l).as_ptr(), (outputs, 1)),
-                super::nets::Own::None => (w.as_ptr(), (1, inputs)),
-            };
-            // SAFETY: every pointer and stride below addresses only the buffers' own extents:
-            // z is rows × outputs, x is rows × inputs, Wᵀ is read as inputs × outputs from W (outputs × inputs)
-            // or from its transposed copy.
-            unsafe {
-                product(rows, outputs, inputs, z.as_mut_ptr(), outputs, false, x.as_ptr(), (inputs, 1), wt.0, wt.1);
-            }
             let bias = layer.bias.as_slice();
-            let rows_of = |z: &mut [f32], f: fn(f32) -> f32| {
-                z.chunks_exact_mut(outputs).for_each(|row| row.iter_mut().zip(bias).for_each(|(v, b)| *v = f(*v + b)))
+            // z = x·Wᵀ, then z + b and the activation: the same sums as writing b into z first and
+            // accumulating the product onto it (one product pass at these sizes, and b + s = s + b
+            // exactly), without a copy of b into every row. The bf16 family adds b and applies the ReLU as
+            // it stores each output (from its packed Wᵀ); the others in a pass over z after the product.
+            let epilogue = Epilogue::Bias { bias, relu: l != last };
+            // SAFETY: z is rows × outputs, x rows × inputs.
+            let done = unsafe {
+                packed_product(
+                    rows,
+                    outputs,
+                    inputs,
+                    z.as_mut_ptr(),
+                    x.as_ptr(),
+                    inputs,
+                    || net.bf16_transposed(l),
+                    epilogue,
+                )
             };
-            match (l == last, net.output) {
-                (false, _) => super::wide::run(|| rows_of(z, |v| v.max(0.0))),
-                (true, Output::Tanh) => rows_of(z, f32::tanh),
-                (true, Output::Linear) => rows_of(z, |v| v),
+            if !done {
+                let w = layer.weight.as_slice();
+                // Coevo's own kernels read Wᵀ by contiguous rows: from the transposed copy.
+                let wt: (*const f32, (usize, usize)) = match super::nets::own_kernels() {
+                    Own::Direct | Own::Bf16 => (net.transposed(l).as_ptr(), (outputs, 1)),
+                    Own::None => (w.as_ptr(), (1, inputs)),
+                };
+                // SAFETY: every pointer and stride below addresses only the buffers' own extents:
+                // z is rows × outputs, x is rows × inputs, Wᵀ is read as inputs × outputs from W (outputs ×
+                // inputs) or from its transposed copy.
+                unsafe {
+                    product(rows, outputs, inputs, z.as_mut_ptr(), outputs, false, x.as_ptr(), (inputs, 1), wt.0, wt.1);
+                }
+                let rows_of = |z: &mut [f32], f: fn(f32) -> f32| {
+                    z.chunks_exact_mut(outputs)
+                        .for_each(|row| row.iter_mut().zip(bias).for_each(|(v, b)| *v = f(*v + b)))
+                };
+                match (l == last, net.output) {
+                    (false, _) => super::wide::run(|| rows_of(z, |v| v.max(0.0))),
+                    (true, Output::Tanh) => rows_of(z, f32::tanh),
+                    (true, Output::Linear) => rows_of(z, |v| v),
+                }
+            } else if l == last && net.output == Output::Tanh {
+                z.iter_mut().for_each(|v| *v = v.tanh());
             }
         }
     }
@@ -105,11 +126,20 @@ impl Pass {
         let rows = self.rows;
         let mut delta = std::mem::take(&mut self.delta);
         let mut below = std::mem::take(&mut self.below);
+        // Both hold any layer's rows × width: grown once, not resized (and zeroed) layer by layer.
+        let widest = rows * net.layers.iter().map(|l| l.inputs().max(l.outputs())).max().unwrap_or(0);
+        for buffer in [&mut delta, &mut below] {
+            if buffer.len() < widest {
+                buffer.resize(widest, 0.0);
+            }
+        }
         // Through the output activation.
-        delta.clear();
+        let d = &mut delta[..d_output.len()];
         match net.output {
-            Output::Tanh => delta.extend(d_output.iter().zip(self.output()).map(|(g, y)| g * (1.0 - y * y))),
-            Output::Linear => delta.extend_from_slice(d_output),
+            Output::Tanh => {
+                d.iter_mut().zip(d_output.iter().zip(self.output())).for_each(|(d, (g, y))| *d = g * (1.0 - y * y))
+            }
+            Output::Linear => d.copy_from_slice(d_output),
         }
         let mut d_input = d_input;
         for l in (0..net.layers.len()).rev() {
@@ -138,32 +168,51 @@ impl Pass {
                 }
                 db.fill(0.0);
                 super::wide::run(|| {
-                    for row in delta.chunks_exact(outputs) {
+                    for row in delta[..rows * outputs].chunks_exact(outputs) {
                         db.iter_mut().zip(row).for_each(|(s, d)| *s += d);
                     }
                 });
             }
             if l > 0 {
                 // δ_below = (δ·W) ⊙ ReLU'(x): x is the ReLU output below, positive exactly where its input was.
-                below.resize(rows * inputs, 0.0);
-                // SAFETY: below is rows × inputs, δ rows × outputs, W outputs × inputs.
-                unsafe {
-                    product(
+                // A multiplication by 0 or 1, not a branch: it vectorizes (a branch here took a third of an
+                // update), and it is dfdx's own ReLU backward, bit for bit. The bf16 family applies it as it
+                // stores each output (from its packed W); the others in a pass after the product.
+                let below_rows = &mut below[..rows * inputs];
+                let mask = Epilogue::ReluMask { x: x.as_ptr(), x_rs: inputs };
+                // SAFETY: below is rows × inputs, δ rows × outputs, x rows × inputs.
+                let done = unsafe {
+                    packed_product(
                         rows,
                         inputs,
                         outputs,
-                        below.as_mut_ptr(),
-                        inputs,
-                        false,
+                        below_rows.as_mut_ptr(),
                         delta.as_ptr(),
-                        (outputs, 1),
-                        w.as_ptr(),
-                        (inputs, 1),
-                    );
+                        outputs,
+                        || net.bf16_weights(l),
+                        mask,
+                    )
+                };
+                if !done {
+                    // SAFETY: below is rows × inputs, δ rows × outputs, W outputs × inputs.
+                    unsafe {
+                        product(
+                            rows,
+                            inputs,
+                            outputs,
+                            below_rows.as_mut_ptr(),
+                            inputs,
+                            false,
+                            delta.as_ptr(),
+                            (outputs, 1),
+                            w.as_ptr(),
+                            (inputs, 1),
+                        );
+                    }
+                    super::wide::run(|| {
+                        below_rows.iter_mut().zip(x).for_each(|(d, &x)| *d *= if x > 0.0 { 1.0 } else { 0.0 })
+                    });
                 }
-                // A multiplication by 0 or 1, not a branch: the compiler vectorizes it (a branch here took a
-                // third of an update), and it is dfdx's own ReLU backward, bit for bit.
-                super::wide::run(|| below.iter_mut().zip(x).for_each(|(d, &x)| *d *= if x > 0.0 { 1.0 } else { 0.0 }));
                 std::mem::swap(&mut delta, &mut below);
             } else if let Some((columns, out)) = d_input.take() {
                 let n = columns.len();
@@ -190,6 +239,40 @@ impl Pass {
         self.delta = delta;
         self.below = below;
     }
+}
+
+/// dst `[m × n]` (rows contiguous) = A `[m × k]` (rows `a_rs` apart) · B by the bf16 family from B packed
+/// beforehand (`packed`, asked for only when the family takes the product), `epilogue` applied as each
+/// output is stored. False, and nothing written, where the family does not take it: another family, or
+/// n over `bf16::MAX_WIDTH`.
+///
+/// # Safety
+/// Every element A's stride and the epilogue address lies inside its buffer; dst holds m × n.
+#[allow(clippy::too_many_arguments)]
+unsafe fn packed_product<'a>(
+    m: usize,
+    n: usize,
+    k: usize,
+    dst: *mut f32,
+    a: *const f32,
+    a_rs: usize,
+    packed: impl FnOnce() -> &'a [u32],
+    epilogue: Epilogue,
+) -> bool {
+    if n > super::bf16::MAX_WIDTH || super::nets::own_kernels() != Own::Bf16 {
+        return false;
+    }
+    #[cfg(target_arch = "x86_64")]
+    // SAFETY: the family is chosen only on a CPU with AVX512-BF16 and -BW; the extents are the caller's.
+    unsafe {
+        super::bf16::product_packed(m, n, k, dst, n, a, (a_rs, 1), packed(), epilogue)
+    };
+    #[cfg(not(target_arch = "x86_64"))]
+    unreachable!(
+        "the bf16 family runs only on x86_64 ({m} × {n} × {k} at {dst:?}, {a:?}, {a_rs}, {epilogue:?})",
+        packed().len()
+    );
+    true
 }
 
 /// dst `[m × n]` (row stride `dst_rs`) = lhs `[m × k]` · rhs `[k × n]`, plus dst's previous contents when
@@ -250,7 +333,7 @@ pub(crate) unsafe fn product(
 }
 
 /// Buffers of one species' update, allocated at its first update and reused by every later one.
-#[derive(Clone, Debug, Default)]
+#[derive(Debug, Default)]
 pub(crate) struct Workspace {
     /// μ'(o') and Q'(o', μ'(o')): the TD target's passes.
     pub(crate) target_actor: Pass,
@@ -266,6 +349,15 @@ pub(crate) struct Workspace {
     pub(crate) d_actions: Vec<f32>,
     pub(crate) critic_gradients: Vec<Vec<f32>>,
     pub(crate) actor_gradients: Vec<Vec<f32>>,
+}
+
+/// A copy of a learner starts without buffers, as a new one does: every update writes them before it reads
+/// them, so they carry nothing from one update to the next, and the copy kept at each episode's end
+/// (`learning::learn`'s last good state) need not duplicate them.
+impl Clone for Workspace {
+    fn clone(&self) -> Workspace {
+        Workspace::default()
+    }
 }
 
 /// Gradient buffers shaped like `net`'s parameters (allocated once).

@@ -221,10 +221,48 @@ pub(crate) enum Output {
 pub struct Mlp {
     pub(crate) layers: Vec<Dense>,
     pub(crate) output: Output,
-    /// Each layer's Wᵀ (inputs × outputs), which the `avx512-direct` forward pass multiplies by: made at
-    /// the first forward pass after the parameters last changed. Every change goes through
-    /// [`Mlp::parameters_mut`] or [`Mlp::set_parameters`], which drop it.
-    transposed: std::sync::OnceLock<Vec<Vec<f32>>>,
+    /// Forms of each layer's weights that coevo's own kernels multiply by, each made at its first use after
+    /// the parameters last changed. Every change goes through [`Mlp::parameters_mut`] or
+    /// [`Mlp::set_parameters`], which retire them. `avx512-direct`'s forward pass reads Wᵀ (inputs ×
+    /// outputs); `avx512-bf16`'s forward pass reads Wᵀ and its backward pass W, both packed in bf16 pairs.
+    transposed: Derived<Vec<Vec<f32>>>,
+    bf16_transposed: Derived<Vec<Vec<u32>>>,
+    bf16_weights: Derived<Vec<Vec<u32>>>,
+}
+
+/// A value computed from a network's parameters at its first use after they last changed ([`Derived::get`]),
+/// shared by every thread that reads the network; retired at each change ([`Derived::retire`]) and then
+/// recomputed into the same buffers, so keeping it allocates nothing from one update to the next. A copy
+/// of the network starts without it.
+#[derive(Debug, Default)]
+struct Derived<T> {
+    ready: std::sync::OnceLock<T>,
+    /// The last retired value, whose buffers the next one reuses.
+    spare: std::sync::Mutex<Option<T>>,
+}
+
+impl<T: Default> Derived<T> {
+    /// The value, made by `fill` (into the spare buffers, or new ones) if the parameters changed since.
+    fn get(&self, fill: impl FnOnce(&mut T)) -> &T {
+        self.ready.get_or_init(|| {
+            let mut value = self.spare.lock().unwrap_or_else(|e| e.into_inner()).take().unwrap_or_default();
+            fill(&mut value);
+            value
+        })
+    }
+
+    /// The parameters are about to change.
+    fn retire(&mut self) {
+        if let Some(value) = self.ready.take() {
+            *self.spare.get_mut().unwrap_or_else(|e| e.into_inner()) = Some(value);
+        }
+    }
+}
+
+impl<T: Default> Clone for Derived<T> {
+    fn clone(&self) -> Self {
+        Derived::default()
+    }
 }
 
 impl Mlp {
@@ -242,7 +280,13 @@ impl Mlp {
                 }
             })
             .collect();
-        Mlp { layers, output, transposed: std::sync::OnceLock::new() }
+        Mlp {
+            layers,
+            output,
+            transposed: Derived::default(),
+            bf16_transposed: Derived::default(),
+            bf16_weights: Derived::default(),
+        }
     }
 
     pub(crate) fn input_width(&self) -> usize {
@@ -283,7 +327,7 @@ impl Mlp {
 
     /// Overwrites every parameter from flat vectors in `parameters()` order.
     pub fn set_parameters(&mut self, values: &[Vec<f32>]) {
-        self.transposed = std::sync::OnceLock::new();
+        self.retire_derived();
         for (l, pair) in self.layers.iter_mut().zip(values.chunks(2)) {
             l.weight.copy_from(&pair[0]);
             l.bias.copy_from(&pair[1]);
@@ -292,26 +336,59 @@ impl Mlp {
 
     /// Every parameter in place, in `parameters()` order.
     pub(crate) fn parameters_mut(&mut self) -> impl Iterator<Item = &mut [f32]> {
-        self.transposed = std::sync::OnceLock::new();
+        self.retire_derived();
         self.layers.iter_mut().flat_map(|l| [l.weight.as_mut_slice(), l.bias.as_mut_slice()])
+    }
+
+    fn retire_derived(&mut self) {
+        self.transposed.retire();
+        self.bf16_transposed.retire();
+        self.bf16_weights.retire();
     }
 
     /// Layer `l`'s Wᵀ, laid out (inputs × outputs).
     pub(crate) fn transposed(&self, l: usize) -> &[f32] {
-        &self.transposed.get_or_init(|| {
-            self.layers
-                .iter()
-                .map(|layer| {
-                    let (inputs, outputs) = (layer.inputs(), layer.outputs());
-                    let w = layer.weight.as_slice();
-                    let mut t = vec![0.0; w.len()];
-                    for (i, column) in t.chunks_exact_mut(outputs).enumerate() {
-                        column.iter_mut().zip(w[i..].iter().step_by(inputs)).for_each(|(t, &w)| *t = w);
-                    }
-                    debug_assert_eq!(inputs * outputs, w.len());
-                    t
-                })
-                .collect()
+        &self.transposed.get(|t| {
+            t.resize_with(self.layers.len(), Vec::new);
+            for (layer, t) in self.layers.iter().zip(t.iter_mut()) {
+                let (inputs, outputs) = (layer.inputs(), layer.outputs());
+                let w = layer.weight.as_slice();
+                t.resize(w.len(), 0.0);
+                for (i, column) in t.chunks_exact_mut(outputs).enumerate() {
+                    column.iter_mut().zip(w[i..].iter().step_by(inputs)).for_each(|(t, &w)| *t = w);
+                }
+            }
+        })[l]
+    }
+
+    /// Layer `l`'s Wᵀ packed for a bf16 product (`super::bf16::pack_transposed`): the forward pass's
+    /// z = x·Wᵀ. Only for layers at most `bf16::MAX_WIDTH` wide.
+    pub(crate) fn bf16_transposed(&self, l: usize) -> &[u32] {
+        &self.bf16_transposed.get(|t| {
+            t.resize_with(self.layers.len(), Vec::new);
+            for (layer, t) in self.layers.iter().zip(t.iter_mut()) {
+                let (inputs, outputs) = (layer.inputs(), layer.outputs());
+                if outputs <= super::bf16::MAX_WIDTH {
+                    // SAFETY: a packed form is asked for only under the bf16 family, on a CPU that runs it.
+                    unsafe { super::bf16::pack_transposed(layer.weight.as_slice(), outputs, inputs, t) };
+                }
+            }
+        })[l]
+    }
+
+    /// Layer `l`'s W packed for a bf16 product (`super::bf16::pack_b`): the backward pass's δ·W. Only for
+    /// layers with at most `bf16::MAX_WIDTH` inputs.
+    pub(crate) fn bf16_weights(&self, l: usize) -> &[u32] {
+        &self.bf16_weights.get(|t| {
+            t.resize_with(self.layers.len(), Vec::new);
+            for (layer, t) in self.layers.iter().zip(t.iter_mut()) {
+                let (inputs, outputs) = (layer.inputs(), layer.outputs());
+                if inputs <= super::bf16::MAX_WIDTH {
+                    // SAFETY: a packed form is asked for only under the bf16 family, on a CPU that runs it;
+                    // W is outputs rows of `inputs`.
+                    unsafe { super::bf16::pack_b(outputs, inputs, layer.weight.as_slice().as_ptr(), inputs, t) };
+                }
+            }
         })[l]
     }
 
