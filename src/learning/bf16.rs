@@ -30,6 +30,8 @@ pub(crate) use super::direct::MAX_WIDTH;
 
 /// Output rows summed together: 6 × 4 accumulators, as [`super::direct`].
 const ROWS: usize = 6;
+// Pairs of output rows never straddle two blocks ([`Forms`]' pairs of rows).
+const _: () = assert!(ROWS.is_multiple_of(2));
 
 /// Whether this CPU runs the family: AVX512-BF16, and AVX512-BW for packing the operands.
 pub(crate) fn available() -> bool {
@@ -92,8 +94,80 @@ pub(crate) enum Epilogue<'a> {
     /// s + b(j) for column j, then max(·, 0) when `relu` (a NaN gives 0, as `f32::max`).
     Bias { bias: &'a [f32], relu: bool },
     /// s · (1 if x(i, j) > 0 else 0): `x` is `[m × n]` with rows `x_rs` apart, the ReLU output whose
-    /// input the product's output is the gradient of.
-    ReluMask { x: *const f32, x_rs: usize },
+    /// input the product's output is the gradient of. Each output row is then added to `sums` (n
+    /// columns; null: none), rows in order: the bias gradient, summed as `fused.rs` sums it.
+    ReluMask { x: *const f32, x_rs: usize, sums: *mut f32 },
+}
+
+/// A product's left operand A `[m × k]`: f32 elements, or bf16 words packed beforehand (a product's
+/// [`Forms`]).
+#[derive(Clone, Copy, Debug)]
+pub(crate) enum Lhs<'a> {
+    /// A(i, p) = `a[i·rs + p·cs]`, rounded to bf16 as the product packs it.
+    F32 { a: *const f32, rs: usize, cs: usize },
+    /// The words of A's pair (i, q), A(i, 2q) low and A(i, 2q + 1) high, at `words[i·prs + q·pcs]`.
+    Packed { words: &'a [u32], prs: usize, pcs: usize },
+}
+
+/// A product's right operand B `[k × n]`, n ≤ [`MAX_WIDTH`]: f32 rows, or packed beforehand as [`pack_b`]
+/// packs them.
+#[derive(Clone, Copy, Debug)]
+pub(crate) enum Rhs<'a> {
+    /// B(p, j) = `b[p·rs + j]`.
+    F32 {
+        b: *const f32,
+        rs: usize,
+    },
+    Packed(&'a [u32]),
+}
+
+/// The bf16 forms of an `m × n` matrix a product wrote, for the products that read it next, as the
+/// product would have packed it from the f32 values it stored (the same instruction on the same values,
+/// so the same words): `rows`, each row's words in order (⌈n/2⌉ a row, an odd n's last high half zero),
+/// a row-major A; `pairs`, rows 2q and 2q + 1 interleaved column by column (⌈n/16⌉·16 words a pair-row,
+/// zeros past n and past an odd m's last row): [`pack_b`]'s B, and an A read by columns (Aᵀ).
+#[derive(Clone, Debug, Default)]
+pub(crate) struct Forms {
+    rows: Vec<u32>,
+    pairs: Vec<u32>,
+    /// (m, n) of the matrix the forms hold, None until a product writes them.
+    shape: Option<(usize, usize)>,
+}
+
+impl Forms {
+    /// No forms: the matrix was written by another family's product, or not by a product.
+    pub(crate) fn clear(&mut self) {
+        self.shape = None;
+    }
+
+    /// The matrix `[m × n]` as a product's A, if these forms hold it.
+    pub(crate) fn rows_of(&self, m: usize, n: usize) -> Option<Lhs<'_>> {
+        (self.shape == Some((m, n))).then(|| Lhs::Packed { words: &self.rows, prs: n.div_ceil(2), pcs: 1 })
+    }
+
+    /// Its transpose `[n × m]` as a product's A (its columns paired), if these forms hold it.
+    pub(crate) fn transposed_of(&self, m: usize, n: usize) -> Option<Lhs<'_>> {
+        (self.shape == Some((m, n))).then(|| Lhs::Packed { words: &self.pairs, prs: 1, pcs: n.div_ceil(16) * 16 })
+    }
+
+    /// The matrix as a product's B, if these forms hold it.
+    pub(crate) fn pairs_of(&self, m: usize, n: usize) -> Option<Rhs<'_>> {
+        (self.shape == Some((m, n))).then_some(Rhs::Packed(&self.pairs))
+    }
+
+    /// Room for the forms of an `[m × n]` matrix.
+    fn shape_for(&mut self, m: usize, n: usize) {
+        self.shape = None;
+        grow(&mut self.rows, m * n.div_ceil(2));
+        grow(&mut self.pairs, m.div_ceil(2) * n.div_ceil(16) * 16);
+    }
+}
+
+/// `v` holds at least `len` words (its contents are overwritten before they are read).
+fn grow(v: &mut Vec<u32>, len: usize) {
+    if v.len() < len {
+        v.resize(len, 0);
+    }
 }
 
 /// dst `[m × n]` (row stride `dst_rs`) = A·B with both operands rounded to bf16 and f32 sums, A(i, p) =
@@ -111,14 +185,12 @@ pub(crate) unsafe fn product(
     dst: *mut f32,
     dst_rs: usize,
     a: *const f32,
-    a_strides: (usize, usize),
+    (a_rs, a_cs): (usize, usize),
     b: *const f32,
     b_rs: usize,
 ) {
-    PACKED_B.with_borrow_mut(|pb| {
-        pack_b(k, n, b, b_rs, pb);
-        product_packed(m, n, k, dst, dst_rs, a, a_strides, pb, Epilogue::None);
-    });
+    let (a, b) = (Lhs::F32 { a, rs: a_rs, cs: a_cs }, Rhs::F32 { b, rs: b_rs });
+    product_with(m, n, k, dst, dst_rs, a, b, Epilogue::None, None);
 }
 
 /// B `[k × n]` (contiguous rows `b_rs` apart, n ≤ [`MAX_WIDTH`]) packed for [`product_packed`] into `out`:
@@ -146,8 +218,10 @@ pub(crate) unsafe fn pack_b(k: usize, n: usize, b: *const f32, b_rs: usize, out:
 }
 
 /// Wᵀ of a layer's weights W (`outputs × inputs`, row-major) packed as [`pack_b`] packs a B of `inputs`
-/// rows and `outputs` columns (the forward pass's z = x·Wᵀ): the same words, read from W's rows, without
-/// a transposed copy. Pair-row q, column j holds W(j, 2q) and W(j, 2q + 1): two neighbours in W's row j.
+/// rows and `outputs` columns (the forward pass's z = x·Wᵀ): the same words, made from W's rows without a
+/// transposed f32 copy. Pair-row q, column j holds W(j, 2q) and W(j, 2q + 1), two neighbours in W's row
+/// j: each row is converted to its bf16 words (as [`convert`] converts a row-major A), and the words are
+/// transposed 16 × 16 at a time in registers.
 ///
 /// # Safety
 /// The CPU runs the family ([`available`]).
@@ -156,98 +230,205 @@ pub(crate) unsafe fn pack_transposed(w: &[f32], outputs: usize, inputs: usize, o
     #[cfg(not(target_arch = "x86_64"))]
     unreachable!("the bf16 family runs only on x86_64 ({outputs} × {inputs}, {})", out.len());
     #[cfg(target_arch = "x86_64")]
-    {
-        let (pairs, width) = (inputs.div_ceil(2), outputs.div_ceil(16) * 16);
-        out.clear();
-        out.resize(pairs * width, 0);
-        PACKED_A.with_borrow_mut(|row| {
-            if row.len() < pairs {
-                row.resize(pairs, 0);
+    WORDS.with_borrow_mut(|words| transpose_words(w, outputs, inputs, words, out));
+}
+
+#[cfg(target_arch = "x86_64")]
+thread_local! {
+    /// W's rows as bf16 words, padded to whole 16 × 16 blocks ([`pack_transposed`]).
+    static WORDS: std::cell::RefCell<Vec<u32>> = const { std::cell::RefCell::new(Vec::new()) };
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx512bw,avx512bf16")]
+unsafe fn transpose_words(w: &[f32], outputs: usize, inputs: usize, words: &mut Vec<u32>, out: &mut Vec<u32>) {
+    let (pairs, width) = (inputs.div_ceil(2), outputs.div_ceil(16) * 16);
+    let padded = pairs.div_ceil(16) * 16;
+    // Row j's words, and zeros past them (an odd row's last high half too: `convert` writes only `inputs`
+    // halves) and in the rows past `outputs`.
+    words.clear();
+    words.resize(width * padded, 0);
+    for j in 0..outputs {
+        convert(inputs, w.as_ptr().add(j * inputs), words.as_mut_ptr().add(j * padded).cast());
+    }
+    // Every word of out is written below: the buffer only grows.
+    grow(out, pairs * width);
+    for j in (0..width).step_by(16) {
+        for q in (0..padded).step_by(16) {
+            let mut block: [__m512i; 16] = [_mm512_setzero_si512(); 16];
+            for (r, row) in block.iter_mut().enumerate() {
+                *row = _mm512_loadu_si512(words.as_ptr().add((j + r) * padded + q).cast());
             }
-            for j in 0..outputs {
-                // W's row j has `inputs` elements, `row` room for their `pairs` words.
-                convert(inputs, w.as_ptr().add(j * inputs), row.as_mut_ptr().cast());
-                if inputs % 2 == 1 {
-                    row[pairs - 1] &= 0xffff;
-                }
-                for (q, &word) in row[..pairs].iter().enumerate() {
-                    out[q * width + j] = word;
-                }
+            let columns = transpose16(&block);
+            for (c, column) in columns.iter().enumerate().take(pairs.saturating_sub(q)) {
+                _mm512_storeu_si512(out.as_mut_ptr().add((q + c) * width + j).cast(), *column);
             }
-        });
+        }
     }
 }
 
-/// [`product`] with B packed beforehand by [`pack_b`] or [`pack_transposed`] (`pb`), and `epilogue` applied
-/// to every output as it is stored.
+/// The transpose of 16 rows of 16 words: column c of the result holds word c of every row, in row order.
+/// Words interleaved in pairs, then in fours, within 128-bit lanes; then the lanes of four registers
+/// exchanged.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+#[inline]
+unsafe fn transpose16(r: &[__m512i; 16]) -> [__m512i; 16] {
+    // t: rows 2i and 2i + 1 interleaved (lane L: words 4L, 4L + 1 in t[2i]; 4L + 2, 4L + 3 in t[2i + 1]).
+    let mut t = [_mm512_setzero_si512(); 16];
+    for i in 0..8 {
+        t[2 * i] = _mm512_unpacklo_epi32(r[2 * i], r[2 * i + 1]);
+        t[2 * i + 1] = _mm512_unpackhi_epi32(r[2 * i], r[2 * i + 1]);
+    }
+    // u[4g + c], lane L: rows 4g .. 4g + 4 of column 4L + c.
+    let mut u = [_mm512_setzero_si512(); 16];
+    for g in 0..4 {
+        u[4 * g] = _mm512_unpacklo_epi64(t[4 * g], t[4 * g + 2]);
+        u[4 * g + 1] = _mm512_unpackhi_epi64(t[4 * g], t[4 * g + 2]);
+        u[4 * g + 2] = _mm512_unpacklo_epi64(t[4 * g + 1], t[4 * g + 3]);
+        u[4 * g + 3] = _mm512_unpackhi_epi64(t[4 * g + 1], t[4 * g + 3]);
+    }
+    // Column 4L + c: lane L of u[c], u[4 + c], u[8 + c] and u[12 + c], in that order.
+    let mut out = [_mm512_setzero_si512(); 16];
+    for c in 0..4 {
+        let v0 = _mm512_shuffle_i32x4::<0x44>(u[c], u[4 + c]);
+        let v1 = _mm512_shuffle_i32x4::<0xEE>(u[c], u[4 + c]);
+        let v2 = _mm512_shuffle_i32x4::<0x44>(u[8 + c], u[12 + c]);
+        let v3 = _mm512_shuffle_i32x4::<0xEE>(u[8 + c], u[12 + c]);
+        out[c] = _mm512_shuffle_i32x4::<0x88>(v0, v2);
+        out[4 + c] = _mm512_shuffle_i32x4::<0xDD>(v0, v2);
+        out[8 + c] = _mm512_shuffle_i32x4::<0x88>(v1, v3);
+        out[12 + c] = _mm512_shuffle_i32x4::<0xDD>(v1, v3);
+    }
+    out
+}
+
+/// dst `[m × n]` (row stride `dst_rs`) = A·B as [`product`], from operands given either way, `epilogue`
+/// applied to every output as it is stored, and the outputs' bf16 [`Forms`] written into `forms` when
+/// given.
 ///
 /// # Safety
-/// As [`product`]; `pb` holds a packing of a `k × n` B; the epilogue's `x` addresses `[m × n]`.
+/// As [`product`]; a packed operand holds a packing of its shape; the epilogue's `x` addresses `[m × n]`.
 #[cfg(target_arch = "x86_64")]
 #[allow(clippy::too_many_arguments)]
-pub(crate) unsafe fn product_packed(
+pub(crate) unsafe fn product_with(
     m: usize,
     n: usize,
     k: usize,
     dst: *mut f32,
     dst_rs: usize,
-    a: *const f32,
-    (a_rs, a_cs): (usize, usize),
-    pb: &[u32],
+    a: Lhs,
+    b: Rhs,
     epilogue: Epilogue,
+    forms: Option<&mut Forms>,
 ) {
     assert!(n > 0 && n <= MAX_WIDTH, "a bf16 product is at most {MAX_WIDTH} columns wide");
     let (pairs, nv) = (k.div_ceil(2), n.div_ceil(16));
-    assert!(pb.len() >= pairs * nv * 16, "a packed B of {k} × {n}");
     if let Epilogue::Bias { bias, .. } = epilogue {
         assert!(bias.len() >= n, "a bias per column");
     }
-    PACKED_A.with_borrow_mut(|pa| {
-        // A: per output row i and pair q, A(i, 2q) low and A(i, 2q + 1) high, laid out so that the
-        // pairs are written in runs: by row when A's rows are contiguous, by pair when its columns are.
-        if pa.len() < m * pairs {
-            pa.resize(m * pairs, 0);
+    let mut forms = forms;
+    let (rows_out, pairs_out) = match forms.as_deref_mut() {
+        Some(f) => {
+            f.shape_for(m, n);
+            (f.rows.as_mut_ptr(), f.pairs.as_mut_ptr())
         }
-        let by_pair = a_rs == 1 && a_cs != 1;
-        let (prs, pcs) = if by_pair { (1, m) } else { (pairs, 1) };
-        if by_pair {
-            for q in 0..pairs {
-                let (col0, col1) = (a.add(2 * q * a_cs), (2 * q + 1 < k).then(|| a.add((2 * q + 1) * a_cs)));
-                interleave(m, col0, col1, pa.as_mut_ptr().add(q * m), m);
+        None => (std::ptr::null_mut(), std::ptr::null_mut()),
+    };
+    PACKED_B.with_borrow_mut(|packed_b| {
+        let pb: &[u32] = match b {
+            Rhs::Packed(words) => words,
+            Rhs::F32 { b, rs } => {
+                pack_b(k, n, b, rs, packed_b);
+                packed_b
             }
-        } else if a_cs == 1 && a_rs == k && k.is_multiple_of(2) {
-            // Dense rows of an even length: row i's pairs are its words, and the rows follow each other, so
-            // the packed A is the whole block's bf16 words in order (one pass, not one call per row).
-            convert(m * k, a, pa.as_mut_ptr().cast());
-        } else if a_cs == 1 {
-            // A row's pairs are its consecutive elements: its bf16 words in order (an odd k's last high
-            // word stays zero).
-            for i in 0..m {
-                convert(k, a.add(i * a_rs), pa.as_mut_ptr().add(i * pairs).cast());
-                if k % 2 == 1 {
-                    pa[i * pairs + pairs - 1] &= 0xffff;
+        };
+        assert!(pb.len() >= pairs * nv * 16, "a packed B of {k} × {n}");
+        PACKED_A.with_borrow_mut(|pa| {
+            let (a, prs, pcs) = match a {
+                Lhs::Packed { words, prs, pcs } => {
+                    assert!(
+                        m == 0 || pairs == 0 || words.len() > (m - 1) * prs + (pairs - 1) * pcs,
+                        "a packed A of {m} × {k}"
+                    );
+                    (words.as_ptr(), prs, pcs)
                 }
+                Lhs::F32 { a, rs, cs } => pack_a(m, k, a, (rs, cs), pa),
+            };
+            let tail = n - (nv - 1) * 16;
+            let mask = if tail == 16 { u16::MAX } else { (1u16 << tail) - 1 };
+            let op = Packed {
+                pairs,
+                dst,
+                dst_rs,
+                a,
+                prs,
+                pcs,
+                b: pb.as_ptr(),
+                bs: nv * 16,
+                mask,
+                epilogue,
+                rows_out,
+                row_words: n.div_ceil(2),
+                pairs_out,
+            };
+            match nv {
+                1 => rows::<1, 24>(m, &op),
+                2 => rows::<2, 12>(m, &op),
+                3 => rows::<3, 8>(m, &op),
+                _ => rows::<4, 6>(m, &op),
             }
-        } else {
-            for i in 0..m {
-                let row = a.add(i * a_rs);
-                for q in 0..pairs {
-                    let lo = to_bf16(*row.add(2 * q * a_cs)) as u32;
-                    let hi = if 2 * q + 1 < k { to_bf16(*row.add((2 * q + 1) * a_cs)) as u32 } else { 0 };
-                    pa[i * pairs + q] = lo | hi << 16;
-                }
-            }
-        }
-        let tail = n - (nv - 1) * 16;
-        let mask = if tail == 16 { u16::MAX } else { (1u16 << tail) - 1 };
-        let op = Packed { pairs, dst, dst_rs, a: pa.as_ptr(), prs, pcs, b: pb.as_ptr(), bs: nv * 16, mask, epilogue };
-        match nv {
-            1 => rows::<1>(m, &op),
-            2 => rows::<2>(m, &op),
-            3 => rows::<3>(m, &op),
-            _ => rows::<4>(m, &op),
-        }
+        });
     });
+    if let Some(f) = forms {
+        f.shape = Some((m, n));
+    }
+}
+
+/// A `[m × k]` (A(i, p) = `a[i·a_rs + p·a_cs]`) packed into `pa`: per output row i and pair q, A(i, 2q) low
+/// and A(i, 2q + 1) high, laid out so that the pairs are written in runs: by row when A's rows are
+/// contiguous, by pair when its columns are. Returns the packed words and their (row, pair) strides.
+#[cfg(target_arch = "x86_64")]
+unsafe fn pack_a(
+    m: usize,
+    k: usize,
+    a: *const f32,
+    (a_rs, a_cs): (usize, usize),
+    pa: &mut Vec<u32>,
+) -> (*const u32, usize, usize) {
+    let pairs = k.div_ceil(2);
+    grow(pa, m * pairs);
+    let by_pair = a_rs == 1 && a_cs != 1;
+    if by_pair {
+        for q in 0..pairs {
+            let (col0, col1) = (a.add(2 * q * a_cs), (2 * q + 1 < k).then(|| a.add((2 * q + 1) * a_cs)));
+            interleave(m, col0, col1, pa.as_mut_ptr().add(q * m), m);
+        }
+    } else if a_cs == 1 && a_rs == k && k.is_multiple_of(2) {
+        // Dense rows of an even length: row i's pairs are its words, and the rows follow each other, so
+        // the packed A is the whole block's bf16 words in order (one pass, not one call per row).
+        convert(m * k, a, pa.as_mut_ptr().cast());
+    } else if a_cs == 1 {
+        // A row's pairs are its consecutive elements: its bf16 words in order (an odd k's last high
+        // word stays zero).
+        for i in 0..m {
+            convert(k, a.add(i * a_rs), pa.as_mut_ptr().add(i * pairs).cast());
+            if k % 2 == 1 {
+                pa[i * pairs + pairs - 1] &= 0xffff;
+            }
+        }
+    } else {
+        for i in 0..m {
+            let row = a.add(i * a_rs);
+            for q in 0..pairs {
+                let lo = to_bf16(*row.add(2 * q * a_cs)) as u32;
+                let hi = if 2 * q + 1 < k { to_bf16(*row.add((2 * q + 1) * a_cs)) as u32 } else { 0 };
+                pa[i * pairs + q] = lo | hi << 16;
+            }
+        }
+    }
+    let (prs, pcs) = if by_pair { (1, m) } else { (pairs, 1) };
+    (pa.as_ptr(), prs, pcs)
 }
 
 /// `out[j]` = bf16(x0[j]) low | bf16(x1[j]) high for j < len (x1 None: zeros high), both runs contiguous,
@@ -257,11 +438,7 @@ pub(crate) unsafe fn product_packed(
 #[target_feature(enable = "avx512f,avx512bw,avx512bf16")]
 unsafe fn interleave(len: usize, x0: *const f32, x1: Option<*const f32>, out: *mut u32, out_len: usize) {
     debug_assert!(out_len >= len);
-    // Lanes 0–15 of the converted pair are x0's, 16–31 x1's: word 2j takes x0[j], 2j + 1 x1[j].
-    let order = _mm512_set_epi16(
-        31, 15, 30, 14, 29, 13, 28, 12, 27, 11, 26, 10, 25, 9, 24, 8, 23, 7, 22, 6, 21, 5, 20, 4, 19, 3, 18, 2, 17, 1,
-        16, 0,
-    );
+    let order = pair_order();
     let mut j = 0;
     while j < out_len {
         let mask: u16 = if len.saturating_sub(j) >= 16 { u16::MAX } else { (1u16 << len.saturating_sub(j)) - 1 };
@@ -273,6 +450,18 @@ unsafe fn interleave(len: usize, x0: *const f32, x1: Option<*const f32>, out: *m
         _mm512_mask_storeu_epi32(out.add(j).cast(), store, _mm512_permutexvar_epi16(order, both));
         j += 16;
     }
+}
+
+/// The permutation that takes two converted runs (lanes 0–15 from x0, 16–31 from x1) to pairs: word j of
+/// the result holds x0[j] low and x1[j] high.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+#[inline]
+unsafe fn pair_order() -> __m512i {
+    _mm512_set_epi16(
+        31, 15, 30, 14, 29, 13, 28, 12, 27, 11, 26, 10, 25, 9, 24, 8, 23, 7, 22, 6, 21, 5, 20, 4, 19, 3, 18, 2, 17, 1,
+        16, 0,
+    )
 }
 
 /// `out[j]` = bf16(x[j]) for j < len: 32 at a time with `VCVTNE2PS2BF16`, the last 1–31 masked.
@@ -311,19 +500,33 @@ struct Packed<'a> {
     bs: usize,
     mask: u16,
     epilogue: Epilogue<'a>,
+    /// Where the outputs' [`Forms`] go (null: nowhere): `row_words` words a row, and whole registers a
+    /// pair of rows.
+    rows_out: *mut u32,
+    row_words: usize,
+    pairs_out: *mut u32,
 }
 
-/// Every output row, [`ROWS`] at a time, then the rest.
+/// Every output row: `WIDE` at a time (WIDE × NV = 24 accumulators), then [`ROWS`] at a time, then the
+/// rest. A narrow product (one or two registers a row: the output layer's one or two columns) would
+/// otherwise keep only 6 or 12 sums going at once, each waiting on the latency of the one before; the
+/// order of each output's sum is the same whatever the block.
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f,avx512bf16")]
-unsafe fn rows<const NV: usize>(m: usize, op: &Packed) {
-    super::direct::each_block!(m, op, block)
+#[target_feature(enable = "avx512f,avx512bw,avx512bf16")]
+unsafe fn rows<const NV: usize, const WIDE: usize>(m: usize, op: &Packed) {
+    const { assert!(WIDE.is_multiple_of(2) && WIDE * NV <= 24) };
+    let mut i = 0;
+    while WIDE > ROWS && i + WIDE <= m {
+        block::<NV, WIDE>(i, op);
+        i += WIDE;
+    }
+    super::direct::each_block!(m, op, block, i)
 }
 
 /// Output rows `i0 .. i0 + R`: R × NV accumulators summed over every pair of the inner dimension, then
 /// stored.
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f,avx512bf16")]
+#[target_feature(enable = "avx512f,avx512bw,avx512bf16")]
 #[inline]
 unsafe fn block<const NV: usize, const R: usize>(i0: usize, op: &Packed) {
     let mut acc = [[_mm512_setzero_ps(); NV]; R];
@@ -341,33 +544,103 @@ unsafe fn block<const NV: usize, const R: usize>(i0: usize, op: &Packed) {
             }
         }
     }
-    let (zero, one) = (_mm512_setzero_ps(), _mm512_set1_ps(1.0));
-    for (r, acc) in acc.iter().enumerate() {
-        let out = op.dst.add((i0 + r) * op.dst_rs);
-        for (v, &s) in acc.iter().enumerate() {
-            let mask = if v + 1 < NV { u16::MAX } else { op.mask };
-            let s = match op.epilogue {
-                Epilogue::None => s,
-                Epilogue::Bias { bias, relu } => {
-                    let s = _mm512_add_ps(s, _mm512_maskz_loadu_ps(mask, bias.as_ptr().add(16 * v)));
-                    // MAXPS returns its second operand when either is a NaN: 0, as f32::max(NaN, 0).
-                    if relu {
-                        _mm512_max_ps(s, zero)
-                    } else {
-                        s
-                    }
+    // Rows in pairs (i0 is even: blocks start at multiples of ROWS), as the pairs form wants them; a last
+    // row alone is paired with zeros.
+    let sums = match op.epilogue {
+        Epilogue::ReluMask { sums, .. } if !sums.is_null() => sums,
+        _ => std::ptr::null_mut(),
+    };
+    let column_mask = |v: usize| if v + 1 < NV { u16::MAX } else { op.mask };
+    let mut sum = [_mm512_setzero_ps(); NV];
+    if !sums.is_null() {
+        for (v, sum) in sum.iter_mut().enumerate() {
+            *sum = _mm512_maskz_loadu_ps(column_mask(v), sums.add(16 * v));
+        }
+    }
+    let mut r = 0;
+    while r < R {
+        let low = finish::<NV>(op, i0 + r, &acc[r]);
+        let high = if r + 1 < R { finish::<NV>(op, i0 + r + 1, &acc[r + 1]) } else { [_mm512_setzero_ps(); NV] };
+        if !sums.is_null() {
+            // Row by row, in order (the columns past n are zeros, and never stored).
+            for (v, sum) in sum.iter_mut().enumerate() {
+                *sum = _mm512_add_ps(*sum, low[v]);
+                if r + 1 < R {
+                    *sum = _mm512_add_ps(*sum, high[v]);
                 }
-                Epilogue::ReluMask { x, x_rs } => {
-                    let x = _mm512_maskz_loadu_ps(mask, x.add((i0 + r) * x_rs + 16 * v));
-                    _mm512_mul_ps(s, _mm512_mask_blend_ps(_mm512_cmp_ps_mask::<_CMP_GT_OQ>(x, zero), zero, one))
-                }
-            };
-            if v + 1 < NV {
-                _mm512_storeu_ps(out.add(16 * v), s);
-            } else {
-                _mm512_mask_storeu_ps(out.add(16 * v), op.mask, s);
             }
         }
+        if !op.rows_out.is_null() {
+            rows_form::<NV>(op, i0 + r, &low);
+            if r + 1 < R {
+                rows_form::<NV>(op, i0 + r + 1, &high);
+            }
+        }
+        if !op.pairs_out.is_null() {
+            let words = op.pairs_out.add((i0 + r) / 2 * NV * 16);
+            for v in 0..NV {
+                let both = std::mem::transmute::<__m512bh, __m512i>(_mm512_cvtne2ps_pbh(high[v], low[v]));
+                _mm512_storeu_si512(words.add(16 * v).cast(), _mm512_permutexvar_epi16(pair_order(), both));
+            }
+        }
+        r += 2;
+    }
+    if !sums.is_null() {
+        for (v, sum) in sum.iter().enumerate() {
+            _mm512_mask_storeu_ps(sums.add(16 * v), column_mask(v), *sum);
+        }
+    }
+}
+
+/// Output row i's sums `acc` through the epilogue, stored; returned with the columns past n zeroed, for
+/// the forms (whatever the sums there: a NaN from an infinite A).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx512bw,avx512bf16")]
+#[inline]
+unsafe fn finish<const NV: usize>(op: &Packed, i: usize, acc: &[__m512; NV]) -> [__m512; NV] {
+    let (zero, one) = (_mm512_setzero_ps(), _mm512_set1_ps(1.0));
+    let dst = op.dst.add(i * op.dst_rs);
+    let mut out = [zero; NV];
+    for v in 0..NV {
+        let mask = if v + 1 < NV { u16::MAX } else { op.mask };
+        let s = match op.epilogue {
+            Epilogue::None => acc[v],
+            Epilogue::Bias { bias, relu } => {
+                let s = _mm512_add_ps(acc[v], _mm512_maskz_loadu_ps(mask, bias.as_ptr().add(16 * v)));
+                // MAXPS returns its second operand when either is a NaN: 0, as f32::max(NaN, 0).
+                if relu {
+                    _mm512_max_ps(s, zero)
+                } else {
+                    s
+                }
+            }
+            Epilogue::ReluMask { x, x_rs, .. } => {
+                let x = _mm512_maskz_loadu_ps(mask, x.add(i * x_rs + 16 * v));
+                _mm512_mul_ps(acc[v], _mm512_mask_blend_ps(_mm512_cmp_ps_mask::<_CMP_GT_OQ>(x, zero), zero, one))
+            }
+        };
+        if v + 1 < NV {
+            _mm512_storeu_ps(dst.add(16 * v), s);
+        } else {
+            _mm512_mask_storeu_ps(dst.add(16 * v), op.mask, s);
+        }
+        out[v] = _mm512_maskz_mov_ps(mask, s);
+    }
+    out
+}
+
+/// Row i's words in its rows form: 32 columns (two registers) a conversion, the last one masked.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx512bw,avx512bf16")]
+#[inline]
+unsafe fn rows_form<const NV: usize>(op: &Packed, i: usize, row: &[__m512; NV]) {
+    let words = op.rows_out.add(i * op.row_words);
+    for v in 0..NV.div_ceil(2) {
+        let high = if 2 * v + 1 < NV { row[2 * v + 1] } else { _mm512_setzero_ps() };
+        let both = std::mem::transmute::<__m512bh, __m512i>(_mm512_cvtne2ps_pbh(high, row[2 * v]));
+        let left = op.row_words - 16 * v;
+        let keep: u16 = if left >= 16 { u16::MAX } else { (1u16 << left) - 1 };
+        _mm512_mask_storeu_epi32(words.add(16 * v).cast(), keep, both);
     }
 }
 
@@ -520,7 +793,10 @@ mod tests {
             let with = |epilogue: Epilogue| {
                 let mut dst = vec![f32::NAN; m * n];
                 // SAFETY: as above.
-                unsafe { product_packed(m, n, k, dst.as_mut_ptr(), n, a.as_ptr(), strides, &pb, epilogue) };
+                unsafe {
+                    let a = Lhs::F32 { a: a.as_ptr(), rs: strides.0, cs: strides.1 };
+                    product_with(m, n, k, dst.as_mut_ptr(), n, a, Rhs::Packed(&pb), epilogue, None)
+                };
                 dst.iter().map(|v| v.to_bits()).collect::<Vec<u32>>()
             };
             let passes = |f: &dyn Fn(usize, f32) -> f32| {
@@ -535,8 +811,50 @@ mod tests {
                 let want = (v + bias[i % n]).max(0.0);
                 assert!(f32::from_bits(got) == want || (f32::from_bits(got).is_nan() && want.is_nan()), "ReLU at {i}");
             }
-            let mask = Epilogue::ReluMask { x: x.as_ptr(), x_rs: n };
-            assert_eq!(with(mask), passes(&|i, v| v * if x[i] > 0.0 { 1.0 } else { 0.0 }), "{m} × {n} × {k}");
+            let mask = Epilogue::ReluMask { x: x.as_ptr(), x_rs: n, sums: std::ptr::null_mut() };
+            let masked = passes(&|i, v| v * if x[i] > 0.0 { 1.0 } else { 0.0 });
+            assert_eq!(with(mask), masked, "{m} × {n} × {k}");
+            // The column sums it keeps: row by row from zero, as `fused.rs` sums a bias gradient.
+            let mut sums = vec![0.0f32; n];
+            let summing = Epilogue::ReluMask { x: x.as_ptr(), x_rs: n, sums: sums.as_mut_ptr() };
+            assert_eq!(with(summing), masked);
+            let mut want = vec![0.0f32; n];
+            for row in masked.chunks_exact(n) {
+                want.iter_mut().zip(row).for_each(|(s, &d)| *s += f32::from_bits(d));
+            }
+            let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<u32>>();
+            assert_eq!(bits(&sums), bits(&want), "{m} × {n} × {k}");
+        }
+    }
+
+    #[test]
+    fn the_forms_a_product_keeps_are_the_words_its_outputs_would_be_packed_into() {
+        if !available() {
+            eprintln!("skipped: no AVX512-BF16 here");
+            return;
+        }
+        for c in cases() {
+            let Case { m, n, k, mut a, strides, ref b, b_rs } = c;
+            // An infinite operand makes NaN sums in the padding columns too: the forms keep zeros there.
+            a[0] = f32::INFINITY;
+            let bias: Vec<f32> = (0..n).map(|j| j as f32 / 7.0 - 1.0).collect();
+            let (mut dst, mut forms) = (vec![0.0f32; m * n], Forms::default());
+            let a = Lhs::F32 { a: a.as_ptr(), rs: strides.0, cs: strides.1 };
+            let b = Rhs::F32 { b: b.as_ptr(), rs: b_rs };
+            let epilogue = Epilogue::Bias { bias: &bias, relu: true };
+            // SAFETY: this CPU runs the family; A is m·k, B k rows of b_rs ≥ n, dst m × n.
+            unsafe { product_with(m, n, k, dst.as_mut_ptr(), n, a, b, epilogue, Some(&mut forms)) };
+            let (mut rows_words, mut pairs_words) = (vec![], vec![]);
+            // SAFETY: as above; dst is m rows of n.
+            let (rows_ptr, prs, pcs) = unsafe { pack_a(m, n, dst.as_ptr(), (n, 1), &mut rows_words) };
+            assert_eq!((prs, pcs, rows_ptr), (n.div_ceil(2), 1, rows_words.as_ptr()));
+            unsafe { pack_b(m, n, dst.as_ptr(), n, &mut pairs_words) };
+            let Some(Lhs::Packed { words, .. }) = forms.rows_of(m, n) else { panic!("no rows form") };
+            assert_eq!(words[..m * prs], rows_words[..m * prs], "{m} × {n} × {k}: rows");
+            let Some(Rhs::Packed(words)) = forms.pairs_of(m, n) else { panic!("no pairs form") };
+            let pair_words = m.div_ceil(2) * n.div_ceil(16) * 16;
+            assert_eq!(words[..pair_words], pairs_words[..pair_words], "{m} × {n} × {k}: pairs");
+            assert!(forms.rows_of(m, n + 1).is_none() && forms.pairs_of(m + 1, n).is_none());
         }
     }
 }

@@ -78,12 +78,12 @@ struct Operands {
     mask: u16,
 }
 
-/// Every output row of `m`, `ROWS` (6) at a time, then the 1–5 left: `$block::<NV, R>(i0, $op)` for each
-/// block of R rows from i0 (`NV` the registers per row, as where it is used). The bodies of this family's
-/// and `super::bf16`'s `rows`, each compiled with its own features.
+/// Every output row of `m` from `$from`, `ROWS` (6) at a time, then the 1–5 left: `$block::<NV, R>(i0,
+/// $op)` for each block of R rows from i0 (`NV` the registers per row, as where it is used). The bodies of
+/// this family's and `super::bf16`'s `rows`, each compiled with its own features.
 macro_rules! each_block {
-    ($m:expr, $op:expr, $block:ident) => {{
-        let mut i = 0;
+    ($m:expr, $op:expr, $block:ident, $from:expr) => {{
+        let mut i = $from;
         while i + ROWS <= $m {
             $block::<NV, ROWS>(i, $op);
             i += ROWS;
@@ -104,7 +104,7 @@ pub(crate) use each_block;
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f")]
 unsafe fn rows<const NV: usize>(m: usize, op: &Operands) {
-    each_block!(m, op, block)
+    each_block!(m, op, block, 0)
 }
 
 /// Output rows `i0 .. i0 + R`: R × NV accumulators summed over the whole inner dimension, then stored.

@@ -10,7 +10,7 @@
 //!
 //! Matrices are row-major; a network's weights are (out, in), PyTorch's `nn.Linear` layout (`nets.rs`).
 
-use super::bf16::Epilogue;
+use super::bf16::{Epilogue, Forms, Lhs, Rhs};
 use super::nets::{Mlp, Output, Own};
 use std::ops::Range;
 
@@ -20,9 +20,15 @@ pub(crate) struct Pass {
     rows: usize,
     /// `acts[0]` is the input `[rows × in]`; `acts[l]` is layer l's output after its ReLU / tanh.
     acts: Vec<Vec<f32>>,
-    /// dL/d(pre-activation) of the layer being back-propagated, and of the one below it.
+    /// The bf16 family's bf16 forms of `acts[l]`, written by the product that computed it (none for the
+    /// input, nor under the other families): the next layer's product, and the gradient of this layer's
+    /// weights, read them instead of converting the f32 values again.
+    forms: Vec<Forms>,
+    /// dL/d(pre-activation) of the layer being back-propagated, and of the one below it, with their forms.
     delta: Vec<f32>,
     below: Vec<f32>,
+    delta_forms: Forms,
+    below_forms: Forms,
 }
 
 thread_local! {
@@ -40,6 +46,8 @@ impl Pass {
     fn shape_for(&mut self, net: &Mlp, rows: usize) {
         self.rows = rows;
         self.acts.resize_with(net.layers.len() + 1, Vec::new);
+        self.forms.resize_with(net.layers.len() + 1, Forms::default);
+        self.forms.iter_mut().for_each(Forms::clear);
         self.acts[0].resize(rows * net.input_width(), 0.0);
         for (l, layer) in net.layers.iter().enumerate() {
             self.acts[l + 1].resize(rows * layer.outputs(), 0.0);
@@ -52,32 +60,37 @@ impl Pass {
         self.shape_for(net, rows);
         let (wa, wb) = (a.len() / rows, b.len() / rows);
         debug_assert_eq!(wa + wb, net.input_width());
-        for (r, x) in self.acts[0].chunks_exact_mut(wa + wb).enumerate() {
-            x[..wa].copy_from_slice(&a[r * wa..(r + 1) * wa]);
-            x[wa..].copy_from_slice(&b[r * wb..(r + 1) * wb]);
+        if wb == 0 {
+            self.acts[0].copy_from_slice(&a[..rows * wa]);
+        } else {
+            for (r, x) in self.acts[0].chunks_exact_mut(wa + wb).enumerate() {
+                x[..wa].copy_from_slice(&a[r * wa..(r + 1) * wa]);
+                x[wa..].copy_from_slice(&b[r * wb..(r + 1) * wb]);
+            }
         }
         let last = net.layers.len() - 1;
         for (l, layer) in net.layers.iter().enumerate() {
             let (below, above) = self.acts.split_at_mut(l + 1);
             let (x, z) = (&below[l], &mut above[0]);
+            let (forms_below, forms_above) = self.forms.split_at_mut(l + 1);
             let (inputs, outputs) = (layer.inputs(), layer.outputs());
             let bias = layer.bias.as_slice();
             // z = x·Wᵀ, then z + b and the activation: the same sums as writing b into z first and
             // accumulating the product onto it (one product pass at these sizes, and b + s = s + b
             // exactly), without a copy of b into every row. The bf16 family adds b and applies the ReLU as
-            // it stores each output (from its packed Wᵀ); the others in a pass over z after the product.
+            // it stores each output (from its packed Wᵀ, and x's forms), and keeps the hidden layers'
+            // outputs in bf16 too; the others in a pass over z after the product.
             let epilogue = Epilogue::Bias { bias, relu: l != last };
+            let x_f32 = Lhs::F32 { a: x.as_ptr(), rs: inputs, cs: 1 };
             // SAFETY: z is rows × outputs, x rows × inputs.
             let done = unsafe {
-                packed_product(
-                    rows,
-                    outputs,
-                    inputs,
+                bf16_product(
+                    (rows, outputs, inputs),
                     z.as_mut_ptr(),
-                    x.as_ptr(),
-                    inputs,
-                    || net.bf16_transposed(l),
+                    || forms_below[l].rows_of(rows, inputs).unwrap_or(x_f32),
+                    || Rhs::Packed(net.bf16_transposed(l)),
                     epilogue,
+                    (l != last).then_some(&mut forms_above[0]),
                 )
             };
             if !done {
@@ -126,6 +139,8 @@ impl Pass {
         let rows = self.rows;
         let mut delta = std::mem::take(&mut self.delta);
         let mut below = std::mem::take(&mut self.below);
+        let mut delta_forms = std::mem::take(&mut self.delta_forms);
+        let mut below_forms = std::mem::take(&mut self.below_forms);
         // Both hold any layer's rows × width: grown once, not resized (and zeroed) layer by layer.
         let widest = rows * net.layers.iter().map(|l| l.inputs().max(l.outputs())).max().unwrap_or(0);
         for buffer in [&mut delta, &mut below] {
@@ -133,7 +148,8 @@ impl Pass {
                 buffer.resize(widest, 0.0);
             }
         }
-        // Through the output activation.
+        // Through the output activation (a pass of its own: no forms).
+        delta_forms.clear();
         let d = &mut delta[..d_output.len()];
         match net.output {
             Output::Tanh => {
@@ -142,58 +158,93 @@ impl Pass {
             Output::Linear => d.copy_from_slice(d_output),
         }
         let mut d_input = d_input;
+        // Whether δ's column sums are already in its layer's bias gradient.
+        let mut delta_summed = false;
         for l in (0..net.layers.len()).rev() {
             let layer = &net.layers[l];
             let (inputs, outputs) = (layer.inputs(), layer.outputs());
-            let x = &self.acts[l];
+            let (x, x_forms) = (&self.acts[l], &self.forms[l]);
             let w = layer.weight.as_slice();
+            // δ as a product's A, from its forms where the product that computed it kept them.
+            let delta_f32 = Lhs::F32 { a: delta.as_ptr(), rs: outputs, cs: 1 };
+            let delta_lhs = || delta_forms.rows_of(rows, outputs).unwrap_or(delta_f32);
             if let Some(g) = gradients.as_deref_mut() {
                 let (dw, db) = g[2 * l..2 * l + 2].split_at_mut(1);
                 let (dw, db) = (&mut dw[0], &mut db[0]);
                 // dW = δᵀ·x: δᵀ (outputs × rows) read from δ (rows × outputs).
+                let delta_t = Lhs::F32 { a: delta.as_ptr(), rs: 1, cs: outputs };
+                let x_rhs = Rhs::F32 { b: x.as_ptr(), rs: inputs };
                 // SAFETY: dw is outputs × inputs, δ rows × outputs, x rows × inputs.
-                unsafe {
-                    product(
-                        outputs,
-                        inputs,
-                        rows,
+                let done = unsafe {
+                    bf16_product(
+                        (outputs, inputs, rows),
                         dw.as_mut_ptr(),
-                        inputs,
-                        false,
-                        delta.as_ptr(),
-                        (1, outputs),
-                        x.as_ptr(),
-                        (inputs, 1),
-                    );
-                }
-                db.fill(0.0);
-                super::wide::run(|| {
-                    for row in delta[..rows * outputs].chunks_exact(outputs) {
-                        db.iter_mut().zip(row).for_each(|(s, d)| *s += d);
+                        || delta_forms.transposed_of(rows, outputs).unwrap_or(delta_t),
+                        || x_forms.pairs_of(rows, inputs).unwrap_or(x_rhs),
+                        Epilogue::None,
+                        None,
+                    )
+                };
+                if !done {
+                    // SAFETY: as above.
+                    unsafe {
+                        product(
+                            outputs,
+                            inputs,
+                            rows,
+                            dw.as_mut_ptr(),
+                            inputs,
+                            false,
+                            delta.as_ptr(),
+                            (1, outputs),
+                            x.as_ptr(),
+                            (inputs, 1),
+                        );
                     }
-                });
+                }
+                // db = Σ rows of δ, in order from zero: summed here unless the product that computed δ
+                // summed it as it stored each row (below).
+                if !delta_summed {
+                    db.fill(0.0);
+                    super::wide::run(|| {
+                        for row in delta[..rows * outputs].chunks_exact(outputs) {
+                            db.iter_mut().zip(row).for_each(|(s, d)| *s += d);
+                        }
+                    });
+                }
             }
             if l > 0 {
                 // δ_below = (δ·W) ⊙ ReLU'(x): x is the ReLU output below, positive exactly where its input was.
                 // A multiplication by 0 or 1, not a branch: it vectorizes (a branch here took a third of an
                 // update), and it is dfdx's own ReLU backward, bit for bit. The bf16 family applies it as it
-                // stores each output (from its packed W); the others in a pass after the product.
+                // stores each output (from its packed W) and keeps δ_below's forms; the others in a pass
+                // after the product.
                 let below_rows = &mut below[..rows * inputs];
-                let mask = Epilogue::ReluMask { x: x.as_ptr(), x_rs: inputs };
+                // The bias gradient of the layer below, db = Σ rows of δ_below, summed by the product as it
+                // stores them.
+                let sums = match gradients.as_deref_mut() {
+                    Some(g) => {
+                        let db = &mut g[2 * (l - 1) + 1];
+                        db.fill(0.0);
+                        db.as_mut_ptr()
+                    }
+                    None => std::ptr::null_mut(),
+                };
+                let mask = Epilogue::ReluMask { x: x.as_ptr(), x_rs: inputs, sums };
                 // SAFETY: below is rows × inputs, δ rows × outputs, x rows × inputs.
                 let done = unsafe {
-                    packed_product(
-                        rows,
-                        inputs,
-                        outputs,
+                    bf16_product(
+                        (rows, inputs, outputs),
                         below_rows.as_mut_ptr(),
-                        delta.as_ptr(),
-                        outputs,
-                        || net.bf16_weights(l),
+                        delta_lhs,
+                        || Rhs::Packed(net.bf16_weights(l)),
                         mask,
+                        Some(&mut below_forms),
                     )
                 };
+                delta_summed = done && !sums.is_null();
                 if !done {
+                    below_forms.clear();
                     // SAFETY: below is rows × inputs, δ rows × outputs, W outputs × inputs.
                     unsafe {
                         product(
@@ -214,50 +265,66 @@ impl Pass {
                     });
                 }
                 std::mem::swap(&mut delta, &mut below);
+                std::mem::swap(&mut delta_forms, &mut below_forms);
             } else if let Some((columns, out)) = d_input.take() {
                 let n = columns.len();
                 assert!(columns.end <= inputs && out.len() == rows * n, "input gradient shape");
                 // dL/dx[:, columns] = δ·W[:, columns].
                 // SAFETY: out is rows × n; W[:, columns] is read from W (outputs × inputs) at offset
                 // columns.start, n ≤ inputs − columns.start columns per row.
-                unsafe {
-                    product(
-                        rows,
-                        n,
-                        outputs,
+                let w_columns = unsafe { w.as_ptr().add(columns.start) };
+                // SAFETY: as above.
+                let done = unsafe {
+                    bf16_product(
+                        (rows, n, outputs),
                         out.as_mut_ptr(),
-                        n,
-                        false,
-                        delta.as_ptr(),
-                        (outputs, 1),
-                        w.as_ptr().add(columns.start),
-                        (inputs, 1),
-                    );
+                        delta_lhs,
+                        || Rhs::F32 { b: w_columns, rs: inputs },
+                        Epilogue::None,
+                        None,
+                    )
+                };
+                if !done {
+                    // SAFETY: as above.
+                    unsafe {
+                        product(
+                            rows,
+                            n,
+                            outputs,
+                            out.as_mut_ptr(),
+                            n,
+                            false,
+                            delta.as_ptr(),
+                            (outputs, 1),
+                            w_columns,
+                            (inputs, 1),
+                        );
+                    }
                 }
             }
         }
         self.delta = delta;
         self.below = below;
+        self.delta_forms = delta_forms;
+        self.below_forms = below_forms;
     }
 }
 
-/// dst `[m × n]` (rows contiguous) = A `[m × k]` (rows `a_rs` apart) · B by the bf16 family from B packed
-/// beforehand (`packed`, asked for only when the family takes the product), `epilogue` applied as each
-/// output is stored. False, and nothing written, where the family does not take it: another family, or
-/// n over `bf16::MAX_WIDTH`.
+/// dst `[m × n]` (rows contiguous; `shape` = (m, n, k)) = A·B by the bf16 family, its operands as `a` and
+/// `b` give them (asked for only when the family takes the product: a packed one may be made on demand),
+/// `epilogue` applied as each output is stored, and the outputs' forms written into `forms` when given.
+/// False, and nothing written, where the family does not take the product: another family, or n over
+/// `bf16::MAX_WIDTH`.
 ///
 /// # Safety
-/// Every element A's stride and the epilogue address lies inside its buffer; dst holds m × n.
-#[allow(clippy::too_many_arguments)]
-unsafe fn packed_product<'a>(
-    m: usize,
-    n: usize,
-    k: usize,
+/// Every element the operands and the epilogue address lies inside its buffer; dst holds m × n.
+unsafe fn bf16_product<'a>(
+    (m, n, k): (usize, usize, usize),
     dst: *mut f32,
-    a: *const f32,
-    a_rs: usize,
-    packed: impl FnOnce() -> &'a [u32],
+    a: impl FnOnce() -> Lhs<'a>,
+    b: impl FnOnce() -> Rhs<'a>,
     epilogue: Epilogue,
+    forms: Option<&mut Forms>,
 ) -> bool {
     if n > super::bf16::MAX_WIDTH || super::nets::own_kernels() != Own::Bf16 {
         return false;
@@ -265,12 +332,13 @@ unsafe fn packed_product<'a>(
     #[cfg(target_arch = "x86_64")]
     // SAFETY: the family is chosen only on a CPU with AVX512-BF16 and -BW; the extents are the caller's.
     unsafe {
-        super::bf16::product_packed(m, n, k, dst, n, a, (a_rs, 1), packed(), epilogue)
+        super::bf16::product_with(m, n, k, dst, n, a(), b(), epilogue, forms)
     };
     #[cfg(not(target_arch = "x86_64"))]
     unreachable!(
-        "the bf16 family runs only on x86_64 ({m} × {n} × {k} at {dst:?}, {a:?}, {a_rs}, {epilogue:?})",
-        packed().len()
+        "the bf16 family runs only on x86_64 ({m} × {n} × {k} at {dst:?}: {:?}, {:?}, {epilogue:?}, {forms:?})",
+        a(),
+        b()
     );
     true
 }
