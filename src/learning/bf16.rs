@@ -132,6 +132,8 @@ pub(crate) struct Forms {
     pairs: Vec<u32>,
     /// (m, n) of the matrix the forms hold, None until a product writes them.
     shape: Option<(usize, usize)>,
+    /// Whether `pairs` holds it too.
+    pairs_held: bool,
 }
 
 impl Forms {
@@ -147,12 +149,16 @@ impl Forms {
 
     /// Its transpose `[n × m]` as a product's A (its columns paired), if these forms hold it.
     pub(crate) fn transposed_of(&self, m: usize, n: usize) -> Option<Lhs<'_>> {
-        (self.shape == Some((m, n))).then(|| Lhs::Packed { words: &self.pairs, prs: 1, pcs: n.div_ceil(16) * 16 })
+        (self.shape == Some((m, n)) && self.pairs_held).then(|| Lhs::Packed {
+            words: &self.pairs,
+            prs: 1,
+            pcs: n.div_ceil(16) * 16,
+        })
     }
 
     /// The matrix as a product's B, if these forms hold it.
     pub(crate) fn pairs_of(&self, m: usize, n: usize) -> Option<Rhs<'_>> {
-        (self.shape == Some((m, n))).then_some(Rhs::Packed(&self.pairs))
+        (self.shape == Some((m, n)) && self.pairs_held).then_some(Rhs::Packed(&self.pairs))
     }
 
     /// Room for the forms of an `[m × n]` matrix.
@@ -190,7 +196,7 @@ pub(crate) unsafe fn product(
     b_rs: usize,
 ) {
     let (a, b) = (Lhs::F32 { a, rs: a_rs, cs: a_cs }, Rhs::F32 { b, rs: b_rs });
-    product_with(m, n, k, dst, dst_rs, a, b, Epilogue::None, None);
+    product_with(m, n, k, dst, dst_rs, a, b, Epilogue::None, None, false);
 }
 
 /// B `[k × n]` (contiguous rows `b_rs` apart, n ≤ [`MAX_WIDTH`]) packed for [`product_packed`] into `out`:
@@ -305,7 +311,7 @@ unsafe fn transpose16(r: &[__m512i; 16]) -> [__m512i; 16] {
 
 /// dst `[m × n]` (row stride `dst_rs`) = A·B as [`product`], from operands given either way, `epilogue`
 /// applied to every output as it is stored, and the outputs' bf16 [`Forms`] written into `forms` when
-/// given.
+/// given: the rows form, and the pairs form too when `keep_pairs` (only a weight gradient reads it).
 ///
 /// # Safety
 /// As [`product`]; a packed operand holds a packing of its shape; the epilogue's `x` addresses `[m × n]`.
@@ -321,6 +327,7 @@ pub(crate) unsafe fn product_with(
     b: Rhs,
     epilogue: Epilogue,
     forms: Option<&mut Forms>,
+    keep_pairs: bool,
 ) {
     assert!(n > 0 && n <= MAX_WIDTH, "a bf16 product is at most {MAX_WIDTH} columns wide");
     let (pairs, nv) = (k.div_ceil(2), n.div_ceil(16));
@@ -331,7 +338,7 @@ pub(crate) unsafe fn product_with(
     let (rows_out, pairs_out) = match forms.as_deref_mut() {
         Some(f) => {
             f.shape_for(m, n);
-            (f.rows.as_mut_ptr(), f.pairs.as_mut_ptr())
+            (f.rows.as_mut_ptr(), if keep_pairs { f.pairs.as_mut_ptr() } else { std::ptr::null_mut() })
         }
         None => (std::ptr::null_mut(), std::ptr::null_mut()),
     };
@@ -381,7 +388,7 @@ pub(crate) unsafe fn product_with(
         });
     });
     if let Some(f) = forms {
-        f.shape = Some((m, n));
+        (f.shape, f.pairs_held) = (Some((m, n)), keep_pairs);
     }
 }
 
@@ -795,7 +802,7 @@ mod tests {
                 // SAFETY: as above.
                 unsafe {
                     let a = Lhs::F32 { a: a.as_ptr(), rs: strides.0, cs: strides.1 };
-                    product_with(m, n, k, dst.as_mut_ptr(), n, a, Rhs::Packed(&pb), epilogue, None)
+                    product_with(m, n, k, dst.as_mut_ptr(), n, a, Rhs::Packed(&pb), epilogue, None, false)
                 };
                 dst.iter().map(|v| v.to_bits()).collect::<Vec<u32>>()
             };
@@ -843,7 +850,7 @@ mod tests {
             let b = Rhs::F32 { b: b.as_ptr(), rs: b_rs };
             let epilogue = Epilogue::Bias { bias: &bias, relu: true };
             // SAFETY: this CPU runs the family; A is m·k, B k rows of b_rs ≥ n, dst m × n.
-            unsafe { product_with(m, n, k, dst.as_mut_ptr(), n, a, b, epilogue, Some(&mut forms)) };
+            unsafe { product_with(m, n, k, dst.as_mut_ptr(), n, a, b, epilogue, Some(&mut forms), true) };
             let (mut rows_words, mut pairs_words) = (vec![], vec![]);
             // SAFETY: as above; dst is m rows of n.
             let (rows_ptr, prs, pcs) = unsafe { pack_a(m, n, dst.as_ptr(), (n, 1), &mut rows_words) };

@@ -107,7 +107,7 @@ impl Ddpg {
         w.d_q.extend(b.rewards.iter().zip(w.target_critic.output()).map(|(r, q)| r + q * self.gamma));
 
         // Critic: minimise L = 1/S Σ (y − Q(o, a))², dL/dQ = 2 (Q − y) / S.
-        w.critic.forward(&self.critic, n, &b.obs, &b.actions);
+        w.critic.forward_to_learn(&self.critic, n, &b.obs, &b.actions);
         let mut critic_loss = 0.0;
         for (g, q) in w.d_q.iter_mut().zip(w.critic.output()) {
             let e = q - *g;
@@ -119,7 +119,7 @@ impl Ddpg {
 
         // Actor: maximise Q(o, μ(o)) through the (just updated) critic: J = −1/S Σ Q, dJ/dQ = −1/S; only
         // the critic's input gradient in its action columns, dJ/dμ, is needed.
-        w.actor.forward(&self.actor, n, &b.obs, &[]);
+        w.actor.forward_to_learn(&self.actor, n, &b.obs, &[]);
         w.actor_value.forward(&self.critic, n, &b.obs, w.actor.output());
         let actor_loss = -w.actor_value.output().iter().sum::<f32>() / n as f32;
         w.d_q.fill(-1.0 / n as f32);

@@ -57,6 +57,17 @@ impl Pass {
     /// The forward pass of `net` on the row-wise concatenation `[a | b]` (b may be empty): the critic's
     /// input (o, a) is built in place.
     pub(crate) fn forward(&mut self, net: &Mlp, rows: usize, a: &[f32], b: &[f32]) {
+        self.run_forward(net, rows, a, b, false);
+    }
+
+    /// [`Pass::forward`] for a backward pass that computes the weight gradients: the bf16 family then
+    /// also keeps the hidden layers' outputs as pairs of rows, the form a weight gradient reads (another
+    /// pass would only write them).
+    pub(crate) fn forward_to_learn(&mut self, net: &Mlp, rows: usize, a: &[f32], b: &[f32]) {
+        self.run_forward(net, rows, a, b, true);
+    }
+
+    fn run_forward(&mut self, net: &Mlp, rows: usize, a: &[f32], b: &[f32], learn: bool) {
         self.shape_for(net, rows);
         let (wa, wb) = (a.len() / rows, b.len() / rows);
         debug_assert_eq!(wa + wb, net.input_width());
@@ -91,6 +102,7 @@ impl Pass {
                     || Rhs::Packed(net.bf16_transposed(l)),
                     epilogue,
                     (l != last).then_some(&mut forms_above[0]),
+                    learn,
                 )
             };
             if !done {
@@ -183,6 +195,7 @@ impl Pass {
                         || x_forms.pairs_of(rows, inputs).unwrap_or(x_rhs),
                         Epilogue::None,
                         None,
+                        false,
                     )
                 };
                 if !done {
@@ -240,6 +253,7 @@ impl Pass {
                         || Rhs::Packed(net.bf16_weights(l)),
                         mask,
                         Some(&mut below_forms),
+                        !sums.is_null(),
                     )
                 };
                 delta_summed = done && !sums.is_null();
@@ -282,6 +296,7 @@ impl Pass {
                         || Rhs::F32 { b: w_columns, rs: inputs },
                         Epilogue::None,
                         None,
+                        false,
                     )
                 };
                 if !done {
@@ -325,6 +340,7 @@ unsafe fn bf16_product<'a>(
     b: impl FnOnce() -> Rhs<'a>,
     epilogue: Epilogue,
     forms: Option<&mut Forms>,
+    pairs: bool,
 ) -> bool {
     if n > super::bf16::MAX_WIDTH || super::nets::own_kernels() != Own::Bf16 {
         return false;
@@ -332,7 +348,7 @@ unsafe fn bf16_product<'a>(
     #[cfg(target_arch = "x86_64")]
     // SAFETY: the family is chosen only on a CPU with AVX512-BF16 and -BW; the extents are the caller's.
     unsafe {
-        super::bf16::product_with(m, n, k, dst, n, a(), b(), epilogue, forms)
+        super::bf16::product_with(m, n, k, dst, n, a(), b(), epilogue, forms, pairs)
     };
     #[cfg(not(target_arch = "x86_64"))]
     unreachable!(
