@@ -199,7 +199,7 @@ pub(crate) unsafe fn product(
     product_with(m, n, k, dst, dst_rs, a, b, Epilogue::None, None, false);
 }
 
-/// B `[k × n]` (contiguous rows `b_rs` apart, n ≤ [`MAX_WIDTH`]) packed for [`product_packed`] into `out`:
+/// B `[k × n]` (contiguous rows `b_rs` apart, n ≤ [`MAX_WIDTH`]) packed for [`product_with`] into `out`:
 /// pair-row q holds, per column j (padded to whole registers with zeros), bf16(B(2q, j)) in its low half
 /// and bf16(B(2q + 1, j)) in its high half (zero past an odd k).
 ///
@@ -842,26 +842,111 @@ mod tests {
         }
         for c in cases() {
             let Case { m, n, k, mut a, strides, ref b, b_rs } = c;
-            // An infinite operand makes NaN sums in the padding columns too: the forms keep zeros there.
+            // An infinite operand makes NaN sums in the padding columns too: the forms keep zeros there,
+            // whatever the epilogue does to a NaN (a ReLU gives 0, a mask by 0 keeps it).
             a[0] = f32::INFINITY;
             let bias: Vec<f32> = (0..n).map(|j| j as f32 / 7.0 - 1.0).collect();
-            let (mut dst, mut forms) = (vec![0.0f32; m * n], Forms::default());
-            let a = Lhs::F32 { a: a.as_ptr(), rs: strides.0, cs: strides.1 };
-            let b = Rhs::F32 { b: b.as_ptr(), rs: b_rs };
-            let epilogue = Epilogue::Bias { bias: &bias, relu: true };
-            // SAFETY: this CPU runs the family; A is m·k, B k rows of b_rs ≥ n, dst m × n.
-            unsafe { product_with(m, n, k, dst.as_mut_ptr(), n, a, b, epilogue, Some(&mut forms), true) };
-            let (mut rows_words, mut pairs_words) = (vec![], vec![]);
-            // SAFETY: as above; dst is m rows of n.
-            let (rows_ptr, prs, pcs) = unsafe { pack_a(m, n, dst.as_ptr(), (n, 1), &mut rows_words) };
-            assert_eq!((prs, pcs, rows_ptr), (n.div_ceil(2), 1, rows_words.as_ptr()));
-            unsafe { pack_b(m, n, dst.as_ptr(), n, &mut pairs_words) };
-            let Some(Lhs::Packed { words, .. }) = forms.rows_of(m, n) else { panic!("no rows form") };
-            assert_eq!(words[..m * prs], rows_words[..m * prs], "{m} × {n} × {k}: rows");
-            let Some(Rhs::Packed(words)) = forms.pairs_of(m, n) else { panic!("no pairs form") };
-            let pair_words = m.div_ceil(2) * n.div_ceil(16) * 16;
-            assert_eq!(words[..pair_words], pairs_words[..pair_words], "{m} × {n} × {k}: pairs");
-            assert!(forms.rows_of(m, n + 1).is_none() && forms.pairs_of(m + 1, n).is_none());
+            let x: Vec<f32> = (0..m * n).map(|i| if i % 3 == 0 { -1.0 } else { 0.5 }).collect();
+            let mut sums = vec![0.0f32; n];
+            let epilogues = [
+                Epilogue::None,
+                Epilogue::Bias { bias: &bias, relu: true },
+                Epilogue::Bias { bias: &bias, relu: false },
+                Epilogue::ReluMask { x: x.as_ptr(), x_rs: n, sums: std::ptr::null_mut() },
+                Epilogue::ReluMask { x: x.as_ptr(), x_rs: n, sums: sums.as_mut_ptr() },
+            ];
+            for epilogue in epilogues {
+                let (mut dst, mut forms) = (vec![0.0f32; m * n], Forms::default());
+                let lhs = Lhs::F32 { a: a.as_ptr(), rs: strides.0, cs: strides.1 };
+                let rhs = Rhs::F32 { b: b.as_ptr(), rs: b_rs };
+                // SAFETY: this CPU runs the family; A is m·k, B k rows of b_rs ≥ n, dst and x m × n, sums n.
+                unsafe { product_with(m, n, k, dst.as_mut_ptr(), n, lhs, rhs, epilogue, Some(&mut forms), true) };
+                let (mut rows_words, mut pairs_words) = (vec![], vec![]);
+                // SAFETY: as above; dst is m rows of n.
+                let (rows_ptr, prs, pcs) = unsafe { pack_a(m, n, dst.as_ptr(), (n, 1), &mut rows_words) };
+                assert_eq!((prs, pcs, rows_ptr), (n.div_ceil(2), 1, rows_words.as_ptr()));
+                unsafe { pack_b(m, n, dst.as_ptr(), n, &mut pairs_words) };
+                let Some(Lhs::Packed { words, .. }) = forms.rows_of(m, n) else { panic!("no rows form") };
+                assert_eq!(words[..m * prs], rows_words[..m * prs], "{m} × {n} × {k}, {epilogue:?}: rows");
+                let Some(Rhs::Packed(words)) = forms.pairs_of(m, n) else { panic!("no pairs form") };
+                let pair_words = m.div_ceil(2) * n.div_ceil(16) * 16;
+                assert_eq!(words[..pair_words], pairs_words[..pair_words], "{m} × {n} × {k}, {epilogue:?}: pairs");
+                assert!(forms.rows_of(m, n + 1).is_none() && forms.pairs_of(m + 1, n).is_none());
+            }
+        }
+    }
+
+    #[test]
+    fn products_reading_the_forms_give_the_bits_of_products_reading_the_f32_values() {
+        if !available() {
+            eprintln!("skipped: no AVX512-BF16 here");
+            return;
+        }
+        let mut seed = 7u32;
+        let mut draw = |len: usize| -> Vec<f32> {
+            (0..len)
+                .map(|_| {
+                    seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+                    (seed >> 8) as f32 / (1u32 << 24) as f32 - 0.5
+                })
+                .collect()
+        };
+        let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<u32>>();
+        for (m, n, k) in [(7, 17, 9), (13, 33, 5), (256, 64, 54), (5, 1, 3), (6, 54, 64), (11, 2, 64), (1, 49, 2)] {
+            // D = a ReLU mask's output with its forms, as the backward pass makes δ.
+            let (a, b, x) = (draw(m * k), draw(k * n), draw(m * n));
+            let (mut d, mut forms) = (vec![0.0f32; m * n], Forms::default());
+            let mask = Epilogue::ReluMask { x: x.as_ptr(), x_rs: n, sums: std::ptr::null_mut() };
+            let (lhs, rhs) = (Lhs::F32 { a: a.as_ptr(), rs: k, cs: 1 }, Rhs::F32 { b: b.as_ptr(), rs: n });
+            // SAFETY (every product here): this CPU runs the family; each operand's extents are its shape's.
+            unsafe { product_with(m, n, k, d.as_mut_ptr(), n, lhs, rhs, mask, Some(&mut forms), true) };
+            let next = |p: usize, q: usize, read: Lhs, b_f32: (&[f32], usize), b_read: Option<Rhs>| {
+                let mut out = vec![0.0f32; p * q];
+                let b = b_read.unwrap_or(Rhs::F32 { b: b_f32.0.as_ptr(), rs: b_f32.1 });
+                unsafe {
+                    product_with(
+                        p,
+                        q,
+                        b_f32.0.len() / b_f32.1,
+                        out.as_mut_ptr(),
+                        q,
+                        read,
+                        b,
+                        Epilogue::None,
+                        None,
+                        false,
+                    )
+                };
+                bits(&out)
+            };
+            let plain = |p: usize, q: usize, kk: usize, a: (*const f32, (usize, usize)), b: (&[f32], usize)| {
+                let mut out = vec![0.0f32; p * q];
+                unsafe { product(p, q, kk, out.as_mut_ptr(), q, a.0, a.1, b.0.as_ptr(), b.1) };
+                bits(&out)
+            };
+            // D as the next product's A (δ·W), Dᵀ as a weight gradient's A (δᵀ·x), D as its B (δᵀ·x's x).
+            let w = draw(n * 16);
+            let as_rows = forms.rows_of(m, n).expect("rows form");
+            assert_eq!(
+                next(m, 16, as_rows, (&w, 16), None),
+                plain(m, 16, n, (d.as_ptr(), (n, 1)), (&w, 16)),
+                "{m} × {n}: rows"
+            );
+            let y = draw(m * 5);
+            let as_columns = forms.transposed_of(m, n).expect("pairs form");
+            assert_eq!(
+                next(n, 5, as_columns, (&y, 5), None),
+                plain(n, 5, m, (d.as_ptr(), (1, n)), (&y, 5)),
+                "{m} × {n}: Dᵀ"
+            );
+            let z = draw(3 * m);
+            let z_lhs = Lhs::F32 { a: z.as_ptr(), rs: m, cs: 1 };
+            let as_pairs = forms.pairs_of(m, n);
+            assert_eq!(
+                next(3, n, z_lhs, (&d, n), as_pairs),
+                plain(3, n, m, (z.as_ptr(), (m, 1)), (&d, n)),
+                "{m} × {n}: as B"
+            );
         }
     }
 }

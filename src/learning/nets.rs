@@ -367,38 +367,40 @@ impl Mlp {
         self.bf16_packed(
             &self.bf16_transposed,
             l,
-            |(_, outputs)| outputs <= super::bf16::MAX_WIDTH,
+            |_, (_, outputs)| outputs <= super::bf16::MAX_WIDTH,
             // SAFETY: a packed form is asked for only under the bf16 family, on a CPU that runs it.
             |w, (inputs, outputs), t| unsafe { super::bf16::pack_transposed(w, outputs, inputs, t) },
         )
     }
 
     /// Layer `l`'s W packed for a bf16 product (`super::bf16::pack_b`): the backward pass's δ·W. Only for
-    /// layers with at most `bf16::MAX_WIDTH` inputs.
+    /// layers above the first with at most `bf16::MAX_WIDTH` inputs.
     pub(crate) fn bf16_weights(&self, l: usize) -> &[u32] {
         self.bf16_packed(
             &self.bf16_weights,
             l,
-            |(inputs, _)| inputs <= super::bf16::MAX_WIDTH,
+            // The first layer's W is never multiplied by: no gradient is taken of the input but for the
+            // critic's action columns, which read W unpacked.
+            |l, (inputs, _)| l > 0 && inputs <= super::bf16::MAX_WIDTH,
             // SAFETY: as above; W is `outputs` rows of `inputs`.
             |w, (inputs, outputs), t| unsafe { super::bf16::pack_b(outputs, inputs, w.as_ptr(), inputs, t) },
         )
     }
 
     /// Layer `l`'s weights as `pack` packs them (W and its (inputs, outputs)), kept in `packings` until the
-    /// parameters change; only the layers whose shape `fits` are packed.
+    /// parameters change; only the layers that `fits` (by index and shape) are packed.
     fn bf16_packed<'a>(
         &'a self,
         packings: &'a Derived<Vec<Vec<u32>>>,
         l: usize,
-        fits: impl Fn((usize, usize)) -> bool,
+        fits: impl Fn(usize, (usize, usize)) -> bool,
         pack: impl Fn(&[f32], (usize, usize), &mut Vec<u32>),
     ) -> &'a [u32] {
         &packings.get(|t| {
             t.resize_with(self.layers.len(), Vec::new);
-            for (layer, t) in self.layers.iter().zip(t.iter_mut()) {
+            for (l, (layer, t)) in self.layers.iter().zip(t.iter_mut()).enumerate() {
                 let shape = (layer.inputs(), layer.outputs());
-                if fits(shape) {
+                if fits(l, shape) {
                     pack(layer.weight.as_slice(), shape, t);
                 }
             }
