@@ -213,9 +213,7 @@ pub(crate) unsafe fn pack_b(k: usize, n: usize, b: *const f32, b_rs: usize, out:
     {
         let (pairs, width) = (k.div_ceil(2), n.div_ceil(16) * 16);
         // Every word is written below (no zeroing pass): the buffer only grows.
-        if out.len() < pairs * width {
-            out.resize(pairs * width, 0);
-        }
+        grow(out, pairs * width);
         for q in 0..pairs {
             let (row0, row1) = (b.add(2 * q * b_rs), (2 * q + 1 < k).then(|| b.add((2 * q + 1) * b_rs)));
             interleave(n, row0, row1, out.as_mut_ptr().add(q * width), width);

@@ -348,61 +348,54 @@ impl Mlp {
 
     /// Layer `l`'s Wᵀ, laid out (inputs × outputs).
     pub(crate) fn transposed(&self, l: usize) -> &[f32] {
-        &self.transposed.get(|t| {
-            t.resize_with(self.layers.len(), Vec::new);
-            for (layer, t) in self.layers.iter().zip(t.iter_mut()) {
-                let (inputs, outputs) = (layer.inputs(), layer.outputs());
-                let w = layer.weight.as_slice();
-                t.resize(w.len(), 0.0);
-                for (i, column) in t.chunks_exact_mut(outputs).enumerate() {
-                    column.iter_mut().zip(w[i..].iter().step_by(inputs)).for_each(|(t, &w)| *t = w);
-                }
+        self.per_layer(&self.transposed, l, |_, layer, t| {
+            let (inputs, outputs) = (layer.inputs(), layer.outputs());
+            let w = layer.weight.as_slice();
+            t.resize(w.len(), 0.0);
+            for (i, column) in t.chunks_exact_mut(outputs).enumerate() {
+                column.iter_mut().zip(w[i..].iter().step_by(inputs)).for_each(|(t, &w)| *t = w);
             }
-        })[l]
+        })
     }
 
     /// Layer `l`'s Wᵀ packed for a bf16 product (`super::bf16::pack_transposed`): the forward pass's
     /// z = x·Wᵀ. Only for layers at most `bf16::MAX_WIDTH` wide.
     pub(crate) fn bf16_transposed(&self, l: usize) -> &[u32] {
-        self.bf16_packed(
-            &self.bf16_transposed,
-            l,
-            |_, (_, outputs)| outputs <= super::bf16::MAX_WIDTH,
-            // SAFETY: a packed form is asked for only under the bf16 family, on a CPU that runs it.
-            |w, (inputs, outputs), t| unsafe { super::bf16::pack_transposed(w, outputs, inputs, t) },
-        )
+        self.per_layer(&self.bf16_transposed, l, |_, layer, t| {
+            let (inputs, outputs) = (layer.inputs(), layer.outputs());
+            if outputs <= super::bf16::MAX_WIDTH {
+                // SAFETY: a packed form is asked for only under the bf16 family, on a CPU that runs it.
+                unsafe { super::bf16::pack_transposed(layer.weight.as_slice(), outputs, inputs, t) };
+            }
+        })
     }
 
     /// Layer `l`'s W packed for a bf16 product (`super::bf16::pack_b`): the backward pass's δ·W. Only for
     /// layers above the first with at most `bf16::MAX_WIDTH` inputs.
     pub(crate) fn bf16_weights(&self, l: usize) -> &[u32] {
-        self.bf16_packed(
-            &self.bf16_weights,
-            l,
+        self.per_layer(&self.bf16_weights, l, |l, layer, t| {
+            let (inputs, outputs) = (layer.inputs(), layer.outputs());
             // The first layer's W is never multiplied by: no gradient is taken of the input but for the
             // critic's action columns, which read W unpacked.
-            |l, (inputs, _)| l > 0 && inputs <= super::bf16::MAX_WIDTH,
-            // SAFETY: as above; W is `outputs` rows of `inputs`.
-            |w, (inputs, outputs), t| unsafe { super::bf16::pack_b(outputs, inputs, w.as_ptr(), inputs, t) },
-        )
+            if l > 0 && inputs <= super::bf16::MAX_WIDTH {
+                // SAFETY: as above; W is `outputs` rows of `inputs`.
+                unsafe { super::bf16::pack_b(outputs, inputs, layer.weight.as_slice().as_ptr(), inputs, t) };
+            }
+        })
     }
 
-    /// Layer `l`'s weights as `pack` packs them (W and its (inputs, outputs)), kept in `packings` until the
-    /// parameters change; only the layers that `fits` (by index and shape) are packed.
-    fn bf16_packed<'a>(
+    /// Layer `l`'s entry of a value kept per layer in `derived` until the parameters change, `fill` making
+    /// each layer's (its index, the layer, its buffer to refill).
+    fn per_layer<'a, T>(
         &'a self,
-        packings: &'a Derived<Vec<Vec<u32>>>,
+        derived: &'a Derived<Vec<Vec<T>>>,
         l: usize,
-        fits: impl Fn(usize, (usize, usize)) -> bool,
-        pack: impl Fn(&[f32], (usize, usize), &mut Vec<u32>),
-    ) -> &'a [u32] {
-        &packings.get(|t| {
+        fill: impl Fn(usize, &Dense, &mut Vec<T>),
+    ) -> &'a [T] {
+        &derived.get(|t| {
             t.resize_with(self.layers.len(), Vec::new);
             for (l, (layer, t)) in self.layers.iter().zip(t.iter_mut()).enumerate() {
-                let shape = (layer.inputs(), layer.outputs());
-                if fits(l, shape) {
-                    pack(layer.weight.as_slice(), shape, t);
-                }
+                fill(l, layer, t);
             }
         })[l]
     }
