@@ -24,6 +24,14 @@ pub(crate) struct ReplayBuffer {
     next_obs: Vec<f32>,
 }
 
+/// Consecutive slots of a [`ReplayBuffer`] ([`ReplayBuffer::runs`]): their observations, actions and
+/// rewards, row-major.
+pub(crate) struct Run<'a> {
+    pub(crate) obs: &'a [f32],
+    pub(crate) actions: &'a [f32],
+    pub(crate) rewards: &'a [f32],
+}
+
 /// A mini-batch, row-major.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub(crate) struct Batch {
@@ -86,6 +94,21 @@ impl ReplayBuffer {
             self.rewards[i],
             &self.next_obs[i * d..(i + 1) * d],
         )
+    }
+
+    /// Transitions `from..to` (indices among all ever pushed, all held) as runs of consecutive slots, in
+    /// order: one run, or two where the ring wraps. What a checkpoint writes column by column, in bulk.
+    pub(crate) fn runs(&self, from: u64, to: u64) -> impl Iterator<Item = Run<'_>> {
+        assert!(from >= self.first_held() && from <= to && to <= self.pushed, "transitions {from}..{to} are not held");
+        let (d, a, cap) = (self.obs_dim, self.act_dim, self.capacity as u64);
+        let start = (from % cap) as usize;
+        let first = ((to - from) as usize).min(self.capacity - start);
+        let rest = (to - from) as usize - first;
+        [(start, first), (0, rest)].into_iter().filter(|&(_, n)| n > 0).map(move |(i, n)| Run {
+            obs: &self.obs[i * d..(i + n) * d],
+            actions: &self.actions[i * a..(i + n) * a],
+            rewards: &self.rewards[i..i + n],
+        })
     }
 
     /// An empty frame of the buffer as it stood after `pushed` transitions: [`ReplayBuffer::put`] each
@@ -176,6 +199,34 @@ mod tests {
         for i in 0..batch.n {
             assert_eq!(batch.obs[i], batch.rewards[i]);
             assert_eq!(batch.next_obs[i], batch.rewards[i] + 1.0);
+        }
+    }
+
+    #[test]
+    fn runs_lay_out_the_transitions_in_order_also_across_the_wrap() {
+        let mut buf = ReplayBuffer::new(5, 2, 1);
+        for i in 0..13 {
+            let x = i as f32;
+            buf.push(&[x, -x], &[x / 2.0], x * 10.0, &[x + 1.0, -x - 1.0]);
+        }
+        // Held: transitions 8..13 in slots 3, 4, 0, 1, 2.
+        for (from, to, pieces) in [(8, 13, 2), (8, 10, 1), (10, 13, 1), (9, 12, 2), (11, 11, 0)] {
+            let runs: Vec<Run> = buf.runs(from, to).collect();
+            assert_eq!(runs.len(), pieces, "{from}..{to}");
+            let (mut obs, mut actions, mut rewards) = (vec![], vec![], vec![]);
+            for r in &runs {
+                obs.extend_from_slice(r.obs);
+                actions.extend_from_slice(r.actions);
+                rewards.extend_from_slice(r.rewards);
+            }
+            let (mut o, mut a, mut w) = (vec![], vec![], vec![]);
+            for k in from..to {
+                let t = buf.transition(k);
+                o.extend_from_slice(t.0);
+                a.extend_from_slice(t.1);
+                w.push(t.2);
+            }
+            assert_eq!((obs, actions, rewards), (o, a, w), "{from}..{to}");
         }
     }
 
