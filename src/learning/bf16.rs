@@ -377,7 +377,14 @@ pub(crate) unsafe fn product_with(
                 row_words: n.div_ceil(2),
                 pairs_out,
             };
+            let lanes_for_rows = n <= NARROW && !matches!(epilogue, Epilogue::ReluMask { .. }) && rows_out.is_null();
             match nv {
+                1 if lanes_for_rows && (pcs == 1 || prs == 1) => match n {
+                    1 => narrow::<1, 8>(m, &op),
+                    2 => narrow::<2, 4>(m, &op),
+                    3 => narrow::<3, 2>(m, &op),
+                    _ => narrow::<4, 2>(m, &op),
+                },
                 1 => rows::<1, 24>(m, &op),
                 2 => rows::<2, 12>(m, &op),
                 3 => rows::<3, 8>(m, &op),
@@ -510,6 +517,110 @@ struct Packed<'a> {
     rows_out: *mut u32,
     row_words: usize,
     pairs_out: *mut u32,
+}
+
+/// The widest product [`narrow`] takes: the output layers' one or two columns (and a little room).
+const NARROW: usize = 4;
+
+/// A product of at most [`NARROW`] columns with the output rows in the registers' lanes, 16 rows a
+/// register, where [`rows`] would put the columns there and leave 14 or 15 of every 16 lanes idle: `G`
+/// registers of rows at a time (G × N sums going at once, to hide each one's latency), then one. For
+/// each pair q, the 16 rows' words of A (read down a column of the packed A, or transposed 16 × 16 in
+/// registers from its rows) meet B's word (q, j) broadcast. Each lane sums its row's pairs in order from
+/// zero, with the same instruction on the same two words as [`block`] (the two products of a pair do not
+/// depend on which operand is which), so every output has the same bits; the epilogue is [`finish`]'s.
+/// Neither a mask epilogue nor [`Forms`] (only hidden layers keep them).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx512bw,avx512bf16")]
+unsafe fn narrow<const N: usize, const G: usize>(m: usize, op: &Packed) {
+    debug_assert!(N <= NARROW && op.rows_out.is_null() && (op.pcs == 1 || op.prs == 1));
+    let mut i0 = 0;
+    while i0 + 16 * G <= m {
+        narrow_block::<N, G>(i0, m, op);
+        i0 += 16 * G;
+    }
+    while i0 < m {
+        narrow_block::<N, 1>(i0, m, op);
+        i0 += 16;
+    }
+}
+
+/// Lanes `0 .. left` of a register (all 16 from 16 on).
+#[cfg(target_arch = "x86_64")]
+fn lanes(left: usize) -> u16 {
+    match left {
+        l if l >= 16 => u16::MAX,
+        l => (1u16 << l) - 1,
+    }
+}
+
+/// Rows `i0 .. i0 + 16·G` of a [`narrow`] product (rows past m are zeros, and never stored).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx512bw,avx512bf16")]
+#[inline]
+unsafe fn narrow_block<const N: usize, const G: usize>(i0: usize, m: usize, op: &Packed) {
+    let (zero, zero_ps) = (_mm512_setzero_si512(), _mm512_setzero_ps());
+    let mut acc = [[zero_ps; N]; G];
+    // x[g][c]: pair q0 + c of the rows of register g.
+    let mut x = [[zero; 16]; G];
+    for q0 in (0..op.pairs).step_by(16) {
+        let chunk = (op.pairs - q0).min(16);
+        for (g, x) in x.iter_mut().enumerate() {
+            let (first, live) = (i0 + 16 * g, m.saturating_sub(i0 + 16 * g).min(16));
+            if op.pcs == 1 {
+                let mut rows = [zero; 16];
+                for (r, row) in rows.iter_mut().enumerate().take(live) {
+                    *row = _mm512_maskz_loadu_epi32(lanes(chunk), op.a.add((first + r) * op.prs + q0).cast());
+                }
+                *x = transpose16(&rows);
+            } else {
+                for (c, column) in x.iter_mut().enumerate().take(chunk) {
+                    *column = _mm512_maskz_loadu_epi32(lanes(live), op.a.add((q0 + c) * op.pcs + first).cast());
+                }
+            }
+        }
+        for c in 0..chunk {
+            let w: [__m512bh; N] = std::array::from_fn(|j| {
+                std::mem::transmute::<__m512i, __m512bh>(_mm512_set1_epi32(*op.b.add((q0 + c) * op.bs + j) as i32))
+            });
+            for (acc, x) in acc.iter_mut().zip(&x) {
+                let x = std::mem::transmute::<__m512i, __m512bh>(x[c]);
+                for (acc, w) in acc.iter_mut().zip(&w) {
+                    *acc = _mm512_dpbf16_ps(*acc, x, *w);
+                }
+            }
+        }
+    }
+    for (g, acc) in acc.iter().enumerate() {
+        let (first, live) = (i0 + 16 * g, m.saturating_sub(i0 + 16 * g).min(16));
+        if live == 0 {
+            continue;
+        }
+        for (j, acc) in acc.iter().enumerate() {
+            let s = match op.epilogue {
+                Epilogue::None => *acc,
+                Epilogue::Bias { bias, relu } => {
+                    let s = _mm512_add_ps(*acc, _mm512_set1_ps(bias[j]));
+                    // As finish: MAXPS gives 0 for a NaN.
+                    if relu {
+                        _mm512_max_ps(s, zero_ps)
+                    } else {
+                        s
+                    }
+                }
+                Epilogue::ReluMask { .. } => unreachable!("a narrow product takes no mask"),
+            };
+            if op.dst_rs == 1 {
+                _mm512_mask_storeu_ps(op.dst.add(first), lanes(live), s);
+            } else {
+                let mut row = [0.0f32; 16];
+                _mm512_storeu_ps(row.as_mut_ptr(), s);
+                for (r, v) in row.iter().enumerate().take(live) {
+                    *op.dst.add((first + r) * op.dst_rs + j) = *v;
+                }
+            }
+        }
+    }
 }
 
 /// Every output row: `WIDE` at a time (WIDE × NV = 24 accumulators), then [`ROWS`] at a time, then the

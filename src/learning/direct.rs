@@ -218,6 +218,9 @@ pub(crate) fn cases() -> Vec<Case> {
         (7, 17, 3),
         (11, 33, 5),
         (40, 16, 33),
+        (37, 1, 64),
+        (300, 1, 37),
+        (19, 3, 40),
     ];
     let mut out = vec![];
     for (m, n, k) in shapes {
