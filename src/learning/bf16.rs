@@ -610,7 +610,7 @@ unsafe fn narrow_block<const N: usize, const G: usize>(i0: usize, m: usize, op: 
                 }
                 Epilogue::ReluMask { .. } => unreachable!("a narrow product takes no mask"),
             };
-            if op.dst_rs == 1 {
+            if N == 1 && op.dst_rs == 1 {
                 _mm512_mask_storeu_ps(op.dst.add(first), lanes(live), s);
             } else {
                 let mut row = [0.0f32; 16];
@@ -863,6 +863,27 @@ mod tests {
     }
 
     #[test]
+    fn a_single_row_is_the_same_at_any_row_stride() {
+        if !available() {
+            eprintln!("skipped: no AVX512-BF16 here");
+            return;
+        }
+        // One output row may be stored at any row stride: also 1, where a narrow product (rows in the
+        // lanes) must still put column j at j.
+        for c in cases().into_iter().filter(|c| c.m == 1 || c.n <= 4) {
+            let Case { n, k, ref a, strides, ref b, b_rs, .. } = c;
+            let (mut packed, mut strided) = (vec![f32::NAN; n], vec![f32::NAN; n]);
+            // SAFETY: this CPU runs the family; A's first row is k long, B k rows of b_rs ≥ n, dst 1 × n.
+            unsafe {
+                product(1, n, k, packed.as_mut_ptr(), n, a.as_ptr(), strides, b.as_ptr(), b_rs);
+                product(1, n, k, strided.as_mut_ptr(), 1, a.as_ptr(), strides, b.as_ptr(), b_rs);
+            }
+            let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<u32>>();
+            assert_eq!(bits(&strided), bits(&packed), "1 × {n} × {k}");
+        }
+    }
+
+    #[test]
     fn weights_packed_from_w_are_the_words_of_its_transposed_copy_packed() {
         if !available() {
             eprintln!("skipped: no AVX512-BF16 here");
@@ -1041,12 +1062,25 @@ mod tests {
                 plain(m, 16, n, (d.as_ptr(), (n, 1)), (&w, 16)),
                 "{m} × {n}: rows"
             );
+            // And as a narrow product's A (the output layer's), whose rows go in the registers' lanes.
+            let w2 = draw(n * 2);
+            assert_eq!(
+                next(m, 2, as_rows, (&w2, 2), None),
+                plain(m, 2, n, (d.as_ptr(), (n, 1)), (&w2, 2)),
+                "{m} × {n}: rows, narrow"
+            );
             let y = draw(m * 5);
             let as_columns = forms.transposed_of(m, n).expect("pairs form");
             assert_eq!(
                 next(n, 5, as_columns, (&y, 5), None),
                 plain(n, 5, m, (d.as_ptr(), (1, n)), (&y, 5)),
                 "{m} × {n}: Dᵀ"
+            );
+            let y3 = draw(m * 3);
+            assert_eq!(
+                next(n, 3, as_columns, (&y3, 3), None),
+                plain(n, 3, m, (d.as_ptr(), (1, n)), (&y3, 3)),
+                "{m} × {n}: Dᵀ, narrow"
             );
             let z = draw(3 * m);
             let z_lhs = Lhs::F32 { a: z.as_ptr(), rs: m, cs: 1 };

@@ -221,6 +221,8 @@ pub(crate) fn cases() -> Vec<Case> {
         (37, 1, 64),
         (300, 1, 37),
         (19, 3, 40),
+        (70, 3, 40),
+        (40, 4, 21),
     ];
     let mut out = vec![];
     for (m, n, k) in shapes {

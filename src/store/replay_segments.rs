@@ -350,11 +350,16 @@ mod tests {
     /// A buffer as a species of 3 agents fills it over two episodes of 4 steps: each agent's next
     /// observation is its observation of the next step, but at an episode's end (a new population).
     fn filled() -> ReplayBuffer {
+        filled_into(100)
+    }
+
+    /// [`filled`] into a buffer of `capacity` transitions (24 are pushed).
+    fn filled_into(capacity: usize) -> ReplayBuffer {
         let (agents, d) = (3, 5);
         let obs = |episode: usize, step: usize, agent: usize| -> Vec<f32> {
             (0..d).map(|j| (episode * 1000 + step * 10 + agent) as f32 + j as f32 / 8.0).collect()
         };
-        let mut buf = ReplayBuffer::new(100, d, 2);
+        let mut buf = ReplayBuffer::new(capacity, d, 2);
         for episode in 0..2 {
             for step in 0..4 {
                 for agent in 0..agents {
@@ -384,6 +389,17 @@ mod tests {
         // Kept: the last step of each episode (3 agents × 2), which is also the segment's last step.
         assert_eq!(st.tensor("next_obs").unwrap().shape(), [6, 5]);
         let back = load_replay(dir.path(), "prey", &ReplayBuffer::new(100, 5, 2), 24, None).unwrap();
+        assert!(same(&buf, &back));
+    }
+
+    #[test]
+    fn a_segment_across_the_ring_s_wrap_reads_back_to_the_bit() {
+        // 24 pushed into 20 slots: transitions 4..24 held, 4..20 in slots 4..20 and 20..24 in slots 0..4.
+        let dir = tempfile::tempdir().unwrap();
+        let buf = filled_into(20);
+        assert_eq!(buf.runs(4, 24).count(), 2);
+        write_segment(&dir.path().join(segment_name("prey", 4, 24)), "prey", &buf, 4, 24).unwrap();
+        let back = load_replay(dir.path(), "prey", &ReplayBuffer::new(20, 5, 2), 24, None).unwrap();
         assert!(same(&buf, &back));
     }
 
