@@ -25,6 +25,8 @@
 #[cfg(target_arch = "x86_64")]
 use std::arch::x86_64::*;
 
+#[cfg(target_arch = "x86_64")]
+use super::direct::lanes;
 /// The widest narrow operand, as [`super::direct::MAX_WIDTH`].
 pub(crate) use super::direct::MAX_WIDTH;
 
@@ -360,8 +362,7 @@ pub(crate) unsafe fn product_with(
                 }
                 Lhs::F32 { a, rs, cs } => pack_a(m, k, a, (rs, cs), pa),
             };
-            let tail = n - (nv - 1) * 16;
-            let mask = if tail == 16 { u16::MAX } else { (1u16 << tail) - 1 };
+            let mask = lanes(n - (nv - 1) * 16);
             let op = Packed {
                 pairs,
                 dst,
@@ -453,12 +454,12 @@ unsafe fn interleave(len: usize, x0: *const f32, x1: Option<*const f32>, out: *m
     let order = pair_order();
     let mut j = 0;
     while j < out_len {
-        let mask: u16 = if len.saturating_sub(j) >= 16 { u16::MAX } else { (1u16 << len.saturating_sub(j)) - 1 };
+        let mask = lanes(len.saturating_sub(j));
         let lo = _mm512_maskz_loadu_ps(mask, x0.wrapping_add(j));
         let hi = x1.map_or(_mm512_setzero_ps(), |x1| _mm512_maskz_loadu_ps(mask, x1.wrapping_add(j)));
         let both = std::mem::transmute::<__m512bh, __m512i>(_mm512_cvtne2ps_pbh(hi, lo));
         // Lanes past len are zeros (masked loads): stored up to out_len.
-        let store: u16 = if out_len - j >= 16 { u16::MAX } else { (1u16 << (out_len - j)) - 1 };
+        let store = lanes(out_len - j);
         _mm512_mask_storeu_epi32(out.add(j).cast(), store, _mm512_permutexvar_epi16(order, both));
         j += 16;
     }
@@ -483,12 +484,7 @@ unsafe fn convert(len: usize, x: *const f32, out: *mut u16) {
     let mut j = 0;
     while j < len {
         let left = len - j;
-        let mask = |from: usize| -> u16 {
-            match left.saturating_sub(from) {
-                n if n >= 16 => u16::MAX,
-                n => (1u16 << n) - 1,
-            }
-        };
+        let mask = |from: usize| lanes(left.saturating_sub(from));
         let (lo, hi) =
             (_mm512_maskz_loadu_ps(mask(0), x.add(j)), _mm512_maskz_loadu_ps(mask(16), x.wrapping_add(j + 16)));
         let words = std::mem::transmute::<__m512bh, __m512i>(_mm512_cvtne2ps_pbh(hi, lo));
@@ -542,15 +538,6 @@ unsafe fn narrow<const N: usize, const G: usize>(m: usize, op: &Packed) {
     while i0 < m {
         narrow_block::<N, 1>(i0, m, op);
         i0 += 16;
-    }
-}
-
-/// Lanes `0 .. left` of a register (all 16 from 16 on).
-#[cfg(target_arch = "x86_64")]
-fn lanes(left: usize) -> u16 {
-    match left {
-        l if l >= 16 => u16::MAX,
-        l => (1u16 << l) - 1,
     }
 }
 
@@ -754,9 +741,7 @@ unsafe fn rows_form<const NV: usize>(op: &Packed, i: usize, row: &[__m512; NV]) 
     for v in 0..NV.div_ceil(2) {
         let high = if 2 * v + 1 < NV { row[2 * v + 1] } else { _mm512_setzero_ps() };
         let both = std::mem::transmute::<__m512bh, __m512i>(_mm512_cvtne2ps_pbh(high, row[2 * v]));
-        let left = op.row_words - 16 * v;
-        let keep: u16 = if left >= 16 { u16::MAX } else { (1u16 << left) - 1 };
-        _mm512_mask_storeu_epi32(words.add(16 * v).cast(), keep, both);
+        _mm512_mask_storeu_epi32(words.add(16 * v).cast(), lanes(op.row_words - 16 * v), both);
     }
 }
 
@@ -798,6 +783,11 @@ pub(crate) fn dot_peak(budget: std::time::Duration) -> Option<f64> {
 mod tests {
     use super::super::direct::{cases, Case};
     use super::*;
+
+    /// The values' bits, for comparing results exactly (NaN included).
+    fn bits(v: &[f32]) -> Vec<u32> {
+        v.iter().map(|x| x.to_bits()).collect()
+    }
 
     /// The same product summed by a scalar loop in the family's order: pairs in order, the odd term
     /// before the even one, each exact product added to an f32 sum with one rounding.
@@ -878,7 +868,6 @@ mod tests {
                 product(1, n, k, packed.as_mut_ptr(), n, a.as_ptr(), strides, b.as_ptr(), b_rs);
                 product(1, n, k, strided.as_mut_ptr(), 1, a.as_ptr(), strides, b.as_ptr(), b_rs);
             }
-            let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<u32>>();
             assert_eq!(bits(&strided), bits(&packed), "1 × {n} × {k}");
         }
     }
@@ -934,7 +923,7 @@ mod tests {
                     let a = Lhs::F32 { a: a.as_ptr(), rs: strides.0, cs: strides.1 };
                     product_with(m, n, k, dst.as_mut_ptr(), n, a, Rhs::Packed(&pb), epilogue, None, false)
                 };
-                dst.iter().map(|v| v.to_bits()).collect::<Vec<u32>>()
+                bits(&dst)
             };
             let passes = |f: &dyn Fn(usize, f32) -> f32| {
                 plain.iter().enumerate().map(|(i, &v)| f(i, v).to_bits()).collect::<Vec<u32>>()
@@ -959,7 +948,6 @@ mod tests {
             for row in masked.chunks_exact(n) {
                 want.iter_mut().zip(row).for_each(|(s, &d)| *s += f32::from_bits(d));
             }
-            let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<u32>>();
             assert_eq!(bits(&sums), bits(&want), "{m} × {n} × {k}");
         }
     }
@@ -1021,7 +1009,6 @@ mod tests {
                 })
                 .collect()
         };
-        let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<u32>>();
         for (m, n, k) in [(7, 17, 9), (13, 33, 5), (256, 64, 54), (5, 1, 3), (6, 54, 64), (11, 2, 64), (1, 49, 2)] {
             // D = a ReLU mask's output with its forms, as the backward pass makes δ.
             let (a, b, x) = (draw(m * k), draw(k * n), draw(m * n));

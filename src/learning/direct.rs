@@ -53,14 +53,24 @@ pub(crate) unsafe fn product(
 ) {
     assert!(n > 0 && n <= MAX_WIDTH, "a direct product is at most {MAX_WIDTH} columns wide");
     // The last register's columns: 1 to 16.
-    let tail = n - (n.div_ceil(16) - 1) * 16;
-    let mask = if tail == 16 { u16::MAX } else { (1u16 << tail) - 1 };
+    let mask = lanes(n - (n.div_ceil(16) - 1) * 16);
     let op = Operands { k, dst, dst_rs, a, a_rs, a_cs, b, b_rs, mask };
     match n.div_ceil(16) {
         1 => rows::<1>(m, &op),
         2 => rows::<2>(m, &op),
         3 => rows::<3>(m, &op),
         _ => rows::<4>(m, &op),
+    }
+}
+
+/// Lanes `0 .. left` of a 16-lane register (all 16 from 16 on): the mask of a register's columns or
+/// rows that lie inside an operand.
+#[cfg(target_arch = "x86_64")]
+#[inline]
+pub(super) fn lanes(left: usize) -> u16 {
+    match left {
+        l if l >= 16 => u16::MAX,
+        l => (1u16 << l) - 1,
     }
 }
 

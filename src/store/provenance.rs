@@ -44,9 +44,7 @@ pub fn binary() -> &'static str {
 /// The first 16 hexadecimal digits of a file's BLAKE3 hash: how provenance names an executable (and a
 /// pinned experiment its binaries and `Cargo.lock`).
 pub(crate) fn file_hash(path: &std::path::Path) -> std::io::Result<String> {
-    // Streamed through BLAKE3's own buffer: an executable with its line tables is ~75 MB, which every run
-    // used to read whole into memory first.
-    Ok(blake3::Hasher::new().update_reader(std::fs::File::open(path)?)?.finalize().to_hex()[..16].to_string())
+    Ok(super::manifest::Digest::of_file(path)?.blake3[..16].to_string())
 }
 
 impl Provenance {
